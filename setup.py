@@ -1,0 +1,20 @@
+"""Builds lagrgen's runtime extension (Cython, compiled once at install) and ships the C templates."""
+import numpy
+from Cython.Build import cythonize
+from setuptools import Extension, setup
+
+runtime = Extension(
+    "lagrgen._runtime",
+    ["src/lagrgen/_runtime.pyx"],
+    include_dirs=[numpy.get_include(), "templates"],
+    define_macros=[("NPY_NO_DEPRECATED_API", "NPY_1_7_API_VERSION")],
+    extra_compile_args=["-O2"],
+)
+
+setup(
+    packages=["lagrgen", "lagrgen.templates"],
+    package_dir={"": "src", "lagrgen.templates": "templates"},
+    package_data={"lagrgen.templates": ["*.in", "*.h"]},
+    ext_modules=cythonize([runtime], compiler_directives={"language_level": "3"}, quiet=True),
+    zip_safe=False,
+)

@@ -1,0 +1,274 @@
+"""The compiler driver: C source from templates, compilation, the content-hash cache, loading.
+
+Layout of an output directory:
+    <name>.c, <name><EXT_SUFFIX>   the model's C and its module, importable with the directory on sys.path
+    __lagrgen__/<name>-<key><EXT>  the cache: one immutable module file per content key
+    __lagrgen__/<name>.current     the key of the module last published as <name><EXT>
+Everything is written to a temporary file first and renamed into place, so a build that dies halfway
+leaves nothing a later load would pick up, and concurrent builds of one model both succeed.
+"""
+import fcntl
+import hashlib
+import importlib.machinery
+import importlib.util
+import json
+import os
+import shlex
+import shutil
+import subprocess
+import sys
+import sysconfig
+import tempfile
+import time
+from contextlib import contextmanager
+from pathlib import Path
+from string import Template
+
+from . import __version__
+from .errors import BuildError, CompileError
+from .kernels import (forcing_kernel, jacobian_kernel, linear_terms_kernel, mass_matrix_kernel,
+                      rhs_kernel)
+from .printer import CPrinter, print_statements, stage_statements
+
+EXT_SUFFIX = sysconfig.get_config_var("EXT_SUFFIX") or ".so"
+CACHE_DIR = "__lagrgen__"
+DEFAULT_CFLAGS = ("-fPIC", "-fno-math-errno", "-std=gnu11")
+_loaded = {}
+
+
+def templates_dir():
+    """The directory of the C templates (installed as the package lagrgen.templates)."""
+    try:
+        import lagrgen.templates as templates
+        return Path(templates.__file__).parent
+    except ImportError:
+        return Path(__file__).resolve().parents[2] / "templates"
+
+
+def read_template(name):
+    return (templates_dir() / name).read_text()
+
+
+# -- C source --------------------------------------------------------------------------------
+def c_string(text):
+    """`text` as a C string literal."""
+    return '"' + text.replace("\\", "\\\\").replace('"', '\\"') + '"'
+
+
+def legend(metadata):
+    """Comment lines saying which array entry holds which of the user's names."""
+    lines = [f" *   q[{i}] = {c} (qd[{i}] its rate, a[{i}] its acceleration)"
+             for i, c in enumerate(metadata["coordinates"])]
+    lines += [f" *   p[{i}] = {name}" for i, name in enumerate(metadata["parameters"])]
+    lines += [f" *   u[{i}] = {name}" for i, name in enumerate(metadata["inputs"])]
+    return "\n".join(lines)
+
+
+def function_bodies(equations):
+    """The statements of every generated C function, keyed by template placeholder."""
+    printer = CPrinter()
+
+    def body(kernel, stage=0):
+        return print_statements(printer, stage_statements(kernel.stages[stage]))
+    jac = jacobian_kernel(equations)
+    return {
+        "mass_matrix": body(mass_matrix_kernel(equations)),
+        "forcing": body(forcing_kernel(equations)),
+        "rhs": body(rhs_kernel(equations)),
+        "jacobian_before_solve": body(jac, 0),
+        "jacobian_after_solve": body(jac, 1),
+        "linear_terms": body(linear_terms_kernel(equations)),
+    }
+
+
+def c_source(metadata, equations, bodies=None):
+    """The complete C source of the model module (equations, linear algebra, module glue)."""
+    n = equations.n
+    linalg = Template(read_template("linalg.c.in")).substitute()
+    return Template(read_template("model.c.in")).substitute(
+        name=metadata["name"], version=__version__, content_hash=metadata["content_hash"],
+        legend=legend(metadata), n=n, n_params=len(metadata["parameters"]),
+        n_inputs=len(metadata["inputs"]), linalg=linalg,
+        metadata=c_string(json.dumps(metadata, sort_keys=True)),
+        **(bodies or function_bodies(equations)))
+
+
+# -- compiling -------------------------------------------------------------------------------
+def compiler_command():
+    """The C compiler as an argument list (from Python's build configuration, or $CC)."""
+    cc = os.environ.get("CC") or sysconfig.get_config_var("CC") or "cc"
+    return shlex.split(cc)
+
+
+def compile_flags(opt_level="-O2", cflags=()):
+    return [*DEFAULT_CFLAGS, opt_level, *cflags]
+
+
+def compile_module(source_path, output_path, flags):
+    """Compile `source_path` into the extension module `output_path`; CompileError on failure."""
+    include = sysconfig.get_paths()["include"]
+    cmd = [*compiler_command(), "-shared", *flags, "-I", include, "-I", str(templates_dir()),
+           str(source_path), "-o", str(output_path)]
+    try:
+        result = subprocess.run(cmd, capture_output=True, text=True)
+    except FileNotFoundError:
+        raise BuildError(
+            f"no C compiler found (tried {cmd[0]!r}): install one (e.g. `apt-get install gcc`), "
+            "set $CC, or use lagrgen.build(model, backend='python')") from None
+    if result.returncode != 0:
+        message = "\n".join((result.stderr or result.stdout).strip().splitlines()[:60])
+        raise CompileError(
+            f"the C compiler failed on {source_path.name} (exit {result.returncode}):\n{message}\n"
+            f"command: {' '.join(shlex.quote(c) for c in cmd)}")
+
+
+# -- cache -----------------------------------------------------------------------------------
+def build_key(model, flags):
+    """The cache key: the model's content hash, the compiler flags and the templates."""
+    h = hashlib.sha256(model.content_hash().encode())
+    h.update(repr((flags, compiler_command(), EXT_SUFFIX)).encode())
+    for name in ("model.c.in", "linalg.c.in", "lagrgen_model.h"):
+        h.update(read_template(name).encode())
+    return h.hexdigest()[:20]
+
+
+@contextmanager
+def locked(path):
+    """Hold an exclusive lock on the file `path` (created if missing)."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with open(path, "a") as fh:
+        fcntl.flock(fh, fcntl.LOCK_EX)
+        try:
+            yield
+        finally:
+            fcntl.flock(fh, fcntl.LOCK_UN)
+
+
+def publish(src, dest):
+    """Copy `src` to `dest` atomically (a reader sees the old or the new file, never a part)."""
+    fd, tmp = tempfile.mkstemp(dir=dest.parent, prefix=f".{dest.name}.", suffix=".tmp")
+    os.close(fd)
+    try:
+        shutil.copyfile(src, tmp)
+        os.chmod(tmp, os.stat(src).st_mode & 0o777)
+        os.replace(tmp, dest)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+
+
+def write_text_atomic(path, text):
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    with os.fdopen(fd, "w") as fh:
+        fh.write(text)
+    os.chmod(tmp, 0o644)
+    os.replace(tmp, path)
+
+
+def source_of(module_path):
+    """The C source kept beside a cached module file."""
+    return module_path.parent / f"{module_path.name[:-len(EXT_SUFFIX)]}.c"
+
+
+def import_extension(name, path):
+    """Import the extension module `name` from the file `path` (once per path and process)."""
+    path = Path(path).resolve()
+    if path in _loaded:
+        return _loaded[path]
+    loader = importlib.machinery.ExtensionFileLoader(name, str(path))
+    spec = importlib.util.spec_from_file_location(name, str(path), loader=loader)
+    try:
+        module = importlib.util.module_from_spec(spec)
+        loader.exec_module(module)
+    except ImportError as exc:
+        raise BuildError(f"cannot import compiled model {name!r} from {path}: {exc}") from None
+    _loaded[path] = module
+    return module
+
+
+# -- build and load --------------------------------------------------------------------------
+class _Progress:
+    def __init__(self, name, verbose):
+        self.name, self.verbose, self.times = name, verbose, {}
+        self._t = time.perf_counter()
+
+    def step(self, what, detail=""):
+        now = time.perf_counter()
+        self.times[what] = now - self._t
+        self._t = now
+        if self.verbose:
+            extra = f" ({detail})" if detail else ""
+            print(f"[lagrgen] {self.name}: {what} {self.times[what]:.2f} s{extra}",
+                  file=sys.stderr, flush=True)
+
+
+def build_c(model, out_dir, verbose=False, quiet=True, force=False, opt_level="-O2", cflags=()):
+    """Derive, generate, compile, cache and import `model`; return the module (the built model)."""
+    start = time.perf_counter()
+    out_dir = Path(out_dir)
+    cache = out_dir / CACHE_DIR
+    cache.mkdir(parents=True, exist_ok=True)
+    flags = compile_flags(opt_level, tuple(cflags))
+    key = build_key(model, flags)
+    cached = cache / f"{model.name}-{key}{EXT_SUFFIX}"
+    progress = _Progress(model.name, verbose)
+    with locked(cache / f"{model.name}.lock"):
+        hit = cached.exists() and not force
+        if not hit:
+            _compile_into(model, cached, flags, progress)
+        _publish_current(model.name, out_dir, cached, key)
+    module = import_extension(model.name, cached)
+    module.build_info = {"cache_hit": hit, "seconds": time.perf_counter() - start,
+                         **progress.times}
+    if verbose and hit:
+        print(f"[lagrgen] {model.name}: cached build {cached.name}", file=sys.stderr)
+    return module
+
+
+def _compile_into(model, cached, flags, progress):
+    """Generate the model's C in a private temporary directory and compile it to `cached`."""
+    metadata = model.metadata()
+    equations = model.equations()
+    _ = equations.dF_dq, equations.dF_dqd, equations.dMa_dq, equations.dF_du
+    progress.step("derive", f"{equations.n} coordinates")
+    source = c_source(metadata, equations)
+    progress.step("cse+emit", f"{len(source) / 1024:.0f} KiB of C")
+    work = Path(tempfile.mkdtemp(dir=cached.parent, prefix=f".build-{model.name}-"))
+    try:
+        src = work / f"{model.name}.c"
+        src.write_text(source)
+        os.chmod(src, 0o644)
+        lib = work / cached.name
+        compile_module(src, lib, flags)
+        progress.step("compile", f"{' '.join(flags)}, {lib.stat().st_size / 1024:.0f} KiB module")
+        os.replace(src, source_of(cached))
+        os.replace(lib, cached)
+    finally:
+        shutil.rmtree(work, ignore_errors=True)
+
+
+def _publish_current(name, out_dir, cached, key):
+    """Make <name><EXT> and <name>.c in out_dir the module of `key` (if they are not already)."""
+    marker = cached.parent / f"{name}.current"
+    module_file = out_dir / f"{name}{EXT_SUFFIX}"
+    if module_file.exists() and marker.exists() and marker.read_text().strip() == key:
+        return
+    publish(cached, module_file)
+    publish(source_of(cached), out_dir / f"{name}.c")
+    write_text_atomic(marker, key + "\n")
+
+
+def load_c(name, out_dir):
+    """Import the compiled model `name` last built into `out_dir`."""
+    out_dir = Path(out_dir)
+    marker = out_dir / CACHE_DIR / f"{name}.current"
+    if marker.exists():
+        cached = out_dir / CACHE_DIR / f"{name}-{marker.read_text().strip()}{EXT_SUFFIX}"
+        if cached.exists():
+            return import_extension(name, cached)
+    module_file = out_dir / f"{name}{EXT_SUFFIX}"
+    if not module_file.exists():
+        raise BuildError(
+            f"no compiled model {name!r} in {out_dir}: build it first with lagrgen.build(model, "
+            f"out_dir={str(out_dir)!r}) or `python -m lagrgen build MODEL.py --out {out_dir}`")
+    return import_extension(name, module_file)

@@ -1,0 +1,208 @@
+"""Lagrange's equations, arranged as M(q, t)·q̈ = F(q, q̇, t, u), and the pieces of their Jacobian.
+
+The derivation runs in SymEngine on internal symbols `q[i]`, `qd[i]`, `a[i]` (= q̈_i), `p[j]`, `u[k]`
+and `t`; SymPy stays the language of model files and of what `Model.mass_matrix()` returns.
+"""
+from functools import cached_property
+
+import symengine as se
+import sympy as sp
+
+from .errors import ModelError
+
+
+def internal_symbols(prefix, count):
+    """Return the SymEngine symbols prefix[0] .. prefix[count-1]."""
+    return tuple(se.Symbol(f"{prefix}[{i}]") for i in range(count))
+
+
+def diff(expr, var):
+    """Return ∂expr/∂var, with |g|' = sign(g)·g' and sign' = 0 (SymEngine leaves both unevaluated)."""
+    d = se.diff(expr, var)
+    pending = d.atoms(se.Derivative, se.Subs)
+    if not pending:
+        return d
+    fixes = {}
+    for node in pending:
+        inner = node.args[0]
+        if isinstance(node, se.Subs):
+            inner = inner.args[0]
+            if isinstance(inner, se.sign):
+                fixes[node] = se.Integer(0)
+            elif isinstance(inner, se.Abs):
+                fixes[node] = se.sign(node.args[2])
+            else:
+                raise ModelError(f"cannot differentiate {expr} with respect to {var}")
+        elif isinstance(inner, se.Abs):
+            fixes[node] = se.sign(inner.args[0]) * diff(inner.args[0], node.args[1])
+        elif isinstance(inner, se.sign):
+            fixes[node] = se.Integer(0)
+        elif not any(isinstance(n, se.Subs) for n in pending):
+            raise ModelError(f"cannot differentiate {inner} with respect to {node.args[1]}")
+    return d.subs(fixes)
+
+
+class Equations:
+    """M(q,t)·q̈ = F(q,q̇,t,u) for one model, with the Jacobian pieces ∂F/∂q, ∂F/∂q̇, ∂(M·a)/∂q.
+
+    Matrices are lists of lists of SymEngine expressions in the internal symbols.
+    """
+
+    def __init__(self, model, M, F, symbols):
+        self.model = model
+        self.n = len(F)
+        self.M = M
+        self.F = F
+        self.q, self.qd, self.a, self.p, self.u, self.t = symbols
+
+    @cached_property
+    def dF_dq(self):
+        """∂F_i/∂q_j."""
+        return [[diff(f, qj) for qj in self.q] for f in self.F]
+
+    @cached_property
+    def dF_dqd(self):
+        """∂F_i/∂q̇_j."""
+        return [[diff(f, qdj) for qdj in self.qd] for f in self.F]
+
+    @cached_property
+    def dF_du(self):
+        """∂F_i/∂u_k."""
+        return [[diff(f, uk) for uk in self.u] for f in self.F]
+
+    @cached_property
+    def dMa_dq(self):
+        """∂(M·a)_i/∂q_j = Σ_k ∂M_ik/∂q_j · a_k, with a = q̈ held fixed."""
+        n = self.n
+        out = [[se.Integer(0)] * n for _ in range(n)]
+        for i in range(n):
+            for k in range(n):
+                if self.M[i][k] == 0:
+                    continue
+                for j in range(n):
+                    d = diff(self.M[i][k], self.q[j])
+                    if d != 0:
+                        out[i][j] += d * self.a[k]
+        return out
+
+    def to_user(self, expr):
+        """Return a SymPy expression in the model's own symbols (q(t), q'(t), parameters, u(t))."""
+        m = self.model
+        back = {sp.Symbol(str(s)): v for s, v in zip(self.q, m.q)}
+        back.update({sp.Symbol(str(s)): v for s, v in zip(self.qd, m.qd)})
+        back.update({sp.Symbol(str(s)): v for s, v in zip(self.p, m.parameter_symbols)})
+        back.update({sp.Symbol(str(s)): v for s, v in zip(self.u, m.input_functions)})
+        return sp.sympify(expr).xreplace(back)
+
+    def user_matrix(self, which):
+        """Return M or F (`which`) as a SymPy Matrix in the model's own symbols."""
+        rows = self.M if which == "M" else [[f] for f in self.F]
+        return sp.Matrix([[self.to_user(e) for e in row] for row in rows])
+
+
+class _Converter:
+    """Turns a model's SymPy expressions into SymEngine ones in the internal symbols."""
+
+    def __init__(self, model, symbols):
+        q, qd, _, p, u, t = symbols
+        self.to_internal = {}
+        for fn, s in zip(model.qd, qd):
+            self.to_internal[fn] = sp.Symbol(str(s))
+        for fn, s in zip(model.q, q):
+            self.to_internal[fn] = sp.Symbol(str(s))
+        for sym, s in zip(model.parameter_symbols, p):
+            self.to_internal[sym] = sp.Symbol(str(s))
+        for fn, s in zip(model.input_functions, u):
+            self.to_internal[fn] = sp.Symbol(str(s))
+
+    def __call__(self, expr):
+        internal = sp.sympify(expr).xreplace(self.to_internal)
+        try:
+            return se.sympify(internal)
+        except Exception as exc:  # SymEngine raises several types for what it cannot read
+            raise ModelError(f"cannot convert {expr} for differentiation: {exc}") from None
+
+
+def _add_particle(M, F, mass, position, q, qd, t):
+    """Add a point mass: M += m·JᵀJ, F −= m·Jᵀ·b, with J = ∂r/∂q and b = r̈ at q̈ = 0."""
+    n = len(q)
+    J = [[diff(rc, qi) for qi in q] for rc in position]
+    v = [sum((Jc[i] * qd[i] for i in range(n) if Jc[i] != 0), diff(rc, t))
+         for Jc, rc in zip(J, position)]
+    b = [sum((diff(vc, q[i]) * qd[i] for i in range(n)), diff(vc, t)) for vc in v]
+    active = [i for i in range(n) if any(Jc[i] != 0 for Jc in J)]
+    for i in active:
+        for j in active:
+            if j <= i:
+                M[i][j] += mass * sum(Jc[i] * Jc[j] for Jc in J)
+        F[i] -= mass * sum(Jc[i] * bc for Jc, bc in zip(J, b))
+
+
+def _add_kinetic_energy(M, F, T, q, qd, t):
+    """Add a general T: M += ∂²T/∂q̇∂q̇ᵀ, F += ∂T/∂q − (∂²T/∂q̇∂qᵀ)·q̇ − ∂²T/∂q̇∂t."""
+    n = len(q)
+    dT_dqd = [diff(T, s) for s in qd]
+    for i in range(n):
+        for j in range(i + 1):
+            M[i][j] += diff(dT_dqd[i], qd[j])
+        F[i] += diff(T, q[i]) - sum(diff(dT_dqd[i], q[j]) * qd[j] for j in range(n)) \
+            - diff(dT_dqd[i], t)
+
+
+def derive(model):
+    """Return the `Equations` of `model`: Lagrange's equations as M(q,t)·q̈ = F(q,q̇,t,u)."""
+    n = len(model.q)
+    if n == 0:
+        raise ModelError(
+            f"model {model.name!r} has no generalized coordinates: declare them with "
+            "model.coordinates('q1 q2 ...')")
+    symbols = (internal_symbols("q", n), internal_symbols("qd", n), internal_symbols("a", n),
+               internal_symbols("p", len(model.parameter_symbols)),
+               internal_symbols("u", len(model.input_functions)), se.Symbol("t"))
+    q, qd, _, _, _, t = symbols
+    convert = _Converter(model, symbols)
+    M = [[se.Integer(0)] * n for _ in range(n)]
+    F = [se.Integer(0)] * n
+
+    general_T = [convert(e) for e in model.kinetic_terms]
+    for mass, position in model.particles:
+        m = convert(mass)
+        r = [convert(c) for c in position]
+        if m.free_symbols & (set(q) | {t}):
+            v = [sum((diff(rc, qi) * qdi for qi, qdi in zip(q, qd)), diff(rc, t)) for rc in r]
+            general_T.append(m * sum(vc * vc for vc in v) / 2)
+        else:
+            _add_particle(M, F, m, r, q, qd, t)
+    if general_T:
+        _add_kinetic_energy(M, F, sum(general_T), q, qd, t)
+    V = sum((convert(e) for e in model.potential_terms), se.Integer(0))
+    R = sum((convert(e) for e in model.dissipation_terms), se.Integer(0))
+    for i in range(n):
+        F[i] -= diff(V, q[i]) + diff(R, qd[i])
+    for vector, position in model.virtual_work:
+        f = [convert(c) for c in vector]
+        r = [convert(c) for c in position]
+        for i in range(n):
+            F[i] += sum(fc * diff(rc, q[i]) for fc, rc in zip(f, r))
+
+    for i in range(n):
+        for j in range(i + 1, n):
+            M[i][j] = M[j][i]
+    _check_mass_matrix(model, M, qd)
+    return Equations(model, M, F, symbols)
+
+
+def _check_mass_matrix(model, M, qd):
+    speeds = set(qd)
+    for i, row in enumerate(M):
+        if row[i] == 0:
+            raise ModelError(
+                f"coordinate {model.coordinate_names[i]!r} of model {model.name!r} has no inertia "
+                "(its diagonal entry of the mass matrix is zero): give it a mass, an inertia or a "
+                "kinetic energy term, or remove the coordinate")
+        for e in row:
+            if e.free_symbols & speeds:
+                raise ModelError(
+                    f"the kinetic energy of model {model.name!r} is not quadratic in the velocities "
+                    "(the mass matrix ∂²T/∂q̇∂q̇ᵀ depends on them); lagrgen needs T = ½·q̇ᵀM(q,t)q̇ "
+                    "+ linear + constant terms")

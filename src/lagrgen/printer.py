@@ -1,0 +1,201 @@
+"""Code printers: SymEngine expressions and kernel stages to C99 and to Python source.
+
+Printing goes through two small layers: an expression printer (precedence-aware, one method per node
+type) and statements (`Declare` a CSE temporary, `Store` an output entry) that each language prints.
+Symbols print by name: the internal names `q[i]`, `qd[i]`, `a[i]`, `p[j]`, `u[k]` and `t` are valid
+array accesses in both languages, and no user-chosen name ever reaches the generated code.
+"""
+from dataclasses import dataclass
+
+import symengine as se
+from symengine.lib.symengine_wrapper import Constant
+
+ADD, MUL, ATOM = 1, 2, 3
+
+
+@dataclass
+class Declare:
+    """A CSE temporary: `const double name = expr;`."""
+    name: str
+    expr: object
+
+
+@dataclass
+class Store:
+    """An output entry: `array[index] = expr;`."""
+    array: str
+    index: int
+    expr: object
+
+
+def stage_statements(stage, output_names=None):
+    """The statements of one kernel stage: its temporaries, then every output entry."""
+    stmts = [Declare(str(sym), expr) for sym, expr in stage.temporaries]
+    for name, exprs in stage.outputs.items():
+        target = (output_names or {}).get(name, name)
+        stmts.extend(Store(target, i, e) for i, e in enumerate(exprs))
+    return stmts
+
+
+def _is_negative(expr):
+    if isinstance(expr, se.Number):
+        return expr.is_negative
+    if isinstance(expr, se.Mul):
+        first = expr.args[0]
+        return isinstance(first, se.Number) and first.is_negative
+    return False
+
+
+class ExpressionPrinter:
+    """Shared precedence logic; subclasses name the functions and powers of their language."""
+
+    functions = {}
+    statement_end = ""
+
+    def doprint(self, expr):
+        return self._print(expr)[0]
+
+    def paren(self, expr, level):
+        text, prec = self._print(expr)
+        return f"({text})" if prec < level else text
+
+    def _print(self, e):
+        if isinstance(e, se.Symbol):
+            return e.name, ATOM
+        if isinstance(e, se.Integer):
+            v = int(e)
+            return self.integer(v), (ATOM if v >= 0 else MUL)
+        if isinstance(e, se.Rational):
+            num, den = (int(x) for x in e.get_num_den())
+            text = f"{self.real(abs(num))}/{self.real(den)}"
+            return (f"-{text}" if num < 0 else text), MUL
+        if isinstance(e, se.Float):
+            v = float(e)
+            return repr(v), (ATOM if v >= 0 else MUL)
+        if isinstance(e, Constant):
+            return repr(float(e)), ATOM
+        if isinstance(e, se.Add):
+            return self._print_add(e), ADD
+        if isinstance(e, se.Mul):
+            return self._print_mul(e), MUL
+        if isinstance(e, se.Pow):
+            return self._print_pow(e)
+        if isinstance(e, se.Function):
+            name = self.functions.get(type(e).__name__)
+            if name is None:
+                raise NotImplementedError(f"no {self.language} equivalent for {type(e).__name__}")
+            return f"{name}({', '.join(self.doprint(a) for a in e.args)})", ATOM
+        raise NotImplementedError(f"cannot print {e!r} ({type(e).__name__}) as {self.language}")
+
+    def _print_add(self, e):
+        terms = sorted(e.args, key=_is_negative)
+        parts = [self.paren(terms[0], ADD)]
+        for term in terms[1:]:
+            if _is_negative(term):
+                parts.append(f" - {self.paren(-term, MUL)}")
+            else:
+                parts.append(f" + {self.paren(term, ADD)}")
+        return "".join(parts)
+
+    def _print_mul(self, e):
+        args = list(e.args)
+        sign = ""
+        if isinstance(args[0], se.Number):
+            coeff = args.pop(0)
+            if coeff.is_negative:
+                sign, coeff = "-", -coeff
+            if coeff != 1:
+                args.insert(0, coeff)
+        num, den = [], []
+        for a in args:
+            if isinstance(a, se.Pow) and isinstance(a.args[1], se.Number) and a.args[1].is_negative \
+                    and not isinstance(a.args[0], Constant):
+                den.append(se.Pow(a.args[0], -a.args[1]))
+            else:
+                num.append(a)
+        text = "*".join(self.paren(a, MUL) for a in num) if num else self.real(1)
+        if den:
+            if len(den) == 1:
+                text += "/" + self.paren(den[0], ATOM)
+            else:
+                text += "/(" + "*".join(self.paren(a, MUL) for a in den) + ")"
+        return sign + text
+
+    def _print_pow(self, e):
+        base, exp = e.args
+        if isinstance(base, Constant) and type(base).__name__ == "Exp1":
+            return f"{self.functions['exp']}({self.doprint(exp)})", ATOM
+        if isinstance(exp, se.Integer):
+            k = int(exp)
+            if k < 0:
+                return f"{self.real(1)}/{self.paren(se.Pow(base, -exp), ATOM)}", MUL
+            return self.integer_power(base, k)
+        if exp == se.Rational(1, 2):
+            return f"{self.functions['sqrt']}({self.doprint(base)})", ATOM
+        if exp == se.Rational(-1, 2):
+            return f"{self.real(1)}/{self.functions['sqrt']}({self.doprint(base)})", MUL
+        return self.real_power(base, exp)
+
+
+class CPrinter(ExpressionPrinter):
+    """C99: libm functions, small integer powers as multiplications, doubles everywhere."""
+
+    language = "C"
+    functions = {
+        "sin": "sin", "cos": "cos", "tan": "tan", "asin": "asin", "acos": "acos", "atan": "atan",
+        "atan2": "atan2", "sinh": "sinh", "cosh": "cosh", "tanh": "tanh", "asinh": "asinh",
+        "acosh": "acosh", "atanh": "atanh", "exp": "exp", "log": "log", "sqrt": "sqrt",
+        "Abs": "fabs", "sign": "lg_sign",
+    }
+
+    def integer(self, v):
+        return str(v)
+
+    def real(self, v):
+        return f"{v}.0" if isinstance(v, int) else repr(float(v))
+
+    def integer_power(self, base, k):
+        b = self.paren(base, ATOM)
+        if k == 2:
+            return (f"{b}*{b}", MUL) if isinstance(base, se.Symbol) else (f"lg_sq({b})", ATOM)
+        if k == 3:
+            return f"lg_cube({self.doprint(base)})", ATOM
+        return f"pow({self.doprint(base)}, {k})", ATOM
+
+    def real_power(self, base, exp):
+        return f"pow({self.doprint(base)}, {self.doprint(exp)})", ATOM
+
+    def statement(self, stmt):
+        if isinstance(stmt, Declare):
+            return f"const double {stmt.name} = {self.doprint(stmt.expr)};"
+        return f"{stmt.array}[{stmt.index}] = {self.doprint(stmt.expr)};"
+
+
+class PythonPrinter(ExpressionPrinter):
+    """Python: `math` functions bound as globals of the generated module, floats everywhere."""
+
+    language = "Python"
+    functions = {k: k for k in CPrinter.functions}
+    functions.update({"Abs": "abs", "sign": "_sign"})
+
+    def integer(self, v):
+        return str(v)
+
+    def real(self, v):
+        return f"{v}.0" if isinstance(v, int) else repr(float(v))
+
+    def integer_power(self, base, k):
+        return f"{self.paren(base, ATOM)}**{k}", ATOM
+
+    def real_power(self, base, exp):
+        return f"{self.paren(base, ATOM)}**{self.paren(exp, ATOM)}", ATOM
+
+    def statement(self, stmt):
+        if isinstance(stmt, Declare):
+            return f"{stmt.name} = {self.doprint(stmt.expr)}"
+        return f"{stmt.array}[{stmt.index}] = {self.doprint(stmt.expr)}"
+
+
+def print_statements(printer, statements, indent="    "):
+    """The statements as source lines, one per statement, indented."""
+    return "\n".join(indent + printer.statement(s) for s in statements)

@@ -1,0 +1,145 @@
+"""The pure-Python backend: the same kernels as the C path, printed as Python and run with NumPy.
+
+Scalars go through `math` on Python floats (faster than NumPy for single values); q̈ comes from
+NumPy's solve. This is the honest baseline the compiled path is measured against.
+"""
+import math
+
+import numpy as np
+
+from .arguments import as_vector, input_vector, parameter_vector
+from .errors import MassMatrixError
+from .kernels import all_kernels
+from .printer import PythonPrinter, print_statements, stage_statements
+
+_NAMESPACE = {name: getattr(math, name) for name in (
+    "sin", "cos", "tan", "asin", "acos", "atan", "atan2", "sinh", "cosh", "tanh", "asinh",
+    "acosh", "atanh", "exp", "log", "sqrt")}
+_NAMESPACE["_sign"] = lambda x: (x > 0) - (x < 0)
+
+
+def python_source(kernels, sizes):
+    """Python source of one function per kernel, `name(t, q, qd, p, u[, accel])` -> outputs.
+
+    `sizes` maps each output name to its length; a kernel of two stages calls `accel(M, F)`
+    (which returns q̈) between them.
+    """
+    printer = PythonPrinter()
+    chunks = []
+    for kernel in kernels:
+        outputs = [name for stage in kernel.stages for name in stage.outputs]
+        lines = [f"def {kernel.name}(t, q, qd, p, u, accel=None):"]
+        lines += [f"    {name} = [0.0] * {sizes[name]}" for name in outputs]
+        for i, stage in enumerate(kernel.stages):
+            if i > 0 and (stage.temporaries or stage.outputs):
+                lines.append("    a = accel(M, F)")
+            body = print_statements(printer, stage_statements(stage))
+            if body:
+                lines.append(body)
+        lines.append(f"    return {', '.join(outputs) or 'None'}")
+        chunks.append("\n".join(lines))
+    return "\n\n\n".join(chunks) + "\n"
+
+
+def output_sizes(n, n_inputs):
+    return {"M": n * n, "F": n, "B": 2 * n * n, "dF_dq": n * n, "dF_dqd": n * n,
+            "dF_du": n * n_inputs}
+
+
+class PythonModel:
+    """A built model evaluated in Python (API.md §3); `lagrgen.build(model, backend="python")`."""
+
+    backend = "python"
+
+    def __init__(self, equations, metadata):
+        meta = metadata
+        self.name = meta["name"]
+        self.coordinates = tuple(meta["coordinates"])
+        self.parameters = tuple(meta["parameters"])
+        self.inputs = tuple(meta["inputs"])
+        self.defaults = np.array([np.nan if d is None else d for d in meta["defaults"]], dtype=float)
+        self.defaults.setflags(write=False)
+        self.content_hash = meta["content_hash"]
+        self.n_coordinates = n = equations.n
+        self.source = python_source(all_kernels(equations), output_sizes(n, len(self.inputs)))
+        namespace = dict(_NAMESPACE)
+        exec(compile(self.source, f"<lagrgen python backend: {self.name}>", "exec"), namespace)
+        self._kernels = namespace
+
+    def __repr__(self):
+        return f"<lagrgen model {self.name!r} (python backend), coordinates {self.coordinates}>"
+
+    def _args(self, p, u):
+        return (parameter_vector(p, self.parameters, self.defaults).tolist(),
+                input_vector(u, self.inputs).tolist())
+
+    def _factor(self, M, t, q):
+        """Cholesky factor of the n×n matrix M, or MassMatrixError naming the state."""
+        try:
+            return np.linalg.cholesky(M)
+        except np.linalg.LinAlgError:
+            raise MassMatrixError(mass_matrix_message(self.name, t, q)) from None
+
+    def _solve(self, M, F, t, q):
+        """q̈ = M⁻¹F from the flat lists M, F, after checking M is positive definite."""
+        M = np.array(M).reshape(self.n_coordinates, self.n_coordinates)
+        self._factor(M, t, q)
+        return np.linalg.solve(M, F)
+
+    def mass_matrix(self, q, t=0.0, p=None, u=None):
+        """M(q, t), an (n, n) float64 array."""
+        n = self.n_coordinates
+        q = as_vector(q, n, "q").tolist()
+        p, u = self._args(p, u)
+        return np.array(self._kernels["mass_matrix"](float(t), q, None, p, u)).reshape(n, n)
+
+    def forcing(self, q, qd, t=0.0, p=None, u=None):
+        """F(q, q̇, t, u), an (n,) float64 array with M·q̈ = F."""
+        n = self.n_coordinates
+        q, qd = as_vector(q, n, "q").tolist(), as_vector(qd, n, "qd").tolist()
+        p, u = self._args(p, u)
+        return np.array(self._kernels["forcing"](float(t), q, qd, p, u))
+
+    def rhs(self, t, y, p=None, u=None):
+        """ẏ = [q̇, M⁻¹F] for y = [q, q̇], a (2n,) float64 array."""
+        n = self.n_coordinates
+        y = as_vector(y, 2 * n, "y")
+        q, qd = y[:n].tolist(), y[n:].tolist()
+        p, u = self._args(p, u)
+        M, F = self._kernels["rhs"](t, q, qd, p, u)
+        out = np.empty(2 * n)
+        out[:n] = qd
+        out[n:] = self._solve(M, F, t, q)
+        return out
+
+    def jacobian(self, t, y, p=None, u=None):
+        """∂ẏ/∂y = [[0, I], [M⁻¹(∂F/∂q − ∂(M·q̈)/∂q), M⁻¹·∂F/∂q̇]], a (2n, 2n) float64 array."""
+        n = self.n_coordinates
+        y = as_vector(y, 2 * n, "y")
+        q, qd = y[:n].tolist(), y[n:].tolist()
+        p, u = self._args(p, u)
+        M, _, B = self._kernels["jacobian"](
+            t, q, qd, p, u, lambda M, F: self._solve(M, F, t, q).tolist())
+        J = np.zeros((2 * n, 2 * n))
+        J[:n, n:] = np.eye(n)
+        J[n:] = np.linalg.solve(np.array(M).reshape(n, n), np.array(B).reshape(n, 2 * n))
+        return J
+
+    def linear_terms(self, q, qd, t=0.0, p=None, u=None):
+        """(M, ∂F/∂q, ∂F/∂q̇, ∂F/∂u) at a point, as float64 arrays."""
+        n, k = self.n_coordinates, len(self.inputs)
+        q, qd = as_vector(q, n, "q").tolist(), as_vector(qd, n, "qd").tolist()
+        p, u = self._args(p, u)
+        M, dq, dqd, du = self._kernels["linear_terms"](float(t), q, qd, p, u)
+        return (np.array(M).reshape(n, n), np.array(dq).reshape(n, n),
+                np.array(dqd).reshape(n, n), np.array(du).reshape(n, k))
+
+
+def mass_matrix_message(name, t, q):
+    """The error text for a mass matrix that is not positive definite at (t, q)."""
+    q = np.asarray(q, dtype=float)
+    hint = ("the state contains NaN or infinity" if not np.all(np.isfinite(q)) else
+            "check that masses and inertias are positive and that the coordinates are independent "
+            "at this configuration")
+    return (f"the mass matrix of model {name!r} is not positive definite at t={t!r}, "
+            f"q={np.array2string(q, precision=6)}: {hint}")
