@@ -26,9 +26,8 @@ from string import Template
 
 from . import __version__
 from .errors import BuildError, CompileError
-from .kernels import (forcing_kernel, jacobian_kernel, linear_terms_kernel, mass_matrix_kernel,
-                      rhs_kernel)
-from .printer import CPrinter, print_statements, stage_statements
+from .kernels import all_kernels
+from .printer import c_function, kernel_statements
 
 EXT_SUFFIX = sysconfig.get_config_var("EXT_SUFFIX") or ".so"
 CACHE_DIR = "__lagrgen__"
@@ -64,33 +63,36 @@ def legend(metadata):
     return "\n".join(lines)
 
 
-def function_bodies(equations):
-    """The statements of every generated C function, keyed by template placeholder."""
-    printer = CPrinter()
-
-    def body(kernel, stage=0):
-        return print_statements(printer, stage_statements(kernel.stages[stage]))
-    jac = jacobian_kernel(equations)
-    return {
-        "mass_matrix": body(mass_matrix_kernel(equations)),
-        "forcing": body(forcing_kernel(equations)),
-        "rhs": body(rhs_kernel(equations)),
-        "jacobian_before_solve": body(jac, 0),
-        "jacobian_after_solve": body(jac, 1),
-        "linear_terms": body(linear_terms_kernel(equations)),
-    }
+KERNEL_COMMENTS = {
+    "mf": "M (N×N) and F (N), sharing their common subexpressions.",
+    "jacobian_b": "B = [∂F/∂q − ∂(M·a)/∂q | ∂F/∂q̇], N×2N, for a given a = q̈.",
+    "dF_du": "∂F/∂u, N×N_INPUTS.",
+}
+KERNEL_PARAMS = ("double t, const double *q, const double *qd, const double *a, const double *p, "
+                 "const double *u")
 
 
-def c_source(metadata, equations, bodies=None):
+def kernel_functions(equations, max_statements=400):
+    """The C functions lg_mf, lg_jacobian_b and lg_dF_du (split into parts when long)."""
+    chunks = []
+    for kernel in all_kernels(equations):
+        outputs = list(kernel.outputs)
+        params = KERNEL_PARAMS + "".join(f", double *{o}" for o in outputs)
+        args = "t, q, qd, a, p, u" + "".join(f", {o}" for o in outputs)
+        chunks.append(c_function(f"lg_{kernel.name}", params, args, kernel_statements(kernel),
+                                 KERNEL_COMMENTS[kernel.name], max_statements))
+    return "\n".join(chunks)
+
+
+def c_source(metadata, equations, max_statements=400):
     """The complete C source of the model module (equations, linear algebra, module glue)."""
-    n = equations.n
     linalg = Template(read_template("linalg.c.in")).substitute()
     return Template(read_template("model.c.in")).substitute(
         name=metadata["name"], version=__version__, content_hash=metadata["content_hash"],
-        legend=legend(metadata), n=n, n_params=len(metadata["parameters"]),
+        legend=legend(metadata), n=equations.n, n_params=len(metadata["parameters"]),
         n_inputs=len(metadata["inputs"]), linalg=linalg,
         metadata=c_string(json.dumps(metadata, sort_keys=True)),
-        **(bodies or function_bodies(equations)))
+        kernels=kernel_functions(equations, max_statements))
 
 
 # -- compiling -------------------------------------------------------------------------------

@@ -1,4 +1,4 @@
-"""Code printers: SymEngine expressions and kernel stages to C99 and to Python source.
+"""Code printers: SymEngine expressions and kernels to C99 and to Python source.
 
 Printing goes through two small layers: an expression printer (precedence-aware, one method per node
 type) and statements (`Declare` a CSE temporary, `Store` an output entry) that each language prints.
@@ -28,12 +28,11 @@ class Store:
     expr: object
 
 
-def stage_statements(stage, output_names=None):
-    """The statements of one kernel stage: its temporaries, then every output entry."""
-    stmts = [Declare(str(sym), expr) for sym, expr in stage.temporaries]
-    for name, exprs in stage.outputs.items():
-        target = (output_names or {}).get(name, name)
-        stmts.extend(Store(target, i, e) for i, e in enumerate(exprs))
+def kernel_statements(kernel):
+    """The statements of a kernel: its CSE temporaries, then every output entry."""
+    stmts = [Declare(str(sym), expr) for sym, expr in kernel.temporaries]
+    for name, exprs in kernel.outputs.items():
+        stmts.extend(Store(name, i, e) for i, e in enumerate(exprs))
     return stmts
 
 
@@ -199,3 +198,37 @@ class PythonPrinter(ExpressionPrinter):
 def print_statements(printer, statements, indent="    "):
     """The statements as source lines, one per statement, indented."""
     return "\n".join(indent + printer.statement(s) for s in statements)
+
+
+def _symbol_names(stmt):
+    return {str(s) for s in stmt.expr.free_symbols}
+
+
+def c_function(name, params, args, statements, comment, max_statements=400):
+    """C source of `static void name(params)` running `statements`.
+
+    A body longer than `max_statements` is split into parts `name_partK(params, w)` so the compiler
+    never sees one huge function; a temporary used by a later part passes through the workspace w.
+    """
+    printer = CPrinter()
+    head = f"/* {comment} */\nstatic void {name}({params})\n{{\n"
+    if len(statements) <= max_statements:
+        return head + print_statements(printer, statements) + "\n}\n"
+    chunks = [statements[i:i + max_statements] for i in range(0, len(statements), max_statements)]
+    defined = {s.name: k for k, chunk in enumerate(chunks) for s in chunk if isinstance(s, Declare)}
+    imports = [sorted({v for s in chunk for v in _symbol_names(s)
+                       if defined.get(v, k) < k}, key=lambda v: int(v[1:]))
+               for k, chunk in enumerate(chunks)]
+    slot = {v: i for i, v in enumerate(sorted({v for imp in imports for v in imp},
+                                              key=lambda v: int(v[1:])))}
+    parts = []
+    for k, chunk in enumerate(chunks):
+        lines = [f"    const double {v} = w[{slot[v]}];" for v in imports[k]]
+        lines.append(print_statements(printer, chunk))
+        lines += [f"    w[{slot[s.name]}] = {s.name};" for s in chunk
+                  if isinstance(s, Declare) and s.name in slot]
+        parts.append(f"static void {name}_part{k}({params}, double *w)\n{{\n"
+                     + "\n".join(lines) + "\n}\n")
+    calls = "\n".join(f"    {name}_part{k}({args}, w);" for k in range(len(chunks)))
+    return ("\n".join(parts) + "\n" + head + f"    double w[{max(len(slot), 1)}];\n" + calls
+            + "\n}\n")

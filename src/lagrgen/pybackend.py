@@ -10,7 +10,7 @@ import numpy as np
 from .arguments import as_vector, input_vector, parameter_vector
 from .errors import MassMatrixError
 from .kernels import all_kernels
-from .printer import PythonPrinter, print_statements, stage_statements
+from .printer import PythonPrinter, kernel_statements, print_statements
 
 _NAMESPACE = {name: getattr(math, name) for name in (
     "sin", "cos", "tan", "asin", "acos", "atan", "atan2", "sinh", "cosh", "tanh", "asinh",
@@ -18,32 +18,19 @@ _NAMESPACE = {name: getattr(math, name) for name in (
 _NAMESPACE["_sign"] = lambda x: (x > 0) - (x < 0)
 
 
-def python_source(kernels, sizes):
-    """Python source of one function per kernel, `name(t, q, qd, p, u[, accel])` -> outputs.
-
-    `sizes` maps each output name to its length; a kernel of two stages calls `accel(M, F)`
-    (which returns q̈) between them.
-    """
+def python_source(kernels):
+    """Python source of one function per kernel, `name(t, q, qd, a, p, u)` -> its outputs."""
     printer = PythonPrinter()
     chunks = []
     for kernel in kernels:
-        outputs = [name for stage in kernel.stages for name in stage.outputs]
-        lines = [f"def {kernel.name}(t, q, qd, p, u, accel=None):"]
-        lines += [f"    {name} = [0.0] * {sizes[name]}" for name in outputs]
-        for i, stage in enumerate(kernel.stages):
-            if i > 0 and (stage.temporaries or stage.outputs):
-                lines.append("    a = accel(M, F)")
-            body = print_statements(printer, stage_statements(stage))
-            if body:
-                lines.append(body)
-        lines.append(f"    return {', '.join(outputs) or 'None'}")
+        lines = [f"def {kernel.name}(t, q, qd, a, p, u):"]
+        lines += [f"    {name} = [0.0] * {len(exprs)}" for name, exprs in kernel.outputs.items()]
+        body = print_statements(printer, kernel_statements(kernel))
+        if body:
+            lines.append(body)
+        lines.append(f"    return {', '.join(kernel.outputs)},")
         chunks.append("\n".join(lines))
     return "\n\n\n".join(chunks) + "\n"
-
-
-def output_sizes(n, n_inputs):
-    return {"M": n * n, "F": n, "B": 2 * n * n, "dF_dq": n * n, "dF_dqd": n * n,
-            "dF_du": n * n_inputs}
 
 
 class PythonModel:
@@ -61,7 +48,7 @@ class PythonModel:
         self.defaults.setflags(write=False)
         self.content_hash = meta["content_hash"]
         self.n_coordinates = n = equations.n
-        self.source = python_source(all_kernels(equations), output_sizes(n, len(self.inputs)))
+        self.source = python_source(all_kernels(equations))
         namespace = dict(_NAMESPACE)
         exec(compile(self.source, f"<lagrgen python backend: {self.name}>", "exec"), namespace)
         self._kernels = namespace
@@ -80,25 +67,30 @@ class PythonModel:
         except np.linalg.LinAlgError:
             raise MassMatrixError(mass_matrix_message(self.name, t, q)) from None
 
-    def _solve(self, M, F, t, q):
-        """q̈ = M⁻¹F from the flat lists M, F, after checking M is positive definite."""
-        M = np.array(M).reshape(self.n_coordinates, self.n_coordinates)
-        self._factor(M, t, q)
-        return np.linalg.solve(M, F)
+    def _mf(self, t, q, qd, p, u):
+        """M (n×n array) and F (n array) at a point; q, qd, p, u as lists."""
+        n = self.n_coordinates
+        M, F = self._kernels["mf"](t, q, qd, None, p, u)
+        return np.array(M).reshape(n, n), np.array(F)
+
+    def _b(self, t, q, qd, a, p, u):
+        """B = [∂F/∂q − ∂(M·a)/∂q | ∂F/∂q̇], an (n, 2n) array."""
+        n = self.n_coordinates
+        return np.array(self._kernels["jacobian_b"](t, q, qd, a, p, u)[0]).reshape(n, 2 * n)
 
     def mass_matrix(self, q, t=0.0, p=None, u=None):
         """M(q, t), an (n, n) float64 array."""
         n = self.n_coordinates
         q = as_vector(q, n, "q").tolist()
         p, u = self._args(p, u)
-        return np.array(self._kernels["mass_matrix"](float(t), q, None, p, u)).reshape(n, n)
+        return self._mf(float(t), q, [0.0] * n, p, u)[0]
 
     def forcing(self, q, qd, t=0.0, p=None, u=None):
         """F(q, q̇, t, u), an (n,) float64 array with M·q̈ = F."""
         n = self.n_coordinates
         q, qd = as_vector(q, n, "q").tolist(), as_vector(qd, n, "qd").tolist()
         p, u = self._args(p, u)
-        return np.array(self._kernels["forcing"](float(t), q, qd, p, u))
+        return self._mf(float(t), q, qd, p, u)[1]
 
     def rhs(self, t, y, p=None, u=None):
         """ẏ = [q̇, M⁻¹F] for y = [q, q̇], a (2n,) float64 array."""
@@ -106,10 +98,11 @@ class PythonModel:
         y = as_vector(y, 2 * n, "y")
         q, qd = y[:n].tolist(), y[n:].tolist()
         p, u = self._args(p, u)
-        M, F = self._kernels["rhs"](t, q, qd, p, u)
+        M, F = self._mf(t, q, qd, p, u)
+        self._factor(M, t, q)
         out = np.empty(2 * n)
         out[:n] = qd
-        out[n:] = self._solve(M, F, t, q)
+        out[n:] = np.linalg.solve(M, F)
         return out
 
     def jacobian(self, t, y, p=None, u=None):
@@ -118,21 +111,23 @@ class PythonModel:
         y = as_vector(y, 2 * n, "y")
         q, qd = y[:n].tolist(), y[n:].tolist()
         p, u = self._args(p, u)
-        M, _, B = self._kernels["jacobian"](
-            t, q, qd, p, u, lambda M, F: self._solve(M, F, t, q).tolist())
+        M, F = self._mf(t, q, qd, p, u)
+        self._factor(M, t, q)
+        a = np.linalg.solve(M, F).tolist()
         J = np.zeros((2 * n, 2 * n))
         J[:n, n:] = np.eye(n)
-        J[n:] = np.linalg.solve(np.array(M).reshape(n, n), np.array(B).reshape(n, 2 * n))
+        J[n:] = np.linalg.solve(M, self._b(t, q, qd, a, p, u))
         return J
 
     def linear_terms(self, q, qd, t=0.0, p=None, u=None):
-        """(M, ∂F/∂q, ∂F/∂q̇, ∂F/∂u) at a point, as float64 arrays."""
+        """(M, ∂F/∂q, ∂F/∂q̇, ∂F/∂u) at a point, as float64 arrays (B at a = 0 gives the middle two)."""
         n, k = self.n_coordinates, len(self.inputs)
         q, qd = as_vector(q, n, "q").tolist(), as_vector(qd, n, "qd").tolist()
         p, u = self._args(p, u)
-        M, dq, dqd, du = self._kernels["linear_terms"](float(t), q, qd, p, u)
-        return (np.array(M).reshape(n, n), np.array(dq).reshape(n, n),
-                np.array(dqd).reshape(n, n), np.array(du).reshape(n, k))
+        M, _ = self._mf(float(t), q, qd, p, u)
+        B = self._b(float(t), q, qd, [0.0] * n, p, u)
+        dF_du = np.array(self._kernels["dF_du"](float(t), q, qd, None, p, u)[0]).reshape(n, k)
+        return M, B[:, :n].copy(), B[:, n:].copy(), dF_du
 
 
 def mass_matrix_message(name, t, q):

@@ -4,6 +4,7 @@ from scipy.integrate import solve_ivp
 
 from .arguments import as_vector, named_vector, parameter_vector
 from .errors import UnknownNameError
+from .solvers import SOLVERS
 
 METHODS = ("RK23", "RK45", "DOP853", "Radau", "BDF", "LSODA")
 STIFF_METHODS = ("Radau", "BDF", "LSODA")
@@ -46,10 +47,11 @@ def simulate(mod, t_span, y0, method="RK45", params=None, inputs=None, rtol=1e-6
              t_eval=None, dense_output=False, events=None, **options):
     """Integrate ẏ = mod.rhs(t, y) over `t_span` from `y0` = [q0, q̇0] with `solve_ivp`.
 
-    The stiff methods (Radau, BDF, LSODA) get the analytic `mod.jacobian`. Returns SciPy's OdeResult.
+    The stiff methods (Radau, BDF, LSODA) get the analytic `mod.jacobian`; Radau and BDF run as
+    `lagrgen.solvers` classes (SciPy's, with direct LAPACK LU). Returns SciPy's OdeResult.
     Extra keyword options (max_step, first_step, ...) go to `solve_ivp` unchanged.
     """
-    if method not in METHODS and not isinstance(method, type):
+    if not (method in METHODS or isinstance(method, type)):
         raise ValueError(f"unknown method {method!r}: use one of {', '.join(METHODS)}")
     n = mod.n_coordinates
     y0 = as_vector(y0, 2 * n, f"y0 (= [q0, qd0] for coordinates {', '.join(mod.coordinates)})")
@@ -70,5 +72,5 @@ def simulate(mod, t_span, y0, method="RK45", params=None, inputs=None, rtol=1e-6
             return jacobian(t, y, p, u_of_t(t))
     if method in STIFF_METHODS:
         options.setdefault("jac", jac)
-    return solve_ivp(fun, t_span, y0, method=method, rtol=rtol, atol=atol, t_eval=t_eval,
+    return solve_ivp(fun, t_span, y0, method=SOLVERS.get(method, method), rtol=rtol, atol=atol, t_eval=t_eval,
                      dense_output=dense_output, events=events, **options)

@@ -1,0 +1,96 @@
+"""Shared helpers: loading the example files, building each model once per test module and backend,
+random evaluation points, and numeric evaluation of SymPy expressions written in a model's symbols.
+
+`BACKENDS` lists the backends every backend-aware fixture runs over. Tests import the installed
+lagrgen (the README's `pip install .`), whose runtime extension is compiled.
+"""
+import functools
+import importlib.util
+from pathlib import Path
+
+import numpy as np
+import pytest
+import sympy as sp
+
+ROOT = Path(__file__).resolve().parent.parent
+EXAMPLES = ROOT / "examples"
+import lagrgen  # noqa: E402
+
+BACKENDS = ["python", "c"]
+
+#: (file stem, attribute) of every Model defined by the example files.
+EXAMPLE_MODELS = [
+    ("double_pendulum", "model"),
+    ("two_mass_chain", "absolute"),
+    ("two_mass_chain", "relative"),
+    ("driven_pendulum", "model"),
+    ("rolling_chain", "model"),
+    ("cart_pendulum", "model"),
+    ("nlink_pendulum", "model"),
+]
+
+
+@functools.lru_cache(maxsize=None)
+def load_example(stem):
+    """Import examples/<stem>.py by path and return the module."""
+    path = EXAMPLES / f"{stem}.py"
+    spec = importlib.util.spec_from_file_location(f"lagrgen_example_{stem}", path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def example_model(stem, attr="model"):
+    """The Model object `attr` defined by examples/<stem>.py."""
+    return getattr(load_example(stem), attr)
+
+
+def example_id(entry):
+    stem, attr = entry
+    return stem if attr == "model" else f"{stem}.{attr}"
+
+
+@pytest.fixture(scope="module", params=BACKENDS)
+def backend(request):
+    """The backend name; every fixture built on it runs once per entry of BACKENDS."""
+    return request.param
+
+
+@pytest.fixture(scope="module")
+def build(backend, tmp_path_factory):
+    """A function Model -> built model that builds each Model at most once in the test module."""
+    out_dir = tmp_path_factory.mktemp(f"gen_{backend}")
+    cache = {}
+
+    def build_once(model):
+        if id(model) not in cache:
+            cache[id(model)] = (model, lagrgen.build(model, backend=backend, out_dir=out_dir))
+        return cache[id(model)][1]
+    return build_once
+
+
+def random_point(mod, rng, t_range=(0.0, 2.0)):
+    """A random (q, qd, t, p, u): parameters are the defaults scaled by factors in [0.5, 1.5]."""
+    n = mod.n_coordinates
+    q = rng.uniform(-1.5, 1.5, n)
+    qd = rng.uniform(-2.0, 2.0, n)
+    t = rng.uniform(*t_range)
+    p = np.asarray(mod.defaults) * rng.uniform(0.5, 1.5, len(mod.parameters))
+    u = rng.uniform(-2.0, 2.0, len(mod.inputs))
+    return q, qd, t, p, u
+
+
+def state_function(expr, t, q, qd, params, inputs):
+    """Return f(q, qd, t, p, u) evaluating `expr`, written in q_i(t), dq_i/dt, t, the parameter
+    symbols `params` and the input functions `inputs`, with NumPy (p, u in the orders given)."""
+    n = len(q)
+    Q = sp.symbols(f"_q0:{n}")
+    QD = sp.symbols(f"_qd0:{n}")
+    U = sp.symbols(f"_u0:{len(inputs)}")
+    T = sp.Symbol("_t")
+    rules = {**dict(zip(qd, QD)), **dict(zip(q, Q)), **dict(zip(inputs, U)), t: T}
+    plain = sp.sympify(expr).xreplace(rules)
+    left = plain.atoms(sp.Derivative, sp.core.function.AppliedUndef)
+    assert not left, f"unexpected functions of t left in {plain}: {left}"
+    f = sp.lambdify([Q, QD, T, tuple(params), U], plain, "numpy")
+    return lambda q, qd, t, p, u: np.array(f(list(q), list(qd), t, list(p), list(u)), dtype=float)
