@@ -1,5 +1,5 @@
 # cython: language_level=3, boundscheck=False, wraparound=False, initializedcheck=False
-# cython: embedsignature=True
+# cython: embedsignature=True, binding=False
 """The compiled half of every built model: argument checking, output arrays, errors, timing.
 
 Compiled once when lagrgen is installed. A generated model module holds only its equations (C
@@ -10,6 +10,7 @@ import json
 import time
 
 import numpy as np
+cimport cython
 cimport numpy as cnp
 from cpython.pycapsule cimport PyCapsule_GetPointer, PyCapsule_IsValid
 
@@ -65,6 +66,7 @@ cdef inline const double *data(cnp.ndarray arr):
     return <const double *>cnp.PyArray_DATA(arr)
 
 
+@cython.final
 cdef class CompiledModel:
     """A model's compiled equations, with the interface of API.md §3."""
 

@@ -1,8 +1,16 @@
-"""The command line: `python -m lagrgen COMMAND MODEL.py [options]`."""
+"""The command line: `python -m lagrgen COMMAND MODEL.py [options]`.
+
+Each command is a pair: `add_NAME(subparsers)` declares its options and `command_NAME(args)` runs
+it; `COMMANDS` lists the `add_` functions in the order `--help` shows them.
+"""
 import argparse
+import csv
 import runpy
 import sys
+import time
 from pathlib import Path
+
+import numpy as np
 
 from .errors import LagrgenError
 from .model import Model
@@ -38,7 +46,8 @@ def models_in(path, names=None):
 def command_build(args):
     from .backends import build
     for model in models_in(args.model_file, args.model):
-        module = build(model, out_dir=args.out, verbose=args.verbose, force=args.force)
+        module = build(model, out_dir=args.out, verbose=args.verbose, quiet=args.quiet,
+                       force=args.force)
         info = module.build_info
         state = "cached" if info["cache_hit"] else "built"
         if not args.quiet:
@@ -46,26 +55,418 @@ def command_build(args):
     return 0
 
 
-def add_common(parser):
+def add_model_file(parser):
     parser.add_argument("model_file", help="a Python file that defines lagrgen.Model objects")
     parser.add_argument("--model", action="append",
                         help="only the model of this name (may be repeated; default: all)")
+
+
+def add_common(parser):
+    add_model_file(parser)
     parser.add_argument("--out", default="generated", help="output directory (default: generated)")
     parser.add_argument("--quiet", action="store_true", help="print nothing but errors")
     parser.add_argument("--verbose", action="store_true",
                         help="report each build step's time, code size and compiler flags")
 
 
-def parser():
-    top = argparse.ArgumentParser(
-        prog="python -m lagrgen",
-        description="Derive Lagrange's equations of motion and compile them to C.")
-    sub = top.add_subparsers(dest="command", required=True, metavar="COMMAND")
+def add_build(sub):
     b = sub.add_parser("build", help="build every model in a model file (C backend, cached)",
                        description="Derive, generate C, compile and cache every model in MODEL.py.")
     add_common(b)
     b.add_argument("--force", action="store_true", help="rebuild even if a cached build matches")
     b.set_defaults(run=command_build)
+
+
+# -- show -------------------------------------------------------------------------------------
+def command_show(args):
+    from .display import render
+    texts = [render(model, latex=args.latex, matrices=args.matrices, simplify=not args.raw)
+             for model in models_in(args.model_file, args.model)]
+    print("\n\n".join(texts))
+    return 0
+
+
+def add_show(sub):
+    s = sub.add_parser("show", help="print the equations of motion (plain text or LaTeX)",
+                       description="Print each model's equations of motion, one line per "
+                       "coordinate: sum_j M_ij q_j'' = F_i, with q' and q'' for the velocities and "
+                       "accelerations (LaTeX: \\dot{q}, \\ddot{q}).")
+    add_model_file(s)
+    s.add_argument("--latex", action="store_true", help="print LaTeX (an aligned environment)")
+    s.add_argument("--matrices", action="store_true", help="also print M and F entry by entry")
+    s.add_argument("--raw", action="store_true", help="skip the (cheap) trigonometric simplification")
+    s.set_defaults(run=command_show)
+
+
+# -- shared by modes and simulate ------------------------------------------------------------
+def assignments(texts, what):
+    """{name: text} from ["a=1,b=2", "c=3"] (the values of a repeatable NAME=VALUE,... option)."""
+    out = {}
+    for text in texts or ():
+        for item in text.split(","):
+            if not item.strip():
+                continue
+            name, sep, value = item.partition("=")
+            if not sep or not name.strip() or not value.strip():
+                raise LagrgenError(f"{what}: expected NAME=VALUE, got {item.strip()!r}")
+            out[name.strip()] = value.strip()
+    return out
+
+
+def number(text, what):
+    try:
+        return float(text)
+    except ValueError:
+        raise LagrgenError(f"{what}: {text!r} is not a number") from None
+
+
+def parameters_option(args, model):
+    """The --params values as a dict name -> float, checked against the model's parameters."""
+    values = {k: number(v, f"--params {k}") for k, v in assignments(args.params, "--params").items()}
+    unknown = sorted(set(values) - set(model.parameter_names))
+    if unknown:
+        raise LagrgenError(f"--params: model {model.name!r} has no parameter {unknown[0]!r} "
+                           f"(its parameters are {', '.join(model.parameter_names) or 'none'})")
+    return values
+
+
+def input_value(name, text, t):
+    """A constant, or a function of t, from an expression such as `0.5*sin(2*t)`."""
+    import sympy as sp
+    try:
+        expr = sp.sympify(text, locals={"t": t})
+    except (sp.SympifyError, SyntaxError, TypeError):
+        raise LagrgenError(f"--inputs {name}: cannot read {text!r} as a number or an expression "
+                           "of t") from None
+    extra = expr.free_symbols - {t}
+    if extra:
+        raise LagrgenError(f"--inputs {name}: {text!r} may only depend on t, not on "
+                           f"{', '.join(sorted(map(str, extra)))}")
+    if not expr.free_symbols:
+        return float(expr)
+    f = sp.lambdify(t, expr, "numpy")
+    return lambda time_: float(f(time_))
+
+
+def inputs_option(args, model, constant=False):
+    """The --inputs values: name -> constant or function of t (constants only if `constant`)."""
+    import sympy as sp
+    values = assignments(args.inputs, "--inputs")
+    unknown = sorted(set(values) - set(model.input_names))
+    if unknown:
+        raise LagrgenError(f"--inputs: model {model.name!r} has no input {unknown[0]!r} "
+                           f"(its inputs are {', '.join(model.input_names) or 'none'})")
+    t = sp.Symbol("t")
+    out = {name: input_value(name, text, t) for name, text in values.items()}
+    varying = [name for name, v in out.items() if callable(v)]
+    if constant and varying:
+        raise LagrgenError(f"--inputs {varying[0]}: the operating point needs a constant value")
+    return out
+
+
+def build_for(model, args):
+    """The built model for the chosen --backend (C builds are cached in --out)."""
+    from .backends import build
+    if args.backend == "python":
+        return build(model, backend="python")
+    return build(model, out_dir=args.out, verbose=args.verbose, quiet=args.quiet)
+
+
+def add_run_options(parser):
+    """Options shared by the commands that run a model: backend, parameters, inputs."""
+    add_common(parser)
+    parser.add_argument("--backend", choices=("c", "python"), default="c",
+                        help="compiled C (default, cached in --out) or pure Python")
+    parser.add_argument("--params", action="append", metavar="NAME=VALUE,...",
+                        help="parameter values (others keep their defaults)")
+
+
+# -- modes ------------------------------------------------------------------------------------
+def modes_table(model, q0, result):
+    """The equilibrium, then one row per mode: ω (rad/s), f (Hz), ζ; then the mode shapes."""
+    names = model.coordinate_names
+    lines = [f"{model.name}: equilibrium " + ", ".join(f"{c} = {v:.6g}" for c, v in zip(names, q0)),
+             f"{'mode':>4}  {'omega [rad/s]':>14}  {'f [Hz]':>12}  {'damping ratio':>13}"]
+    for i, w in enumerate(result.omega):
+        zeta = result.damping_ratios[i]
+        if np.isfinite(w):
+            lines.append(f"{i + 1:>4}  {w:>14.6g}  {w / (2 * np.pi):>12.6g}  {zeta:>13.6g}")
+        else:
+            lam = np.real(result.eigenvalues[i])
+            lines.append(f"{i + 1:>4}  {'unstable':>14}  {'':>12}  {'':>13}  (omega^2 = {lam:.6g})")
+    width = max(len(c) for c in names)
+    lines.append("mode shapes (mass-normalized, one column per mode):")
+    for j, c in enumerate(names):
+        lines.append(f"{c:>{width}}  " + "  ".join(f"{np.real(v):>10.5g}" for v in result.shapes[j]))
+    return "\n".join(lines)
+
+
+def command_modes(args):
+    from .plotting import plot_modes
+    from .vibration import equilibrium, modes
+    models = models_in(args.model_file, args.model)
+    for k, model in enumerate(models):
+        params = parameters_option(args, model)
+        inputs = inputs_option(args, model, constant=True)
+        at = {c: number(v, f"--at {c}") for c, v in assignments(args.at, "--at").items()}
+        unknown = sorted(set(at) - set(model.coordinate_names))
+        if unknown:
+            raise LagrgenError(f"--at: model {model.name!r} has no coordinate {unknown[0]!r} "
+                               f"(its coordinates are {', '.join(model.coordinate_names)})")
+        mod = build_for(model, args)
+        guess = [at.get(c, 0.0) for c in model.coordinate_names]
+        u = inputs or None
+        q0 = equilibrium(mod, guess, p=params, u=u)
+        result = modes(mod, q0, p=params, u=u)
+        if not args.quiet:
+            print(("\n" if k else "") + modes_table(model, q0, result))
+        if args.plot:
+            path = Path(args.plot)
+            if len(models) > 1:
+                path = path.with_name(f"{path.stem}_{model.name}{path.suffix}")
+            plot_modes(result, model.coordinate_names, path, title=f"{model.name}: mode shapes")
+            if not args.quiet:
+                print(f"mode shapes -> {path}")
+    return 0
+
+
+def add_modes(sub):
+    m = sub.add_parser("modes", help="natural frequencies, damping ratios and mode shapes",
+                       description="Find the static equilibrium near --at (default: all "
+                       "coordinates zero), linearize there and print the natural frequencies "
+                       "(rad/s and Hz), damping ratios and mass-normalized mode shapes.")
+    add_run_options(m)
+    m.add_argument("--at", action="append", metavar="COORD=VALUE,...",
+                   help="starting guess of the equilibrium (unnamed coordinates: 0)")
+    m.add_argument("--inputs", action="append", metavar="NAME=VALUE,...",
+                   help="constant inputs at the operating point (default: 0)")
+    m.add_argument("--plot", metavar="OUT.png", help="also plot the mode shapes to this image")
+    m.set_defaults(run=command_modes)
+
+
+# -- simulate ---------------------------------------------------------------------------------
+def single_model(args):
+    models = models_in(args.model_file, args.model)
+    if len(models) > 1:
+        raise LagrgenError(f"{args.model_file} defines several models "
+                           f"({', '.join(m.name for m in models)}): choose one with --model NAME")
+    return models[0]
+
+
+def initial_state(text, model):
+    """y0 = [q0, q̇0] from "v1,v2,..." (n or 2n numbers) or "name=v,name'=v,..." (others 0)."""
+    names = model.coordinate_names
+    n = len(names)
+    y0 = np.zeros(2 * n)
+    if not text:
+        return y0
+    if "=" not in text:
+        values = [number(v, "--y0") for v in text.split(",") if v.strip()]
+        if len(values) not in (n, 2 * n):
+            raise LagrgenError(f"--y0: expected {n} positions or {2 * n} values [q, q'] for the "
+                               f"coordinates {', '.join(names)}, got {len(values)}")
+        y0[:len(values)] = values
+        return y0
+    slots = {c: i for i, c in enumerate(names)}
+    for i, c in enumerate(names):
+        slots.setdefault(f"{c}'", n + i)
+        slots.setdefault(f"{c}_dot", n + i)
+    for name, value in assignments([text], "--y0").items():
+        if name not in slots:
+            raise LagrgenError(f"--y0: {name!r} is not a coordinate or a velocity (use "
+                               f"{names[0]}=... and {names[0]}'=... or {names[0]}_dot=...)")
+        y0[slots[name]] = number(value, f"--y0 {name}")
+    return y0
+
+
+class Progress:
+    """Prints how far the integration has got, at most every `every` seconds, to `stream`."""
+
+    def __init__(self, t0, t1, stream, every=0.5):
+        self.t0, self.t1, self.stream = t0, t1, stream
+        self.start = self.last = time.monotonic()
+        self.tty = stream.isatty()
+        self.every = every if self.tty else 4 * every
+        self.shown = False
+
+    def line(self, t):
+        fraction = min(max((t - self.t0) / ((self.t1 - self.t0) or 1.0), 0.0), 1.0)
+        bar = "#" * int(30 * fraction)
+        return (f"simulate [{bar:<30}] {100 * fraction:5.1f}%  t = {t:.4g} of {self.t1:.4g}  "
+                f"({time.monotonic() - self.start:.1f} s)")
+
+    def __call__(self, t):
+        now = time.monotonic()
+        if now - self.last >= self.every:
+            self.last = now
+            self.shown = True
+            self.stream.write(("\r" if self.tty else "") + self.line(t) + ("" if self.tty else "\n"))
+            self.stream.flush()
+
+    def done(self):
+        if self.shown:
+            self.stream.write(("\r" if self.tty else "") + self.line(self.t1) + "\n")
+            self.stream.flush()
+
+
+class Watched:
+    """A built model whose `rhs` reports each time it is called at to a Progress."""
+
+    def __init__(self, mod, progress):
+        self._mod, self._progress = mod, progress
+
+    def __getattr__(self, name):
+        return getattr(self._mod, name)
+
+    def rhs(self, t, y, p=None, u=None):
+        self._progress(t)
+        return self._mod.rhs(t, y, p, u)
+
+
+def write_csv(stream, sol, names):
+    writer = csv.writer(stream, lineterminator="\n")
+    writer.writerow(["t", *names, *(f"{c}_dot" for c in names)])
+    for k, t in enumerate(sol.t):
+        writer.writerow([repr(float(t)), *(repr(float(v)) for v in sol.y[:, k])])
+
+
+def command_simulate(args):
+    from .runner import simulate
+    model = single_model(args)
+    params = parameters_option(args, model)
+    inputs = inputs_option(args, model)
+    y0 = initial_state(args.y0, model)
+    if not args.t_end > args.t_start:
+        raise LagrgenError(f"--t-end ({args.t_end}) must be greater than --t-start ({args.t_start})")
+    if args.samples < 2:
+        raise LagrgenError("--samples must be at least 2")
+    mod = build_for(model, args)
+    show_progress = args.progress or (sys.stderr.isatty() and not args.quiet)
+    progress = Progress(args.t_start, args.t_end, sys.stderr) if show_progress else None
+    t_eval = np.linspace(args.t_start, args.t_end, args.samples)
+    options = {} if args.max_step is None else {"max_step": args.max_step}
+    started = time.perf_counter()
+    sol = simulate(Watched(mod, progress) if progress else mod, (args.t_start, args.t_end), y0,
+                   method=args.method, params=params or None, inputs=inputs or None,
+                   rtol=args.rtol, atol=args.atol, t_eval=t_eval, **options)
+    seconds = time.perf_counter() - started
+    if progress:
+        progress.done()
+    if not sol.success:
+        reached = sol.t[-1] if len(sol.t) else args.t_start
+        raise LagrgenError(f"the integration stopped at t = {reached:.6g}: {sol.message}")
+    written = write_outputs(args, model, sol, params)
+    if not args.quiet:
+        print(f"{model.name}: {args.method} from t = {args.t_start:g} to {args.t_end:g}, "
+              f"{sol.nfev} rhs calls, {seconds:.3f} s ({mod.backend} backend)", file=sys.stderr)
+        for what, path in written:
+            print(f"{what} -> {path}", file=sys.stderr)
+    return 0
+
+
+def write_outputs(args, model, sol, params):
+    """The CSV (stdout if no output is asked for), plot and animation; [(what, path)]."""
+    from . import plotting
+    written = []
+    names = model.coordinate_names
+    if args.csv:
+        with open(args.csv, "w", newline="") as stream:
+            write_csv(stream, sol, names)
+        written.append(("time histories (CSV)", args.csv))
+    if args.plot:
+        plotting.plot_time_history(sol, names, args.plot, title=model.name)
+        written.append(("plot", args.plot))
+    if args.animate:
+        plotting.animate(model, sol, args.animate, params=params or None, fps=args.fps,
+                         max_frames=args.frames)
+        written.append(("animation", args.animate))
+    if not written:
+        write_csv(sys.stdout, sol, names)
+    return written
+
+
+def add_simulate(sub):
+    from .runner import METHODS
+    s = sub.add_parser("simulate", help="integrate the equations of motion; CSV, plot, animation",
+                       description="Integrate y = [q, q'] with scipy.integrate.solve_ivp and write "
+                       "the time histories as CSV (stdout unless --csv, --plot or --animate is "
+                       "given), a plot, and/or an animated GIF of the mechanism. Give negative "
+                       "values as --y0=-0.5,0.")
+    add_run_options(s)
+    s.add_argument("--t-end", type=float, required=True, metavar="T", help="end time")
+    s.add_argument("--t-start", type=float, default=0.0, metavar="T0", help="start time (default 0)")
+    s.add_argument("--y0", metavar="VALUES",
+                   help="initial state: n positions or 2n values q, q' separated by commas, or "
+                   "COORD=VALUE,COORD'=VALUE (or COORD_dot=VALUE); default all zero")
+    s.add_argument("--inputs", action="append", metavar="NAME=VALUE,...",
+                   help="inputs: numbers or expressions of t, e.g. F=0.5*sin(2*t) (default 0)")
+    s.add_argument("--method", choices=METHODS, default="RK45", help="solve_ivp method (default RK45)")
+    s.add_argument("--rtol", type=float, default=1e-6, help="relative tolerance (default 1e-6)")
+    s.add_argument("--atol", type=float, default=1e-9, help="absolute tolerance (default 1e-9)")
+    s.add_argument("--max-step", type=float, help="largest step solve_ivp may take")
+    s.add_argument("--samples", type=int, default=501,
+                   help="number of equally spaced output times (default 501)")
+    s.add_argument("--csv", metavar="OUT.csv", help="write t, q, q' (one row per output time)")
+    s.add_argument("--plot", metavar="OUT.png", help="plot q(t) and q'(t) to this image")
+    s.add_argument("--animate", metavar="OUT.gif", help="animate the mechanism to this GIF")
+    s.add_argument("--fps", type=int, default=20,
+                   help="animation frames per simulated second (default 20)")
+    s.add_argument("--frames", type=int, default=120, help="most animation frames (default 120)")
+    s.add_argument("--progress", action="store_true",
+                   help="report progress on stderr even when it is not a terminal")
+    s.set_defaults(run=command_simulate)
+
+
+# -- bench ------------------------------------------------------------------------------------
+def command_bench(args):
+    from .bench import METHODS, bench_model, markdown
+    methods = args.methods or METHODS
+    unknown = [m for m in methods if m not in METHODS]
+    if unknown:
+        raise LagrgenError(f"--methods: unknown method {unknown[0]!r} (use {', '.join(METHODS)})")
+    reports = []
+    for model in models_in(args.model_file, args.model):
+        def fresh(name=model.name):
+            return models_in(args.model_file, [name])[0]
+        y0 = initial_state(args.y0, model) if args.y0 else None
+        result = bench_model(fresh, y0=y0, methods=methods, t_span=(0.0, args.t_end),
+                             rtol=args.rtol, atol=args.atol, repeats=args.repeats)
+        reports.append(markdown(result))
+        print(reports[-1], flush=True)
+    if args.output:
+        Path(args.output).write_text("\n".join(reports))
+    return 0
+
+
+def add_bench(sub):
+    b = sub.add_parser(
+        "bench", help="time the compiled and pure-Python paths of each model (a markdown table)",
+        description="Cold and cached build, rhs and jacobian per call (from Python and inside "
+                    "C), and solve_ivp wall time with nfev/njev/nlu, on lagrgen's C and Python "
+                    "paths.")
+    add_model_file(b)
+    b.add_argument("--y0", metavar="VALUES", help="initial state (default: every q = 0.1, q' = 0)")
+    b.add_argument("--t-end", type=float, default=10.0, help="end time of the solve (default 10)")
+    b.add_argument("--methods", nargs="+", metavar="METHOD",
+                   help="solve_ivp methods (default: RK45 DOP853 Radau BDF LSODA)")
+    b.add_argument("--rtol", type=float, default=1e-8, help="relative tolerance (default 1e-8)")
+    b.add_argument("--atol", type=float, default=1e-8, help="absolute tolerance (default 1e-8)")
+    b.add_argument("--repeats", type=int, default=3, help="repeats per figure (default 3)")
+    b.add_argument("--output", metavar="FILE.md", help="also write the table to this file")
+    b.set_defaults(run=command_bench)
+
+
+#: The subcommands, in the order `--help` lists them: each adds its parser to the subparsers.
+COMMANDS = [add_build, add_show, add_modes, add_simulate, add_bench]
+
+
+def parser():
+    top = argparse.ArgumentParser(
+        prog="python -m lagrgen",
+        description="Derive Lagrange's equations of motion, compile them to C, and run them.")
+    sub = top.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    for add in COMMANDS:
+        add(sub)
     return top
 
 
@@ -73,6 +474,9 @@ def main(argv=None):
     args = parser().parse_args(argv)
     try:
         return args.run(args)
-    except LagrgenError as exc:
+    except (LagrgenError, ValueError, OSError, np.linalg.LinAlgError) as exc:
         print(f"lagrgen: error: {exc}", file=sys.stderr)
         return 1
+    except KeyboardInterrupt:
+        print("lagrgen: interrupted", file=sys.stderr)
+        return 130

@@ -190,9 +190,15 @@ def import_extension(name, path):
 
 # -- build and load --------------------------------------------------------------------------
 class _Progress:
+    """Times the build steps; reports them on stderr when `verbose`."""
+
     def __init__(self, name, verbose):
         self.name, self.verbose, self.times = name, verbose, {}
         self._t = time.perf_counter()
+
+    def note(self, text):
+        if self.verbose:
+            print(f"[lagrgen] {self.name}: {text}", file=sys.stderr, flush=True)
 
     def step(self, what, detail=""):
         now = time.perf_counter()
@@ -204,8 +210,11 @@ class _Progress:
                   file=sys.stderr, flush=True)
 
 
-def build_c(model, out_dir, verbose=False, quiet=True, force=False, opt_level="-O2", cflags=()):
-    """Derive, generate, compile, cache and import `model`; return the module (the built model)."""
+def build_c(model, out_dir, verbose=False, quiet=False, force=False, opt_level="-O2", cflags=()):
+    """Derive, generate, compile, cache and import `model`; return the module (the built model).
+
+    Progress lines go to stderr with `verbose`, or when stderr is a terminal unless `quiet`.
+    """
     start = time.perf_counter()
     out_dir = Path(out_dir)
     cache = out_dir / CACHE_DIR
@@ -213,7 +222,7 @@ def build_c(model, out_dir, verbose=False, quiet=True, force=False, opt_level="-
     flags = compile_flags(opt_level, tuple(cflags))
     key = build_key(model, flags)
     cached = cache / f"{model.name}-{key}{EXT_SUFFIX}"
-    progress = _Progress(model.name, verbose)
+    progress = _Progress(model.name, verbose or (not quiet and sys.stderr.isatty()))
     with locked(cache / f"{model.name}.lock"):
         hit = cached.exists() and not force
         if not hit:
@@ -222,19 +231,21 @@ def build_c(model, out_dir, verbose=False, quiet=True, force=False, opt_level="-
     module = import_extension(model.name, cached)
     module.build_info = {"cache_hit": hit, "seconds": time.perf_counter() - start,
                          **progress.times}
-    if verbose and hit:
-        print(f"[lagrgen] {model.name}: cached build {cached.name}", file=sys.stderr)
+    if hit:
+        progress.note(f"cached build {cached.name}")
     return module
 
 
 def _compile_into(model, cached, flags, progress):
     """Generate the model's C in a private temporary directory and compile it to `cached`."""
     metadata = model.metadata()
+    progress.note("deriving the equations of motion ...")
     equations = model.equations()
     _ = equations.dF_dq, equations.dF_dqd, equations.dMa_dq, equations.dF_du
     progress.step("derive", f"{equations.n} coordinates")
     source = c_source(metadata, equations)
     progress.step("cse+emit", f"{len(source) / 1024:.0f} KiB of C")
+    progress.note(f"compiling {len(source) / 1024:.0f} KiB of C ({' '.join(flags)}) ...")
     work = Path(tempfile.mkdtemp(dir=cached.parent, prefix=f".build-{model.name}-"))
     try:
         src = work / f"{model.name}.c"

@@ -1,0 +1,141 @@
+"""Benchmarks of lagrgen's two paths on one model: build, per-call and solve_ivp timings as a table.
+
+Used by `python -m lagrgen bench MODEL.py` and by the scripts in `benchmarks/`. Every figure is a
+median (or best, for per-call times) of repeats measured in the same run.
+"""
+import statistics
+import tempfile
+import time
+import timeit
+
+import numpy as np
+
+from .backends import build
+from .runner import simulate
+
+METHODS = ("RK45", "DOP853", "Radau", "BDF", "LSODA")
+
+
+def per_call_seconds(fn, *args, budget=0.2):
+    """Best time of one call of fn(*args) over repeats, each loop taking about `budget` seconds."""
+    timer = timeit.Timer(lambda: fn(*args))
+    number, elapsed = timer.autorange()
+    number = max(1, int(number * budget / max(elapsed, 1e-9)))
+    return min(timer.repeat(repeat=5, number=number)) / number
+
+
+def build_seconds(make_model, out_dir=None, repeats=3):
+    """Cold build (fresh directory) split into derive / cse+emit / compile, and cached build.
+
+    `make_model()` returns a fresh, identical Model each time (so nothing is cached in memory).
+    """
+    colds, steps = [], []
+    for _ in range(repeats):
+        with tempfile.TemporaryDirectory() as tmp:
+            start = time.perf_counter()
+            mod = build(make_model(), out_dir=out_dir or tmp, force=True)
+            colds.append(time.perf_counter() - start)
+            steps.append(mod.build_info)
+            cached = []
+            for _ in range(repeats):
+                start = time.perf_counter()
+                build(make_model(), out_dir=out_dir or tmp)
+                cached.append(time.perf_counter() - start)
+    return {
+        "cold": statistics.median(colds),
+        "derive": statistics.median(s["derive"] for s in steps),
+        "cse+emit": statistics.median(s["cse+emit"] for s in steps),
+        "compile": statistics.median(s["compile"] for s in steps),
+        "cached": statistics.median(cached),
+    }
+
+
+def solve_seconds(mod, y0, method, t_span=(0.0, 10.0), rtol=1e-8, atol=1e-8, repeats=3,
+                  params=None, inputs=None):
+    """Median wall time of `lagrgen.simulate` and its counters (nfev, njev, nlu, success)."""
+    times, sol = [], None
+    for _ in range(repeats):
+        start = time.perf_counter()
+        sol = simulate(mod, t_span, y0, method=method, rtol=rtol, atol=atol, params=params,
+                       inputs=inputs)
+        times.append(time.perf_counter() - start)
+    return {"seconds": statistics.median(times), "nfev": sol.nfev, "njev": sol.njev,
+            "nlu": sol.nlu, "success": bool(sol.success)}
+
+
+def call_seconds(mod, y0, t=0.0):
+    """Per-call rhs and jacobian time from Python; inside C as well for a compiled model."""
+    y0 = np.asarray(y0, dtype=float)
+    out = {"rhs": per_call_seconds(mod.rhs, t, y0),
+           "jacobian": per_call_seconds(mod.jacobian, t, y0)}
+    if hasattr(mod, "time_in_c"):
+        for which in ("rhs", "jacobian"):
+            single = mod.time_in_c(which, t, y0, repeat=10)
+            repeat = max(10, int(0.1 / max(single, 1e-9)))
+            out[f"{which}_in_c"] = min(mod.time_in_c(which, t, y0, repeat=repeat)
+                                       for _ in range(5))
+    return out
+
+
+def default_state(mod):
+    """y0 = [q0, q̇0] with every coordinate 0.1 and every speed 0."""
+    n = mod.n_coordinates
+    return np.concatenate([np.full(n, 0.1), np.zeros(n)])
+
+
+def bench_model(make_model, y0=None, methods=METHODS, t_span=(0.0, 10.0), rtol=1e-8, atol=1e-8,
+                repeats=3, python_solve_limit=60.0, out_dir=None):
+    """All figures for one model on both paths, as a dict (see `markdown`)."""
+    builds = build_seconds(make_model, out_dir=out_dir, repeats=repeats)
+    with tempfile.TemporaryDirectory() as tmp:
+        c = build(make_model(), out_dir=out_dir or tmp)
+        py = build(make_model(), backend="python")
+        y0 = default_state(c) if y0 is None else np.asarray(y0, dtype=float)
+        calls = {"c": call_seconds(c, y0, t_span[0]), "python": call_seconds(py, y0, t_span[0])}
+        solves = {"c": {}, "python": {}}
+        for method in methods:
+            solves["c"][method] = solve_seconds(c, y0, method, t_span, rtol, atol, repeats)
+            estimate = solves["c"][method]["nfev"] * calls["python"]["rhs"] * 1.5
+            if estimate > python_solve_limit:
+                solves["python"][method] = {"skipped": f"estimated {estimate:.0f} s"}
+            else:
+                solves["python"][method] = solve_seconds(py, y0, method, t_span, rtol, atol,
+                                                         max(1, repeats - 2))
+    return {"name": c.name, "n": c.n_coordinates, "build": builds, "calls": calls,
+            "solves": solves, "t_span": list(t_span), "rtol": rtol, "atol": atol}
+
+
+def _us(seconds):
+    return f"{seconds * 1e6:.3g} µs"
+
+
+def _s(seconds):
+    return f"{seconds:.3g} s"
+
+
+def markdown(result):
+    """A markdown report of one `bench_model` result: build, per call, solve_ivp."""
+    b, c, py = result["build"], result["calls"]["c"], result["calls"]["python"]
+    lines = [f"### {result['name']} (n = {result['n']})", "",
+             "| build | cold | derive | CSE + emit | compile | cached |", "|---|---|---|---|---|---|",
+             f"| C path | {_s(b['cold'])} | {_s(b['derive'])} | {_s(b['cse+emit'])} | "
+             f"{_s(b['compile'])} | {_s(b['cached'])} |", "",
+             "| per call | C from Python | C inside C | Python path | C speed-up |",
+             "|---|---|---|---|---|"]
+    for which in ("rhs", "jacobian"):
+        lines.append(f"| {which} | {_us(c[which])} | {_us(c[which + '_in_c'])} | "
+                     f"{_us(py[which])} | {py[which] / c[which]:.0f}× |")
+    t0, t1 = result["t_span"]
+    lines += ["", f"| solve_ivp t = {t0:g}..{t1:g}, rtol = {result['rtol']:g}, "
+                  f"atol = {result['atol']:g} | C path | nfev / njev / nlu | Python path | "
+                  "C speed-up |", "|---|---|---|---|---|"]
+    for method, cs in result["solves"]["c"].items():
+        ps = result["solves"]["python"][method]
+        counts = f"{cs['nfev']} / {cs['njev']} / {cs['nlu']}"
+        if "skipped" in ps:
+            lines.append(f"| {method} | {_s(cs['seconds'])} | {counts} | skipped "
+                         f"({ps['skipped']}) | — |")
+        else:
+            lines.append(f"| {method} | {_s(cs['seconds'])} | {counts} | {_s(ps['seconds'])} | "
+                         f"{ps['seconds'] / cs['seconds']:.0f}× |")
+    return "\n".join(lines) + "\n"

@@ -1,0 +1,145 @@
+"""The equations of motion as a person writes them: Σ_j M_ij·q̈_j = F_i, one line per coordinate.
+
+Coordinates, velocities and accelerations become plain symbols (`theta1`, `theta1'`, `theta1''` in
+text; θ₁, θ̇₁, θ̈₁ as `\\theta_{1}`, `\\dot{\\theta}_{1}`, `\\ddot{\\theta}_{1}` in LaTeX), inputs u(t)
+become u, and each entry gets a cheap simplification (trigsimp) if it is small enough.
+"""
+from dataclasses import dataclass
+
+import sympy as sp
+from sympy.printing.conventions import split_super_sub
+
+#: trigsimp only entries of at most this many operations, and at most SIMPLIFY_BUDGET in all:
+#: trigsimp's time grows fast with size, and big models must still print quickly.
+SIMPLIFY_MAX_OPS = 100
+SIMPLIFY_BUDGET = 600
+
+
+@dataclass
+class Equations:
+    """M (n×n), F (n×1) and q̈ (n×1) in display symbols, with `names` mapping symbols to LaTeX."""
+
+    name: str
+    M: sp.Matrix
+    F: sp.Matrix
+    qdd: sp.Matrix
+    latex_names: dict
+
+    def rows(self):
+        """[([(M_ij, q̈_j) for the nonzero M_ij], F_i)] for each coordinate i."""
+        n = self.M.shape[0]
+        return [([(self.M[i, j], self.qdd[j]) for j in range(n) if self.M[i, j] != 0], self.F[i])
+                for i in range(n)]
+
+
+def display_symbols(model):
+    """{q_i(t): q_i, dq_i/dt: q_i', d²q_i/dt²: q_i'', u_k(t): u_k} and their LaTeX names."""
+    rules, latex_names = {}, {}
+    for q in model.q:
+        name = q.func.__name__
+        symbols = [sp.Symbol(name), sp.Symbol(name + "'"), sp.Symbol(name + "''")]
+        exprs = [q, q.diff(model.t), q.diff(model.t, 2)]
+        for expr, symbol, accent in zip(exprs, symbols, ("", r"\dot", r"\ddot")):
+            rules[expr] = symbol
+            latex_names[symbol] = accented(name, accent)
+    for u in model.input_functions:
+        symbol = sp.Symbol(u.func.__name__)
+        rules[u] = symbol
+        latex_names[symbol] = sp.latex(symbol)
+    return rules, latex_names
+
+
+def accented(name, accent):
+    r"""LaTeX of the symbol `name` with `accent` (\dot, \ddot) over its base: \dot{\theta}_{1}."""
+    full = sp.latex(sp.Symbol(name))
+    if not accent:
+        return full
+    base = sp.latex(sp.Symbol(split_super_sub(name)[0]))
+    if full.startswith(base):
+        return f"{accent}{{{base}}}{full[len(base):]}"
+    return f"{accent}{{{full}}}"
+
+
+def tidy(expr, budget):
+    """factor_terms(expr), then trigsimp if it has at most SIMPLIFY_MAX_OPS operations and the
+    running `budget` (a one-element list of operations still allowed) covers it; never longer."""
+    expr = sp.factor_terms(expr, sign=False)
+    ops = sp.count_ops(expr)
+    if ops > SIMPLIFY_MAX_OPS or ops > budget[0]:
+        return expr
+    budget[0] -= ops
+    simpler = sp.factor_terms(sp.trigsimp(expr), sign=False)
+    return simpler if sp.count_ops(simpler) <= ops else expr
+
+
+def equations(model, simplify=True):
+    """The model's M·q̈ = F in display symbols (see `Equations`)."""
+    rules, latex_names = display_symbols(model)
+    M = model.mass_matrix().xreplace(rules)
+    F = model.forcing().xreplace(rules)
+    if simplify:
+        budget = [SIMPLIFY_BUDGET]
+        M = M.applyfunc(lambda e: tidy(e, budget))
+        F = F.applyfunc(lambda e: tidy(e, budget))
+    qdd = sp.Matrix([rules[q.diff(model.t, 2)] for q in model.q])
+    return Equations(model.name, M, F, qdd, latex_names)
+
+
+def to_text(expr):
+    return sp.sstr(expr)
+
+
+def to_latex(expr, names):
+    return sp.latex(expr, symbol_names=names)
+
+
+def weighted_sum(terms, coefficient, symbol, times):
+    """Σ coefficient·symbol written out, parenthesizing sums and folding `+ -` into `-`."""
+    parts = []
+    for c, x in terms:
+        if c == 1:
+            parts.append(symbol(x))
+            continue
+        text = coefficient(c)
+        if isinstance(c, sp.Add):
+            text = f"({text})" if times == "*" else rf"\left({text}\right)"
+        parts.append(f"{text}{times}{symbol(x)}")
+    out = parts[0] if parts else "0"
+    for part in parts[1:]:
+        out += f" - {part[1:]}" if part.startswith("-") else f" + {part}"
+    return out
+
+
+def equation_lines(eqs, latex=False):
+    """One string per coordinate: `Σ_j M_ij·q̈_j = F_i` (LaTeX: `... &= ... \\\\` rows)."""
+    if latex:
+        def tex(e):
+            return to_latex(e, eqs.latex_names)
+        rows = [f"{weighted_sum(lhs, tex, tex, ' ')} &= {tex(rhs)}" for lhs, rhs in eqs.rows()]
+        return [row + (r" \\" if i < len(rows) - 1 else "") for i, row in enumerate(rows)]
+    return [f"{weighted_sum(lhs, to_text, to_text, '*')} = {to_text(rhs)}" for lhs, rhs in eqs.rows()]
+
+
+def matrix_lines(eqs, latex=False):
+    """M and F, entry by entry (text) or as LaTeX matrices."""
+    if latex:
+        return [f"M = {to_latex(eqs.M, eqs.latex_names)}",
+                f"F = {to_latex(eqs.F, eqs.latex_names)}"]
+    n = eqs.M.shape[0]
+    lines = [f"M[{i},{j}] = {to_text(eqs.M[i, j])}" for i in range(n) for j in range(n)]
+    return lines + [f"F[{i}] = {to_text(eqs.F[i])}" for i in range(n)]
+
+
+def render(model, latex=False, matrices=False, simplify=True):
+    """The whole display of a model's equations as one string (what `lagrgen show` prints)."""
+    eqs = equations(model, simplify=simplify)
+    names = ", ".join(model.coordinate_names)
+    if latex:
+        out = [f"% {model.name}: M(q, t) q'' = F(q, q', t, u) for q = ({names})",
+               r"\begin{aligned}", *equation_lines(eqs, latex=True), r"\end{aligned}"]
+    else:
+        out = [f"# {model.name}: M(q, t) q'' = F(q, q', t, u) for q = ({names})",
+               *equation_lines(eqs)]
+    if matrices:
+        out += matrix_lines(eqs, latex)
+    return "\n".join(out)

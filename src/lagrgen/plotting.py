@@ -1,0 +1,224 @@
+"""Pictures of results: time histories, mode shapes, and an animated GIF of the mechanism.
+
+Figures are drawn on matplotlib's Agg canvas (no window, no change to pyplot's global backend).
+The data flow is one way: these functions take a Model (its geometry, `model.drawables`), parameter
+values and a solution; they never build or derive anything.
+"""
+import numpy as np
+import sympy as sp
+from matplotlib.animation import PillowWriter
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.figure import Figure
+
+from .arguments import parameter_vector
+from .errors import LagrgenError
+
+MAX_MODES_PLOTTED = 8
+
+
+def new_figure(width, height):
+    fig = Figure(figsize=(width, height))
+    FigureCanvasAgg(fig)
+    return fig
+
+
+def plot_time_history(sol, coordinates, path=None, velocities=True, title=None):
+    """q_i(t) (and q̇_i(t) below it) for y = [q, q̇] in `sol.y`; saved to `path` if given."""
+    t, y = np.asarray(sol.t), np.asarray(sol.y)
+    n = len(coordinates)
+    fig = new_figure(7, 5.5 if velocities else 3.5)
+    axes = fig.subplots(2 if velocities else 1, 1, sharex=True, squeeze=False)[:, 0]
+    for i, name in enumerate(coordinates):
+        axes[0].plot(t, y[i], label=name)
+        if velocities:
+            axes[1].plot(t, y[n + i], label=f"{name}'")
+    axes[0].set_ylabel("q")
+    if velocities:
+        axes[1].set_ylabel("dq/dt")
+    axes[-1].set_xlabel("t")
+    for ax in axes:
+        ax.grid(True, alpha=0.3)
+        ax.legend(loc="upper right", fontsize="small")
+    if title:
+        axes[0].set_title(title)
+    fig.tight_layout()
+    if path is not None:
+        fig.savefig(path)
+    return fig
+
+
+def plot_modes(result, coordinates, path=None, title=None):
+    """Mode shapes as bars over the coordinates, one panel per mode (the first MAX_MODES_PLOTTED)."""
+    count = min(len(result.omega), MAX_MODES_PLOTTED)
+    fig = new_figure(7, 1.9 * count + 0.6)
+    axes = fig.subplots(count, 1, sharex=True, squeeze=False)[:, 0]
+    x = np.arange(len(coordinates))
+    for i, ax in enumerate(axes):
+        shape = np.real(result.shapes[:, i])
+        ax.bar(x, shape, color="tab:blue" if np.isfinite(result.omega[i]) else "tab:red")
+        ax.axhline(0.0, color="black", linewidth=0.8)
+        ax.set_title(mode_label(result, i), fontsize="medium")
+        ax.grid(True, axis="y", alpha=0.3)
+    axes[-1].set_xticks(x)
+    axes[-1].set_xticklabels(coordinates)
+    if title:
+        fig.suptitle(title)
+    fig.tight_layout()
+    if path is not None:
+        fig.savefig(path)
+    return fig
+
+
+def mode_label(result, i):
+    """'mode 1: 0.3815 Hz (2.397 rad/s), ζ = 0' (or 'unstable' for ω² < 0)."""
+    w = result.omega[i]
+    if not np.isfinite(w):
+        return f"mode {i + 1}: unstable (ω² = {np.real(result.eigenvalues[i]):.4g} rad²/s²)"
+    return (f"mode {i + 1}: {w / (2 * np.pi):.4g} Hz ({w:.4g} rad/s), "
+            f"ζ = {result.damping_ratios[i]:.3g}")
+
+
+def model_parameters(model, params):
+    """The parameter vector for `model` from None (defaults), a dict or a full array."""
+    defaults = np.array([np.nan if d is None else d for d in model.parameter_defaults], dtype=float)
+    return parameter_vector(params, model.parameter_names, defaults)
+
+
+def numeric_function(model, expr, p):
+    """f(t, q) for q of shape (n, frames): `expr` with the parameter values p substituted."""
+    n = len(model.q)
+    Q = sp.symbols(f"_q0:{n}") if n else ()
+    T = sp.Symbol("_t")
+    values = {s: sp.Float(v) for s, v in zip(model.parameter_symbols, p)}
+    plain = sp.sympify(expr).xreplace(values).xreplace({**dict(zip(model.q, Q)), model.t: T})
+    f = sp.lambdify([T, Q], plain, "numpy")
+    return lambda t, q: np.broadcast_to(np.asarray(f(t, tuple(q)), dtype=float), np.shape(t))
+
+
+def planar(model, position, p):
+    """f(t, q) -> (frames, 2) array: a 1-D position lies on the x axis, a 3-D one is seen along z."""
+    parts = [numeric_function(model, c, p) for c in list(position)[:2]]
+    if len(parts) == 1:
+        parts.append(lambda t, q: np.zeros(np.shape(t)))
+    return lambda t, q: np.stack([f(t, q) for f in parts], axis=-1)
+
+
+def drawable_tracks(model, p, t, q):
+    """[(kind, data)] along the frames: data are (frames, 2) point arrays, plus angles for bodies."""
+    tracks = []
+    for kind, points in model.drawables:
+        if kind == "body":
+            position, angle = points
+            tracks.append((kind, [planar(model, position, p)(t, q),
+                                  numeric_function(model, angle, p)(t, q)]))
+        else:
+            tracks.append((kind, [planar(model, pt, p)(t, q) for pt in points]))
+    return tracks
+
+
+def frame_states(sol, n_frames):
+    """(times, y at those times): n_frames equally spaced times, y interpolated from `sol`."""
+    t = np.asarray(sol.t, dtype=float)
+    y = np.asarray(sol.y, dtype=float)
+    times = np.linspace(t[0], t[-1], n_frames)
+    if getattr(sol, "sol", None) is not None:
+        return times, np.asarray(sol.sol(times))
+    return times, np.array([np.interp(times, t, row) for row in y])
+
+
+def zigzag(a, b, coils=6, width=0.05):
+    """Points of a zig-zag spring from a to b: straight ends, `coils` teeth of half-width `width`."""
+    a, b = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
+    d = b - a
+    length = np.hypot(*d)
+    if length == 0:
+        return np.array([a, b])
+    along, across = d / length, np.array([-d[1], d[0]]) / length
+    s = np.concatenate([[0.0, 0.15], np.linspace(0.15, 0.85, 2 * coils + 1)[1:-1], [0.85, 1.0]])
+    offset = np.zeros_like(s)
+    offset[2:-2] = width * np.where(np.arange(len(s) - 4) % 2 == 0, 1.0, -1.0)
+    return a + np.outer(s * length, along) + np.outer(offset, across)
+
+
+def scene_limits(tracks):
+    """(xmin, xmax, ymin, ymax) enclosing every drawn point over all frames, with a margin."""
+    points = [np.asarray(arr).reshape(-1, 2) for kind, data in tracks
+              for arr in (data[:1] if kind == "body" else data)]
+    allpts = np.concatenate(points)
+    lo, hi = allpts.min(axis=0), allpts.max(axis=0)
+    size = max((hi - lo).max(), 1e-9)
+    centre = (lo + hi) / 2
+    half = 0.5 * size * 1.2 + 0.05 * size
+    return centre[0] - half, centre[0] + half, centre[1] - half, centre[1] + half
+
+
+class Scene:
+    """The artists of one animation frame, updated in place frame by frame."""
+
+    def __init__(self, ax, tracks, size):
+        self.tracks, self.size = tracks, size
+        self.artists = []
+        for kind, _ in tracks:
+            if kind == "point":
+                artist, = ax.plot([], [], "o", color="tab:blue", markersize=8, zorder=3)
+            elif kind == "body":
+                artist = (ax.plot([], [], "s", color="tab:orange", markersize=9, zorder=3)[0],
+                          ax.plot([], [], "-", color="tab:orange", linewidth=2, zorder=3)[0])
+            elif kind == "spring":
+                artist, = ax.plot([], [], "-", color="tab:green", linewidth=1.2)
+            elif kind == "damper":
+                artist, = ax.plot([], [], "-", color="tab:purple", linewidth=3, alpha=0.7)
+            else:
+                artist, = ax.plot([], [], "-", color="black", linewidth=1.5)
+            self.artists.append(artist)
+
+    def update(self, k):
+        """Move every artist to frame k."""
+        for (kind, data), artist in zip(self.tracks, self.artists):
+            if kind == "point":
+                artist.set_data([data[0][k, 0]], [data[0][k, 1]])
+            elif kind == "body":
+                (x, y), a = data[0][k], data[1][k]
+                tick = 0.08 * self.size
+                artist[0].set_data([x], [y])
+                artist[1].set_data([x, x + tick * np.cos(a)], [y, y + tick * np.sin(a)])
+            elif kind == "spring":
+                pts = zigzag(data[0][k], data[1][k], width=0.025 * self.size)
+                artist.set_data(pts[:, 0], pts[:, 1])
+            else:
+                pts = np.array([d[k] for d in data])
+                artist.set_data(pts[:, 0], pts[:, 1])
+
+
+def animate(model, sol, path, params=None, fps=20, max_frames=120, dpi=80, title=None):
+    """Write an animated GIF of `model.drawables` moving along the solution `sol` (y = [q, q̇]).
+
+    `params` are the parameter values used in the simulation (None, a dict or a full array). The
+    frames are equally spaced in time, at `fps` frames per simulated second up to `max_frames`.
+    """
+    if not model.drawables:
+        raise LagrgenError(
+            f"model {model.name!r} has nothing to draw: add particles, rigid bodies, "
+            "model.line(...) or springs/dampers with ends=(a, b)")
+    p = model_parameters(model, params)
+    duration = float(sol.t[-1] - sol.t[0])
+    n_frames = int(np.clip(round(duration * fps), 2, max_frames))
+    times, y = frame_states(sol, n_frames)
+    tracks = drawable_tracks(model, p, times, y[:len(model.q)])
+    xmin, xmax, ymin, ymax = scene_limits(tracks)
+    fig = new_figure(5, 5)
+    ax = fig.add_subplot(1, 1, 1)
+    ax.set_xlim(xmin, xmax)
+    ax.set_ylim(ymin, ymax)
+    ax.set_aspect("equal")
+    ax.grid(True, alpha=0.3)
+    ax.set_title(title or model.name)
+    scene = Scene(ax, tracks, xmax - xmin)
+    clock = ax.text(0.02, 0.96, "", transform=ax.transAxes, va="top")
+    writer = PillowWriter(fps=fps)
+    with writer.saving(fig, str(path), dpi):
+        for k, t in enumerate(times):
+            scene.update(k)
+            clock.set_text(f"t = {t:.2f}")
+            writer.grab_frame()
+    return path

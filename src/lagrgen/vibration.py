@@ -1,0 +1,310 @@
+"""Small oscillations about an operating point: equilibrium, linearization, modes, frequency response.
+
+About an operating point (q0, q̇0, u0) the equations M(q, t)·q̈ = F(q, q̇, t, u) become
+
+    M·δq̈ + C·δq̇ + K·δq = B·δu,   M = M(q0),  K = −∂F/∂q,  C = −∂F/∂q̇,  B = ∂F/∂u,
+
+with the derivatives taken analytically by the built model's `linear_terms` (either backend).
+The term (∂M/∂q·q̈0)·δq is absent, so the linearization is exact to first order at an equilibrium
+(q̈0 = 0), which is where modes and frequency responses are meant to be computed.
+"""
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.linalg
+from scipy.optimize import linear_sum_assignment, root
+
+from .arguments import as_vector, input_vector
+from .errors import LagrgenError, MassMatrixError, UnknownNameError
+from .runner import parameters_from
+
+#: Relative size below which an eigenvalue ω² (or an imaginary part, an asymmetry) counts as zero.
+ZERO_TOL = 1e-9
+
+
+class EquilibriumError(LagrgenError, RuntimeError):
+    """No equilibrium F(q, 0) = 0 was found near the guess."""
+
+
+@dataclass
+class Linearization:
+    """M·δq̈ + C·δq̇ + K·δq = B·δu about (q0, qd0, t, p, u); arrays (n,n),(n,n),(n,n),(n,n_inputs)."""
+
+    M: np.ndarray
+    C: np.ndarray
+    K: np.ndarray
+    B: np.ndarray
+    q0: np.ndarray
+    qd0: np.ndarray
+    t: float = 0.0
+    p: np.ndarray = None
+    u: np.ndarray = None
+    coordinates: tuple = ()
+    inputs: tuple = ()
+    name: str = ""
+
+    @property
+    def n(self):
+        return self.M.shape[0]
+
+    @property
+    def names(self):
+        """The coordinate names, in the order of the rows and columns of M, C, K."""
+        return self.coordinates
+
+
+@dataclass
+class Modes:
+    """Natural frequencies, mass-normalized mode shapes and damping ratios of a Linearization.
+
+    `omega[i]` = √λ_i for the eigenvalues λ_i of K·φ = λ·M·φ in ascending order (rad/s; 0 for a
+    rigid-body mode, NaN where λ < 0: an unstable equilibrium); `shapes[:, i]` = φ_i with
+    φ_iᵀ·M·φ_i = 1 (and φᵀ·M·φ = I when K is symmetric); `damping_ratios[i]` = ζ_i of the
+    eigenvalues s = −ζω_n ± iω_n√(1−ζ²) of the state-space matrix matched to mode i.
+    """
+
+    omega: np.ndarray
+    shapes: np.ndarray
+    damping_ratios: np.ndarray
+    omega_damped: np.ndarray
+    eigenvalues: np.ndarray
+    linearization: Linearization = field(repr=False, default=None)
+
+    @property
+    def frequencies_hz(self):
+        """ω / 2π."""
+        return self.omega / (2 * np.pi)
+
+    @property
+    def stable(self):
+        """True for each mode whose ω² is not negative."""
+        return ~np.isnan(self.omega)
+
+    def __len__(self):
+        return len(self.omega)
+
+
+def _operating_point(mod, q, name, p, u):
+    n = mod.n_coordinates
+    q = as_vector(q, n, f"{name} (one value per coordinate {', '.join(mod.coordinates)})")
+    return q, parameters_from(mod, p), input_vector(u, tuple(mod.inputs))
+
+
+def equilibrium(mod, q_guess, p=None, u=None, t=0.0, tol=1e-9):
+    """The configuration q with F(q, 0, t, u) = 0 nearest `q_guess`, found by scipy.optimize.root.
+
+    The analytic ∂F/∂q (from `mod.linear_terms`) is the Jacobian. Levenberg–Marquardt goes first,
+    so a direction in which F vanishes identically (a rigid-body mode) keeps its guessed value;
+    Powell's hybrid method is the fallback. Raises EquilibriumError unless the residual satisfies
+    max|F_i| ≤ tol·max(1, max|∂F_i/∂q_j|).
+    """
+    q_guess, p, u = _operating_point(mod, q_guess, "q_guess", p, u)
+    zero = np.zeros_like(q_guess)
+
+    def residual(q):
+        return mod.forcing(q, zero, t, p, u)
+
+    def jacobian(q):
+        return mod.linear_terms(q, zero, t, p, u)[1]
+
+    def converged(q):
+        scale = max(1.0, np.abs(jacobian(q)).max())
+        return np.all(np.isfinite(q)) and np.abs(residual(q)).max() <= tol * scale
+
+    if converged(q_guess):
+        return q_guess
+    best = q_guess
+    for method in ("lm", "hybr"):
+        sol = root(residual, best, jac=jacobian, method=method)
+        if np.all(np.isfinite(sol.x)) and converged(sol.x):
+            return np.asarray(sol.x, dtype=float)
+        if np.all(np.isfinite(sol.x)) and (np.abs(residual(sol.x)).max()
+                                           < np.abs(residual(best)).max()):
+            best = sol.x
+    names = ", ".join(f"{c}={v:.6g}" for c, v in zip(mod.coordinates, q_guess))
+    raise EquilibriumError(
+        f"no equilibrium of model {mod.name!r} found near {names} "
+        f"(|F| = {np.abs(residual(best)).max():.3g} at the best point reached): "
+        "try another starting guess, or check that the model has a static equilibrium")
+
+
+def check_mass_matrix(lin):
+    """Raise MassMatrixError unless lin.M is symmetric positive definite."""
+    try:
+        np.linalg.cholesky(lin.M)
+    except np.linalg.LinAlgError:
+        from .pybackend import mass_matrix_message
+        raise MassMatrixError(mass_matrix_message(lin.name, lin.t, lin.q0)) from None
+
+
+def linearize(mod, q0, qd0=None, t=0.0, p=None, u=None):
+    """M·δq̈ + C·δq̇ + K·δq = B·δu about (q0, qd0): M(q0), K = −∂F/∂q, C = −∂F/∂q̇, B = ∂F/∂u."""
+    q0, p, u = _operating_point(mod, q0, "q0", p, u)
+    n = mod.n_coordinates
+    qd0 = np.zeros(n) if qd0 is None else as_vector(qd0, n, "qd0")
+    M, dF_dq, dF_dqd, dF_du = mod.linear_terms(q0, qd0, float(t), p, u)
+    lin = Linearization(M=M, C=-dF_dqd, K=-dF_dq, B=dF_du, q0=q0, qd0=qd0, t=float(t), p=p, u=u,
+                        coordinates=tuple(mod.coordinates), inputs=tuple(mod.inputs),
+                        name=mod.name)
+    check_mass_matrix(lin)
+    return lin
+
+
+def as_linearization(mod_or_lin, q0=None, p=None, u=None):
+    """A Linearization as given, or the built model linearized at q0 (None: the equilibrium near 0)."""
+    if isinstance(mod_or_lin, Linearization):
+        return mod_or_lin
+    if q0 is None:
+        q0 = equilibrium(mod_or_lin, np.zeros(mod_or_lin.n_coordinates), p=p, u=u)
+    return linearize(mod_or_lin, q0, p=p, u=u)
+
+
+def _is_symmetric(A):
+    return np.abs(A - A.T).max() <= ZERO_TOL * max(np.abs(A).max(), np.finfo(float).tiny)
+
+
+def _mass_normalize(shapes, M):
+    """Scale each column φ so that φᴴ·M·φ = 1 and its largest entry is real and positive."""
+    out = np.array(shapes)
+    for i in range(out.shape[1]):
+        phi = out[:, i]
+        phi = phi / np.sqrt(np.real(np.conj(phi) @ M @ phi))
+        big = phi[np.argmax(np.abs(phi))]
+        out[:, i] = phi * (np.abs(big) / big)
+    if np.iscomplexobj(out) and np.abs(out.imag).max() <= ZERO_TOL * np.abs(out).max():
+        out = out.real.copy()
+    return out
+
+
+def undamped_modes(M, K):
+    """Eigenvalues λ = ω² (ascending by real part) and mass-normalized shapes of K·φ = λ·M·φ.
+
+    Symmetric K: scipy.linalg.eigh, so Φᵀ·M·Φ = I. Otherwise (circulatory forces) the general
+    eigenproblem; λ may then be complex (flutter) and the shapes are only normalized one by one.
+    """
+    if _is_symmetric(K):
+        lam, shapes = scipy.linalg.eigh((K + K.T) / 2, M)
+    else:
+        lam, shapes = scipy.linalg.eig(K, M)
+        if np.abs(lam.imag).max() <= ZERO_TOL * max(np.abs(lam).max(), 1e-300):
+            lam, shapes = lam.real, shapes.real
+        order = np.argsort(lam.real, kind="stable")
+        lam, shapes = lam[order], shapes[:, order]
+    scale = max(np.abs(lam).max(), np.finfo(float).tiny)
+    lam = np.where(np.abs(lam) <= ZERO_TOL * scale, 0.0, lam)
+    return lam, _mass_normalize(shapes, M)
+
+
+def state_matrix(M, C, K):
+    """A = [[0, I], [−M⁻¹K, −M⁻¹C]], so that ẋ = A·x for x = [δq, δq̇]."""
+    n = M.shape[0]
+    A = np.zeros((2 * n, 2 * n))
+    A[:n, n:] = np.eye(n)
+    A[n:, :n] = -np.linalg.solve(M, K)
+    A[n:, n:] = -np.linalg.solve(M, C)
+    return A
+
+
+def _assign(shapes, M, vectors):
+    """Index of the undamped mode each damped eigenvector belongs to (two per mode).
+
+    Maximizes the total mass-weighted modal assurance criterion
+    MAC = |φᴴMψ|² / ((φᴴMφ)(ψᴴMψ)) with each mode taking exactly two eigenvalues.
+    """
+    n = shapes.shape[1]
+    psi = vectors[:n]
+    cross = np.abs(np.conj(shapes).T @ M @ psi) ** 2
+    norm_phi = np.real(np.einsum("ij,ik,kj->j", np.conj(shapes), M, shapes))
+    norm_psi = np.real(np.einsum("ij,ik,kj->j", np.conj(psi), M, psi))
+    mac = cross / np.outer(norm_phi, np.maximum(norm_psi, np.finfo(float).tiny))
+    rows, cols = linear_sum_assignment(-np.vstack([mac, mac]))
+    mode_of = np.empty(2 * n, dtype=int)
+    mode_of[cols] = rows % n
+    return mode_of
+
+
+def _ratio(pair, omega_n):
+    """(ζ, ω_d) of one mode from its two state-space eigenvalues s1, s2.
+
+    A pair s = −ζω_n ± iω_d gives ζ = −Re s/|s|; two real ones (overdamped) give ω_n² = s1·s2 and
+    ζ = −(s1 + s2)/(2√(s1·s2)). A rigid-body mode (ω_n = 0) has ζ = 0 when both s vanish and is
+    undefined (NaN) otherwise.
+    """
+    s1, s2 = pair
+    scale = max(abs(s1), abs(s2), np.finfo(float).tiny)
+    if abs(s1.imag) > ZERO_TOL * scale:
+        s = s1 if s1.imag > 0 else s2
+        return -s.real / abs(s), abs(s.imag)
+    a, b = s1.real, s2.real
+    if omega_n == 0 or a * b <= 0:
+        return (0.0 if scale <= ZERO_TOL * max(1.0, omega_n) else np.nan), 0.0
+    return -(a + b) / (2 * np.sqrt(a * b)), 0.0
+
+
+def damping(M, C, K, shapes, omega):
+    """Damping ratios ζ_i and damped frequencies ω_d,i from the eigenvalues of the state matrix."""
+    n = M.shape[0]
+    if not np.any(C):
+        return np.zeros(n), np.array(omega)
+    s, vectors = np.linalg.eig(state_matrix(M, C, K))
+    mode_of = _assign(shapes, M, vectors)
+    zeta, omega_d = np.zeros(n), np.zeros(n)
+    for i in range(n):
+        zeta[i], omega_d[i] = _ratio(s[mode_of == i], omega[i])
+    return zeta, omega_d
+
+
+def modes(mod_or_lin, q0=None, p=None, u=None):
+    """Natural frequencies, mass-normalized mode shapes and damping ratios (see `Modes`).
+
+    `mod_or_lin` is a built model, linearized at q0 (None: the equilibrium found near q = 0), or a
+    `Linearization`.
+    """
+    lin = as_linearization(mod_or_lin, q0, p, u)
+    check_mass_matrix(lin)
+    lam, shapes = undamped_modes(lin.M, lin.K)
+    lam_real = np.real(lam)
+    omega = np.full(lin.n, np.nan)
+    omega[lam_real >= 0] = np.sqrt(lam_real[lam_real >= 0])
+    zeta, omega_d = damping(lin.M, lin.C, lin.K, shapes, np.nan_to_num(omega))
+    return Modes(omega=omega, shapes=shapes, damping_ratios=zeta, omega_damped=omega_d,
+                 eigenvalues=lam, linearization=lin)
+
+
+def input_index(names, input, model_name=""):
+    """The position of `input` among the input `names`, or a clear error."""
+    names = tuple(names)
+    if not names:
+        raise LagrgenError(
+            f"model {model_name!r} has no inputs: declare one with model.inputs('F') to compute a "
+            "frequency response")
+    if input not in names:
+        raise UnknownNameError(
+            f"unknown input name {input!r}: the inputs of model {model_name!r} are {', '.join(names)}")
+    return names.index(input)
+
+
+def frequency_response(mod, q0, freqs_hz, input="F", p=None, u=None):
+    """H(f) = (K − ω²M + iωC)⁻¹·B[:, input] for ω = 2πf: δq/δu, shape (len(freqs_hz), n), complex.
+
+    `mod` is a built model (linearized at q0) or a Linearization (q0 ignored). Where the dynamic
+    stiffness is singular (ω = 0 with a rigid-body mode, an undamped resonance) H is infinite.
+    """
+    lin = mod if isinstance(mod, Linearization) else None
+    names = lin.inputs if lin is not None else mod.inputs
+    name = lin.name if lin is not None else mod.name
+    j = input_index(names, input, name)
+    if lin is None:
+        lin = linearize(mod, q0, p=p, u=u)
+    freqs = np.atleast_1d(np.asarray(freqs_hz, dtype=float))
+    if freqs.ndim != 1:
+        raise ValueError(f"freqs_hz must be a 1-D array of frequencies, got shape {freqs.shape}")
+    b = lin.B[:, j]
+    H = np.empty((len(freqs), lin.n), dtype=complex)
+    for k, w in enumerate(2 * np.pi * freqs):
+        Z = lin.K - w * w * lin.M + 1j * w * lin.C
+        try:
+            H[k] = np.linalg.solve(Z, b)
+        except np.linalg.LinAlgError:
+            H[k] = np.inf
+    return H
