@@ -54,6 +54,13 @@ class ExpressionPrinter:
     def doprint(self, expr):
         return self._print(expr)[0]
 
+    def integer(self, v):
+        return str(v)
+
+    def real(self, v):
+        """A floating-point literal (both languages: `2.0`, `0.25`)."""
+        return f"{v}.0" if isinstance(v, int) else repr(float(v))
+
     def paren(self, expr, level):
         text, prec = self._print(expr)
         return f"({text})" if prec < level else text
@@ -147,12 +154,6 @@ class CPrinter(ExpressionPrinter):
         "Abs": "fabs", "sign": "lg_sign",
     }
 
-    def integer(self, v):
-        return str(v)
-
-    def real(self, v):
-        return f"{v}.0" if isinstance(v, int) else repr(float(v))
-
     def integer_power(self, base, k):
         b = self.paren(base, ATOM)
         if k == 2:
@@ -176,12 +177,6 @@ class PythonPrinter(ExpressionPrinter):
     language = "Python"
     functions = {k: k for k in CPrinter.functions}
     functions.update({"Abs": "abs", "sign": "_sign"})
-
-    def integer(self, v):
-        return str(v)
-
-    def real(self, v):
-        return f"{v}.0" if isinstance(v, int) else repr(float(v))
 
     def integer_power(self, base, k):
         return f"{self.paren(base, ATOM)}**{k}", ATOM

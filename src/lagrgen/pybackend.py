@@ -92,14 +92,20 @@ class PythonModel:
         p, u = self._args(p, u)
         return self._mf(float(t), q, qd, p, u)[1]
 
-    def rhs(self, t, y, p=None, u=None):
-        """ẏ = [q̇, M⁻¹F] for y = [q, q̇], a (2n,) float64 array."""
+    def _factored_point(self, t, y, p, u):
+        """(q, qd, p, u as lists, M, F) at the state y, after checking M is positive definite."""
         n = self.n_coordinates
         y = as_vector(y, 2 * n, "y")
         q, qd = y[:n].tolist(), y[n:].tolist()
         p, u = self._args(p, u)
         M, F = self._mf(t, q, qd, p, u)
         self._factor(M, t, q)
+        return q, qd, p, u, M, F
+
+    def rhs(self, t, y, p=None, u=None):
+        """ẏ = [q̇, M⁻¹F] for y = [q, q̇], a (2n,) float64 array."""
+        n = self.n_coordinates
+        q, qd, p, u, M, F = self._factored_point(t, y, p, u)
         out = np.empty(2 * n)
         out[:n] = qd
         out[n:] = np.linalg.solve(M, F)
@@ -108,11 +114,7 @@ class PythonModel:
     def jacobian(self, t, y, p=None, u=None):
         """∂ẏ/∂y = [[0, I], [M⁻¹(∂F/∂q − ∂(M·q̈)/∂q), M⁻¹·∂F/∂q̇]], a (2n, 2n) float64 array."""
         n = self.n_coordinates
-        y = as_vector(y, 2 * n, "y")
-        q, qd = y[:n].tolist(), y[n:].tolist()
-        p, u = self._args(p, u)
-        M, F = self._mf(t, q, qd, p, u)
-        self._factor(M, t, q)
+        q, qd, p, u, M, F = self._factored_point(t, y, p, u)
         a = np.linalg.solve(M, F).tolist()
         J = np.zeros((2 * n, 2 * n))
         J[:n, n:] = np.eye(n)
