@@ -264,3 +264,11 @@ def test_dependent_coordinates_give_a_singular_mass_matrix(build):
     assert_allclose(mod.mass_matrix([0.0, 0.0]), [[1.0, 1.0], [1.0, 1.0]])
     with pytest.raises(MassMatrixError, match="not positive definite"):
         mod.rhs(0.0, [0.1, 0.2, 0.0, 0.0])
+
+
+@pytest.mark.parametrize("name", ["pendule_é", "lagrgen"])
+def test_model_names_must_make_importable_modules(name):
+    with pytest.raises(ModelError, match="model"):
+        Model(name)
+    with pytest.raises(ModelError, match="model"):
+        lagrgen.load(name)

@@ -27,6 +27,7 @@ from string import Template
 from . import __version__
 from .errors import BuildError, CompileError
 from .kernels import all_kernels
+from .model import check_model_name
 from .printer import c_function, kernel_statements
 
 EXT_SUFFIX = sysconfig.get_config_var("EXT_SUFFIX") or ".so"
@@ -273,6 +274,7 @@ def _publish_current(name, out_dir, cached, key):
 
 def load_c(name, out_dir):
     """Import the compiled model `name` last built into `out_dir`."""
+    check_model_name(name)
     out_dir = Path(out_dir)
     marker = out_dir / CACHE_DIR / f"{name}.current"
     if marker.exists():

@@ -29,6 +29,17 @@ def check_name(name, what="name"):
     return name
 
 
+def check_model_name(name):
+    """Return `name` if it can name a compiled module: an ASCII identifier other than 'lagrgen'."""
+    check_name(name, "model name")
+    if not name.isascii():
+        raise ModelError(f"invalid model name {name!r}: it becomes the name of a compiled Python "
+                         "module, so use ASCII letters, digits and underscores only")
+    if name == "lagrgen":
+        raise ModelError("a model cannot be called 'lagrgen': its module would hide the package")
+    return name
+
+
 def split_names(names, what):
     """Return a list of names from a space/comma-separated string or an iterable of strings."""
     if isinstance(names, str):
@@ -60,7 +71,7 @@ class Model:
     """
 
     def __init__(self, name):
-        self.name = check_name(name, "model name")
+        self.name = check_model_name(name)
         self.t = sp.Symbol("t")
         self._names = {"t": "time"}
         self._coordinates = []
