@@ -18,18 +18,6 @@ class Kernel:
     temporaries: list   # [(symbol, expression)], in dependency order
     outputs: dict       # name -> [expression], row-major
 
-    def op_count(self):
-        """Number of arithmetic operations and function applications (the work per call)."""
-        exprs = [e for _, e in self.temporaries] + [e for out in self.outputs.values() for e in out]
-        return sum(_ops(e) for e in exprs)
-
-
-def _ops(expr):
-    args = expr.args
-    if not args:
-        return 0
-    return max(len(args) - 1, 1) + sum(_ops(a) for a in args)
-
 
 def flatten(matrix):
     """Row-major list of the entries of a list of lists."""

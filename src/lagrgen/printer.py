@@ -49,7 +49,6 @@ class ExpressionPrinter:
     """Shared precedence logic; subclasses name the functions and powers of their language."""
 
     functions = {}
-    statement_end = ""
 
     def doprint(self, expr):
         return self._print(expr)[0]
