@@ -7,9 +7,12 @@ Three kernels cover every quantity of a built model:
     dF_du        ∂F/∂u, the linearization's input matrix
 Mass matrix, forcing, rhs, jacobian and linear terms are assembled from these by the backends.
 """
+import weakref
 from dataclasses import dataclass
 
 import symengine as se
+
+_computed = weakref.WeakKeyDictionary()
 
 
 @dataclass
@@ -55,5 +58,7 @@ def dF_du_kernel(eq):
 
 
 def all_kernels(eq):
-    """The kernels every backend compiles, in a fixed order."""
-    return [mf_kernel(eq), jacobian_b_kernel(eq), dF_du_kernel(eq)]
+    """The kernels every backend compiles, in a fixed order (computed once per Equations)."""
+    if eq not in _computed:
+        _computed[eq] = [mf_kernel(eq), jacobian_b_kernel(eq), dF_du_kernel(eq)]
+    return _computed[eq]
