@@ -241,8 +241,7 @@ def _compile_into(model, cached, flags, progress):
     """Generate the model's C in a private temporary directory and compile it to `cached`."""
     metadata = model.metadata()
     progress.note("deriving the equations of motion ...")
-    equations = model.equations()
-    _ = equations.dF_dq, equations.dF_dqd, equations.dMa_dq, equations.dF_du
+    equations = model.equations().differentiate()
     progress.step("derive", f"{equations.n} coordinates")
     source = c_source(metadata, equations)
     progress.step("cse+emit", f"{len(source) / 1024:.0f} KiB of C")

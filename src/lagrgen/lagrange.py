@@ -72,27 +72,34 @@ class Equations:
 
     @cached_property
     def dMa_dq(self):
-        """∂(M·a)_i/∂q_j = Σ_k ∂M_ik/∂q_j · a_k, with a = q̈ held fixed."""
+        """∂(M·a)_i/∂q_j = Σ_k ∂M_ik/∂q_j · a_k, with a = q̈ held fixed (each M_ik = M_ki once)."""
         n = self.n
         out = [[se.Integer(0)] * n for _ in range(n)]
+        dM = {}
         for i in range(n):
             for k in range(n):
                 if self.M[i][k] == 0:
                     continue
-                for j in range(n):
-                    d = diff(self.M[i][k], self.q[j])
+                key = (max(i, k), min(i, k))
+                if key not in dM:
+                    dM[key] = [diff(self.M[i][k], qj) for qj in self.q]
+                for j, d in enumerate(dM[key]):
                     if d != 0:
                         out[i][j] += d * self.a[k]
         return out
 
+    def differentiate(self):
+        """Evaluate (and cache) every Jacobian piece now; return self."""
+        _ = self.dF_dq, self.dF_dqd, self.dMa_dq, self.dF_du
+        return self
+
+    @cached_property
+    def _to_user(self):
+        return {internal: user for user, internal in user_to_internal(self.model).items()}
+
     def to_user(self, expr):
         """Return a SymPy expression in the model's own symbols (q(t), q'(t), parameters, u(t))."""
-        m = self.model
-        back = {sp.Symbol(str(s)): v for s, v in zip(self.q, m.q)}
-        back.update({sp.Symbol(str(s)): v for s, v in zip(self.qd, m.qd)})
-        back.update({sp.Symbol(str(s)): v for s, v in zip(self.p, m.parameter_symbols)})
-        back.update({sp.Symbol(str(s)): v for s, v in zip(self.u, m.input_functions)})
-        return sp.sympify(expr).xreplace(back)
+        return sp.sympify(expr).xreplace(self._to_user)
 
     def user_matrix(self, which):
         """Return M or F (`which`) as a SymPy Matrix in the model's own symbols."""
@@ -100,20 +107,19 @@ class Equations:
         return sp.Matrix([[self.to_user(e) for e in row] for row in rows])
 
 
+def user_to_internal(model):
+    """{q_i(t): q[i], dq_i/dt: qd[i], parameter j: p[j], u_k(t): u[k]} as SymPy symbols."""
+    pairs = [(model.qd, "qd"), (model.q, "q"), (model.parameter_symbols, "p"),
+             (model.input_functions, "u")]
+    return {user: sp.Symbol(f"{prefix}[{i}]") for users, prefix in pairs
+            for i, user in enumerate(users)}
+
+
 class _Converter:
     """Turns a model's SymPy expressions into SymEngine ones in the internal symbols."""
 
-    def __init__(self, model, symbols):
-        q, qd, _, p, u, t = symbols
-        self.to_internal = {}
-        for fn, s in zip(model.qd, qd):
-            self.to_internal[fn] = sp.Symbol(str(s))
-        for fn, s in zip(model.q, q):
-            self.to_internal[fn] = sp.Symbol(str(s))
-        for sym, s in zip(model.parameter_symbols, p):
-            self.to_internal[sym] = sp.Symbol(str(s))
-        for fn, s in zip(model.input_functions, u):
-            self.to_internal[fn] = sp.Symbol(str(s))
+    def __init__(self, model):
+        self.to_internal = user_to_internal(model)
 
     def __call__(self, expr):
         internal = sp.sympify(expr).xreplace(self.to_internal)
@@ -160,7 +166,7 @@ def derive(model):
                internal_symbols("p", len(model.parameter_symbols)),
                internal_symbols("u", len(model.input_functions)), se.Symbol("t"))
     q, qd, _, _, _, t = symbols
-    convert = _Converter(model, symbols)
+    convert = _Converter(model)
     M = [[se.Integer(0)] * n for _ in range(n)]
     F = [se.Integer(0)] * n
 
