@@ -14,7 +14,7 @@ cimport cython
 cimport numpy as cnp
 from cpython.pycapsule cimport PyCapsule_GetPointer, PyCapsule_IsValid
 
-from .arguments import input_vector, parameter_vector
+from .arguments import defaults_array, input_vector, parameter_vector
 from .errors import BuildError, MassMatrixError
 from . import __version__
 
@@ -99,11 +99,9 @@ cdef class CompiledModel:
         self.coordinates = tuple(meta["coordinates"])
         self.parameters = tuple(meta["parameters"])
         self.inputs = tuple(meta["inputs"])
-        self._defaults = np.array([np.nan if d is None else d for d in meta["defaults"]],
-                                  dtype=np.float64)
+        self._defaults = defaults_array(meta["defaults"])
         self._defaults_complete = not np.isnan(self._defaults).any()
-        self.defaults = self._defaults.copy()
-        self.defaults.setflags(write=False)
+        self.defaults = defaults_array(meta["defaults"])
         self._zeros = np.zeros(max(self.n_inputs, 1))
         self.backend = "c"
 
@@ -134,9 +132,7 @@ cdef class CompiledModel:
         return data(self._keep_u)
 
     cdef _not_positive_definite(self, double t, const double *q):
-        from .pybackend import mass_matrix_message
-        qs = [q[i] for i in range(self.n_coordinates)]
-        raise MassMatrixError(mass_matrix_message(self.name, t, qs))
+        raise MassMatrixError.at(self.name, t, [q[i] for i in range(self.n_coordinates)])
 
     def mass_matrix(self, q, double t=0.0, p=None, u=None):
         """M(q, t), an (n, n) float64 array."""

@@ -4,6 +4,13 @@ import numpy as np
 from .errors import UnknownNameError
 
 
+def defaults_array(defaults):
+    """Parameter defaults as a read-only float64 array, NaN where a value must be given."""
+    out = np.array([np.nan if d is None else d for d in defaults], dtype=np.float64)
+    out.setflags(write=False)
+    return out
+
+
 def as_vector(obj, size, what):
     """Return `obj` as a C-contiguous 1-D float64 array of length `size`, or raise ValueError."""
     try:

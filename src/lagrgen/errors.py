@@ -20,6 +20,16 @@ class UnknownNameError(LagrgenError, ValueError, KeyError):
 class MassMatrixError(LagrgenError, np.linalg.LinAlgError):
     """The mass matrix is not symmetric positive definite at the state asked for."""
 
+    @classmethod
+    def at(cls, name, t, q):
+        """The error for model `name` at (t, q), saying what to check."""
+        q = np.asarray(q, dtype=float)
+        hint = ("the state contains NaN or infinity" if not np.all(np.isfinite(q)) else
+                "check that masses and inertias are positive and that the coordinates are "
+                "independent at this configuration")
+        return cls(f"the mass matrix of model {name!r} is not positive definite at t={t!r}, "
+                   f"q={np.array2string(q, precision=6)}: {hint}")
+
 
 class BuildError(LagrgenError, RuntimeError):
     """Generating, compiling or loading a compiled model failed."""

@@ -10,7 +10,7 @@ from matplotlib.animation import PillowWriter
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
-from .arguments import parameter_vector
+from .arguments import defaults_array, parameter_vector
 from .errors import LagrgenError
 
 MAX_MODES_PLOTTED = 8
@@ -80,8 +80,8 @@ def mode_label(result, i):
 
 def model_parameters(model, params):
     """The parameter vector for `model` from None (defaults), a dict or a full array."""
-    defaults = np.array([np.nan if d is None else d for d in model.parameter_defaults], dtype=float)
-    return parameter_vector(params, model.parameter_names, defaults)
+    return parameter_vector(params, model.parameter_names,
+                            defaults_array(model.parameter_defaults))
 
 
 def numeric_function(model, expr, p):

@@ -7,7 +7,7 @@ import math
 
 import numpy as np
 
-from .arguments import as_vector, input_vector, parameter_vector
+from .arguments import as_vector, defaults_array, input_vector, parameter_vector
 from .errors import MassMatrixError
 from .kernels import all_kernels
 from .printer import PythonPrinter, kernel_statements, print_statements
@@ -44,8 +44,7 @@ class PythonModel:
         self.coordinates = tuple(meta["coordinates"])
         self.parameters = tuple(meta["parameters"])
         self.inputs = tuple(meta["inputs"])
-        self.defaults = np.array([np.nan if d is None else d for d in meta["defaults"]], dtype=float)
-        self.defaults.setflags(write=False)
+        self.defaults = defaults_array(meta["defaults"])
         self.content_hash = meta["content_hash"]
         self.n_coordinates = n = equations.n
         self.source = python_source(all_kernels(equations))
@@ -65,7 +64,7 @@ class PythonModel:
         try:
             return np.linalg.cholesky(M)
         except np.linalg.LinAlgError:
-            raise MassMatrixError(mass_matrix_message(self.name, t, q)) from None
+            raise MassMatrixError.at(self.name, t, q) from None
 
     def _mf(self, t, q, qd, p, u):
         """M (n×n array) and F (n array) at a point; q, qd, p, u as lists."""
@@ -130,13 +129,3 @@ class PythonModel:
         B = self._b(float(t), q, qd, [0.0] * n, p, u)
         dF_du = np.array(self._kernels["dF_du"](float(t), q, qd, None, p, u)[0]).reshape(n, k)
         return M, B[:, :n].copy(), B[:, n:].copy(), dF_du
-
-
-def mass_matrix_message(name, t, q):
-    """The error text for a mass matrix that is not positive definite at (t, q)."""
-    q = np.asarray(q, dtype=float)
-    hint = ("the state contains NaN or infinity" if not np.all(np.isfinite(q)) else
-            "check that masses and inertias are positive and that the coordinates are independent "
-            "at this configuration")
-    return (f"the mass matrix of model {name!r} is not positive definite at t={t!r}, "
-            f"q={np.array2string(q, precision=6)}: {hint}")

@@ -133,8 +133,7 @@ def check_mass_matrix(lin):
     try:
         np.linalg.cholesky(lin.M)
     except np.linalg.LinAlgError:
-        from .pybackend import mass_matrix_message
-        raise MassMatrixError(mass_matrix_message(lin.name, lin.t, lin.q0)) from None
+        raise MassMatrixError.at(lin.name, lin.t, lin.q0) from None
 
 
 def linearize(mod, q0, qd0=None, t=0.0, p=None, u=None):
