@@ -147,25 +147,23 @@ def locked(path):
             fcntl.flock(fh, fcntl.LOCK_UN)
 
 
-def publish(src, dest):
-    """Copy `src` to `dest` atomically (a reader sees the old or the new file, never a part)."""
+def write_atomic(dest, data, mode=0o644):
+    """Write the bytes `data` to `dest` atomically: a reader sees the old or the new file, never a
+    part, and a file that is open or mapped elsewhere (a loaded module) keeps its old contents."""
     fd, tmp = tempfile.mkstemp(dir=dest.parent, prefix=f".{dest.name}.", suffix=".tmp")
-    os.close(fd)
     try:
-        shutil.copyfile(src, tmp)
-        os.chmod(tmp, os.stat(src).st_mode & 0o777)
+        with os.fdopen(fd, "wb") as fh:
+            fh.write(data)
+        os.chmod(tmp, mode)
         os.replace(tmp, dest)
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
         raise
 
 
-def write_text_atomic(path, text):
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    with os.fdopen(fd, "w") as fh:
-        fh.write(text)
-    os.chmod(tmp, 0o644)
-    os.replace(tmp, path)
+def publish(src, dest):
+    """Copy the file `src` to `dest` atomically, keeping its permissions."""
+    write_atomic(dest, src.read_bytes(), os.stat(src).st_mode & 0o777)
 
 
 def source_of(module_path):
@@ -268,7 +266,7 @@ def _publish_current(name, out_dir, cached, key):
         return
     publish(cached, module_file)
     publish(source_of(cached), out_dir / f"{name}.c")
-    write_text_atomic(marker, key + "\n")
+    write_atomic(marker, (key + "\n").encode())
 
 
 def load_c(name, out_dir):

@@ -344,7 +344,15 @@ class Model:
         return self.equations().user_matrix("F")
 
     def content_hash(self):
-        """A hex digest of everything that determines the generated code (and lagrgen's version)."""
+        """A hex digest of everything that determines the generated code (and lagrgen's version).
+
+        Computed once per state of the model (every change to it makes a new one)."""
+        cached = getattr(self, "_content_hash", None)
+        if cached is None or cached[0] != self._version:
+            self._content_hash = (self._version, self._hash_contents())
+        return self._content_hash[1]
+
+    def _hash_contents(self):
         h = hashlib.sha256()
         parts = [
             __version__, self.name, self.coordinate_names, self.parameter_names,
