@@ -4,6 +4,7 @@ options it passes through to SciPy, and the analytic Jacobian handed to the stif
 References are DOP853 at rtol = atol = 1e-12 or SciPy's `solve_ivp` called directly on `mod.rhs`.
 """
 import numpy as np
+import scipy.integrate
 import pytest
 from numpy.testing import assert_allclose
 from scipy.integrate import solve_ivp
@@ -61,6 +62,27 @@ def test_stiff_methods_use_the_analytic_jacobian(pendulum, method):
     assert sol.success
     assert sol.njev > 0
     assert counted.calls == sol.njev
+
+
+@pytest.mark.parametrize("method", [scipy.integrate.Radau, scipy.integrate.BDF])
+def test_a_stiff_solver_class_also_gets_the_analytic_jacobian(pendulum, method):
+    counted = CountingJacobian(pendulum)
+    sol = lagrgen.simulate(counted, SPAN, Y0, method=method, rtol=1e-8, atol=1e-10)
+    assert sol.success and sol.njev > 0
+    assert counted.calls == sol.njev
+
+
+def test_radau_and_bdf_take_the_same_steps_as_scipys(pendulum):
+    """lagrgen.solvers only replaces SciPy's checked LU wrappers: identical steps and results."""
+    p = np.asarray(pendulum.defaults)
+    u = np.zeros(len(pendulum.inputs))
+    for name in ("Radau", "BDF"):
+        ours = lagrgen.simulate(pendulum, SPAN, Y0, method=name, rtol=1e-8, atol=1e-10)
+        scipys = scipy.integrate.solve_ivp(
+            lambda t, y: pendulum.rhs(t, y, p, u), SPAN, Y0, method=name, rtol=1e-8, atol=1e-10,
+            jac=lambda t, y: pendulum.jacobian(t, y, p, u))
+        assert (ours.nfev, ours.njev, ours.nlu) == (scipys.nfev, scipys.njev, scipys.nlu)
+        assert_allclose(ours.y, scipys.y, rtol=1e-13, atol=1e-13)
 
 
 STIFF = dict(params={"k1": 1e6, "c1": 1e4}, inputs={"f": 1.0})

@@ -25,22 +25,21 @@ def per_call_seconds(fn, *args, budget=0.2):
 
 
 def build_seconds(make_model, out_dir=None, repeats=3):
-    """Cold build (fresh directory) split into derive / cse+emit / compile, and cached build.
+    """Cold build (forced) split into derive / cse+emit / compile, and cached build.
 
     `make_model()` returns a fresh, identical Model each time (so nothing is cached in memory).
     """
-    colds, steps = [], []
-    for _ in range(repeats):
-        with tempfile.TemporaryDirectory() as tmp:
+    colds, steps, cached = [], [], []
+    with tempfile.TemporaryDirectory() as tmp:
+        for _ in range(repeats):
             start = time.perf_counter()
             mod = build(make_model(), out_dir=out_dir or tmp, force=True)
             colds.append(time.perf_counter() - start)
             steps.append(mod.build_info)
-            cached = []
-            for _ in range(repeats):
-                start = time.perf_counter()
-                build(make_model(), out_dir=out_dir or tmp)
-                cached.append(time.perf_counter() - start)
+        for _ in range(repeats):
+            start = time.perf_counter()
+            build(make_model(), out_dir=out_dir or tmp)
+            cached.append(time.perf_counter() - start)
     return {
         "cold": statistics.median(colds),
         "derive": statistics.median(s["derive"] for s in steps),

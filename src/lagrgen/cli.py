@@ -120,14 +120,19 @@ def number(text, what):
         raise LagrgenError(f"{what}: {text!r} is not a number") from None
 
 
+def known_names(values, option, model, what, names):
+    """`values` (a dict), after checking each key is one of the model's `names` (its `what`s)."""
+    unknown = sorted(set(values) - set(names))
+    if unknown:
+        raise LagrgenError(f"{option}: model {model.name!r} has no {what} {unknown[0]!r} "
+                           f"(its {what}s are {', '.join(names) or 'none'})")
+    return values
+
+
 def parameters_option(args, model):
     """The --params values as a dict name -> float, checked against the model's parameters."""
     values = {k: number(v, f"--params {k}") for k, v in assignments(args.params, "--params").items()}
-    unknown = sorted(set(values) - set(model.parameter_names))
-    if unknown:
-        raise LagrgenError(f"--params: model {model.name!r} has no parameter {unknown[0]!r} "
-                           f"(its parameters are {', '.join(model.parameter_names) or 'none'})")
-    return values
+    return known_names(values, "--params", model, "parameter", model.parameter_names)
 
 
 def input_value(name, text, t):
@@ -151,11 +156,8 @@ def input_value(name, text, t):
 def inputs_option(args, model, constant=False):
     """The --inputs values: name -> constant or function of t (constants only if `constant`)."""
     import sympy as sp
-    values = assignments(args.inputs, "--inputs")
-    unknown = sorted(set(values) - set(model.input_names))
-    if unknown:
-        raise LagrgenError(f"--inputs: model {model.name!r} has no input {unknown[0]!r} "
-                           f"(its inputs are {', '.join(model.input_names) or 'none'})")
+    values = known_names(assignments(args.inputs, "--inputs"), "--inputs", model, "input",
+                         model.input_names)
     t = sp.Symbol("t")
     out = {name: input_value(name, text, t) for name, text in values.items()}
     varying = [name for name, v in out.items() if callable(v)]
@@ -208,11 +210,8 @@ def command_modes(args):
     for k, model in enumerate(models):
         params = parameters_option(args, model)
         inputs = inputs_option(args, model, constant=True)
-        at = {c: number(v, f"--at {c}") for c, v in assignments(args.at, "--at").items()}
-        unknown = sorted(set(at) - set(model.coordinate_names))
-        if unknown:
-            raise LagrgenError(f"--at: model {model.name!r} has no coordinate {unknown[0]!r} "
-                               f"(its coordinates are {', '.join(model.coordinate_names)})")
+        at = known_names({c: number(v, f"--at {c}") for c, v in assignments(args.at, "--at").items()},
+                         "--at", model, "coordinate", model.coordinate_names)
         mod = build_for(model, args)
         guess = [at.get(c, 0.0) for c in model.coordinate_names]
         u = inputs or None

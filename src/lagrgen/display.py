@@ -16,7 +16,7 @@ SIMPLIFY_BUDGET = 600
 
 
 @dataclass
-class Equations:
+class DisplayedEquations:
     """M (n×n), F (n×1) and q̈ (n×1) in display symbols, with `names` mapping symbols to LaTeX."""
 
     name: str
@@ -73,16 +73,19 @@ def tidy(expr, budget):
 
 
 def equations(model, simplify=True):
-    """The model's M·q̈ = F in display symbols (see `Equations`)."""
+    """The model's M·q̈ = F in display symbols (see `DisplayedEquations`)."""
     rules, latex_names = display_symbols(model)
     M = model.mass_matrix().xreplace(rules)
     F = model.forcing().xreplace(rules)
     if simplify:
         budget = [SIMPLIFY_BUDGET]
-        M = M.applyfunc(lambda e: tidy(e, budget))
+        n = M.shape[0]
+        for i in range(n):
+            for j in range(i + 1):
+                M[i, j] = M[j, i] = tidy(M[i, j], budget)
         F = F.applyfunc(lambda e: tidy(e, budget))
     qdd = sp.Matrix([rules[q.diff(model.t, 2)] for q in model.q])
-    return Equations(model.name, M, F, qdd, latex_names)
+    return DisplayedEquations(model.name, M, F, qdd, latex_names)
 
 
 def to_text(expr):

@@ -70,7 +70,7 @@ def simulate(mod, t_span, y0, method="RK45", params=None, inputs=None, rtol=1e-6
 
         def jac(t, y):
             return jacobian(t, y, p, u_of_t(t))
-    if method in STIFF_METHODS:
+    if getattr(method, "__name__", method) in STIFF_METHODS:
         options.setdefault("jac", jac)
-    return solve_ivp(fun, t_span, y0, method=SOLVERS.get(method, method), rtol=rtol, atol=atol, t_eval=t_eval,
-                     dense_output=dense_output, events=events, **options)
+    return solve_ivp(fun, t_span, y0, method=SOLVERS.get(method, method), rtol=rtol, atol=atol,
+                     t_eval=t_eval, dense_output=dense_output, events=events, **options)
