@@ -1,20 +1,26 @@
-"""Builds lagrgen's runtime extension (Cython, compiled once at install) and ships the C templates."""
+"""Builds lagrgen's compiled runtime (Cython, compiled once at install) and ships the C templates."""
 import numpy
 from Cython.Build import cythonize
 from setuptools import Extension, setup
 
+TEMPLATES = "src/lagrgen/codegen/templates"
+
 runtime = Extension(
-    "lagrgen._runtime",
-    ["src/lagrgen/_runtime.pyx"],
-    include_dirs=[numpy.get_include(), "templates"],
+    "lagrgen.runtime._compiled",
+    ["src/lagrgen/runtime/_compiled.pyx"],
+    include_dirs=[numpy.get_include(), TEMPLATES],
     define_macros=[("NPY_NO_DEPRECATED_API", "NPY_1_7_API_VERSION")],
     extra_compile_args=["-O2"],
 )
 
 setup(
-    packages=["lagrgen", "lagrgen.templates"],
-    package_dir={"": "src", "lagrgen.templates": "templates"},
-    package_data={"lagrgen.templates": ["*.in", "*.h"]},
-    ext_modules=cythonize([runtime], compiler_directives={"language_level": "3"}, quiet=True),
+    packages=["lagrgen", "lagrgen.codegen", "lagrgen.codegen.templates",
+              "lagrgen.codegen.templates.functions", "lagrgen.runtime", "lagrgen.outputs"],
+    package_dir={"": "src"},
+    package_data={"lagrgen.codegen.templates": ["*.in", "*.h"],
+                  "lagrgen.codegen.templates.functions": ["*.c"],
+                  "lagrgen.runtime": ["*.pxd"]},
+    ext_modules=cythonize([runtime], compiler_directives={"language_level": "3"}, quiet=True,
+                          include_path=["src"]),
     zip_safe=False,
 )

@@ -69,6 +69,19 @@ def build(backend, tmp_path_factory):
     return build_once
 
 
+@pytest.fixture(scope="module")
+def compile_once(tmp_path_factory):
+    """A function Model -> compiled model that compiles each Model at most once in the module."""
+    out_dir = tmp_path_factory.mktemp("gen_c_once")
+    cache = {}
+
+    def build_once(model):
+        if id(model) not in cache:
+            cache[id(model)] = (model, lagrgen.build(model, out_dir=out_dir))
+        return cache[id(model)][1]
+    return build_once
+
+
 def random_point(mod, rng, t_range=(0.0, 2.0)):
     """A random (q, qd, t, p, u): parameters are the defaults scaled by factors in [0.5, 1.5]."""
     n = mod.n_coordinates

@@ -1,13 +1,54 @@
-"""lagrgen: Lagrange's equations of motion, derived symbolically and compiled to C."""
-__version__ = "0.1.0"
+"""lagrgen: Lagrange's equations of motion, derived symbolically and compiled to C.
 
-from .errors import (BuildError, CompileError, LagrgenError, MassMatrixError, ModelError,  # noqa: E402
+The package face is lazy (PEP 562): `import lagrgen` loads only the version and the exceptions;
+SymPy, SciPy and matplotlib are imported when a function that needs them is first used.
+"""
+import importlib
+import sys
+import types
+
+from ._version import __version__
+from .errors import (BuildError, CompileError, LagrgenError, MassMatrixError, ModelError,
                      UnknownNameError)
-from .model import Model  # noqa: E402
-from .backends import build, load  # noqa: E402
-from .runner import simulate  # noqa: E402
-from .vibration import equilibrium, frequency_response, linearize, modes  # noqa: E402
+
+#: Public name -> the module that defines it.
+_LAZY = {
+    "Model": "model",
+    "build": "build", "load": "build",
+    "simulate": "simulate",
+    "equilibrium": "vibration", "linearize": "vibration", "modes": "vibration",
+    "frequency_response": "vibration",
+}
 
 __all__ = ["Model", "build", "load", "simulate", "equilibrium", "linearize", "modes",
            "frequency_response", "LagrgenError", "ModelError", "UnknownNameError",
            "MassMatrixError", "BuildError", "CompileError", "__version__"]
+
+
+class _Package(types.ModuleType):
+    """The package module. `build` and `simulate` are both functions of the face and the modules
+    that define them; importing such a module must not replace the function on the package."""
+
+    def __setattr__(self, name, value):
+        if isinstance(value, types.ModuleType) and _LAZY.get(name) == name:
+            return  # the module stays importable: `from lagrgen.build import ...`
+        super().__setattr__(name, value)
+
+
+sys.modules[__name__].__class__ = _Package
+
+
+def __getattr__(name):
+    if name not in _LAZY:
+        raise AttributeError(f"module 'lagrgen' has no attribute {name!r}")
+    module_name = _LAZY[name]
+    if module_name is None:
+        value = importlib.import_module(f".{name}", __name__)
+    else:
+        value = getattr(importlib.import_module(f".{module_name}", __name__), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__():
+    return sorted(set(globals()) | set(_LAZY))

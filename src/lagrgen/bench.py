@@ -10,8 +10,8 @@ import timeit
 
 import numpy as np
 
-from .backends import build
-from .runner import simulate
+from .build import build
+from .simulate import simulate
 
 METHODS = ("RK45", "DOP853", "Radau", "BDF", "LSODA")
 

@@ -13,17 +13,19 @@ from pathlib import Path
 import numpy as np
 
 from .errors import LagrgenError
-from .model import Model
 
 
 def models_in(path, names=None):
     """The Model objects defined at top level of the model file `path` (optionally by name)."""
+    from .model import Model
     path = Path(path)
     if not path.is_file():
         raise LagrgenError(f"no model file {str(path)!r}")
     sys.path.insert(0, str(path.resolve().parent))
     try:
         namespace = runpy.run_path(str(path), run_name=f"lagrgen_model_file_{path.stem}")
+    except SyntaxError as exc:
+        raise LagrgenError(f"{exc.filename}, line {exc.lineno}: {exc.msg}") from None
     finally:
         sys.path.pop(0)
     found, seen = [], set()
@@ -31,20 +33,26 @@ def models_in(path, names=None):
         if isinstance(value, Model) and id(value) not in seen:
             seen.add(id(value))
             found.append(value)
-    if names:
-        found = [m for m in found if m.name in names]
-        missing = set(names) - {m.name for m in found}
-        if missing:
-            raise LagrgenError(f"{path} defines no model named {', '.join(sorted(missing))}")
     if not found:
         raise LagrgenError(
             f"{path} defines no lagrgen.Model at top level: a model file must create one, "
             "e.g. `model = Model('my_system')`")
+    all_names = [m.name for m in found]
+    twice = sorted({n for n in all_names if all_names.count(n) > 1})
+    if twice:
+        raise LagrgenError(f"{path} defines more than one model named {', '.join(twice)}: "
+                           "model names name compiled modules, so each must be unique")
+    if names:
+        missing = sorted(set(names) - set(all_names))
+        if missing:
+            raise LagrgenError(f"{path} defines no model named {', '.join(missing)}; "
+                               f"it defines {', '.join(all_names)}")
+        found = [m for m in found if m.name in names]
     return found
 
 
 def command_build(args):
-    from .backends import build
+    from .build import build
     for model in models_in(args.model_file, args.model):
         module = build(model, out_dir=args.out, verbose=args.verbose, quiet=args.quiet,
                        force=args.force)
@@ -79,7 +87,7 @@ def add_build(sub):
 
 # -- show -------------------------------------------------------------------------------------
 def command_show(args):
-    from .display import render
+    from .outputs.display import render
     texts = [render(model, latex=args.latex, matrices=args.matrices, simplify=not args.raw)
              for model in models_in(args.model_file, args.model)]
     print("\n\n".join(texts))
@@ -168,7 +176,7 @@ def inputs_option(args, model, constant=False):
 
 def build_for(model, args):
     """The built model for the chosen --backend (C builds are cached in --out)."""
-    from .backends import build
+    from .build import build
     if args.backend == "python":
         return build(model, backend="python")
     return build(model, out_dir=args.out, verbose=args.verbose, quiet=args.quiet)
@@ -204,7 +212,7 @@ def modes_table(model, q0, result):
 
 
 def command_modes(args):
-    from .plotting import plot_modes
+    from .outputs.plotting import plot_modes
     from .vibration import equilibrium, modes
     models = models_in(args.model_file, args.model)
     for k, model in enumerate(models):
@@ -330,7 +338,7 @@ def write_csv(stream, sol, names):
 
 
 def command_simulate(args):
-    from .runner import simulate
+    from .simulate import simulate
     model = single_model(args)
     params = parameters_option(args, model)
     inputs = inputs_option(args, model)
@@ -365,7 +373,7 @@ def command_simulate(args):
 
 def write_outputs(args, model, sol, params):
     """The CSV (stdout if no output is asked for), plot and animation; [(what, path)]."""
-    from . import plotting
+    from .outputs import plotting
     written = []
     names = model.coordinate_names
     if args.csv:
@@ -385,7 +393,7 @@ def write_outputs(args, model, sol, params):
 
 
 def add_simulate(sub):
-    from .runner import METHODS
+    from .simulate import METHODS
     s = sub.add_parser("simulate", help="integrate the equations of motion; CSV, plot, animation",
                        description="Integrate y = [q, q'] with scipy.integrate.solve_ivp and write "
                        "the time histories as CSV (stdout unless --csv, --plot or --animate is "

@@ -1,25 +1,45 @@
-"""Kernels: the quantities each generated function computes, with common subexpressions eliminated.
+"""Kernels: the symbolic quantities the generated code computes, declared once, with common
+subexpressions eliminated.
 
-Three kernels cover every quantity of a built model:
+Every kernel is a function of (t, q, q̇, a, p, u) with a = q̈ where it matters; its outputs are
+row-major arrays. The model functions of `lagrgen.functions` (mass matrix, rhs, Jacobian, ...) are
+assembled from these by the backends:
+
     mf           M(q, t) and F(q, q̇, t, u) together (one CSE over both)
     jacobian_b   B = [∂F/∂q − ∂(M·a)/∂q | ∂F/∂q̇] for a given a (= q̈); ∂ẏ/∂y's bottom half is M⁻¹·B.
                  At a = 0 it is [∂F/∂q | ∂F/∂q̇], the linearization's −K and −C.
     dF_du        ∂F/∂u, the linearization's input matrix
-Mass matrix, forcing, rhs, jacobian and linear terms are assembled from these by the backends.
 """
 import weakref
 from dataclasses import dataclass
 
 import symengine as se
 
-_computed = weakref.WeakKeyDictionary()
+from .functions import Output
+
+#: The arguments of every kernel, in order (C: `double t, const double *q, ...`).
+KERNEL_ARGUMENTS = ("t", "q", "qd", "a", "p", "u")
+
+
+@dataclass(frozen=True)
+class KernelSpec:
+    """A kernel's declaration: name, formula, outputs (with shapes) and how to form them."""
+    name: str
+    formula: str
+    outputs: tuple       # of functions.Output
+    expressions: object  # Equations -> {output name: [expression, row-major]}
 
 
 @dataclass
 class Kernel:
-    name: str
-    temporaries: list   # [(symbol, expression)], in dependency order
-    outputs: dict       # name -> [expression], row-major
+    """A kernel after CSE: temporaries in dependency order, then the reduced outputs."""
+    spec: KernelSpec
+    temporaries: list    # [(symbol, expression)]
+    outputs: dict        # name -> [expression], row-major
+
+    @property
+    def name(self):
+        return self.spec.name
 
 
 def flatten(matrix):
@@ -27,38 +47,40 @@ def flatten(matrix):
     return [e for row in matrix for e in row]
 
 
-def cse_kernel(name, outputs):
-    """A kernel computing `outputs` ({name: [expr]}) after one CSE over all of them together."""
+def _jacobian_b(eq):
+    B = []
+    for i in range(eq.n):
+        B.extend(eq.dF_dq[i][j] - eq.dMa_dq[i][j] for j in range(eq.n))
+        B.extend(eq.dF_dqd[i])
+    return {"B": B}
+
+
+KERNELS = (
+    KernelSpec("mf", "M (n×n) and F (n), sharing their common subexpressions",
+               (Output("M", ("n", "n")), Output("F", ("n",))),
+               lambda eq: {"M": flatten(eq.M), "F": list(eq.F)}),
+    KernelSpec("jacobian_b", "B = [∂F/∂q − ∂(M·a)/∂q | ∂F/∂q̇], n×2n, for a given a = q̈",
+               (Output("B", ("n", "2n")),), _jacobian_b),
+    KernelSpec("dF_du", "∂F/∂u, n×n_inputs", (Output("dF_du", ("n", "n_inputs")),),
+               lambda eq: {"dF_du": flatten(eq.dF_du)}),
+)
+
+_computed = weakref.WeakKeyDictionary()
+
+
+def cse_kernel(spec, outputs):
+    """The kernel `spec` computing `outputs` ({name: [expr]}) after one CSE over all of them."""
     everything = [e for exprs in outputs.values() for e in exprs]
     replacements, reduced = se.cse(everything) if everything else ([], [])
     result, pos = {}, 0
     for key, exprs in outputs.items():
         result[key] = list(reduced[pos:pos + len(exprs)])
         pos += len(exprs)
-    return Kernel(name, list(replacements), result)
-
-
-def mf_kernel(eq):
-    """M (n×n) and F (n)."""
-    return cse_kernel("mf", {"M": flatten(eq.M), "F": list(eq.F)})
-
-
-def jacobian_b_kernel(eq):
-    """B = [∂F/∂q − ∂(M·a)/∂q | ∂F/∂q̇], n×2n, with a = q̈ an input."""
-    B = []
-    for i in range(eq.n):
-        B.extend(eq.dF_dq[i][j] - eq.dMa_dq[i][j] for j in range(eq.n))
-        B.extend(eq.dF_dqd[i])
-    return cse_kernel("jacobian_b", {"B": B})
-
-
-def dF_du_kernel(eq):
-    """∂F/∂u, n×n_inputs."""
-    return cse_kernel("dF_du", {"dF_du": flatten(eq.dF_du)})
+    return Kernel(spec, list(replacements), result)
 
 
 def all_kernels(eq):
-    """The kernels every backend compiles, in a fixed order (computed once per Equations)."""
+    """The kernels of KERNELS for the equations `eq`, in order (computed once per Equations)."""
     if eq not in _computed:
-        _computed[eq] = [mf_kernel(eq), jacobian_b_kernel(eq), dF_du_kernel(eq)]
+        _computed[eq] = [cse_kernel(k, k.expressions(eq)) for k in KERNELS]
     return _computed[eq]

@@ -48,8 +48,8 @@ class Equations:
     Matrices are lists of lists of SymEngine expressions in the internal symbols.
     """
 
-    def __init__(self, model, M, F, symbols):
-        self.model = model
+    def __init__(self, spec, M, F, symbols):
+        self.spec = spec
         self.n = len(F)
         self.M = M
         self.F = F
@@ -95,7 +95,7 @@ class Equations:
 
     @cached_property
     def _to_user(self):
-        return {internal: user for user, internal in user_to_internal(self.model).items()}
+        return {internal: user for user, internal in user_to_internal(self.spec).items()}
 
     def to_user(self, expr):
         """Return a SymPy expression in the model's own symbols (q(t), q'(t), parameters, u(t))."""
@@ -107,10 +107,10 @@ class Equations:
         return sp.Matrix([[self.to_user(e) for e in row] for row in rows])
 
 
-def user_to_internal(model):
+def user_to_internal(spec):
     """{q_i(t): q[i], dq_i/dt: qd[i], parameter j: p[j], u_k(t): u[k]} as SymPy symbols."""
-    pairs = [(model.qd, "qd"), (model.q, "q"), (model.parameter_symbols, "p"),
-             (model.input_functions, "u")]
+    pairs = [(spec.qd, "qd"), (spec.coordinates, "q"), (spec.parameters, "p"),
+             (spec.inputs, "u")]
     return {user: sp.Symbol(f"{prefix}[{i}]") for users, prefix in pairs
             for i, user in enumerate(users)}
 
@@ -118,8 +118,8 @@ def user_to_internal(model):
 class _Converter:
     """Turns a model's SymPy expressions into SymEngine ones in the internal symbols."""
 
-    def __init__(self, model):
-        self.to_internal = user_to_internal(model)
+    def __init__(self, spec):
+        self.to_internal = user_to_internal(spec)
 
     def __call__(self, expr):
         internal = sp.sympify(expr).xreplace(self.to_internal)
@@ -135,7 +135,7 @@ def _add_particle(M, F, mass, position, q, qd, t):
     J = [[diff(rc, qi) for qi in q] for rc in position]
     v = [sum((Jc[i] * qd[i] for i in range(n) if Jc[i] != 0), diff(rc, t))
          for Jc, rc in zip(J, position)]
-    b = [sum((diff(vc, q[i]) * qd[i] for i in range(n)), diff(vc, t)) for vc in v]
+    b = [rate(vc, q, qd, t) for vc in v]
     active = [i for i in range(n) if any(Jc[i] != 0 for Jc in J)]
     for i in active:
         for j in active:
@@ -155,37 +155,45 @@ def _add_kinetic_energy(M, F, T, q, qd, t):
             - diff(dT_dqd[i], t)
 
 
-def derive(model):
-    """Return the `Equations` of `model`: Lagrange's equations as M(q,t)·q̈ = F(q,q̇,t,u)."""
-    n = len(model.q)
+def rate(expr, q, qd, t):
+    """d expr/dt = Σ ∂expr/∂q_j·q̇_j + ∂expr/∂t for an expression of q and t (internal symbols)."""
+    return sum((diff(expr, qj) * qdj for qj, qdj in zip(q, qd)), diff(expr, t))
+
+
+def derive(spec):
+    """Return the `Equations` of the frozen description `spec` (a `ModelSpec`): Lagrange's
+    equations arranged as M(q,t)·q̈ = F(q,q̇,t,u)."""
+    n = len(spec.coordinates)
     if n == 0:
         raise ModelError(
-            f"model {model.name!r} has no generalized coordinates: declare them with "
+            f"model {spec.name!r} has no generalized coordinates: declare them with "
             "model.coordinates('q1 q2 ...')")
     symbols = (internal_symbols("q", n), internal_symbols("qd", n), internal_symbols("a", n),
-               internal_symbols("p", len(model.parameter_symbols)),
-               internal_symbols("u", len(model.input_functions)), se.Symbol("t"))
+               internal_symbols("p", len(spec.parameters)),
+               internal_symbols("u", len(spec.inputs)), se.Symbol("t"))
     q, qd, _, _, _, t = symbols
-    convert = _Converter(model)
+    convert = _Converter(spec)
     M = [[se.Integer(0)] * n for _ in range(n)]
     F = [se.Integer(0)] * n
 
-    general_T = [convert(e) for e in model.kinetic_terms]
-    for mass, position in model.particles:
+    general_T = [convert(e) for e in spec.kinetic]
+    for mass, position in spec.particles:
         m = convert(mass)
         r = [convert(c) for c in position]
         if m.free_symbols & (set(q) | {t}):
-            v = [sum((diff(rc, qi) * qdi for qi, qdi in zip(q, qd)), diff(rc, t)) for rc in r]
+            v = [rate(rc, q, qd, t) for rc in r]
             general_T.append(m * sum(vc * vc for vc in v) / 2)
         else:
             _add_particle(M, F, m, r, q, qd, t)
     if general_T:
         _add_kinetic_energy(M, F, sum(general_T), q, qd, t)
-    V = sum((convert(e) for e in model.potential_terms), se.Integer(0))
-    R = sum((convert(e) for e in model.dissipation_terms), se.Integer(0))
+    V = sum((convert(e) for e in spec.potential), se.Integer(0))
+    R = sum((convert(e) for e in spec.dissipation), se.Integer(0))
+    for c, length in spec.dampers:
+        R += convert(c) * rate(convert(length), q, qd, t) ** 2 / 2
     for i in range(n):
         F[i] -= diff(V, q[i]) + diff(R, qd[i])
-    for vector, position in model.virtual_work:
+    for vector, position in spec.virtual_work:
         f = [convert(c) for c in vector]
         r = [convert(c) for c in position]
         for i in range(n):
@@ -194,8 +202,8 @@ def derive(model):
     for i in range(n):
         for j in range(i + 1, n):
             M[i][j] = M[j][i]
-    _check_mass_matrix(model, M, qd)
-    return Equations(model, M, F, symbols)
+    _check_mass_matrix(spec, M, qd)
+    return Equations(spec, M, F, symbols)
 
 
 def _check_mass_matrix(model, M, qd):

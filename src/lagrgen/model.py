@@ -2,14 +2,13 @@
 
 A `Model` only records what the user says; `lagrgen.lagrange` turns it into equations of motion.
 """
-import hashlib
 import keyword
 import math
+from dataclasses import dataclass
 
 import sympy as sp
 from sympy.core.function import AppliedUndef
 
-from . import __version__
 from .errors import ModelError
 
 #: SymPy functions that have a C99 equivalent and that the symbolic core can differentiate.
@@ -71,20 +70,26 @@ class Model:
     """
 
     def __init__(self, name):
-        self.name = check_model_name(name)
+        self._name = check_model_name(name)
         self.t = sp.Symbol("t")
         self._names = {"t": "time"}
         self._coordinates = []
         self._parameters = []
         self._defaults = []
         self._inputs = []
-        self.particles = []        # (mass, position) pairs: T += ½·mass·|ṙ|²
-        self.kinetic_terms = []    # T += expr
-        self.potential_terms = []  # V += expr
-        self.dissipation_terms = []  # R += expr
-        self.virtual_work = []     # (vector, position): Q_j += vector · ∂position/∂q_j
-        self.drawables = []        # (kind, points): what an animation can draw
+        self._particles = []       # (mass, position) pairs: T += ½·mass·|ṙ|²
+        self._kinetic = []         # T += expr
+        self._potential = []       # V += expr
+        self._dissipation = []     # R += expr
+        self._dampers = []         # (c, length): R += ½·c·(d length/dt)², the rate formed in derive
+        self._virtual_work = []    # (vector, position): Q_j += vector · ∂position/∂q_j
+        self._drawables = []       # (kind, points): what an animation can draw
         self._version = 0
+
+    @property
+    def name(self):
+        """The model's name (read-only: it names the compiled module and its files)."""
+        return self._name
 
     # -- declarations -------------------------------------------------------------------------
     def _declare(self, name, what):
@@ -237,8 +242,8 @@ class Model:
         mass = self._check(mass, "particle mass", velocities=False, inputs=False)
         position = self._check(as_vector(position, "particle position"), "particle position",
                                velocities=False, inputs=False)
-        self.particles.append((mass, position))
-        self.drawables.append(("point", (position,)))
+        self._particles.append((mass, position))
+        self._drawables.append(("point", (position,)))
         self._changed()
 
     def rigid_body(self, mass, inertia, position, angle):
@@ -248,19 +253,19 @@ class Model:
         position = self._check(as_vector(position, "rigid body position"), "rigid body position",
                                velocities=False, inputs=False)
         angle = self._check(angle, "rigid body angle", velocities=False, inputs=False)
-        self.particles.append((mass, position))
-        self.particles.append((inertia, sp.Matrix([angle])))
-        self.drawables.append(("body", (position, angle)))
+        self._particles.append((mass, position))
+        self._particles.append((inertia, sp.Matrix([angle])))
+        self._drawables.append(("body", (position, angle)))
         self._changed()
 
     def kinetic_energy(self, expr):
         """T += expr (may contain coordinates, velocities, t and parameters)."""
-        self.kinetic_terms.append(self._check(expr, "kinetic energy", inputs=False))
+        self._kinetic.append(self._check(expr, "kinetic energy", inputs=False))
         self._changed()
 
     def potential_energy(self, expr):
         """V += expr (coordinates, t, parameters, inputs)."""
-        self.potential_terms.append(self._check(expr, "potential energy", velocities=False))
+        self._potential.append(self._check(expr, "potential energy", velocities=False))
         self._changed()
 
     def spring(self, k, length, rest=0, ends=None):
@@ -268,7 +273,7 @@ class Model:
         k = self._check(k, "spring stiffness", velocities=False)
         length = self._check(length, "spring length", velocities=False, inputs=False)
         rest = self._check(rest, "spring rest length", velocities=False)
-        self.potential_terms.append(k * (length - rest) ** 2 / 2)
+        self._potential.append(k * (length - rest) ** 2 / 2)
         self._add_ends("spring", ends)
         self._changed()
 
@@ -276,13 +281,13 @@ class Model:
         """Rayleigh R += ½·c·(d length/dt)²; `ends=(a, b)` optionally names the two points it joins."""
         c = self._check(c, "damping coefficient", velocities=False)
         length = self._check(length, "damper length", velocities=False, inputs=False)
-        self.dissipation_terms.append(c * length.diff(self.t) ** 2 / 2)
+        self._dampers.append((c, length))
         self._add_ends("damper", ends)
         self._changed()
 
     def dissipation(self, expr):
         """R += expr, a Rayleigh dissipation function of the velocities."""
-        self.dissipation_terms.append(self._check(expr, "dissipation function"))
+        self._dissipation.append(self._check(expr, "dissipation function"))
         self._changed()
 
     def force(self, vector, at):
@@ -292,21 +297,21 @@ class Model:
         if len(vector) != len(at):
             raise ModelError(
                 f"force has {len(vector)} components but its point of application has {len(at)}")
-        self.virtual_work.append((vector, at))
+        self._virtual_work.append((vector, at))
         self._changed()
 
     def torque(self, moment, angle):
         """Q_j += moment · ∂angle/∂q_j."""
         moment = self._check(moment, "torque")
         angle = self._check(angle, "torque angle", velocities=False, inputs=False)
-        self.virtual_work.append((sp.Matrix([moment]), sp.Matrix([angle])))
+        self._virtual_work.append((sp.Matrix([moment]), sp.Matrix([angle])))
         self._changed()
 
     def generalized_force(self, coordinate, expr):
         """Q_j += expr for the coordinate j given (its function or its name)."""
         coordinate = self._coordinate(coordinate)
         expr = self._check(expr, "generalized force")
-        self.virtual_work.append((sp.Matrix([expr]), sp.Matrix([coordinate])))
+        self._virtual_work.append((sp.Matrix([expr]), sp.Matrix([coordinate])))
         self._changed()
 
     def line(self, *points):
@@ -315,7 +320,7 @@ class Model:
                                 inputs=False) for p in points)
         if len(pts) < 2:
             raise ModelError("a line needs at least two points")
-        self.drawables.append(("line", pts))
+        self._drawables.append(("line", pts))
 
     def _add_ends(self, kind, ends):
         if ends is None:
@@ -324,15 +329,35 @@ class Model:
             raise ModelError(f"{kind} ends must be a pair of points, got {len(ends)}")
         a, b = (self._check(as_vector(p, f"{kind} end"), f"{kind} end", velocities=False,
                             inputs=False) for p in ends)
-        self.drawables.append((kind, (a, b)))
+        self._drawables.append((kind, (a, b)))
+
+    @property
+    def drawables(self):
+        """What an animation can draw: (kind, points) pairs, in declaration order."""
+        return tuple(self._drawables)
 
     # -- the equations ------------------------------------------------------------------------
+    def spec(self):
+        """A frozen snapshot of the description (`ModelSpec`): what `lagrgen.build` works from."""
+        cached = getattr(self, "_spec", None)
+        if cached is None or cached[0] != self._version:
+            self._spec = (self._version, ModelSpec(
+                name=self.name, t=self.t, coordinates=self.q,
+                parameters=self.parameter_symbols, defaults=self.parameter_defaults,
+                inputs=self.input_functions,
+                particles=tuple((m, _frozen(r)) for m, r in self._particles),
+                kinetic=tuple(self._kinetic), potential=tuple(self._potential),
+                dissipation=tuple(self._dissipation), dampers=tuple(self._dampers),
+                virtual_work=tuple((_frozen(v), _frozen(r)) for v, r in self._virtual_work)))
+        return self._spec[1]
+
     def equations(self):
         """Return the derived `lagrgen.lagrange.Equations` (cached until the model changes)."""
         from .lagrange import derive
+        spec = self.spec()
         cached = getattr(self, "_equations", None)
-        if cached is None or cached[0] != self._version:
-            self._equations = (self._version, derive(self))
+        if cached is None or cached[0] is not spec:
+            self._equations = (spec, derive(spec))
         return self._equations[1]
 
     def mass_matrix(self):
@@ -343,40 +368,48 @@ class Model:
         """F(q, q̇, t, u), so that M·q̈ = F, as a SymPy column Matrix in the model's own symbols."""
         return self.equations().user_matrix("F")
 
-    def content_hash(self):
-        """A hex digest of everything that determines the generated code (and lagrgen's version).
-
-        Computed once per state of the model (every change to it makes a new one)."""
-        cached = getattr(self, "_content_hash", None)
-        if cached is None or cached[0] != self._version:
-            self._content_hash = (self._version, self._hash_contents())
-        return self._content_hash[1]
-
-    def _hash_contents(self):
-        h = hashlib.sha256()
-        parts = [
-            __version__, self.name, self.coordinate_names, self.parameter_names,
-            self.parameter_defaults, self.input_names,
-            [(sp.srepr(m), sp.srepr(r)) for m, r in self.particles],
-            [sp.srepr(e) for e in self.kinetic_terms],
-            [sp.srepr(e) for e in self.potential_terms],
-            [sp.srepr(e) for e in self.dissipation_terms],
-            [(sp.srepr(v), sp.srepr(r)) for v, r in self.virtual_work],
-        ]
-        for part in parts:
-            h.update(repr(part).encode())
-            h.update(b"\0")
-        return h.hexdigest()
-
-    def metadata(self):
-        """What a built model reports about itself: names, defaults (None: none), hash, version."""
-        return {
-            "name": self.name, "coordinates": list(self.coordinate_names),
-            "parameters": list(self.parameter_names), "inputs": list(self.input_names),
-            "defaults": list(self.parameter_defaults), "content_hash": self.content_hash(),
-            "lagrgen_version": __version__,
-        }
-
     def __repr__(self):
         return (f"Model({self.name!r}: coordinates {self.coordinate_names}, "
                 f"parameters {self.parameter_names}, inputs {self.input_names})")
+
+
+def _frozen(vector):
+    """A column vector as an immutable SymPy matrix."""
+    return sp.ImmutableMatrix(vector)
+
+
+@dataclass(frozen=True, eq=False)
+class ModelSpec:
+    """A frozen model description: names, symbols and physics terms (SymPy, immutable).
+
+    `lagrgen.build` derives from this alone; nothing below it sees the mutable `Model`.
+    """
+
+    name: str
+    t: sp.Symbol
+    coordinates: tuple      # q_i(t)
+    parameters: tuple       # Symbols
+    defaults: tuple         # floats, None where a value must be given at run time
+    inputs: tuple           # u_k(t)
+    particles: tuple = ()   # (mass, position): T += ½·mass·|ṙ|²
+    kinetic: tuple = ()     # T += expr
+    potential: tuple = ()   # V += expr
+    dissipation: tuple = ()  # R += expr
+    dampers: tuple = ()     # (c, length): R += ½·c·(d length/dt)²
+    virtual_work: tuple = ()  # (vector, position): Q_j += vector · ∂position/∂q_j
+
+    @property
+    def qd(self):
+        return tuple(c.diff(self.t) for c in self.coordinates)
+
+    @property
+    def coordinate_names(self):
+        return tuple(c.func.__name__ for c in self.coordinates)
+
+    @property
+    def parameter_names(self):
+        return tuple(s.name for s in self.parameters)
+
+    @property
+    def input_names(self):
+        return tuple(u.func.__name__ for u in self.inputs)

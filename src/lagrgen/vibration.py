@@ -14,9 +14,9 @@ import numpy as np
 import scipy.linalg
 from scipy.optimize import linear_sum_assignment, root
 
-from .arguments import as_vector, input_vector
+from .runtime.arguments import as_vector, input_vector
 from .errors import LagrgenError, MassMatrixError, UnknownNameError
-from .runner import parameters_from
+from .simulate import parameters_from
 
 #: Relative size below which an eigenvalue ω² (or an imaginary part, an asymmetry) counts as zero.
 ZERO_TOL = 1e-9

@@ -10,8 +10,8 @@ from matplotlib.animation import PillowWriter
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
-from .arguments import defaults_array, parameter_vector
-from .errors import LagrgenError
+from ..runtime.arguments import defaults_array, parameter_vector
+from ..errors import LagrgenError
 
 MAX_MODES_PLOTTED = 8
 

@@ -205,7 +205,7 @@ def c_function(name, params, args, statements, comment, max_statements=400):
     never sees one huge function; a temporary used by a later part passes through the workspace w.
     """
     printer = CPrinter()
-    head = f"/* {comment} */\nstatic void {name}({params})\n{{\n"
+    head = f"/* {comment} */\nLG_FN static void {name}({params})\n{{\n"
     if len(statements) <= max_statements:
         return head + print_statements(printer, statements) + "\n}\n"
     chunks = [statements[i:i + max_statements] for i in range(0, len(statements), max_statements)]
@@ -221,7 +221,7 @@ def c_function(name, params, args, statements, comment, max_statements=400):
         lines.append(print_statements(printer, chunk))
         lines += [f"    w[{slot[s.name]}] = {s.name};" for s in chunk
                   if isinstance(s, Declare) and s.name in slot]
-        parts.append(f"static void {name}_part{k}({params}, double *w)\n{{\n"
+        parts.append(f"LG_FN static void {name}_part{k}({params}, double *w)\n{{\n"
                      + "\n".join(lines) + "\n}\n")
     calls = "\n".join(f"    {name}_part{k}({args}, w);" for k in range(len(chunks)))
     return ("\n".join(parts) + "\n" + head + f"    double w[{max(len(slot), 1)}];\n" + calls

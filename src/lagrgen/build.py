@@ -1,0 +1,404 @@
+"""`build` and `load`: from a Model to a built model of either backend (derive, generate, compile,
+cache, import).
+
+Layout of an output directory:
+    <name>_model.h, <name>_model.c  the standalone C model (plain C, no Python)
+    <name><EXT_SUFFIX>              the model's module, importable with the directory on sys.path
+    __lagrgen__/<name>-<key>/       the cache: one immutable entry per key (sources, module, digest)
+    __lagrgen__/<name>.current      the key of the entry last published into the directory
+The key is a hash of what is compiled (the derived equations, lagrgen's generator sources and
+version, compiler and flags), so no change to a model, and no change to lagrgen, can be served
+stale. Everything is written to a temporary file or directory first and renamed into place after an
+fsync, so a build that dies halfway leaves nothing a later load would pick up; a cache entry whose
+module does not match its recorded digest, or does not import, is discarded and compiled again.
+"""
+import functools
+import hashlib
+import importlib.machinery
+import importlib.util
+import os
+import shlex
+import shutil
+import subprocess
+import sys
+import sysconfig
+import tempfile
+import time
+from contextlib import contextmanager
+from pathlib import Path
+
+from ._version import __version__
+from .errors import BuildError, CompileError, ModelError
+
+EXT_SUFFIX = sysconfig.get_config_var("EXT_SUFFIX") or ".so"
+CACHE_DIR = "__lagrgen__"
+DEFAULT_CFLAGS = ("-fPIC", "-fno-math-errno", "-std=gnu11")
+BACKENDS = ("c", "python")
+PACKAGE = Path(__file__).resolve().parent
+#: The sources that determine generated code: a change to any of them changes every key.
+GENERATOR_SOURCES = ("_version.py", "functions.py", "lagrange.py", "kernels.py",
+                     "codegen/*.py", "codegen/templates/*", "codegen/templates/functions/*")
+_loaded = {}
+
+
+def build(model, out_dir="generated", backend="c", **options):
+    """Derive, generate and (for backend "c") compile and import `model`; return the built model.
+
+    Parameters
+    ----------
+    model : lagrgen.Model
+    out_dir : str or pathlib.Path
+        Where the C backend writes and caches; the Python backend ignores it.
+    backend : "c" or "python"
+    **options
+        C backend: verbose, quiet, force (rebuild and republish), opt_level ("-O2"), cflags (a
+        list of extra compiler flags).
+
+    Returns
+    -------
+    The built model (API.md §3): a module for "c", a `PythonModel` for "python".
+    """
+    from .model import Model
+    if not isinstance(model, Model):
+        raise TypeError(f"build() takes a lagrgen.Model, got {type(model).__name__}")
+    if backend not in BACKENDS:
+        raise ModelError(f"unknown backend {backend!r}: use one of {', '.join(map(repr, BACKENDS))}")
+    spec = model.spec()
+    equations = model.equations()
+    info = model_info(spec, equations)
+    if backend == "python":
+        from .codegen.python_module import python_source
+        from .runtime.pymodel import PythonModel
+        return PythonModel(info, equations.n, python_source(equations))
+    unknown = set(options) - {"verbose", "quiet", "force", "opt_level", "cflags"}
+    if unknown:
+        raise TypeError(f"build() got unknown option(s) {', '.join(sorted(unknown))}")
+    return build_c(info, equations, Path(out_dir), **options)
+
+
+def load(name, out_dir="generated"):
+    """Import the compiled model `name` built earlier into `out_dir`."""
+    from .model import check_model_name
+    check_model_name(name)
+    out_dir = Path(out_dir)
+    marker = out_dir / CACHE_DIR / f"{name}.current"
+    if marker.exists():
+        entry = out_dir / CACHE_DIR / f"{name}-{marker.read_text().strip()}"
+        if entry_is_valid(entry, name):
+            return import_extension(name, module_path(entry, name))
+    module_file = out_dir / f"{name}{EXT_SUFFIX}"
+    if not module_file.exists():
+        raise BuildError(
+            f"no compiled model {name!r} in {out_dir}: build it first with lagrgen.build(model, "
+            f"out_dir={str(out_dir)!r}) or `python -m lagrgen build MODEL.py --out {out_dir}`")
+    return import_extension(name, module_file)
+
+
+def export_c(model, out_dir):
+    """Write just the standalone C model `<name>_model.h` and `<name>_model.c` into `out_dir`;
+    return their paths."""
+    from .codegen.c_model import standalone_files
+    info = model_info(model.spec(), model.equations())
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    paths = []
+    for file_name, text in standalone_files(info, model.equations()).items():
+        write_atomic(out_dir / file_name, text.encode())
+        paths.append(out_dir / file_name)
+    return paths
+
+
+# -- what identifies a build -----------------------------------------------------------------
+@functools.lru_cache(maxsize=None)
+def generator_digest():
+    """sha256 of lagrgen's generator sources (derivation, kernels, printers, templates)."""
+    h = hashlib.sha256(__version__.encode())
+    for pattern in GENERATOR_SOURCES:
+        for path in sorted(PACKAGE.glob(pattern)):
+            if path.is_file():
+                h.update(path.relative_to(PACKAGE).as_posix().encode() + b"\0")
+                h.update(path.read_bytes())
+    return h.hexdigest()
+
+
+def equations_digest(spec, equations):
+    """sha256 of what is compiled: names, defaults, the derived M and F, and the generator
+    (computed once per Equations)."""
+    cached = getattr(equations, "digest", None)
+    if cached is not None:
+        return cached
+    h = hashlib.sha256(generator_digest().encode())
+    parts = [spec.name, spec.coordinate_names, spec.parameter_names, spec.defaults,
+             spec.input_names, [[str(e) for e in row] for row in equations.M],
+             [str(f) for f in equations.F]]
+    for part in parts:
+        h.update(repr(part).encode() + b"\0")
+    equations.digest = h.hexdigest()
+    return equations.digest
+
+
+def model_info(spec, equations):
+    """What a built model reports about itself: names, defaults (None: none), hash, version."""
+    return {
+        "name": spec.name, "coordinates": list(spec.coordinate_names),
+        "parameters": list(spec.parameter_names), "inputs": list(spec.input_names),
+        "defaults": list(spec.defaults), "content_hash": equations_digest(spec, equations),
+        "lagrgen_version": __version__,
+    }
+
+
+# -- compiling -------------------------------------------------------------------------------
+def compiler_command():
+    """The C compiler as an argument list (from Python's build configuration, or $CC)."""
+    cc = os.environ.get("CC") or sysconfig.get_config_var("CC") or "cc"
+    return shlex.split(cc)
+
+
+def compile_flags(opt_level="-O2", cflags=()):
+    """The compiler flags: lagrgen's defaults, the optimization level and the user's extra flags
+    (a list of separate flags; one string is split like a shell would)."""
+    if isinstance(cflags, str):
+        cflags = shlex.split(cflags)
+    return [*DEFAULT_CFLAGS, opt_level, *cflags]
+
+
+def compile_module(source_path, output_path, flags):
+    """Compile `source_path` into the extension module `output_path`; CompileError on failure."""
+    include = sysconfig.get_paths()["include"]
+    cmd = [*compiler_command(), "-shared", *flags, "-I", include, "-I",
+           str(PACKAGE / "codegen" / "templates"), str(source_path), "-o", str(output_path)]
+    try:
+        result = subprocess.run(cmd, capture_output=True, text=True)
+    except FileNotFoundError:
+        raise BuildError(
+            f"no C compiler found (tried {cmd[0]!r}): install one (e.g. `apt-get install gcc`), "
+            "set $CC, or use lagrgen.build(model, backend='python')") from None
+    if result.returncode != 0:
+        message = "\n".join((result.stderr or result.stdout).strip().splitlines()[:60])
+        raise CompileError(
+            f"the C compiler failed on {source_path.name} (exit {result.returncode}):\n{message}\n"
+            f"command: {' '.join(shlex.quote(c) for c in cmd)}")
+
+
+def build_key(info, flags):
+    """The cache key: the equations' digest, the compiler, its flags and the module suffix."""
+    h = hashlib.sha256(info["content_hash"].encode())
+    h.update(repr((flags, compiler_command(), EXT_SUFFIX)).encode())
+    return h.hexdigest()[:20]
+
+
+# -- files -----------------------------------------------------------------------------------
+def _fsync_dir(path):
+    try:
+        fd = os.open(path, os.O_RDONLY)
+    except OSError:
+        return
+    try:
+        os.fsync(fd)
+    except OSError:
+        pass
+    finally:
+        os.close(fd)
+
+
+def write_atomic(dest, data, mode=0o644):
+    """Write the bytes `data` to `dest` atomically and durably: a reader sees the old or the new
+    file, never a part, and a file open or mapped elsewhere (a loaded module) keeps its contents."""
+    fd, tmp = tempfile.mkstemp(dir=dest.parent, prefix=f".{dest.name}.", suffix=".tmp")
+    try:
+        with os.fdopen(fd, "wb") as fh:
+            fh.write(data)
+            fh.flush()
+            os.fsync(fh.fileno())
+        os.chmod(tmp, mode)
+        os.replace(tmp, dest)
+        _fsync_dir(dest.parent)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+
+
+def module_path(entry, name):
+    return entry / f"{name}{EXT_SUFFIX}"
+
+
+def file_digest(path):
+    return hashlib.sha256(path.read_bytes()).hexdigest()
+
+
+def entry_is_valid(entry, name):
+    """True if the cache entry's module exists and matches the digest recorded when it was made."""
+    module, digest = module_path(entry, name), entry / "module.sha256"
+    try:
+        return module.is_file() and digest.read_text().strip() == file_digest(module)
+    except OSError:
+        return False
+
+
+def discard(entry):
+    """Remove a cache entry (renamed away first, so no reader sees it half-deleted)."""
+    if entry.exists():
+        trash = entry.with_name(f".trash-{entry.name}-{os.getpid()}-{time.monotonic_ns()}")
+        os.replace(entry, trash)
+        shutil.rmtree(trash, ignore_errors=True)
+
+
+@contextmanager
+def locked(path):
+    """Hold an exclusive lock on the file `path` (created if missing)."""
+    import fcntl
+    with open(path, "a") as fh:
+        fcntl.flock(fh, fcntl.LOCK_EX)
+        try:
+            yield
+        finally:
+            fcntl.flock(fh, fcntl.LOCK_UN)
+
+
+def import_extension(name, path):
+    """Import the extension module `name` from the file `path` (once per path and process),
+    leaving any entry `name` of sys.modules as it was."""
+    path = Path(path).resolve()
+    if path in _loaded:
+        return _loaded[path]
+    loader = importlib.machinery.ExtensionFileLoader(name, str(path))
+    spec = importlib.util.spec_from_file_location(name, str(path), loader=loader)
+    missing = object()
+    previous = sys.modules.get(name, missing)
+    try:
+        module = importlib.util.module_from_spec(spec)
+        loader.exec_module(module)
+    except ImportError as exc:
+        raise BuildError(f"cannot import compiled model {name!r} from {path}: {exc}") from None
+    finally:
+        if previous is missing:
+            sys.modules.pop(name, None)
+        else:
+            sys.modules[name] = previous
+    _loaded[path] = module
+    return module
+
+
+# -- build -----------------------------------------------------------------------------------
+class _Progress:
+    """Times the build steps; reports them on stderr when `verbose`."""
+
+    def __init__(self, name, verbose):
+        self.name, self.verbose, self.times = name, verbose, {}
+        self._t = time.perf_counter()
+
+    def note(self, text):
+        if self.verbose:
+            print(f"[lagrgen] {self.name}: {text}", file=sys.stderr, flush=True)
+
+    def step(self, what, detail=""):
+        now = time.perf_counter()
+        self.times[what] = now - self._t
+        self._t = now
+        if self.verbose:
+            extra = f" ({detail})" if detail else ""
+            print(f"[lagrgen] {self.name}: {what} {self.times[what]:.2f} s{extra}",
+                  file=sys.stderr, flush=True)
+
+
+def build_c(info, equations, out_dir, verbose=False, quiet=False, force=False, opt_level="-O2",
+            cflags=()):
+    """Generate, compile, cache, publish and import the model `info` with `equations`; return the
+    module (the built model). Progress goes to stderr with `verbose`, or on a terminal unless
+    `quiet`."""
+    start = time.perf_counter()
+    name = info["name"]
+    flags = compile_flags(opt_level, cflags)
+    key = build_key(info, flags)
+    cache = Path(out_dir) / CACHE_DIR
+    entry = cache / f"{name}-{key}"
+    progress = _Progress(name, verbose or (not quiet and sys.stderr.isatty()))
+    try:
+        cache.mkdir(parents=True, exist_ok=True)
+        lock = locked(cache / f"{name}.lock")
+        lock.__enter__()
+    except OSError as exc:
+        if force or not (entry_is_valid(entry, name) and _is_published(out_dir, name, key)):
+            raise BuildError(f"cannot write the build of {name!r} into {out_dir}: {exc}") from None
+        return _finish(import_extension(name, module_path(entry, name)), True, start, progress)
+    try:
+        hit = not force and entry_is_valid(entry, name)
+        if not hit:
+            _compile_entry(info, equations, entry, flags, progress)
+        module = _import_or_rebuild(info, equations, entry, flags, progress)
+        _publish(out_dir, name, entry, key, force)
+    finally:
+        lock.__exit__(None, None, None)
+    if hit:
+        progress.note(f"cached build {entry.name}")
+    return _finish(module, hit, start, progress)
+
+
+def _finish(module, hit, start, progress):
+    module.build_info = {"cache_hit": hit, "seconds": time.perf_counter() - start,
+                         **progress.times}
+    return module
+
+
+def _import_or_rebuild(info, equations, entry, flags, progress):
+    """Import the entry's module; if that fails, discard the entry, compile it again, import."""
+    name = info["name"]
+    try:
+        return import_extension(name, module_path(entry, name))
+    except BuildError as first:
+        progress.note(f"cached module did not import ({first}); compiling again")
+        _compile_entry(info, equations, entry, flags, progress)
+        return import_extension(name, module_path(entry, name))
+
+
+def _compile_entry(info, equations, entry, flags, progress):
+    """Generate the model's C in a private directory, compile it, and rename it to `entry`."""
+    from .codegen.c_model import module_source, standalone_files
+    name = info["name"]
+    progress.note("deriving the equations of motion ...")
+    equations.differentiate()
+    progress.step("derive", f"{equations.n} coordinates")
+    files = standalone_files(info, equations)
+    files[f"{name}_module.c"] = module_source(info, equations.n)
+    size = sum(len(text) for text in files.values())
+    progress.step("cse+emit", f"{size / 1024:.0f} KiB of C")
+    progress.note(f"compiling {size / 1024:.0f} KiB of C ({' '.join(flags)}) ...")
+    work = Path(tempfile.mkdtemp(dir=entry.parent, prefix=f".build-{name}-"))
+    try:
+        for file_name, text in files.items():
+            (work / file_name).write_text(text)
+        lib = module_path(work, name)
+        compile_module(work / f"{name}_module.c", lib, flags)
+        progress.step("compile", f"{' '.join(flags)}, {lib.stat().st_size / 1024:.0f} KiB module")
+        write_atomic(work / "module.sha256", (file_digest(lib) + "\n").encode())
+        for path in work.iterdir():
+            os.chmod(path, 0o755 if path == lib else 0o644)
+        with open(lib, "rb") as fh:
+            os.fsync(fh.fileno())
+        discard(entry)
+        os.replace(work, entry)
+        _fsync_dir(entry.parent)
+    finally:
+        shutil.rmtree(work, ignore_errors=True)
+
+
+def _is_published(out_dir, name, key):
+    marker = Path(out_dir) / CACHE_DIR / f"{name}.current"
+    try:
+        return (Path(out_dir) / f"{name}{EXT_SUFFIX}").exists() and \
+            marker.read_text().strip() == key
+    except OSError:
+        return False
+
+
+def _publish(out_dir, name, entry, key, force=False):
+    """Make <name><EXT>, <name>_model.h and <name>_model.c in out_dir the files of `entry`."""
+    out_dir = Path(out_dir)
+    if not force and _is_published(out_dir, name, key) and \
+            file_digest(out_dir / f"{name}{EXT_SUFFIX}") == file_digest(module_path(entry, name)):
+        return
+    for file_name in (f"{name}_model.h", f"{name}_model.c"):
+        write_atomic(out_dir / file_name, (entry / file_name).read_bytes())
+    write_atomic(out_dir / f"{name}{EXT_SUFFIX}", module_path(entry, name).read_bytes(), 0o755)
+    write_atomic(out_dir / CACHE_DIR / f"{name}.current", (key + "\n").encode())
+

@@ -1,0 +1,19 @@
+"""Python source of a model's kernels: one function per registered kernel, run by the Python
+backend (`lagrgen.runtime.pymodel`)."""
+from ..kernels import KERNEL_ARGUMENTS, all_kernels
+from .printer import PythonPrinter, kernel_statements, print_statements
+
+
+def python_source(equations):
+    """Python source of `name(t, q, qd, a, p, u)` -> its outputs (lists), for every kernel."""
+    printer = PythonPrinter()
+    chunks = []
+    for kernel in all_kernels(equations):
+        lines = [f"def {kernel.name}({', '.join(KERNEL_ARGUMENTS)}):"]
+        lines += [f"    {name} = [0.0] * {len(exprs)}" for name, exprs in kernel.outputs.items()]
+        body = print_statements(printer, kernel_statements(kernel))
+        if body:
+            lines.append(body)
+        lines.append(f"    return {', '.join(kernel.outputs)},")
+        chunks.append("\n".join(lines))
+    return "\n\n\n".join(chunks) + "\n"

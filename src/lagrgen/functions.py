@@ -1,0 +1,74 @@
+"""The model functions every built model provides, each declared once.
+
+An entry names the function, how it is called from Python (its arguments), its outputs with their
+shapes, and its formula. From this table come the C prototypes and the function table of the
+standalone C model (`lagrgen.codegen`), the compiled runtime's methods and the Python backend's
+methods. Every C model function has the one signature
+
+    int <model>_<function>(double t, const double *y, const double *p, const double *u, double *out)
+
+with y = [q, q̇] (q̇ ignored by the functions of q alone), the outputs concatenated row-major in
+`out`, and the result 0 on success or 1 when the mass matrix is not positive definite.
+This module imports nothing: the compiled runtime reads it at import time.
+"""
+from dataclasses import dataclass
+
+#: How a function is called from Python: the argument names before (p, u).
+CALL_STYLES = {
+    "q": ("q", "t"),            # f(q, t=0.0, p=None, u=None)
+    "q_qd": ("q", "qd", "t"),   # f(q, qd, t=0.0, p=None, u=None)
+    "state": ("t", "y"),        # f(t, y, p=None, u=None)
+}
+
+
+@dataclass(frozen=True)
+class Output:
+    """One output array: its name and its shape as dimension names ("n", "2n", "n_inputs", ...)."""
+    name: str
+    shape: tuple
+
+
+@dataclass(frozen=True)
+class ModelFunction:
+    """A function of a built model: name, call style (a key of CALL_STYLES), outputs, formula."""
+    name: str
+    call: str
+    outputs: tuple
+    formula: str
+
+    def shapes(self, dims):
+        """The output shapes as tuples of ints, for the dimensions `dims` (name -> size)."""
+        return [tuple(dims[d] for d in out.shape) for out in self.outputs]
+
+    def size(self, dims):
+        """The length of the concatenated output buffer."""
+        total = 0
+        for shape in self.shapes(dims):
+            k = 1
+            for d in shape:
+                k *= d
+            total += k
+        return total
+
+
+FUNCTIONS = (
+    ModelFunction("mass_matrix", "q", (Output("M", ("n", "n")),),
+                  "M(q, t) = ∂²T/∂q̇∂q̇ᵀ"),
+    ModelFunction("forcing", "q_qd", (Output("F", ("n",)),),
+                  "F(q, q̇, t, u), so that M·q̈ = F"),
+    ModelFunction("rhs", "state", (Output("ydot", ("2n",)),),
+                  "ẏ = [q̇, M⁻¹·F] for y = [q, q̇]"),
+    ModelFunction("jacobian", "state", (Output("J", ("2n", "2n")),),
+                  "∂ẏ/∂y = [[0, I], [M⁻¹·(∂F/∂q − ∂(M·q̈)/∂q), M⁻¹·∂F/∂q̇]]"),
+    ModelFunction("linear_terms", "q_qd",
+                  (Output("M", ("n", "n")), Output("dF_dq", ("n", "n")),
+                   Output("dF_dqd", ("n", "n")), Output("dF_du", ("n", "n_inputs"))),
+                  "M, ∂F/∂q, ∂F/∂q̇ and ∂F/∂u at one point"),
+)
+
+BY_NAME = {f.name: f for f in FUNCTIONS}
+
+
+def dimensions(n, n_params, n_inputs, **more):
+    """The dimension names of output shapes and their sizes for one model."""
+    return {"n": n, "2n": 2 * n, "n_params": n_params, "n_inputs": n_inputs, **more}

@@ -1,0 +1,266 @@
+# cython: language_level=3, boundscheck=False, wraparound=False, initializedcheck=False
+# cython: embedsignature=True, binding=False
+"""The compiled half of every built model: argument conversion, output arrays, errors, timing.
+
+Compiled once when lagrgen is installed. A generated model module holds only its equations (the
+plain-C model functions, listed in an `lg_model_t` table behind a capsule) and calls `bind_module`
+when imported, which makes the module itself the built model of API.md §3: one callable per entry
+of `lagrgen.functions.FUNCTIONS`.
+
+Thread safety: nothing a call depends on is stored in a shared object. Converted arguments are
+locals of the call, which keeps them alive for as long as C (or a nogil loop) reads them.
+"""
+import json
+import time
+
+import numpy as np
+cimport numpy as cnp
+from cpython.pycapsule cimport PyCapsule_GetPointer, PyCapsule_IsValid
+from libc.math cimport isfinite
+
+from lagrgen.runtime.abi cimport LG_ABI_VERSION, LG_CAPSULE_NAME, lg_function, lg_model_t
+from lagrgen.errors import BuildError, MassMatrixError
+from lagrgen.functions import FUNCTIONS, dimensions
+from lagrgen.runtime.arguments import (defaults_array, input_vector, parameter_vector,
+                                       require_finite)
+
+cnp.import_array()
+
+ABI_VERSION = LG_ABI_VERSION
+
+
+cdef inline bint is_ready(object obj, Py_ssize_t size):
+    """obj is a 1-D C-contiguous, aligned, native-order float64 array of length size."""
+    cdef cnp.ndarray arr
+    if type(obj) is not cnp.ndarray:
+        return False
+    arr = <cnp.ndarray>obj
+    return (cnp.PyArray_TYPE(arr) == cnp.NPY_DOUBLE and cnp.PyArray_NDIM(arr) == 1
+            and cnp.PyArray_ISCARRAY_RO(arr) and cnp.PyArray_ISNOTSWAPPED(arr)
+            and cnp.PyArray_DIM(arr, 0) == size)
+
+
+cdef inline cnp.ndarray as_f64(object obj, Py_ssize_t size, str what):
+    """obj as a 1-D float64 array of length size (no copy when it already is a ready one)."""
+    cdef cnp.ndarray arr
+    if is_ready(obj, size):
+        return <cnp.ndarray>obj
+    try:
+        arr = np.ascontiguousarray(obj, dtype=np.float64)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"{what} must be an array of {size} numbers ({exc})") from None
+    if cnp.PyArray_NDIM(arr) != 1 or cnp.PyArray_DIM(arr, 0) != size:
+        raise ValueError(f"{what} must be a 1-D array of length {size}, got shape {np.shape(obj)}")
+    return arr
+
+
+cdef inline bint all_finite(cnp.ndarray arr):
+    cdef const double *x = <const double *>cnp.PyArray_DATA(arr)
+    cdef Py_ssize_t i
+    for i in range(cnp.PyArray_DIM(arr, 0)):
+        if not isfinite(x[i]):
+            return False
+    return True
+
+
+cdef inline const double *data(cnp.ndarray arr):
+    return <const double *>cnp.PyArray_DATA(arr)
+
+
+cdef class CompiledModel:
+    """A model's compiled equations: sizes, names, and the C function table of its module."""
+
+    cdef const lg_model_t *model
+    cdef readonly int n_coordinates, n_params, n_inputs
+    cdef readonly str name, content_hash, lagrgen_version
+    cdef readonly tuple coordinates, parameters, inputs
+    cdef readonly object defaults
+    cdef readonly dict dimensions
+    cdef cnp.ndarray _zeros
+    cdef bint _defaults_complete
+    cdef dict _addresses
+
+    def __cinit__(self, capsule):
+        if not PyCapsule_IsValid(capsule, LG_CAPSULE_NAME):
+            raise TypeError("expected the capsule of a lagrgen model module")
+        self.model = <const lg_model_t *>PyCapsule_GetPointer(capsule, LG_CAPSULE_NAME)
+        if self.model.abi_version != LG_ABI_VERSION:
+            raise BuildError(
+                f"this model was compiled for lagrgen runtime ABI {self.model.abi_version}, "
+                f"but the installed lagrgen uses {LG_ABI_VERSION}: rebuild it")
+        meta = json.loads(self.model.metadata.decode("utf-8"))
+        self.n_coordinates = self.model.n
+        self.n_params = self.model.n_params
+        self.n_inputs = self.model.n_inputs
+        self.name = meta["name"]
+        self.content_hash = meta["content_hash"]
+        self.lagrgen_version = meta["lagrgen_version"]
+        self.coordinates = tuple(meta["coordinates"])
+        self.parameters = tuple(meta["parameters"])
+        self.inputs = tuple(meta["inputs"])
+        self.defaults = defaults_array(meta["defaults"])
+        self._defaults_complete = bool(np.isfinite(self.defaults).all())
+        self._zeros = np.zeros(max(self.n_inputs, 1))
+        self._zeros.setflags(write=False)
+        self.dimensions = dimensions(self.n_coordinates, self.n_params, self.n_inputs)
+        self._addresses = {}
+        cdef int i
+        for i in range(self.model.n_functions):
+            self._addresses[self.model.functions[i].name.decode("ascii")] = \
+                <size_t>self.model.functions[i].fn
+        missing = [f.name for f in FUNCTIONS if f.name not in self._addresses]
+        if missing:
+            raise BuildError(f"compiled model {self.name!r} lacks {', '.join(missing)}: it was "
+                             "built by another lagrgen version; rebuild it")
+
+    cdef cnp.ndarray params(self, object p):
+        """The parameter vector of one call (the defaults for None), finite, in parameter order."""
+        if p is None and self._defaults_complete:
+            return self.defaults
+        if is_ready(p, self.n_params) and all_finite(<cnp.ndarray>p):
+            return <cnp.ndarray>p
+        return parameter_vector(p, self.parameters, self.defaults)
+
+    cdef cnp.ndarray input_values(self, object u):
+        """The input vector of one call (zeros for None), finite, in input order."""
+        if u is None:
+            return self._zeros
+        if is_ready(u, self.n_inputs) and all_finite(<cnp.ndarray>u):
+            return <cnp.ndarray>u if self.n_inputs else self._zeros
+        if isinstance(u, dict):
+            values = input_vector(u, self.inputs)
+        else:
+            values = require_finite(as_f64(u, self.n_inputs, "u (the input vector)"),
+                                    self.inputs, "input")
+        return values if self.n_inputs else self._zeros
+
+    cdef lg_function pointer(self, str name) except NULL:
+        if name not in self._addresses:
+            raise ValueError(f"model {self.name!r} has no function {name!r}: it has "
+                             f"{', '.join(self._addresses)}")
+        return <lg_function><size_t>self._addresses[name]
+
+    def function_address(self, str name):
+        """The address of the C function `name` (for native solvers that call it without Python)."""
+        self.pointer(name)
+        return self._addresses[name]
+
+    cdef not_positive_definite(self, double t, const double *y):
+        raise MassMatrixError.at(self.name, t, [y[i] for i in range(self.n_coordinates)])
+
+    def time_in_c(self, str which, double t, y, p=None, u=None, long repeat=10000):
+        """Seconds per call of the C function `which` (e.g. "rhs", "jacobian"), looped inside C."""
+        cdef lg_function fn = self.pointer(which)
+        cdef int n = self.n_coordinates
+        cdef cnp.ndarray ya = as_f64(y, 2 * n, "y")
+        cdef cnp.ndarray pa = self.params(p)
+        cdef cnp.ndarray ua = self.input_values(u)
+        cdef cnp.ndarray out = np.empty(4 * n * n + n * max(self.n_inputs, 1) + 2 * n)
+        cdef double *o = <double *>cnp.PyArray_DATA(out)
+        cdef const double *yp = data(ya)
+        cdef const double *pp = data(pa)
+        cdef const double *up = data(ua)
+        cdef long i
+        cdef int status = 0
+        start = time.perf_counter()
+        with nogil:
+            for i in range(repeat):
+                status |= fn(t, yp, pp, up, o)
+        elapsed = time.perf_counter() - start
+        if status:
+            self.not_positive_definite(t, yp)
+        return elapsed / repeat
+
+
+cdef class BoundFunction:
+    """One model function of a compiled model, called with the arguments of its call style."""
+
+    cdef CompiledModel model
+    cdef lg_function fn
+    cdef readonly str name, formula
+    cdef tuple shapes
+    cdef Py_ssize_t size
+    cdef int nd
+    cdef cnp.npy_intp dims[2]
+
+    def __init__(self, CompiledModel model, spec):
+        self.model = model
+        self.name = spec.name
+        self.formula = spec.formula
+        self.fn = model.pointer(spec.name)
+        self.shapes = tuple(spec.shapes(model.dimensions))
+        self.size = spec.size(model.dimensions)
+        self.nd = len(self.shapes[0])
+        self.dims[0] = self.shapes[0][0]
+        self.dims[1] = self.shapes[0][1] if self.nd == 2 else 1
+
+    def __repr__(self):
+        return f"<{self.name} of compiled model {self.model.name!r}: {self.formula}>"
+
+    cdef object evaluate(self, double t, const double *y, object p, object u):
+        cdef cnp.ndarray pa = self.model.params(p)
+        cdef cnp.ndarray ua = self.model.input_values(u)
+        cdef cnp.ndarray out
+        cdef cnp.npy_intp size = self.size
+        if len(self.shapes) == 1:
+            out = <cnp.ndarray>cnp.PyArray_EMPTY(self.nd, self.dims, cnp.NPY_DOUBLE, 0)
+        else:
+            out = <cnp.ndarray>cnp.PyArray_EMPTY(1, &size, cnp.NPY_DOUBLE, 0)
+        if self.fn(t, y, data(pa), data(ua), <double *>cnp.PyArray_DATA(out)):
+            self.model.not_positive_definite(t, y)
+        if len(self.shapes) == 1:
+            return out
+        parts, start = [], 0
+        for shape in self.shapes:
+            count = int(np.prod(shape))
+            parts.append(out[start:start + count].reshape(shape))
+            start += count
+        return tuple(parts)
+
+    cdef cnp.ndarray state_from(self, q, qd):
+        cdef int n = self.model.n_coordinates
+        y = np.zeros(2 * n)
+        y[:n] = as_f64(q, n, "q")
+        if qd is not None:
+            y[n:] = as_f64(qd, n, "qd")
+        return y
+
+
+cdef class StateFunction(BoundFunction):
+    """f(t, y, p=None, u=None) with y = [q, q̇]; a new float64 array on every call."""
+
+    def __call__(self, double t, y, p=None, u=None):
+        cdef cnp.ndarray ya = as_f64(y, 2 * self.model.n_coordinates, "y")
+        return self.evaluate(t, data(ya), p, u)
+
+
+cdef class CoordinateFunction(BoundFunction):
+    """f(q, t=0.0, p=None, u=None); a new float64 array on every call."""
+
+    def __call__(self, q, double t=0.0, p=None, u=None):
+        cdef cnp.ndarray ya = self.state_from(q, None)
+        return self.evaluate(t, data(ya), p, u)
+
+
+cdef class StateArgumentsFunction(BoundFunction):
+    """f(q, qd, t=0.0, p=None, u=None); new float64 arrays on every call."""
+
+    def __call__(self, q, qd, double t=0.0, p=None, u=None):
+        cdef cnp.ndarray ya = self.state_from(q, qd)
+        return self.evaluate(t, data(ya), p, u)
+
+
+CALLABLES = {"state": StateFunction, "q": CoordinateFunction, "q_qd": StateArgumentsFunction}
+
+
+def bind_module(module, capsule):
+    """Make `module` (a freshly imported model module) a built model: called by its PyInit."""
+    model = CompiledModel(capsule)
+    for attr in ("name", "coordinates", "parameters", "inputs", "defaults", "n_coordinates",
+                 "content_hash", "lagrgen_version", "time_in_c", "function_address"):
+        setattr(module, attr, getattr(model, attr))
+    module.backend = "c"
+    for spec in FUNCTIONS:
+        setattr(module, spec.name, CALLABLES[spec.call](model, spec))
+    module.compiled_model = model
+    return None
