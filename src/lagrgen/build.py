@@ -29,6 +29,7 @@ from pathlib import Path
 
 from ._version import __version__
 from .errors import BuildError, CompileError, ModelError
+from .functions import dimensions
 
 EXT_SUFFIX = sysconfig.get_config_var("EXT_SUFFIX") or ".so"
 CACHE_DIR = "__lagrgen__"
@@ -143,8 +144,13 @@ def model_info(spec, equations):
         "name": spec.name, "coordinates": list(spec.coordinate_names),
         "parameters": list(spec.parameter_names), "inputs": list(spec.input_names),
         "defaults": list(spec.defaults), "content_hash": equations_digest(spec, equations),
-        "lagrgen_version": __version__,
+        "lagrgen_version": __version__, "dimensions": model_dimensions(spec, equations),
     }
+
+
+def model_dimensions(spec, equations):
+    """The sizes that output shapes of `lagrgen.functions` refer to (see `functions.dimensions`)."""
+    return dimensions(equations.n, len(spec.parameters), len(spec.inputs))
 
 
 # -- compiling -------------------------------------------------------------------------------

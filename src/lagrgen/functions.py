@@ -70,5 +70,6 @@ BY_NAME = {f.name: f for f in FUNCTIONS}
 
 
 def dimensions(n, n_params, n_inputs, **more):
-    """The dimension names of output shapes and their sizes for one model."""
+    """The dimension names of output shapes and their sizes for one model (stored in its
+    metadata, so the runtime reads every size from there; add a size by passing it in `more`)."""
     return {"n": n, "2n": 2 * n, "n_params": n_params, "n_inputs": n_inputs, **more}

@@ -102,7 +102,7 @@ cdef class CompiledModel:
         self._defaults_complete = bool(np.isfinite(self.defaults).all())
         self._zeros = np.zeros(max(self.n_inputs, 1))
         self._zeros.setflags(write=False)
-        self.dimensions = dimensions(self.n_coordinates, self.n_params, self.n_inputs)
+        self.dimensions = dict(meta["dimensions"])
         self._addresses = {}
         cdef int i
         for i in range(self.model.n_functions):

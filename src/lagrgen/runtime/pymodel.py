@@ -10,7 +10,7 @@ import math
 import numpy as np
 
 from ..errors import MassMatrixError
-from ..functions import FUNCTIONS, dimensions
+from ..functions import FUNCTIONS
 from .arguments import as_vector, defaults_array, input_vector, parameter_vector
 
 _NAMESPACE = {name: getattr(math, name) for name in (
@@ -42,7 +42,7 @@ class PythonModel:
         self.defaults = defaults_array(info["defaults"])
         self.content_hash = info["content_hash"]
         self.n_coordinates = n
-        self.dimensions = dimensions(n, len(self.parameters), len(self.inputs))
+        self.dimensions = dict(info["dimensions"])
         self.source = source
         namespace = dict(_NAMESPACE)
         exec(compile(source, f"<lagrgen python backend: {self.name}>", "exec"), namespace)
