@@ -8,8 +8,8 @@ import sys
 import types
 
 from ._version import __version__
-from .errors import (BuildError, CompileError, LagrgenError, MassMatrixError, ModelError,
-                     UnknownNameError)
+from .errors import (BuildError, CompileError, ConstraintError, LagrgenError, MassMatrixError,
+                     ModelError, UnknownNameError)
 
 #: Public name -> the module that defines it.
 _LAZY = {
@@ -18,10 +18,12 @@ _LAZY = {
     "simulate": "simulate",
     "equilibrium": "vibration", "linearize": "vibration", "modes": "vibration",
     "frequency_response": "vibration",
+    "consistent_state": "constraints",
 }
 
 __all__ = ["Model", "build", "load", "simulate", "equilibrium", "linearize", "modes",
-           "frequency_response", "LagrgenError", "ModelError", "UnknownNameError",
+           "frequency_response", "consistent_state",
+           "LagrgenError", "ConstraintError", "ModelError", "UnknownNameError",
            "MassMatrixError", "BuildError", "CompileError", "__version__"]
 
 

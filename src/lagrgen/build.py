@@ -131,7 +131,8 @@ def equations_digest(spec, equations):
     h = hashlib.sha256(generator_digest().encode())
     parts = [spec.name, spec.coordinate_names, spec.parameter_names, spec.defaults,
              spec.input_names, [[str(e) for e in row] for row in equations.M],
-             [str(f) for f in equations.F]]
+             [str(f) for f in equations.F], [str(e) for e in equations.residuals],
+             spec.stabilization]
     for part in parts:
         h.update(repr(part).encode() + b"\0")
     equations.digest = h.hexdigest()
@@ -150,7 +151,8 @@ def model_info(spec, equations):
 
 def model_dimensions(spec, equations):
     """The sizes that output shapes of `lagrgen.functions` refer to (see `functions.dimensions`)."""
-    return dimensions(equations.n, len(spec.parameters), len(spec.inputs))
+    return dimensions(equations.n, len(spec.parameters), len(spec.inputs),
+                      n_constraints=equations.m, n_holonomic=equations.n_holonomic)
 
 
 # -- compiling -------------------------------------------------------------------------------

@@ -31,6 +31,23 @@ class MassMatrixError(LagrgenError, np.linalg.LinAlgError):
                    f"q={np.array2string(q, precision=6)}: {hint}")
 
 
+class ConstraintError(LagrgenError, np.linalg.LinAlgError):
+    """The constraints are dependent (A·M⁻¹·Aᵀ singular) or cannot be satisfied at a state."""
+
+    @classmethod
+    def at(cls, name, t, y, n):
+        """The error for model `name` at (t, y = [q, q̇]) with n coordinates."""
+        y = np.asarray(y, dtype=float)
+        q, qd = y[:n], y[n:2 * n]
+        hint = ("the state contains NaN or infinity" if not np.all(np.isfinite(y)) else
+                "the constraint Jacobian A = [Φ_q; A_v] is rank-deficient there: the constraints "
+                "are redundant (remove the dependent ones) or the mechanism is at a singular "
+                "configuration (a dead point)")
+        return cls(f"the constraints of model {name!r} are not independent at t={t!r}, "
+                   f"q={np.array2string(q, precision=6)}, qd={np.array2string(qd, precision=6)} "
+                   f"(A·M⁻¹·Aᵀ is singular): {hint}")
+
+
 class BuildError(LagrgenError, RuntimeError):
     """Generating, compiling or loading a compiled model failed."""
 

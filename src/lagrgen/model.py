@@ -63,6 +63,11 @@ def as_vector(value, what):
     return vec
 
 
+#: Baumgarte's (α, β) in 1/s unless `Model.constraint_stabilization` sets others: the constraint
+#: error then decays like e^(−10·t)·(1 + 10·t) (critically damped).
+BAUMGARTE_DEFAULTS = (10.0, 10.0)
+
+
 class Model:
     """A mechanical system described by its energies, dissipation and generalized forces.
 
@@ -84,6 +89,9 @@ class Model:
         self._dampers = []         # (c, length): R += ½·c·(d length/dt)², the rate formed in derive
         self._virtual_work = []    # (vector, position): Q_j += vector · ∂position/∂q_j
         self._drawables = []       # (kind, points): what an animation can draw
+        self._constraints = []     # Φ(q, t) = 0, holonomic
+        self._velocity_constraints = []  # A(q, t)·q̇ + b(q, t) = 0
+        self._stabilization = BAUMGARTE_DEFAULTS
         self._version = 0
 
     @property
@@ -314,6 +322,79 @@ class Model:
         self._virtual_work.append((sp.Matrix([expr]), sp.Matrix([coordinate])))
         self._changed()
 
+    # -- constraints --------------------------------------------------------------------------
+    def constraint(self, expr):
+        """Add a holonomic constraint Φ(q, t) = 0 (coordinates, t and parameters only).
+
+        Its multiplier λ_i enters the equations as M·q̈ = F + Φ_qᵀ·λ (see `lagrgen.lagrange`).
+        """
+        where = f"constraint {len(self._constraints) + 1}"
+        expr = self._check(expr, where, velocities=False, inputs=False)
+        expr = self._scalar(expr, where)
+        if not any(expr.has(c) for c in self._coordinates):
+            raise ModelError(f"{where} ({expr} = 0) does not involve any coordinate: it is not a "
+                             "constraint on the motion")
+        self._constraints.append(expr)
+        self._changed()
+
+    def velocity_constraint(self, expr):
+        """Add a constraint linear in the velocities, A(q, t)·q̇ + b(q, t) = 0 (nonholonomic,
+        e.g. a knife edge −sin θ·ẋ + cos θ·ẏ = 0); its multiplier enters M·q̈ = F + Aᵀ·λ."""
+        where = f"velocity constraint {len(self._velocity_constraints) + 1}"
+        expr = self._check(expr, where, velocities=True, inputs=False)
+        expr = self._scalar(expr, where)
+        qd = self.qd
+        coefficients = [sp.diff(expr, v) for v in qd]
+        for v, c in zip(qd, coefficients):
+            if any(c.has(w) for w in qd):
+                raise ModelError(
+                    f"{where} ({expr} = 0) is not linear in the velocities: its coefficient of "
+                    f"{v} is {c}, which depends on velocities; write it as A(q, t)·q̇ + b(q, t)")
+        if not any(c != 0 for c in coefficients):
+            raise ModelError(
+                f"{where} ({expr} = 0) involves no velocity: a constraint on positions alone is "
+                "holonomic, add it with model.constraint(expr)")
+        self._velocity_constraints.append(expr)
+        self._changed()
+
+    def constraint_stabilization(self, alpha=BAUMGARTE_DEFAULTS[0], beta=BAUMGARTE_DEFAULTS[1]):
+        """Set Baumgarte's drift control (1/s): the constraints are imposed at the acceleration
+        level as Φ̈ + 2α·Φ̇ + β²·Φ = 0 (holonomic) and ċ + 2α·c = 0 (velocity constraints c = 0).
+        α = β = 0 switches it off."""
+        values = []
+        for name, value in (("alpha", alpha), ("beta", beta)):
+            try:
+                value = float(value)
+            except (TypeError, ValueError):
+                raise ModelError(f"Baumgarte {name} must be a number, got {value!r}") from None
+            if not (math.isfinite(value) and value >= 0):
+                raise ModelError(f"Baumgarte {name} must be finite and ≥ 0, got {value}")
+            values.append(value)
+        self._stabilization = tuple(values)
+        self._changed()
+
+    def _scalar(self, expr, where):
+        if isinstance(expr, sp.MatrixBase):
+            if len(expr) != 1:
+                raise ModelError(f"{where} must be one scalar expression, got a {expr.shape} "
+                                 "matrix: add one constraint per component")
+            expr = expr[0]
+        if isinstance(expr, sp.Equality):
+            expr = expr.lhs - expr.rhs
+        if isinstance(expr, sp.logic.boolalg.Boolean) or not isinstance(expr, sp.Expr):
+            raise ModelError(f"{where} must be an expression (meaning expr = 0), got {expr!r}")
+        return expr
+
+    @property
+    def constraints(self):
+        """The holonomic constraints Φ_i (each meaning Φ_i = 0), in declaration order."""
+        return tuple(self._constraints)
+
+    @property
+    def velocity_constraints(self):
+        """The velocity constraints (each meaning A(q,t)·q̇ + b = 0), in declaration order."""
+        return tuple(self._velocity_constraints)
+
     def line(self, *points):
         """Draw a polyline through `points` in animations (an extension: rods, outlines)."""
         pts = tuple(self._check(as_vector(p, "line point"), "line point", velocities=False,
@@ -348,7 +429,10 @@ class Model:
                 particles=tuple((m, _frozen(r)) for m, r in self._particles),
                 kinetic=tuple(self._kinetic), potential=tuple(self._potential),
                 dissipation=tuple(self._dissipation), dampers=tuple(self._dampers),
-                virtual_work=tuple((_frozen(v), _frozen(r)) for v, r in self._virtual_work)))
+                virtual_work=tuple((_frozen(v), _frozen(r)) for v, r in self._virtual_work),
+                constraints=tuple(self._constraints),
+                velocity_constraints=tuple(self._velocity_constraints),
+                stabilization=self._stabilization))
         return self._spec[1]
 
     def equations(self):
@@ -397,6 +481,9 @@ class ModelSpec:
     dissipation: tuple = ()  # R += expr
     dampers: tuple = ()     # (c, length): R += ½·c·(d length/dt)²
     virtual_work: tuple = ()  # (vector, position): Q_j += vector · ∂position/∂q_j
+    constraints: tuple = ()   # Φ_i(q, t) = 0
+    velocity_constraints: tuple = ()  # A(q, t)·q̇ + b(q, t) = 0
+    stabilization: tuple = (0.0, 0.0)  # Baumgarte (α, β), 1/s
 
     @property
     def qd(self):

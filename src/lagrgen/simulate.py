@@ -70,6 +70,10 @@ def simulate(mod, t_span, y0, method="RK45", params=None, inputs=None, rtol=1e-6
     Returns
     -------
     SciPy's OdeResult, with also `coordinates` (names), `q` and `qd` (views of the rows of `y`).
+    A constrained model's result also has `constraint_forces` (λ, n_constraints × len(t), with
+    M·q̈ = F + Aᵀλ) and `constraint_residuals` (Φ then A·q̇ + b, (n_holonomic + n_constraints) ×
+    len(t)). Its initial state must satisfy the constraints (see `lagrgen.consistent_state`);
+    ConstraintError if they are redundant there.
     """
     if "args" in options:
         raise TypeError("simulate() takes no 'args': pass parameters as params={name: value} "
@@ -95,9 +99,18 @@ def simulate(mod, t_span, y0, method="RK45", params=None, inputs=None, rtol=1e-6
             return jacobian(t, y, p, u_of_t(t))
     if getattr(method, "__name__", method) in STIFF_METHODS:
         options.setdefault("jac", jac)
+    constrained = getattr(mod, "n_constraints", 0) > 0
+    if constrained:
+        from .constraints import check_state
+        t0 = float(t_span[0])
+        check_state(mod, t0, y0, p, u if u_of_t is None else u_of_t(t0))
     sol = solve_ivp(fun, t_span, y0, method=SOLVERS.get(method, method), rtol=rtol, atol=atol,
                     t_eval=t_eval, dense_output=dense_output, events=events, **options)
-    return with_coordinates(sol, mod.coordinates, n)
+    sol = with_coordinates(sol, mod.coordinates, n)
+    if constrained:
+        from .constraints import along
+        sol.constraint_forces, sol.constraint_residuals = along(mod, sol, p, u, u_of_t)
+    return sol
 
 
 def with_coordinates(sol, coordinates, n):

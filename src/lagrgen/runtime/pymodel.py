@@ -9,7 +9,7 @@ import math
 
 import numpy as np
 
-from ..errors import MassMatrixError
+from ..errors import ConstraintError, MassMatrixError
 from ..functions import FUNCTIONS
 from .arguments import as_vector, defaults_array, input_vector, parameter_vector
 
@@ -43,6 +43,7 @@ class PythonModel:
         self.content_hash = info["content_hash"]
         self.n_coordinates = n
         self.dimensions = dict(info["dimensions"])
+        self.n_constraints = self.dimensions.get("n_constraints", 0)
         self.source = source
         namespace = dict(_NAMESPACE)
         exec(compile(source, f"<lagrgen python backend: {self.name}>", "exec"), namespace)
@@ -86,6 +87,23 @@ class PythonModel:
         self._factor(M, t, q)
         return M, np.linalg.solve(M, F)
 
+    def _constrained(self, t, q, qd, p, u, M, a):
+        """(q̈, λ, A, W, S) of M·q̈ = F + Aᵀλ, A·q̈ = γ from the free q̈ = a = M⁻¹F: λ solves
+        S·λ = γ − A·a with S = A·M⁻¹·Aᵀ, W = M⁻¹·Aᵀ, and q̈ = a + W·λ (as the C code)."""
+        n, m = self.n_coordinates, self.n_constraints
+        A, gamma = self._kernel("constraints", t, q, qd, None, p, u)
+        A = A.reshape(m, n)
+        W = np.linalg.solve(M, A.T)
+        S = A @ W
+        try:
+            L = np.linalg.cholesky(S)
+        except np.linalg.LinAlgError:
+            L = None
+        if L is None or not np.all(np.diag(L) ** 2 > 1e-12 * np.diag(S)):
+            raise ConstraintError.at(self.name, t, list(q) + list(qd), n)
+        lam = np.linalg.solve(S, gamma - A @ a)
+        return a + W @ lam, lam, A, W, S
+
     # -- one implementation per entry of lagrgen.functions.FUNCTIONS --------------------------
     def _mass_matrix(self, t, q, qd, p, u):
         return self._mf(t, q, [0.0] * self.n_coordinates, p, u)[0]
@@ -94,7 +112,9 @@ class PythonModel:
         return self._mf(t, q, qd, p, u)[1]
 
     def _rhs(self, t, q, qd, p, u):
-        _, a = self._solved(t, q, qd, p, u)
+        M, a = self._solved(t, q, qd, p, u)
+        if self.n_constraints:
+            a = self._constrained(t, q, qd, p, u, M, a)[0]
         return np.concatenate([np.array(qd, dtype=np.float64), a])
 
     def _jacobian(self, t, q, qd, p, u):
@@ -102,8 +122,39 @@ class PythonModel:
         M, a = self._solved(t, q, qd, p, u)
         J = np.zeros((2 * n, 2 * n))
         J[:n, n:] = np.eye(n)
-        J[n:] = np.linalg.solve(M, self._b(t, q, qd, a.tolist(), p, u))
+        if not self.n_constraints:
+            J[n:] = np.linalg.solve(M, self._b(t, q, qd, a.tolist(), p, u))
+            return J
+        # [M −Aᵀ; A 0]·[δa; δλ] = [B + H·δq; G]: δλ = S⁻¹(G − A·M⁻¹R1), δa = M⁻¹R1 + W·δλ
+        a, lam, A, W, S = self._constrained(t, q, qd, p, u, M, a)
+        al = a.tolist() + lam.tolist()
+        R1 = self._b(t, q, qd, al, p, u)
+        H, G = self._kernel("constraint_jacobian", t, q, qd, al, p, u)
+        R1[:, :n] += H.reshape(n, n)
+        X = np.linalg.solve(M, R1)
+        dlam = np.linalg.solve(S, G.reshape(-1, 2 * n) - A @ X)
+        J[n:] = X + W @ dlam
         return J
+
+    def _constraint_forces(self, t, q, qd, p, u):
+        if not self.n_constraints:
+            return np.zeros(0)
+        M, a = self._solved(t, q, qd, p, u)
+        return self._constrained(t, q, qd, p, u, M, a)[1]
+
+    def _constraint_residuals(self, t, q, qd, p, u):
+        if not self.n_constraints:
+            return np.zeros(0)
+        return self._kernel("constraint_residuals", t, q, qd, None, p, u)[0]
+
+    def _constraint_terms(self, t, q, qd, p, u):
+        n, m = self.n_coordinates, self.n_constraints
+        if not m:
+            return np.zeros((0, n)), np.zeros(0), np.zeros((n, n))
+        M, a = self._solved(t, q, qd, p, u)
+        a, lam, A, _, _ = self._constrained(t, q, qd, p, u, M, a)
+        H = self._kernel("constraint_jacobian", t, q, qd, a.tolist() + lam.tolist(), p, u)[0]
+        return A, lam, H.reshape(n, n)
 
     def _linear_terms(self, t, q, qd, p, u):
         n, k = self.n_coordinates, len(self.inputs)
