@@ -331,10 +331,14 @@ class Watched:
 
 
 def write_csv(stream, sol, names):
+    """t, q, q' per output time; then λ1, λ2, ... for a constrained model (M q'' = F + Aᵀλ)."""
     writer = csv.writer(stream, lineterminator="\n")
-    writer.writerow(["t", *names, *(f"{c}_dot" for c in names)])
+    lam = getattr(sol, "constraint_forces", np.zeros((0, len(sol.t))))
+    writer.writerow(["t", *names, *(f"{c}_dot" for c in names),
+                     *(f"lambda{k + 1}" for k in range(len(lam)))])
     for k, t in enumerate(sol.t):
-        writer.writerow([repr(float(t)), *(repr(float(v)) for v in sol.y[:, k])])
+        writer.writerow([repr(float(t)), *(repr(float(v)) for v in sol.y[:, k]),
+                         *(repr(float(v)) for v in lam[:, k])])
 
 
 def command_simulate(args):
@@ -348,6 +352,8 @@ def command_simulate(args):
     if args.samples < 2:
         raise LagrgenError("--samples must be at least 2")
     mod = build_for(model, args)
+    if mod.n_constraints:
+        y0 = consistent_start(mod, y0, args, params)
     show_progress = args.progress or (sys.stderr.isatty() and not args.quiet)
     progress = Progress(args.t_start, args.t_end, sys.stderr) if show_progress else None
     t_eval = np.linspace(args.t_start, args.t_end, args.samples)
@@ -369,6 +375,16 @@ def command_simulate(args):
         for what, path in written:
             print(f"{what} -> {path}", file=sys.stderr)
     return 0
+
+
+def consistent_start(mod, y0, args, params):
+    """y0 projected onto the constraints (`lagrgen.consistent_state`), saying so if it moved."""
+    from .constraints import consistent_state
+    y = consistent_state(mod, y0, args.t_start, params or None)
+    if np.abs(y - y0).max() > 1e-12 * max(1.0, np.abs(y0).max()) and not args.quiet:
+        print(f"{mod.name}: initial state projected onto the constraints: y0 = "
+              f"{','.join(repr(float(v)) for v in y)}", file=sys.stderr)
+    return y
 
 
 def write_outputs(args, model, sol, params):
@@ -413,7 +429,8 @@ def add_simulate(sub):
     s.add_argument("--max-step", type=float, help="largest step solve_ivp may take")
     s.add_argument("--samples", type=int, default=501,
                    help="number of equally spaced output times (default 501)")
-    s.add_argument("--csv", metavar="OUT.csv", help="write t, q, q' (one row per output time)")
+    s.add_argument("--csv", metavar="OUT.csv", help="write t, q, q' (one row per output time) "
+                   "and, for a constrained model, its multipliers lambda1, lambda2, ...")
     s.add_argument("--plot", metavar="OUT.png", help="plot q(t) and q'(t) to this image")
     s.add_argument("--animate", metavar="OUT.gif", help="animate the mechanism to this GIF")
     s.add_argument("--fps", type=int, default=20,

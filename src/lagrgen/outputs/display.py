@@ -143,6 +143,34 @@ def render(model, latex=False, matrices=False, simplify=True):
     else:
         out = [f"# {model.name}: M(q, t) q'' = F(q, q', t, u) for q = ({names})",
                *equation_lines(eqs)]
+    out += constraint_lines(model, latex)
     if matrices:
         out += matrix_lines(eqs, latex)
     return "\n".join(out)
+
+
+def constraint_lines(model, latex=False):
+    """The constraints, one line each with its multiplier (nothing without constraints): the
+    equations above then read M·q'' = F + Aᵀ·λ, with A·q'' = γ (Baumgarte-stabilized)."""
+    holonomic, velocity = model.constraints, model.velocity_constraints
+    if not holonomic and not velocity:
+        return []
+    rules, names = display_symbols(model)
+    alpha, beta = model.spec().stabilization
+    mark = "%" if latex else "#"
+    lines = [f"{mark} constraints, with multipliers lambda: the equations above are M q'' = "
+             f"F + A^T lambda, A = d(constraints)/dq' (Baumgarte alpha = {alpha:g}, "
+             f"beta = {beta:g})"]
+    if latex:
+        lines.append(r"\begin{aligned}")
+    for k, expr in enumerate(holonomic + velocity):
+        kind = "holonomic" if k < len(holonomic) else "velocity"
+        expr = expr.xreplace(rules)
+        if latex:
+            lines.append(f"&{to_latex(expr, names)} = 0 && \\text{{({kind}, }}\\lambda_{{{k + 1}}}"
+                         r"\text{)} \\")
+        else:
+            lines.append(f"{to_text(expr)} = 0    ({kind}, lambda{k + 1})")
+    if latex:
+        lines.append(r"\end{aligned}")
+    return lines
