@@ -85,6 +85,26 @@ def add_build(sub):
     b.set_defaults(run=command_build)
 
 
+def command_export_c(args):
+    from .build import export_c
+    for model in models_in(args.model_file, args.model):
+        paths = export_c(model, args.out)
+        if not args.quiet:
+            print(f"{model.name}: wrote {', '.join(str(p) for p in paths)}")
+    return 0
+
+
+def add_export_c(sub):
+    e = sub.add_parser("export-c", help="write a model as plain C (<name>_model.h and .c)",
+                       description="Write each model of MODEL.py as a standalone C model: "
+                       "<name>_model.h and <name>_model.c, which include only <math.h> and "
+                       "<string.h> and need no Python (compile with any C99 compiler, link -lm).")
+    add_model_file(e)
+    e.add_argument("--out", default=".", help="output directory (default: the current one)")
+    e.add_argument("--quiet", action="store_true", help="print nothing but errors")
+    e.set_defaults(run=command_export_c)
+
+
 # -- show -------------------------------------------------------------------------------------
 def command_show(args):
     from .outputs.display import render
@@ -464,7 +484,7 @@ def add_bench(sub):
 
 
 #: The subcommands, in the order `--help` lists them: each adds its parser to the subparsers.
-COMMANDS = [add_build, add_show, add_modes, add_simulate, add_bench]
+COMMANDS = [add_build, add_export_c, add_show, add_modes, add_simulate, add_bench]
 
 
 def parser():

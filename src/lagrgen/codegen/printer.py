@@ -198,14 +198,15 @@ def _symbol_names(stmt):
     return {str(s) for s in stmt.expr.free_symbols}
 
 
-def c_function(name, params, args, statements, comment, max_statements=400):
+def c_function(name, params, args, statements, comment, max_statements=400, prologue=""):
     """C source of `static void name(params)` running `statements`.
 
     A body longer than `max_statements` is split into parts `name_partK(params, w)` so the compiler
     never sees one huge function; a temporary used by a later part passes through the workspace w.
+    `prologue` starts every function body (e.g. `(void)t;` for arguments a kernel may not use).
     """
     printer = CPrinter()
-    head = f"/* {comment} */\nLG_FN static void {name}({params})\n{{\n"
+    head = f"/* {comment} */\nLG_FN static void {name}({params})\n{{\n{prologue}"
     if len(statements) <= max_statements:
         return head + print_statements(printer, statements) + "\n}\n"
     chunks = [statements[i:i + max_statements] for i in range(0, len(statements), max_statements)]
@@ -221,7 +222,7 @@ def c_function(name, params, args, statements, comment, max_statements=400):
         lines.append(print_statements(printer, chunk))
         lines += [f"    w[{slot[s.name]}] = {s.name};" for s in chunk
                   if isinstance(s, Declare) and s.name in slot]
-        parts.append(f"LG_FN static void {name}_part{k}({params}, double *w)\n{{\n"
+        parts.append(f"LG_FN static void {name}_part{k}({params}, double *w)\n{{\n{prologue}"
                      + "\n".join(lines) + "\n}\n")
     calls = "\n".join(f"    {name}_part{k}({args}, w);" for k in range(len(chunks)))
     return ("\n".join(parts) + "\n" + head + f"    double w[{max(len(slot), 1)}];\n" + calls
