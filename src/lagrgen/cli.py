@@ -413,7 +413,7 @@ def write_outputs(args, model, sol, params):
 
 
 def add_simulate(sub):
-    from .simulate import METHODS
+    from .methods import METHODS
     s = sub.add_parser("simulate", help="integrate the equations of motion; CSV, plot, animation",
                        description="Integrate y = [q, q'] with scipy.integrate.solve_ivp and write "
                        "the time histories as CSV (stdout unless --csv, --plot or --animate is "

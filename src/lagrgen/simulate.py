@@ -8,10 +8,8 @@ from scipy.integrate import solve_ivp
 
 from .runtime.arguments import (as_vector, key_name, named_vector, parameter_vector,
                                 require_finite, state_vector, unknown_name)
+from .methods import METHODS, STIFF_METHODS
 from .solvers import SOLVERS
-
-METHODS = ("RK23", "RK45", "DOP853", "Radau", "BDF", "LSODA")
-STIFF_METHODS = ("Radau", "BDF", "LSODA")
 
 
 def parameters_from(mod, params):
