@@ -9,7 +9,7 @@ import types
 
 from ._version import __version__
 from .errors import (BuildError, CompileError, LagrgenError, MassMatrixError, ModelError,
-                     UnknownNameError)
+                     NonFiniteError, UnknownNameError)
 
 #: Public name -> the module that defines it.
 _LAZY = {
@@ -22,7 +22,7 @@ _LAZY = {
 
 __all__ = ["Model", "build", "load", "simulate", "equilibrium", "linearize", "modes",
            "frequency_response", "LagrgenError", "ModelError", "UnknownNameError",
-           "MassMatrixError", "BuildError", "CompileError", "__version__"]
+           "MassMatrixError", "BuildError", "CompileError", "NonFiniteError", "__version__"]
 
 
 class _Package(types.ModuleType):

@@ -3,9 +3,12 @@
 User arguments (params, inputs, y0) are converted once here, by `lagrgen.runtime.arguments`; the
 functions handed to the solver take raw float64 arrays.
 """
+import math
+
 import numpy as np
 from scipy.integrate import solve_ivp
 
+from .errors import NonFiniteError
 from .runtime.arguments import (as_vector, key_name, named_vector, parameter_vector,
                                 require_finite, state_vector, unknown_name)
 from .methods import METHODS, STIFF_METHODS
@@ -68,6 +71,11 @@ def simulate(mod, t_span, y0, method="RK45", params=None, inputs=None, rtol=1e-6
     Returns
     -------
     SciPy's OdeResult, with also `coordinates` (names), `q` and `qd` (views of the rows of `y`).
+
+    Raises
+    ------
+    NonFiniteError when the derivative becomes NaN or infinite (naming t and the state),
+    MassMatrixError when M is not positive definite.
     """
     if "args" in options:
         raise TypeError("simulate() takes no 'args': pass parameters as params={name: value} "
@@ -81,13 +89,19 @@ def simulate(mod, t_span, y0, method="RK45", params=None, inputs=None, rtol=1e-6
     rhs, jacobian = mod.rhs, mod.jacobian
     if u_of_t is None:
         def fun(t, y):
-            return rhs(t, y, p, u)
+            ydot = rhs(t, y, p, u)
+            if not math.isfinite(ydot.sum()):
+                raise NonFiniteError.at(mod.name, t, y)
+            return ydot
 
         def jac(t, y):
             return jacobian(t, y, p, u)
     else:
         def fun(t, y):
-            return rhs(t, y, p, u_of_t(t))
+            ydot = rhs(t, y, p, u_of_t(t))
+            if not math.isfinite(ydot.sum()):
+                raise NonFiniteError.at(mod.name, t, y)
+            return ydot
 
         def jac(t, y):
             return jacobian(t, y, p, u_of_t(t))
