@@ -458,7 +458,7 @@ def test_constraint_errors():
         model.constraint(k - 1)
     with pytest.raises(ModelError, match="involves no velocity"):
         model.velocity_constraint(x - y)
-    with pytest.raises(ModelError, match="one scalar expression"):
+    with pytest.raises(ModelError, match="must be a scalar expression"):
         model.constraint(sp.Matrix([x, y]))
     with pytest.raises(ModelError, match="neither a coordinate"):
         model.constraint(x - sp.Symbol("zz"))
@@ -466,6 +466,8 @@ def test_constraint_errors():
         model.constraint_stabilization(alpha=1.0, beta=-1.0)
     with pytest.raises(ModelError, match="Baumgarte alpha"):
         model.constraint_stabilization(alpha=float("nan"))
+    with pytest.raises(ModelError, match="not an expression"):
+        model.constraint(x < y)
     assert model.constraints == () and model.velocity_constraints == ()
     model.constraint(sp.Eq(x, y))         # an equation means lhs − rhs = 0
     assert model.constraints == (x - y,)

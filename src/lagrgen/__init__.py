@@ -9,7 +9,7 @@ import types
 
 from ._version import __version__
 from .errors import (BuildError, CompileError, ConstraintError, LagrgenError, MassMatrixError,
-                     ModelError, UnknownNameError)
+                     ModelError, NonFiniteError, UnknownNameError)
 
 #: Public name -> the module that defines it.
 _LAZY = {
@@ -22,9 +22,9 @@ _LAZY = {
 }
 
 __all__ = ["Model", "build", "load", "simulate", "equilibrium", "linearize", "modes",
-           "frequency_response", "consistent_state",
-           "LagrgenError", "ConstraintError", "ModelError", "UnknownNameError",
-           "MassMatrixError", "BuildError", "CompileError", "__version__"]
+           "frequency_response", "consistent_state", "LagrgenError", "ConstraintError",
+           "ModelError", "UnknownNameError", "MassMatrixError", "BuildError", "CompileError",
+           "NonFiniteError", "__version__"]
 
 
 class _Package(types.ModuleType):

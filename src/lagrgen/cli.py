@@ -85,6 +85,26 @@ def add_build(sub):
     b.set_defaults(run=command_build)
 
 
+def command_export_c(args):
+    from .build import export_c
+    for model in models_in(args.model_file, args.model):
+        paths = export_c(model, args.out)
+        if not args.quiet:
+            print(f"{model.name}: wrote {', '.join(str(p) for p in paths)}")
+    return 0
+
+
+def add_export_c(sub):
+    e = sub.add_parser("export-c", help="write a model as plain C (<name>_model.h and .c)",
+                       description="Write each model of MODEL.py as a standalone C model: "
+                       "<name>_model.h and <name>_model.c, which include only <math.h> and "
+                       "<string.h> and need no Python (compile with any C99 compiler, link -lm).")
+    add_model_file(e)
+    e.add_argument("--out", default=".", help="output directory (default: the current one)")
+    e.add_argument("--quiet", action="store_true", help="print nothing but errors")
+    e.set_defaults(run=command_export_c)
+
+
 # -- show -------------------------------------------------------------------------------------
 def command_show(args):
     from .outputs.display import render
@@ -122,18 +142,20 @@ def assignments(texts, what):
 
 
 def number(text, what):
+    """The value of a number or a constant expression such as `2*pi` (restricted reader)."""
+    from .expressions import ExpressionError, parse_number
     try:
-        return float(text)
-    except ValueError:
-        raise LagrgenError(f"{what}: {text!r} is not a number") from None
+        return parse_number(text)
+    except ExpressionError as exc:
+        raise LagrgenError(f"{what}: {exc}") from None
 
 
 def known_names(values, option, model, what, names):
     """`values` (a dict), after checking each key is one of the model's `names` (its `what`s)."""
+    from .runtime.arguments import unknown_name
     unknown = sorted(set(values) - set(names))
     if unknown:
-        raise LagrgenError(f"{option}: model {model.name!r} has no {what} {unknown[0]!r} "
-                           f"(its {what}s are {', '.join(names) or 'none'})")
+        raise LagrgenError(f"{option}: {unknown_name(what, unknown[0], names)}")
     return values
 
 
@@ -143,31 +165,20 @@ def parameters_option(args, model):
     return known_names(values, "--params", model, "parameter", model.parameter_names)
 
 
-def input_value(name, text, t):
+def input_value(name, text):
     """A constant, or a function of t, from an expression such as `0.5*sin(2*t)`."""
-    import sympy as sp
+    from .expressions import ExpressionError, parse_time_function
     try:
-        expr = sp.sympify(text, locals={"t": t})
-    except (sp.SympifyError, SyntaxError, TypeError):
-        raise LagrgenError(f"--inputs {name}: cannot read {text!r} as a number or an expression "
-                           "of t") from None
-    extra = expr.free_symbols - {t}
-    if extra:
-        raise LagrgenError(f"--inputs {name}: {text!r} may only depend on t, not on "
-                           f"{', '.join(sorted(map(str, extra)))}")
-    if not expr.free_symbols:
-        return float(expr)
-    f = sp.lambdify(t, expr, "numpy")
-    return lambda time_: float(f(time_))
+        return parse_time_function(text)
+    except ExpressionError as exc:
+        raise LagrgenError(f"--inputs {name}: {exc}") from None
 
 
 def inputs_option(args, model, constant=False):
     """The --inputs values: name -> constant or function of t (constants only if `constant`)."""
-    import sympy as sp
     values = known_names(assignments(args.inputs, "--inputs"), "--inputs", model, "input",
                          model.input_names)
-    t = sp.Symbol("t")
-    out = {name: input_value(name, text, t) for name, text in values.items()}
+    out = {name: input_value(name, text) for name, text in values.items()}
     varying = [name for name, v in out.items() if callable(v)]
     if constant and varying:
         raise LagrgenError(f"--inputs {varying[0]}: the operating point needs a constant value")
@@ -409,7 +420,7 @@ def write_outputs(args, model, sol, params):
 
 
 def add_simulate(sub):
-    from .simulate import METHODS
+    from .methods import METHODS
     s = sub.add_parser("simulate", help="integrate the equations of motion; CSV, plot, animation",
                        description="Integrate y = [q, q'] with scipy.integrate.solve_ivp and write "
                        "the time histories as CSV (stdout unless --csv, --plot or --animate is "
@@ -481,7 +492,7 @@ def add_bench(sub):
 
 
 #: The subcommands, in the order `--help` lists them: each adds its parser to the subparsers.
-COMMANDS = [add_build, add_show, add_modes, add_simulate, add_bench]
+COMMANDS = [add_build, add_export_c, add_show, add_modes, add_simulate, add_bench]
 
 
 def parser():

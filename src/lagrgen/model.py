@@ -4,6 +4,7 @@ A `Model` only records what the user says; `lagrgen.lagrange` turns it into equa
 """
 import keyword
 import math
+import sys
 from dataclasses import dataclass
 
 import sympy as sp
@@ -28,15 +29,35 @@ def check_name(name, what="name"):
     return name
 
 
+#: Names a model cannot take: lagrgen and the packages it runs on (besides the standard library's).
+RESERVED_NAMES = frozenset({"lagrgen", "numpy", "scipy", "sympy", "symengine", "matplotlib",
+                            "Cython", "setuptools", "pytest", "dask", "distributed", "fmpy",
+                            "mujoco", "filelock", "mpmath", "PIL"})
+MAX_NAME_LENGTH = 100
+
+
 def check_model_name(name):
     """Return `name` if it can name a compiled module: an ASCII identifier other than 'lagrgen'."""
     check_name(name, "model name")
     if not name.isascii():
         raise ModelError(f"invalid model name {name!r}: it becomes the name of a compiled Python "
                          "module, so use ASCII letters, digits and underscores only")
-    if name == "lagrgen":
-        raise ModelError("a model cannot be called 'lagrgen': its module would hide the package")
+    if len(name) > MAX_NAME_LENGTH:
+        raise ModelError(f"model name {name[:20]}... is {len(name)} characters long: it names "
+                         f"files, so use at most {MAX_NAME_LENGTH}")
+    if name in RESERVED_NAMES or name in getattr(sys, "stdlib_module_names", ()):
+        raise ModelError(f"a model cannot be called {name!r}: that is the name of a module Python "
+                         "or lagrgen needs, which the compiled model would hide; choose another name")
     return name
+
+
+def fits_a_double(number):
+    """True if the SymPy number rounds to a finite double that is zero only when it is zero."""
+    try:
+        value = float(number)
+    except (OverflowError, TypeError):
+        return False
+    return math.isfinite(value) and (value != 0 or number == 0)
 
 
 def split_names(names, what):
@@ -188,18 +209,37 @@ class Model:
         return tuple(self._defaults)
 
     # -- checking expressions -----------------------------------------------------------------
-    def _check(self, expr, where, velocities=True, inputs=True):
-        """Return `expr` sympified, after checking every symbol and function in it is known."""
+    def _check(self, expr, where, velocities=True, inputs=True, vector=False):
+        """Return `expr` sympified, after checking every symbol and function in it is known.
+
+        A scalar is expected unless `vector`; a 1×1 matrix counts as its entry."""
         try:
             expr = sp.sympify(expr)
         except (sp.SympifyError, TypeError) as exc:
             raise ModelError(f"{where}: cannot read {expr!r} as a SymPy expression ({exc})") from None
         if isinstance(expr, sp.MatrixBase):
-            for e in expr:
-                self._check(e, where, velocities, inputs)
-            return expr
+            if vector:
+                for e in expr:
+                    self._check(e, where, velocities, inputs)
+                return expr
+            if expr.shape != (1, 1):
+                raise ModelError(f"{where} must be a scalar expression, got a {expr.shape[0]}×"
+                                 f"{expr.shape[1]} matrix")
+            expr = expr[0, 0]
+        if not isinstance(expr, sp.Expr):
+            kind = "a relation (an equation or inequality)" if isinstance(
+                expr, (sp.Rel, sp.logic.boolalg.Boolean)) else f"a {type(expr).__name__}"
+            raise ModelError(f"{where}: {expr} is {kind}, not an expression; write the quantity "
+                             "itself (for a switch use Piecewise, Heaviside or sign)")
         allowed = set(self._parameters) | {self.t}
         for s in expr.free_symbols - allowed:
+            twin = next((p for p in self._parameters if p.name == s.name), None)
+            if twin is not None or s.name == "t":
+                raise ModelError(
+                    f"{where}: symbol {s} is not the {'parameter' if twin else 'time'} {s.name} of "
+                    f"model {self.name!r}, only a symbol of the same name with other assumptions "
+                    f"({s.assumptions0 or 'none'}); use the symbol "
+                    f"{'model.parameters' if twin else 'model.t'} returned")
             raise ModelError(
                 f"{where}: symbol {s} is neither a coordinate, a parameter, an input nor t; "
                 f"declare it with model.parameters({s}=...) or model.inputs('{s}')")
@@ -228,6 +268,11 @@ class Model:
                 raise ModelError(f"{where}: function {f.func.__name__} is not supported (use {names})")
         if expr.has(sp.zoo, sp.oo, sp.nan, -sp.oo):
             raise ModelError(f"{where}: expression {expr} contains an infinity or NaN")
+        for number in expr.atoms(sp.Number):
+            if not fits_a_double(number):
+                raise ModelError(
+                    f"{where}: the number {sp.N(number, 6)} does not fit a double (|x| between "
+                    "2.2e-308 and 1.8e308): rescale the model's units or parameters")
         return expr
 
     def _coordinate(self, coordinate):
@@ -249,7 +294,7 @@ class Model:
         """T += ½·mass·ṙ·ṙ with ṙ the total time derivative of `position` (1 to 3 components)."""
         mass = self._check(mass, "particle mass", velocities=False, inputs=False)
         position = self._check(as_vector(position, "particle position"), "particle position",
-                               velocities=False, inputs=False)
+                               velocities=False, inputs=False, vector=True)
         self._particles.append((mass, position))
         self._drawables.append(("point", (position,)))
         self._changed()
@@ -259,7 +304,7 @@ class Model:
         mass = self._check(mass, "rigid body mass", velocities=False, inputs=False)
         inertia = self._check(inertia, "rigid body inertia", velocities=False, inputs=False)
         position = self._check(as_vector(position, "rigid body position"), "rigid body position",
-                               velocities=False, inputs=False)
+                               velocities=False, inputs=False, vector=True)
         angle = self._check(angle, "rigid body angle", velocities=False, inputs=False)
         self._particles.append((mass, position))
         self._particles.append((inertia, sp.Matrix([angle])))
@@ -300,8 +345,8 @@ class Model:
 
     def force(self, vector, at):
         """Q_j += vector · ∂at/∂q_j (virtual work of a force applied at the point `at`)."""
-        vector = self._check(as_vector(vector, "force"), "force")
-        at = self._check(as_vector(at, "force point"), "force point", velocities=False, inputs=False)
+        vector = self._check(as_vector(vector, "force"), "force", vector=True)
+        at = self._check(as_vector(at, "force point"), "force point", velocities=False, inputs=False, vector=True)
         if len(vector) != len(at):
             raise ModelError(
                 f"force has {len(vector)} components but its point of application has {len(at)}")
@@ -329,8 +374,7 @@ class Model:
         Its multiplier λ_i enters the equations as M·q̈ = F + Φ_qᵀ·λ (see `lagrgen.lagrange`).
         """
         where = f"constraint {len(self._constraints) + 1}"
-        expr = self._check(expr, where, velocities=False, inputs=False)
-        expr = self._scalar(expr, where)
+        expr = self._check(self._equation(expr), where, velocities=False, inputs=False)
         if not any(expr.has(c) for c in self._coordinates):
             raise ModelError(f"{where} ({expr} = 0) does not involve any coordinate: it is not a "
                              "constraint on the motion")
@@ -341,8 +385,7 @@ class Model:
         """Add a constraint linear in the velocities, A(q, t)·q̇ + b(q, t) = 0 (nonholonomic,
         e.g. a knife edge −sin θ·ẋ + cos θ·ẏ = 0); its multiplier enters M·q̈ = F + Aᵀ·λ."""
         where = f"velocity constraint {len(self._velocity_constraints) + 1}"
-        expr = self._check(expr, where, velocities=True, inputs=False)
-        expr = self._scalar(expr, where)
+        expr = self._check(self._equation(expr), where, velocities=True, inputs=False)
         qd = self.qd
         coefficients = [sp.diff(expr, v) for v in qd]
         for v, c in zip(qd, coefficients):
@@ -373,17 +416,10 @@ class Model:
         self._stabilization = tuple(values)
         self._changed()
 
-    def _scalar(self, expr, where):
-        if isinstance(expr, sp.MatrixBase):
-            if len(expr) != 1:
-                raise ModelError(f"{where} must be one scalar expression, got a {expr.shape} "
-                                 "matrix: add one constraint per component")
-            expr = expr[0]
-        if isinstance(expr, sp.Equality):
-            expr = expr.lhs - expr.rhs
-        if isinstance(expr, sp.logic.boolalg.Boolean) or not isinstance(expr, sp.Expr):
-            raise ModelError(f"{where} must be an expression (meaning expr = 0), got {expr!r}")
-        return expr
+    @staticmethod
+    def _equation(expr):
+        """An equation lhs = rhs as lhs − rhs (a constraint means expr = 0)."""
+        return expr.lhs - expr.rhs if isinstance(expr, sp.Equality) else expr
 
     @property
     def constraints(self):
@@ -398,7 +434,7 @@ class Model:
     def line(self, *points):
         """Draw a polyline through `points` in animations (an extension: rods, outlines)."""
         pts = tuple(self._check(as_vector(p, "line point"), "line point", velocities=False,
-                                inputs=False) for p in points)
+                                inputs=False, vector=True) for p in points)
         if len(pts) < 2:
             raise ModelError("a line needs at least two points")
         self._drawables.append(("line", pts))
@@ -409,7 +445,7 @@ class Model:
         if len(ends) != 2:
             raise ModelError(f"{kind} ends must be a pair of points, got {len(ends)}")
         a, b = (self._check(as_vector(p, f"{kind} end"), f"{kind} end", velocities=False,
-                            inputs=False) for p in ends)
+                            inputs=False, vector=True) for p in ends)
         self._drawables.append((kind, (a, b)))
 
     @property

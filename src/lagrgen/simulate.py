@@ -3,15 +3,16 @@
 User arguments (params, inputs, y0) are converted once here, by `lagrgen.runtime.arguments`; the
 functions handed to the solver take raw float64 arrays.
 """
+import math
+
 import numpy as np
 from scipy.integrate import solve_ivp
 
+from .errors import NonFiniteError
 from .runtime.arguments import (as_vector, key_name, named_vector, parameter_vector,
                                 require_finite, state_vector, unknown_name)
+from .methods import METHODS, STIFF_METHODS
 from .solvers import SOLVERS
-
-METHODS = ("RK23", "RK45", "DOP853", "Radau", "BDF", "LSODA")
-STIFF_METHODS = ("Radau", "BDF", "LSODA")
 
 
 def parameters_from(mod, params):
@@ -72,8 +73,14 @@ def simulate(mod, t_span, y0, method="RK45", params=None, inputs=None, rtol=1e-6
     SciPy's OdeResult, with also `coordinates` (names), `q` and `qd` (views of the rows of `y`).
     A constrained model's result also has `constraint_forces` (λ, n_constraints × len(t), with
     M·q̈ = F + Aᵀλ) and `constraint_residuals` (Φ then A·q̇ + b, (n_holonomic + n_constraints) ×
-    len(t)). Its initial state must satisfy the constraints (see `lagrgen.consistent_state`);
-    ConstraintError if they are redundant there.
+    len(t)). Its initial state should satisfy the constraints (see `lagrgen.consistent_state`;
+    Baumgarte stabilization pulls a small violation back).
+
+    Raises
+    ------
+    NonFiniteError when the derivative becomes NaN or infinite (naming t and the state),
+    MassMatrixError when M is not positive definite, ConstraintError when the constraints are
+    redundant at the initial state or become dependent during the run.
     """
     if "args" in options:
         raise TypeError("simulate() takes no 'args': pass parameters as params={name: value} "
@@ -87,13 +94,19 @@ def simulate(mod, t_span, y0, method="RK45", params=None, inputs=None, rtol=1e-6
     rhs, jacobian = mod.rhs, mod.jacobian
     if u_of_t is None:
         def fun(t, y):
-            return rhs(t, y, p, u)
+            ydot = rhs(t, y, p, u)
+            if not math.isfinite(ydot.sum()):
+                raise NonFiniteError.at(mod.name, t, y)
+            return ydot
 
         def jac(t, y):
             return jacobian(t, y, p, u)
     else:
         def fun(t, y):
-            return rhs(t, y, p, u_of_t(t))
+            ydot = rhs(t, y, p, u_of_t(t))
+            if not math.isfinite(ydot.sum()):
+                raise NonFiniteError.at(mod.name, t, y)
+            return ydot
 
         def jac(t, y):
             return jacobian(t, y, p, u_of_t(t))

@@ -36,13 +36,14 @@ def kernel_functions(equations, max_statements=400):
     """The C functions lg_<kernel> of every registered kernel (split into parts when long)."""
     chunks = []
     arguments = ", ".join(KERNEL_ARGUMENTS)
+    prologue = "    " + " ".join(f"(void){a};" for a in KERNEL_ARGUMENTS) + "\n"
     for kernel in all_kernels(equations):
         outputs = [o.name for o in kernel.spec.outputs]
         params = ("double t, " + ", ".join(f"const double *{a}" for a in KERNEL_ARGUMENTS[1:])
                   + "".join(f", double *{o}" for o in outputs))
         args = arguments + "".join(f", {o}" for o in outputs)
         chunks.append(c_function(f"lg_{kernel.name}", params, args, kernel_statements(kernel),
-                                 kernel.spec.formula + ".", max_statements))
+                                 kernel.spec.formula + ".", max_statements, prologue))
     return "\n".join(chunks)
 
 

@@ -271,8 +271,8 @@ def bind_module(module, capsule):
     """Make `module` (a freshly imported model module) a built model: called by its PyInit."""
     model = CompiledModel(capsule)
     for attr in ("name", "coordinates", "parameters", "inputs", "defaults", "n_coordinates",
-                 "n_constraints",
-                 "content_hash", "lagrgen_version", "time_in_c", "function_address"):
+                 "n_constraints", "content_hash", "lagrgen_version", "dimensions", "time_in_c",
+                 "function_address"):
         setattr(module, attr, getattr(model, attr))
     module.backend = "c"
     for spec in FUNCTIONS:

@@ -13,10 +13,18 @@ from ..errors import ConstraintError, MassMatrixError
 from ..functions import FUNCTIONS
 from .arguments import as_vector, defaults_array, input_vector, parameter_vector
 
-_NAMESPACE = {name: getattr(math, name) for name in (
-    "sin", "cos", "tan", "asin", "acos", "atan", "atan2", "sinh", "cosh", "tanh", "asinh",
-    "acosh", "atanh", "exp", "log", "sqrt")}
+_FUNCTIONS = ("sin", "cos", "tan", "asin", "acos", "atan", "atan2", "sinh", "cosh", "tanh",
+              "asinh", "acosh", "atanh", "exp", "log", "sqrt")
+_NUMPY_NAMES = {"asin": "arcsin", "acos": "arccos", "atan": "arctan", "atan2": "arctan2",
+                "asinh": "arcsinh", "acosh": "arccosh", "atanh": "arctanh"}
+#: Fast evaluation on Python floats.
+_NAMESPACE = {name: getattr(math, name) for name in _FUNCTIONS}
 _NAMESPACE["_sign"] = lambda x: float((x > 0) - (x < 0))
+#: IEEE evaluation on NumPy scalars (sqrt(−1) = nan, 1/0 = inf), as the C code computes, for the
+#: points where Python's float arithmetic raises instead.
+_IEEE_NAMESPACE = {name: getattr(np, _NUMPY_NAMES.get(name, name)) for name in _FUNCTIONS}
+_IEEE_NAMESPACE["_sign"] = np.sign
+_IEEE_NAMESPACE["abs"] = np.abs
 
 
 class PythonModel:
@@ -45,9 +53,10 @@ class PythonModel:
         self.dimensions = dict(info["dimensions"])
         self.n_constraints = self.dimensions.get("n_constraints", 0)
         self.source = source
-        namespace = dict(_NAMESPACE)
-        exec(compile(source, f"<lagrgen python backend: {self.name}>", "exec"), namespace)
-        self._kernels = namespace
+        code = compile(source, f"<lagrgen python backend: {self.name}>", "exec")
+        self._kernels, self._ieee_kernels = dict(_NAMESPACE), dict(_IEEE_NAMESPACE)
+        exec(code, self._kernels)
+        exec(code, self._ieee_kernels)
         for spec in FUNCTIONS:
             setattr(self, spec.name, _CALLERS[spec.call](self, getattr(self, f"_{spec.name}")))
 
@@ -59,16 +68,24 @@ class PythonModel:
                 input_vector(u, self.inputs).tolist())
 
     def _factor(self, M, t, q):
-        """Cholesky factor of the n×n matrix M, or MassMatrixError naming the state."""
+        """Cholesky factor of the n×n matrix M, or MassMatrixError naming the state (also when M
+        is not finite, as in C)."""
         try:
+            if not np.isfinite(M).all():
+                raise np.linalg.LinAlgError
             return np.linalg.cholesky(M)
         except np.linalg.LinAlgError:
             raise MassMatrixError.at(self.name, t, q) from None
 
     def _kernel(self, name, t, q, qd, a, p, u):
-        """The outputs of kernel `name` as float64 arrays."""
-        return [np.array(out, dtype=np.float64) for out in
-                self._kernels[name](t, q, qd, a, p, u)]
+        """The outputs of kernel `name` as float64 arrays, in IEEE arithmetic like the C code."""
+        try:
+            outputs = self._kernels[name](t, q, qd, a, p, u)
+        except (ValueError, ZeroDivisionError, OverflowError):
+            scalars = [None if v is None else [np.float64(x) for x in v] for v in (q, qd, a, p, u)]
+            with np.errstate(all="ignore"):
+                outputs = self._ieee_kernels[name](np.float64(t), *scalars)
+        return [np.array(out, dtype=np.float64) for out in outputs]
 
     def _mf(self, t, q, qd, p, u):
         """M (n×n) and F (n) at a point."""
