@@ -8,7 +8,7 @@ velocity has no component across the blade:
     −sin θ·ẋ_P + cos θ·ẏ_P = 0   ⇔   −sin θ·ẋ + cos θ·ẏ − a·θ̇ = 0
 
 No forces act besides the constraint, which does no work, so T = ½·m·(ẋ² + ẏ²) + ½·I·θ̇² is
-conserved. λ is the sideways force of the blade on the body, along (−sin θ, cos θ).
+conserved. λ ("blade") is the sideways force of the blade on the body, along (−sin θ, cos θ).
 """
 import sympy as sp
 
@@ -21,6 +21,6 @@ t = model.t
 
 model.rigid_body(m, I, sp.Matrix([x, y]), theta)
 model.velocity_constraint(-sp.sin(theta) * x.diff(t) + sp.cos(theta) * y.diff(t)
-                          - a * theta.diff(t))
+                          - a * theta.diff(t), name="blade")
 heading = sp.Matrix([sp.cos(theta), sp.sin(theta)])
 model.line(sp.Matrix([x, y]) - a * heading, sp.Matrix([x, y]) + a * heading)

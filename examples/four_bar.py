@@ -9,7 +9,7 @@ crank.
     Φ1 = a·cos th2 + b·cos th3 − c·cos th4 − d = 0      (x of B reached two ways)
     Φ2 = a·sin th2 + b·sin th3 − c·sin th4 = 0          (y of B)
 
-λ1, λ2 are the x and y components of the force the rocker exerts on the coupler at the pin B
+λ1 = B_x, λ2 = B_y (the constraints' names) are the x and y components of the force the rocker exerts on the coupler at the pin B
 (Φ_qᵀ·λ is exactly the generalized force of (λ1, λ2) acting at B on the coupler and of
 (−λ1, −λ2) acting at B on the rocker): the pin force to size the joint B for.
 """
@@ -32,6 +32,6 @@ for m, length, start, angle in ((m2, a, O, th2), (m3, b, A, th3), (m4, c, D, th4
     model.rigid_body(m, m * length**2 / 12, centre, angle)
     model.potential_energy(m * g * centre[1])
 model.torque(Tq, th2)
-model.constraint(a * sp.cos(th2) + b * sp.cos(th3) - c * sp.cos(th4) - d)
-model.constraint(a * sp.sin(th2) + b * sp.sin(th3) - c * sp.sin(th4))
+model.constraint(a * sp.cos(th2) + b * sp.cos(th3) - c * sp.cos(th4) - d, name="B_x")
+model.constraint(a * sp.sin(th2) + b * sp.sin(th3) - c * sp.sin(th4), name="B_y")
 model.line(O, A, B, D)

@@ -9,8 +9,8 @@ slides along the x axis. phi is the rod's angle below the axis, so
     Φ1 = r·cos th + l·cos phi − x = 0,   Φ2 = r·sin th − l·sin phi = 0
 
 The input P is a force on the piston along −x (a gas force on the power stroke when positive), the
-input Tl a load torque on the crank. No gravity (a horizontal engine). λ = (λ1, λ2) is the force
-the rod receives from the piston pin: the piston presses on its guide with −λ2.
+input Tl a load torque on the crank. No gravity (a horizontal engine). λ = (pin_x, pin_y) is the
+force the rod receives from the piston pin: the piston presses on its guide with −pin_y.
 """
 import sympy as sp
 
@@ -30,6 +30,6 @@ model.particle(mp, piston)
 model.dissipation(c * th.diff(model.t)**2 / 2)
 model.force(sp.Matrix([-P, 0]), at=piston)
 model.torque(-Tl, th)
-model.constraint(r * sp.cos(th) + l * sp.cos(phi) - x)
-model.constraint(r * sp.sin(th) - l * sp.sin(phi))
+model.constraint(r * sp.cos(th) + l * sp.cos(phi) - x, name="pin_x")
+model.constraint(r * sp.sin(th) - l * sp.sin(phi), name="pin_y")
 model.line(sp.Matrix([0, 0]), pin, piston)

@@ -83,8 +83,10 @@ def test_sizes(built, backend):
         y = np.zeros(2 * mod.n_coordinates)
         assert mod.constraint_forces(0.0, np.array(GUESSES[stem])).shape == (m,)
         assert mod.constraint_residuals(0.0, y).shape == (n_h + m,)
+    assert built("four_bar", backend).constraint_names == ("B_x", "B_y")
+    assert built("chaplygin_sleigh", backend).constraint_names == ("blade",)
     plain = built("double_pendulum", backend)
-    assert plain.n_constraints == 0
+    assert plain.n_constraints == 0 and plain.constraint_names == ()
     assert plain.constraint_forces(0.0, np.zeros(4)).shape == (0,)
     assert plain.constraint_residuals(0.0, np.zeros(4)).shape == (0,)
 
@@ -129,6 +131,8 @@ def test_cartesian_pendulum_matches_angle_form(built):
     tension = -2.0 * sol.constraint_forces[0]
     assert np.abs(tension - (9.81 * np.cos(th) + w**2)).max() < 1e-7
     assert sol.constraint_forces.shape == (1, len(t_eval))
+    assert sol.constraint_names == ("rod",)
+    assert np.array_equal(sol.multipliers["rod"], sol.constraint_forces[0])
     assert np.abs(sol.constraint_residuals).max() < 1e-9
 
 
@@ -522,3 +526,66 @@ def test_stabilization_is_part_of_the_equations():
     assert plain.rhs(0.0, off)[2] == pytest.approx(0.0, abs=1e-14)
     # Φ̈ = −β²Φ with Φ_q = (2x, 0), β = 10: 2x·ẍ = −100·0.21
     assert default.rhs(0.0, off)[2] == pytest.approx(-100 * 0.21 / 2.2)
+
+
+def test_constraint_names():
+    model, x, y, k, _ = small_model("named")
+    model.velocity_constraint(x.diff(model.t) - y.diff(model.t), name="slot")
+    model.constraint(x**2 + y**2 - 1)
+    assert model.constraint_names == ("lambda1", "slot")    # holonomic rows first
+    with pytest.raises(ModelError, match="already used for the coordinate"):
+        model.constraint(x - y, name="x")
+    with pytest.raises(ModelError, match="already used for the constraint"):
+        model.constraint(x - y, name="slot")
+    with pytest.raises(ModelError, match="reserved"):
+        model.constraint(x - y, name="lambda2")
+    with pytest.raises(ModelError, match="invalid constraint name"):
+        model.constraint(x - y, name="not valid")
+    assert len(model.constraints) == 1
+    mod = lagrgen.build(model, backend="python")
+    assert mod.constraint_names == ("lambda1", "slot") and mod.n_constraints == 2
+
+
+def test_rheonomic_constraint_jacobian_and_drift():
+    """A pendulum whose pivot is driven sideways, Φ = (x − A·sin ωt)² + y² − L²: ∂Φ/∂t enters
+    γ and its Jacobian; the motion stays on the moving circle."""
+    model = Model("driven_pivot")
+    x, y = model.coordinates("x y")
+    A, w, g = model.parameters(A=0.2, w=3.0, g=9.81)
+    model.particle(1.0, sp.Matrix([x, y]))
+    model.potential_energy(g * y)
+    model.constraint((x - A * sp.sin(w * model.t))**2 + y**2 - 1)
+    mod = lagrgen.build(model, backend="python")
+    y0 = lagrgen.consistent_state(mod, [0.3, -0.9, 0.0, 0.0], t=0.4)
+    assert np.abs(mod.constraint_residuals(0.4, y0)).max() < 1e-12
+    J = mod.jacobian(0.4, y0 + 0.01)
+    assert np.abs(J - finite_difference_jacobian(mod, 0.4, y0 + 0.01)).max() < 1e-7 * np.abs(J).max()
+    sol = lagrgen.simulate(mod, (0.4, 5.0), y0, method="DOP853", rtol=1e-10, atol=1e-12)
+    pivot = 0.2 * np.sin(3.0 * sol.t)
+    assert np.abs(np.hypot(sol.y[0] - pivot, sol.y[1]) - 1).max() < 1e-9
+
+
+def test_frequency_response_in_full_coordinates():
+    """δx/δF of a pendulum in x, y = L·δθ/δF of the angle form (force F along x at the bob)."""
+    cart, angle = Model("fr_cartesian"), Model("fr_angle")
+    x, y = cart.coordinates("x y")
+    th, = angle.coordinates("theta")
+    for model in (cart, angle):
+        m, L, g, c = model.parameters(m=2.0, L=0.5, g=9.81, c=0.3)
+        F, = model.inputs("F")
+        bob = sp.Matrix([x, y]) if model is cart else sp.Matrix([L * sp.sin(th), -L * sp.cos(th)])
+        model.particle(m, bob)
+        model.potential_energy(m * g * bob[1])
+        model.force(sp.Matrix([F, 0]), at=bob)
+        model.damper(c, bob[0])
+    cart.constraint(x**2 + y**2 - cart.parameter_symbols[1]**2)
+    mc, ma = (lagrgen.build(mdl, backend="python") for mdl in (cart, angle))
+    freqs = np.linspace(0.1, 2.0, 7)
+    Hc = lagrgen.frequency_response(mc, [0.0, -0.5], freqs, input="F")
+    Ha = lagrgen.frequency_response(ma, [0.0], freqs, input="F")
+    assert Hc.shape == (7, 2)
+    assert np.allclose(Hc[:, 0], 0.5 * Ha[:, 0], rtol=1e-10)
+    assert np.allclose(Hc[:, 1], 0.0, atol=1e-14)
+    zc, za = lagrgen.modes(mc, [0.0, -0.5]), lagrgen.modes(ma, [0.0])
+    assert zc.omega == pytest.approx(za.omega, rel=1e-12)
+    assert zc.damping_ratios == pytest.approx(za.damping_ratios, rel=1e-10)

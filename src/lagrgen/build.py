@@ -132,7 +132,7 @@ def equations_digest(spec, equations):
     parts = [spec.name, spec.coordinate_names, spec.parameter_names, spec.defaults,
              spec.input_names, [[str(e) for e in row] for row in equations.M],
              [str(f) for f in equations.F], [str(e) for e in equations.residuals],
-             spec.stabilization]
+             spec.stabilization, spec.constraint_names]
     for part in parts:
         h.update(repr(part).encode() + b"\0")
     equations.digest = h.hexdigest()
@@ -146,6 +146,7 @@ def model_info(spec, equations):
         "parameters": list(spec.parameter_names), "inputs": list(spec.input_names),
         "defaults": list(spec.defaults), "content_hash": equations_digest(spec, equations),
         "lagrgen_version": __version__, "dimensions": model_dimensions(spec, equations),
+        "constraint_names": list(spec.constraint_names),
     }
 
 

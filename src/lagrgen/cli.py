@@ -342,11 +342,12 @@ class Watched:
 
 
 def write_csv(stream, sol, names):
-    """t, q, q' per output time; then λ1, λ2, ... for a constrained model (M q'' = F + Aᵀλ)."""
+    """t, q, q' per output time; then the multipliers λ of a constrained model (M q'' = F + Aᵀλ),
+    one column per constraint name (lambda1, lambda2, ... when unnamed)."""
     writer = csv.writer(stream, lineterminator="\n")
     lam = getattr(sol, "constraint_forces", np.zeros((0, len(sol.t))))
     writer.writerow(["t", *names, *(f"{c}_dot" for c in names),
-                     *(f"lambda{k + 1}" for k in range(len(lam)))])
+                     *getattr(sol, "constraint_names", ())])
     for k, t in enumerate(sol.t):
         writer.writerow([repr(float(t)), *(repr(float(v)) for v in sol.y[:, k]),
                          *(repr(float(v)) for v in lam[:, k])])
@@ -441,7 +442,7 @@ def add_simulate(sub):
     s.add_argument("--samples", type=int, default=501,
                    help="number of equally spaced output times (default 501)")
     s.add_argument("--csv", metavar="OUT.csv", help="write t, q, q' (one row per output time) "
-                   "and, for a constrained model, its multipliers lambda1, lambda2, ...")
+                   "and, for a constrained model, its multipliers (one column per constraint name)")
     s.add_argument("--plot", metavar="OUT.png", help="plot q(t) and q'(t) to this image")
     s.add_argument("--animate", metavar="OUT.gif", help="animate the mechanism to this GIF")
     s.add_argument("--fps", type=int, default=20,

@@ -112,6 +112,7 @@ class Model:
         self._drawables = []       # (kind, points): what an animation can draw
         self._constraints = []     # Φ(q, t) = 0, holonomic
         self._velocity_constraints = []  # A(q, t)·q̇ + b(q, t) = 0
+        self._constraint_names = {}  # ("holonomic" | "velocity", index) -> the user's name
         self._stabilization = BAUMGARTE_DEFAULTS
         self._version = 0
 
@@ -368,22 +369,37 @@ class Model:
         self._changed()
 
     # -- constraints --------------------------------------------------------------------------
-    def constraint(self, expr):
-        """Add a holonomic constraint Φ(q, t) = 0 (coordinates, t and parameters only).
+    def constraint(self, expr, name=None):
+        """Add a holonomic constraint Φ(q, t) = 0 (coordinates, t and parameters only; an
+        equation lhs = rhs means lhs − rhs = 0).
 
-        Its multiplier λ_i enters the equations as M·q̈ = F + Φ_qᵀ·λ (see `lagrgen.lagrange`).
+        Its multiplier λ_i enters the equations as M·q̈ = F + Φ_qᵀ·λ (see `lagrgen.lagrange`);
+        `name` (an identifier) names λ_i in results (`sol.multipliers[name]`), CSV columns and
+        `show`; unnamed constraints are lambda1, lambda2, ... in the order of `constraint_names`.
         """
         where = f"constraint {len(self._constraints) + 1}"
         expr = self._check(self._equation(expr), where, velocities=False, inputs=False)
         if not any(expr.has(c) for c in self._coordinates):
             raise ModelError(f"{where} ({expr} = 0) does not involve any coordinate: it is not a "
                              "constraint on the motion")
+        self._name_constraint(name, ("holonomic", len(self._constraints)))
         self._constraints.append(expr)
         self._changed()
 
-    def velocity_constraint(self, expr):
+    def _name_constraint(self, name, key):
+        if name is None:
+            return
+        check_name(name, "constraint name")
+        if name.startswith("lambda") and name[6:].isdigit():
+            raise ModelError(f"constraint name {name!r} is reserved for unnamed constraints; "
+                             "choose another name")
+        self._declare(name, "constraint")
+        self._constraint_names[key] = name
+
+    def velocity_constraint(self, expr, name=None):
         """Add a constraint linear in the velocities, A(q, t)·q̇ + b(q, t) = 0 (nonholonomic,
-        e.g. a knife edge −sin θ·ẋ + cos θ·ẏ = 0); its multiplier enters M·q̈ = F + Aᵀ·λ."""
+        e.g. a knife edge −sin θ·ẋ + cos θ·ẏ = 0); its multiplier enters M·q̈ = F + Aᵀ·λ.
+        `name` as for `constraint`."""
         where = f"velocity constraint {len(self._velocity_constraints) + 1}"
         expr = self._check(self._equation(expr), where, velocities=True, inputs=False)
         qd = self.qd
@@ -397,6 +413,7 @@ class Model:
             raise ModelError(
                 f"{where} ({expr} = 0) involves no velocity: a constraint on positions alone is "
                 "holonomic, add it with model.constraint(expr)")
+        self._name_constraint(name, ("velocity", len(self._velocity_constraints)))
         self._velocity_constraints.append(expr)
         self._changed()
 
@@ -430,6 +447,15 @@ class Model:
     def velocity_constraints(self):
         """The velocity constraints (each meaning A(q,t)·q̇ + b = 0), in declaration order."""
         return tuple(self._velocity_constraints)
+
+    @property
+    def constraint_names(self):
+        """The names of the multipliers λ: the holonomic constraints, then the velocity ones
+        (the order of A's rows); lambda<k> (k from 1 in that order) where none was given."""
+        keys = [("holonomic", i) for i in range(len(self._constraints))] + \
+            [("velocity", i) for i in range(len(self._velocity_constraints))]
+        return tuple(self._constraint_names.get(key, f"lambda{k + 1}")
+                     for k, key in enumerate(keys))
 
     def line(self, *points):
         """Draw a polyline through `points` in animations (an extension: rods, outlines)."""
@@ -468,6 +494,7 @@ class Model:
                 virtual_work=tuple((_frozen(v), _frozen(r)) for v, r in self._virtual_work),
                 constraints=tuple(self._constraints),
                 velocity_constraints=tuple(self._velocity_constraints),
+                constraint_names=self.constraint_names,
                 stabilization=self._stabilization))
         return self._spec[1]
 
@@ -519,6 +546,7 @@ class ModelSpec:
     virtual_work: tuple = ()  # (vector, position): Q_j += vector · ∂position/∂q_j
     constraints: tuple = ()   # Φ_i(q, t) = 0
     velocity_constraints: tuple = ()  # A(q, t)·q̇ + b(q, t) = 0
+    constraint_names: tuple = ()  # one per multiplier, holonomic first
     stabilization: tuple = (0.0, 0.0)  # Baumgarte (α, β), 1/s
 
     @property

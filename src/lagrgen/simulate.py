@@ -73,7 +73,8 @@ def simulate(mod, t_span, y0, method="RK45", params=None, inputs=None, rtol=1e-6
     SciPy's OdeResult, with also `coordinates` (names), `q` and `qd` (views of the rows of `y`).
     A constrained model's result also has `constraint_forces` (λ, n_constraints × len(t), with
     M·q̈ = F + Aᵀλ) and `constraint_residuals` (Φ then A·q̇ + b, (n_holonomic + n_constraints) ×
-    len(t)). Its initial state should satisfy the constraints (see `lagrgen.consistent_state`;
+    len(t)), `constraint_names` and `multipliers` ({name: λ row}, the reaction asked for by
+    the constraint's name). Its initial state should satisfy the constraints (see `lagrgen.consistent_state`;
     Baumgarte stabilization pulls a small violation back).
 
     Raises
@@ -123,6 +124,8 @@ def simulate(mod, t_span, y0, method="RK45", params=None, inputs=None, rtol=1e-6
     if constrained:
         from .constraints import along
         sol.constraint_forces, sol.constraint_residuals = along(mod, sol, p, u, u_of_t)
+        sol.constraint_names = tuple(mod.constraint_names)
+        sol.multipliers = dict(zip(sol.constraint_names, sol.constraint_forces))
     return sol
 
 

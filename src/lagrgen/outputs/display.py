@@ -163,14 +163,14 @@ def constraint_lines(model, latex=False):
              f"beta = {beta:g})"]
     if latex:
         lines.append(r"\begin{aligned}")
-    for k, expr in enumerate(holonomic + velocity):
+    for k, (expr, name) in enumerate(zip(holonomic + velocity, model.constraint_names)):
         kind = "holonomic" if k < len(holonomic) else "velocity"
         expr = expr.xreplace(rules)
         if latex:
             lines.append(f"&{to_latex(expr, names)} = 0 && \\text{{({kind}, }}\\lambda_{{{k + 1}}}"
-                         r"\text{)} \\")
+                         f"\\text{{: {name.replace('_', ' ')})}} \\\\")
         else:
-            lines.append(f"{to_text(expr)} = 0    ({kind}, lambda{k + 1})")
+            lines.append(f"{to_text(expr)} = 0    ({kind}, multiplier {name})")
     if latex:
         lines.append(r"\end{aligned}")
     return lines

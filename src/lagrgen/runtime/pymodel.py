@@ -52,6 +52,7 @@ class PythonModel:
         self.n_coordinates = n
         self.dimensions = dict(info["dimensions"])
         self.n_constraints = self.dimensions.get("n_constraints", 0)
+        self.constraint_names = tuple(info.get("constraint_names", ()))
         self.source = source
         code = compile(source, f"<lagrgen python backend: {self.name}>", "exec")
         self._kernels, self._ieee_kernels = dict(_NAMESPACE), dict(_IEEE_NAMESPACE)
