@@ -12,7 +12,7 @@ import sympy as sp
 from sympy.physics.mechanics import LagrangesMethod, ReferenceFrame, dynamicsymbols
 
 import lagrgen
-from conftest import example_model
+from conftest import EXAMPLES as EXAMPLES_DIR, example_model
 from lagrgen import ConstraintError, Model, ModelError
 
 EXAMPLES = ("cartesian_pendulum", "cartesian_double_pendulum", "four_bar", "slider_crank",
@@ -589,3 +589,21 @@ def test_frequency_response_in_full_coordinates():
     zc, za = lagrgen.modes(mc, [0.0, -0.5]), lagrgen.modes(ma, [0.0])
     assert zc.omega == pytest.approx(za.omega, rel=1e-12)
     assert zc.damping_ratios == pytest.approx(za.damping_ratios, rel=1e-10)
+
+
+def test_cli_show_and_csv(tmp_path, capsys):
+    from lagrgen.cli import main
+    path = str(EXAMPLES_DIR / "four_bar.py")
+    assert main(["show", path]) == 0
+    shown = capsys.readouterr().out
+    assert "a*cos(th2) + b*cos(th3) - c*cos(th4) - d = 0    (holonomic, multiplier B_x)" in shown
+    assert "F + A^T lambda" in shown
+    csv_path = tmp_path / "fb.csv"
+    assert main(["simulate", path, "--y0", "1.0,0.4,1.6,2,0,0", "--t-end", "0.2", "--samples",
+                 "3", "--backend", "python", "--csv", str(csv_path), "--quiet"]) == 0
+    rows = [line.split(",") for line in csv_path.read_text().splitlines()]
+    assert rows[0] == ["t", "th2", "th3", "th4", "th2_dot", "th3_dot", "th4_dot", "B_x", "B_y"]
+    first = np.array(rows[1], dtype=float)
+    mod = lagrgen.build(example_model("four_bar"), backend="python")
+    assert np.abs(mod.constraint_residuals(0.0, first[1:7])).max() < 1e-12   # projected y0
+    assert np.allclose(first[7:], mod.constraint_forces(0.0, first[1:7]), rtol=1e-12)

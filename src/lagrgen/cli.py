@@ -465,6 +465,10 @@ def command_bench(args):
         def fresh(name=model.name):
             return models_in(args.model_file, [name])[0]
         y0 = initial_state(args.y0, model) if args.y0 else None
+        if y0 is not None and model.constraint_names:
+            from .build import build
+            from .constraints import consistent_state
+            y0 = consistent_state(build(model, backend="python"), y0, 0.0)
         result = bench_model(fresh, y0=y0, methods=methods, t_span=(0.0, args.t_end),
                              rtol=args.rtol, atol=args.atol, repeats=args.repeats)
         reports.append(markdown(result))
