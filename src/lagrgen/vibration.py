@@ -196,6 +196,10 @@ def _reduce(mod, lin):
     A, lam, H = mod.constraint_terms(lin.q0, lin.qd0, lin.t, lin.p, lin.u)
     check_independent(mod, lin.t, np.concatenate([lin.q0, lin.qd0]), A, "operating point")
     N = scipy.linalg.null_space(A)
+    if N.shape[1] == 0:
+        raise LagrgenError(
+            f"model {mod.name!r} has no independent directions at q0: its {A.shape[0]} "
+            f"constraints fix all {A.shape[1]} coordinates, so it has no modes")
     K = lin.K - H
     lin.M, lin.C, lin.K, lin.B = N.T @ lin.M @ N, N.T @ lin.C @ N, N.T @ K @ N, N.T @ lin.B
     lin.basis, lin.constraint_forces = N, lam
