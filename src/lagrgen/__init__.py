@@ -16,11 +16,13 @@ _LAZY = {
     "Model": "model",
     "build": "build", "load": "build",
     "simulate": "simulate",
+    "simulate_many": "ensemble", "EnsembleResult": "ensemble",
+    "sweep": "sweep",
     "equilibrium": "vibration", "linearize": "vibration", "modes": "vibration",
     "frequency_response": "vibration",
 }
 
-__all__ = ["Model", "build", "load", "simulate", "equilibrium", "linearize", "modes",
+__all__ = ["Model", "build", "load", "simulate", "simulate_many", "EnsembleResult", "sweep", "equilibrium", "linearize", "modes",
            "frequency_response", "LagrgenError", "ModelError", "UnknownNameError",
            "MassMatrixError", "BuildError", "CompileError", "NonFiniteError", "__version__"]
 
