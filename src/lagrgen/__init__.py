@@ -16,15 +16,17 @@ _LAZY = {
     "Model": "model",
     "build": "build", "load": "build",
     "simulate": "simulate",
+    "simulate_many": "ensemble", "EnsembleResult": "ensemble",
+    "sweep": "sweep",
     "equilibrium": "vibration", "linearize": "vibration", "modes": "vibration",
     "frequency_response": "vibration",
     "consistent_state": "constraints",
 }
 
-__all__ = ["Model", "build", "load", "simulate", "equilibrium", "linearize", "modes",
-           "frequency_response", "consistent_state", "LagrgenError", "ConstraintError",
-           "ModelError", "UnknownNameError", "MassMatrixError", "BuildError", "CompileError",
-           "NonFiniteError", "__version__"]
+__all__ = ["Model", "build", "load", "simulate", "simulate_many", "EnsembleResult", "sweep",
+           "equilibrium", "linearize", "modes", "frequency_response", "consistent_state",
+           "LagrgenError", "ConstraintError", "ModelError", "UnknownNameError", "MassMatrixError",
+           "BuildError", "CompileError", "NonFiniteError", "__version__"]
 
 
 class _Package(types.ModuleType):

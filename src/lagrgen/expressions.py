@@ -42,27 +42,27 @@ def _reject(text, what):
                           f"and the functions {names})")
 
 
-def _compile(node, text):
+def _compile(node, text, names):
     """A function of t for the syntax tree `node`, and whether it depends on t."""
     if isinstance(node, ast.Expression):
-        return _compile(node.body, text)
+        return _compile(node.body, text, names)
     if isinstance(node, ast.Constant) and type(node.value) in (int, float):
         value = np.float64(node.value)
         return (lambda t: value), False
     if isinstance(node, ast.Name):
         if node.id == "t":
             return (lambda t: t), True
-        if node.id in CONSTANTS:
-            value = np.float64(CONSTANTS[node.id])
+        if node.id in names or node.id in CONSTANTS:
+            value = np.float64(names[node.id] if node.id in names else CONSTANTS[node.id])
             return (lambda t: value), False
         _reject(text, f"unknown name {node.id!r}")
     if isinstance(node, ast.BinOp) and type(node.op) in _BINARY:
         op = _BINARY[type(node.op)]
-        (a, ta), (b, tb) = _compile(node.left, text), _compile(node.right, text)
+        (a, ta), (b, tb) = _compile(node.left, text, names), _compile(node.right, text, names)
         return (lambda t: op(a(t), b(t))), ta or tb
     if isinstance(node, ast.UnaryOp) and type(node.op) in _UNARY:
         op = _UNARY[type(node.op)]
-        a, ta = _compile(node.operand, text)
+        a, ta = _compile(node.operand, text, names)
         return (lambda t: op(a(t))), ta
     if isinstance(node, ast.Call) and not isinstance(node.func, ast.Name):
         _reject(text, f"only the listed functions may be called, not {ast.unparse(node.func)}")
@@ -70,7 +70,7 @@ def _compile(node, text):
         if node.func.id not in FUNCTIONS:
             _reject(text, f"unknown function {node.func.id!r}")
         fn = FUNCTIONS[node.func.id]
-        args = [_compile(a, text) for a in node.args]
+        args = [_compile(a, text, names) for a in node.args]
         if not args:
             _reject(text, f"{node.func.id}() needs an argument")
         funcs = [f for f, _ in args]
@@ -78,7 +78,7 @@ def _compile(node, text):
     _reject(text, f"{type(node).__name__.lower()} is not allowed")
 
 
-def _parse(text):
+def _parse(text, names=None):
     if not isinstance(text, str) or not text.strip():
         raise ExpressionError(f"expected a number or an expression of t, got {text!r}")
     if len(text) > 2000:
@@ -87,22 +87,24 @@ def _parse(text):
         tree = ast.parse(text.strip(), mode="eval")
     except SyntaxError as exc:
         raise ExpressionError(f"cannot read {text!r}: {exc.msg}") from None
-    return _compile(tree, text)
+    return _compile(tree, text, dict(names or {}))
 
 
-def parse_time_function(text):
+def parse_time_function(text, names=None):
     """A float (when `text` does not depend on t) or a function t -> float for `text`.
 
     Parameters
     ----------
     text : str
         e.g. "0.5", "0.5*sin(2*pi*t)", "Max(0, t - 0.5)", "heaviside(t - 1)".
+    names : dict, optional
+        Further names the text may use, with their (constant) values, e.g. {"w": 2.0}.
 
     Returns
     -------
     float or callable
     """
-    f, depends_on_t = _parse(text)
+    f, depends_on_t = _parse(text, names)
     if not depends_on_t:
         return _finite(_evaluate(f, 0.0), text)
     return lambda t: _evaluate(f, t)
