@@ -107,11 +107,10 @@ def check_state(mod, t, y, p, u=None):
 
 def along(mod, sol, p, u=None, u_of_t=None):
     """(λ, residuals) at every output time of `sol`: arrays (m, len(t)) and (n_h + m, len(t))."""
-    lam, res = [], []
+    lam = np.empty((mod.n_constraints, len(sol.t)))
+    res = np.empty((mod.dimensions["n_residuals"], len(sol.t)))
     for k, t in enumerate(sol.t):
         uk = u if u_of_t is None else u_of_t(t)
-        lam.append(mod.constraint_forces(t, sol.y[:, k], p, uk))
-        res.append(mod.constraint_residuals(t, sol.y[:, k], p, uk))
-    m = mod.n_constraints
-    return (np.array(lam).T.reshape(m, len(sol.t)),
-            np.array(res).T.reshape(-1, len(sol.t)) if res else np.zeros((0, 0)))
+        lam[:, k] = mod.constraint_forces(t, sol.y[:, k], p, uk)
+        res[:, k] = mod.constraint_residuals(t, sol.y[:, k], p, uk)
+    return lam, res
