@@ -11,10 +11,19 @@ runtime = Extension(
     extra_compile_args=["-O2"],
 )
 
+# The native integration engine (issue 10): lagrgen/native/lg_ode.c, a C port of SciPy's _ivp.
+native = Extension(
+    "lagrgen._native",
+    ["src/lagrgen/_native.pyx", "src/lagrgen/native/lg_ode.c"],
+    include_dirs=[numpy.get_include(), "src/lagrgen/native"],
+    define_macros=[("NPY_NO_DEPRECATED_API", "NPY_1_7_API_VERSION")],
+    extra_compile_args=["-O2", "-std=c99", "-fno-fast-math"],
+)
+
 setup(
     packages=["lagrgen", "lagrgen.templates"],
     package_dir={"": "src", "lagrgen.templates": "templates"},
-    package_data={"lagrgen.templates": ["*.in", "*.h"]},
-    ext_modules=cythonize([runtime], compiler_directives={"language_level": "3"}, quiet=True),
+    package_data={"lagrgen.templates": ["*.in", "*.h"], "lagrgen": ["native/*.c", "native/*.h"]},
+    ext_modules=cythonize([runtime, native], compiler_directives={"language_level": "3"}, quiet=True),
     zip_safe=False,
 )

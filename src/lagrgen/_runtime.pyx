@@ -223,6 +223,16 @@ cdef class CompiledModel:
         return elapsed / repeat
 
 
+    def function_address(self, str name):
+        """The address (an int) of the model's C function `name` ("rhs" or "jacobian"),
+        for lagrgen's native engine; valid while this model is alive."""
+        if name == "rhs":
+            return <size_t>self.model.rhs
+        if name == "jacobian":
+            return <size_t>self.model.jacobian
+        raise ValueError(f"no C function {name!r}: use 'rhs' or 'jacobian'")
+
+
 def bind_module(module, capsule):
     """Make `module` (a freshly imported model module) a built model: called by its PyInit."""
     model = CompiledModel(capsule)
