@@ -6,8 +6,9 @@ from .errors import (BuildError, CompileError, LagrgenError, MassMatrixError, Mo
 from .model import Model  # noqa: E402
 from .backends import build, load  # noqa: E402
 from .runner import simulate  # noqa: E402
+from .signals import Signal  # noqa: E402
 from .vibration import equilibrium, frequency_response, linearize, modes  # noqa: E402
 
-__all__ = ["Model", "build", "load", "simulate", "equilibrium", "linearize", "modes",
+__all__ = ["Model", "build", "load", "simulate", "Signal", "equilibrium", "linearize", "modes",
            "frequency_response", "LagrgenError", "ModelError", "UnknownNameError",
            "MassMatrixError", "BuildError", "CompileError", "__version__"]

@@ -39,8 +39,11 @@ def native_reason(mod, method, inputs, events, options):
     """
     if getattr(mod, "backend", None) != "c" or not hasattr(mod, "compiled_model"):
         return "the model is not compiled (backend 'c')"
-    if not hasattr(mod.compiled_model, "function_address"):
+    cm = mod.compiled_model
+    if not hasattr(cm, "function_address"):
         return "the compiled model's runtime has no function_address"
+    if getattr(mod, "rhs", None) != cm.rhs or getattr(mod, "jacobian", None) != cm.jacobian:
+        return "the model's rhs or jacobian is not its compiled C function (a wrapper?)"
     if not isinstance(method, str) or method not in NATIVE_METHODS:
         return f"method {getattr(method, '__name__', method)!r} has no native implementation"
     if events is not None:

@@ -4,6 +4,7 @@ from scipy.integrate import solve_ivp
 
 from .arguments import as_vector, named_vector, parameter_vector
 from .errors import UnknownNameError
+from .native_engine import input_specs, native_reason, solve_native
 from .solvers import SOLVERS
 
 METHODS = ("RK23", "RK45", "DOP853", "Radau", "BDF", "LSODA")
@@ -44,18 +45,34 @@ def input_function(mod, inputs):
 
 
 def simulate(mod, t_span, y0, method="RK45", params=None, inputs=None, rtol=1e-6, atol=1e-9,
-             t_eval=None, dense_output=False, events=None, **options):
+             t_eval=None, dense_output=False, events=None, engine=None, **options):
     """Integrate ẏ = mod.rhs(t, y) over `t_span` from `y0` = [q0, q̇0] with `solve_ivp`.
 
     The stiff methods (Radau, BDF, LSODA) get the analytic `mod.jacobian`; Radau and BDF run as
     `lagrgen.solvers` classes (SciPy's, with direct LAPACK LU). Returns SciPy's OdeResult.
     Extra keyword options (max_step, first_step, ...) go to `solve_ivp` unchanged.
+
+    `engine`: None runs the whole solve natively in C (`lagrgen.native_engine`, the same steps as
+    solve_ivp) when the model is compiled, the method is RK23/RK45/DOP853/Radau/BDF, the inputs
+    are constants or `lagrgen.Signal`s and there are no Python events; otherwise SciPy's.
+    "native" insists (ValueError saying why not), "scipy" always uses `solve_ivp`. The result's
+    `engine` says which ran.
     """
     if not (method in METHODS or isinstance(method, type)):
         raise ValueError(f"unknown method {method!r}: use one of {', '.join(METHODS)}")
     n = mod.n_coordinates
     y0 = as_vector(y0, 2 * n, f"y0 (= [q0, qd0] for coordinates {', '.join(mod.coordinates)})")
     p = parameters_from(mod, params)
+    # --- native engine (issue 10) ---
+    if engine not in (None, "native", "scipy"):
+        raise ValueError(f"engine must be None, 'native' or 'scipy', not {engine!r}")
+    why_not = native_reason(mod, method, inputs, events, options) if engine != "scipy" else None
+    if engine == "native" and why_not:
+        raise ValueError(f"the native engine cannot run this solve: {why_not}")
+    if engine != "scipy" and why_not is None:
+        return solve_native(mod, t_span, y0, method, p, input_specs(mod, inputs), rtol, atol,
+                            t_eval, dense_output, None, **options)
+    # --- SciPy engine ---
     u, u_of_t = input_function(mod, inputs)
     rhs, jacobian = mod.rhs, mod.jacobian
     if u_of_t is None:
@@ -72,5 +89,9 @@ def simulate(mod, t_span, y0, method="RK45", params=None, inputs=None, rtol=1e-6
             return jacobian(t, y, p, u_of_t(t))
     if getattr(method, "__name__", method) in STIFF_METHODS:
         options.setdefault("jac", jac)
-    return solve_ivp(fun, t_span, y0, method=SOLVERS.get(method, method), rtol=rtol, atol=atol,
-                     t_eval=t_eval, dense_output=dense_output, events=events, **options)
+    result = solve_ivp(fun, t_span, y0, method=SOLVERS.get(method, method), rtol=rtol, atol=atol,
+                       t_eval=t_eval, dense_output=dense_output, events=events, **options)
+    result.engine = "scipy"
+    if engine is None and why_not and "Python callable" in why_not:
+        result.message = f"{result.message} (SciPy engine: {why_not})"
+    return result
