@@ -319,6 +319,11 @@ def test_bad_arguments_raise(pendulum):
         lagrgen.simulate(pendulum, (0, 1), y0, atol=-1.0)
     with pytest.raises(ValueError, match="NaN"):
         solve_native(pendulum, (0, 1), y0, "RK45", p=[np.nan] * len(pendulum.defaults))
+    with pytest.raises(lagrgen.UnknownNameError, match="unknown input name 'G'"):
+        lagrgen.simulate(pendulum, (0, 1), y0, inputs={"G": 1.0})
+    with pytest.raises(ValueError, match="finite"):
+        solve_native(pendulum, (0, np.inf), y0, "RK45")
+    assert lagrgen.simulate(pendulum, (0, 1), y0, rtol=[1e-6] * 4).engine == "scipy"
     with pytest.raises(ValueError, match="terminal"):
         solve_native(pendulum, (0, 1), y0, "RK45", events=(1, [0.5], [0]))
 

@@ -15,6 +15,7 @@ from scipy.integrate._ivp.ivp import OdeResult
 from scipy.integrate._ivp.radau import RadauDenseOutput
 from scipy.integrate._ivp.rk import Dop853DenseOutput, RkDenseOutput
 
+from .errors import UnknownNameError
 from .signals import Signal, constant_spec
 
 NATIVE_METHODS = ("RK23", "RK45", "DOP853", "Radau", "BDF")
@@ -22,7 +23,7 @@ NATIVE_OPTIONS = ("max_step", "first_step")
 EPS = np.finfo(float).eps
 
 
-def native_reason(mod, method, inputs, events, options):
+def native_reason(mod, method, inputs, events, options, rtol=0.0):
     """Why the native engine cannot run this solve (a str), or None when it can.
 
     Parameters
@@ -32,6 +33,7 @@ def native_reason(mod, method, inputs, events, options):
     inputs : None, dict or array
     events : None or anything solve_ivp accepts
     options : dict of extra solve_ivp options
+    rtol : float or array
 
     Returns
     -------
@@ -53,6 +55,8 @@ def native_reason(mod, method, inputs, events, options):
         if callables:
             return (f"input {callables[0]!r} is a Python callable; use a constant or a "
                     "lagrgen.Signal for the native engine")
+    if np.ndim(rtol) != 0:
+        return "an array rtol is only supported by the SciPy engine"
     other = [k for k in options if k not in NATIVE_OPTIONS]
     if other:
         return f"option {other[0]!r} is only supported by the SciPy engine"
@@ -70,6 +74,10 @@ def input_specs(mod, inputs):
         if u.size != len(names):
             raise ValueError(f"inputs must have {len(names)} values, got {u.size}")
         return [constant_spec(x) for x in u]
+    unknown = [k for k in inputs if k not in names]
+    if unknown:
+        raise UnknownNameError(f"unknown input name {unknown[0]!r}: the model's inputs are "
+                               f"{', '.join(names) or 'none'}")
     specs = []
     for name in names:
         v = inputs.get(name, 0.0)
@@ -130,6 +138,8 @@ def _event_arrays(events):
             raise ValueError("The `terminal` attribute of each event must be a boolean or "
                              "positive integer.")
     direction = np.asarray(direction, dtype=float).reshape(-1)
+    if len(emax) > 64:
+        raise ValueError("the native engine locates at most 64 events")
     if direction.size != len(emax) or not emax:
         raise ValueError("events need one terminal flag and one direction per event")
     if not address:
@@ -188,6 +198,8 @@ def solve_native(mod, t_span, y0, method="RK45", p=None, u_spec=None, rtol=1e-3,
     cm = mod.compiled_model
     dim = 2 * mod.n_coordinates
     t0, tf = map(float, t_span)
+    if not (np.isfinite(t0) and np.isfinite(tf)):
+        raise ValueError("t_span must be finite")
     y0 = np.ascontiguousarray(y0, dtype=float).reshape(-1)
     if y0.shape != (dim,):
         raise ValueError(f"y0 must have {dim} values, got {y0.size}")

@@ -66,7 +66,7 @@ def simulate(mod, t_span, y0, method="RK45", params=None, inputs=None, rtol=1e-6
     # --- native engine (issue 10) ---
     if engine not in (None, "native", "scipy"):
         raise ValueError(f"engine must be None, 'native' or 'scipy', not {engine!r}")
-    why_not = native_reason(mod, method, inputs, events, options) if engine != "scipy" else None
+    why_not = native_reason(mod, method, inputs, events, options, rtol) if engine != "scipy" else None
     if engine == "native" and why_not:
         raise ValueError(f"the native engine cannot run this solve: {why_not}")
     if engine != "scipy" and why_not is None:
