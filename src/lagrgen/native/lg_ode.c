@@ -5,7 +5,6 @@
  */
 #include "lg_ode.h"
 
-#include <complex.h>
 #include <float.h>
 #include <math.h>
 #include <stdarg.h>
@@ -142,7 +141,7 @@ typedef struct {
     /* implicit methods */
     double *J, *LU;          /* dim x dim */
     int *piv, *pivc;
-    double complex *LUc, *ctmp;
+    double *LUc, *ctmp;      /* complex, as (re, im) pairs */
     int have_lu, current_jac;
     double h_abs_old, error_norm_old;
     int has_old;             /* Radau: h_abs_old / error_norm_old are not None */
@@ -282,6 +281,9 @@ static int lu_real(double *a, int *piv, int n)
     return info;
 }
 
+/* Solve A x = b in place from the factors: row interchanges, then L (unit) and U column by
+ * column (the order of LAPACK's getrs/trsv: every b[i] takes its updates in the order j = 0, 1,
+ * ..., and the updates of one column are independent of each other). */
 static void lu_solve_real(const double *a, const int *piv, int n, double *b)
 {
     for (int k = 0; k < n; ++k)
@@ -290,67 +292,122 @@ static void lu_solve_real(const double *a, const int *piv, int n, double *b)
             b[k] = b[piv[k]];
             b[piv[k]] = t;
         }
-    for (int i = 0; i < n; ++i)
-        for (int j = 0; j < i; ++j)
-            b[i] -= a[i * n + j] * b[j];
-    for (int i = n - 1; i >= 0; --i) {
-        for (int j = i + 1; j < n; ++j)
-            b[i] -= a[i * n + j] * b[j];
-        b[i] /= a[i * n + i];
+    for (int j = 0; j < n; ++j) {
+        double bj = b[j];
+        if (bj != 0.0)
+            for (int i = j + 1; i < n; ++i)
+                b[i] -= bj * a[i * n + j];
+    }
+    for (int j = n - 1; j >= 0; --j) {
+        if (b[j] != 0.0) {
+            b[j] /= a[j * n + j];
+            double bj = b[j];
+            for (int i = 0; i < j; ++i)
+                b[i] -= bj * a[i * n + j];
+        }
     }
 }
 
-static double cabs1(double complex z) { return fabs(creal(z)) + fabs(cimag(z)); }
+/* Complex numbers as (re, im) pairs of doubles, with the textbook product (as Fortran's
+ * complex multiply) and Smith's quotient: no calls to the C runtime's NaN-checking __muldc3. */
+static double cabs1(const double *z) { return fabs(z[0]) + fabs(z[1]); }
 
-static int lu_complex(double complex *a, int *piv, int n)
+/* q = a / b (Smith 1962) */
+static void cdiv(const double *a, const double *b, double *q)
+{
+    double re, im;
+    if (fabs(b[0]) >= fabs(b[1])) {
+        double r = b[1] / b[0], d = b[0] + b[1] * r;
+        re = (a[0] + a[1] * r) / d;
+        im = (a[1] - a[0] * r) / d;
+    } else {
+        double r = b[0] / b[1], d = b[1] + b[0] * r;
+        re = (a[0] * r + a[1]) / d;
+        im = (a[1] * r - a[0]) / d;
+    }
+    q[0] = re;
+    q[1] = im;
+}
+
+/* Complex LU with partial pivoting; a is n x n of (re, im) pairs, row-major. */
+static int lu_complex(double *a, int *piv, int n)
 {
     int info = 0;
     for (int k = 0; k < n; ++k) {
         int p = k;
-        double best = cabs1(a[k * n + k]);
+        double best = cabs1(a + 2 * (k * n + k));
         for (int i = k + 1; i < n; ++i)
-            if (cabs1(a[i * n + k]) > best) {
-                best = cabs1(a[i * n + k]);
+            if (cabs1(a + 2 * (i * n + k)) > best) {
+                best = cabs1(a + 2 * (i * n + k));
                 p = i;
             }
         piv[k] = p;
-        if (a[p * n + k] == 0.0) {
+        double *pk = a + 2 * (p * n + k);
+        if (pk[0] == 0.0 && pk[1] == 0.0) {
             if (!info)
                 info = k + 1;
             continue;
         }
         if (p != k)
-            for (int j = 0; j < n; ++j) {
-                double complex t = a[k * n + j];
-                a[k * n + j] = a[p * n + j];
-                a[p * n + j] = t;
+            for (int j = 0; j < 2 * n; ++j) {
+                double t = a[2 * k * n + j];
+                a[2 * k * n + j] = a[2 * p * n + j];
+                a[2 * p * n + j] = t;
             }
-        double complex inv = 1.0 / a[k * n + k];
+        double one[2] = {1.0, 0.0}, inv[2];
+        cdiv(one, a + 2 * (k * n + k), inv);
         for (int i = k + 1; i < n; ++i) {
-            double complex l = a[i * n + k] *= inv;
-            if (l != 0.0)
-                for (int j = k + 1; j < n; ++j)
-                    a[i * n + j] -= l * a[k * n + j];
+            double *lik = a + 2 * (i * n + k);
+            double lr = lik[0] * inv[0] - lik[1] * inv[1];
+            double li = lik[0] * inv[1] + lik[1] * inv[0];
+            lik[0] = lr;
+            lik[1] = li;
+            if (lr != 0.0 || li != 0.0) {
+                double *ri = a + 2 * i * n, *rk = a + 2 * k * n;
+                for (int j = k + 1; j < n; ++j) {
+                    double ur = rk[2 * j], ui = rk[2 * j + 1];
+                    ri[2 * j] -= lr * ur - li * ui;
+                    ri[2 * j + 1] -= lr * ui + li * ur;
+                }
+            }
         }
     }
     return info;
 }
 
-static void lu_solve_complex(const double complex *a, const int *piv, int n, double complex *b)
+/* Solve A x = b in place from the complex factors (b: n (re, im) pairs). */
+static void lu_solve_complex(const double *a, const int *piv, int n, double *b)
 {
     for (int k = 0; k < n; ++k)
         if (piv[k] != k) {
-            double complex t = b[k];
-            b[k] = b[piv[k]];
-            b[piv[k]] = t;
+            int q = piv[k];
+            double tr = b[2 * k], ti = b[2 * k + 1];
+            b[2 * k] = b[2 * q];
+            b[2 * k + 1] = b[2 * q + 1];
+            b[2 * q] = tr;
+            b[2 * q + 1] = ti;
         }
-    for (int i = 0; i < n; ++i)
-        for (int j = 0; j < i; ++j)
-            b[i] -= a[i * n + j] * b[j];
-    for (int i = n - 1; i >= 0; --i) {
-        for (int j = i + 1; j < n; ++j)
-            b[i] -= a[i * n + j] * b[j];
-        b[i] /= a[i * n + i];
+    for (int j = 0; j < n; ++j) {
+        double br = b[2 * j], bi = b[2 * j + 1];
+        if (br != 0.0 || bi != 0.0)
+            for (int i = j + 1; i < n; ++i) {
+                const double *l = a + 2 * (i * n + j);
+                b[2 * i] -= br * l[0] - bi * l[1];
+                b[2 * i + 1] -= br * l[1] + bi * l[0];
+            }
+    }
+    for (int j = n - 1; j >= 0; --j) {
+        double br = b[2 * j], bi = b[2 * j + 1];
+        if (br != 0.0 || bi != 0.0) {
+            cdiv(b + 2 * j, a + 2 * (j * n + j), b + 2 * j);
+            br = b[2 * j];
+            bi = b[2 * j + 1];
+            for (int i = 0; i < j; ++i) {
+                const double *u = a + 2 * (i * n + j);
+                b[2 * i] -= br * u[0] - bi * u[1];
+                b[2 * i + 1] -= br * u[1] + bi * u[0];
+            }
+        }
     }
 }
 
@@ -530,12 +587,13 @@ static int radau_factor(solver_t *s, double h)
 {
     int n = s->dim;
     double mr = RADAU_MU_REAL / h;
-    double complex mc = (RADAU_MU_COMPLEX_RE + RADAU_MU_COMPLEX_IM * I) / h;
+    double mcr = RADAU_MU_COMPLEX_RE / h, mci = RADAU_MU_COMPLEX_IM / h;
     for (int i = 0; i < n; ++i)
         for (int j = 0; j < n; ++j) {
             double jij = s->J[i * n + j];
             s->LU[i * n + j] = (i == j ? mr : 0.0) - jij;
-            s->LUc[i * n + j] = (i == j ? mc : 0.0) - jij;
+            s->LUc[2 * (i * n + j)] = (i == j ? mcr : 0.0) - jij;
+            s->LUc[2 * (i * n + j) + 1] = i == j ? mci : 0.0;
         }
     s->nlu += 2;
     lu_real(s->LU, s->piv, n);
@@ -552,7 +610,7 @@ static int radau_collocation(solver_t *s, double t, const double *y, double h, d
 {
     int n = s->dim;
     double mr = RADAU_MU_REAL / h;
-    double complex mc = (RADAU_MU_COMPLEX_RE + RADAU_MU_COMPLEX_IM * I) / h;
+    double mcr = RADAU_MU_COMPLEX_RE / h, mci = RADAU_MU_COMPLEX_IM / h;
     double *W = s->W, *Z = s->Z, *F = s->F3, *dW = s->dW, *ys = s->tmp;
     /* W = TI Z0; Z = Z0 */
     for (int r = 0; r < 3; ++r)
@@ -575,22 +633,24 @@ static int radau_collocation(solver_t *s, double t, const double *y, double h, d
                 finite = 0;
         if (!finite)
             break;
-        double *fr = s->tmp;
-        double complex *fc = s->ctmp;
+        /* f_real = F^T TI_REAL - M_real W0; f_complex = F^T TI_COMPLEX - M_complex (W1 + i W2)
+         * with TI_COMPLEX = TI[1] + i TI[2] */
+        double *fr = s->tmp, *fc = s->ctmp;
         for (int i = 0; i < n; ++i) {
             double a0 = F[i], a1 = F[n + i], a2 = F[2 * n + i];
             fr[i] = (a0 * RADAU_TI[0] + a1 * RADAU_TI[1] + a2 * RADAU_TI[2]) - mr * W[i];
-            double complex ti0 = RADAU_TI[3] + RADAU_TI[6] * I;
-            double complex ti1 = RADAU_TI[4] + RADAU_TI[7] * I;
-            double complex ti2 = RADAU_TI[5] + RADAU_TI[8] * I;
-            fc[i] = (a0 * ti0 + a1 * ti1 + a2 * ti2) - mc * (W[n + i] + W[2 * n + i] * I);
+            double wr = W[n + i], wi = W[2 * n + i];
+            fc[2 * i] = (a0 * RADAU_TI[3] + a1 * RADAU_TI[4] + a2 * RADAU_TI[5])
+                        - (mcr * wr - mci * wi);
+            fc[2 * i + 1] = (a0 * RADAU_TI[6] + a1 * RADAU_TI[7] + a2 * RADAU_TI[8])
+                            - (mcr * wi + mci * wr);
         }
         lu_solve_real(s->LU, s->piv, n, fr);
         lu_solve_complex(s->LUc, s->pivc, n, fc);
         for (int i = 0; i < n; ++i) {
             dW[i] = fr[i];
-            dW[n + i] = creal(fc[i]);
-            dW[2 * n + i] = cimag(fc[i]);
+            dW[n + i] = fc[2 * i];
+            dW[2 * n + i] = fc[2 * i + 1];
         }
         double acc = 0.0;
         for (int r = 0; r < 3; ++r)
@@ -1273,8 +1333,8 @@ static int solver_alloc(solver_t *s)
         s->LU = calloc(nn + 1, sizeof(double));
         s->piv = calloc(n + 1, sizeof(int));
         s->pivc = calloc(n + 1, sizeof(int));
-        s->LUc = calloc(nn + 1, sizeof(double complex));
-        s->ctmp = calloc(n + 1, sizeof(double complex));
+        s->LUc = calloc(2 * nn + 2, sizeof(double));
+        s->ctmp = calloc(2 * n + 2, sizeof(double));
         s->Z = calloc(3 * n + 1, sizeof(double));
         s->W = calloc(3 * n + 1, sizeof(double));
         s->dW = calloc(3 * n + 1, sizeof(double));
