@@ -57,7 +57,9 @@ cdef extern from "lg_ode.h":
         char message[256]
         long nfev, njev, nlu
         long n_steps
-        lg_buf_t t, y, seg, coef, ev, ev_y
+        int model_failure
+        double fail_t
+        lg_buf_t t, y, seg, coef, ev, ev_y, fail_y
     int lg_solve(const lg_problem_t *, const lg_options_t *, lg_result_t *) nogil
     void lg_result_free(lg_result_t *) nogil
     double lg_signal_eval(const lg_signal_t *, double) nogil
@@ -144,7 +146,8 @@ def solve(str method, uintptr_t rhs, uintptr_t jacobian, int dim, p, list inputs
     -------
     dict
         t, y (len(t), dim), status, message, nfev, njev, nlu, n_steps, seg (steps, 5),
-        coef (1-D), ev (k, 2) of (index, t), ev_y (k, dim).
+        coef (1-D), ev (k, 2) of (index, t), ev_y (k, dim), model_failure (0, 1 mass matrix
+        not positive definite, 2 events function), fail_t, fail_y (the state of that call).
     """
     if method not in METHOD_CODES:
         raise ValueError(f"method {method!r} has no native implementation")
@@ -200,7 +203,8 @@ def solve(str method, uintptr_t rhs, uintptr_t jacobian, int dim, p, list inputs
                         message=res.message.decode(), nfev=res.nfev, njev=res.njev,
                         nlu=res.nlu, n_steps=res.n_steps, seg=buf_array(&res.seg, 5),
                         coef=buf_array(&res.coef, 0), ev=buf_array(&res.ev, 2),
-                        ev_y=buf_array(&res.ev_y, dim))
+                        ev_y=buf_array(&res.ev_y, dim), model_failure=res.model_failure,
+                        fail_t=res.fail_t, fail_y=buf_array(&res.fail_y, 0))
         finally:
             lg_result_free(&res)
     finally:

@@ -188,8 +188,9 @@ def solve_native(mod, t_span, y0, method="RK45", p=None, u_spec=None, rtol=1e-3,
     Returns
     -------
     OdeResult
-        t, y, sol, t_events, y_events, nfev, njev, nlu, status, message, success, and
-        engine = "native".
+        t, y, sol, t_events, y_events, nfev, njev, nlu, status, message, success,
+        engine = "native", n_steps, and mass_matrix_failure: None, or (t, y) of the model
+        call that found M not positive definite (the solve then has status -1).
     """
     from . import _native
     if method not in NATIVE_METHODS:
@@ -249,7 +250,9 @@ def solve_native(mod, t_span, y0, method="RK45", p=None, u_spec=None, rtol=1e-3,
         t_events = [out["ev"][idx == i, 1].copy() for i in range(n_ev)]
         y_events = [out["ev_y"][idx == i].copy() for i in range(n_ev)]
     status = out["status"]
+    mass_failure = ((out["fail_t"], out["fail_y"].copy()) if out["model_failure"] == 1
+                    else None)
     return OdeResult(t=ts, y=ys, sol=sol, t_events=t_events, y_events=y_events,
                      nfev=out["nfev"], njev=out["njev"], nlu=out["nlu"], status=status,
                      message=out["message"], success=status >= 0, engine="native",
-                     n_steps=out["n_steps"])
+                     n_steps=out["n_steps"], mass_matrix_failure=mass_failure)

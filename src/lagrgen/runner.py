@@ -3,7 +3,7 @@ import numpy as np
 from scipy.integrate import solve_ivp
 
 from .arguments import as_vector, named_vector, parameter_vector
-from .errors import UnknownNameError
+from .errors import MassMatrixError, UnknownNameError
 from .native_engine import input_specs, native_reason, solve_native
 from .solvers import SOLVERS
 
@@ -56,7 +56,8 @@ def simulate(mod, t_span, y0, method="RK45", params=None, inputs=None, rtol=1e-6
     solve_ivp) when the model is compiled, the method is RK23/RK45/DOP853/Radau/BDF, the inputs
     are constants or `lagrgen.Signal`s and there are no Python events; otherwise SciPy's.
     "native" insists (ValueError saying why not), "scipy" always uses `solve_ivp`. The result's
-    `engine` says which ran.
+    `engine` says which ran. A mass matrix that is not positive definite raises MassMatrixError on
+    both engines (`native_engine.solve_native` itself returns status -1 instead).
     """
     if not (method in METHODS or isinstance(method, type)):
         raise ValueError(f"unknown method {method!r}: use one of {', '.join(METHODS)}")
@@ -70,8 +71,12 @@ def simulate(mod, t_span, y0, method="RK45", params=None, inputs=None, rtol=1e-6
     if engine == "native" and why_not:
         raise ValueError(f"the native engine cannot run this solve: {why_not}")
     if engine != "scipy" and why_not is None:
-        return solve_native(mod, t_span, y0, method, p, input_specs(mod, inputs), rtol, atol,
-                            t_eval, dense_output, None, **options)
+        result = solve_native(mod, t_span, y0, method, p, input_specs(mod, inputs), rtol, atol,
+                              t_eval, dense_output, None, **options)
+        if result.mass_matrix_failure is not None:   # as the SciPy engine: mod.rhs raises
+            t_fail, y_fail = result.mass_matrix_failure
+            raise MassMatrixError.at(mod.name, t_fail, y_fail[:n])
+        return result
     # --- SciPy engine ---
     u, u_of_t = input_function(mod, inputs)
     rhs, jacobian = mod.rhs, mod.jacobian

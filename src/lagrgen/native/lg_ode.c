@@ -57,7 +57,7 @@ static int buf_push1(lg_buf_t *b, double x) { return buf_push(b, &x, 1); }
 
 void lg_result_free(lg_result_t *r)
 {
-    lg_buf_t *bufs[] = {&r->t, &r->y, &r->seg, &r->coef, &r->ev, &r->ev_y};
+    lg_buf_t *bufs[] = {&r->t, &r->y, &r->seg, &r->coef, &r->ev, &r->ev_y, &r->fail_y};
     for (size_t i = 0; i < sizeof bufs / sizeof bufs[0]; ++i) {
         free(bufs[i]->data);
         bufs[i]->data = NULL;
@@ -122,9 +122,9 @@ typedef struct {
     int dim, method;
     double t, t_old, t_bound, direction, h_abs, max_step, rtol, newton_tol;
     const double *atol;
-    double *y, *y_old, *y_new, *f, *u, *scale, *tmp, *tmp2, *ev_y;
-    int model_error;     /* 1: rhs/jacobian returned nonzero at error_t */
-    double error_t;
+    double *y, *y_old, *y_new, *f, *u, *scale, *tmp, *tmp2, *ev_y, *acc;
+    int model_error;     /* 1: rhs/jacobian returned nonzero at error_t, error_y */
+    double error_t, *error_y;
     const char *fail_message;
     long nfev, njev, nlu;
     /* explicit Runge-Kutta */
@@ -166,6 +166,7 @@ static int fun(solver_t *s, double t, const double *y, double *out)
     if (s->pb->rhs(t, y, s->pb->p, s->u, out)) {
         s->model_error = 1;
         s->error_t = t;
+        memcpy(s->error_y, y, s->dim * sizeof(double));
         return 1;
     }
     return 0;
@@ -179,6 +180,7 @@ static int jac(solver_t *s, double t, const double *y)
     if (s->pb->jacobian(t, y, s->pb->p, s->u, s->J)) {
         s->model_error = 1;
         s->error_t = t;
+        memcpy(s->error_y, y, s->dim * sizeof(double));
         return 1;
     }
     return 0;
@@ -414,31 +416,38 @@ static void lu_solve_complex(const double *a, const int *piv, int n, double *b)
 /* ------------------------------------------------------------------------------------------ */
 /* Explicit Runge-Kutta: rk.py (RungeKutta, RK23, RK45, DOP853)                                */
 
+/* acc[i] = sum_{j < m} K[j][i] c[j], summed in the order j = 0, 1, ... (as a dot product over
+ * j for each i, but looping over i innermost so that the compiler can vectorize). */
+static void combine(const double *K, const double *c, int m, int n, double *acc)
+{
+    for (int i = 0; i < n; ++i)
+        acc[i] = 0.0;
+    for (int j = 0; j < m; ++j) {
+        const double cj = c[j], *Kj = K + (size_t)j * n;
+        for (int i = 0; i < n; ++i)
+            acc[i] += Kj[i] * cj;
+    }
+}
+
 /* rk.rk_step: stages K[s] = f(t + c_s h, y + h sum_j a_sj K[j]); y_new = y + h sum_j b_j K[j];
  * K[n_stages] = f(t + h, y_new). */
 static int rk_step(solver_t *s, double t, const double *y, double h, double *y_new)
 {
     int n = s->dim, ns = s->n_stages;
     int lda = s->lda;
-    double *K = s->K, *ys = s->tmp;
+    double *K = s->K, *ys = s->tmp, *acc = s->acc;
     memcpy(K, s->f, n * sizeof(double));
     for (int st = 1; st < ns; ++st) {
         const double *a = s->A + st * lda;
-        for (int i = 0; i < n; ++i) {
-            double dy = 0.0;
-            for (int j = 0; j < st; ++j)
-                dy += K[j * n + i] * a[j];
-            ys[i] = y[i] + dy * h;
-        }
+        combine(K, a, st, n, acc);
+        for (int i = 0; i < n; ++i)
+            ys[i] = y[i] + acc[i] * h;
         if (fun(s, t + s->C[st] * h, ys, K + st * n))
             return 1;
     }
-    for (int i = 0; i < n; ++i) {
-        double acc = 0.0;
-        for (int j = 0; j < ns; ++j)
-            acc += K[j * n + i] * s->B[j];
-        y_new[i] = y[i] + h * acc;
-    }
+    combine(K, s->B, ns, n, acc);
+    for (int i = 0; i < n; ++i)
+        y_new[i] = y[i] + h * acc[i];
     return fun(s, t + h, y_new, K + ns * n);
 }
 
@@ -446,12 +455,10 @@ static int rk_step(solver_t *s, double t, const double *y, double h, double *y_n
 static double rk_error_norm(solver_t *s, double h)
 {
     int n = s->dim, ns = s->n_stages;
-    double acc = 0.0;
+    double acc = 0.0, *e = s->acc;
+    combine(s->K, s->E, ns + 1, n, e);
     for (int i = 0; i < n; ++i) {
-        double e = 0.0;
-        for (int j = 0; j <= ns; ++j)
-            e += s->K[j * n + i] * s->E[j];
-        double v = e * h / s->scale[i];
+        double v = e[i] * h / s->scale[i];
         acc += v * v;
     }
     return sqrt(acc) / sqrt((double)n);
@@ -461,17 +468,13 @@ static double rk_error_norm(solver_t *s, double h)
 static double dop853_error_norm(solver_t *s, double h)
 {
     int n = s->dim;
-    double a5 = 0.0, a3 = 0.0;
+    double a5 = 0.0, a3 = 0.0, *e5 = s->acc, *e3 = s->tmp;
+    combine(s->K, DOP_E5, DOP_N_STAGES + 1, n, e5);
+    combine(s->K, DOP_E3, DOP_N_STAGES + 1, n, e3);
     for (int i = 0; i < n; ++i) {
-        double e5 = 0.0, e3 = 0.0;
-        for (int j = 0; j <= DOP_N_STAGES; ++j) {
-            e5 += s->K[j * n + i] * DOP_E5[j];
-            e3 += s->K[j * n + i] * DOP_E3[j];
-        }
-        e5 /= s->scale[i];
-        e3 /= s->scale[i];
-        a5 += e5 * e5;
-        a3 += e3 * e3;
+        double v5 = e5[i] / s->scale[i], v3 = e3[i] / s->scale[i];
+        a5 += v5 * v5;
+        a3 += v3 * v3;
     }
     double n5 = sqrt(a5), n3 = sqrt(a3);
     double n5_2 = n5 * n5, n3_2 = n3 * n3;
@@ -552,13 +555,9 @@ static int rk_dense_prepare(solver_t *s)
     }
     double h = s->h_previous, *ys = s->tmp;
     for (int st = DOP_N_STAGES + 1; st < DOP_N_EXTENDED; ++st) {
-        const double *a = DOP_A + st * DOP_N_EXTENDED;
-        for (int i = 0; i < n; ++i) {
-            double dy = 0.0;
-            for (int j = 0; j < st; ++j)
-                dy += K[j * n + i] * a[j];
-            ys[i] = s->y_old[i] + dy * h;
-        }
+        combine(K, DOP_A + st * DOP_N_EXTENDED, st, n, s->acc);
+        for (int i = 0; i < n; ++i)
+            ys[i] = s->y_old[i] + s->acc[i] * h;
         if (fun(s, s->t_old + DOP_C[st] * h, ys, K + st * n))
             return 1;
     }
@@ -1206,6 +1205,7 @@ static int eval_events(solver_t *s, double t, const double *y, double *g)
     if (s->pb->events(t, y, s->pb->p, s->u, g)) {
         s->model_error = 2;
         s->error_t = t;
+        memcpy(s->error_y, y, s->dim * sizeof(double));
         return 1;
     }
     return 0;
@@ -1303,7 +1303,7 @@ static void set_message(lg_result_t *r, const char *fmt, ...)
 
 static void solver_free(solver_t *s)
 {
-    void *blocks[] = {s->y, s->y_old, s->y_new, s->f, s->u, s->scale, s->tmp, s->tmp2, s->ev_y, s->K,
+    void *blocks[] = {s->error_y, s->acc, s->y, s->y_old, s->y_new, s->f, s->u, s->scale, s->tmp, s->tmp2, s->ev_y, s->K,
                       s->Q, s->dense_D, s->J, s->LU, s->piv, s->pivc, s->LUc, s->ctmp, s->Z,
                       s->W, s->dW, s->F3, s->Z0, s->D};
     for (size_t i = 0; i < sizeof blocks / sizeof blocks[0]; ++i)
@@ -1323,10 +1323,12 @@ static int solver_alloc(solver_t *s)
     s->tmp = calloc(big + 1, sizeof(double));
     s->tmp2 = calloc(big + 1, sizeof(double));
     s->ev_y = calloc(n + 1, sizeof(double));
+    s->acc = calloc(n + 1, sizeof(double));
+    s->error_y = calloc(n + 1, sizeof(double));
     s->K = calloc((DOP_N_EXTENDED + 1) * n + 1, sizeof(double));
     s->Q = calloc(7 * n + 1, sizeof(double));
     s->dense_D = calloc((BDF_MAX_ORDER + 3) * n + 1, sizeof(double));
-    int ok = s->y && s->y_old && s->y_new && s->f && s->u && s->scale && s->tmp && s->tmp2 && s->ev_y
+    int ok = s->error_y && s->acc && s->y && s->y_old && s->y_new && s->f && s->u && s->scale && s->tmp && s->tmp2 && s->ev_y
              && s->K && s->Q && s->dense_D;
     if (implicit) {
         s->J = calloc(nn + 1, sizeof(double));
@@ -1626,6 +1628,10 @@ int lg_solve(const lg_problem_t *pb, const lg_options_t *op, lg_result_t *r)
 model_failed:
     r->status = -1;
     model_failure_message(&s, r);
+    r->model_failure = s.model_error;
+    r->fail_t = s.error_t;
+    if (buf_push(&r->fail_y, s.error_y, n))
+        goto nomem;
     goto done;
 nomem:
     r->status = -1;

@@ -81,6 +81,10 @@ typedef struct {
     char message[256];
     long nfev, njev, nlu;
     long n_steps;               /* accepted steps */
+    int model_failure;          /* 1: rhs/jacobian reported M not positive definite, 2: events
+                                 * failed; at fail_t with the state in fail_y */
+    double fail_t;
+    lg_buf_t fail_y;
     lg_buf_t t, y;              /* output times and states (len(t) rows of dim) */
     /* Dense output, one segment per step: seg[5*k..] = (t_old, t, offset into coef, order,
      * h) and coef[offset..] the method's coefficient block (see lg_ode.c, store_dense). */
