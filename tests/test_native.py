@@ -341,3 +341,21 @@ def test_options_match_scipy(pendulum):
     ref0 = scipy_reference(pendulum, (1, 1), y0, "DOP853", dense_output=True, rtol=1e-6,
                            atol=1e-9)
     assert_same_solve(empty, ref0, pendulum)
+
+
+def test_solves_in_threads_are_independent(pendulum, chain):
+    """The C core is reentrant and runs without the GIL: concurrent solves give the sequential
+    results exactly."""
+    from concurrent.futures import ThreadPoolExecutor
+    jobs = [(pendulum, [0.1 * k, -0.2, 0.0, 0.1], m) for k in range(1, 4)
+            for m in ("DOP853", "Radau", "BDF")]
+    jobs += [(chain, [0.1, 0.0, 0.0, 0.0], "RK45")]
+
+    def run(job):
+        mod, y0, method = job
+        return solve_native(mod, (0, 2), y0, method, rtol=1e-8, atol=1e-8)
+    sequential = [run(j) for j in jobs]
+    with ThreadPoolExecutor(4) as pool:
+        parallel = list(pool.map(run, jobs))
+    for a, b in zip(sequential, parallel):
+        assert a.nfev == b.nfev and np.array_equal(a.y, b.y)

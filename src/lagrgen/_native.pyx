@@ -91,6 +91,12 @@ cdef int fill_signals(list inputs, lg_signal_t *sig, list keep) except -1:
     for i, (kind, value, ts_, vs_, cf_) in enumerate(inputs):
         ts, vs, cf = f64(ts_), f64(vs_), f64(cf_)
         keep.extend((ts, vs, cf))
+        if kind not in SIGNAL_CODES:
+            raise ValueError(f"unknown input kind {kind!r}")
+        if kind == "cubic" and cf.shape[0] != 4 * (ts.shape[0] - 1):
+            raise ValueError("a cubic signal needs 4 coefficients per interval")
+        if kind in ("linear", "previous") and vs.shape[0] != ts.shape[0]:
+            raise ValueError("a signal needs one value per sample time")
         sig[i].kind = SIGNAL_CODES[kind]
         sig[i].value = value
         sig[i].m = ts.shape[0]
