@@ -359,3 +359,14 @@ def test_solves_in_threads_are_independent(pendulum, chain):
         parallel = list(pool.map(run, jobs))
     for a, b in zip(sequential, parallel):
         assert a.nfev == b.nfev and np.array_equal(a.y, b.y)
+
+
+@pytest.mark.parametrize("method", ["Radau", "BDF"])
+def test_tiny_rtol_is_clipped_like_scipy(pendulum, method):
+    """rtol below 100 EPS is clipped with SciPy's warning; the Newton tolerance uses it as given."""
+    y0 = [0.5, -0.3, 0.0, 0.4]
+    with pytest.warns(UserWarning, match="rtol"):
+        ref = scipy_reference(pendulum, (0, 0.3), y0, method, rtol=1e-16, atol=1e-12)
+    with pytest.warns(UserWarning, match="rtol"):
+        ours = lagrgen.simulate(pendulum, (0, 0.3), y0, method=method, rtol=1e-16, atol=1e-12)
+    assert_same_solve(ours, ref, pendulum)

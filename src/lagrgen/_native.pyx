@@ -43,6 +43,7 @@ cdef extern from "lg_ode.h":
         double t0, tf
         const double *y0
         double rtol
+        double rtol_given
         const double *atol
         double max_step
         double first_step
@@ -193,7 +194,8 @@ def solve(str method, uintptr_t rhs, uintptr_t jacobian, int dim, p, list inputs
         op.t0 = t0
         op.tf = tf
         op.y0 = <const double *>cnp.PyArray_DATA(y0a)
-        op.rtol = rtol
+        op.rtol = max(rtol, 100 * 2.220446049250313e-16)
+        op.rtol_given = rtol
         op.atol = <const double *>cnp.PyArray_DATA(atola)
         op.max_step = max_step
         op.first_step = first_step

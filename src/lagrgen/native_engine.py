@@ -98,7 +98,7 @@ def _tolerances(rtol, atol, dim):
                       f"Setting `rtol = np.maximum(rtol, {100 * EPS})`.", stacklevel=3)
     if np.ndim(rtol) != 0:
         raise ValueError("the native engine takes a scalar rtol")
-    rtol = max(float(rtol), 100 * EPS)
+    rtol = float(rtol)       # _native clips it to 100 EPS; Radau/BDF's Newton tolerance uses it as given
     atol = np.asarray(atol, dtype=float)
     if atol.ndim > 0 and atol.shape != (dim,):
         raise ValueError("`atol` has wrong shape.")

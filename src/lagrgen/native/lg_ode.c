@@ -1383,7 +1383,9 @@ static int solver_init(solver_t *s)
     else if (select_initial_step(s, err_order, &s->h_abs))
         return 2;
     if (s->method == LG_RADAU || s->method == LG_BDF) {
-        s->newton_tol = fmax(10 * EPS / op->rtol, fmin(0.03, sqrt(op->rtol)));
+        /* max(10 EPS / rtol, min(0.03, rtol^0.5)) with the rtol as given, as SciPy does */
+        double rg = op->rtol_given > 0 ? op->rtol_given : op->rtol;
+        s->newton_tol = fmax(10 * EPS / rg, fmin(0.03, pow(rg, 0.5)));
         if (jac(s, s->t, s->y))
             return 2;
         s->current_jac = 1;

@@ -61,7 +61,8 @@ typedef struct {
     int method;
     double t0, tf;
     const double *y0;           /* dim */
-    double rtol;
+    double rtol;                /* >= 100 EPS (common.validate_tol) */
+    double rtol_given;          /* the rtol the user gave: Radau/BDF's Newton tolerance uses it */
     const double *atol;         /* dim */
     double max_step;            /* INFINITY for none */
     double first_step;          /* 0: select_initial_step */
