@@ -17,7 +17,7 @@ native = Extension(
     ["src/lagrgen/_native.pyx", "src/lagrgen/native/lg_ode.c"],
     include_dirs=[numpy.get_include(), "src/lagrgen/native"],
     define_macros=[("NPY_NO_DEPRECATED_API", "NPY_1_7_API_VERSION")],
-    extra_compile_args=["-O2", "-std=c99", "-fno-fast-math"],
+    extra_compile_args=["-O3", "-std=c99", "-fno-math-errno", "-fno-fast-math"],
 )
 
 setup(
