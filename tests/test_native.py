@@ -375,3 +375,27 @@ def test_tiny_rtol_is_clipped_like_scipy(pendulum, method):
     assert (ours.nfev, ours.njev, ours.nlu, ours.t.size) == (ref.nfev, ref.njev, ref.nlu,
                                                            ref.t.size)
     assert_allclose(ours.y[:, -1], ref.y[:, -1], rtol=1e-10, atol=1e-12)
+
+
+@pytest.mark.parametrize("method", ["DOP853", "Radau", "BDF"])
+def test_terminal_event_with_t_eval_and_dense_output(pendulum, events_address, method):
+    _, address = events_address
+    y0 = np.array([0.5, -0.3, 0.0, 0.4])
+
+    def g0(t, y):
+        return y[0]
+
+    def g1(t, y):
+        return y[1] - 0.1
+    g0.terminal, g0.direction = 1, -1
+    g1.terminal, g1.direction = False, 0
+    t_eval = np.linspace(0, 6, 61)
+    ref = scipy_reference(pendulum, (0, 6), y0, method, rtol=1e-8, atol=1e-8, events=[g0, g1],
+                          t_eval=t_eval, dense_output=True)
+    ours = solve_native(pendulum, (0, 6), y0, method, rtol=1e-8, atol=1e-8, t_eval=t_eval,
+                        dense_output=True, events=(address, (1, False), (-1, 0)))
+    assert ref.status == 1 and ref.t[-1] < ref.t_events[0][0] < 6
+    assert_same_solve(ours, ref, pendulum)
+    assert_allclose(ours.t_events[0], ref.t_events[0], rtol=1e-10)
+    tt = np.linspace(0, ref.t_events[0][0], 50)
+    assert_allclose(ours.sol(tt), ref.sol(tt), rtol=1e-9, atol=1e-10)
