@@ -494,8 +494,7 @@ static int rk_step_impl(solver_t *s)
                    : (s->h_abs < min_step ? min_step : s->h_abs);
     int accepted = 0, rejected = 0;
     double h = 0, t_new = t, *y_new = s->y_old; /* y_old's storage is reused for y_new */
-    double *y = s->tmp2;
-    memcpy(y, s->y, n * sizeof(double));
+    const double *y = s->y;   /* unchanged during the step: y_new goes to y_old's storage */
     while (!accepted) {
         if (h_abs < min_step) {
             s->fail_message = MSG_TOO_SMALL;
@@ -529,7 +528,6 @@ static int rk_step_impl(solver_t *s)
     double *ynew = s->y_old;
     s->y_old = s->y;
     s->y = ynew;
-    memcpy(s->y_old, y, n * sizeof(double));
     s->t = t_new;
     s->h_abs = h_abs;
     memcpy(s->f, s->K + s->n_stages * n, n * sizeof(double));
