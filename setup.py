@@ -23,7 +23,9 @@ native = Extension(
 setup(
     packages=["lagrgen", "lagrgen.templates"],
     package_dir={"": "src", "lagrgen.templates": "templates"},
-    package_data={"lagrgen.templates": ["*.in", "*.h"], "lagrgen": ["native/*.c", "native/*.h", "native/LICENSE.scipy", "native/README.md"]},
+    package_data={"lagrgen.templates": ["*.in", "*.h"],
+                  "lagrgen": ["native/*.c", "native/*.h", "native/LICENSE.scipy",
+                              "native/README.md"]},
     ext_modules=cythonize([runtime, native], compiler_directives={"language_level": "3"}, quiet=True),
     zip_safe=False,
 )
