@@ -399,3 +399,16 @@ def test_terminal_event_with_t_eval_and_dense_output(pendulum, events_address, m
     assert_allclose(ours.t_events[0], ref.t_events[0], rtol=1e-10)
     tt = np.linspace(0, ref.t_events[0][0], 50)
     assert_allclose(ours.sol(tt), ref.sol(tt), rtol=1e-9, atol=1e-10)
+
+
+def test_stop_on_nonfinite(fading_mass):
+    """p = k = inf makes every derivative non-finite: with stop_on_nonfinite the solve ends at the
+    first one, naming t and the state; without it the method reacts as SciPy's would."""
+    y0 = [1.0, 0.0]
+    res = solve_native(fading_mass, (0, 0.5), y0, "RK45", p=[np.inf], stop_on_nonfinite=True)
+    assert res.status == -1 and "not finite at t = 0" in res.message
+    assert res.nfev == 1 and res.nonfinite_failure[0] == 0.0
+    assert_allclose(res.nonfinite_failure[1], y0)
+    ref = scipy_reference(fading_mass, (0, 0.5), y0, "RK45", p=[np.inf])
+    ours = solve_native(fading_mass, (0, 0.5), y0, "RK45", p=[np.inf], rtol=1e-6, atol=1e-9)
+    assert (ours.status, ours.nfev, ours.message) == (ref.status, ref.nfev, ref.message)

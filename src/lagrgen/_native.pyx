@@ -50,6 +50,7 @@ cdef extern from "lg_ode.h":
         const double *t_eval
         int n_eval
         int dense
+        int stop_on_nonfinite
     ctypedef struct lg_buf_t:
         double *data
         size_t len, cap
@@ -125,7 +126,8 @@ def signal_values(tuple spec, t):
 
 def solve(str method, uintptr_t rhs, uintptr_t jacobian, int dim, p, list inputs, double t0,
           double tf, y0, double rtol, atol, double max_step, double first_step, t_eval,
-          bint dense, uintptr_t events=0, event_max=None, event_direction=None):
+          bint dense, uintptr_t events=0, event_max=None, event_direction=None,
+          bint stop_on_nonfinite=False):
     """Run one solve in C without the GIL.
 
     Parameters
@@ -148,13 +150,17 @@ def solve(str method, uintptr_t rhs, uintptr_t jacobian, int dim, p, list inputs
         Return each step's interpolant coefficients.
     event_max, event_direction : arrays
         Per event: the count that terminates (inf: never), and the direction.
+    stop_on_nonfinite : bool
+        End the solve at the first NaN/inf derivative (model_failure 3) instead of letting the
+        method react to it as SciPy's do (rejected steps, Newton failures).
 
     Returns
     -------
     dict
         t, y (len(t), dim), status, message, nfev, njev, nlu, n_steps, seg (steps, 5),
         coef (1-D), ev (k, 2) of (index, t), ev_y (k, dim), model_failure (0, 1 mass matrix
-        not positive definite, 2 events function), fail_t, fail_y (the state of that call).
+        not positive definite, 2 events function, 3 non-finite derivative), fail_t, fail_y (the
+        state of that call).
     """
     if method not in METHOD_CODES:
         raise ValueError(f"method {method!r} has no native implementation")
@@ -202,6 +208,7 @@ def solve(str method, uintptr_t rhs, uintptr_t jacobian, int dim, p, list inputs
         op.t_eval = NULL if te is None else <const double *>cnp.PyArray_DATA(te)
         op.n_eval = 0 if te is None else te.shape[0]
         op.dense = dense
+        op.stop_on_nonfinite = stop_on_nonfinite
         with nogil:
             rc = lg_solve(&pb, &op, &res)
         try:

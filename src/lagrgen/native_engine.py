@@ -166,7 +166,7 @@ def _interpolant(method, row, coef, dim):
 
 def solve_native(mod, t_span, y0, method="RK45", p=None, u_spec=None, rtol=1e-3, atol=1e-6,
                  t_eval=None, dense_output=False, events=None, max_step=np.inf,
-                 first_step=None):
+                 first_step=None, stop_on_nonfinite=False):
     """Integrate a compiled model entirely in C, step for step as `solve_ivp`.
 
     Parameters
@@ -184,13 +184,18 @@ def solve_native(mod, t_span, y0, method="RK45", p=None, u_spec=None, rtol=1e-3,
     events : tuple, optional
         (address of a C function ``int events(t, y, p, u, values)``, terminal per event,
         direction per event), located as solve_ivp locates events.
+    stop_on_nonfinite : bool
+        End the solve (status -1, `nonfinite_failure` = (t, y)) at the first derivative with a
+        NaN or infinity, as `simulate` on the SciPy engine raises NonFiniteError there; False
+        lets the method react to it as SciPy's solvers do.
 
     Returns
     -------
     OdeResult
         t, y, sol, t_events, y_events, nfev, njev, nlu, status, message, success,
         engine = "native", n_steps, and mass_matrix_failure: None, or (t, y) of the model
-        call that found M not positive definite (the solve then has status -1).
+        call that found M not positive definite (the solve then has status -1), and
+        nonfinite_failure: None or (t, y) (with stop_on_nonfinite).
     """
     from . import _native
     if method not in NATIVE_METHODS:
@@ -232,7 +237,7 @@ def solve_native(mod, t_span, y0, method="RK45", p=None, u_spec=None, rtol=1e-3,
     jac = cm.function_address("jacobian") if method in ("Radau", "BDF") else 0
     out = _native.solve(method, cm.function_address("rhs"), jac, dim, p, list(u_spec), t0, tf,
                         y0, rtol, atol, max_step, first, te, bool(dense_output), ev_addr,
-                        ev_max, ev_dir)
+                        ev_max, ev_dir, bool(stop_on_nonfinite))
     ts, ys = out["t"], out["y"].T.copy()
     sol = None
     if dense_output:
@@ -250,9 +255,11 @@ def solve_native(mod, t_span, y0, method="RK45", p=None, u_spec=None, rtol=1e-3,
         t_events = [out["ev"][idx == i, 1].copy() for i in range(n_ev)]
         y_events = [out["ev_y"][idx == i].copy() for i in range(n_ev)]
     status = out["status"]
-    mass_failure = ((out["fail_t"], out["fail_y"].copy()) if out["model_failure"] == 1
-                    else None)
+    failure = (out["fail_t"], out["fail_y"].copy())
+    mass_failure = failure if out["model_failure"] == 1 else None
+    nonfinite_failure = failure if out["model_failure"] == 3 else None
     return OdeResult(t=ts, y=ys, sol=sol, t_events=t_events, y_events=y_events,
                      nfev=out["nfev"], njev=out["njev"], nlu=out["nlu"], status=status,
                      message=out["message"], success=status >= 0, engine="native",
-                     n_steps=out["n_steps"], mass_matrix_failure=mass_failure)
+                     n_steps=out["n_steps"], mass_matrix_failure=mass_failure,
+                     nonfinite_failure=nonfinite_failure)

@@ -163,8 +163,16 @@ static int fun(solver_t *s, double t, const double *y, double *out)
 {
     s->nfev++;
     eval_inputs(s, t);
-    if (s->pb->rhs(t, y, s->pb->p, s->u, out)) {
-        s->model_error = 1;
+    int bad = s->pb->rhs(t, y, s->pb->p, s->u, out) ? 1 : 0;
+    if (!bad && s->op->stop_on_nonfinite) {
+        double sum = 0.0;   /* NaN or inf anywhere makes the sum non-finite */
+        for (int i = 0; i < s->dim; ++i)
+            sum += out[i];
+        if (!isfinite(sum))
+            bad = 3;
+    }
+    if (bad) {
+        s->model_error = bad;
         s->error_t = t;
         memcpy(s->error_y, y, s->dim * sizeof(double));
         return 1;
@@ -1516,6 +1524,8 @@ static void model_failure_message(solver_t *s, lg_result_t *r)
 {
     if (s->model_error == 2)
         set_message(r, "the event function failed at t = %.17g", s->error_t);
+    else if (s->model_error == 3)
+        set_message(r, "the derivative is not finite at t = %.17g", s->error_t);
     else
         set_message(r, "the mass matrix is not positive definite at t = %.17g", s->error_t);
 }

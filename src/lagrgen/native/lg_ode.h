@@ -69,6 +69,7 @@ typedef struct {
     const double *t_eval;       /* NULL, or n_eval times in the direction of integration */
     int n_eval;
     int dense;                  /* keep the per-step interpolant coefficients */
+    int stop_on_nonfinite;      /* 1: a NaN/inf derivative ends the solve (model_failure 3) */
 } lg_options_t;
 
 /* A growable array of doubles. */
@@ -83,7 +84,8 @@ typedef struct {
     long nfev, njev, nlu;
     long n_steps;               /* accepted steps */
     int model_failure;          /* 1: rhs/jacobian reported M not positive definite, 2: events
-                                 * failed; at fail_t with the state in fail_y */
+                                 * failed, 3: a non-finite derivative (stop_on_nonfinite);
+                                 * at fail_t with the state in fail_y */
     double fail_t;
     lg_buf_t fail_y;
     lg_buf_t t, y;              /* output times and states (len(t) rows of dim) */
