@@ -15,7 +15,7 @@ from .errors import (BuildError, CompileError, ConstraintError, LagrgenError, Ma
 _LAZY = {
     "Model": "model",
     "build": "build", "load": "build",
-    "simulate": "simulate",
+    "simulate": "simulate", "Signal": "signals",
     "simulate_many": "ensemble", "EnsembleResult": "ensemble",
     "sweep": "sweep",
     "equilibrium": "vibration", "linearize": "vibration", "modes": "vibration",
@@ -23,7 +23,7 @@ _LAZY = {
     "consistent_state": "constraints",
 }
 
-__all__ = ["Model", "build", "load", "simulate", "simulate_many", "EnsembleResult", "sweep",
+__all__ = ["Model", "build", "load", "simulate", "Signal", "simulate_many", "EnsembleResult", "sweep",
            "equilibrium", "linearize", "modes", "frequency_response", "consistent_state",
            "LagrgenError", "ConstraintError", "ModelError", "UnknownNameError", "MassMatrixError",
            "BuildError", "CompileError", "NonFiniteError", "__version__"]

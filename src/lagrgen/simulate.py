@@ -8,10 +8,11 @@ import math
 import numpy as np
 from scipy.integrate import solve_ivp
 
-from .errors import NonFiniteError
+from .errors import MassMatrixError, NonFiniteError
 from .runtime.arguments import (as_vector, key_name, named_vector, parameter_vector,
                                 require_finite, state_vector, unknown_name)
 from .methods import METHODS, STIFF_METHODS
+from .native_engine import input_specs, native_reason, solve_native
 from .solvers import SOLVERS
 
 
@@ -54,8 +55,9 @@ def input_function(mod, inputs):
 
 
 def simulate(mod, t_span, y0, method="RK45", params=None, inputs=None, rtol=1e-6, atol=1e-9,
-             t_eval=None, dense_output=False, events=None, **options):
-    """Integrate ẏ = mod.rhs(t, y) over `t_span` from `y0` = [q0, q̇0] with `solve_ivp`.
+             t_eval=None, dense_output=False, events=None, engine=None, **options):
+    """Integrate ẏ = mod.rhs(t, y) over `t_span` from `y0` = [q0, q̇0], natively in C or with
+    SciPy's `solve_ivp` (the same steps either way).
 
     Parameters
     ----------
@@ -65,7 +67,13 @@ def simulate(mod, t_span, y0, method="RK45", params=None, inputs=None, rtol=1e-6
     method : one of METHODS or a solver class; the stiff ones get the analytic `mod.jacobian`
         (Radau and BDF run as `lagrgen.solvers` classes: SciPy's, with direct LAPACK LU)
     params : dict of parameter names (or the model's Symbols) -> value, or a full array
-    inputs : dict of input names (or the model's functions) -> constant or callable of t
+    inputs : dict of input names (or the model's functions) -> constant, `lagrgen.Signal` or
+        callable of t
+    engine : None runs the whole solve in C (`lagrgen.native_engine`, no Python per step, the
+        GIL released) when the model is compiled, the method is RK23/RK45/DOP853/Radau/BDF, the
+        inputs are constants or Signals and there are no Python events; otherwise SciPy's
+        `solve_ivp` (a callable input says so in `result.message`). "native" insists (ValueError
+        saying why not); "scipy" always uses `solve_ivp`. `result.engine` says which ran.
     **options : passed to `solve_ivp` unchanged (max_step, first_step, ...)
 
     Returns
@@ -88,9 +96,15 @@ def simulate(mod, t_span, y0, method="RK45", params=None, inputs=None, rtol=1e-6
                         "(or a full parameter array) and inputs as inputs={name: value or f(t)}")
     if not (method in METHODS or isinstance(method, type)):
         raise ValueError(f"unknown method {method!r}: use one of {', '.join(METHODS)}")
+    if engine not in (None, "native", "scipy"):
+        raise ValueError(f"engine must be None, 'native' or 'scipy', not {engine!r}")
     n = mod.n_coordinates
     y0 = state_vector(y0, tuple(mod.coordinates))
     p = parameters_from(mod, params)
+    why_not = None if engine == "scipy" else native_reason(mod, method, inputs, events, options,
+                                                            rtol)
+    if engine == "native" and why_not:
+        raise ValueError(f"the native engine cannot run this solve: {why_not}")
     u, u_of_t = input_function(mod, inputs)
     rhs, jacobian = mod.rhs, mod.jacobian
     if u_of_t is None:
@@ -111,15 +125,24 @@ def simulate(mod, t_span, y0, method="RK45", params=None, inputs=None, rtol=1e-6
 
         def jac(t, y):
             return jacobian(t, y, p, u_of_t(t))
-    if getattr(method, "__name__", method) in STIFF_METHODS:
-        options.setdefault("jac", jac)
     constrained = getattr(mod, "n_constraints", 0) > 0
     if constrained:
         from .constraints import check_state
         t0 = float(t_span[0])
         check_state(mod, t0, y0, p, u if u_of_t is None else u_of_t(t0))
-    sol = solve_ivp(fun, t_span, y0, method=SOLVERS.get(method, method), rtol=rtol, atol=atol,
-                    t_eval=t_eval, dense_output=dense_output, events=events, **options)
+    if engine != "scipy" and why_not is None:
+        sol = solve_native(mod, t_span, y0, method, p, input_specs(mod, inputs), rtol, atol,
+                           t_eval, dense_output, None, stop_on_nonfinite=True, **options)
+        raise_native_failure(mod, sol, p, u, u_of_t)
+    else:
+        if getattr(method, "__name__", method) in STIFF_METHODS:
+            options.setdefault("jac", jac)
+        sol = solve_ivp(fun, t_span, y0, method=SOLVERS.get(method, method), rtol=rtol,
+                        atol=atol, t_eval=t_eval, dense_output=dense_output, events=events,
+                        **options)
+        sol.engine = "scipy"
+        if engine is None and why_not and "Python callable" in why_not:
+            sol.message = f"{sol.message} (SciPy engine: {why_not})"
     sol = with_coordinates(sol, mod.coordinates, n)
     if constrained:
         from .constraints import along
@@ -127,6 +150,19 @@ def simulate(mod, t_span, y0, method="RK45", params=None, inputs=None, rtol=1e-6
         sol.constraint_names = tuple(mod.constraint_names)
         sol.multipliers = dict(zip(sol.constraint_names, sol.constraint_forces))
     return sol
+
+
+def raise_native_failure(mod, sol, p, u, u_of_t):
+    """Raise, for a native solve, the error the SciPy engine raises at the same point: the
+    model's own error at the state where it failed, or NonFiniteError."""
+    failure = getattr(sol, "mass_matrix_failure", None)
+    if failure is not None:
+        t, y = failure
+        mod.rhs(t, y, p, u if u_of_t is None else u_of_t(t))
+        raise MassMatrixError.at(mod.name, t, y[:mod.n_coordinates])
+    failure = getattr(sol, "nonfinite_failure", None)
+    if failure is not None:
+        raise NonFiniteError.at(mod.name, *failure)
 
 
 def with_coordinates(sol, coordinates, n):
