@@ -132,7 +132,8 @@ def equations_digest(spec, equations):
     parts = [spec.name, spec.coordinate_names, spec.parameter_names, spec.defaults,
              spec.input_names, [[str(e) for e in row] for row in equations.M],
              [str(f) for f in equations.F], [str(e) for e in equations.residuals],
-             spec.stabilization, spec.constraint_names]
+             spec.stabilization, spec.constraint_names, [str(g) for g in equations.events],
+             [(name, terminal, direction) for name, _, terminal, direction in spec.events]]
     for part in parts:
         h.update(repr(part).encode() + b"\0")
     equations.digest = h.hexdigest()
@@ -147,13 +148,16 @@ def model_info(spec, equations):
         "defaults": list(spec.defaults), "content_hash": equations_digest(spec, equations),
         "lagrgen_version": __version__, "dimensions": model_dimensions(spec, equations),
         "constraint_names": list(spec.constraint_names),
+        "events": [{"name": name, "terminal": terminal, "direction": direction}
+                   for name, _, terminal, direction in spec.events],
     }
 
 
 def model_dimensions(spec, equations):
     """The sizes that output shapes of `lagrgen.functions` refer to (see `functions.dimensions`)."""
     return dimensions(equations.n, len(spec.parameters), len(spec.inputs),
-                      n_constraints=equations.m, n_holonomic=equations.n_holonomic)
+                      n_constraints=equations.m, n_holonomic=equations.n_holonomic,
+                      n_events=len(equations.events))
 
 
 # -- compiling -------------------------------------------------------------------------------
