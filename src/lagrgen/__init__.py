@@ -18,10 +18,12 @@ _LAZY = {
     "simulate": "simulate",
     "equilibrium": "vibration", "linearize": "vibration", "modes": "vibration",
     "frequency_response": "vibration",
+    "from_sympy": "sympy_interop",
 }
 
 __all__ = ["Model", "build", "load", "simulate", "equilibrium", "linearize", "modes",
-           "frequency_response", "LagrgenError", "ModelError", "UnknownNameError",
+           "frequency_response", "from_sympy", "LagrgenError", "ModelError",
+           "UnknownNameError",
            "MassMatrixError", "BuildError", "CompileError", "__version__"]
 
 

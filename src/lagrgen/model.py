@@ -84,6 +84,7 @@ class Model:
         self._dampers = []         # (c, length): R += ½·c·(d length/dt)², the rate formed in derive
         self._virtual_work = []    # (vector, position): Q_j += vector · ∂position/∂q_j
         self._drawables = []       # (kind, points): what an animation can draw
+        self._external = None      # (M, F) derived elsewhere (lagrgen.from_sympy), added as given
         self._version = 0
 
     @property
@@ -331,6 +332,21 @@ class Model:
                             inputs=False) for p in ends)
         self._drawables.append((kind, (a, b)))
 
+    def _add_equations(self, M, F):
+        """Add externally derived equations M·q̈ = F (SymPy, in this model's own symbols) to what
+        Lagrange's equations of the declared physics give. Private: `lagrgen.from_sympy` uses it."""
+        n = len(self._coordinates)
+        M, F = sp.Matrix(M), sp.Matrix(F)
+        if M.shape != (n, n) or F.shape not in ((n, 1), (1, n)):
+            raise ModelError(f"external equations of model {self.name!r} must be M ({n}×{n}) and "
+                             f"F ({n}), got shapes {M.shape} and {F.shape}")
+        M = self._check(M, "mass matrix", velocities=False, inputs=False)
+        F = self._check(F.reshape(n, 1), "forcing")
+        if self._external is not None:
+            M, F = M + self._external[0], F + self._external[1]
+        self._external = (_frozen(M), _frozen(F))
+        self._changed()
+
     @property
     def drawables(self):
         """What an animation can draw: (kind, points) pairs, in declaration order."""
@@ -348,7 +364,8 @@ class Model:
                 particles=tuple((m, _frozen(r)) for m, r in self._particles),
                 kinetic=tuple(self._kinetic), potential=tuple(self._potential),
                 dissipation=tuple(self._dissipation), dampers=tuple(self._dampers),
-                virtual_work=tuple((_frozen(v), _frozen(r)) for v, r in self._virtual_work)))
+                virtual_work=tuple((_frozen(v), _frozen(r)) for v, r in self._virtual_work),
+                external=self._external))
         return self._spec[1]
 
     def equations(self):
@@ -397,6 +414,7 @@ class ModelSpec:
     dissipation: tuple = ()  # R += expr
     dampers: tuple = ()     # (c, length): R += ½·c·(d length/dt)²
     virtual_work: tuple = ()  # (vector, position): Q_j += vector · ∂position/∂q_j
+    external: tuple = None  # (M, F) derived elsewhere (e.g. by SymPy), added to the derived ones
 
     @property
     def qd(self):
