@@ -15,10 +15,12 @@ runtime = Extension(
 
 setup(
     packages=["lagrgen", "lagrgen.codegen", "lagrgen.codegen.templates",
-              "lagrgen.codegen.templates.functions", "lagrgen.runtime", "lagrgen.outputs"],
+              "lagrgen.codegen.templates.functions", "lagrgen.codegen.templates.fmi2",
+              "lagrgen.runtime", "lagrgen.outputs"],
     package_dir={"": "src"},
     package_data={"lagrgen.codegen.templates": ["*.in", "*.h"],
                   "lagrgen.codegen.templates.functions": ["*.c"],
+                  "lagrgen.codegen.templates.fmi2": ["*.h", "*.txt"],
                   "lagrgen.runtime": ["*.pxd"]},
     ext_modules=cythonize([runtime], compiler_directives={"language_level": "3"}, quiet=True,
                           include_path=["src"]),

@@ -19,10 +19,11 @@ _LAZY = {
     "equilibrium": "vibration", "linearize": "vibration", "modes": "vibration",
     "frequency_response": "vibration",
     "from_sympy": "sympy_interop",
+    "export_fmu": "codegen.fmu",
 }
 
 __all__ = ["Model", "build", "load", "simulate", "equilibrium", "linearize", "modes",
-           "frequency_response", "from_sympy", "LagrgenError", "ModelError",
+           "frequency_response", "from_sympy", "export_fmu", "LagrgenError", "ModelError",
            "UnknownNameError",
            "MassMatrixError", "BuildError", "CompileError", "__version__"]
 

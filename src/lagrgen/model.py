@@ -389,6 +389,15 @@ class Model:
         return (f"Model({self.name!r}: coordinates {self.coordinate_names}, "
                 f"parameters {self.parameter_names}, inputs {self.input_names})")
 
+    def _repr_latex_(self):
+        """The equations of motion Σ_j M_ij·q̈_j = F_i as a LaTeX aligned block (what
+        `lagrgen show --latex` prints), for notebooks; None (plain repr) if they cannot be derived."""
+        from .outputs.display import latex_block
+        try:
+            return latex_block(self)
+        except ModelError:
+            return None
+
 
 def _frozen(vector):
     """A column vector as an immutable SymPy matrix."""

@@ -146,3 +146,10 @@ def render(model, latex=False, matrices=False, simplify=True):
     if matrices:
         out += matrix_lines(eqs, latex)
     return "\n".join(out)
+
+
+def latex_block(model, simplify=True):
+    """The equations of motion as one display-math LaTeX block, `$$\\begin{aligned} ... $$`, the
+    rows of `render(model, latex=True)` (a notebook's rendering of a Model)."""
+    rows = equation_lines(equations(model, simplify=simplify), latex=True)
+    return "$$\\begin{aligned}\n" + "\n".join(rows) + "\n\\end{aligned}$$"
