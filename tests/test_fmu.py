@@ -155,3 +155,23 @@ def test_export_fmu_command_and_errors(tmp_path, capsys):
     clash.particle(x_dot, x)
     with pytest.raises(ModelError, match="'x_dot' would be used twice"):
         lagrgen.export_fmu(clash, tmp_path)
+
+
+def test_a_sympy_model_exports_and_a_wrong_guid_is_refused(tmp_path):
+    from fmpy.fmi2 import FMU2Model
+    from test_sympy_interop import CART_POLE_DEFAULTS, cart_pole
+    model = lagrgen.from_sympy(cart_pole(), "cart_pole_fmu", CART_POLE_DEFAULTS)
+    path = lagrgen.export_fmu(model, tmp_path)
+    assert validate_fmu(str(path)) == []
+    mod = lagrgen.build(model, out_dir=tmp_path / "gen")
+    res = fmpy.simulate_fmu(str(path), start_values={"q_pin": 0.3}, stop_time=2.0,
+                            relative_tolerance=1e-10, output_interval=0.1,
+                            output=["q_slider", "q_pin"])
+    sol = lagrgen.simulate(mod, (0.0, 2.0), {"q_pin": 0.3}, method="DOP853", rtol=1e-12,
+                           atol=1e-12, t_eval=res["time"])
+    assert_allclose(np.array([res["q_slider"], res["q_pin"]]), sol.q, atol=2e-6, rtol=0)
+    unzipped = fmpy.extract(str(path), tmp_path / "unzipped")
+    fmu = FMU2Model(guid="{00000000-0000-0000-0000-000000000000}", unzipDirectory=unzipped,
+                    modelIdentifier="cart_pole_fmu", instanceName="wrong")
+    with pytest.raises(Exception, match="instantiate|NULL|Failed"):
+        fmu.instantiate()
