@@ -87,6 +87,20 @@ def test_repr_latex_shows_the_equations():
     assert lagrgen.Model("empty")._repr_latex_() is None   # nothing to derive: plain repr
 
 
+def test_a_built_models_repr_names_its_interface(tmp_path):
+    model = example_model("double_pendulum")
+    for mod in (lagrgen.build(model, out_dir=tmp_path), lagrgen.build(model, backend="python")):
+        assert repr(mod) == (f"<lagrgen model 'double_pendulum' ({mod.backend} backend): "
+                             "coordinates theta1, theta2; parameters m1=1, m2=1, L1=1, L2=1, "
+                             "g=9.81; inputs F>")
+    bare = lagrgen.Model("bare")
+    x, = bare.coordinates("x")
+    k, = bare.parameters("k")
+    bare.particle(1, x)
+    bare.spring(k, x)
+    assert repr(lagrgen.build(bare, backend="python")).endswith("parameters k=?; no inputs>")
+
+
 def test_simulation_result_plots_itself():
     model = example_model("two_mass_chain", "absolute")
     mod = lagrgen.build(model, backend="python")

@@ -218,6 +218,20 @@ def test_a_changed_sympy_model_is_never_served_stale(out_dir):
     assert_allclose(mod3.rhs(0.0, y), a1, rtol=0)
 
 
+def test_lagrgen_physics_adds_to_a_sympy_model(out_dir):
+    """A torsion spring declared on the lagrgen side equals the same spring as a SymPy load."""
+    kappa = 3.0
+    model = lagrgen.from_sympy(cart_pole(), "cart_pole_plus", CART_POLE_DEFAULTS)
+    k, = model.parameters(kappa=kappa)
+    model.spring(k, model.q[1])
+    reference = cart_pole(lambda rail, cart, pole, slider, pin:
+                          me.Torque(pole, -kappa * pin.coordinates[0] * cart.z))
+    mod = lagrgen.build(model, out_dir=out_dir)
+    ref = sympy_rhs(reference, lagrgen.from_sympy(reference, "ref", CART_POLE_DEFAULTS))
+    y = np.array([0.3, -0.6, 0.4, 1.2])
+    assert_allclose(mod.rhs(0.0, y, None, [0.2]), ref(y, mod.defaults[:5], [0.2]), rtol=1e-13)
+
+
 def test_simulate_vibration_and_cli(out_dir, tmp_path, capsys):
     system = cart_pole()
     model = lagrgen.from_sympy(system, "cart_pole_run", CART_POLE_DEFAULTS)
