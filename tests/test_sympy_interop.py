@@ -191,6 +191,29 @@ def test_kanes_method_with_speeds_in_another_order(out_dir):
     compare(km, model, mod)
 
 
+def test_system_formed_with_lagranges_method():
+    """A System whose bodies move with q̇ works with LagrangesMethod too; one whose velocities are
+    in the joints' speeds gets M = 0 from SymPy, which is refused."""
+    th = me.dynamicsymbols("th")
+    m, l, g = sp.symbols("m l g")
+    ground = me.RigidBody("ground")
+    N, O = ground.frame, ground.masscenter
+    P = O.locatenew("P", l * (sp.sin(th) * N.x - sp.cos(th) * N.y))
+    P.set_vel(N, P.pos_from(O).dt(N))
+    system = me.System.from_newtonian(ground)
+    system.add_coordinates(th)
+    system.add_bodies(me.Particle("bob", P, m))
+    system.apply_uniform_gravity(-g * N.y)
+    system.form_eoms(eom_method=me.LagrangesMethod)
+    py = lagrgen.build(lagrgen.from_sympy(system, "pend_system", {"m": 1.0, "l": 2.0, "g": 9.81}),
+                       backend="python")
+    assert_allclose(py.rhs(0.0, [0.3, 0.7]), [0.7, -9.81 / 2.0 * np.sin(0.3)], rtol=1e-15)
+    joints = cart_pole()
+    joints.form_eoms(eom_method=me.LagrangesMethod)
+    with pytest.raises(ModelError, match="zero diagonal entry"):
+        lagrgen.from_sympy(joints, "bad", CART_POLE_DEFAULTS)
+
+
 def test_a_changed_sympy_model_is_never_served_stale(out_dir):
     """Same name, same out_dir: a torsion spring added to the SymPy model changes the build."""
     first = cart_pole()

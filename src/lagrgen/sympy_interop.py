@@ -13,15 +13,16 @@ from .model import Model, check_name
 from .runtime.arguments import key_name
 
 
-def from_sympy(obj, name, defaults=None, inputs=None):
-    """Return a lagrgen `Model` whose equations M(q, t)·q̈ = F(q, q̇, t, u) are those of `obj`.
+def from_sympy(method_or_system, name, defaults=None, inputs=None):
+    """Return a lagrgen `Model` whose equations M(q, t)·q̈ = F(q, q̇, t, u) are those of
+    `method_or_system`.
 
     For a `KanesMethod` (or a `System`, whose equations are formed with `form_eoms()` if they have
     not been) the kinematic equations must be u = q̇; M·u̇ = F is then M·q̈ = F with u → q̇.
 
     Parameters
     ----------
-    obj : sympy.physics.mechanics LagrangesMethod, KanesMethod or System
+    method_or_system : sympy.physics.mechanics LagrangesMethod, KanesMethod or System
         Without constraints (holonomic, nonholonomic) or auxiliary speeds.
     name : str
         The model's name (a Python identifier; it names the compiled module).
@@ -35,16 +36,23 @@ def from_sympy(obj, name, defaults=None, inputs=None):
 
     Returns
     -------
-    lagrgen.Model, with the coordinates of `obj.q` (in that order), usable like any other Model
+    lagrgen.Model, with the coordinates `method_or_system.q` (in order), usable like any other Model
     (more physics may be added to it).
     """
     from sympy.physics.mechanics import dynamicsymbols
     t = dynamicsymbols._t
-    q, M, F = _equations(obj, t)
+    q, M, F = _equations(method_or_system, t)
     coordinates = list(q)
     for c in coordinates:
         if not (isinstance(c, AppliedUndef) and c.args == (t,)):
             raise ModelError(f"coordinate {c} is not a function of time t alone")
+    for i, c in enumerate(coordinates):
+        if M[i, i] == 0:
+            raise ModelError(
+                f"SymPy's mass matrix has a zero diagonal entry for coordinate {c}: its equations "
+                "do not determine that coordinate's acceleration (a System formed with "
+                "LagrangesMethod whose bodies' velocities are written in the speeds u gets M = 0 "
+                "from SymPy; form it with KanesMethod, the default)")
     velocities = {c.diff(t) for c in coordinates}
     found_inputs, symbols = set(), set()
     for e in list(M) + list(F):
@@ -135,13 +143,32 @@ def _equations(obj, t):
         _no_system_constraints(obj)
         if obj.eom_method is None:
             obj.form_eoms()
-        obj = obj.eom_method
+        system, obj = obj, obj.eom_method
+        if isinstance(obj, LagrangesMethod):
+            # the bodies' velocities may be written in the System's speeds: u = q̇ puts them back
+            q, M, F = _lagrange(obj)
+            rates = _rates_of_speeds(list(system.q), list(system.u), list(system.kdes), t)
+            return q, M.xreplace(rates), F.xreplace(rates)
     if isinstance(obj, LagrangesMethod):
         return _lagrange(obj)
     if isinstance(obj, KanesMethod):
         return _kane(obj, t)
     raise TypeError(f"from_sympy() takes a sympy.physics.mechanics LagrangesMethod, KanesMethod "
                     f"or System, got {type(obj).__name__}")
+
+
+def _rates_of_speeds(q, u, kdes, t):
+    """{u_j: q̇_i} from kinematic equations that say u = q̇ (in any order); ModelError otherwise."""
+    if not u:
+        return {}
+    solved = sp.solve(kdes, u, dict=True) if len(kdes) == len(u) else []
+    rates = {qi.diff(t) for qi in q}
+    if len(solved) != 1 or any(solved[0].get(uj) not in rates for uj in u) \
+            or len(set(solved[0].values())) != len(u):
+        raise ModelError(f"the kinematic differential equations {list(kdes)} are not u = q̇: "
+                         "from_sympy needs every generalized speed to be a coordinate's rate (as "
+                         "with SymPy's default joints)")
+    return solved[0]
 
 
 def _no_system_constraints(system):
