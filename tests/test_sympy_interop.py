@@ -344,3 +344,20 @@ def test_errors():
     lm = me.LagrangesMethod(x.diff() ** 2 / 2 - a * x ** 2 / 2, [x])
     with pytest.raises(ModelError, match="not a Python identifier"):
         lagrgen.from_sympy(lm, "bad")
+
+
+def test_external_mass_matrix_must_be_symmetric():
+    """Entries equal in value but not in form pass (compared at random points); others do not."""
+    model = lagrgen.Model("asymmetric")
+    x, y = model.coordinates("x y")
+    a, = model.parameters(a=1.0)
+    model._add_equations(sp.Matrix([[1, a * sp.cos(x)], [a, 2]]), sp.Matrix([0, 0]))
+    with pytest.raises(ModelError, match="not symmetric"):
+        model.equations()
+    same = lagrgen.Model("symmetric_in_value")
+    x, y = same.coordinates("x y")
+    same._add_equations(sp.Matrix([[1, sp.sin(x) ** 2 + sp.cos(x) ** 2 - sp.Rational(1, 2)],
+                                   [sp.Rational(1, 2), 2]]), sp.Matrix([0, -y]))
+    py = lagrgen.build(same, backend="python")
+    assert_allclose(py.mass_matrix([0.4, 0.0]), [[1, 0.5], [0.5, 2]], rtol=1e-15)
+    assert_allclose(py.rhs(0.0, [0.0, 1.0, 0.0, 0.0]), [0, 0, 2 / 7, -4 / 7], rtol=1e-14)
