@@ -176,7 +176,7 @@ def derive(spec):
     M = [[se.Integer(0)] * n for _ in range(n)]
     F = [se.Integer(0)] * n
     if spec.external is not None:
-        M, F = _external_equations(spec, convert, q, qd)
+        M, F = _external_equations(spec, convert, q)
 
     general_T = [convert(e) for e in spec.kinetic]
     for mass, position in spec.particles:
@@ -208,7 +208,7 @@ def derive(spec):
     return Equations(spec, M, F, symbols)
 
 
-def _external_equations(spec, convert, q, qd, points=3, seed=0):
+def _external_equations(spec, convert, q, points=3, seed=0):
     """M (lower triangle, the rest zero) and F of `spec.external` in the internal symbols, after
     checking M is symmetric: entries that differ in form are compared at random points."""
     import random
