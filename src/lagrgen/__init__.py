@@ -21,10 +21,13 @@ _LAZY = {
     "equilibrium": "vibration", "linearize": "vibration", "modes": "vibration",
     "frequency_response": "vibration",
     "consistent_state": "constraints",
+    "from_sympy": "sympy_interop",
+    "export_fmu": "codegen.fmu",
 }
 
 __all__ = ["Model", "build", "load", "simulate", "Signal", "simulate_many", "EnsembleResult", "sweep",
            "equilibrium", "linearize", "modes", "frequency_response", "consistent_state",
+           "from_sympy", "export_fmu",
            "LagrgenError", "ConstraintError", "ModelError", "UnknownNameError", "MassMatrixError",
            "BuildError", "CompileError", "NonFiniteError", "__version__"]
 

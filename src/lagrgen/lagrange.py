@@ -241,6 +241,8 @@ def derive(spec):
     convert = _Converter(spec)
     M = [[se.Integer(0)] * n for _ in range(n)]
     F = [se.Integer(0)] * n
+    if spec.external is not None:
+        M, F = _external_equations(spec, convert, q)
 
     general_T = [convert(e) for e in spec.kinetic]
     for mass, position in spec.particles:
@@ -286,6 +288,35 @@ def _constraints(spec, convert, q, qd, t):
                              "(its Jacobian row is identically zero): it is not a constraint on "
                              "the motion")
     return phi, c
+
+
+def _external_equations(spec, convert, q, points=3, seed=0):
+    """M (lower triangle, the rest zero) and F of `spec.external` in the internal symbols, after
+    checking M is symmetric: entries that differ in form are compared at random points."""
+    import random
+    M_user, F_user = spec.external
+    n = len(q)
+    M = [[convert(M_user[i, j]) for j in range(n)] for i in range(n)]
+    F = [convert(F_user[i, 0]) for i in range(n)]
+    rng = random.Random(seed)
+    pairs = [(i, j) for i in range(n) for j in range(i) if M[i][j] != M[j][i]]
+    if pairs:
+        symbols = sorted(set().union(*(M[i][j].free_symbols | M[j][i].free_symbols
+                                       for i, j in pairs)), key=str)
+        for _ in range(points):
+            values = {s: se.Float(rng.uniform(0.5, 1.5)) for s in symbols}
+            for i, j in pairs:
+                try:
+                    a, b = (complex(M[i][j].subs(values).evalf()),
+                            complex(M[j][i].subs(values).evalf()))
+                except (TypeError, ValueError, RuntimeError):
+                    continue  # not a number at this point (e.g. outside a function's domain)
+                if abs(a - b) > 1e-9 * (1.0 + abs(a) + abs(b)):
+                    raise ModelError(
+                        f"the mass matrix given for model {spec.name!r} is not symmetric: "
+                        f"M[{i}][{j}] = {M_user[i, j]} but M[{j}][{i}] = {M_user[j, i]}")
+    lower = [[M[i][j] if j <= i else se.Integer(0) for j in range(n)] for i in range(n)]
+    return lower, F
 
 
 def _check_mass_matrix(model, M, qd):

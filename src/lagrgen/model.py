@@ -115,6 +115,7 @@ class Model:
         self._velocity_constraints = []  # A(q, t)·q̇ + b(q, t) = 0
         self._constraint_names = {}  # ("holonomic" | "velocity", index) -> the user's name
         self._stabilization = BAUMGARTE_DEFAULTS
+        self._external = None      # (M, F) derived elsewhere (lagrgen.from_sympy), added as given
         self._version = 0
 
     @property
@@ -499,6 +500,21 @@ class Model:
                             inputs=False, vector=True) for p in ends)
         self._drawables.append((kind, (a, b)))
 
+    def _add_equations(self, M, F):
+        """Add externally derived equations M·q̈ = F (SymPy, in this model's own symbols) to what
+        Lagrange's equations of the declared physics give. Private: `lagrgen.from_sympy` uses it."""
+        n = len(self._coordinates)
+        M, F = sp.Matrix(M), sp.Matrix(F)
+        if M.shape != (n, n) or F.shape not in ((n, 1), (1, n)):
+            raise ModelError(f"external equations of model {self.name!r} must be M ({n}×{n}) and "
+                             f"F ({n}), got shapes {M.shape} and {F.shape}")
+        M = self._check(M, "mass matrix", velocities=False, inputs=False, vector=True)
+        F = self._check(F.reshape(n, 1), "forcing", vector=True)
+        if self._external is not None:
+            M, F = M + self._external[0], F + self._external[1]
+        self._external = (_frozen(M), _frozen(F))
+        self._changed()
+
     @property
     def drawables(self):
         """What an animation can draw: (kind, points) pairs, in declaration order."""
@@ -520,7 +536,8 @@ class Model:
                 constraints=tuple(self._constraints),
                 velocity_constraints=tuple(self._velocity_constraints),
                 constraint_names=self.constraint_names,
-                stabilization=self._stabilization, events=tuple(self._events)))
+                stabilization=self._stabilization, events=tuple(self._events),
+                external=self._external))
         return self._spec[1]
 
     def equations(self):
@@ -543,6 +560,15 @@ class Model:
     def __repr__(self):
         return (f"Model({self.name!r}: coordinates {self.coordinate_names}, "
                 f"parameters {self.parameter_names}, inputs {self.input_names})")
+
+    def _repr_latex_(self):
+        """The equations of motion Σ_j M_ij·q̈_j = F_i as a LaTeX aligned block (what
+        `lagrgen show --latex` prints), for notebooks; None (plain repr) if they cannot be derived."""
+        from .outputs.display import latex_block
+        try:
+            return latex_block(self)
+        except ModelError:
+            return None
 
 
 def _frozen(vector):
@@ -574,6 +600,7 @@ class ModelSpec:
     constraint_names: tuple = ()  # one per multiplier, holonomic first
     stabilization: tuple = (0.0, 0.0)  # Baumgarte (α, β), 1/s
     events: tuple = ()        # (name, g, terminal, direction)
+    external: tuple = None  # (M, F) derived elsewhere (e.g. by SymPy), added to the derived ones
 
     @property
     def qd(self):

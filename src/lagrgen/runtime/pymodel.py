@@ -12,6 +12,7 @@ import numpy as np
 from ..errors import ConstraintError, MassMatrixError
 from ..functions import FUNCTIONS
 from .arguments import as_vector, defaults_array, input_vector, parameter_vector
+from .describe import describe
 
 _FUNCTIONS = ("sin", "cos", "tan", "asin", "acos", "atan", "atan2", "sinh", "cosh", "tanh",
               "asinh", "acosh", "atanh", "exp", "log", "sqrt")
@@ -64,7 +65,7 @@ class PythonModel:
             setattr(self, spec.name, _CALLERS[spec.call](self, getattr(self, f"_{spec.name}")))
 
     def __repr__(self):
-        return f"<lagrgen model {self.name!r} (python backend), coordinates {self.coordinates}>"
+        return describe(self)
 
     def _arguments(self, p, u):
         return (parameter_vector(p, self.parameters, self.defaults).tolist(),
