@@ -84,6 +84,8 @@ class Model:
         self.dissipation_terms = []  # R += expr
         self.virtual_work = []     # (vector, position): Q_j += vector · ∂position/∂q_j
         self.drawables = []        # (kind, points): what an animation can draw
+        self._bodies_3d = []       # (inertia 3×3, ω body frame): T += ½·ωᵀ·I·ω (lagrgen.bodies3d)
+        self._kinematics = {}      # orientation → bodies3d.Kinematics, computed once each
         self._version = 0
 
     # -- declarations -------------------------------------------------------------------------
@@ -253,6 +255,66 @@ class Model:
         self.drawables.append(("body", (position, angle)))
         self._changed()
 
+    def rigid_body_3d(self, mass, inertia, position, orientation):
+        """Rigid body in space: T += ½·mass·ṙ·ṙ + ½·ωᵀ·I·ω, with ω the body-frame angular velocity
+        (ω̃ = Rᵀ·Ṙ) of the orientation R.
+
+        Parameters
+        ----------
+        mass : expression, the body's mass.
+        inertia : 3×3 matrix (symmetric, positive semi-definite), or 3 principal moments (list or
+            tuple), about the centre of mass in body axes; constant (parameters and numbers only).
+        position : 3 components, the centre of mass in the fixed frame (coordinates, t).
+        orientation : 3×3 rotation matrix R(q, t) mapping body-frame components to fixed-frame
+            ones, best built from `lagrgen.rotation` (``rotation.z(psi) * rotation.x(theta)``).
+        """
+        from .bodies3d import body_inertia
+        mass = self._check(mass, "rigid body mass", velocities=False, inputs=False)
+        inertia = body_inertia(self, inertia)
+        position = self._check(as_vector(position, "rigid body position"), "rigid body position",
+                               velocities=False, inputs=False)
+        if len(position) != 3:
+            raise ModelError(f"rigid_body_3d position must have 3 components (x, y, z), got "
+                             f"{len(position)}")
+        kin = self._orientation(orientation, "rigid_body_3d orientation")
+        self.particles.append((mass, position))
+        self._bodies_3d.append((inertia, kin.omega))
+        self.drawables.append(("body3d", (position, kin.R)))
+        self._changed()
+
+    def torque_3d(self, moment, orientation):
+        """A moment acting on the body of orientation R: Q_j += moment · ∂ω_fixed/∂q̇_j.
+
+        Parameters
+        ----------
+        moment : 3 components in the fixed frame (may depend on q, q̇, t, inputs).
+        orientation : the body's 3×3 rotation matrix, as given to `rigid_body_3d`.
+        """
+        moment = self._check(as_vector(moment, "torque_3d moment"), "torque_3d moment")
+        if len(moment) != 3:
+            raise ModelError(f"torque_3d moment must have 3 components, got {len(moment)}")
+        kin = self._orientation(orientation, "torque_3d orientation")
+        for j, coordinate in enumerate(self._coordinates):
+            arm = kin.W_fixed[:, j]
+            if any(e != 0 for e in arm):
+                self.virtual_work.append((sp.Matrix([moment.dot(arm)]), sp.Matrix([coordinate])))
+        self._changed()
+
+    def _orientation(self, orientation, where):
+        """The checked `bodies3d.Kinematics` of a 3×3 orientation matrix (computed once each)."""
+        from .bodies3d import Kinematics, check_rotation
+        if not isinstance(orientation, sp.MatrixBase) or orientation.shape != (3, 3):
+            shape = getattr(orientation, "shape", None)
+            raise ModelError(f"{where} must be a 3×3 SymPy Matrix (e.g. from lagrgen.rotation), "
+                             f"got {type(orientation).__name__}" + (f" of shape {shape}" if shape
+                                                                    else ""))
+        self._check(orientation, where, velocities=False, inputs=False)
+        key = (sp.ImmutableMatrix(orientation), getattr(orientation, "factors", None))
+        if key not in self._kinematics:
+            check_rotation(orientation, [*self._coordinates, self.t, *self._parameters], where)
+            self._kinematics[key] = Kinematics(orientation, self._coordinates, self.t)
+        return self._kinematics[key]
+
     def kinetic_energy(self, expr):
         """T += expr (may contain coordinates, velocities, t and parameters)."""
         self.kinetic_terms.append(self._check(expr, "kinetic energy", inputs=False))
@@ -362,6 +424,7 @@ class Model:
             [sp.srepr(e) for e in self.potential_terms],
             [sp.srepr(e) for e in self.dissipation_terms],
             [(sp.srepr(v), sp.srepr(r)) for v, r in self.virtual_work],
+            [(sp.srepr(i), sp.srepr(w)) for i, w in self._bodies_3d],
         ]
         for part in parts:
             h.update(repr(part).encode())

@@ -9,6 +9,9 @@ import numpy as np
 
 from .arguments import as_vector, defaults_array, input_vector, parameter_vector
 from .errors import MassMatrixError
+
+#: A Cholesky pivot below this fraction of its diagonal entry of M counts as zero (LG_PIVOT_TOL in C).
+PIVOT_TOL = 1e-14
 from .kernels import all_kernels
 from .printer import PythonPrinter, kernel_statements, print_statements
 
@@ -60,11 +63,15 @@ class PythonModel:
                 input_vector(u, self.inputs).tolist())
 
     def _factor(self, M, t, q):
-        """Cholesky factor of the n×n matrix M, or MassMatrixError naming the state."""
+        """Cholesky factor of the n×n matrix M, or MassMatrixError naming the state (also when a
+        pivot is below PIVOT_TOL times its diagonal entry: numerically singular, as in C)."""
         try:
-            return np.linalg.cholesky(M)
+            L = np.linalg.cholesky(M)
         except np.linalg.LinAlgError:
             raise MassMatrixError.at(self.name, t, q) from None
+        if np.any(np.diagonal(L) ** 2 <= PIVOT_TOL * np.diagonal(M)):
+            raise MassMatrixError.at(self.name, t, q)
+        return L
 
     def _mf(self, t, q, qd, p, u):
         """M (n×n array) and F (n array) at a point; q, qd, p, u as lists."""
