@@ -542,3 +542,29 @@ def _bad(call):
 def test_bad_input_raises_model_error(call, message):
     with pytest.raises(ModelError, match=message):
         _bad(call)
+
+
+# -- the example and its 3-D animation ---------------------------------------------------------------
+def test_spinning_top_example_animates_in_3d(tmp_path):
+    from PIL import Image
+
+    from conftest import example_model
+    from lagrgen.animation3d import is_3d, tracks_3d
+    from lagrgen.plotting import animate
+    model = example_model("spinning_top")
+    assert is_3d(model) and not is_3d(example_model("double_pendulum"))
+    mod = lagrgen.build(model, backend="python")
+    sol = lagrgen.simulate(mod, (0.0, 0.5), [0.0, 0.5, 0.0, 0.8, 0.0, 40.0], method="DOP853",
+                           rtol=1e-8, atol=1e-10, dense_output=True)
+    tracks = tracks_3d(model, mod.defaults, sol.t[-1:], sol.y[:3, -1:])
+    (kind, (com, R)), = [tr for tr in tracks if tr[0] == "body3d"]
+    assert_allclose(R[0] @ R[0].T, np.eye(3), atol=1e-12)            # drawn frame is a rotation
+    assert_allclose(com[0], R[0] @ [0, 0, 0.05], atol=1e-12)          # centre of mass on its axis
+    path = animate(model, sol, tmp_path / "top.gif", fps=10)
+    with Image.open(path) as im:
+        assert im.n_frames == 5
+        frames = []
+        for k in (0, im.n_frames - 1):
+            im.seek(k)
+            frames.append(np.asarray(im.convert("RGB"), dtype=float))
+    assert np.abs(frames[0] - frames[1]).mean() > 0.1                  # the top moved

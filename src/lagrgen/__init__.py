@@ -7,7 +7,8 @@ from .model import Model  # noqa: E402
 from .backends import build, load  # noqa: E402
 from .runner import simulate  # noqa: E402
 from .vibration import equilibrium, frequency_response, linearize, modes  # noqa: E402
+from . import rotation  # noqa: E402
 
 __all__ = ["Model", "build", "load", "simulate", "equilibrium", "linearize", "modes",
-           "frequency_response", "LagrgenError", "ModelError", "UnknownNameError",
+           "frequency_response", "rotation", "LagrgenError", "ModelError", "UnknownNameError",
            "MassMatrixError", "BuildError", "CompileError", "__version__"]
