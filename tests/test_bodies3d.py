@@ -15,7 +15,7 @@ from scipy.integrate import solve_ivp
 
 import lagrgen
 from lagrgen import Model, rotation
-from lagrgen.bodies3d import Kinematics
+from lagrgen.bodies3d import Kinematics, rotational_kinetic_energy
 from lagrgen.errors import MassMatrixError, ModelError
 
 from conftest import state_function
@@ -401,6 +401,8 @@ def test_free_body_energy_and_angular_momentum(built):
         H.append(R(y[:3]) @ I @ wb)
         E.append(0.5 * wb @ I @ wb)
     H, E = np.array(H), np.array(E)
+    T = numeric(FREE, rotational_kinetic_energy(FREE))
+    assert_allclose([T(y[:3], y[3:]) for y in sol.y.T[:5]], E[:5], rtol=1e-13)
     assert np.ptp(E) < 1e-9 * E[0]
     assert np.ptp(np.linalg.norm(H, axis=1)) < 1e-9 * np.linalg.norm(H[0])
     assert np.abs(H - H[0]).max() < 1e-9 * np.linalg.norm(H[0])   # every fixed-frame component
@@ -568,3 +570,15 @@ def test_spinning_top_example_animates_in_3d(tmp_path):
             im.seek(k)
             frames.append(np.asarray(im.convert("RGB"), dtype=float))
     assert np.abs(frames[0] - frames[1]).mean() > 0.1                  # the top moved
+
+
+def test_pendulum3d_example_conserves_energy(built):
+    from conftest import example_model
+    model = example_model("pendulum3d")
+    mod = built(model, "c")
+    V = numeric(model, sum(model.potential_terms))
+    sol = solve_ivp(mod.rhs, (0, 2.0), [0.3, 0.8, -0.5, 0, 0.9, 0.6, 2, 0, 0, 0, 0, 0],
+                    method="DOP853", rtol=1e-11, atol=1e-11)
+    E = [0.5 * y[6:] @ mod.mass_matrix(y[:6]) @ y[6:] + V(y[:6]) for y in sol.y.T]
+    assert np.ptp(E) < 1e-8 * np.abs(E).max()
+    assert np.ptp(sol.y[4]) > 0.1

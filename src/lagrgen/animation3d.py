@@ -68,7 +68,7 @@ class Scene3D:
     """The artists of one 3-D frame, updated in place frame by frame."""
 
     def __init__(self, ax, tracks, size):
-        self.tracks, self.tick = tracks, 0.18 * size
+        self.tracks, self.tick = tracks, 0.09 * size
         self.artists = []
         for kind, _ in tracks:
             if kind == "point":
@@ -82,7 +82,7 @@ class Scene3D:
             elif kind == "damper":
                 artist, = ax.plot([], [], [], "-", color="tab:purple", linewidth=3, alpha=0.7)
             else:
-                artist, = ax.plot([], [], [], "-", color="black", linewidth=1.5)
+                artist, = ax.plot([], [], [], "-", color="black", linewidth=2)
             self.artists.append(artist)
 
     def update(self, k):

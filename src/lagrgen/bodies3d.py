@@ -171,3 +171,9 @@ def add_rotation(M, F, inertia, omega, q, qd, t, diff):
             if j <= i:
                 M[i][j] += sum(W[a][i] * IW[j][a] for a in range(3))
         F[i] -= sum(W[a][i] * h[a] for a in range(3))
+
+
+def rotational_kinetic_energy(model):
+    """Σ ½·ωᵀ·I·ω over the model's `rigid_body_3d`s (SymPy, in the model's symbols): the part of T
+    that is not in its particles and kinetic-energy terms (for energy outputs)."""
+    return sum(((w.T * I * w)[0] / 2 for I, w in model._bodies_3d), sp.Integer(0))
