@@ -119,6 +119,9 @@ def test_rotation_convention_and_closed_form_angular_velocity():
     w = np.array(closed.omega.xreplace(rates).xreplace(vals).evalf(), dtype=float).ravel()
     assert_allclose(w, [S[2, 1], S[0, 2], S[1, 0]], atol=1e-14)
     assert_allclose(S, -S.T, atol=1e-14)
+    changed = rotation.z(q[0])
+    changed[:, :] = rotation.z(2 * q[0])                # edited in place: its factors are stale
+    assert Kinematics(changed, q, t).W[2, 0] == 2
 
 
 def test_rheonomic_orientation_rotor_spun_at_constant_rate():

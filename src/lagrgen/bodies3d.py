@@ -7,6 +7,7 @@ once (it is a polynomial in the sines and cosines of the angles that collapses w
 """
 import numpy as np
 import sympy as sp
+from sympy.core.function import AppliedUndef
 
 from .errors import ModelError
 
@@ -42,6 +43,8 @@ class Kinematics:
         variables = list(plain) + [t]
         to_plain, back = dict(zip(q, plain)), dict(zip(plain, q))
         factors = getattr(R, "factors", None)
+        if factors is not None and not _is_product(R, factors):
+            factors = None              # changed in place after it was built: use the matrix
         if factors is not None:
             body, fixed = _composed(factors, to_plain, variables)
         else:
@@ -53,6 +56,24 @@ class Kinematics:
         qd = sp.Matrix([c.diff(t) for c in q])
         self.omega = self.W * qd + self.w0 if q else self.w0
         self.omega_fixed = self.W_fixed * qd + self.w0_fixed if q else self.w0_fixed
+
+
+def _is_product(R, factors):
+    """True if R is (still) the product of its recorded elementary rotations (compared at a
+    random point: products grouped differently are equal but not identical expressions)."""
+    from .rotation import elementary
+    P = sp.Matrix(elementary(*factors[0]))
+    for f in factors[1:]:
+        P = P * sp.Matrix(elementary(*f))
+    R = sp.Matrix(R)
+    symbols = sorted(R.free_symbols | P.free_symbols | R.atoms(AppliedUndef)
+                     | P.atoms(AppliedUndef), key=str)
+    values = dict(zip(symbols, np.random.default_rng(7).uniform(-1.3, 1.3, len(symbols))))
+    try:
+        diff = np.array((R - P).xreplace(values).evalf(), dtype=float)
+    except (TypeError, ValueError):
+        return False
+    return bool(np.abs(diff).max() < 1e-12)
 
 
 def _composed(factors, to_plain, variables):
