@@ -23,11 +23,12 @@ _LAZY = {
     "consistent_state": "constraints",
     "from_sympy": "sympy_interop",
     "export_fmu": "codegen.fmu",
+    "rotation": None,
 }
 
 __all__ = ["Model", "build", "load", "simulate", "Signal", "simulate_many", "EnsembleResult", "sweep",
            "equilibrium", "linearize", "modes", "frequency_response", "consistent_state",
-           "from_sympy", "export_fmu",
+           "from_sympy", "export_fmu", "rotation",
            "LagrgenError", "ConstraintError", "ModelError", "UnknownNameError", "MassMatrixError",
            "BuildError", "CompileError", "NonFiniteError", "__version__"]
 

@@ -210,6 +210,13 @@ def _add_particle(M, F, mass, position, q, qd, t):
         F[i] -= mass * sum(Jc[i] * bc for Jc, bc in zip(J, b))
 
 
+def _add_rotation(M, F, inertia, omega, q, qd, t):
+    """Add T = ½·ωᵀ·I·ω of a 3-D body, ω = W·q̇ + w₀ in body axes (I constant): M += Wᵀ·I·W,
+    F −= Wᵀ·(I·b + ω × I·ω), with b = ω̇ at q̈ = 0 (Euler's equations projected on the q̇_j)."""
+    from .bodies3d import add_rotation
+    add_rotation(M, F, inertia, omega, q, qd, t, diff)
+
+
 def _add_kinetic_energy(M, F, T, q, qd, t):
     """Add a general T: M += ∂²T/∂q̇∂q̇ᵀ, F += ∂T/∂q − (∂²T/∂q̇∂qᵀ)·q̇ − ∂²T/∂q̇∂t."""
     n = len(q)
@@ -253,6 +260,9 @@ def derive(spec):
             general_T.append(m * sum(vc * vc for vc in v) / 2)
         else:
             _add_particle(M, F, m, r, q, qd, t)
+    for inertia, omega in spec.bodies_3d:
+        _add_rotation(M, F, [[convert(e) for e in row] for row in inertia.tolist()],
+                      [convert(e) for e in omega], q, qd, t)
     if general_T:
         _add_kinetic_energy(M, F, sum(general_T), q, qd, t)
     V = sum((convert(e) for e in spec.potential), se.Integer(0))

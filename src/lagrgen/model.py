@@ -116,6 +116,8 @@ class Model:
         self._constraint_names = {}  # ("holonomic" | "velocity", index) -> the user's name
         self._stabilization = BAUMGARTE_DEFAULTS
         self._external = None      # (M, F) derived elsewhere (lagrgen.from_sympy), added as given
+        self._bodies_3d = []       # (inertia 3×3, ω body frame): T += ½·ωᵀ·I·ω (lagrgen.bodies3d)
+        self._kinematics = {}      # orientation → bodies3d.Kinematics, computed once each
         self._version = 0
 
     @property
@@ -313,6 +315,68 @@ class Model:
         self._particles.append((inertia, sp.Matrix([angle])))
         self._drawables.append(("body", (position, angle)))
         self._changed()
+
+    def rigid_body_3d(self, mass, inertia, position, orientation):
+        """Rigid body in space: T += ½·mass·ṙ·ṙ + ½·ωᵀ·I·ω, with ω the body-frame angular velocity
+        (ω̃ = Rᵀ·Ṙ) of the orientation R.
+
+        Parameters
+        ----------
+        mass : expression, the body's mass.
+        inertia : 3×3 matrix (symmetric, positive semi-definite), or 3 principal moments (list or
+            tuple), about the centre of mass in body axes; constant (parameters and numbers only).
+        position : 3 components, the centre of mass in the fixed frame (coordinates, t).
+        orientation : 3×3 rotation matrix R(q, t) mapping body-frame components to fixed-frame
+            ones, best built from `lagrgen.rotation` (``rotation.z(psi) * rotation.x(theta)``).
+        """
+        from .bodies3d import body_inertia
+        mass = self._check(mass, "rigid body mass", velocities=False, inputs=False)
+        inertia = body_inertia(self, inertia)
+        position = self._check(as_vector(position, "rigid body position"), "rigid body position",
+                               velocities=False, inputs=False, vector=True)
+        if len(position) != 3:
+            raise ModelError(f"rigid_body_3d position must have 3 components (x, y, z), got "
+                             f"{len(position)}")
+        kin = self._orientation(orientation, "rigid_body_3d orientation")
+        self._particles.append((mass, position))
+        self._bodies_3d.append((inertia, kin.omega))
+        self._drawables.append(("body3d", (position, kin.R)))
+        self._changed()
+
+    def torque_3d(self, moment, orientation):
+        """A moment acting on the body of orientation R: Q_j += moment · ∂ω_fixed/∂q̇_j.
+
+        Parameters
+        ----------
+        moment : 3 components in the fixed frame (may depend on q, q̇, t, inputs).
+        orientation : the body's 3×3 rotation matrix, as given to `rigid_body_3d`.
+        """
+        moment = self._check(as_vector(moment, "torque_3d moment"), "torque_3d moment",
+                             vector=True)
+        if len(moment) != 3:
+            raise ModelError(f"torque_3d moment must have 3 components, got {len(moment)}")
+        kin = self._orientation(orientation, "torque_3d orientation")
+        for j, coordinate in enumerate(self._coordinates):
+            arm = kin.W_fixed[:, j]
+            if any(e != 0 for e in arm):
+                self._virtual_work.append((sp.Matrix([moment.dot(arm)]),
+                                           sp.Matrix([coordinate])))
+        self._changed()
+
+    def _orientation(self, orientation, where):
+        """The checked `bodies3d.Kinematics` of a 3×3 orientation matrix (computed once each)."""
+        from .bodies3d import Kinematics, check_rotation
+        if not isinstance(orientation, sp.MatrixBase) or orientation.shape != (3, 3):
+            shape = getattr(orientation, "shape", None)
+            raise ModelError(f"{where} must be a 3×3 SymPy Matrix (e.g. from lagrgen.rotation), "
+                             f"got {type(orientation).__name__}" + (f" of shape {shape}" if shape
+                                                                    else ""))
+        self._check(orientation, where, velocities=False, inputs=False, vector=True)
+        key = (sp.ImmutableMatrix(orientation), getattr(orientation, "factors", None))
+        if key not in self._kinematics:
+            check_rotation(orientation, [*self._coordinates, self.t, *self._parameters], where)
+            self._kinematics[key] = Kinematics(orientation, self._coordinates, self.t)
+        return self._kinematics[key]
 
     def kinetic_energy(self, expr):
         """T += expr (may contain coordinates, velocities, t and parameters)."""
@@ -537,7 +601,8 @@ class Model:
                 velocity_constraints=tuple(self._velocity_constraints),
                 constraint_names=self.constraint_names,
                 stabilization=self._stabilization, events=tuple(self._events),
-                external=self._external))
+                external=self._external,
+                bodies_3d=tuple((_frozen(i), _frozen(w)) for i, w in self._bodies_3d)))
         return self._spec[1]
 
     def equations(self):
@@ -600,6 +665,7 @@ class ModelSpec:
     constraint_names: tuple = ()  # one per multiplier, holonomic first
     stabilization: tuple = (0.0, 0.0)  # Baumgarte (α, β), 1/s
     events: tuple = ()        # (name, g, terminal, direction)
+    bodies_3d: tuple = ()     # (inertia 3×3, body-frame ω): T += ½·ωᵀ·I·ω
     external: tuple = None  # (M, F) derived elsewhere (e.g. by SymPy), added to the derived ones
 
     @property
