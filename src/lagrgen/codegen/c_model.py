@@ -33,7 +33,7 @@ def legend(info):
 
 
 #: Statements per translation unit when a model's kernel parts are compiled separately.
-STATEMENTS_PER_TU = 2400
+STATEMENTS_PER_TU = 1200
 
 TU_SETUP = """
 /* The kernels' part functions may be compiled as separate translation units (lagrgen's own build
