@@ -56,19 +56,28 @@ class Equations:
         self.q, self.qd, self.a, self.p, self.u, self.t = symbols
 
     @cached_property
+    def _free(self):
+        """The free symbols of every F_i and M_ik (a derivative by anything else is 0)."""
+        return ([f.free_symbols for f in self.F],
+                {(i, k): self.M[i][k].free_symbols for i in range(self.n) for k in range(i + 1)})
+
+    def _gradient(self, f, free, variables):
+        return [diff(f, v) if v in free else se.Integer(0) for v in variables]
+
+    @cached_property
     def dF_dq(self):
         """∂F_i/∂q_j."""
-        return [[diff(f, qj) for qj in self.q] for f in self.F]
+        return [self._gradient(f, free, self.q) for f, free in zip(self.F, self._free[0])]
 
     @cached_property
     def dF_dqd(self):
         """∂F_i/∂q̇_j."""
-        return [[diff(f, qdj) for qdj in self.qd] for f in self.F]
+        return [self._gradient(f, free, self.qd) for f, free in zip(self.F, self._free[0])]
 
     @cached_property
     def dF_du(self):
         """∂F_i/∂u_k."""
-        return [[diff(f, uk) for uk in self.u] for f in self.F]
+        return [self._gradient(f, free, self.u) for f, free in zip(self.F, self._free[0])]
 
     @cached_property
     def dMa_dq(self):
@@ -82,7 +91,7 @@ class Equations:
                     continue
                 key = (max(i, k), min(i, k))
                 if key not in dM:
-                    dM[key] = [diff(self.M[i][k], qj) for qj in self.q]
+                    dM[key] = self._gradient(self.M[i][k], self._free[1][key], self.q)
                 for j, d in enumerate(dM[key]):
                     if d != 0:
                         out[i][j] += d * self.a[k]
@@ -198,9 +207,10 @@ def _numeric_part(term):
     """(number, rest) with term = number·rest."""
     if isinstance(term, se.Number):
         return term, se.Integer(1)
-    if isinstance(term, se.Mul) and isinstance(term.args[0], se.Number):
-        coeff = term.args[0]
-        return coeff, term / coeff
+    if isinstance(term, se.Mul):
+        args = term.args
+        if isinstance(args[0], se.Number):
+            return args[0], se.Mul(*args[1:])
     return se.Integer(1), term
 
 
@@ -224,6 +234,8 @@ def _factor_out(terms):
             if isinstance(exp, se.Integer) and int(exp) > 0:
                 out[base] = int(exp)
         return out
+    if len(terms) == 1:
+        return terms[0], [se.Integer(1)]
     common = powers(terms[0])
     for term in terms[1:]:
         if not common:

@@ -48,11 +48,44 @@ class Store:
 
 
 def kernel_statements(kernel):
-    """The statements of a kernel: its CSE temporaries, then every output entry."""
-    stmts = [Declare(str(sym), expr) for sym, expr in kernel.temporaries]
+    """The statements of a kernel: every output entry in order, each preceded by the CSE
+    temporaries it needs that are not defined yet (so a temporary sits next to its first use, and a
+    long kernel split into parts passes few of them between parts)."""
+    temps = {str(sym): expr for sym, expr in kernel.temporaries}
+    deps = {}
+
+    def needs(expr):
+        return [str(s) for s in expr.free_symbols if str(s) in temps]
+
+    stmts, done = [], set()
+
+    def require(names):
+        stack = [(name, False) for name in names]
+        while stack:
+            name, ready = stack.pop()
+            if name in done:
+                continue
+            if ready:
+                done.add(name)
+                stmts.append(Declare(name, temps[name]))
+                continue
+            if name not in deps:
+                deps[name] = needs(temps[name])
+            stack.append((name, True))
+            stack.extend((d, False) for d in sorted(deps[name], key=_index, reverse=True)
+                         if d not in done)
+
+    require([name for name in temps if name not in done] if not kernel.outputs else [])
     for name, exprs in kernel.outputs.items():
-        stmts.extend(Store(name, i, e) for i, e in enumerate(exprs))
-    return stmts
+        for i, e in enumerate(exprs):
+            require(sorted(needs(e), key=_index, reverse=True)[::-1])
+            stmts.append(Store(name, i, e))
+    unused = [Declare(name, expr) for name, expr in temps.items() if name not in done]
+    return unused + stmts
+
+
+def _index(name):
+    return int(name[1:])
 
 
 def _is_negative(expr):
