@@ -62,7 +62,20 @@ class Equations:
                 {(i, k): self.M[i][k].free_symbols for i in range(self.n) for k in range(i + 1)})
 
     def _gradient(self, f, free, variables):
-        return [diff(f, v) if v in free else se.Integer(0) for v in variables]
+        """[∂f/∂v for v in variables]; a sum is differentiated by v only in its terms holding v
+        (each term once per symbol it has, so a gradient costs about the size of f)."""
+        wanted = [v for v in variables if v in free]
+        if not wanted:
+            return [se.Integer(0)] * len(variables)
+        if not isinstance(f, se.Add) or len(wanted) == 1:
+            return [diff(f, v) if v in free else se.Integer(0) for v in variables]
+        by_symbol = {v: [] for v in wanted}
+        for term in f.args:
+            for v in term.free_symbols:
+                if v in by_symbol:
+                    by_symbol[v].append(term)
+        return [diff(se.Add(*by_symbol[v]), v) if v in by_symbol else se.Integer(0)
+                for v in variables]
 
     @cached_property
     def dF_dq(self):
@@ -146,7 +159,8 @@ def _add_particle(M, F, mass, position, q, qd, t):
     kinematic product end up with one product times the sum of their masses (see `_Terms.expr`).
     """
     n = len(q)
-    J = [[diff(rc, qi) for qi in q] for rc in position]
+    J = [[diff(rc, qi) if qi in free else se.Integer(0) for qi in q]
+         for rc, free in ((rc, rc.free_symbols) for rc in position)]
     v = [sum((Jc[i] * qd[i] for i in range(n) if Jc[i] != 0), diff(rc, t))
          for Jc, rc in zip(J, position)]
     b = [rate(vc, q, qd, t) for vc in v]
@@ -322,7 +336,9 @@ def _add_kinetic_energy(M, F, T, q, qd, t):
 
 def rate(expr, q, qd, t):
     """d expr/dt = Σ ∂expr/∂q_j·q̇_j + ∂expr/∂t for an expression of q and t (internal symbols)."""
-    return sum((diff(expr, qj) * qdj for qj, qdj in zip(q, qd)), diff(expr, t))
+    free = expr.free_symbols
+    return sum((diff(expr, qj) * qdj for qj, qdj in zip(q, qd) if qj in free),
+               diff(expr, t) if t in free else se.Integer(0))
 
 
 def derive(spec):
