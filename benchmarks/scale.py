@@ -110,9 +110,9 @@ def one(family, n):
         info = mod.build_info
         y = np.r_[np.full(n, 0.5) if family == "nlink" else np.full(n, 0.05), np.zeros(n)]
         p = np.asarray(mod.defaults, dtype=float)
-        repeat = 2000 if n <= 20 else 500
-        percall = {f: min(mod.time_in_c(f, 0.0, y, p, repeat=repeat) for _ in range(7))
-                   for f in ("rhs", "jacobian")}
+        repeat = 1000 if n <= 20 else 300
+        percall = {f: min(mod.time_in_c(f, 0.0, y, p, repeat=repeat) for _ in range(15))
+                   for f in ("forcing", "rhs", "linear_terms", "jacobian")}
     derive, cse, prnt = c1 - c0, c2 - c1, c4 - c3
     return {"family": family, "n": n, "ops": ops, "c_kib": len(source) / 1024,
             "units": translation_units(source), "derive": derive, "cse": cse, "print": prnt,
@@ -120,6 +120,7 @@ def one(family, n):
             "build_cpu": derive + cse + prnt + compile_cpu,
             "build_wall": derive + cse + prnt + info["compile"] + (wall_build - info["seconds"]),
             "rhs_us": percall["rhs"] * 1e6, "jacobian_us": percall["jacobian"] * 1e6,
+            "mf_us": percall["forcing"] * 1e6, "kernels_us": percall["linear_terms"] * 1e6,
             "load": os.getloadavg()[0]}
 
 
@@ -190,6 +191,44 @@ def table(rows, pydy):
     return "\n".join(lines)
 
 
+def targets(rows, pydy):
+    """The issue-11 targets against this run (nlink rows)."""
+    by_n = {r["n"]: r for r in rows if r.get("family") == "nlink" and "error" not in r}
+    fam = [r for r in by_n.values()]
+
+    def cell(n, key):
+        return by_n[n][key] if n in by_n else None
+    ratio = (pydy[("nlink", 20)]["build_cpu"] / by_n[20]["build_cpu"]
+             if ("nlink", 20) in pydy and 20 in by_n else None)
+    checks = [
+        ("cold build n=20 (CPU s)", cell(20, "build_cpu"), 3.0),
+        ("cold build n=40 (CPU s)", cell(40, "build_cpu"), 15.0),
+        ("PyDy cold build / ours, n=20", ratio, -2.5),
+        ("rhs in C n=20 (µs)", cell(20, "rhs_us"), 2.4),
+        ("rhs in C n=40 (µs)", cell(40, "rhs_us"), 10.0),
+        ("jacobian in C n=20 (µs)", cell(20, "jacobian_us"), 10.0),
+        ("growth exponent of the cold build CPU, n=10…40", exponent(fam, "build_cpu"), 2.2),
+        ("growth exponent of the cold build wall, n=10…40", exponent(fam, "build_wall"), 2.2),
+    ]
+    lines = ["| target (nlink) | measured | bound | met |", "|---|---|---|---|"]
+    for label, value, bound in checks:
+        if value is None:
+            lines.append(f"| {label} | — | {abs(bound)} | — |")
+            continue
+        met = value >= -bound if bound < 0 else value <= bound
+        lines.append(f"| {label} | {value:.2f} | {'≥' if bound < 0 else '≤'} {abs(bound)} | "
+                     f"{'yes' if met else 'no'} |")
+    lines += ["", "Where the per-call time goes (nlink, µs, best of 15): `forcing` runs the M,F "
+              "kernel alone, `linear_terms` the M,F and Jacobian kernels (no solves); the rest of "
+              "rhs and jacobian is the dense Cholesky factorization and solves (with 2n right-hand "
+              "sides for the Jacobian) and copying the (2n)² output.", "",
+              "| n | M,F kernel | + Jacobian kernel | rhs | jacobian |", "|---|---|---|---|---|"]
+    for n, r in sorted(by_n.items()):
+        lines.append(f"| {n} | {r['mf_us']:.2f} | {r['kernels_us']:.2f} | {r['rhs_us']:.2f} | "
+                     f"{r['jacobian_us']:.2f} |")
+    return "\n".join(lines)
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--n", type=int, nargs="+", default=[2, 10, 20, 30, 40])
@@ -218,8 +257,9 @@ def main(argv=None):
                 pydy["nlink", n] = r
     text = (f"# Scaling of lagrgen's build and generated code (issue 11)\n\n"
             f"{time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}, {os.cpu_count()} cores, CPU "
-            f"seconds unless marked wall; per-call times are the best of 7 loops inside C; load "
-            f"= 1-minute load average when the row finished.\n\n" + table(rows, pydy) + "\n")
+            f"seconds unless marked wall; per-call times are the best of 15 loops inside C; load "
+            f"= 1-minute load average when the row finished.\n\n" + table(rows, pydy) + "\n\n"
+            + targets(rows, pydy) + "\n")
     print(text)
     Path(args.out).parent.mkdir(parents=True, exist_ok=True)
     Path(args.out + ".md").write_text(text)
