@@ -193,6 +193,52 @@ def compile_module(source_path, output_path, flags):
             f"command: {' '.join(shlex.quote(c) for c in cmd)}")
 
 
+def _run_compiler(cmd, source_path):
+    try:
+        result = subprocess.run(cmd, capture_output=True, text=True)
+    except FileNotFoundError:
+        raise BuildError(
+            f"no C compiler found (tried {cmd[0]!r}): install one (e.g. `apt-get install gcc`), "
+            "set $CC, or use lagrgen.build(model, backend='python')") from None
+    if result.returncode != 0:
+        message = "\n".join((result.stderr or result.stdout).strip().splitlines()[:60])
+        raise CompileError(
+            f"the C compiler failed on {source_path.name} (exit {result.returncode}):\n{message}\n"
+            f"command: {' '.join(shlex.quote(c) for c in cmd)}")
+
+
+def compile_jobs():
+    """How many compiler processes run at once: the cores this process may use."""
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except (AttributeError, OSError):
+        return max(1, os.cpu_count() or 1)
+
+
+def compile_units(sources, output_path, flags, unit_flags=None):
+    """Compile the translation units `sources` (paths; the first is the module glue) to objects in
+    parallel (`compile_jobs()` at once) and link them into the extension module `output_path`.
+    `unit_flags(path)` may return the flags of one unit (default: `flags`)."""
+    from concurrent.futures import ThreadPoolExecutor
+    include = sysconfig.get_paths()["include"]
+    templates = str(PACKAGE / "codegen" / "templates")
+
+    def compile_one(source):
+        own = unit_flags(source) if unit_flags else flags
+        obj = source.with_suffix(".o")
+        _run_compiler([*compiler_command(), "-c", *own, "-I", include, "-I", templates,
+                       str(source), "-o", str(obj)], source)
+        return obj
+
+    # longest first, so the last job to start is a short one
+    order = sorted(sources, key=lambda path: -path.stat().st_size)
+    with ThreadPoolExecutor(max_workers=min(compile_jobs(), len(order))) as pool:
+        objects = dict(zip(order, pool.map(compile_one, order)))
+    _run_compiler([*compiler_command(), "-shared", *flags,
+                   *(str(objects[path]) for path in sources), "-o", str(output_path)],
+                  output_path)
+
+
 def build_key(info, flags):
     """The cache key: the equations' digest, the compiler, its flags and the module suffix."""
     h = hashlib.sha256(info["content_hash"].encode())
@@ -364,13 +410,16 @@ def _import_or_rebuild(info, equations, entry, flags, progress):
 
 def _compile_entry(info, equations, entry, flags, progress):
     """Generate the model's C in a private directory, compile it, and rename it to `entry`."""
-    from .codegen.c_model import module_source, standalone_files
+    from .codegen.c_model import (module_source, standalone_files, translation_units,
+                                  unit_sources)
     name = info["name"]
     progress.note("deriving the equations of motion ...")
     equations.differentiate()
     progress.step("derive", f"{equations.n} coordinates")
     files = standalone_files(info, equations)
-    files[f"{name}_module.c"] = module_source(info, equations.n)
+    units = translation_units(files[f"{name}_model.c"])
+    files[f"{name}_module.c"] = module_source(info, equations.n, units)
+    files.update(unit_sources(name, units))
     size = sum(len(text) for text in files.values())
     progress.step("cse+emit", f"{size / 1024:.0f} KiB of C")
     progress.note(f"compiling {size / 1024:.0f} KiB of C ({' '.join(flags)}) ...")
@@ -379,7 +428,13 @@ def _compile_entry(info, equations, entry, flags, progress):
         for file_name, text in files.items():
             (work / file_name).write_text(text)
         lib = module_path(work, name)
-        compile_module(work / f"{name}_module.c", lib, flags)
+        if units:
+            compile_units([work / f"{name}_module.c", *(work / f for f in unit_sources(name, units))],
+                          lib, flags)
+        else:
+            compile_module(work / f"{name}_module.c", lib, flags)
+        for obj in work.glob("*.o"):
+            obj.unlink()
         progress.step("compile", f"{' '.join(flags)}, {lib.stat().st_size / 1024:.0f} KiB module")
         write_atomic(work / "module.sha256", (file_digest(lib) + "\n").encode())
         for path in work.iterdir():

@@ -85,8 +85,41 @@ KERNELS = (
 _computed = weakref.WeakKeyDictionary()
 
 
+def _signed(expr, memo):
+    """`expr` with every sum inside it written as ±S where S is the one of S, −S whose term with the
+    smallest hash has a positive coefficient (the same value), so that CSE sees X and −X as one."""
+    hit = memo.get(expr)
+    if hit is not None:
+        return hit
+    if not expr.args or isinstance(expr, se.Number):
+        out = expr
+    elif isinstance(expr, se.Add):
+        args = [_signed(a, memo) for a in expr.args]
+        lead = min(args, key=lambda a: hash(_strip_number(a)))
+        lead_negative = isinstance(lead, se.Number) and lead.is_negative or (
+            isinstance(lead, se.Mul) and isinstance(lead.args[0], se.Number)
+            and lead.args[0].is_negative)
+        out = -se.Add(*(-a for a in args)) if lead_negative else se.Add(*args)
+    else:
+        args = [_signed(a, memo) for a in expr.args]
+        out = expr.func(*args) if any(a is not b for a, b in zip(args, expr.args)) else expr
+    memo[expr] = out
+    return out
+
+
+def _strip_number(term):
+    if isinstance(term, se.Number):
+        return se.Integer(1)
+    if isinstance(term, se.Mul) and isinstance(term.args[0], se.Number):
+        return se.Mul(*term.args[1:])
+    return term
+
+
 def cse_kernel(spec, outputs):
-    """The kernel `spec` computing `outputs` ({name: [expr]}) after one CSE over all of them."""
+    """The kernel `spec` computing `outputs` ({name: [expr]}) after one CSE over all of them (sums
+    first brought to one sign, see `_signed`)."""
+    memo = {}
+    outputs = {key: [_signed(e, memo) for e in exprs] for key, exprs in outputs.items()}
     everything = [e for exprs in outputs.values() for e in exprs]
     replacements, reduced = se.cse(everything) if everything else ([], [])
     result, pos = {}, 0

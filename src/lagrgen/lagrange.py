@@ -120,19 +120,41 @@ class Equations:
         return out
 
     @cached_property
+    def _free(self):
+        """The free symbols of every F_i and M_ik (a derivative by anything else is 0)."""
+        return ([f.free_symbols for f in self.F],
+                {(i, k): self.M[i][k].free_symbols for i in range(self.n) for k in range(i + 1)})
+
+    def _gradient(self, f, free, variables):
+        """[∂f/∂v for v in variables]; a sum is differentiated by v only in its terms holding v
+        (each term once per symbol it has, so a gradient costs about the size of f)."""
+        wanted = [v for v in variables if v in free]
+        if not wanted:
+            return [se.Integer(0)] * len(variables)
+        if not isinstance(f, se.Add) or len(wanted) == 1:
+            return [diff(f, v) if v in free else se.Integer(0) for v in variables]
+        by_symbol = {v: [] for v in wanted}
+        for term in f.args:
+            for v in term.free_symbols:
+                if v in by_symbol:
+                    by_symbol[v].append(term)
+        return [diff(se.Add(*by_symbol[v]), v) if v in by_symbol else se.Integer(0)
+                for v in variables]
+
+    @cached_property
     def dF_dq(self):
         """∂F_i/∂q_j."""
-        return [[diff(f, qj) for qj in self.q] for f in self.F]
+        return [self._gradient(f, free, self.q) for f, free in zip(self.F, self._free[0])]
 
     @cached_property
     def dF_dqd(self):
         """∂F_i/∂q̇_j."""
-        return [[diff(f, qdj) for qdj in self.qd] for f in self.F]
+        return [self._gradient(f, free, self.qd) for f, free in zip(self.F, self._free[0])]
 
     @cached_property
     def dF_du(self):
         """∂F_i/∂u_k."""
-        return [[diff(f, uk) for uk in self.u] for f in self.F]
+        return [self._gradient(f, free, self.u) for f, free in zip(self.F, self._free[0])]
 
     @cached_property
     def dMa_dq(self):
@@ -146,7 +168,7 @@ class Equations:
                     continue
                 key = (max(i, k), min(i, k))
                 if key not in dM:
-                    dM[key] = [diff(self.M[i][k], qj) for qj in self.q]
+                    dM[key] = self._gradient(self.M[i][k], self._free[1][key], self.q)
                 for j, d in enumerate(dM[key]):
                     if d != 0:
                         out[i][j] += d * self.a[k]
@@ -196,9 +218,15 @@ class _Converter:
 
 
 def _add_particle(M, F, mass, position, q, qd, t):
-    """Add a point mass: M += m·JᵀJ, F −= m·Jᵀ·b, with J = ∂r/∂q and b = r̈ at q̈ = 0."""
+    """Add a point mass: M += m·JᵀJ, F −= m·Jᵀ·b, with J = ∂r/∂q and b = r̈ at q̈ = 0.
+
+    The kinematic products (Σ_c J_ci·J_cj, Σ_c J_ci·b_c) are expanded and added term by term into
+    the `_Terms` accumulators M[i][j], F[i] with the mass as their weight, so that bodies sharing a
+    kinematic product end up with one product times the sum of their masses (see `_Terms.expr`).
+    """
     n = len(q)
-    J = [[diff(rc, qi) for qi in q] for rc in position]
+    J = [[diff(rc, qi) if qi in free else se.Integer(0) for qi in q]
+         for rc, free in ((rc, rc.free_symbols) for rc in position)]
     v = [sum((Jc[i] * qd[i] for i in range(n) if Jc[i] != 0), diff(rc, t))
          for Jc, rc in zip(J, position)]
     b = [rate(vc, q, qd, t) for vc in v]
@@ -206,8 +234,159 @@ def _add_particle(M, F, mass, position, q, qd, t):
     for i in active:
         for j in active:
             if j <= i:
-                M[i][j] += mass * sum(Jc[i] * Jc[j] for Jc in J)
-        F[i] -= mass * sum(Jc[i] * bc for Jc, bc in zip(J, b))
+                M[i][j].add(sum(Jc[i] * Jc[j] for Jc in J), mass)
+        F[i].add(sum(Jc[i] * bc for Jc, bc in zip(J, b)), -mass)
+
+
+class _Terms:
+    """A sum Σ weight·expr kept as expanded terms, collected by structure when it is read.
+
+    `expr()` returns the same sum regrouped: terms are split into a kinematic part (the factors
+    that depend on q, q̇, a, t or u) and a parameter part; parameter parts of equal kinematic parts
+    are added (Σ m_k once per product), kinematic parts with equal parameter sums are added next
+    (sin²x·X + cos²x·X = X applied there), and common factors are taken out of both sums.
+    """
+
+    def __init__(self, kinematic):
+        self.kinematic = kinematic
+        self.terms = {}      # term without its numeric factor -> coefficient (number or expr)
+        self.plain = []      # the weighted expressions as added, for comparison
+
+    def add(self, expr, weight=1):
+        self.plain.append(expr * weight)
+        expr = se.expand(expr)
+        if expr == 0:
+            return
+        for term in (expr.args if isinstance(expr, se.Add) else (expr,)):
+            coeff, rest = _numeric_part(term)
+            key = rest
+            self.terms[key] = self.terms.get(key, 0) + coeff * weight
+
+    def __iadd__(self, expr):
+        self.add(expr)
+        return self
+
+    def __isub__(self, expr):
+        self.add(expr, -1)
+        return self
+
+    def __eq__(self, other):
+        return self.expr() == other
+
+    def __ne__(self, other):
+        return not self.__eq__(other)
+
+    def expr(self):
+        """The sum, regrouped; the plain sum instead if regrouping made it longer."""
+        structured = _structured(self.terms, self.kinematic)
+        plain = se.Add(*self.plain)
+        return structured if se.count_ops(structured) <= se.count_ops(plain) else plain
+
+
+def _numeric_part(term):
+    """(number, rest) with term = number·rest."""
+    if isinstance(term, se.Number):
+        return term, se.Integer(1)
+    if isinstance(term, se.Mul):
+        args = term.args
+        if isinstance(args[0], se.Number):
+            return args[0], se.Mul(*args[1:])
+    return se.Integer(1), term
+
+
+def _split_kinematic(term, kinematic):
+    """(kinematic part, parameter part) of a product."""
+    kin, par = [], []
+    for f in (term.args if isinstance(term, se.Mul) else (term,)):
+        (kin if f.free_symbols & kinematic else par).append(f)
+    return se.Mul(*kin), se.Mul(*par)
+
+
+def _factor_out(terms):
+    """(common, [term / common]) for a list of products: the factors every term shares, each at its
+    lowest (positive integer) power."""
+    def powers(term):
+        out = {}
+        for f in (term.args if isinstance(term, se.Mul) else (term,)):
+            if isinstance(f, se.Number):
+                continue
+            base, exp = (f.args[0], f.args[1]) if isinstance(f, se.Pow) else (f, se.Integer(1))
+            if isinstance(exp, se.Integer) and int(exp) > 0:
+                out[base] = int(exp)
+        return out
+    if len(terms) == 1:
+        return terms[0], [se.Integer(1)]
+    common = powers(terms[0])
+    for term in terms[1:]:
+        if not common:
+            break
+        p = powers(term)
+        common = {b: min(e, p[b]) for b, e in common.items() if b in p}
+    if not common:
+        return se.Integer(1), terms
+    factor = se.Mul(*(b ** e for b, e in common.items()))
+    return factor, [t / factor for t in terms]
+
+
+def _pythagoras(kinsum):
+    """{term: coeff} with every c·X·sin²x + c·X·cos²x replaced by c·X."""
+    changed = True
+    while changed:
+        changed = False
+        for term in list(kinsum):
+            if term not in kinsum:
+                continue
+            for f in (term.args if isinstance(term, se.Mul) else (term,)):
+                if isinstance(f, se.Pow) and f.args[1] == 2 and isinstance(f.args[0], se.sin):
+                    x = f.args[0].args[0]
+                    partner = term / f * se.cos(x) ** 2
+                    if partner in kinsum and kinsum[partner] == kinsum[term]:
+                        c = kinsum.pop(term)
+                        kinsum.pop(partner)
+                        rest = term / f
+                        kinsum[rest] = kinsum.get(rest, 0) + c
+                        if kinsum[rest] == 0:
+                            del kinsum[rest]
+                        changed = True
+                        break
+    return kinsum
+
+
+def _add_terms(coeffs):
+    """Σ coeff·term of a {term: coeff} dict."""
+    return se.Add(*(c * t for t, c in coeffs.items()))
+
+
+def _structured(terms, kinematic):
+    """Σ coeff·term of `terms` ({term: coeff}), regrouped (see `_Terms`)."""
+    by_kin = {}
+    for term, coeff in terms.items():
+        if coeff == 0:
+            continue
+        kin, par = _split_kinematic(term, kinematic)
+        by_kin.setdefault(kin, []).append(coeff * par)
+    by_par = {}
+    for kin, pars in by_kin.items():
+        psum = se.expand(se.Add(*pars))
+        if psum == 0:
+            continue
+        c, rest = _numeric_part(psum)
+        if isinstance(psum, se.Add):
+            numeric = [_numeric_part(a) for a in psum.args]
+            c = numeric[0][0]
+            common, rests = _factor_out([r for _, r in numeric])
+            rest = common * se.Add(*(cc / c * r for (cc, _), r in zip(numeric, rests)))
+        kinsum = by_par.setdefault(rest, {})
+        kinsum[kin] = kinsum.get(kin, 0) + c
+    out = []
+    for par, kinsum in by_par.items():
+        kinsum = _pythagoras({k: v for k, v in kinsum.items() if v != 0})
+        if not kinsum:
+            continue
+        items = list(kinsum.items())
+        common, rests = _factor_out([k for k, _ in items])
+        out.append(par * common * se.Add(*(c * r for (_, c), r in zip(items, rests))))
+    return se.Add(*out)
 
 
 def _add_rotation(M, F, inertia, omega, q, qd, t):
@@ -230,7 +409,9 @@ def _add_kinetic_energy(M, F, T, q, qd, t):
 
 def rate(expr, q, qd, t):
     """d expr/dt = Σ ∂expr/∂q_j·q̇_j + ∂expr/∂t for an expression of q and t (internal symbols)."""
-    return sum((diff(expr, qj) * qdj for qj, qdj in zip(q, qd)), diff(expr, t))
+    free = expr.free_symbols
+    return sum((diff(expr, qj) * qdj for qj, qdj in zip(q, qd) if qj in free),
+               diff(expr, t) if t in free else se.Integer(0))
 
 
 def derive(spec):
@@ -246,10 +427,9 @@ def derive(spec):
                internal_symbols("u", len(spec.inputs)), se.Symbol("t"))
     q, qd, _, _, _, t = symbols
     convert = _Converter(spec)
-    M = [[se.Integer(0)] * n for _ in range(n)]
-    F = [se.Integer(0)] * n
-    if spec.external is not None:
-        M, F = _external_equations(spec, convert, q)
+    kinematic = set(q) | set(qd) | set(symbols[4]) | {t}
+    M = [[_Terms(kinematic) for _ in range(n)] for _ in range(n)]
+    F = [_Terms(kinematic) for _ in range(n)]
 
     general_T = [convert(e) for e in spec.kinetic]
     for mass, position in spec.particles:
@@ -277,6 +457,13 @@ def derive(spec):
         for i in range(n):
             F[i] += sum(fc * diff(rc, q[i]) for fc, rc in zip(f, r))
 
+    M = [[M[i][j].expr() if j <= i else None for j in range(n)] for i in range(n)]
+    F = [f.expr() for f in F]
+    if spec.external is not None:
+        M_external, F_external = _external_equations(spec, convert, q)
+        M = [[M[i][j] + M_external[i][j] if j <= i else None for j in range(n)]
+             for i in range(n)]
+        F = [f + g for f, g in zip(F, F_external)]
     for i in range(n):
         for j in range(i + 1, n):
             M[i][j] = M[j][i]

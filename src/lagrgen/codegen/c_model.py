@@ -32,19 +32,60 @@ def legend(info):
     return "\n".join(lines)
 
 
-def kernel_functions(equations, max_statements=400):
-    """The C functions lg_<kernel> of every registered kernel (split into parts when long)."""
+#: Statements per translation unit when a model's kernel parts are compiled separately.
+STATEMENTS_PER_TU = 1200
+
+TU_SETUP = """
+/* The kernels' part functions may be compiled as separate translation units (lagrgen's own build
+ * does, to use every core): define LG_TU to k to compile only unit k (0: everything else). Compiled
+ * as it is, this file is one plain translation unit. */
+#ifndef LG_TU
+#  define LG_IN_TU(k) 1
+#  define LG_PART_FN static
+#else
+#  define LG_IN_TU(k) ((k) == LG_TU)
+#  define LG_PART_FN __attribute__((visibility("hidden")))
+#endif
+"""
+
+
+def kernel_functions(equations, max_statements=400, units=None):
+    """The C functions lg_<kernel> of every registered kernel (split into parts when long).
+
+    When the kernels have more than one part, the parts are assigned to translation units 1, 2, ...
+    of about STATEMENTS_PER_TU statements each (see TU_SETUP); `units`, a list, receives the number
+    of those units (0 when nothing was split)."""
     chunks = []
     arguments = ", ".join(KERNEL_ARGUMENTS)
     prologue = "    " + " ".join(f"(void){a};" for a in KERNEL_ARGUMENTS) + "\n"
-    for kernel in all_kernels(equations):
+    kernels = [(k, kernel_statements(k)) for k in all_kernels(equations)]
+    split = any(len(stmts) > max_statements for _, stmts in kernels)
+    per_tu = max(1, STATEMENTS_PER_TU // max_statements)
+    counter = [0]
+
+    def tu_of_part(_k):
+        counter[0] += 1
+        return 1 + (counter[0] - 1) // per_tu
+
+    for kernel, stmts in kernels:
         outputs = [o.name for o in kernel.spec.outputs]
         params = ("double t, " + ", ".join(f"const double *{a}" for a in KERNEL_ARGUMENTS[1:])
                   + "".join(f", double *{o}" for o in outputs))
         args = arguments + "".join(f", {o}" for o in outputs)
-        chunks.append(c_function(f"lg_{kernel.name}", params, args, kernel_statements(kernel),
-                                 kernel.spec.formula + ".", max_statements, prologue))
+        text = c_function(f"lg_{kernel.name}", params, args, stmts, kernel.spec.formula + ".",
+                          max_statements, prologue, tu_of_part if split else None)
+        if split and len(stmts) <= max_statements:
+            text = f"#if LG_IN_TU(0)\n{text}#endif\n"
+        chunks.append(text)
+    if units is not None:
+        units.append(1 + (counter[0] - 1) // per_tu if counter[0] else 0)
     return "\n".join(chunks)
+
+
+def translation_units(model_c):
+    """The number of separately compilable part units in a `<name>_model.c` text (0: none)."""
+    import re
+    return max((int(k) for k in re.findall(r"^#if LG_IN_TU\((\d+)\)$", model_c, re.M)), default=0)
 
 
 def model_functions(name):
@@ -94,9 +135,13 @@ def model_header(info, n):
 def model_source(info, equations, max_statements=400):
     """`<name>_model.c`: kernels, linear algebra, model functions and metadata in plain C."""
     defaults = info["defaults"] or [0.0]
+    units = []
+    kernels = kernel_functions(equations, max_statements, units)
+    split = units[0] > 0
     return Template(read_template("model.c.in")).substitute(
         substitutions(info, equations.n), linalg=read_template("linalg.c.in"),
-        kernels=kernel_functions(equations, max_statements),
+        kernels=kernels, tu_setup=TU_SETUP if split else "",
+        tu0_begin="#if LG_IN_TU(0)\n" if split else "", tu0_end="\n#endif" if split else "",
         constraint_solver=read_template("constraints.c.in"),
         functions=model_functions(info["name"]),
         coordinate_names=_names(info["coordinates"]),
@@ -105,10 +150,22 @@ def model_source(info, equations, max_statements=400):
         metadata=c_string(json.dumps(info, sort_keys=True)))
 
 
-def module_source(info, n):
-    """`<name>_module.c`: the Python extension glue that includes `<name>_model.c`."""
+def module_source(info, n, units=0):
+    """`<name>_module.c`: the Python extension glue that includes `<name>_model.c` (as unit 0 of
+    a model whose kernel parts are compiled as `units` separate units, see `unit_sources`)."""
     table = ",\n".join(f'    {{"{f.name}", {info["name"]}_{f.name}}}' for f in FUNCTIONS)
-    return Template(read_template("module.c.in")).substitute(substitutions(info, n), table=table)
+    text = Template(read_template("module.c.in")).substitute(substitutions(info, n), table=table)
+    if units:
+        include = f'#include "{info["name"]}_model.c"'
+        text = text.replace(include, "#define LG_TU 0\n" + include, 1)
+    return text
+
+
+def unit_sources(name, units):
+    """{file name: text} of the part units 1 … `units` of `<name>_model.c` (internal to the build
+    of the Python module: each compiles one group of kernel parts)."""
+    return {f"{name}_unit{k}.c": f'/* Unit {k} of {name}_model.c (lagrgen build file). */\n'
+            f'#define LG_TU {k}\n#include "{name}_model.c"\n' for k in range(1, units + 1)}
 
 
 def standalone_files(info, equations):

@@ -48,11 +48,44 @@ class Store:
 
 
 def kernel_statements(kernel):
-    """The statements of a kernel: its CSE temporaries, then every output entry."""
-    stmts = [Declare(str(sym), expr) for sym, expr in kernel.temporaries]
+    """The statements of a kernel: every output entry in order, each preceded by the CSE
+    temporaries it needs that are not defined yet (so a temporary sits next to its first use, and a
+    long kernel split into parts passes few of them between parts)."""
+    temps = {str(sym): expr for sym, expr in kernel.temporaries}
+    deps = {}
+
+    def needs(expr):
+        return [str(s) for s in expr.free_symbols if str(s) in temps]
+
+    stmts, done = [], set()
+
+    def require(names):
+        stack = [(name, False) for name in names]
+        while stack:
+            name, ready = stack.pop()
+            if name in done:
+                continue
+            if ready:
+                done.add(name)
+                stmts.append(Declare(name, temps[name]))
+                continue
+            if name not in deps:
+                deps[name] = needs(temps[name])
+            stack.append((name, True))
+            stack.extend((d, False) for d in sorted(deps[name], key=_index, reverse=True)
+                         if d not in done)
+
+    require([name for name in temps if name not in done] if not kernel.outputs else [])
     for name, exprs in kernel.outputs.items():
-        stmts.extend(Store(name, i, e) for i, e in enumerate(exprs))
-    return stmts
+        for i, e in enumerate(exprs):
+            require(sorted(needs(e), key=_index, reverse=True)[::-1])
+            stmts.append(Store(name, i, e))
+    unused = [Declare(name, expr) for name, expr in temps.items() if name not in done]
+    return unused + stmts
+
+
+def _index(name):
+    return int(name[1:])
 
 
 def _is_negative(expr):
@@ -220,12 +253,16 @@ def _symbol_names(stmt):
     return {str(s) for s in stmt.expr.free_symbols}
 
 
-def c_function(name, params, args, statements, comment, max_statements=400, prologue=""):
+def c_function(name, params, args, statements, comment, max_statements=400, prologue="",
+               tu_of_part=None):
     """C source of `static void name(params)` running `statements`.
 
     A body longer than `max_statements` is split into parts `name_partK(params, w)` so the compiler
     never sees one huge function; a temporary used by a later part passes through the workspace w.
     `prologue` starts every function body (e.g. `(void)t;` for arguments a kernel may not use).
+    With `tu_of_part` (part index -> translation unit number ≥ 1), each part is wrapped in
+    `#if LG_IN_TU(k)` and the calling function in `#if LG_IN_TU(0)`, so that a build may compile
+    the parts as separate translation units (see model.c.in); compiled as one file, nothing changes.
     """
     printer = CPrinter()
     head = f"/* {comment} */\nLG_FN static void {name}({params})\n{{\n{prologue}"
@@ -238,14 +275,23 @@ def c_function(name, params, args, statements, comment, max_statements=400, prol
                for k, chunk in enumerate(chunks)]
     slot = {v: i for i, v in enumerate(sorted({v for imp in imports for v in imp},
                                               key=lambda v: int(v[1:])))}
+    linkage = "LG_PART_FN" if tu_of_part else "static"
     parts = []
+    if tu_of_part:
+        parts.append("".join(f"LG_FN LG_PART_FN void {name}_part{k}({params}, double *w);\n"
+                             for k in range(len(chunks))))
     for k, chunk in enumerate(chunks):
         lines = [f"    const double {v} = w[{slot[v]}];" for v in imports[k]]
         lines.append(print_statements(printer, chunk))
         lines += [f"    w[{slot[s.name]}] = {s.name};" for s in chunk
                   if isinstance(s, Declare) and s.name in slot]
-        parts.append(f"LG_FN static void {name}_part{k}({params}, double *w)\n{{\n{prologue}"
-                     + "\n".join(lines) + "\n}\n")
+        text = (f"LG_FN {linkage} void {name}_part{k}({params}, double *w)\n{{\n{prologue}"
+                + "\n".join(lines) + "\n}\n")
+        if tu_of_part:
+            text = f"#if LG_IN_TU({tu_of_part(k)})\n{text}#endif\n"
+        parts.append(text)
     calls = "\n".join(f"    {name}_part{k}({args}, w);" for k in range(len(chunks)))
-    return ("\n".join(parts) + "\n" + head + f"    double w[{max(len(slot), 1)}];\n" + calls
-            + "\n}\n")
+    main = head + f"    double w[{max(len(slot), 1)}];\n" + calls + "\n}\n"
+    if tu_of_part:
+        main = f"#if LG_IN_TU(0)\n{main}#endif\n"
+    return "\n".join(parts) + "\n" + main

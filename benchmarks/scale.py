@@ -1,0 +1,271 @@
+"""How lagrgen's generated code and build grow with the model (issue 11).
+
+Two model families, each size in a fresh process (nothing cached in memory, a fresh out_dir):
+    nlink    the planar n-link pendulum of examples/nlink_pendulum.py (a chain), n = 2 10 20 30 40
+    lattice  a planar mass–spring lattice (rows × cols point masses, each with x and y, nonlinear
+             springs to the right and lower neighbours and to a wall, gravity): n = 2·rows·cols
+For each: operation count per kernel (in the printed C: + − * / and libm / helper calls), C size,
+the build split in CPU seconds (derive, CSE, print, compile = the compiler processes' CPU) and the
+compile wall time (parallel units), rhs and jacobian per call looped inside C (best of 7), growth
+exponents fitted over n = 10 … 40, and PyDy's cold build (KanesMethod + Cython, no Jacobian) for the
+chain when pydy and Cython are installed.
+
+    python benchmarks/scale.py                    # everything, writes benchmarks/results/scale.{md,json}
+    python benchmarks/scale.py --n 2 10 --no-pydy # a quick look
+"""
+import argparse
+import json
+import math
+import os
+import re
+import resource
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent
+ROOT = HERE.parent
+OP = re.compile(r"(?<![eE])[-+*/](?![=>])")
+CALL = re.compile(r"\b(sin|cos|tan|exp|log|sqrt|pow|fabs|lg_sq|lg_cube|lg_sign|atan2)\(")
+LATTICE = {2: (1, 1), 10: (1, 5), 20: (2, 5), 30: (3, 5), 40: (4, 5)}
+
+
+def nlink(n):
+    sys.path.insert(0, str(ROOT / "examples"))
+    from nlink_pendulum import make
+    return make(n, name=f"nlink{n}")
+
+
+def lattice(n):
+    """rows × cols masses on springs (n = 2·rows·cols coordinates)."""
+    import sympy as sp
+    from lagrgen import Model
+    rows, cols = LATTICE[n]
+    model = Model(f"lattice{n}")
+    k, L, g = model.parameters(k=50.0, L=1.0, g=9.81)
+    masses = model.parameters(**{f"m{i}": 1.0 + 0.1 * i for i in range(rows * cols)})
+    pos = {}
+    for r in range(rows):
+        for c in range(cols):
+            x, y = model.coordinates([f"x{r}_{c}", f"y{r}_{c}"])
+            pos[r, c] = sp.Matrix([c * L + x, -r * L + y])
+            model.particle(masses[r * cols + c], pos[r, c])
+            model.potential_energy(masses[r * cols + c] * g * pos[r, c][1])
+
+    def spring(a, b):
+        d = a - b
+        model.potential_energy(k * (sp.sqrt(d[0] ** 2 + d[1] ** 2) - L) ** 2 / 2)
+
+    for (r, c), p in pos.items():
+        if (r, c + 1) in pos:
+            spring(p, pos[r, c + 1])
+        if (r + 1, c) in pos:
+            spring(p, pos[r + 1, c])
+        if c == 0:
+            spring(p, sp.Matrix([-L, -r * L]))
+        if r == 0:
+            spring(p, sp.Matrix([c * L, L]))
+    return model
+
+
+FAMILIES = {"nlink": nlink, "lattice": lattice}
+
+
+def children_cpu():
+    r = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return r.ru_utime + r.ru_stime
+
+
+def op_count(text):
+    return len(OP.findall(text)) + len(CALL.findall(text))
+
+
+def one(family, n):
+    """Measure one (family, n) in this process; return a dict."""
+    import numpy as np
+    import lagrgen
+    from lagrgen.build import model_info
+    from lagrgen.codegen.c_model import model_source, translation_units
+    from lagrgen.codegen.printer import CPrinter, kernel_statements, print_statements
+    from lagrgen.kernels import all_kernels
+
+    model = FAMILIES[family](n)
+    c0 = time.process_time()
+    eq = model.equations()
+    eq.differentiate()
+    c1 = time.process_time()
+    kernels = all_kernels(eq)
+    c2 = time.process_time()
+    ops = {k.name: op_count(print_statements(CPrinter(), kernel_statements(k))) for k in kernels}
+    c3 = time.process_time()
+    source = model_source(model_info(model.spec(), eq), eq)
+    c4 = time.process_time()
+    with tempfile.TemporaryDirectory() as out:
+        ch0, w0 = children_cpu(), time.perf_counter()
+        mod = lagrgen.build(model, out_dir=out, force=True, quiet=True)
+        wall_build = time.perf_counter() - w0
+        compile_cpu = children_cpu() - ch0
+        info = mod.build_info
+        y = np.r_[np.full(n, 0.5) if family == "nlink" else np.full(n, 0.05), np.zeros(n)]
+        p = np.asarray(mod.defaults, dtype=float)
+        repeat = 1000 if n <= 20 else 300
+        percall = {f: min(mod.time_in_c(f, 0.0, y, p, repeat=repeat) for _ in range(15))
+                   for f in ("forcing", "rhs", "linear_terms", "jacobian")}
+    derive, cse, prnt = c1 - c0, c2 - c1, c4 - c3
+    return {"family": family, "n": n, "ops": ops, "c_kib": len(source) / 1024,
+            "units": translation_units(source), "derive": derive, "cse": cse, "print": prnt,
+            "compile_cpu": compile_cpu, "compile_wall": info["compile"],
+            "build_cpu": derive + cse + prnt + compile_cpu,
+            "build_wall": derive + cse + prnt + info["compile"] + (wall_build - info["seconds"]),
+            "rhs_us": percall["rhs"] * 1e6, "jacobian_us": percall["jacobian"] * 1e6,
+            "mf_us": percall["forcing"] * 1e6, "kernels_us": percall["linear_terms"] * 1e6,
+            "load": os.getloadavg()[0]}
+
+
+def pydy_one(n):
+    """PyDy's cold build of the n-link pendulum (KanesMethod + Cython), CPU seconds."""
+    sys.path.insert(0, str(HERE))
+    import _peers
+    with tempfile.TemporaryDirectory() as work:
+        c0, ch0, w0 = time.process_time(), children_cpu(), time.perf_counter()
+        _peers.build_pydy(n, work, time.monotonic() + 900)
+        return {"family": "nlink-pydy", "n": n,
+                "build_cpu": time.process_time() - c0 + children_cpu() - ch0,
+                "build_wall": time.perf_counter() - w0, "load": os.getloadavg()[0]}
+
+
+def in_fresh_process(args):
+    out = subprocess.run([sys.executable, __file__, "--one", *map(str, args)],
+                         capture_output=True, text=True, timeout=1800)
+    if out.returncode != 0:
+        return {"error": out.stderr.strip().splitlines()[-1:]}
+    return json.loads(out.stdout.strip().splitlines()[-1])
+
+
+def exponent(rows, key, lo=10, hi=40):
+    """Least-squares slope of log(key) against log(n) over lo ≤ n ≤ hi."""
+    pts = [(math.log(r["n"]), math.log(r[key])) for r in rows
+           if lo <= r["n"] <= hi and r.get(key)]
+    if len(pts) < 2:
+        return None
+    mx = sum(x for x, _ in pts) / len(pts)
+    my = sum(y for _, y in pts) / len(pts)
+    return sum((x - mx) * (y - my) for x, y in pts) / sum((x - mx) ** 2 for x, _ in pts)
+
+
+def table(rows, pydy):
+    lines = ["| model | n | ops mf | ops jacobian_b | C KiB | units | derive | CSE | print | "
+             "compile CPU | compile wall | cold build CPU | cold build wall | rhs in C µs | "
+             "jacobian in C µs | PyDy cold build CPU | load |",
+             "|" + "---|" * 17]
+    for r in rows:
+        if "error" in r:
+            lines.append(f"| {r.get('family')} | {r.get('n')} | error: {r['error']} |")
+            continue
+        py = pydy.get((r["family"], r["n"]))
+        lines.append(
+            f"| {r['family']} | {r['n']} | {r['ops'].get('mf', 0)} | {r['ops'].get('jacobian_b', 0)}"
+            f" | {r['c_kib']:.0f} | {r['units']} | {r['derive']:.2f} | {r['cse']:.2f} | "
+            f"{r['print']:.2f} | {r['compile_cpu']:.2f} | {r['compile_wall']:.2f} | "
+            f"{r['build_cpu']:.2f} | {r['build_wall']:.2f} | {r['rhs_us']:.2f} | "
+            f"{r['jacobian_us']:.2f} | {py['build_cpu']:.2f}" if py else
+            f"| {r['family']} | {r['n']} | {r['ops'].get('mf', 0)} | {r['ops'].get('jacobian_b', 0)}"
+            f" | {r['c_kib']:.0f} | {r['units']} | {r['derive']:.2f} | {r['cse']:.2f} | "
+            f"{r['print']:.2f} | {r['compile_cpu']:.2f} | {r['compile_wall']:.2f} | "
+            f"{r['build_cpu']:.2f} | {r['build_wall']:.2f} | {r['rhs_us']:.2f} | "
+            f"{r['jacobian_us']:.2f} | —")
+        lines[-1] += f" | {r['load']:.1f} |"
+    lines += ["", "Growth exponents fitted over n = 10 … 40 (log–log least squares):", "",
+              "| model | ops mf | ops jacobian_b | C size | derive | CSE | print | compile CPU | "
+              "cold build CPU | cold build wall | rhs | jacobian |", "|" + "---|" * 12]
+    for family in FAMILIES:
+        fam = [dict(r, ops_mf=r["ops"].get("mf"), ops_jac=r["ops"].get("jacobian_b"))
+               for r in rows if r.get("family") == family and "error" not in r]
+        cells = [exponent(fam, k) for k in ("ops_mf", "ops_jac", "c_kib", "derive", "cse",
+                                             "print", "compile_cpu", "build_cpu", "build_wall",
+                                             "rhs_us", "jacobian_us")]
+        lines.append(f"| {family} | " + " | ".join("—" if c is None else f"{c:.2f}" for c in cells)
+                     + " |")
+    return "\n".join(lines)
+
+
+def targets(rows, pydy):
+    """The issue-11 targets against this run (nlink rows)."""
+    by_n = {r["n"]: r for r in rows if r.get("family") == "nlink" and "error" not in r}
+    fam = [r for r in by_n.values()]
+
+    def cell(n, key):
+        return by_n[n][key] if n in by_n else None
+    ratio = (pydy[("nlink", 20)]["build_cpu"] / by_n[20]["build_cpu"]
+             if ("nlink", 20) in pydy and 20 in by_n else None)
+    checks = [
+        ("cold build n=20 (CPU s)", cell(20, "build_cpu"), 3.0),
+        ("cold build n=40 (CPU s)", cell(40, "build_cpu"), 15.0),
+        ("PyDy cold build / ours, n=20", ratio, -2.5),
+        ("rhs in C n=20 (µs)", cell(20, "rhs_us"), 2.4),
+        ("rhs in C n=40 (µs)", cell(40, "rhs_us"), 10.0),
+        ("jacobian in C n=20 (µs)", cell(20, "jacobian_us"), 10.0),
+        ("growth exponent of the cold build CPU, n=10…40", exponent(fam, "build_cpu"), 2.2),
+        ("growth exponent of the cold build wall, n=10…40", exponent(fam, "build_wall"), 2.2),
+    ]
+    lines = ["| target (nlink) | measured | bound | met |", "|---|---|---|---|"]
+    for label, value, bound in checks:
+        if value is None:
+            lines.append(f"| {label} | — | {abs(bound)} | — |")
+            continue
+        met = value >= -bound if bound < 0 else value <= bound
+        lines.append(f"| {label} | {value:.2f} | {'≥' if bound < 0 else '≤'} {abs(bound)} | "
+                     f"{'yes' if met else 'no'} |")
+    lines += ["", "Where the per-call time goes (nlink, µs, best of 15): `forcing` runs the M,F "
+              "kernel alone, `linear_terms` the M,F and Jacobian kernels (no solves); the rest of "
+              "rhs and jacobian is the dense Cholesky factorization and solves (with 2n right-hand "
+              "sides for the Jacobian) and copying the (2n)² output.", "",
+              "| n | M,F kernel | + Jacobian kernel | rhs | jacobian |", "|---|---|---|---|---|"]
+    for n, r in sorted(by_n.items()):
+        lines.append(f"| {n} | {r['mf_us']:.2f} | {r['kernels_us']:.2f} | {r['rhs_us']:.2f} | "
+                     f"{r['jacobian_us']:.2f} |")
+    return "\n".join(lines)
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--n", type=int, nargs="+", default=[2, 10, 20, 30, 40])
+    ap.add_argument("--families", nargs="+", default=list(FAMILIES))
+    ap.add_argument("--pydy-n", type=int, nargs="*", default=[2, 10, 20])
+    ap.add_argument("--no-pydy", action="store_true")
+    ap.add_argument("--one", nargs=2, help=argparse.SUPPRESS)
+    ap.add_argument("--out", default=str(HERE / "results" / "scale"))
+    args = ap.parse_args(argv)
+    if args.one:
+        family, n = args.one[0], int(args.one[1])
+        print(json.dumps(pydy_one(n) if family == "nlink-pydy" else one(family, n)))
+        return
+    rows, pydy = [], {}
+    for family in args.families:
+        for n in args.n:
+            if family == "lattice" and n not in LATTICE:
+                continue
+            rows.append(in_fresh_process((family, n)))
+            print(json.dumps(rows[-1]), file=sys.stderr, flush=True)
+    if not args.no_pydy:
+        for n in args.pydy_n:
+            r = in_fresh_process(("nlink-pydy", n))
+            print(json.dumps(r), file=sys.stderr, flush=True)
+            if "error" not in r:
+                pydy["nlink", n] = r
+    text = (f"# Scaling of lagrgen's build and generated code (issue 11)\n\n"
+            f"{time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}, {os.cpu_count()} cores, CPU "
+            f"seconds unless marked wall; per-call times are the best of 15 loops inside C; load "
+            f"= 1-minute load average when the row finished.\n\n" + table(rows, pydy) + "\n\n"
+            + targets(rows, pydy) + "\n")
+    print(text)
+    Path(args.out).parent.mkdir(parents=True, exist_ok=True)
+    Path(args.out + ".md").write_text(text)
+    Path(args.out + ".json").write_text(json.dumps({"rows": rows, "pydy": list(pydy.values())},
+                                                   indent=1))
+
+
+if __name__ == "__main__":
+    main()
