@@ -15,13 +15,13 @@ from .errors import (BuildError, CompileError, LagrgenError, MassMatrixError, Mo
 _LAZY = {
     "Model": "model",
     "build": "build", "load": "build",
-    "simulate": "simulate",
+    "simulate": "simulate", "evaluate_outputs": "simulate", "output_event": "simulate",
     "equilibrium": "vibration", "linearize": "vibration", "modes": "vibration",
-    "frequency_response": "vibration",
+    "frequency_response": "vibration", "FrozenTimeWarning": "vibration",
 }
 
-__all__ = ["Model", "build", "load", "simulate", "equilibrium", "linearize", "modes",
-           "frequency_response", "LagrgenError", "ModelError", "UnknownNameError",
+__all__ = ["Model", "build", "load", "simulate", "evaluate_outputs", "output_event", "equilibrium", "linearize", "modes",
+           "frequency_response", "FrozenTimeWarning", "LagrgenError", "ModelError", "UnknownNameError",
            "MassMatrixError", "BuildError", "CompileError", "__version__"]
 
 

@@ -3,6 +3,8 @@
 User arguments (params, inputs, y0) are converted once here, by `lagrgen.runtime.arguments`; the
 functions handed to the solver take raw float64 arrays.
 """
+import time
+
 import numpy as np
 from scipy.integrate import solve_ivp
 
@@ -52,8 +54,44 @@ def input_function(mod, inputs):
     return None, u_of_t
 
 
+class _Guard:
+    """A terminal solve_ivp event that ends the integration after `max_steps` steps or
+    `max_wall_time` seconds: solve_ivp evaluates it once per accepted step, so it counts steps; once
+    tripped it changes sign just after the last step taken, where the solver then stops (keeping
+    the result up to there)."""
+
+    terminal = True
+    direction = 0
+
+    def __init__(self, max_steps, max_wall_time):
+        if max_steps is not None and not (int(max_steps) == max_steps and max_steps > 0):
+            raise ValueError(f"max_steps must be a positive integer, got {max_steps!r}")
+        if max_wall_time is not None and not max_wall_time > 0:
+            raise ValueError(f"max_wall_time must be a positive number of seconds, got "
+                             f"{max_wall_time!r}")
+        self.max_steps, self.max_wall_time = max_steps, max_wall_time
+        self.steps, self.start = -1, time.monotonic()
+        self.last_t, self.tripped_at, self.reason = None, None, None
+
+    def __call__(self, t, y):
+        if self.tripped_at is not None:
+            return -1.0 if t > self.tripped_at else 1.0
+        self.steps += 1
+        if self.max_steps is not None and self.steps > self.max_steps:
+            self.reason = f"the step limit max_steps={self.max_steps} was reached"
+        elif self.max_wall_time is not None and \
+                time.monotonic() - self.start > self.max_wall_time:
+            self.reason = f"the wall-time limit max_wall_time={self.max_wall_time:g} s was reached"
+        if self.reason is None or self.last_t is None:
+            self.last_t = t
+            return 1.0
+        self.tripped_at = self.last_t
+        return -1.0
+
+
 def simulate(mod, t_span, y0, method="RK45", params=None, inputs=None, rtol=1e-6, atol=1e-9,
-             t_eval=None, dense_output=False, events=None, **options):
+             t_eval=None, dense_output=False, events=None, max_steps=None, max_wall_time=None,
+             **options):
     """Integrate ẏ = mod.rhs(t, y) over `t_span` from `y0` = [q0, q̇0] with `solve_ivp`.
 
     Parameters
@@ -65,11 +103,16 @@ def simulate(mod, t_span, y0, method="RK45", params=None, inputs=None, rtol=1e-6
         (Radau and BDF run as `lagrgen.solvers` classes: SciPy's, with direct LAPACK LU)
     params : dict of parameter names (or the model's Symbols) -> value, or a full array
     inputs : dict of input names (or the model's functions) -> constant or callable of t
+    max_steps, max_wall_time : a guard for long integrations (None: no limit). When either is
+        reached the integration stops there: the result holds the solution up to that time, with
+        `success` False, `status` −1, `guard` and `message` saying which limit was hit.
     **options : passed to `solve_ivp` unchanged (max_step, first_step, ...)
 
     Returns
     -------
-    SciPy's OdeResult, with also `coordinates` (names), `q` and `qd` (views of the rows of `y`).
+    SciPy's OdeResult, with also `coordinates` (names), `q` and `qd` (views of the rows of `y`),
+    `params` and `inputs` (the values used; see `evaluate_outputs`) and `guard` (None, or why the
+    guard stopped the integration).
     """
     if "args" in options:
         raise TypeError("simulate() takes no 'args': pass parameters as params={name: value} "
@@ -95,9 +138,101 @@ def simulate(mod, t_span, y0, method="RK45", params=None, inputs=None, rtol=1e-6
             return jacobian(t, y, p, u_of_t(t))
     if getattr(method, "__name__", method) in STIFF_METHODS:
         options.setdefault("jac", jac)
+    guard = None
+    if max_steps is not None or max_wall_time is not None:
+        guard = _Guard(max_steps, max_wall_time)
+        user_events = [] if events is None else (list(events) if isinstance(events, (list, tuple))
+                                                 else [events])
+        events = user_events + [guard]
     sol = solve_ivp(fun, t_span, y0, method=SOLVERS.get(method, method), rtol=rtol, atol=atol,
                     t_eval=t_eval, dense_output=dense_output, events=events, **options)
+    sol.guard = None
+    if guard is not None:
+        sol.t_events, sol.y_events = sol.t_events[:-1], sol.y_events[:-1]
+        if guard.reason is not None and len(sol.t) and sol.status == 1 and \
+                guard.tripped_at is not None:
+            sol.guard = guard.reason
+            sol.success, sol.status = False, -1
+            sol.message = (f"the integration was stopped at t = {guard.tripped_at:.6g} "
+                           f"(of {t_span[1]:g}) after {guard.steps - 1} steps: {guard.reason}; "
+                           "the result holds the solution up to there. A discontinuous force "
+                           "(sign, Heaviside, a stop) can make an explicit solver crawl: try "
+                           "method='Radau', events on the switching surfaces, or a smooth "
+                           "approximation such as tanh(v/eps)")
+    sol.params = p
+    sol.inputs = u if u_of_t is None else u_of_t
     return with_coordinates(sol, mod.coordinates, n)
+
+
+def evaluate_outputs(mod, sol, params=None, inputs=None):
+    """The outputs y_k(t_i, y_i) of `mod` at every saved time of a solution.
+
+    Parameters
+    ----------
+    mod : a built model (either backend)
+    sol : the result of `simulate` (or any object with `t` and `y`)
+    params, inputs : as for `simulate`; by default the values `simulate` stored on `sol`
+
+    Returns
+    -------
+    An `Outputs` table: a (len(mod.output_names), len(sol.t)) float64 array with `names` and
+    `units`; `table["total_energy"]` is one row.
+    """
+    p = getattr(sol, "params", None) if params is None else parameters_from(mod, params)
+    p = parameters_from(mod, None) if p is None else p
+    if inputs is None:
+        held = getattr(sol, "inputs", None)
+        u, u_of_t = (np.zeros(len(mod.inputs)), None) if held is None else \
+            ((None, held) if callable(held) else (held, None))
+    else:
+        u, u_of_t = input_function(mod, inputs)
+    t, y = np.asarray(sol.t, dtype=float), np.asarray(sol.y, dtype=float)
+    out = np.empty((len(mod.output_names), len(t)))
+    for i, ti in enumerate(t):
+        out[:, i] = mod.outputs(ti, np.ascontiguousarray(y[:, i]), p,
+                                u if u_of_t is None else u_of_t(ti))
+    return Outputs(out, mod.output_names, getattr(mod, "units", {}))
+
+
+class Outputs(np.ndarray):
+    """A (n_outputs, n_times) array of output histories that also answers `table[name]`."""
+
+    def __new__(cls, values, names, units):
+        obj = np.asarray(values, dtype=float).view(cls)
+        obj.names, obj.units = tuple(names), dict(units)
+        return obj
+
+    def __array_finalize__(self, obj):
+        self.names = getattr(obj, "names", ())
+        self.units = getattr(obj, "units", {})
+
+    def __getitem__(self, key):
+        if isinstance(key, str):
+            if key not in self.names:
+                raise KeyError(f"no output {key!r}: the outputs are {', '.join(self.names)}")
+            return np.asarray(self)[self.names.index(key)]
+        return np.asarray(self)[key]
+
+
+def output_event(mod, name, params=None, inputs=None, terminal=False, direction=0):
+    """A solve_ivp event function whose root is where the output `name` crosses zero.
+
+    Declare a switching surface (a slip velocity, a gap) as an output and pass this as
+    ``simulate(..., events=[...])``: the solver then locates the switch instead of stepping over it.
+    """
+    names = tuple(mod.output_names)
+    if name not in names:
+        from .runtime.arguments import unknown_name
+        raise unknown_name("output", name, names)
+    k = names.index(name)
+    p = parameters_from(mod, params)
+    u, u_of_t = input_function(mod, inputs)
+    outputs = mod.outputs
+
+    def event(t, y):
+        return outputs(t, y, p, u if u_of_t is None else u_of_t(t))[k]
+    event.terminal, event.direction = terminal, direction
+    return event
 
 
 def with_coordinates(sol, coordinates, n):

@@ -22,10 +22,74 @@ def new_figure(width, height):
     return fig
 
 
-def plot_time_history(sol, coordinates, path=None, velocities=True, title=None):
-    """q_i(t) (and q̇_i(t) below it) for y = [q, q̇] in `sol.y`; saved to `path` if given."""
+def label(name, units):
+    """'x [m]' when `units` gives `name` a unit, else 'name'."""
+    unit = (units or {}).get(name)
+    return f"{name} [{unit}]" if unit else name
+
+
+def unit_groups(names, units):
+    """[(unit or None, [indices])]: the names grouped by unit, in order of first appearance."""
+    groups = {}
+    for i, name in enumerate(names):
+        groups.setdefault((units or {}).get(name), []).append(i)
+    return list(groups.items())
+
+
+def rate_unit(unit):
+    """The unit of a time derivative: 'm' -> 'm/s' (a label only)."""
+    if not unit:
+        return None
+    return f"({unit})/s" if "/" in unit else f"{unit}/s"
+
+
+def plot_series(t, rows, names, units=None, path=None, title=None, time_unit="s"):
+    """One panel per unit group (a quantity with its unit on each y axis), sharing the t axis.
+
+    Parameters
+    ----------
+    t : (m,) times; rows : (k, m) values; names : k names; units : {name: unit} (labels only)
+    path : save the figure here if given; title : the figure title
+
+    Returns
+    -------
+    The matplotlib Figure.
+    """
+    rows = np.atleast_2d(np.asarray(rows, dtype=float))
+    groups = unit_groups(names, units)
+    fig = new_figure(7, max(2.2 * len(groups) + 0.8, 3.5))
+    axes = fig.subplots(len(groups), 1, sharex=True, squeeze=False)[:, 0]
+    for ax, (unit, members) in zip(axes, groups):
+        for i in members:
+            ax.plot(t, rows[i], label=names[i])
+        ax.set_ylabel(f"[{unit}]" if unit else "(no unit)")
+        ax.grid(True, alpha=0.3)
+        ax.legend(loc="upper right", fontsize="small")
+    axes[-1].set_xlabel(f"t [{time_unit}]" if units else "t")
+    if title:
+        axes[0].set_title(title)
+    fig.tight_layout()
+    if path is not None:
+        fig.savefig(path)
+    return fig
+
+
+def plot_time_history(sol, coordinates, path=None, velocities=True, title=None, units=None):
+    """q_i(t) (and q̇_i(t)); with `units` ({name: unit}) one panel per unit group, each axis
+    labelled with its unit; saved to `path` if given."""
     t, y = np.asarray(sol.t), np.asarray(sol.y)
     n = len(coordinates)
+    if units and any(c in units for c in coordinates):
+        names = list(coordinates)
+        rate_units = {}
+        rows = [y[i] for i in range(n)]
+        if velocities:
+            for i, c in enumerate(coordinates):
+                names.append(f"{c}'")
+                rows.append(y[n + i])
+                if rate_unit(units.get(c)):
+                    rate_units[f"{c}'"] = rate_unit(units.get(c))
+        return plot_series(t, rows, names, {**units, **rate_units}, path, title)
     fig = new_figure(7, 5.5 if velocities else 3.5)
     axes = fig.subplots(2 if velocities else 1, 1, sharex=True, squeeze=False)[:, 0]
     for i, name in enumerate(coordinates):
@@ -108,9 +172,11 @@ def drawable_tracks(model, p, t, q):
     tracks = []
     for kind, points in model.drawables:
         if kind == "body":
-            position, angle = points
+            position, angle = points[:2]
             tracks.append((kind, [planar(model, position, p)(t, q),
                                   numeric_function(model, angle, p)(t, q)]))
+        elif kind == "point":
+            tracks.append((kind, [planar(model, points[0], p)(t, q)]))
         else:
             tracks.append((kind, [planar(model, pt, p)(t, q) for pt in points]))
     return tracks

@@ -75,7 +75,9 @@ cdef class CompiledModel:
     cdef readonly str name, content_hash, lagrgen_version
     cdef readonly tuple coordinates, parameters, inputs
     cdef readonly object defaults
-    cdef readonly dict dimensions
+    cdef readonly dict dimensions, units
+    cdef readonly tuple output_names
+    cdef readonly bint explicit_time
     cdef cnp.ndarray _zeros
     cdef bint _defaults_complete
     cdef dict _addresses
@@ -103,6 +105,9 @@ cdef class CompiledModel:
         self._zeros = np.zeros(max(self.n_inputs, 1))
         self._zeros.setflags(write=False)
         self.dimensions = dict(meta["dimensions"])
+        self.output_names = tuple(meta.get("output_names", ()))
+        self.units = dict(meta.get("units", {}))
+        self.explicit_time = bool(meta.get("explicit_time", False))
         self._addresses = {}
         cdef int i
         for i in range(self.model.n_functions):
@@ -155,7 +160,7 @@ cdef class CompiledModel:
         cdef cnp.ndarray ya = as_f64(y, 2 * n, "y")
         cdef cnp.ndarray pa = self.params(p)
         cdef cnp.ndarray ua = self.input_values(u)
-        cdef cnp.ndarray out = np.empty(4 * n * n + n * max(self.n_inputs, 1) + 2 * n)
+        cdef cnp.ndarray out = np.empty(max(f.size(self.dimensions) for f in FUNCTIONS) + 1)
         cdef double *o = <double *>cnp.PyArray_DATA(out)
         cdef const double *yp = data(ya)
         cdef const double *pp = data(pa)
@@ -257,7 +262,8 @@ def bind_module(module, capsule):
     """Make `module` (a freshly imported model module) a built model: called by its PyInit."""
     model = CompiledModel(capsule)
     for attr in ("name", "coordinates", "parameters", "inputs", "defaults", "n_coordinates",
-                 "content_hash", "lagrgen_version", "time_in_c", "function_address"):
+                 "content_hash", "lagrgen_version", "time_in_c", "function_address",
+                 "output_names", "units", "explicit_time"):
         setattr(module, attr, getattr(model, attr))
     module.backend = "c"
     for spec in FUNCTIONS:

@@ -16,7 +16,8 @@ from .arguments import as_vector, defaults_array, input_vector, parameter_vector
 _NAMESPACE = {name: getattr(math, name) for name in (
     "sin", "cos", "tan", "asin", "acos", "atan", "atan2", "sinh", "cosh", "tanh", "asinh",
     "acosh", "atanh", "exp", "log", "sqrt")}
-_NAMESPACE["_sign"] = lambda x: float((x > 0) - (x < 0))
+_NAMESPACE["_sign"] = lambda x: float(x > 0) - float(x < 0)
+_NAMESPACE["_nan"] = math.nan
 
 
 class PythonModel:
@@ -43,6 +44,9 @@ class PythonModel:
         self.content_hash = info["content_hash"]
         self.n_coordinates = n
         self.dimensions = dict(info["dimensions"])
+        self.output_names = tuple(info["output_names"])
+        self.units = dict(info["units"])
+        self.explicit_time = bool(info["explicit_time"])
         self.source = source
         namespace = dict(_NAMESPACE)
         exec(compile(source, f"<lagrgen python backend: {self.name}>", "exec"), namespace)
@@ -111,6 +115,9 @@ class PythonModel:
         B = self._b(t, q, qd, [0.0] * n, p, u)
         dF_du = self._kernel("dF_du", t, q, qd, None, p, u)[0].reshape(n, k)
         return M, B[:, :n].copy(), B[:, n:].copy(), dF_du
+
+    def _outputs(self, t, q, qd, p, u):
+        return self._kernel("outputs", t, q, qd, None, p, u)[0]
 
 
 def _state_caller(model, impl):
