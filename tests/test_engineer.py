@@ -14,7 +14,7 @@ import lagrgen
 from lagrgen import Model
 from lagrgen.errors import ModelError
 
-from conftest import BACKENDS, ROOT
+from conftest import BACKENDS
 
 
 def oscillator_model():
@@ -354,3 +354,55 @@ def test_cli_guard_and_frozen_time(tmp_path):
         "model.spring(4, y - sp.sin(model.t))\n")
     proc = run("modes", "r.py", "--backend", "python", "--t", "0.5", cwd=tmp_path)
     assert "frozen time t = 0.5" in proc.stderr and "y = 0.479426 m" in proc.stdout
+
+
+# -- energies of every example against the hand formulas of test_physics ---------------------------
+def test_example_energies_and_power_match_hand_formulas(tmp_path):
+    """total_energy and input_power − 2R of every example equal test_physics' hand-written E and
+    power (which already checks dE/dt = power) at random states, both backends."""
+    from test_physics import POWER_CASES
+    from conftest import example_model, random_point
+    rng = np.random.default_rng(7)
+    for name, (entry, energy, power) in sorted(POWER_CASES.items()):
+        model = example_model(*entry)
+        for backend in BACKENDS:
+            mod = lagrgen.build(model, backend=backend, out_dir=tmp_path)
+            n = mod.n_coordinates
+            q, qd, t, p, u = random_point(mod, rng)
+            out = dict(zip(mod.output_names, mod.outputs(t, np.concatenate([q, qd]), p, u)))
+            assert out["total_energy"] == pytest.approx(energy(q, qd, p, u), rel=1e-12, abs=1e-12)
+            assert out["input_power"] - 2 * out["rayleigh_dissipation"] == pytest.approx(
+                power(q, qd, p, u), rel=1e-12, abs=1e-12), name
+            assert n == len(q)
+
+
+# -- 5. pictures ----------------------------------------------------------------------------------
+def test_pictures_show_shapes_masses_dampers_and_distinct_positions():
+    from conftest import example_model
+    from lagrgen.outputs.plotting import Scene, drawable_tracks, marker_sizes, new_figure
+    model = example_model("rolling_chain")
+    p = np.array(lagrgen.build(model, backend="python").defaults)
+    times = np.array([0.0, 0.5])
+    q = np.array([[0.0, 0.1], [0.0, -0.1], [0.0, 0.3]])
+    tracks = drawable_tracks(model, p, times, q)
+    kinds = [k for k, _ in tracks]
+    assert kinds.count("point") == 2 and kinds.count("body") == 1 and kinds.count("damper") == 3
+    xs = sorted(data[0][0, 0] for k, data in tracks if k in ("point", "body"))
+    assert np.min(np.diff(xs)) >= 0.9                     # the chain is spread out along the line
+    sizes = [s for s in marker_sizes(tracks) if s is not None]
+    assert sizes[0] < sizes[1] < sizes[2]                   # m1 < m2 < m3: bigger markers
+    fig = new_figure(4, 4)
+    ax = fig.add_subplot(1, 1, 1)
+    scene = Scene(ax, tracks, 4.0)
+    body = kinds.index("body")
+    spokes = []
+    for k in range(2):
+        scene.update(k)
+        outline, spoke = (np.array(a.get_data()).T for a in scene.artists[body])
+        radius = np.hypot(*(outline - outline.mean(axis=0)).T)
+        assert np.allclose(radius, p[3], rtol=0.05)          # a disk of radius R ...
+        spokes.append(spoke[1] - spoke[0])
+    turn = np.arctan2(spokes[1][1], spokes[1][0]) - np.arctan2(spokes[0][1], spokes[0][0])
+    assert turn == pytest.approx(-0.3 / p[3], abs=1e-9)    # ... turning by −x3/R as it rolls
+    damper = scene.artists[kinds.index("damper")]
+    assert len(damper.get_xdata()) > 4                       # a dashpot, not a bare line
