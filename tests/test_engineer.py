@@ -406,3 +406,9 @@ def test_pictures_show_shapes_masses_dampers_and_distinct_positions():
     assert turn == pytest.approx(-0.3 / p[3], abs=1e-9)    # ... turning by −x3/R as it rolls
     damper = scene.artists[kinds.index("damper")]
     assert len(damper.get_xdata()) > 4                       # a dashpot, not a bare line
+
+
+def test_show_prints_units(tmp_path):
+    (tmp_path / "m.py").write_text(FORCED)
+    proc = run("show", "m.py", cwd=tmp_path)
+    assert "# units: x [m], m [kg], k [N/m], F [N], G [N], tip_x [m]" in proc.stdout
