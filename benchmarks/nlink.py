@@ -44,7 +44,7 @@ T_SPAN = (0.0, 10.0)
 TOL = 1e-8
 ANGLE = 0.5
 CHECK_TOL = 1e-8
-DEFAULT_MODEL_FILE = HERE.parents[1] / "shared" / "models" / "nlink_pendulum.py"
+DEFAULT_MODEL_FILE = HERE.parent / "examples" / "nlink_pendulum.py"
 
 FULL = {"percall_repeats": 7, "percall_min_time": 0.1, "solve_runs": 3, "solve_budget": 30.0,
         "cold_runs": 3, "cold_budget": 60.0, "cached_runs": 5, "fresh_process_runs": 3}

@@ -8,21 +8,27 @@ import sys
 import types
 
 from ._version import __version__
-from .errors import (BuildError, CompileError, LagrgenError, MassMatrixError, ModelError,
-                     UnknownNameError)
+from .errors import (BuildError, CompileError, ConstraintError, LagrgenError, MassMatrixError,
+                     ModelError, NonFiniteError, UnknownNameError)
 
 #: Public name -> the module that defines it.
 _LAZY = {
     "Model": "model",
     "build": "build", "load": "build",
     "simulate": "simulate", "evaluate_outputs": "simulate", "output_event": "simulate",
+    "Signal": "signals",
+    "simulate_many": "ensemble", "EnsembleResult": "ensemble",
+    "sweep": "sweep",
     "equilibrium": "vibration", "linearize": "vibration", "modes": "vibration",
     "frequency_response": "vibration", "FrozenTimeWarning": "vibration",
+    "consistent_state": "constraints",
 }
 
-__all__ = ["Model", "build", "load", "simulate", "evaluate_outputs", "output_event", "equilibrium", "linearize", "modes",
-           "frequency_response", "FrozenTimeWarning", "LagrgenError", "ModelError", "UnknownNameError",
-           "MassMatrixError", "BuildError", "CompileError", "__version__"]
+__all__ = ["Model", "build", "load", "simulate", "evaluate_outputs", "output_event", "Signal",
+           "simulate_many", "EnsembleResult", "sweep", "equilibrium", "linearize", "modes",
+           "frequency_response", "FrozenTimeWarning", "consistent_state",
+           "LagrgenError", "ConstraintError", "ModelError", "UnknownNameError", "MassMatrixError",
+           "BuildError", "CompileError", "NonFiniteError", "__version__"]
 
 
 class _Package(types.ModuleType):

@@ -96,9 +96,14 @@ def call_seconds(mod, y0, t=0.0):
 
 
 def default_state(mod):
-    """y0 = [q0, q̇0] with every coordinate 0.1 and every speed 0."""
+    """y0 = [q0, q̇0] with every coordinate 0.1 and every speed 0; for a constrained model
+    q0 = 0.1, 0.2, ... (equal values often make a linkage singular) projected onto the
+    constraints by `lagrgen.consistent_state`."""
     n = mod.n_coordinates
-    return np.concatenate([np.full(n, 0.1), np.zeros(n)])
+    if not getattr(mod, "n_constraints", 0):
+        return np.concatenate([np.full(n, 0.1), np.zeros(n)])
+    from .constraints import consistent_state
+    return consistent_state(mod, np.concatenate([0.1 * np.arange(1, n + 1), np.zeros(n)]))
 
 
 def bench_model(make_model, y0=None, methods=METHODS, t_span=(0.0, 10.0), rtol=1e-8, atol=1e-8,

@@ -85,6 +85,26 @@ def add_build(sub):
     b.set_defaults(run=command_build)
 
 
+def command_export_c(args):
+    from .build import export_c
+    for model in models_in(args.model_file, args.model):
+        paths = export_c(model, args.out)
+        if not args.quiet:
+            print(f"{model.name}: wrote {', '.join(str(p) for p in paths)}")
+    return 0
+
+
+def add_export_c(sub):
+    e = sub.add_parser("export-c", help="write a model as plain C (<name>_model.h and .c)",
+                       description="Write each model of MODEL.py as a standalone C model: "
+                       "<name>_model.h and <name>_model.c, which include only <math.h> and "
+                       "<string.h> and need no Python (compile with any C99 compiler, link -lm).")
+    add_model_file(e)
+    e.add_argument("--out", default=".", help="output directory (default: the current one)")
+    e.add_argument("--quiet", action="store_true", help="print nothing but errors")
+    e.set_defaults(run=command_export_c)
+
+
 # -- show -------------------------------------------------------------------------------------
 def command_show(args):
     from .outputs.display import render
@@ -141,18 +161,20 @@ def assignments(texts, what):
 
 
 def number(text, what):
+    """The value of a number or a constant expression such as `2*pi` (restricted reader)."""
+    from .expressions import ExpressionError, parse_number
     try:
-        return float(text)
-    except ValueError:
-        raise LagrgenError(f"{what}: {text!r} is not a number") from None
+        return parse_number(text)
+    except ExpressionError as exc:
+        raise LagrgenError(f"{what}: {exc}") from None
 
 
 def known_names(values, option, model, what, names):
     """`values` (a dict), after checking each key is one of the model's `names` (its `what`s)."""
+    from .runtime.arguments import unknown_name
     unknown = sorted(set(values) - set(names))
     if unknown:
-        raise LagrgenError(f"{option}: model {model.name!r} has no {what} {unknown[0]!r} "
-                           f"(its {what}s are {', '.join(names) or 'none'})")
+        raise LagrgenError(f"{option}: {unknown_name(what, unknown[0], names)}")
     return values
 
 
@@ -162,51 +184,20 @@ def parameters_option(args, model):
     return known_names(values, "--params", model, "parameter", model.parameter_names)
 
 
-def input_value(name, text, t):
-    """A constant, or a function of t, from an expression such as `0.5*sin(2*t)` (the one place
-    the CLI reads an input expression: `lagrgen.expressions.parse_time_function` when present)."""
-    import sympy as sp
+def input_value(name, text):
+    """A constant, or a function of t, from an expression such as `0.5*sin(2*t)`."""
+    from .expressions import ExpressionError, parse_time_function
     try:
-        from .expressions import parse_time_function
-    except ImportError:
-        parse_time_function = None
-    if parse_time_function is not None:
-        try:
-            f = parse_time_function(text)
-        except (LagrgenError, ValueError, SyntaxError, TypeError) as exc:
-            raise LagrgenError(f"--inputs {name}: {exc}") from None
-        return f
-    try:
-        expr = sp.sympify(text, locals={"t": t})
-    except (sp.SympifyError, SyntaxError, TypeError):
-        raise LagrgenError(f"--inputs {name}: cannot read {text!r} as a number or an expression "
-                           "of t") from None
-    extra = expr.free_symbols - {t}
-    if extra:
-        raise LagrgenError(f"--inputs {name}: {text!r} may only depend on t, not on "
-                           f"{', '.join(sorted(map(str, extra)))}")
-    from .model import SUPPORTED_FUNCTIONS
-    unknown = sorted({type(f).__name__ for f in expr.atoms(sp.Function)
-                      if not isinstance(f, SUPPORTED_FUNCTIONS)})
-    if unknown:
-        raise LagrgenError(f"--inputs {name}: unknown function {unknown[0]!r} in {text!r} (use "
-                           "sin, cos, exp, sqrt, Abs, sign, Heaviside, Min, Max, Piecewise, ...)")
-    if not expr.free_symbols:
-        try:
-            return float(expr)
-        except TypeError:
-            raise LagrgenError(f"--inputs {name}: {text!r} is not a real number") from None
-    f = sp.lambdify(t, expr, "math")
-    return lambda time_: float(f(float(time_)))
+        return parse_time_function(text)
+    except ExpressionError as exc:
+        raise LagrgenError(f"--inputs {name}: {exc}") from None
 
 
 def inputs_option(args, model, constant=False):
     """The --inputs values: name -> constant or function of t (constants only if `constant`)."""
-    import sympy as sp
     values = known_names(assignments(args.inputs, "--inputs"), "--inputs", model, "input",
                          model.input_names)
-    t = sp.Symbol("t")
-    out = {name: input_value(name, text, t) for name, text in values.items()}
+    out = {name: input_value(name, text) for name, text in values.items()}
     varying = [name for name, v in out.items() if callable(v)]
     if constant and varying:
         raise LagrgenError(f"--inputs {varying[0]}: the operating point needs a constant value")
@@ -390,21 +381,24 @@ def column(name, units):
 
 
 def write_csv(stream, sol, names, outputs=None, units=None):
-    """t, q, q' (as <coordinate>_dot) and the outputs' rows, one line per saved time; headers
-    carry units ('x [m]', 'x_dot [m/s]')."""
+    """t, q, q' (as <coordinate>_dot) per saved time; then the multipliers λ of a constrained
+    model (M q'' = F + Aᵀλ), one column per constraint name; then the outputs. Headers carry
+    units ('x [m]', 'x_dot [m/s]')."""
     from .outputs.plotting import rate_unit
     units = dict(units or {})
     for c in names:
         if rate_unit(units.get(c)):
             units[f"{c}_dot"] = rate_unit(units[c])
     out_names = list(outputs.names) if outputs is not None else []
+    lam = getattr(sol, "constraint_forces", np.zeros((0, len(sol.t))))
     writer = csv.writer(stream, lineterminator="\n")
     writer.writerow([column("t", {"t": "s"} if units else {}),
                      *(column(c, units) for c in names),
                      *(column(f"{c}_dot", units) for c in names),
+                     *getattr(sol, "constraint_names", ()),
                      *(column(o, units) for o in out_names)])
     for k, t in enumerate(sol.t):
-        values = list(sol.y[:, k])
+        values = [*sol.y[:, k], *lam[:, k]]
         if outputs is not None:
             values += list(np.asarray(outputs)[:, k])
         writer.writerow([repr(float(t)), *(repr(float(v)) for v in values)])
@@ -421,6 +415,8 @@ def command_simulate(args):
     if args.samples < 2:
         raise LagrgenError("--samples must be at least 2")
     mod = build_for(model, args)
+    if mod.n_constraints:
+        y0 = consistent_start(mod, y0, args, params)
     show_progress = args.progress or (sys.stderr.isatty() and not args.quiet)
     progress = Progress(args.t_start, args.t_end, sys.stderr) if show_progress else None
     t_eval = np.linspace(args.t_start, args.t_end, args.samples)
@@ -450,6 +446,16 @@ def command_simulate(args):
         for what, path in written:
             print(f"{what} -> {path}", file=sys.stderr)
     return 0
+
+
+def consistent_start(mod, y0, args, params):
+    """y0 projected onto the constraints (`lagrgen.consistent_state`), saying so if it moved."""
+    from .constraints import consistent_state
+    y = consistent_state(mod, y0, args.t_start, params or None)
+    if np.abs(y - y0).max() > 1e-12 * max(1.0, np.abs(y0).max()) and not args.quiet:
+        print(f"{mod.name}: initial state projected onto the constraints: y0 = "
+              f"{','.join(repr(float(v)) for v in y)}", file=sys.stderr)
+    return y
 
 
 def output_choice(text, mod):
@@ -508,7 +514,7 @@ def write_outputs(args, model, sol, params, mod=None, plot_outputs=()):
 
 
 def add_simulate(sub):
-    from .simulate import METHODS
+    from .methods import METHODS
     s = sub.add_parser("simulate", help="integrate the equations of motion; CSV, plot, animation",
                        description="Integrate y = [q, q'] with scipy.integrate.solve_ivp and write "
                        "the time histories as CSV (stdout unless --csv, --plot or --animate is "
@@ -531,8 +537,8 @@ def add_simulate(sub):
     s.add_argument("--samples", type=int, default=501,
                    help="number of equally spaced output times (default 501)")
     s.add_argument("--csv", metavar="OUT.csv",
-                   help="write t, q, q' and the outputs (one row per output time; headers carry "
-                   "units); '-' writes to stdout")
+                   help="write t, q, q', the multipliers of a constrained model and the outputs "
+                   "(one row per output time; headers carry units); '-' writes to stdout")
     s.add_argument("--plot-outputs", metavar="NAME,...",
                    help="plot these outputs ('energy' = kinetic, potential and total energy; or "
                    "names from model.output) to --plot-outputs-to (default: <plot>_outputs.png)")
@@ -565,6 +571,10 @@ def command_bench(args):
         def fresh(name=model.name):
             return models_in(args.model_file, [name])[0]
         y0 = initial_state(args.y0, model) if args.y0 else None
+        if y0 is not None and model.constraint_names:
+            from .build import build
+            from .constraints import consistent_state
+            y0 = consistent_state(build(model, backend="python"), y0, 0.0)
         result = bench_model(fresh, y0=y0, methods=methods, t_span=(0.0, args.t_end),
                              rtol=args.rtol, atol=args.atol, repeats=args.repeats)
         reports.append(markdown(result))
@@ -593,7 +603,127 @@ def add_bench(sub):
 
 
 #: The subcommands, in the order `--help` lists them: each adds its parser to the subparsers.
-COMMANDS = [add_build, add_show, add_modes, add_simulate, add_bench]
+# -- sweep ------------------------------------------------------------------------------------
+def sweep_range(text):
+    """(name, values) from NAME=START:STOP:N."""
+    name, sep, spec = text.partition("=")
+    parts = spec.split(":")
+    if not sep or len(parts) != 3 or not name.strip().isidentifier():
+        raise LagrgenError(f"--param: expected NAME=START:STOP:N, got {text!r}")
+    start, stop = number(parts[0], "--param START"), number(parts[1], "--param STOP")
+    try:
+        count = int(parts[2])
+    except ValueError:
+        count = 0
+    if count < 1:
+        raise LagrgenError(f"--param: N must be a positive whole number, got {parts[2]!r}")
+    return name.strip(), np.linspace(start, stop, count)
+
+
+def sweep_inputs(texts, model, swept, params):
+    """inputs as a function of the swept value: each --input NAME=EXPR may use t, the swept
+    name and the model's parameters (their values for the run)."""
+    from .expressions import ExpressionError, parse_time_function
+    given = known_names(assignments(texts, "--input"), "--input", model, "input",
+                        model.input_names)
+    if not given:
+        return None
+    defaults = dict(zip(model.parameter_names, model.parameter_defaults))
+    constants = {k: v for k, v in {**defaults, **params}.items() if v is not None}
+
+    def inputs(value):
+        names = {**constants, swept: value}
+        try:
+            return {k: parse_time_function(text, names) for k, text in given.items()}
+        except ExpressionError as exc:
+            raise LagrgenError(f"--input: {exc}") from None
+    inputs(0.0)
+    return inputs
+
+
+def command_sweep(args):
+    from .sweep import sweep
+    model = single_model(args)
+    name, values = sweep_range(args.param)
+    params = parameters_option(args, model)
+    inputs = sweep_inputs(args.input, model, name, params)
+    if name not in model.parameter_names and inputs is None:
+        raise LagrgenError(f"--param {name}: not a parameter of {model.name!r} (its parameters are "
+                           f"{', '.join(model.parameter_names)}) and no --input uses it")
+    mod = build_for(model, args)
+    result = sweep(mod, name, values, (0.0, args.t_end), y0=initial_state(args.y0, model),
+                   inputs=inputs, params=params or None, measure=args.measure,
+                   settle=args.settle, method=args.method, rtol=args.rtol, atol=args.atol,
+                   workers=args.workers, progress=not args.quiet and sys.stderr.isatty())
+    header = [name] + [f"{c}_{args.measure}" for c in model.coordinate_names]
+    rows = np.column_stack([result.values, result.table])
+    if args.csv:
+        with open(args.csv, "w", newline="") as stream:
+            write_rows(stream, header, rows)
+    if args.plot:
+        from .outputs.plotting import plot_sweep
+        linear = None
+        if args.linear is not None:
+            linear = linear_amplitudes(mod, model, args, result.values)
+        plot_sweep(result, args.plot, title=model.name, linear=linear)
+    if not (args.csv or args.plot):
+        write_rows(sys.stdout, header, rows)
+    failed = int((~result.success).sum())
+    if failed and not args.quiet:
+        print(f"{model.name}: {failed} of {len(values)} runs failed", file=sys.stderr)
+    return 0
+
+
+def linear_amplitudes(mod, model, args, omegas):
+    """AMPLITUDE·|H(ω)| of each coordinate to the one --input, about the equilibrium near 0."""
+    from .vibration import equilibrium, frequency_response
+    if len(model.input_names) < 1:
+        raise LagrgenError("--linear needs a model with an input")
+    forced = list(assignments(args.input, "--input"))[:1] or [model.input_names[0]]
+    q0 = equilibrium(mod, np.zeros(mod.n_coordinates))
+    H = frequency_response(mod, q0, np.asarray(omegas) / (2 * np.pi), input=forced[0])
+    return args.linear * np.abs(H)
+
+
+def write_rows(stream, header, rows):
+    writer = csv.writer(stream)
+    writer.writerow(header)
+    writer.writerows([[f"{v:.10g}" for v in row] for row in rows])
+
+
+def add_sweep(sub):
+    from .methods import METHODS
+    from .sweep import MEASURES
+    s = sub.add_parser("sweep", help="a steady-state measure against a swept parameter",
+                       description="Run the model once per value of --param NAME=START:STOP:N "
+                       "(a parameter, or a name the --input expressions use, such as a forcing "
+                       "frequency) and report the steady-state --measure of each coordinate over "
+                       "the last part of each run, as CSV and/or a plot.")
+    add_run_options(s)
+    s.add_argument("--param", required=True, metavar="NAME=START:STOP:N", help="what to sweep")
+    s.add_argument("--input", action="append", metavar="NAME=EXPR",
+                   help="an input as an expression of t, the swept name and the parameters, "
+                   "e.g. F=A*sin(w*t)")
+    s.add_argument("--t-end", type=float, required=True, metavar="T", help="end time of each run")
+    s.add_argument("--y0", metavar="VALUES", help="initial state, as for simulate (default 0)")
+    s.add_argument("--measure", choices=MEASURES, default="amplitude",
+                   help="amplitude (half peak-to-peak), max (largest |q|) or final (default "
+                   "amplitude), over the steady window")
+    s.add_argument("--settle", type=float, default=0.5,
+                   help="fraction of each run left out as transient (default 0.5)")
+    s.add_argument("--method", choices=METHODS, default="RK45", help="solve_ivp method")
+    s.add_argument("--rtol", type=float, default=1e-6, help="relative tolerance (default 1e-6)")
+    s.add_argument("--atol", type=float, default=1e-9, help="absolute tolerance (default 1e-9)")
+    s.add_argument("--workers", type=int, help="threads (default: every core for C)")
+    s.add_argument("--linear", type=float, metavar="AMPLITUDE",
+                   help="also plot AMPLITUDE·|H(ω)| of the linearized model to the input, with "
+                   "the swept values as ω in rad/s")
+    s.add_argument("--csv", metavar="OUT.csv", help="write the table")
+    s.add_argument("--plot", metavar="OUT.png", help="plot the measure against the swept value")
+    s.set_defaults(run=command_sweep)
+
+
+COMMANDS = [add_build, add_export_c, add_show, add_modes, add_simulate, add_bench, add_sweep]
 
 
 def parser():

@@ -27,8 +27,25 @@ class MassMatrixError(LagrgenError, np.linalg.LinAlgError):
         hint = ("the state contains NaN or infinity" if not np.all(np.isfinite(q)) else
                 "check that masses and inertias are positive and that the coordinates are "
                 "independent at this configuration")
-        return cls(f"the mass matrix of model {name!r} is not positive definite at t={t!r}, "
+        return cls(f"the mass matrix of model {name!r} is not positive definite at t={float(t)!r}, "
                    f"q={np.array2string(q, precision=6)}: {hint}")
+
+
+class ConstraintError(LagrgenError, np.linalg.LinAlgError):
+    """The constraints are dependent (A·M⁻¹·Aᵀ singular) or cannot be satisfied at a state."""
+
+    @classmethod
+    def at(cls, name, t, y, n):
+        """The error for model `name` at (t, y = [q, q̇]) with n coordinates."""
+        y = np.asarray(y, dtype=float)
+        q, qd = y[:n], y[n:2 * n]
+        hint = ("the state contains NaN or infinity" if not np.all(np.isfinite(y)) else
+                "the constraint Jacobian A = [Φ_q; A_v] is rank-deficient there: the constraints "
+                "are redundant (remove the dependent ones) or the mechanism is at a singular "
+                "configuration (a dead point)")
+        return cls(f"the constraints of model {name!r} are not independent at t={t!r}, "
+                   f"q={np.array2string(q, precision=6)}, qd={np.array2string(qd, precision=6)} "
+                   f"(A·M⁻¹·Aᵀ is singular): {hint}")
 
 
 class BuildError(LagrgenError, RuntimeError):
@@ -37,3 +54,15 @@ class BuildError(LagrgenError, RuntimeError):
 
 class CompileError(BuildError):
     """The C compiler rejected the generated code; the message carries its output."""
+
+
+class NonFiniteError(LagrgenError, FloatingPointError):
+    """The derivative became NaN or infinite during a simulation."""
+
+    @classmethod
+    def at(cls, name, t, y):
+        """The error for model `name` whose derivative is not finite at (t, y)."""
+        y = np.asarray(y, dtype=float)
+        return cls(f"the derivative of model {name!r} is not finite at t={float(t)!r}, "
+                   f"y={np.array2string(y, precision=6)}: the simulation stopped there; check the "
+                   "model's domain (sqrt, log, division) and the parameters")

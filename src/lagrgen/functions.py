@@ -66,12 +66,22 @@ FUNCTIONS = (
                   "M, ∂F/∂q, ∂F/∂q̇ and ∂F/∂u at one point"),
     ModelFunction("outputs", "state", (Output("y", ("n_outputs",)),),
                   "the outputs: the user's, then T, V, T + V, Σ Q_j·q̇_j and R"),
+    ModelFunction("constraint_forces", "state", (Output("lam", ("n_constraints",)),),
+                  "λ of M·q̈ = F + Aᵀ·λ, A·q̈ = γ (Aᵀλ: the generalized forces of constraint)"),
+    ModelFunction("constraint_residuals", "state", (Output("residuals", ("n_residuals",)),),
+                  "Φ(q, t) of the holonomic constraints, then A·q̇ + b of all constraints"),
+    ModelFunction("constraint_terms", "q_qd",
+                  (Output("A", ("n_constraints", "n")), Output("lam", ("n_constraints",)),
+                   Output("H", ("n", "n"))),
+                  "A, λ and ∂(Aᵀλ)/∂q (λ held fixed) at one point"),
 )
 
 BY_NAME = {f.name: f for f in FUNCTIONS}
 
 
-def dimensions(n, n_params, n_inputs, **more):
+def dimensions(n, n_params, n_inputs, n_constraints=0, n_holonomic=0, **more):
     """The dimension names of output shapes and their sizes for one model (stored in its
     metadata, so the runtime reads every size from there; add a size by passing it in `more`)."""
-    return {"n": n, "2n": 2 * n, "n_params": n_params, "n_inputs": n_inputs, **more}
+    return {"n": n, "2n": 2 * n, "n_params": n_params, "n_inputs": n_inputs,
+            "n_constraints": n_constraints, "n_holonomic": n_holonomic,
+            "n_residuals": n_holonomic + n_constraints, **more}

@@ -10,6 +10,9 @@ assembled from these by the backends:
                  At a = 0 it is [∂F/∂q | ∂F/∂q̇], the linearization's −K and −C.
     dF_du        ∂F/∂u, the linearization's input matrix
     outputs      the model's outputs: the user's, then T, V, T + V, input power, R
+    constraints  A (m×n) and γ (m) of A·q̈ = γ                       } only for a model with
+    constraint_residuals  Φ, then A·q̇ + b                            } constraints (m > 0);
+    constraint_jacobian   ∂(Aᵀλ)/∂q and [∂γ/∂q − ∂(A·a)/∂q | ∂γ/∂q̇]  } a = [q̈, λ] there
 """
 import weakref
 from dataclasses import dataclass
@@ -29,6 +32,7 @@ class KernelSpec:
     formula: str
     outputs: tuple       # of functions.Output
     expressions: object  # Equations -> {output name: [expression, row-major]}
+    when: object = None  # Equations -> bool: whether the model has this kernel (None: always)
 
 
 @dataclass
@@ -66,6 +70,16 @@ KERNELS = (
                lambda eq: {"dF_du": flatten(eq.dF_du)}),
     KernelSpec("outputs", "the user's outputs, then T, V, T + V, Σ Q_j·q̇_j and R",
                (Output("out", ("n_outputs",)),), lambda eq: {"out": list(eq.outputs)}),
+    KernelSpec("constraints", "A (m×n) and γ (m) of the constraints A·q̈ = γ (Baumgarte-stabilized)",
+               (Output("A", ("n_constraints", "n")), Output("gamma", ("n_constraints",))),
+               lambda eq: {"A": flatten(eq.A), "gamma": list(eq.gamma)}, lambda eq: eq.m > 0),
+    KernelSpec("constraint_residuals", "Φ (n_holonomic), then A·q̇ + b (m)",
+               (Output("residuals", ("n_residuals",)),),
+               lambda eq: {"residuals": list(eq.residuals)}, lambda eq: eq.m > 0),
+    KernelSpec("constraint_jacobian",
+               "H = ∂(Aᵀλ)/∂q (n×n) and G = [∂γ/∂q − ∂(A·a)/∂q | ∂γ/∂q̇] (m×2n), a = [q̈, λ]",
+               (Output("H", ("n", "n")), Output("G", ("n_constraints", "2n"))),
+               lambda eq: {"H": flatten(eq.dAl_dq), "G": flatten(eq.G)}, lambda eq: eq.m > 0),
 )
 
 _computed = weakref.WeakKeyDictionary()
@@ -85,5 +99,6 @@ def cse_kernel(spec, outputs):
 def all_kernels(eq):
     """The kernels of KERNELS for the equations `eq`, in order (computed once per Equations)."""
     if eq not in _computed:
-        _computed[eq] = [cse_kernel(k, k.expressions(eq)) for k in KERNELS]
+        _computed[eq] = [cse_kernel(k, k.expressions(eq)) for k in KERNELS
+                         if k.when is None or k.when(eq)]
     return _computed[eq]

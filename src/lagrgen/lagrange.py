@@ -46,14 +46,77 @@ class Equations:
     """M(q,t)·q̈ = F(q,q̇,t,u) for one model, with the Jacobian pieces ∂F/∂q, ∂F/∂q̇, ∂(M·a)/∂q.
 
     Matrices are lists of lists of SymEngine expressions in the internal symbols.
+
+    With constraints (n_holonomic Φ(q,t) = 0 first, then the velocity constraints, m in all) the
+    equations are M·q̈ = F + Aᵀ·λ and A·q̈ = γ, where A = [Φ_q; A_v] (m×n), c = A·q̇ + b the
+    velocity-level residuals (c_i = Φ̇_i for the holonomic rows) and, with Baumgarte's α, β,
+
+        γ = −(∂c/∂q·q̇ + ∂c/∂t) − 2α·c − β²·[Φ; 0],
+
+    i.e. ċ + 2α·c + β²·Φ = 0. λ lives in the kernel argument `a` after q̈: λ_k = a[n + k].
     """
 
-    def __init__(self, spec, M, F, symbols):
+    def __init__(self, spec, M, F, symbols, constraints=None):
         self.spec = spec
         self.n = len(F)
         self.M = M
         self.F = F
         self.q, self.qd, self.a, self.p, self.u, self.t = symbols
+        phi, c = constraints or ([], [])
+        self.n_holonomic = len(phi)
+        self.m = len(c)
+        self.Phi = phi
+        self.c = c
+        self.lam = internal_symbols("a", self.n + self.m)[self.n:]
+
+    @cached_property
+    def A(self):
+        """A_kj = ∂c_k/∂q̇_j (m×n): the constraint Jacobian [Φ_q; A_v]."""
+        return [[diff(ck, qdj) for qdj in self.qd] for ck in self.c]
+
+    @cached_property
+    def gamma(self):
+        """γ (m) with A·q̈ = γ: −(∂c/∂q·q̇ + ∂c/∂t) − 2α·c − β²·Φ (Baumgarte, see the class)."""
+        alpha, beta = (se.Float(v) for v in self.spec.stabilization)
+        out = []
+        for k, ck in enumerate(self.c):
+            g = -rate(ck, self.q, self.qd, self.t)
+            if alpha != 0:
+                g -= 2 * alpha * ck
+            if k < self.n_holonomic and beta != 0:
+                g -= beta * beta * self.Phi[k]
+            out.append(g)
+        return out
+
+    @cached_property
+    def residuals(self):
+        """Φ (n_holonomic), then c = A·q̇ + b (m)."""
+        return list(self.Phi) + list(self.c)
+
+    @cached_property
+    def dAl_dq(self):
+        """∂(Aᵀλ)_i/∂q_j = Σ_k ∂A_ki/∂q_j·λ_k (n×n), λ held fixed."""
+        n = self.n
+        out = [[se.Integer(0)] * n for _ in range(n)]
+        for k, row in enumerate(self.A):
+            for i, Aki in enumerate(row):
+                if Aki == 0:
+                    continue
+                for j, qj in enumerate(self.q):
+                    d = diff(Aki, qj)
+                    if d != 0:
+                        out[i][j] += d * self.lam[k]
+        return out
+
+    @cached_property
+    def G(self):
+        """[∂γ/∂q − ∂(A·a)/∂q | ∂γ/∂q̇] (m×2n), a = q̈ held fixed."""
+        out = []
+        for k, g in enumerate(self.gamma):
+            Aa = sum((Akj * aj for Akj, aj in zip(self.A[k], self.a) if Akj != 0), se.Integer(0))
+            out.append([diff(g, qj) - diff(Aa, qj) for qj in self.q]
+                       + [diff(g, qdj) for qdj in self.qd])
+        return out
 
     @cached_property
     def dF_dq(self):
@@ -104,6 +167,8 @@ class Equations:
     def differentiate(self):
         """Evaluate (and cache) every Jacobian piece now; return self."""
         _ = self.dF_dq, self.dF_dqd, self.dMa_dq, self.dF_du
+        if self.m:
+            _ = self.gamma, self.dAl_dq, self.G
         return self
 
     @cached_property
@@ -247,7 +312,22 @@ def derive(spec):
         for j in range(i + 1, n):
             M[i][j] = M[j][i]
     _check_mass_matrix(spec, M, qd)
-    return Equations(spec, M, F, symbols)
+    return Equations(spec, M, F, symbols, _constraints(spec, convert, q, qd, t))
+
+
+def _constraints(spec, convert, q, qd, t):
+    """(Φ, c): the holonomic constraints and the velocity-level residuals c = A·q̇ + b of all
+    constraints (Φ̇ for the holonomic ones, then the velocity constraints as given)."""
+    phi = [convert(e) for e in spec.constraints]
+    c = [rate(f, q, qd, t) for f in phi] + [convert(e) for e in spec.velocity_constraints]
+    for k, ck in enumerate(c):
+        if all(diff(ck, v) == 0 for v in qd):
+            label = (f"constraint {k + 1}" if k < len(phi)
+                     else f"velocity constraint {k - len(phi) + 1}")
+            raise ModelError(f"{label} of model {spec.name!r} does not restrict the velocities "
+                             "(its Jacobian row is identically zero): it is not a constraint on "
+                             "the motion")
+    return phi, c
 
 
 def _check_mass_matrix(model, M, qd):

@@ -4,6 +4,7 @@ A `Model` only records what the user says; `lagrgen.lagrange` turns it into equa
 """
 import keyword
 import math
+import sys
 from dataclasses import dataclass
 
 import sympy as sp
@@ -39,15 +40,35 @@ def check_name(name, what="name"):
     return name
 
 
+#: Names a model cannot take: lagrgen and the packages it runs on (besides the standard library's).
+RESERVED_NAMES = frozenset({"lagrgen", "numpy", "scipy", "sympy", "symengine", "matplotlib",
+                            "Cython", "setuptools", "pytest", "dask", "distributed", "fmpy",
+                            "mujoco", "filelock", "mpmath", "PIL"})
+MAX_NAME_LENGTH = 100
+
+
 def check_model_name(name):
     """Return `name` if it can name a compiled module: an ASCII identifier other than 'lagrgen'."""
     check_name(name, "model name")
     if not name.isascii():
         raise ModelError(f"invalid model name {name!r}: it becomes the name of a compiled Python "
                          "module, so use ASCII letters, digits and underscores only")
-    if name == "lagrgen":
-        raise ModelError("a model cannot be called 'lagrgen': its module would hide the package")
+    if len(name) > MAX_NAME_LENGTH:
+        raise ModelError(f"model name {name[:20]}... is {len(name)} characters long: it names "
+                         f"files, so use at most {MAX_NAME_LENGTH}")
+    if name in RESERVED_NAMES or name in getattr(sys, "stdlib_module_names", ()):
+        raise ModelError(f"a model cannot be called {name!r}: that is the name of a module Python "
+                         "or lagrgen needs, which the compiled model would hide; choose another name")
     return name
+
+
+def fits_a_double(number):
+    """True if the SymPy number rounds to a finite double that is zero only when it is zero."""
+    try:
+        value = float(number)
+    except (OverflowError, TypeError):
+        return False
+    return math.isfinite(value) and (value != 0 or number == 0)
 
 
 def split_names(names, what):
@@ -96,6 +117,11 @@ def as_vector(value, what):
     return vec
 
 
+#: Baumgarte's (α, β) in 1/s unless `Model.constraint_stabilization` sets others: the constraint
+#: error then decays like e^(−10·t)·(1 + 10·t) (critically damped).
+BAUMGARTE_DEFAULTS = (10.0, 10.0)
+
+
 class Model:
     """A mechanical system described by its energies, dissipation and generalized forces.
 
@@ -119,6 +145,10 @@ class Model:
         self._drawables = []       # (kind, points): what an animation can draw
         self._outputs = []         # (name, expr): named quantities evaluated along a solution
         self._units = {}           # name -> unit label (coordinates, parameters, inputs, outputs)
+        self._constraints = []     # Φ(q, t) = 0, holonomic
+        self._velocity_constraints = []  # A(q, t)·q̇ + b(q, t) = 0
+        self._constraint_names = {}  # ("holonomic" | "velocity", index) -> the user's name
+        self._stabilization = BAUMGARTE_DEFAULTS
         self._version = 0
 
     @property
@@ -277,18 +307,37 @@ class Model:
         return tuple(self._defaults)
 
     # -- checking expressions -----------------------------------------------------------------
-    def _check(self, expr, where, velocities=True, inputs=True):
-        """Return `expr` sympified, after checking every symbol and function in it is known."""
+    def _check(self, expr, where, velocities=True, inputs=True, vector=False):
+        """Return `expr` sympified, after checking every symbol and function in it is known.
+
+        A scalar is expected unless `vector`; a 1×1 matrix counts as its entry."""
         try:
             expr = sp.sympify(expr)
         except (sp.SympifyError, TypeError) as exc:
             raise ModelError(f"{where}: cannot read {expr!r} as a SymPy expression ({exc})") from None
         if isinstance(expr, sp.MatrixBase):
-            for e in expr:
-                self._check(e, where, velocities, inputs)
-            return expr
+            if vector:
+                for e in expr:
+                    self._check(e, where, velocities, inputs)
+                return expr
+            if expr.shape != (1, 1):
+                raise ModelError(f"{where} must be a scalar expression, got a {expr.shape[0]}×"
+                                 f"{expr.shape[1]} matrix")
+            expr = expr[0, 0]
+        if not isinstance(expr, sp.Expr):
+            kind = "a relation (an equation or inequality)" if isinstance(
+                expr, (sp.Rel, sp.logic.boolalg.Boolean)) else f"a {type(expr).__name__}"
+            raise ModelError(f"{where}: {expr} is {kind}, not an expression; write the quantity "
+                             "itself (for a switch use Piecewise, Heaviside or sign)")
         allowed = set(self._parameters) | {self.t}
         for s in expr.free_symbols - allowed:
+            twin = next((p for p in self._parameters if p.name == s.name), None)
+            if twin is not None or s.name == "t":
+                raise ModelError(
+                    f"{where}: symbol {s} is not the {'parameter' if twin else 'time'} {s.name} of "
+                    f"model {self.name!r}, only a symbol of the same name with other assumptions "
+                    f"({s.assumptions0 or 'none'}); use the symbol "
+                    f"{'model.parameters' if twin else 'model.t'} returned")
             raise ModelError(
                 f"{where}: symbol {s} is neither a coordinate, a parameter, an input nor t; "
                 f"declare it with model.parameters({s}=...) or model.inputs('{s}')")
@@ -317,6 +366,11 @@ class Model:
                 raise ModelError(f"{where}: function {f.func.__name__} is not supported (use {names})")
         if expr.has(sp.zoo, sp.oo, sp.nan, -sp.oo):
             raise ModelError(f"{where}: expression {expr} contains an infinity or NaN")
+        for number in expr.atoms(sp.Number):
+            if not fits_a_double(number):
+                raise ModelError(
+                    f"{where}: the number {sp.N(number, 6)} does not fit a double (|x| between "
+                    "2.2e-308 and 1.8e308): rescale the model's units or parameters")
         return expr
 
     def _coordinate(self, coordinate):
@@ -338,7 +392,7 @@ class Model:
         """T += ½·mass·ṙ·ṙ with ṙ the total time derivative of `position` (1 to 3 components)."""
         mass = self._check(mass, "particle mass", velocities=False, inputs=False)
         position = self._check(as_vector(position, "particle position"), "particle position",
-                               velocities=False, inputs=False)
+                               velocities=False, inputs=False, vector=True)
         self._particles.append((mass, position))
         self._drawables.append(("point", (position, mass)))
         self._changed()
@@ -354,7 +408,7 @@ class Model:
         mass = self._check(mass, "rigid body mass", velocities=False, inputs=False)
         inertia = self._check(inertia, "rigid body inertia", velocities=False, inputs=False)
         position = self._check(as_vector(position, "rigid body position"), "rigid body position",
-                               velocities=False, inputs=False)
+                               velocities=False, inputs=False, vector=True)
         angle = self._check(angle, "rigid body angle", velocities=False, inputs=False)
         self._particles.append((mass, position))
         self._particles.append((inertia, sp.Matrix([angle])))
@@ -410,8 +464,8 @@ class Model:
 
     def force(self, vector, at):
         """Q_j += vector · ∂at/∂q_j (virtual work of a force applied at the point `at`)."""
-        vector = self._check(as_vector(vector, "force"), "force")
-        at = self._check(as_vector(at, "force point"), "force point", velocities=False, inputs=False)
+        vector = self._check(as_vector(vector, "force"), "force", vector=True)
+        at = self._check(as_vector(at, "force point"), "force point", velocities=False, inputs=False, vector=True)
         if len(vector) != len(at):
             raise ModelError(
                 f"force has {len(vector)} components but its point of application has {len(at)}")
@@ -432,10 +486,99 @@ class Model:
         self._virtual_work.append((sp.Matrix([expr]), sp.Matrix([coordinate])))
         self._changed()
 
+    # -- constraints --------------------------------------------------------------------------
+    def constraint(self, expr, name=None):
+        """Add a holonomic constraint Φ(q, t) = 0 (coordinates, t and parameters only; an
+        equation lhs = rhs means lhs − rhs = 0).
+
+        Its multiplier λ_i enters the equations as M·q̈ = F + Φ_qᵀ·λ (see `lagrgen.lagrange`);
+        `name` (an identifier) names λ_i in results (`sol.multipliers[name]`), CSV columns and
+        `show`; unnamed constraints are lambda1, lambda2, ... in the order of `constraint_names`.
+        """
+        where = f"constraint {len(self._constraints) + 1}"
+        expr = self._check(self._equation(expr), where, velocities=False, inputs=False)
+        if not any(expr.has(c) for c in self._coordinates):
+            raise ModelError(f"{where} ({expr} = 0) does not involve any coordinate: it is not a "
+                             "constraint on the motion")
+        self._name_constraint(name, ("holonomic", len(self._constraints)))
+        self._constraints.append(expr)
+        self._changed()
+
+    def _name_constraint(self, name, key):
+        if name is None:
+            return
+        check_name(name, "constraint name")
+        if name.startswith("lambda") and name[6:].isdigit():
+            raise ModelError(f"constraint name {name!r} is reserved for unnamed constraints; "
+                             "choose another name")
+        self._declare(name, "constraint")
+        self._constraint_names[key] = name
+
+    def velocity_constraint(self, expr, name=None):
+        """Add a constraint linear in the velocities, A(q, t)·q̇ + b(q, t) = 0 (nonholonomic,
+        e.g. a knife edge −sin θ·ẋ + cos θ·ẏ = 0); its multiplier enters M·q̈ = F + Aᵀ·λ.
+        `name` as for `constraint`."""
+        where = f"velocity constraint {len(self._velocity_constraints) + 1}"
+        expr = self._check(self._equation(expr), where, velocities=True, inputs=False)
+        qd = self.qd
+        coefficients = [sp.diff(expr, v) for v in qd]
+        for v, c in zip(qd, coefficients):
+            if any(c.has(w) for w in qd):
+                raise ModelError(
+                    f"{where} ({expr} = 0) is not linear in the velocities: its coefficient of "
+                    f"{v} is {c}, which depends on velocities; write it as A(q, t)·q̇ + b(q, t)")
+        if not any(c != 0 for c in coefficients):
+            raise ModelError(
+                f"{where} ({expr} = 0) involves no velocity: a constraint on positions alone is "
+                "holonomic, add it with model.constraint(expr)")
+        self._name_constraint(name, ("velocity", len(self._velocity_constraints)))
+        self._velocity_constraints.append(expr)
+        self._changed()
+
+    def constraint_stabilization(self, alpha=BAUMGARTE_DEFAULTS[0], beta=BAUMGARTE_DEFAULTS[1]):
+        """Set Baumgarte's drift control (1/s): the constraints are imposed at the acceleration
+        level as Φ̈ + 2α·Φ̇ + β²·Φ = 0 (holonomic) and ċ + 2α·c = 0 (velocity constraints c = 0).
+        α = β = 0 switches it off."""
+        values = []
+        for name, value in (("alpha", alpha), ("beta", beta)):
+            try:
+                value = float(value)
+            except (TypeError, ValueError):
+                raise ModelError(f"Baumgarte {name} must be a number, got {value!r}") from None
+            if not (math.isfinite(value) and value >= 0):
+                raise ModelError(f"Baumgarte {name} must be finite and ≥ 0, got {value}")
+            values.append(value)
+        self._stabilization = tuple(values)
+        self._changed()
+
+    @staticmethod
+    def _equation(expr):
+        """An equation lhs = rhs as lhs − rhs (a constraint means expr = 0)."""
+        return expr.lhs - expr.rhs if isinstance(expr, sp.Equality) else expr
+
+    @property
+    def constraints(self):
+        """The holonomic constraints Φ_i (each meaning Φ_i = 0), in declaration order."""
+        return tuple(self._constraints)
+
+    @property
+    def velocity_constraints(self):
+        """The velocity constraints (each meaning A(q,t)·q̇ + b = 0), in declaration order."""
+        return tuple(self._velocity_constraints)
+
+    @property
+    def constraint_names(self):
+        """The names of the multipliers λ: the holonomic constraints, then the velocity ones
+        (the order of A's rows); lambda<k> (k from 1 in that order) where none was given."""
+        keys = [("holonomic", i) for i in range(len(self._constraints))] + \
+            [("velocity", i) for i in range(len(self._velocity_constraints))]
+        return tuple(self._constraint_names.get(key, f"lambda{k + 1}")
+                     for k, key in enumerate(keys))
+
     def line(self, *points):
         """Draw a polyline through `points` in animations (an extension: rods, outlines)."""
         pts = tuple(self._check(as_vector(p, "line point"), "line point", velocities=False,
-                                inputs=False) for p in points)
+                                inputs=False, vector=True) for p in points)
         if len(pts) < 2:
             raise ModelError("a line needs at least two points")
         self._drawables.append(("line", pts))
@@ -446,7 +589,7 @@ class Model:
         if len(ends) != 2:
             raise ModelError(f"{kind} ends must be a pair of points, got {len(ends)}")
         a, b = (self._check(as_vector(p, f"{kind} end"), f"{kind} end", velocities=False,
-                            inputs=False) for p in ends)
+                            inputs=False, vector=True) for p in ends)
         self._drawables.append((kind, (a, b)))
 
     @property
@@ -467,7 +610,11 @@ class Model:
                 kinetic=tuple(self._kinetic), potential=tuple(self._potential),
                 dissipation=tuple(self._dissipation), dampers=tuple(self._dampers),
                 virtual_work=tuple((_frozen(v), _frozen(r)) for v, r in self._virtual_work),
-                outputs=tuple(self._outputs), units=tuple(sorted(self._units.items()))))
+                outputs=tuple(self._outputs), units=tuple(sorted(self._units.items())),
+                constraints=tuple(self._constraints),
+                velocity_constraints=tuple(self._velocity_constraints),
+                constraint_names=self.constraint_names,
+                stabilization=self._stabilization))
         return self._spec[1]
 
     def equations(self):
@@ -522,6 +669,10 @@ class ModelSpec:
     @property
     def output_names(self):
         return tuple(n for n, _ in self.outputs) + AUTOMATIC_OUTPUTS
+    constraints: tuple = ()   # Φ_i(q, t) = 0
+    velocity_constraints: tuple = ()  # A(q, t)·q̇ + b(q, t) = 0
+    constraint_names: tuple = ()  # one per multiplier, holonomic first
+    stabilization: tuple = (0.0, 0.0)  # Baumgarte (α, β), 1/s
 
     @property
     def qd(self):

@@ -3,17 +3,18 @@
 User arguments (params, inputs, y0) are converted once here, by `lagrgen.runtime.arguments`; the
 functions handed to the solver take raw float64 arrays.
 """
+import math
 import time
 
 import numpy as np
 from scipy.integrate import solve_ivp
 
+from .errors import MassMatrixError, NonFiniteError
 from .runtime.arguments import (as_vector, key_name, named_vector, parameter_vector,
                                 require_finite, state_vector, unknown_name)
+from .methods import METHODS, STIFF_METHODS
+from .native_engine import input_specs, native_reason, solve_native
 from .solvers import SOLVERS
-
-METHODS = ("RK23", "RK45", "DOP853", "Radau", "BDF", "LSODA")
-STIFF_METHODS = ("Radau", "BDF", "LSODA")
 
 
 def parameters_from(mod, params):
@@ -90,9 +91,10 @@ class _Guard:
 
 
 def simulate(mod, t_span, y0, method="RK45", params=None, inputs=None, rtol=1e-6, atol=1e-9,
-             t_eval=None, dense_output=False, events=None, max_steps=None, max_wall_time=None,
-             **options):
-    """Integrate ẏ = mod.rhs(t, y) over `t_span` from `y0` = [q0, q̇0] with `solve_ivp`.
+             t_eval=None, dense_output=False, events=None, engine=None, max_steps=None,
+             max_wall_time=None, **options):
+    """Integrate ẏ = mod.rhs(t, y) over `t_span` from `y0` = [q0, q̇0], natively in C or with
+    SciPy's `solve_ivp` (the same steps either way).
 
     Parameters
     ----------
@@ -102,10 +104,17 @@ def simulate(mod, t_span, y0, method="RK45", params=None, inputs=None, rtol=1e-6
     method : one of METHODS or a solver class; the stiff ones get the analytic `mod.jacobian`
         (Radau and BDF run as `lagrgen.solvers` classes: SciPy's, with direct LAPACK LU)
     params : dict of parameter names (or the model's Symbols) -> value, or a full array
-    inputs : dict of input names (or the model's functions) -> constant or callable of t
+    inputs : dict of input names (or the model's functions) -> constant, `lagrgen.Signal` or
+        callable of t
+    engine : None runs the whole solve in C (`lagrgen.native_engine`, no Python per step, the
+        GIL released) when the model is compiled, the method is RK23/RK45/DOP853/Radau/BDF, the
+        inputs are constants or Signals and there are no Python events; otherwise SciPy's
+        `solve_ivp` (a callable input says so in `result.message`). "native" insists (ValueError
+        saying why not); "scipy" always uses `solve_ivp`. `result.engine` says which ran.
     max_steps, max_wall_time : a guard for long integrations (None: no limit). When either is
         reached the integration stops there: the result holds the solution up to that time, with
-        `success` False, `status` −1, `guard` and `message` saying which limit was hit.
+        `success` False, `status` −1, `guard` and `message` saying which limit was hit. (The guard
+        is a Python event, so a guarded solve runs on the SciPy engine.)
     **options : passed to `solve_ivp` unchanged (max_step, first_step, ...)
 
     Returns
@@ -113,55 +122,117 @@ def simulate(mod, t_span, y0, method="RK45", params=None, inputs=None, rtol=1e-6
     SciPy's OdeResult, with also `coordinates` (names), `q` and `qd` (views of the rows of `y`),
     `params` and `inputs` (the values used; see `evaluate_outputs`) and `guard` (None, or why the
     guard stopped the integration).
+    A constrained model's result also has `constraint_forces` (λ, n_constraints × len(t), with
+    M·q̈ = F + Aᵀλ) and `constraint_residuals` (Φ then A·q̇ + b, (n_holonomic + n_constraints) ×
+    len(t)), `constraint_names` and `multipliers` ({name: λ row}, the reaction asked for by
+    the constraint's name). Its initial state should satisfy the constraints (see `lagrgen.consistent_state`;
+    Baumgarte stabilization pulls a small violation back).
+
+    Raises
+    ------
+    NonFiniteError when the derivative becomes NaN or infinite (naming t and the state),
+    MassMatrixError when M is not positive definite, ConstraintError when the constraints are
+    redundant at the initial state or become dependent during the run.
     """
     if "args" in options:
         raise TypeError("simulate() takes no 'args': pass parameters as params={name: value} "
                         "(or a full parameter array) and inputs as inputs={name: value or f(t)}")
     if not (method in METHODS or isinstance(method, type)):
         raise ValueError(f"unknown method {method!r}: use one of {', '.join(METHODS)}")
+    if engine not in (None, "native", "scipy"):
+        raise ValueError(f"engine must be None, 'native' or 'scipy', not {engine!r}")
     n = mod.n_coordinates
     y0 = state_vector(y0, tuple(mod.coordinates))
     p = parameters_from(mod, params)
+    guard = None
+    if max_steps is not None or max_wall_time is not None:
+        guard = _Guard(max_steps, max_wall_time)
+        events = ([] if events is None else (list(events) if isinstance(events, (list, tuple))
+                                              else [events])) + [guard]
+    why_not = None if engine == "scipy" else native_reason(mod, method, inputs, events, options,
+                                                            rtol)
+    if engine == "native" and why_not:
+        raise ValueError(f"the native engine cannot run this solve: {why_not}")
     u, u_of_t = input_function(mod, inputs)
     rhs, jacobian = mod.rhs, mod.jacobian
     if u_of_t is None:
         def fun(t, y):
-            return rhs(t, y, p, u)
+            ydot = rhs(t, y, p, u)
+            if not math.isfinite(ydot.sum()):
+                raise NonFiniteError.at(mod.name, t, y)
+            return ydot
 
         def jac(t, y):
             return jacobian(t, y, p, u)
     else:
         def fun(t, y):
-            return rhs(t, y, p, u_of_t(t))
+            ydot = rhs(t, y, p, u_of_t(t))
+            if not math.isfinite(ydot.sum()):
+                raise NonFiniteError.at(mod.name, t, y)
+            return ydot
 
         def jac(t, y):
             return jacobian(t, y, p, u_of_t(t))
-    if getattr(method, "__name__", method) in STIFF_METHODS:
-        options.setdefault("jac", jac)
-    guard = None
-    if max_steps is not None or max_wall_time is not None:
-        guard = _Guard(max_steps, max_wall_time)
-        user_events = [] if events is None else (list(events) if isinstance(events, (list, tuple))
-                                                 else [events])
-        events = user_events + [guard]
-    sol = solve_ivp(fun, t_span, y0, method=SOLVERS.get(method, method), rtol=rtol, atol=atol,
-                    t_eval=t_eval, dense_output=dense_output, events=events, **options)
+    constrained = getattr(mod, "n_constraints", 0) > 0
+    if constrained:
+        from .constraints import check_state
+        t0 = float(t_span[0])
+        check_state(mod, t0, y0, p, u if u_of_t is None else u_of_t(t0))
+    if engine != "scipy" and why_not is None:
+        sol = solve_native(mod, t_span, y0, method, p, input_specs(mod, inputs), rtol, atol,
+                           t_eval, dense_output, None, stop_on_nonfinite=True, **options)
+        raise_native_failure(mod, sol, p, u, u_of_t)
+    else:
+        if getattr(method, "__name__", method) in STIFF_METHODS:
+            options.setdefault("jac", jac)
+        sol = solve_ivp(fun, t_span, y0, method=SOLVERS.get(method, method), rtol=rtol,
+                        atol=atol, t_eval=t_eval, dense_output=dense_output, events=events,
+                        **options)
+        sol.engine = "scipy"
+        if engine is None and why_not and "Python callable" in why_not:
+            sol.message = f"{sol.message} (SciPy engine: {why_not})"
     sol.guard = None
     if guard is not None:
-        sol.t_events, sol.y_events = sol.t_events[:-1], sol.y_events[:-1]
-        if guard.reason is not None and len(sol.t) and sol.status == 1 and \
-                guard.tripped_at is not None:
-            sol.guard = guard.reason
-            sol.success, sol.status = False, -1
-            sol.message = (f"the integration was stopped at t = {guard.tripped_at:.6g} "
-                           f"(of {t_span[1]:g}) after {guard.steps - 1} steps: {guard.reason}; "
-                           "the result holds the solution up to there. A discontinuous force "
-                           "(sign, Heaviside, a stop) can make an explicit solver crawl: try "
-                           "method='Radau', events on the switching surfaces, or a smooth "
-                           "approximation such as tanh(v/eps)")
+        finish_guarded(sol, guard, t_span)
     sol.params = p
     sol.inputs = u if u_of_t is None else u_of_t
-    return with_coordinates(sol, mod.coordinates, n)
+    sol = with_coordinates(sol, mod.coordinates, n)
+    if constrained:
+        from .constraints import along
+        sol.constraint_forces, sol.constraint_residuals = along(mod, sol, p, u, u_of_t)
+        sol.constraint_names = tuple(mod.constraint_names)
+        sol.multipliers = dict(zip(sol.constraint_names, sol.constraint_forces))
+    return sol
+
+
+def raise_native_failure(mod, sol, p, u, u_of_t):
+    """Raise, for a native solve, the error the SciPy engine raises at the same point: the
+    model's own error at the state where it failed, or NonFiniteError."""
+    failure = getattr(sol, "mass_matrix_failure", None)
+    if failure is not None:
+        t, y = failure
+        mod.rhs(t, y, p, u if u_of_t is None else u_of_t(t))
+        raise MassMatrixError.at(mod.name, t, y[:mod.n_coordinates])
+    failure = getattr(sol, "nonfinite_failure", None)
+    if failure is not None:
+        raise NonFiniteError.at(mod.name, *failure)
+
+
+def finish_guarded(sol, guard, t_span):
+    """Drop the guard's event from `sol` and, if it stopped the run, say so (status −1)."""
+    sol.t_events, sol.y_events = sol.t_events[:-1], sol.y_events[:-1]
+    if not sol.t_events:        # the guard was the only event: as solve_ivp without events
+        sol.t_events = sol.y_events = None
+    if guard.reason is not None and len(sol.t) and sol.status == 1 and \
+            guard.tripped_at is not None:
+        sol.guard = guard.reason
+        sol.success, sol.status = False, -1
+        sol.message = (f"the integration was stopped at t = {guard.tripped_at:.6g} "
+                       f"(of {t_span[1]:g}) after {guard.steps - 1} steps: {guard.reason}; "
+                       "the result holds the solution up to there. A discontinuous force "
+                       "(sign, Heaviside, a stop) can make an explicit solver crawl: try "
+                       "method='Radau', events on the switching surfaces, or a smooth "
+                       "approximation such as tanh(v/eps)")
 
 
 def evaluate_outputs(mod, sol, params=None, inputs=None):

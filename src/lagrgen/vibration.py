@@ -7,6 +7,17 @@ About an operating point (q0, q̇0, u0) the equations M(q, t)·q̈ = F(q, q̇, t
 with the derivatives taken analytically by the built model's `linear_terms` (either backend).
 The term (∂M/∂q·q̈0)·δq is absent, so the linearization is exact to first order at an equilibrium
 (q̈0 = 0), which is where modes and frequency responses are meant to be computed.
+
+A constrained model (M·q̈ = F + Aᵀλ, A·q̈ = γ) is linearized in its independent directions:
+δq = N·ξ with N an orthonormal basis of the null space of A(q0), and
+
+    M_r = NᵀMN,  C_r = NᵀCN,  K_r = Nᵀ(K − ∂(Aᵀλ0)/∂q)N,  B_r = NᵀB,
+
+λ0 the multipliers at the operating point (the term ∂(Aᵀλ0)/∂q is the stiffness the constraint
+forces add, e.g. the tension of a pendulum's rod). This is exact to first order for holonomic
+constraints; velocity constraints are imposed on δq the same way (motions that satisfy them to
+first order). The linearization's `basis` is N; mode shapes are returned in the full
+coordinates, N·φ.
 """
 import warnings
 from dataclasses import dataclass, field
@@ -56,10 +67,18 @@ class Linearization:
     coordinates: tuple = ()
     inputs: tuple = ()
     name: str = ""
+    basis: np.ndarray = None   # constrained models: N (n×k), δq = N·ξ; M, C, K, B are in ξ
+    constraint_forces: np.ndarray = None  # constrained models: λ0 at the operating point
 
     @property
     def n(self):
+        """The number of independent coordinates (rows of M)."""
         return self.M.shape[0]
+
+    def to_coordinates(self, xi):
+        """Vectors or columns in the reduced coordinates ξ as δq = N·ξ (unchanged without
+        constraints)."""
+        return xi if self.basis is None else self.basis @ xi
 
     @property
     def names(self):
@@ -97,7 +116,9 @@ class Modes:
 
     `omega[i]` = √λ_i for the eigenvalues λ_i of K·φ = λ·M·φ in ascending order (rad/s; 0 for a
     rigid-body mode, NaN where λ < 0: an unstable equilibrium); `shapes[:, i]` = φ_i with
-    φ_iᵀ·M·φ_i = 1 (and φᵀ·M·φ = I when K is symmetric); `damping_ratios[i]` = ζ_i of the
+    φ_iᵀ·M·φ_i = 1 (and φᵀ·M·φ = I when K is symmetric; for a constrained model the k
+    independent modes in the full coordinates, n×k, N·φ with (Nφ)ᵀ·M·(Nφ) = I);
+    `damping_ratios[i]` = ζ_i of the
     eigenvalues s = −ζω_n ± iω_n√(1−ζ²) of the state-space matrix matched to mode i.
     """
 
@@ -138,6 +159,8 @@ def equilibrium(mod, q_guess, p=None, u=None, t=0.0, tol=1e-9):
     """
     q_guess, p, u = _operating_point(mod, q_guess, "q_guess", p, u)
     warn_frozen_time(mod, t, "equilibrium")
+    if getattr(mod, "n_constraints", 0):
+        return _constrained_equilibrium(mod, q_guess, p, u, t, tol)
     zero = np.zeros_like(q_guess)
 
     def residual(q):
@@ -165,6 +188,62 @@ def equilibrium(mod, q_guess, p=None, u=None, t=0.0, tol=1e-9):
         f"no equilibrium of model {mod.name!r} found near {names} "
         f"(|F| = {np.abs(residual(best)).max():.3g} at the best point reached): "
         "try another starting guess, or check that the model has a static equilibrium")
+
+
+def _constrained_equilibrium(mod, q_guess, p, u, t, tol):
+    """q on Φ(q, t) = 0 where the constrained q̈(q, q̇ = 0) vanishes: least squares on
+    [q̈(q); Φ(q)] with the Jacobian [∂q̈/∂q; Φ_q] from `mod.jacobian`, from the projected guess."""
+    from scipy.optimize import least_squares
+    from .constraints import consistent_state, velocity_terms
+    n = mod.n_coordinates
+    y0 = consistent_state(mod, np.concatenate([q_guess, np.zeros(n)]), t, p, u)
+    zero = np.zeros(n)
+
+    def residual(q):
+        y = np.concatenate([q, zero])
+        phi = velocity_terms(mod, t, q, p, u)[0]
+        return np.concatenate([mod.rhs(t, y, p, u)[n:], phi])
+
+    def jacobian(q):
+        y = np.concatenate([q, zero])
+        _, A, _ = velocity_terms(mod, t, q, p, u)
+        n_h = len(residual(q)) - n
+        return np.vstack([mod.jacobian(t, y, p, u)[n:, :n], A[:n_h]])
+
+    def converged(q):
+        scale = max(1.0, np.abs(jacobian(q)).max())
+        return np.all(np.isfinite(q)) and np.abs(residual(q)).max() <= tol * scale
+
+    q = y0[:n]
+    if not converged(q):
+        sol = least_squares(residual, q, jac=jacobian, method="lm", xtol=1e-15, ftol=1e-15,
+                            gtol=1e-15)
+        q = sol.x
+    if converged(q):
+        return np.asarray(q, dtype=float)
+    names = ", ".join(f"{c}={v:.6g}" for c, v in zip(mod.coordinates, q_guess))
+    raise EquilibriumError(
+        f"no equilibrium of the constrained model {mod.name!r} found near {names} "
+        f"(|q̈, Φ| = {np.abs(residual(q)).max():.3g} at the best point reached): try another "
+        "starting guess")
+
+
+def _reduce(mod, lin):
+    """`lin` of a constrained model restricted to δq = N·ξ, N = null space of A(q0) (see the
+    module docstring)."""
+    from .constraints import check_independent
+    A, lam, H = mod.constraint_terms(lin.q0, lin.qd0, lin.t, lin.p, lin.u)
+    check_independent(mod, lin.t, np.concatenate([lin.q0, lin.qd0]), A, "operating point")
+    N = scipy.linalg.null_space(A)
+    if N.shape[1] == 0:
+        raise LagrgenError(
+            f"model {mod.name!r} has no independent directions at q0: its {A.shape[0]} "
+            f"constraints fix all {A.shape[1]} coordinates, so it has no modes")
+    K = lin.K - H
+    lin.M, lin.C, lin.K, lin.B = N.T @ lin.M @ N, N.T @ lin.C @ N, N.T @ K @ N, N.T @ lin.B
+    lin.basis, lin.constraint_forces = N, lam
+    lin.coordinates = tuple(f"xi{i + 1}" for i in range(N.shape[1]))
+    return lin
 
 
 def check_mass_matrix(lin):
@@ -196,6 +275,8 @@ def linearize(mod, q0, qd0=None, t=0.0, p=None, u=None):
     lin = Linearization(M=M, C=-dF_dqd, K=-dF_dq, B=dF_du, q0=q0, qd0=qd0, t=float(t), p=p, u=u,
                         coordinates=tuple(mod.coordinates), inputs=tuple(mod.inputs),
                         name=mod.name)
+    if getattr(mod, "n_constraints", 0):
+        lin = _reduce(mod, lin)
     check_mass_matrix(lin)
     return lin
 
@@ -323,6 +404,7 @@ def modes(mod_or_lin, q0=None, p=None, u=None, t=0.0):
     omega = np.full(lin.n, np.nan)
     omega[lam_real >= 0] = np.sqrt(lam_real[lam_real >= 0])
     zeta, omega_d = damping(lin.M, lin.C, lin.K, shapes, np.nan_to_num(omega))
+    shapes = lin.to_coordinates(shapes)
     return Modes(omega=omega, shapes=shapes, damping_ratios=zeta, omega_damped=omega_d,
                  eigenvalues=lam, linearization=lin)
 
@@ -356,11 +438,11 @@ def frequency_response(mod, q0, freqs_hz, input="F", p=None, u=None):
     if freqs.ndim != 1:
         raise ValueError(f"freqs_hz must be a 1-D array of frequencies, got shape {freqs.shape}")
     b = lin.B[:, j]
-    H = np.empty((len(freqs), lin.n), dtype=complex)
+    H = np.empty((len(freqs), lin.n), dtype=complex)  # in ξ for a constrained model
     for k, w in enumerate(2 * np.pi * freqs):
         Z = lin.K - w * w * lin.M + 1j * w * lin.C
         try:
             H[k] = np.linalg.solve(Z, b)
         except np.linalg.LinAlgError:
             H[k] = np.inf
-    return H
+    return H if lin.basis is None else H @ lin.basis.T

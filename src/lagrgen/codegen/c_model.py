@@ -36,13 +36,14 @@ def kernel_functions(equations, max_statements=400):
     """The C functions lg_<kernel> of every registered kernel (split into parts when long)."""
     chunks = []
     arguments = ", ".join(KERNEL_ARGUMENTS)
+    prologue = "    " + " ".join(f"(void){a};" for a in KERNEL_ARGUMENTS) + "\n"
     for kernel in all_kernels(equations):
         outputs = [o.name for o in kernel.spec.outputs]
         params = ("double t, " + ", ".join(f"const double *{a}" for a in KERNEL_ARGUMENTS[1:])
                   + "".join(f", double *{o}" for o in outputs))
         args = arguments + "".join(f", {o}" for o in outputs)
         chunks.append(c_function(f"lg_{kernel.name}", params, args, kernel_statements(kernel),
-                                 kernel.spec.formula + ".", max_statements))
+                                 kernel.spec.formula + ".", max_statements, prologue))
     return "\n".join(chunks)
 
 
@@ -76,6 +77,8 @@ def substitutions(info, n):
         name=info["name"], version=__version__, content_hash=info["content_hash"],
         legend=legend(info), n=n, n_states=2 * n, n_params=len(info["parameters"]),
         n_inputs=len(info["inputs"]), n_or_1=max(n, 1),
+        n_constraints=info["dimensions"]["n_constraints"],
+        n_residuals=info["dimensions"]["n_residuals"],
         n_params_or_1=max(len(info["parameters"]), 1),
         n_inputs_or_1=max(len(info["inputs"]), 1))
 
@@ -93,6 +96,7 @@ def model_source(info, equations, max_statements=400):
     return Template(read_template("model.c.in")).substitute(
         substitutions(info, equations.n), linalg=read_template("linalg.c.in"),
         kernels=kernel_functions(equations, max_statements),
+        constraint_solver=read_template("constraints.c.in"),
         functions=model_functions(info["name"]),
         coordinate_names=_names(info["coordinates"]),
         parameter_names=_names(info["parameters"]), input_names=_names(info["inputs"]),

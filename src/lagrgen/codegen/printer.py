@@ -5,12 +5,31 @@ type) and statements (`Declare` a CSE temporary, `Store` an output entry) that e
 Symbols print by name: the internal names `q[i]`, `qd[i]`, `a[i]`, `p[j]`, `u[k]` and `t` are valid
 array accesses in both languages, and no user-chosen name ever reaches the generated code.
 """
+import math
 from dataclasses import dataclass
+from fractions import Fraction
 
 import symengine as se
 from symengine.lib.symengine_wrapper import Constant
 
+from ..errors import ModelError
+
 ADD, MUL, ATOM = 1, 2, 3
+#: Integers up to 2⁵³ are exact doubles and print as they are; larger ones as rounded doubles.
+EXACT_INTEGER = 2 ** 53
+
+
+def double(value, expr):
+    """`value` (int, Fraction, Float) correctly rounded to a double; ModelError if it does not fit."""
+    try:
+        v = float(value)
+    except OverflowError:
+        v = math.inf
+    if not math.isfinite(v) or (v == 0 and value != 0):
+        raise ModelError(f"the number {expr} in the equations does not fit a double "
+                         f"(|x| must lie between 2.2e-308 and 1.8e308): rescale the model's units "
+                         "or parameters")
+    return v
 
 
 @dataclass
@@ -69,13 +88,16 @@ class ExpressionPrinter:
             return e.name, ATOM
         if isinstance(e, se.Integer):
             v = int(e)
-            return self.integer(v), (ATOM if v >= 0 else MUL)
+            text = self.integer(v) if abs(v) <= EXACT_INTEGER else repr(double(v, e))
+            return text, (ATOM if v >= 0 else MUL)
         if isinstance(e, se.Rational):
             num, den = (int(x) for x in e.get_num_den())
-            text = f"{self.real(abs(num))}/{self.real(den)}"
-            return (f"-{text}" if num < 0 else text), MUL
+            if abs(num) <= EXACT_INTEGER and den <= EXACT_INTEGER:
+                text = f"{self.real(abs(num))}/{self.real(den)}"
+                return (f"-{text}" if num < 0 else text), MUL
+            return repr(double(Fraction(num, den), e)), (ATOM if num >= 0 else MUL)
         if isinstance(e, se.Float):
-            v = float(e)
+            v = double(e, e)
             return repr(v), (ATOM if v >= 0 else MUL)
         if isinstance(e, Constant):
             return repr(float(e)), ATOM
@@ -239,14 +261,15 @@ def _symbol_names(stmt):
     return {str(s) for s in stmt.expr.free_symbols}
 
 
-def c_function(name, params, args, statements, comment, max_statements=400):
+def c_function(name, params, args, statements, comment, max_statements=400, prologue=""):
     """C source of `static void name(params)` running `statements`.
 
     A body longer than `max_statements` is split into parts `name_partK(params, w)` so the compiler
     never sees one huge function; a temporary used by a later part passes through the workspace w.
+    `prologue` starts every function body (e.g. `(void)t;` for arguments a kernel may not use).
     """
     printer = CPrinter()
-    head = f"/* {comment} */\nLG_FN static void {name}({params})\n{{\n"
+    head = f"/* {comment} */\nLG_FN static void {name}({params})\n{{\n{prologue}"
     if len(statements) <= max_statements:
         return head + print_statements(printer, statements) + "\n}\n"
     chunks = [statements[i:i + max_statements] for i in range(0, len(statements), max_statements)]
@@ -262,7 +285,7 @@ def c_function(name, params, args, statements, comment, max_statements=400):
         lines.append(print_statements(printer, chunk))
         lines += [f"    w[{slot[s.name]}] = {s.name};" for s in chunk
                   if isinstance(s, Declare) and s.name in slot]
-        parts.append(f"LG_FN static void {name}_part{k}({params}, double *w)\n{{\n"
+        parts.append(f"LG_FN static void {name}_part{k}({params}, double *w)\n{{\n{prologue}"
                      + "\n".join(lines) + "\n}\n")
     calls = "\n".join(f"    {name}_part{k}({args}, w);" for k in range(len(chunks)))
     return ("\n".join(parts) + "\n" + head + f"    double w[{max(len(slot), 1)}];\n" + calls

@@ -143,6 +143,7 @@ def render(model, latex=False, matrices=False, simplify=True):
     else:
         out = [f"# {model.name}: M(q, t) q'' = F(q, q', t, u) for q = ({names})",
                *equation_lines(eqs)]
+    out += constraint_lines(model, latex)
     if matrices:
         out += matrix_lines(eqs, latex)
     units = unit_lines(model)
@@ -158,3 +159,28 @@ def unit_lines(model):
              + [n for n in model.output_names if n in units])
     labelled = [f"{n} [{units[n]}]" for n in names if units.get(n)]
     return "units: " + ", ".join(labelled) if labelled else ""
+def constraint_lines(model, latex=False):
+    """The constraints, one line each with its multiplier (nothing without constraints): the
+    equations above then read M·q'' = F + Aᵀ·λ, with A·q'' = γ (Baumgarte-stabilized)."""
+    holonomic, velocity = model.constraints, model.velocity_constraints
+    if not holonomic and not velocity:
+        return []
+    rules, names = display_symbols(model)
+    alpha, beta = model.spec().stabilization
+    mark = "%" if latex else "#"
+    lines = [f"{mark} constraints, with multipliers lambda: the equations above are M q'' = "
+             f"F + A^T lambda, A = d(constraints)/dq' (Baumgarte alpha = {alpha:g}, "
+             f"beta = {beta:g})"]
+    if latex:
+        lines.append(r"\begin{aligned}")
+    for k, (expr, name) in enumerate(zip(holonomic + velocity, model.constraint_names)):
+        kind = "holonomic" if k < len(holonomic) else "velocity"
+        expr = expr.xreplace(rules)
+        if latex:
+            lines.append(f"&{to_latex(expr, names)} = 0 && \\text{{({kind}, }}\\lambda_{{{k + 1}}}"
+                         f"\\text{{: {name.replace('_', ' ')})}} \\\\")
+        else:
+            lines.append(f"{to_text(expr)} = 0    ({kind}, multiplier {name})")
+    if latex:
+        lines.append(r"\end{aligned}")
+    return lines

@@ -391,3 +391,30 @@ def animate(model, sol, path, params=None, fps=20, max_frames=120, dpi=80, title
             clock.set_text(f"t = {t:.2f}")
             writer.grab_frame()
     return path
+
+
+def plot_sweep(result, path=None, title=None, linear=None):
+    """The sweep's measure of each coordinate against the swept value (markers: nonlinear runs;
+    lines: `linear`, an optional (k, n) array such as A·|H(ω)| of the linearized model)."""
+    fig = new_figure(7, 4)
+    ax = fig.subplots()
+    for i, name in enumerate(result.coordinates):
+        line, = ax.plot(result.values, result.table[:, i], "o", ms=3.5,
+                        label=f"{name} ({result.measure}, simulated)")
+        if linear is not None:
+            ax.plot(result.values, np.asarray(linear)[:, i], "-", color=line.get_color(),
+                    alpha=0.7, label=f"{name} (linear model)")
+    bad = ~np.asarray(result.success, dtype=bool)
+    if bad.any():
+        for x in result.values[bad]:
+            ax.axvline(x, color="red", alpha=0.3)
+    ax.set_xlabel(result.name)
+    ax.set_ylabel(result.measure)
+    ax.grid(True, alpha=0.3)
+    ax.legend(loc="best", fontsize="small")
+    if title:
+        ax.set_title(title)
+    fig.tight_layout()
+    if path is not None:
+        fig.savefig(path)
+    return fig

@@ -19,7 +19,7 @@ from cpython.pycapsule cimport PyCapsule_GetPointer, PyCapsule_IsValid
 from libc.math cimport isfinite
 
 from lagrgen.runtime.abi cimport LG_ABI_VERSION, LG_CAPSULE_NAME, lg_function, lg_model_t
-from lagrgen.errors import BuildError, MassMatrixError
+from lagrgen.errors import BuildError, ConstraintError, MassMatrixError
 from lagrgen.functions import FUNCTIONS, dimensions
 from lagrgen.runtime.arguments import (defaults_array, input_vector, parameter_vector,
                                        require_finite)
@@ -71,9 +71,9 @@ cdef class CompiledModel:
     """A model's compiled equations: sizes, names, and the C function table of its module."""
 
     cdef const lg_model_t *model
-    cdef readonly int n_coordinates, n_params, n_inputs
+    cdef readonly int n_coordinates, n_params, n_inputs, n_constraints
     cdef readonly str name, content_hash, lagrgen_version
-    cdef readonly tuple coordinates, parameters, inputs
+    cdef readonly tuple coordinates, parameters, inputs, constraint_names
     cdef readonly object defaults
     cdef readonly dict dimensions, units
     cdef readonly tuple output_names
@@ -108,6 +108,8 @@ cdef class CompiledModel:
         self.output_names = tuple(meta.get("output_names", ()))
         self.units = dict(meta.get("units", {}))
         self.explicit_time = bool(meta.get("explicit_time", False))
+        self.n_constraints = self.dimensions.get("n_constraints", 0)
+        self.constraint_names = tuple(meta.get("constraint_names", ()))
         self._addresses = {}
         cdef int i
         for i in range(self.model.n_functions):
@@ -150,8 +152,21 @@ cdef class CompiledModel:
         self.pointer(name)
         return self._addresses[name]
 
-    cdef not_positive_definite(self, double t, const double *y):
-        raise MassMatrixError.at(self.name, t, [y[i] for i in range(self.n_coordinates)])
+    cdef not_positive_definite(self, double t, const double *y, const double *p, const double *u):
+        """Raise the error of a failed call at (t, y): M not positive definite, or (when M is)
+        dependent constraints."""
+        cdef int n = self.n_coordinates
+        state = np.array([y[i] for i in range(2 * n)])
+        if self.n_constraints and np.all(np.isfinite(state)):
+            M = np.empty(n * n)
+            self.pointer("mass_matrix")(t, y, p, u, <double *>cnp.PyArray_DATA(M))
+            try:
+                np.linalg.cholesky(M.reshape(n, n))
+            except np.linalg.LinAlgError:
+                pass
+            else:
+                raise ConstraintError.at(self.name, t, state, n)
+        raise MassMatrixError.at(self.name, t, state[:n])
 
     def time_in_c(self, str which, double t, y, p=None, u=None, long repeat=10000):
         """Seconds per call of the C function `which` (e.g. "rhs", "jacobian"), looped inside C."""
@@ -173,7 +188,7 @@ cdef class CompiledModel:
                 status |= fn(t, yp, pp, up, o)
         elapsed = time.perf_counter() - start
         if status:
-            self.not_positive_definite(t, yp)
+            self.not_positive_definite(t, yp, pp, up)
         return elapsed / repeat
 
 
@@ -212,7 +227,7 @@ cdef class BoundFunction:
         else:
             out = <cnp.ndarray>cnp.PyArray_EMPTY(1, &size, cnp.NPY_DOUBLE, 0)
         if self.fn(t, y, data(pa), data(ua), <double *>cnp.PyArray_DATA(out)):
-            self.model.not_positive_definite(t, y)
+            self.model.not_positive_definite(t, y, data(pa), data(ua))
         if len(self.shapes) == 1:
             return out
         parts, start = [], 0
@@ -262,8 +277,8 @@ def bind_module(module, capsule):
     """Make `module` (a freshly imported model module) a built model: called by its PyInit."""
     model = CompiledModel(capsule)
     for attr in ("name", "coordinates", "parameters", "inputs", "defaults", "n_coordinates",
-                 "content_hash", "lagrgen_version", "time_in_c", "function_address",
-                 "output_names", "units", "explicit_time"):
+                 "n_constraints", "constraint_names", "content_hash", "lagrgen_version", "dimensions", "time_in_c",
+                 "function_address", "output_names", "units", "explicit_time"):
         setattr(module, attr, getattr(model, attr))
     module.backend = "c"
     for spec in FUNCTIONS:

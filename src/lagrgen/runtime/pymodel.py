@@ -9,15 +9,24 @@ import math
 
 import numpy as np
 
-from ..errors import MassMatrixError
+from ..errors import ConstraintError, MassMatrixError
 from ..functions import FUNCTIONS
 from .arguments import as_vector, defaults_array, input_vector, parameter_vector
 
-_NAMESPACE = {name: getattr(math, name) for name in (
-    "sin", "cos", "tan", "asin", "acos", "atan", "atan2", "sinh", "cosh", "tanh", "asinh",
-    "acosh", "atanh", "exp", "log", "sqrt")}
+_FUNCTIONS = ("sin", "cos", "tan", "asin", "acos", "atan", "atan2", "sinh", "cosh", "tanh",
+              "asinh", "acosh", "atanh", "exp", "log", "sqrt")
+_NUMPY_NAMES = {"asin": "arcsin", "acos": "arccos", "atan": "arctan", "atan2": "arctan2",
+                "asinh": "arcsinh", "acosh": "arccosh", "atanh": "arctanh"}
+#: Fast evaluation on Python floats.
+_NAMESPACE = {name: getattr(math, name) for name in _FUNCTIONS}
 _NAMESPACE["_sign"] = lambda x: float(x > 0) - float(x < 0)
 _NAMESPACE["_nan"] = math.nan
+#: IEEE evaluation on NumPy scalars (sqrt(−1) = nan, 1/0 = inf), as the C code computes, for the
+#: points where Python's float arithmetic raises instead.
+_IEEE_NAMESPACE = {name: getattr(np, _NUMPY_NAMES.get(name, name)) for name in _FUNCTIONS}
+_IEEE_NAMESPACE["_sign"] = np.sign
+_IEEE_NAMESPACE["abs"] = np.abs
+_IEEE_NAMESPACE["_nan"] = np.nan
 
 
 class PythonModel:
@@ -47,10 +56,13 @@ class PythonModel:
         self.output_names = tuple(info["output_names"])
         self.units = dict(info["units"])
         self.explicit_time = bool(info["explicit_time"])
+        self.n_constraints = self.dimensions.get("n_constraints", 0)
+        self.constraint_names = tuple(info.get("constraint_names", ()))
         self.source = source
-        namespace = dict(_NAMESPACE)
-        exec(compile(source, f"<lagrgen python backend: {self.name}>", "exec"), namespace)
-        self._kernels = namespace
+        code = compile(source, f"<lagrgen python backend: {self.name}>", "exec")
+        self._kernels, self._ieee_kernels = dict(_NAMESPACE), dict(_IEEE_NAMESPACE)
+        exec(code, self._kernels)
+        exec(code, self._ieee_kernels)
         for spec in FUNCTIONS:
             setattr(self, spec.name, _CALLERS[spec.call](self, getattr(self, f"_{spec.name}")))
 
@@ -62,16 +74,24 @@ class PythonModel:
                 input_vector(u, self.inputs).tolist())
 
     def _factor(self, M, t, q):
-        """Cholesky factor of the n×n matrix M, or MassMatrixError naming the state."""
+        """Cholesky factor of the n×n matrix M, or MassMatrixError naming the state (also when M
+        is not finite, as in C)."""
         try:
+            if not np.isfinite(M).all():
+                raise np.linalg.LinAlgError
             return np.linalg.cholesky(M)
         except np.linalg.LinAlgError:
             raise MassMatrixError.at(self.name, t, q) from None
 
     def _kernel(self, name, t, q, qd, a, p, u):
-        """The outputs of kernel `name` as float64 arrays."""
-        return [np.array(out, dtype=np.float64) for out in
-                self._kernels[name](t, q, qd, a, p, u)]
+        """The outputs of kernel `name` as float64 arrays, in IEEE arithmetic like the C code."""
+        try:
+            outputs = self._kernels[name](t, q, qd, a, p, u)
+        except (ValueError, ZeroDivisionError, OverflowError):
+            scalars = [None if v is None else [np.float64(x) for x in v] for v in (q, qd, a, p, u)]
+            with np.errstate(all="ignore"):
+                outputs = self._ieee_kernels[name](np.float64(t), *scalars)
+        return [np.array(out, dtype=np.float64) for out in outputs]
 
     def _mf(self, t, q, qd, p, u):
         """M (n×n) and F (n) at a point."""
@@ -90,6 +110,23 @@ class PythonModel:
         self._factor(M, t, q)
         return M, np.linalg.solve(M, F)
 
+    def _constrained(self, t, q, qd, p, u, M, a):
+        """(q̈, λ, A, W, S) of M·q̈ = F + Aᵀλ, A·q̈ = γ from the free q̈ = a = M⁻¹F: λ solves
+        S·λ = γ − A·a with S = A·M⁻¹·Aᵀ, W = M⁻¹·Aᵀ, and q̈ = a + W·λ (as the C code)."""
+        n, m = self.n_coordinates, self.n_constraints
+        A, gamma = self._kernel("constraints", t, q, qd, None, p, u)
+        A = A.reshape(m, n)
+        W = np.linalg.solve(M, A.T)
+        S = A @ W
+        try:
+            L = np.linalg.cholesky(S)
+        except np.linalg.LinAlgError:
+            L = None
+        if L is None or not np.all(np.diag(L) ** 2 > 1e-12 * np.diag(S)):
+            raise ConstraintError.at(self.name, t, list(q) + list(qd), n)
+        lam = np.linalg.solve(S, gamma - A @ a)
+        return a + W @ lam, lam, A, W, S
+
     # -- one implementation per entry of lagrgen.functions.FUNCTIONS --------------------------
     def _mass_matrix(self, t, q, qd, p, u):
         return self._mf(t, q, [0.0] * self.n_coordinates, p, u)[0]
@@ -98,7 +135,9 @@ class PythonModel:
         return self._mf(t, q, qd, p, u)[1]
 
     def _rhs(self, t, q, qd, p, u):
-        _, a = self._solved(t, q, qd, p, u)
+        M, a = self._solved(t, q, qd, p, u)
+        if self.n_constraints:
+            a = self._constrained(t, q, qd, p, u, M, a)[0]
         return np.concatenate([np.array(qd, dtype=np.float64), a])
 
     def _jacobian(self, t, q, qd, p, u):
@@ -106,8 +145,39 @@ class PythonModel:
         M, a = self._solved(t, q, qd, p, u)
         J = np.zeros((2 * n, 2 * n))
         J[:n, n:] = np.eye(n)
-        J[n:] = np.linalg.solve(M, self._b(t, q, qd, a.tolist(), p, u))
+        if not self.n_constraints:
+            J[n:] = np.linalg.solve(M, self._b(t, q, qd, a.tolist(), p, u))
+            return J
+        # [M −Aᵀ; A 0]·[δa; δλ] = [B + H·δq; G]: δλ = S⁻¹(G − A·M⁻¹R1), δa = M⁻¹R1 + W·δλ
+        a, lam, A, W, S = self._constrained(t, q, qd, p, u, M, a)
+        al = a.tolist() + lam.tolist()
+        R1 = self._b(t, q, qd, al, p, u)
+        H, G = self._kernel("constraint_jacobian", t, q, qd, al, p, u)
+        R1[:, :n] += H.reshape(n, n)
+        X = np.linalg.solve(M, R1)
+        dlam = np.linalg.solve(S, G.reshape(-1, 2 * n) - A @ X)
+        J[n:] = X + W @ dlam
         return J
+
+    def _constraint_forces(self, t, q, qd, p, u):
+        if not self.n_constraints:
+            return np.zeros(0)
+        M, a = self._solved(t, q, qd, p, u)
+        return self._constrained(t, q, qd, p, u, M, a)[1]
+
+    def _constraint_residuals(self, t, q, qd, p, u):
+        if not self.n_constraints:
+            return np.zeros(0)
+        return self._kernel("constraint_residuals", t, q, qd, None, p, u)[0]
+
+    def _constraint_terms(self, t, q, qd, p, u):
+        n, m = self.n_coordinates, self.n_constraints
+        if not m:
+            return np.zeros((0, n)), np.zeros(0), np.zeros((n, n))
+        M, a = self._solved(t, q, qd, p, u)
+        a, lam, A, _, _ = self._constrained(t, q, qd, p, u, M, a)
+        H = self._kernel("constraint_jacobian", t, q, qd, a.tolist() + lam.tolist(), p, u)[0]
+        return A, lam, H.reshape(n, n)
 
     def _linear_terms(self, t, q, qd, p, u):
         n, k = self.n_coordinates, len(self.inputs)

@@ -8,7 +8,8 @@
 #define LG_ABI_VERSION 2
 #define LG_CAPSULE_NAME "lagrgen.lg_model_t"
 
-/* out = f(t, y = [q, qd], p, u), row-major; 0 on success, 1 when M is not positive definite. */
+/* out = f(t, y = [q, qd], p, u), row-major; 0 on success, 1 when M is not positive definite or
+ * (constrained models) A·M⁻¹·Aᵀ is singular: dependent constraints. */
 typedef int (*lg_function)(double t, const double *y, const double *p, const double *u,
                            double *out);
 

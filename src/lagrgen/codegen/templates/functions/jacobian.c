@@ -1,10 +1,37 @@
-    double M[N * N], a[N], B[N * 2 * N];
+    double M[N * N], a[N + N_CONSTRAINTS], B[N * 2 * N];
     lg_mf(t, y, y + N, lg_zeros, p, u, M, a);
     if (lg_cholesky(M))
         return 1;
     lg_cholesky_solve(M, a, 1);
+#if N_CONSTRAINTS
+    /* [M −Aᵀ; A 0]·[δa; δλ] = [R1; R2] with R1 = B + H·δq, R2 = G: δλ = S⁻¹(R2 − A·M⁻¹R1),
+     * δa = M⁻¹R1 + W·δλ. */
+    double A[NC * N], W[N * NC], S[NC * NC], H[N * N], G[NC * 2 * N];
+    if (lg_constrained(t, y, p, u, M, a, a + N, A, W, S))
+        return 1;
+    lg_jacobian_b(t, y, y + N, a, p, u, B);
+    lg_constraint_jacobian(t, y, y + N, a, p, u, H, G);
+    for (int i = 0; i < N; ++i)
+        for (int j = 0; j < N; ++j)
+            B[i * 2 * N + j] += H[i * N + j];
+    lg_cholesky_solve(M, B, 2 * N);
+    for (int i = 0; i < NC; ++i)
+        for (int k = 0; k < N; ++k) {
+            const double aik = A[i * N + k];
+            for (int c = 0; c < 2 * N; ++c)
+                G[i * 2 * N + c] -= aik * B[k * 2 * N + c];
+        }
+    lg_cholesky_solve_k(S, NC, G, 2 * N);
+    for (int i = 0; i < N; ++i)
+        for (int j = 0; j < NC; ++j) {
+            const double wij = W[i * NC + j];
+            for (int c = 0; c < 2 * N; ++c)
+                B[i * 2 * N + c] += wij * G[j * 2 * N + c];
+        }
+#else
     lg_jacobian_b(t, y, y + N, a, p, u, B);
     lg_cholesky_solve(M, B, 2 * N);
+#endif
     memset(out, 0, (size_t)2 * N * N * sizeof(double));
     for (int i = 0; i < N; ++i)
         out[i * 2 * N + N + i] = 1.0;

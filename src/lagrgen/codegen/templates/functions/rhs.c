@@ -3,5 +3,10 @@
     if (lg_cholesky(M))
         return 1;
     lg_cholesky_solve(M, out + N, 1);
+#if N_CONSTRAINTS
+    double lam[NC], A[NC * N], W[N * NC], S[NC * NC];
+    if (lg_constrained(t, y, p, u, M, out + N, lam, A, W, S))
+        return 1;
+#endif
     memcpy(out, y + N, N * sizeof(double));
     return 0;

@@ -1,0 +1,226 @@
+# cython: language_level=3, boundscheck=False, wraparound=False, initializedcheck=False
+# cython: embedsignature=True
+"""One native solve (lagrgen/native/lg_ode.c) with the GIL released, returning plain arrays.
+
+The model's C functions are passed as integer addresses (see CompiledModel.function_address);
+nothing here imports SciPy. `lagrgen.native_engine` builds the user-facing OdeResult.
+"""
+import numpy as np
+cimport numpy as cnp
+from libc.stdint cimport uintptr_t
+from libc.stdlib cimport calloc, free
+from libc.string cimport memcpy
+
+cnp.import_array()
+
+cdef extern from "lg_ode.h":
+    ctypedef int (*lg_rhs_fn)(double, const double *, const double *, const double *,
+                              double *) noexcept nogil
+    ctypedef int (*lg_jac_fn)(double, const double *, const double *, const double *,
+                              double *) noexcept nogil
+    ctypedef int (*lg_events_fn)(double, const double *, const double *, const double *,
+                                 double *) noexcept nogil
+    ctypedef struct lg_signal_t:
+        int kind
+        int m
+        double value
+        const double *ts
+        const double *values
+        const double *coef
+    ctypedef struct lg_problem_t:
+        int dim
+        lg_rhs_fn rhs
+        lg_jac_fn jacobian
+        const double *p
+        int n_inputs
+        const lg_signal_t *inputs
+        lg_events_fn events
+        int n_events
+        const double *event_max
+        const double *event_direction
+    ctypedef struct lg_options_t:
+        int method
+        double t0, tf
+        const double *y0
+        double rtol
+        double rtol_given
+        const double *atol
+        double max_step
+        double first_step
+        const double *t_eval
+        int n_eval
+        int dense
+        int stop_on_nonfinite
+    ctypedef struct lg_buf_t:
+        double *data
+        size_t len, cap
+    ctypedef struct lg_result_t:
+        int status
+        char message[256]
+        long nfev, njev, nlu
+        long n_steps
+        int model_failure
+        double fail_t
+        lg_buf_t t, y, seg, coef, ev, ev_y, fail_y
+    int lg_solve(const lg_problem_t *, const lg_options_t *, lg_result_t *) nogil
+    void lg_result_free(lg_result_t *) nogil
+    double lg_signal_eval(const lg_signal_t *, double) nogil
+
+METHOD_CODES = {"RK23": 0, "RK45": 1, "DOP853": 2, "Radau": 3, "BDF": 4}
+SIGNAL_CODES = {"constant": 0, "linear": 1, "cubic": 2, "previous": 3}
+
+
+cdef cnp.ndarray f64(obj):
+    return np.ascontiguousarray(obj, dtype=np.float64)
+
+
+cdef cnp.ndarray buf_array(lg_buf_t *b, Py_ssize_t width):
+    """A new (len/width, width) array holding a copy of the buffer (width 0: 1-D)."""
+    cdef Py_ssize_t count = <Py_ssize_t>b.len
+    if width == 0:
+        out = np.empty(count)
+    else:
+        out = np.empty((count // width, width))
+    cdef double[::1] flat = out.reshape(-1)
+    if count:
+        memcpy(&flat[0], b.data, count * sizeof(double))
+    return out
+
+
+cdef int fill_signals(list inputs, lg_signal_t *sig, list keep) except -1:
+    """Fill sig[i] from (kind, value, ts, values, coef) tuples, keeping the arrays alive."""
+    cdef cnp.ndarray ts, vs, cf
+    for i, (kind, value, ts_, vs_, cf_) in enumerate(inputs):
+        ts, vs, cf = f64(ts_), f64(vs_), f64(cf_)
+        keep.extend((ts, vs, cf))
+        if kind not in SIGNAL_CODES:
+            raise ValueError(f"unknown input kind {kind!r}")
+        if kind == "cubic" and cf.shape[0] != 4 * (ts.shape[0] - 1):
+            raise ValueError("a cubic signal needs 4 coefficients per interval")
+        if kind in ("linear", "previous") and vs.shape[0] != ts.shape[0]:
+            raise ValueError("a signal needs one value per sample time")
+        sig[i].kind = SIGNAL_CODES[kind]
+        sig[i].value = value
+        sig[i].m = ts.shape[0]
+        if sig[i].kind != 0 and sig[i].m < 2:
+            raise ValueError("a signal needs at least 2 samples")
+        sig[i].ts = <const double *>cnp.PyArray_DATA(ts)
+        sig[i].values = <const double *>cnp.PyArray_DATA(vs)
+        sig[i].coef = <const double *>cnp.PyArray_DATA(cf)
+    return 0
+
+
+def signal_values(tuple spec, t):
+    """Evaluate one input spec (kind, value, ts, values, coef) at the times t with the C code."""
+    cdef lg_signal_t sig
+    keep = []
+    fill_signals([spec], &sig, keep)
+    cdef cnp.ndarray tt = f64(np.atleast_1d(t))
+    cdef cnp.ndarray out = np.empty(tt.shape[0])
+    cdef double[::1] tv = tt, ov = out
+    cdef Py_ssize_t i
+    for i in range(tv.shape[0]):
+        ov[i] = lg_signal_eval(&sig, tv[i])
+    return out
+
+
+def solve(str method, uintptr_t rhs, uintptr_t jacobian, int dim, p, list inputs, double t0,
+          double tf, y0, double rtol, atol, double max_step, double first_step, t_eval,
+          bint dense, uintptr_t events=0, event_max=None, event_direction=None,
+          bint stop_on_nonfinite=False):
+    """Run one solve in C without the GIL.
+
+    Parameters
+    ----------
+    method : str
+        RK23, RK45, DOP853, Radau or BDF.
+    rhs, jacobian, events : int
+        Addresses of the C functions (jacobian: 0 for the explicit methods; events: 0 for none).
+    dim : int
+        State dimension.
+    p : array of float
+        Parameter vector passed to the model functions.
+    inputs : list of tuple
+        One (kind, value, ts, values, coef) per model input (see lagrgen.signals).
+    t0, tf, y0, rtol, atol, max_step, first_step :
+        As solve_ivp (atol an array of dim; first_step 0 for automatic).
+    t_eval : array or None
+        Output times in the direction of integration.
+    dense : bool
+        Return each step's interpolant coefficients.
+    event_max, event_direction : arrays
+        Per event: the count that terminates (inf: never), and the direction.
+    stop_on_nonfinite : bool
+        End the solve at the first NaN/inf derivative (model_failure 3) instead of letting the
+        method react to it as SciPy's do (rejected steps, Newton failures).
+
+    Returns
+    -------
+    dict
+        t, y (len(t), dim), status, message, nfev, njev, nlu, n_steps, seg (steps, 5),
+        coef (1-D), ev (k, 2) of (index, t), ev_y (k, dim), model_failure (0, 1 mass matrix
+        not positive definite, 2 events function, 3 non-finite derivative), fail_t, fail_y (the
+        state of that call).
+    """
+    if method not in METHOD_CODES:
+        raise ValueError(f"method {method!r} has no native implementation")
+    if rhs == 0 or (METHOD_CODES[method] >= 3 and jacobian == 0):
+        raise ValueError("a null model function address")
+    cdef cnp.ndarray pa = f64(p if len(p) else [0.0])
+    cdef cnp.ndarray y0a = f64(y0), atola = f64(atol)
+    if y0a.shape[0] != dim or atola.shape[0] != dim:
+        raise ValueError(f"y0 and atol must have {dim} values")
+    cdef cnp.ndarray te = None if t_eval is None else f64(t_eval)
+    cdef int n_events = 0 if event_max is None else len(event_max)
+    if n_events and events == 0:
+        raise ValueError("event counts given without an events function")
+    cdef cnp.ndarray emax = f64(event_max if n_events else [0.0])
+    cdef cnp.ndarray edir = f64(event_direction if n_events else [0.0])
+    cdef lg_problem_t pb
+    cdef lg_options_t op
+    cdef lg_result_t res
+    cdef lg_signal_t *sig = <lg_signal_t *>calloc(len(inputs) + 1, sizeof(lg_signal_t))
+    if sig == NULL:
+        raise MemoryError()
+    keep = []
+    cdef int rc
+    try:
+        fill_signals(inputs, sig, keep)
+        pb.dim = dim
+        pb.rhs = <lg_rhs_fn>rhs
+        pb.jacobian = <lg_jac_fn>jacobian
+        pb.p = <const double *>cnp.PyArray_DATA(pa)
+        pb.n_inputs = len(inputs)
+        pb.inputs = sig
+        pb.events = <lg_events_fn>events
+        pb.n_events = n_events
+        pb.event_max = <const double *>cnp.PyArray_DATA(emax)
+        pb.event_direction = <const double *>cnp.PyArray_DATA(edir)
+        op.method = METHOD_CODES[method]
+        op.t0 = t0
+        op.tf = tf
+        op.y0 = <const double *>cnp.PyArray_DATA(y0a)
+        op.rtol = max(rtol, 100 * 2.220446049250313e-16)
+        op.rtol_given = rtol
+        op.atol = <const double *>cnp.PyArray_DATA(atola)
+        op.max_step = max_step
+        op.first_step = first_step
+        op.t_eval = NULL if te is None else <const double *>cnp.PyArray_DATA(te)
+        op.n_eval = 0 if te is None else te.shape[0]
+        op.dense = dense
+        op.stop_on_nonfinite = stop_on_nonfinite
+        with nogil:
+            rc = lg_solve(&pb, &op, &res)
+        try:
+            if rc < 0:
+                raise MemoryError(res.message.decode())
+            return dict(t=buf_array(&res.t, 0), y=buf_array(&res.y, dim), status=res.status,
+                        message=res.message.decode(), nfev=res.nfev, njev=res.njev,
+                        nlu=res.nlu, n_steps=res.n_steps, seg=buf_array(&res.seg, 5),
+                        coef=buf_array(&res.coef, 0), ev=buf_array(&res.ev, 2),
+                        ev_y=buf_array(&res.ev_y, dim), model_failure=res.model_failure,
+                        fail_t=res.fail_t, fail_y=buf_array(&res.fail_y, 0))
+        finally:
+            lg_result_free(&res)
+    finally:
+        free(sig)

@@ -1,0 +1,266 @@
+"""The native integration engine: a whole solve in C (lagrgen._native) without the GIL.
+
+`solve_native` takes the same steps as `scipy.integrate.solve_ivp` (the C core is a port of
+SciPy 1.17's _ivp) and returns SciPy's `OdeResult`, with `sol.sol` rebuilt from SciPy's own
+DenseOutput classes. LSODA has no native implementation: `lagrgen.simulate` runs it on the SciPy
+engine.
+"""
+import warnings
+
+import numpy as np
+from scipy.integrate import OdeSolution
+from scipy.integrate._ivp.base import ConstantDenseOutput
+from scipy.integrate._ivp.bdf import BdfDenseOutput
+from scipy.integrate._ivp.ivp import OdeResult
+from scipy.integrate._ivp.radau import RadauDenseOutput
+from scipy.integrate._ivp.rk import Dop853DenseOutput, RkDenseOutput
+
+from .runtime.arguments import key_name, unknown_name
+from .signals import Signal, constant_spec
+
+NATIVE_METHODS = ("RK23", "RK45", "DOP853", "Radau", "BDF")
+NATIVE_OPTIONS = ("max_step", "first_step")
+EPS = np.finfo(float).eps
+
+
+def native_reason(mod, method, inputs, events, options, rtol=0.0):
+    """Why the native engine cannot run this solve (a str), or None when it can.
+
+    Parameters
+    ----------
+    mod : built model
+    method : str or class
+    inputs : None, dict or array
+    events : None or anything solve_ivp accepts
+    options : dict of extra solve_ivp options
+    rtol : float or array
+
+    Returns
+    -------
+    str or None
+    """
+    if getattr(mod, "backend", None) != "c" or not hasattr(mod, "compiled_model"):
+        return "the model is not compiled (backend 'c')"
+    cm = mod.compiled_model
+    if not hasattr(cm, "function_address"):
+        return "the compiled model's runtime has no function_address"
+    if any(type(getattr(mod, f, None)).__module__ != "lagrgen.runtime._compiled"
+           for f in ("rhs", "jacobian")):
+        return "the model's rhs or jacobian is not its compiled C function (a wrapper?)"
+    if not isinstance(method, str) or method not in NATIVE_METHODS:
+        return f"method {getattr(method, '__name__', method)!r} has no native implementation"
+    if events is not None:
+        return "Python-callable events need the SciPy engine"
+    if isinstance(inputs, dict):
+        callables = [k for k, v in inputs.items() if callable(v) and not isinstance(v, Signal)]
+        if callables:
+            return (f"input {callables[0]!r} is a Python callable; use a constant or a "
+                    "lagrgen.Signal for the native engine")
+    if np.ndim(rtol) != 0:
+        return "an array rtol is only supported by the SciPy engine"
+    other = [k for k in options if k not in NATIVE_OPTIONS]
+    if other:
+        return f"option {other[0]!r} is only supported by the SciPy engine"
+    return None
+
+
+def input_specs(mod, inputs):
+    """The C core's per-input descriptions for `inputs` (None, an array, or a dict of constants
+    and Signals; unnamed inputs are 0)."""
+    names = tuple(mod.inputs)
+    if inputs is None:
+        return [constant_spec(0.0) for _ in names]
+    if not isinstance(inputs, dict):
+        u = np.asarray(inputs, dtype=float).reshape(-1)
+        if u.size != len(names):
+            raise ValueError(f"inputs must have {len(names)} values, got {u.size}")
+        return [constant_spec(x) for x in u]
+    inputs = {key_name(k): v for k, v in inputs.items()}
+    unknown = [k for k in inputs if k not in names]
+    if unknown:
+        raise unknown_name("input", unknown[0], names)
+    specs = []
+    for name in names:
+        v = inputs.get(name, 0.0)
+        if isinstance(v, Signal):
+            specs.append(v.native_spec())
+        else:
+            x = float(v)
+            if np.isnan(x):
+                raise ValueError(f"input {name!r} is NaN")
+            specs.append(constant_spec(x))
+    return specs
+
+
+def _tolerances(rtol, atol, dim):
+    """common.validate_tol: rtol clipped to 100 EPS (with SciPy's warning), atol an array."""
+    if np.any(np.asarray(rtol) < 100 * EPS):
+        warnings.warn("At least one element of `rtol` is too small. "
+                      f"Setting `rtol = np.maximum(rtol, {100 * EPS})`.", stacklevel=3)
+    if np.ndim(rtol) != 0:
+        raise ValueError("the native engine takes a scalar rtol")
+    rtol = float(rtol)       # _native clips it to 100 EPS; Radau/BDF's Newton tolerance uses it as given
+    atol = np.asarray(atol, dtype=float)
+    if atol.ndim > 0 and atol.shape != (dim,):
+        raise ValueError("`atol` has wrong shape.")
+    if np.any(atol < 0):
+        raise ValueError("`atol` must be positive.")
+    return rtol, np.ascontiguousarray(np.broadcast_to(atol, (dim,)), dtype=float)
+
+
+def _t_eval(t_eval, t0, tf):
+    """solve_ivp's t_eval checks; returns a float array in the direction of integration."""
+    if t_eval is None:
+        return None
+    t_eval = np.asarray(t_eval, dtype=float)
+    if t_eval.ndim != 1:
+        raise ValueError("`t_eval` must be 1-dimensional.")
+    if np.any(t_eval < min(t0, tf)) or np.any(t_eval > max(t0, tf)):
+        raise ValueError("Values in `t_eval` are not within `t_span`.")
+    d = np.diff(t_eval)
+    if tf > t0 and np.any(d <= 0) or tf < t0 and np.any(d >= 0):
+        raise ValueError("Values in `t_eval` are not properly sorted.")
+    return np.ascontiguousarray(t_eval)
+
+
+def _event_arrays(events):
+    """(address, max counts, directions) from events = (address, terminal, direction)."""
+    if events is None:
+        return 0, None, None
+    address, terminal, direction = events
+    terminal = list(terminal)
+    emax = []
+    for term in terminal:
+        if term is None or term is False or term == 0:
+            emax.append(np.inf)
+        elif int(term) == term and term > 0:
+            emax.append(float(term))
+        else:
+            raise ValueError("The `terminal` attribute of each event must be a boolean or "
+                             "positive integer.")
+    direction = np.asarray(direction, dtype=float).reshape(-1)
+    if len(emax) > 64:
+        raise ValueError("the native engine locates at most 64 events")
+    if direction.size != len(emax) or not emax:
+        raise ValueError("events need one terminal flag and one direction per event")
+    if not address:
+        raise ValueError("events need the address of a C events function")
+    return int(address), np.array(emax), direction
+
+
+def _interpolant(method, row, coef, dim):
+    t_old, t, off, order, h = row
+    off, order = int(off), int(order)
+    if order < 0:
+        return ConstantDenseOutput(t_old, t, coef[off:off + dim].copy())
+    if method == "BDF":
+        D = coef[off:off + (order + 1) * dim].reshape(order + 1, dim).copy()
+        return BdfDenseOutput(t_old, t, h, order, D)
+    y_old = coef[off:off + dim].copy()
+    block = coef[off + dim:off + dim + order * dim]
+    if method == "DOP853":
+        return Dop853DenseOutput(t_old, t, y_old, block.reshape(7, dim).copy())
+    if method == "Radau":
+        return RadauDenseOutput(t_old, t, y_old, block.reshape(dim, 3).copy())
+    return RkDenseOutput(t_old, t, y_old, block.reshape(dim, order).copy())
+
+
+def solve_native(mod, t_span, y0, method="RK45", p=None, u_spec=None, rtol=1e-3, atol=1e-6,
+                 t_eval=None, dense_output=False, events=None, max_step=np.inf,
+                 first_step=None, stop_on_nonfinite=False):
+    """Integrate a compiled model entirely in C, step for step as `solve_ivp`.
+
+    Parameters
+    ----------
+    mod : compiled model (backend "c")
+    t_span : (t0, tf)
+    y0 : array_like, shape (2n,)
+    method : {"RK23", "RK45", "DOP853", "Radau", "BDF"}
+    p : array_like, shape (n_params,), optional
+        Parameter vector (None: the model's defaults).
+    u_spec : list, optional
+        One description per input (`input_specs`); None: all inputs 0.
+    rtol, atol, t_eval, dense_output, max_step, first_step :
+        As `solve_ivp`.
+    events : tuple, optional
+        (address of a C function ``int events(t, y, p, u, values)``, terminal per event,
+        direction per event), located as solve_ivp locates events.
+    stop_on_nonfinite : bool
+        End the solve (status -1, `nonfinite_failure` = (t, y)) at the first derivative with a
+        NaN or infinity, as `simulate` on the SciPy engine raises NonFiniteError there; False
+        lets the method react to it as SciPy's solvers do.
+
+    Returns
+    -------
+    OdeResult
+        t, y, sol, t_events, y_events, nfev, njev, nlu, status, message, success,
+        engine = "native", n_steps, and mass_matrix_failure: None, or (t, y) of the model
+        call that found M not positive definite (the solve then has status -1), and
+        nonfinite_failure: None or (t, y) (with stop_on_nonfinite).
+    """
+    from . import _native
+    if method not in NATIVE_METHODS:
+        raise ValueError(f"method {method!r} has no native implementation: use one of "
+                         f"{', '.join(NATIVE_METHODS)} (LSODA runs on the SciPy engine)")
+    cm = mod.compiled_model
+    dim = 2 * mod.n_coordinates
+    t0, tf = map(float, t_span)
+    if not (np.isfinite(t0) and np.isfinite(tf)):
+        raise ValueError("t_span must be finite")
+    y0 = np.ascontiguousarray(y0, dtype=float).reshape(-1)
+    if y0.shape != (dim,):
+        raise ValueError(f"y0 must have {dim} values, got {y0.size}")
+    if not np.all(np.isfinite(y0)):
+        raise ValueError("y0 must be finite")
+    p = np.array(mod.defaults if p is None else p, dtype=float).reshape(-1)
+    if p.size != len(mod.parameters):
+        raise ValueError(f"p must have {len(mod.parameters)} values, got {p.size}")
+    if np.any(np.isnan(p)):
+        raise ValueError("the parameter vector contains NaN (a parameter without a default?)")
+    if u_spec is None:
+        u_spec = input_specs(mod, None)
+    if len(u_spec) != len(mod.inputs):
+        raise ValueError(f"{len(mod.inputs)} input descriptions needed, got {len(u_spec)}")
+    rtol, atol = _tolerances(rtol, atol, dim)
+    max_step = float(max_step)
+    if max_step <= 0:
+        raise ValueError("`max_step` must be positive.")
+    if first_step is None:
+        first = 0.0
+    else:
+        first = float(first_step)
+        if first <= 0:
+            raise ValueError("`first_step` must be positive.")
+        if first > abs(tf - t0):
+            raise ValueError("`first_step` exceeds bounds.")
+    te = _t_eval(t_eval, t0, tf)
+    ev_addr, ev_max, ev_dir = _event_arrays(events)
+    jac = cm.function_address("jacobian") if method in ("Radau", "BDF") else 0
+    out = _native.solve(method, cm.function_address("rhs"), jac, dim, p, list(u_spec), t0, tf,
+                        y0, rtol, atol, max_step, first, te, bool(dense_output), ev_addr,
+                        ev_max, ev_dir, bool(stop_on_nonfinite))
+    ts, ys = out["t"], out["y"].T.copy()
+    sol = None
+    if dense_output:
+        interps = [_interpolant(method, row, out["coef"], dim) for row in out["seg"]]
+        if te is None:
+            breaks = ts
+        else:
+            breaks = np.concatenate(([t0], out["seg"][:, 1]))
+        if interps:
+            sol = OdeSolution(breaks, interps, alt_segment=method == "BDF")
+    t_events = y_events = None
+    if events is not None:
+        n_ev = len(ev_max)
+        idx = out["ev"][:, 0].astype(int)
+        t_events = [out["ev"][idx == i, 1].copy() for i in range(n_ev)]
+        y_events = [out["ev_y"][idx == i].copy() for i in range(n_ev)]
+    status = out["status"]
+    failure = (out["fail_t"], out["fail_y"].copy())
+    mass_failure = failure if out["model_failure"] == 1 else None
+    nonfinite_failure = failure if out["model_failure"] == 3 else None
+    return OdeResult(t=ts, y=ys, sol=sol, t_events=t_events, y_events=y_events,
+                     nfev=out["nfev"], njev=out["njev"], nlu=out["nlu"], status=status,
+                     message=out["message"], success=status >= 0, engine="native",
+                     n_steps=out["n_steps"], mass_matrix_failure=mass_failure,
+                     nonfinite_failure=nonfinite_failure)
