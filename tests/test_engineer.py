@@ -412,3 +412,13 @@ def test_show_prints_units(tmp_path):
     (tmp_path / "m.py").write_text(FORCED)
     proc = run("show", "m.py", cwd=tmp_path)
     assert "# units: x [m], m [kg], k [N/m], F [N], G [N], tip_x [m]" in proc.stdout
+
+
+def test_guard_keeps_the_model_events(tmp_path):
+    m = switching_model()
+    m.event("contact", 0.5 - m.q[0], terminal=True, direction=-1)
+    mod = lagrgen.build(m, backend="python")
+    sol = lagrgen.simulate(mod, (0.0, 10.0), [0.0, 1.0], max_steps=100_000, rtol=1e-10,
+                           atol=1e-12)
+    assert sol.guard is None and sol.status == 1 and len(sol.t_events) == 1
+    assert sol.y_events[0][0][0] == pytest.approx(0.5, abs=1e-9)

@@ -74,14 +74,16 @@ FUNCTIONS = (
                   (Output("A", ("n_constraints", "n")), Output("lam", ("n_constraints",)),
                    Output("H", ("n", "n"))),
                   "A, λ and ∂(Aᵀλ)/∂q (λ held fixed) at one point"),
+    ModelFunction("events", "state", (Output("g", ("n_events",)),),
+                  "g_k(t, q, q̇, u): the model's event functions (model.event)"),
 )
 
 BY_NAME = {f.name: f for f in FUNCTIONS}
 
 
-def dimensions(n, n_params, n_inputs, n_constraints=0, n_holonomic=0, **more):
+def dimensions(n, n_params, n_inputs, n_constraints=0, n_holonomic=0, n_events=0, **more):
     """The dimension names of output shapes and their sizes for one model (stored in its
     metadata, so the runtime reads every size from there; add a size by passing it in `more`)."""
     return {"n": n, "2n": 2 * n, "n_params": n_params, "n_inputs": n_inputs,
             "n_constraints": n_constraints, "n_holonomic": n_holonomic,
-            "n_residuals": n_holonomic + n_constraints, **more}
+            "n_residuals": n_holonomic + n_constraints, "n_events": n_events, **more}

@@ -80,6 +80,9 @@ KERNELS = (
                "H = ∂(Aᵀλ)/∂q (n×n) and G = [∂γ/∂q − ∂(A·a)/∂q | ∂γ/∂q̇] (m×2n), a = [q̈, λ]",
                (Output("H", ("n", "n")), Output("G", ("n_constraints", "2n"))),
                lambda eq: {"H": flatten(eq.dAl_dq), "G": flatten(eq.G)}, lambda eq: eq.m > 0),
+    KernelSpec("events", "the event functions g_k(t, q, q̇, u), whose roots the solvers locate",
+               (Output("g", ("n_events",)),), lambda eq: {"g": list(eq.events)},
+               when=lambda eq: bool(eq.events)),
 )
 
 _computed = weakref.WeakKeyDictionary()

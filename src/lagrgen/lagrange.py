@@ -56,8 +56,9 @@ class Equations:
     i.e. ċ + 2α·c + β²·Φ = 0. λ lives in the kernel argument `a` after q̈: λ_k = a[n + k].
     """
 
-    def __init__(self, spec, M, F, symbols, constraints=None):
+    def __init__(self, spec, M, F, symbols, constraints=None, events=()):
         self.spec = spec
+        self.events = list(events)
         self.n = len(F)
         self.M = M
         self.F = F
@@ -312,7 +313,8 @@ def derive(spec):
         for j in range(i + 1, n):
             M[i][j] = M[j][i]
     _check_mass_matrix(spec, M, qd)
-    return Equations(spec, M, F, symbols, _constraints(spec, convert, q, qd, t))
+    events = [convert(g) for _, g, _, _ in spec.events]
+    return Equations(spec, M, F, symbols, _constraints(spec, convert, q, qd, t), events)
 
 
 def _constraints(spec, convert, q, qd, t):

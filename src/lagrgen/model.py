@@ -146,6 +146,7 @@ class Model:
         self._outputs = []         # (name, expr): named quantities evaluated along a solution
         self._units = {}           # name -> unit label (coordinates, parameters, inputs, outputs)
         self._constraints = []     # Φ(q, t) = 0, holonomic
+        self._events = []          # (name, g, terminal, direction): roots of g located by solvers
         self._velocity_constraints = []  # A(q, t)·q̇ + b(q, t) = 0
         self._constraint_names = {}  # ("holonomic" | "velocity", index) -> the user's name
         self._stabilization = BAUMGARTE_DEFAULTS
@@ -514,6 +515,30 @@ class Model:
         self._declare(name, "constraint")
         self._constraint_names[key] = name
 
+    def event(self, name, expr, terminal=False, direction=0):
+        """Declare an event: a root of `expr` (a function of q, q̇, t, parameters, inputs) that
+        the solvers locate, as solve_ivp's events; compiled with the model.
+
+        Parameters
+        ----------
+        name : str, a Python identifier unique among the model's events
+        expr : the event function g; an event happens where g crosses zero
+        terminal : bool or int, stop the integration at the first (or this many) occurrences
+        direction : 0 (any crossing), +1 (g rising) or -1 (g falling)
+        """
+        check_name(name, "event")
+        if any(e[0] == name for e in self._events):
+            raise ModelError(f"event {name!r} is already declared on model {self.name!r}")
+        if direction not in (-1, 0, 1):
+            raise ModelError(f"event {name!r}: direction must be -1, 0 or +1, got {direction!r}")
+        if isinstance(terminal, bool):
+            terminal = int(terminal)
+        if not isinstance(terminal, int) or terminal < 0:
+            raise ModelError(f"event {name!r}: terminal must be True, False or a count >= 0")
+        expr = self._check(expr, f"event {name}")
+        self._events.append((name, expr, terminal, int(direction)))
+        self._changed()
+
     def velocity_constraint(self, expr, name=None):
         """Add a constraint linear in the velocities, A(q, t)·q̇ + b(q, t) = 0 (nonholonomic,
         e.g. a knife edge −sin θ·ẋ + cos θ·ẏ = 0); its multiplier enters M·q̈ = F + Aᵀ·λ.
@@ -614,7 +639,7 @@ class Model:
                 constraints=tuple(self._constraints),
                 velocity_constraints=tuple(self._velocity_constraints),
                 constraint_names=self.constraint_names,
-                stabilization=self._stabilization))
+                stabilization=self._stabilization, events=tuple(self._events)))
         return self._spec[1]
 
     def equations(self):
@@ -673,6 +698,7 @@ class ModelSpec:
     velocity_constraints: tuple = ()  # A(q, t)·q̇ + b(q, t) = 0
     constraint_names: tuple = ()  # one per multiplier, holonomic first
     stabilization: tuple = (0.0, 0.0)  # Baumgarte (α, β), 1/s
+    events: tuple = ()        # (name, g, terminal, direction)
 
     @property
     def qd(self):

@@ -145,6 +145,7 @@ def simulate(mod, t_span, y0, method="RK45", params=None, inputs=None, rtol=1e-6
     y0 = state_vector(y0, tuple(mod.coordinates))
     p = parameters_from(mod, params)
     guard = None
+    compiled_events = events is None and bool(getattr(mod, "event_definitions", ()))
     if max_steps is not None or max_wall_time is not None:
         guard = _Guard(max_steps, max_wall_time)
         events = ([] if events is None else (list(events) if isinstance(events, (list, tuple))
@@ -180,9 +181,12 @@ def simulate(mod, t_span, y0, method="RK45", params=None, inputs=None, rtol=1e-6
         check_state(mod, t0, y0, p, u if u_of_t is None else u_of_t(t0))
     if engine != "scipy" and why_not is None:
         sol = solve_native(mod, t_span, y0, method, p, input_specs(mod, inputs), rtol, atol,
-                           t_eval, dense_output, None, stop_on_nonfinite=True, **options)
+                           t_eval, dense_output, native_events(mod) if compiled_events else None,
+                           stop_on_nonfinite=True, **options)
         raise_native_failure(mod, sol, p, u, u_of_t)
     else:
+        if compiled_events:
+            events = event_functions(mod, p, u, u_of_t) + ([guard] if guard else [])
         if getattr(method, "__name__", method) in STIFF_METHODS:
             options.setdefault("jac", jac)
         sol = solve_ivp(fun, t_span, y0, method=SOLVERS.get(method, method), rtol=rtol,
@@ -197,12 +201,33 @@ def simulate(mod, t_span, y0, method="RK45", params=None, inputs=None, rtol=1e-6
     sol.params = p
     sol.inputs = u if u_of_t is None else u_of_t
     sol = with_coordinates(sol, mod.coordinates, n)
+    if compiled_events:
+        sol.event_names = tuple(name for name, _, _ in mod.event_definitions)
     if constrained:
         from .constraints import along
         sol.constraint_forces, sol.constraint_residuals = along(mod, sol, p, u, u_of_t)
         sol.constraint_names = tuple(mod.constraint_names)
         sol.multipliers = dict(zip(sol.constraint_names, sol.constraint_forces))
     return sol
+
+
+def native_events(mod):
+    """(address of the model's C events function, terminal counts, directions)."""
+    definitions = mod.event_definitions
+    return (mod.compiled_model.function_address("events"),
+            np.array([terminal for _, terminal, _ in definitions], dtype=np.intc),
+            np.array([direction for _, _, direction in definitions], dtype=float))
+
+
+def event_functions(mod, p, u, u_of_t):
+    """The model's compiled events as solve_ivp event callables (one per event)."""
+    functions = []
+    for k, (name, terminal, direction) in enumerate(mod.event_definitions):
+        def g(t, y, k=k):
+            return mod.events(t, y, p, u if u_of_t is None else u_of_t(t))[k]
+        g.__name__, g.terminal, g.direction = name, terminal, direction
+        functions.append(g)
+    return functions
 
 
 def raise_native_failure(mod, sol, p, u, u_of_t):

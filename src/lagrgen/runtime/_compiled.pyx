@@ -73,7 +73,7 @@ cdef class CompiledModel:
     cdef const lg_model_t *model
     cdef readonly int n_coordinates, n_params, n_inputs, n_constraints
     cdef readonly str name, content_hash, lagrgen_version
-    cdef readonly tuple coordinates, parameters, inputs, constraint_names
+    cdef readonly tuple coordinates, parameters, inputs, constraint_names, event_definitions
     cdef readonly object defaults
     cdef readonly dict dimensions, units
     cdef readonly tuple output_names
@@ -110,6 +110,8 @@ cdef class CompiledModel:
         self.explicit_time = bool(meta.get("explicit_time", False))
         self.n_constraints = self.dimensions.get("n_constraints", 0)
         self.constraint_names = tuple(meta.get("constraint_names", ()))
+        self.event_definitions = tuple((e["name"], e["terminal"], e["direction"])
+                                       for e in meta.get("events", ()))
         self._addresses = {}
         cdef int i
         for i in range(self.model.n_functions):
@@ -277,8 +279,9 @@ def bind_module(module, capsule):
     """Make `module` (a freshly imported model module) a built model: called by its PyInit."""
     model = CompiledModel(capsule)
     for attr in ("name", "coordinates", "parameters", "inputs", "defaults", "n_coordinates",
-                 "n_constraints", "constraint_names", "content_hash", "lagrgen_version", "dimensions", "time_in_c",
-                 "function_address", "output_names", "units", "explicit_time"):
+                 "n_constraints", "constraint_names", "event_definitions", "content_hash",
+                 "lagrgen_version", "dimensions", "time_in_c", "function_address", "output_names",
+                 "units", "explicit_time"):
         setattr(module, attr, getattr(model, attr))
     module.backend = "c"
     for spec in FUNCTIONS:

@@ -58,6 +58,8 @@ class PythonModel:
         self.explicit_time = bool(info["explicit_time"])
         self.n_constraints = self.dimensions.get("n_constraints", 0)
         self.constraint_names = tuple(info.get("constraint_names", ()))
+        self.event_definitions = tuple((e["name"], e["terminal"], e["direction"])
+                                       for e in info.get("events", ()))
         self.source = source
         code = compile(source, f"<lagrgen python backend: {self.name}>", "exec")
         self._kernels, self._ieee_kernels = dict(_NAMESPACE), dict(_IEEE_NAMESPACE)
@@ -158,6 +160,11 @@ class PythonModel:
         dlam = np.linalg.solve(S, G.reshape(-1, 2 * n) - A @ X)
         J[n:] = X + W @ dlam
         return J
+
+    def _events(self, t, q, qd, p, u):
+        if not self.event_definitions:
+            return np.zeros(0)
+        return self._kernel("events", t, q, qd, None, p, u)[0]
 
     def _constraint_forces(self, t, q, qd, p, u):
         if not self.n_constraints:
