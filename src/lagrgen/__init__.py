@@ -22,11 +22,15 @@ _LAZY = {
     "equilibrium": "vibration", "linearize": "vibration", "modes": "vibration",
     "frequency_response": "vibration", "FrozenTimeWarning": "vibration",
     "consistent_state": "constraints",
+    "from_sympy": "sympy_interop",
+    "export_fmu": "codegen.fmu",
+    "rotation": None,
 }
 
 __all__ = ["Model", "build", "load", "simulate", "evaluate_outputs", "output_event", "Signal",
            "simulate_many", "EnsembleResult", "sweep", "equilibrium", "linearize", "modes",
            "frequency_response", "FrozenTimeWarning", "consistent_state",
+           "from_sympy", "export_fmu", "rotation",
            "LagrgenError", "ConstraintError", "ModelError", "UnknownNameError", "MassMatrixError",
            "BuildError", "CompileError", "NonFiniteError", "__version__"]
 

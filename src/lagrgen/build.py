@@ -261,14 +261,12 @@ def discard(entry):
 
 @contextmanager
 def locked(path):
-    """Hold an exclusive lock on the file `path` (created if missing)."""
-    import fcntl
-    with open(path, "a") as fh:
-        fcntl.flock(fh, fcntl.LOCK_EX)
-        try:
-            yield
-        finally:
-            fcntl.flock(fh, fcntl.LOCK_UN)
+    """Hold an exclusive lock on the file `path` (created if missing) against other processes and
+    threads, on any platform (`filelock`: flock on POSIX, msvcrt on Windows; imported here, so
+    importing lagrgen needs neither)."""
+    from filelock import FileLock
+    with FileLock(str(path)):
+        yield
 
 
 def import_extension(name, path):

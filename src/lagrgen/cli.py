@@ -602,6 +602,36 @@ def add_bench(sub):
     b.set_defaults(run=command_bench)
 
 
+# -- export-fmu -------------------------------------------------------------------------------
+def command_export_fmu(args):
+    from .codegen.fmu import export_fmu
+    for model in models_in(args.model_file, args.model):
+        params = parameters_option(args, model)
+        path = export_fmu(model, args.out, params=params, start_time=args.start_time,
+                          stop_time=args.stop_time, tolerance=args.tolerance)
+        if not args.quiet:
+            print(f"{model.name}: FMI 2.0 Model Exchange FMU -> {path}")
+    return 0
+
+
+def add_export_fmu(sub):
+    e = sub.add_parser("export-fmu", help="write each model as an FMI 2.0 Model Exchange FMU",
+                       description="Compile every model in MODEL.py into DIR/<name>.fmu, an FMI "
+                       "2.0 Model Exchange FMU for this platform: states q and q' (named like "
+                       "the coordinates and <coordinate>_dot), parameters (tunable, starting at "
+                       "their defaults), inputs, the coordinates as outputs, and directional "
+                       "derivatives from the analytic Jacobian.")
+    add_model_file(e)
+    e.add_argument("--out", default=".", help="output directory (default: the current one)")
+    e.add_argument("--params", action="append", metavar="NAME=VALUE,...",
+                   help="parameter start values in place of the defaults")
+    e.add_argument("--start-time", type=float, default=0.0, help="DefaultExperiment start (0)")
+    e.add_argument("--stop-time", type=float, default=10.0, help="DefaultExperiment stop (10)")
+    e.add_argument("--tolerance", type=float, help="DefaultExperiment relative tolerance")
+    e.add_argument("--quiet", action="store_true", help="print nothing but errors")
+    e.set_defaults(run=command_export_fmu)
+
+
 #: The subcommands, in the order `--help` lists them: each adds its parser to the subparsers.
 # -- sweep ------------------------------------------------------------------------------------
 def sweep_range(text):
@@ -723,7 +753,8 @@ def add_sweep(sub):
     s.set_defaults(run=command_sweep)
 
 
-COMMANDS = [add_build, add_export_c, add_show, add_modes, add_simulate, add_bench, add_sweep]
+COMMANDS = [add_build, add_export_c, add_export_fmu, add_show, add_modes, add_simulate, add_bench,
+            add_sweep]
 
 
 def parser():

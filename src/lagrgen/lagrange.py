@@ -233,6 +233,13 @@ def _add_particle(M, F, mass, position, q, qd, t):
         F[i] -= mass * sum(Jc[i] * bc for Jc, bc in zip(J, b))
 
 
+def _add_rotation(M, F, inertia, omega, q, qd, t):
+    """Add T = ½·ωᵀ·I·ω of a 3-D body, ω = W·q̇ + w₀ in body axes (I constant): M += Wᵀ·I·W,
+    F −= Wᵀ·(I·b + ω × I·ω), with b = ω̇ at q̈ = 0 (Euler's equations projected on the q̇_j)."""
+    from .bodies3d import add_rotation
+    add_rotation(M, F, inertia, omega, q, qd, t, diff)
+
+
 def _add_kinetic_energy(M, F, T, q, qd, t):
     """Add a general T: M += ∂²T/∂q̇∂q̇ᵀ, F += ∂T/∂q − (∂²T/∂q̇∂qᵀ)·q̇ − ∂²T/∂q̇∂t."""
     n = len(q)
@@ -285,6 +292,8 @@ def derive(spec):
     convert = _Converter(spec)
     M = [[se.Integer(0)] * n for _ in range(n)]
     F = [se.Integer(0)] * n
+    if spec.external is not None:
+        M, F = _external_equations(spec, convert, q)
 
     general_T = [convert(e) for e in spec.kinetic]
     for mass, position in spec.particles:
@@ -295,6 +304,9 @@ def derive(spec):
             general_T.append(m * sum(vc * vc for vc in v) / 2)
         else:
             _add_particle(M, F, m, r, q, qd, t)
+    for inertia, omega in spec.bodies_3d:
+        _add_rotation(M, F, [[convert(e) for e in row] for row in inertia.tolist()],
+                      [convert(e) for e in omega], q, qd, t)
     if general_T:
         _add_kinetic_energy(M, F, sum(general_T), q, qd, t)
     V = sum((convert(e) for e in spec.potential), se.Integer(0))
@@ -330,6 +342,35 @@ def _constraints(spec, convert, q, qd, t):
                              "(its Jacobian row is identically zero): it is not a constraint on "
                              "the motion")
     return phi, c
+
+
+def _external_equations(spec, convert, q, points=3, seed=0):
+    """M (lower triangle, the rest zero) and F of `spec.external` in the internal symbols, after
+    checking M is symmetric: entries that differ in form are compared at random points."""
+    import random
+    M_user, F_user = spec.external
+    n = len(q)
+    M = [[convert(M_user[i, j]) for j in range(n)] for i in range(n)]
+    F = [convert(F_user[i, 0]) for i in range(n)]
+    rng = random.Random(seed)
+    pairs = [(i, j) for i in range(n) for j in range(i) if M[i][j] != M[j][i]]
+    if pairs:
+        symbols = sorted(set().union(*(M[i][j].free_symbols | M[j][i].free_symbols
+                                       for i, j in pairs)), key=str)
+        for _ in range(points):
+            values = {s: se.Float(rng.uniform(0.5, 1.5)) for s in symbols}
+            for i, j in pairs:
+                try:
+                    a, b = (complex(M[i][j].subs(values).evalf()),
+                            complex(M[j][i].subs(values).evalf()))
+                except (TypeError, ValueError, RuntimeError):
+                    continue  # not a number at this point (e.g. outside a function's domain)
+                if abs(a - b) > 1e-9 * (1.0 + abs(a) + abs(b)):
+                    raise ModelError(
+                        f"the mass matrix given for model {spec.name!r} is not symmetric: "
+                        f"M[{i}][{j}] = {M_user[i, j]} but M[{j}][{i}] = {M_user[j, i]}")
+    lower = [[M[i][j] if j <= i else se.Integer(0) for j in range(n)] for i in range(n)]
+    return lower, F
 
 
 def _check_mass_matrix(model, M, qd):

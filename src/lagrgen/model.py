@@ -150,6 +150,9 @@ class Model:
         self._velocity_constraints = []  # A(q, t)·q̇ + b(q, t) = 0
         self._constraint_names = {}  # ("holonomic" | "velocity", index) -> the user's name
         self._stabilization = BAUMGARTE_DEFAULTS
+        self._external = None      # (M, F) derived elsewhere (lagrgen.from_sympy), added as given
+        self._bodies_3d = []       # (inertia 3×3, ω body frame): T += ½·ωᵀ·I·ω (lagrgen.bodies3d)
+        self._kinematics = {}      # orientation → bodies3d.Kinematics, computed once each
         self._version = 0
 
     @property
@@ -431,6 +434,68 @@ class Model:
         return (shape[0],) + tuple(self._check(v, f"{shape[0]} size", velocities=False,
                                                inputs=False) for v in shape[1:])
 
+    def rigid_body_3d(self, mass, inertia, position, orientation):
+        """Rigid body in space: T += ½·mass·ṙ·ṙ + ½·ωᵀ·I·ω, with ω the body-frame angular velocity
+        (ω̃ = Rᵀ·Ṙ) of the orientation R.
+
+        Parameters
+        ----------
+        mass : expression, the body's mass.
+        inertia : 3×3 matrix (symmetric, positive semi-definite), or 3 principal moments (list or
+            tuple), about the centre of mass in body axes; constant (parameters and numbers only).
+        position : 3 components, the centre of mass in the fixed frame (coordinates, t).
+        orientation : 3×3 rotation matrix R(q, t) mapping body-frame components to fixed-frame
+            ones, best built from `lagrgen.rotation` (``rotation.z(psi) * rotation.x(theta)``).
+        """
+        from .bodies3d import body_inertia
+        mass = self._check(mass, "rigid body mass", velocities=False, inputs=False)
+        inertia = body_inertia(self, inertia)
+        position = self._check(as_vector(position, "rigid body position"), "rigid body position",
+                               velocities=False, inputs=False, vector=True)
+        if len(position) != 3:
+            raise ModelError(f"rigid_body_3d position must have 3 components (x, y, z), got "
+                             f"{len(position)}")
+        kin = self._orientation(orientation, "rigid_body_3d orientation")
+        self._particles.append((mass, position))
+        self._bodies_3d.append((inertia, kin.omega))
+        self._drawables.append(("body3d", (position, kin.R)))
+        self._changed()
+
+    def torque_3d(self, moment, orientation):
+        """A moment acting on the body of orientation R: Q_j += moment · ∂ω_fixed/∂q̇_j.
+
+        Parameters
+        ----------
+        moment : 3 components in the fixed frame (may depend on q, q̇, t, inputs).
+        orientation : the body's 3×3 rotation matrix, as given to `rigid_body_3d`.
+        """
+        moment = self._check(as_vector(moment, "torque_3d moment"), "torque_3d moment",
+                             vector=True)
+        if len(moment) != 3:
+            raise ModelError(f"torque_3d moment must have 3 components, got {len(moment)}")
+        kin = self._orientation(orientation, "torque_3d orientation")
+        for j, coordinate in enumerate(self._coordinates):
+            arm = kin.W_fixed[:, j]
+            if any(e != 0 for e in arm):
+                self._virtual_work.append((sp.Matrix([moment.dot(arm)]),
+                                           sp.Matrix([coordinate])))
+        self._changed()
+
+    def _orientation(self, orientation, where):
+        """The checked `bodies3d.Kinematics` of a 3×3 orientation matrix (computed once each)."""
+        from .bodies3d import Kinematics, check_rotation
+        if not isinstance(orientation, sp.MatrixBase) or orientation.shape != (3, 3):
+            shape = getattr(orientation, "shape", None)
+            raise ModelError(f"{where} must be a 3×3 SymPy Matrix (e.g. from lagrgen.rotation), "
+                             f"got {type(orientation).__name__}" + (f" of shape {shape}" if shape
+                                                                    else ""))
+        self._check(orientation, where, velocities=False, inputs=False, vector=True)
+        key = (sp.ImmutableMatrix(orientation), getattr(orientation, "factors", None))
+        if key not in self._kinematics:
+            check_rotation(orientation, [*self._coordinates, self.t, *self._parameters], where)
+            self._kinematics[key] = Kinematics(orientation, self._coordinates, self.t)
+        return self._kinematics[key]
+
     def kinetic_energy(self, expr):
         """T += expr (may contain coordinates, velocities, t and parameters)."""
         self._kinetic.append(self._check(expr, "kinetic energy", inputs=False))
@@ -617,6 +682,21 @@ class Model:
                             inputs=False, vector=True) for p in ends)
         self._drawables.append((kind, (a, b)))
 
+    def _add_equations(self, M, F):
+        """Add externally derived equations M·q̈ = F (SymPy, in this model's own symbols) to what
+        Lagrange's equations of the declared physics give. Private: `lagrgen.from_sympy` uses it."""
+        n = len(self._coordinates)
+        M, F = sp.Matrix(M), sp.Matrix(F)
+        if M.shape != (n, n) or F.shape not in ((n, 1), (1, n)):
+            raise ModelError(f"external equations of model {self.name!r} must be M ({n}×{n}) and "
+                             f"F ({n}), got shapes {M.shape} and {F.shape}")
+        M = self._check(M, "mass matrix", velocities=False, inputs=False, vector=True)
+        F = self._check(F.reshape(n, 1), "forcing", vector=True)
+        if self._external is not None:
+            M, F = M + self._external[0], F + self._external[1]
+        self._external = (_frozen(M), _frozen(F))
+        self._changed()
+
     @property
     def drawables(self):
         """What an animation can draw: (kind, points) pairs, in declaration order."""
@@ -639,7 +719,9 @@ class Model:
                 constraints=tuple(self._constraints),
                 velocity_constraints=tuple(self._velocity_constraints),
                 constraint_names=self.constraint_names,
-                stabilization=self._stabilization, events=tuple(self._events)))
+                stabilization=self._stabilization, events=tuple(self._events),
+                external=self._external,
+                bodies_3d=tuple((_frozen(i), _frozen(w)) for i, w in self._bodies_3d)))
         return self._spec[1]
 
     def equations(self):
@@ -662,6 +744,15 @@ class Model:
     def __repr__(self):
         return (f"Model({self.name!r}: coordinates {self.coordinate_names}, "
                 f"parameters {self.parameter_names}, inputs {self.input_names})")
+
+    def _repr_latex_(self):
+        """The equations of motion Σ_j M_ij·q̈_j = F_i as a LaTeX aligned block (what
+        `lagrgen show --latex` prints), for notebooks; None (plain repr) if they cannot be derived."""
+        from .outputs.display import latex_block
+        try:
+            return latex_block(self)
+        except ModelError:
+            return None
 
 
 def _frozen(vector):
@@ -699,6 +790,8 @@ class ModelSpec:
     constraint_names: tuple = ()  # one per multiplier, holonomic first
     stabilization: tuple = (0.0, 0.0)  # Baumgarte (α, β), 1/s
     events: tuple = ()        # (name, g, terminal, direction)
+    bodies_3d: tuple = ()     # (inertia 3×3, body-frame ω): T += ½·ωᵀ·I·ω
+    external: tuple = None  # (M, F) derived elsewhere (e.g. by SymPy), added to the derived ones
 
     @property
     def qd(self):

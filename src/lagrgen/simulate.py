@@ -8,6 +8,7 @@ import time
 
 import numpy as np
 from scipy.integrate import solve_ivp
+from scipy.integrate._ivp.ivp import OdeResult
 
 from .errors import MassMatrixError, NonFiniteError
 from .runtime.arguments import (as_vector, key_name, named_vector, parameter_vector,
@@ -200,7 +201,8 @@ def simulate(mod, t_span, y0, method="RK45", params=None, inputs=None, rtol=1e-6
         finish_guarded(sol, guard, t_span)
     sol.params = p
     sol.inputs = u if u_of_t is None else u_of_t
-    sol = with_coordinates(sol, mod.coordinates, n)
+    sol = with_coordinates(sol, mod.coordinates, n, getattr(mod, "name", None))
+    sol.__dict__["_units"] = dict(getattr(mod, "units", {}))
     if compiled_events:
         sol.event_names = tuple(name for name, _, _ in mod.event_definitions)
     if constrained:
@@ -331,9 +333,38 @@ def output_event(mod, name, params=None, inputs=None, terminal=False, direction=
     return event
 
 
-def with_coordinates(sol, coordinates, n):
-    """Add `coordinates`, `q` (n × len(t)) and `qd` (n × len(t)) to an OdeResult."""
-    sol.coordinates = tuple(coordinates)
-    sol.q = sol.y[:n]
-    sol.qd = sol.y[n:]
-    return sol
+class SimulationResult(OdeResult):
+    """SciPy's OdeResult (the same fields: t, y, nfev, ..., coordinates, q, qd) that can also plot
+    itself."""
+
+    def plot(self, velocities=True, title=None):
+        """q_i(t) (and q̇_i(t) in a second panel), labelled with the model's coordinate names.
+
+        Parameters
+        ----------
+        velocities : bool
+            Also plot the rates q̇_i(t).
+        title : str, optional
+            The figure's title (default: the model's name).
+
+        Returns
+        -------
+        matplotlib.figure.Figure
+        """
+        from .outputs.plotting import plot_time_history
+        if title is None:
+            title = self.__dict__.get("_model_name")
+        return plot_time_history(self, self.coordinates, velocities=velocities, title=title,
+                                 units=self.__dict__.get("_units"))
+
+
+def with_coordinates(sol, coordinates, n, model_name=None):
+    """`sol` as a SimulationResult with also `coordinates`, `q` (n × len(t)) and `qd`
+    (n × len(t)), views of the rows of `y`."""
+    result = sol if isinstance(sol, SimulationResult) else SimulationResult(sol)
+    result.coordinates = tuple(coordinates)
+    result.q = result.y[:n]
+    result.qd = result.y[n:]
+    if model_name is not None:
+        result.__dict__["_model_name"] = model_name   # not a field: only the plot's title
+    return result

@@ -184,3 +184,10 @@ def constraint_lines(model, latex=False):
     if latex:
         lines.append(r"\end{aligned}")
     return lines
+
+
+def latex_block(model, simplify=True):
+    """The equations of motion as one display-math LaTeX block, `$$\\begin{aligned} ... $$`, the
+    rows of `render(model, latex=True)` (a notebook's rendering of a Model)."""
+    rows = equation_lines(equations(model, simplify=simplify), latex=True)
+    return "$$\\begin{aligned}\n" + "\n".join(rows) + "\n\\end{aligned}$$"

@@ -373,6 +373,9 @@ def animate(model, sol, path, params=None, fps=20, max_frames=120, dpi=80, title
     duration = float(sol.t[-1] - sol.t[0])
     n_frames = int(np.clip(round(duration * fps), 2, max_frames))
     times, y = frame_states(sol, n_frames)
+    from .animation3d import animate_3d, is_3d
+    if is_3d(model):                      # 3-D bodies or 3-component points: matplotlib's 3-D axes
+        return animate_3d(model, times, y[:len(model.q)], path, p, fps=fps, dpi=dpi, title=title)
     tracks = drawable_tracks(model, p, times, y[:len(model.q)])
     xmin, xmax, ymin, ymax = scene_limits(tracks)
     fig = new_figure(5, 5)

@@ -21,6 +21,7 @@ from libc.math cimport isfinite
 from lagrgen.runtime.abi cimport LG_ABI_VERSION, LG_CAPSULE_NAME, lg_function, lg_model_t
 from lagrgen.errors import BuildError, ConstraintError, MassMatrixError
 from lagrgen.functions import FUNCTIONS, dimensions
+from lagrgen.runtime.describe import BuiltModule
 from lagrgen.runtime.arguments import (defaults_array, input_vector, parameter_vector,
                                        require_finite)
 
@@ -287,4 +288,5 @@ def bind_module(module, capsule):
     for spec in FUNCTIONS:
         setattr(module, spec.name, CALLABLES[spec.call](model, spec))
     module.compiled_model = model
+    module.__class__ = BuiltModule   # its repr names the coordinates, parameters and inputs
     return None

@@ -12,7 +12,10 @@ import numpy as np
 from ..errors import ConstraintError, MassMatrixError
 from ..functions import FUNCTIONS
 from .arguments import as_vector, defaults_array, input_vector, parameter_vector
+from .describe import describe
 
+#: A Cholesky pivot below this fraction of its diagonal entry of M counts as zero (LG_PIVOT_TOL in C).
+PIVOT_TOL = 1e-14
 _FUNCTIONS = ("sin", "cos", "tan", "asin", "acos", "atan", "atan2", "sinh", "cosh", "tanh",
               "asinh", "acosh", "atanh", "exp", "log", "sqrt")
 _NUMPY_NAMES = {"asin": "arcsin", "acos": "arccos", "atan": "arctan", "atan2": "arctan2",
@@ -69,21 +72,25 @@ class PythonModel:
             setattr(self, spec.name, _CALLERS[spec.call](self, getattr(self, f"_{spec.name}")))
 
     def __repr__(self):
-        return f"<lagrgen model {self.name!r} (python backend), coordinates {self.coordinates}>"
+        return describe(self)
 
     def _arguments(self, p, u):
         return (parameter_vector(p, self.parameters, self.defaults).tolist(),
                 input_vector(u, self.inputs).tolist())
 
     def _factor(self, M, t, q):
-        """Cholesky factor of the n×n matrix M, or MassMatrixError naming the state (also when M
-        is not finite, as in C)."""
+        """Cholesky factor of the n×n matrix M, or MassMatrixError naming the state: also when M
+        is not finite, or a pivot is below PIVOT_TOL times its diagonal entry (numerically
+        singular, e.g. a 3-D body at gimbal lock), as in C."""
         try:
             if not np.isfinite(M).all():
                 raise np.linalg.LinAlgError
-            return np.linalg.cholesky(M)
+            L = np.linalg.cholesky(M)
         except np.linalg.LinAlgError:
             raise MassMatrixError.at(self.name, t, q) from None
+        if np.any(np.diagonal(L) ** 2 <= PIVOT_TOL * np.diagonal(M)):
+            raise MassMatrixError.at(self.name, t, q)
+        return L
 
     def _kernel(self, name, t, q, qd, a, p, u):
         """The outputs of kernel `name` as float64 arrays, in IEEE arithmetic like the C code."""

@@ -1,0 +1,143 @@
+"""Animated GIFs of three-dimensional models on matplotlib's 3-D axes.
+
+A model is drawn in 3-D when it has a `rigid_body_3d` or any drawable point with 3 components;
+`lagrgen.plotting.animate` hands such models here. Each 3-D body is drawn as its centre of mass and
+its body frame (three short lines along the body axes R·e_x, R·e_y, R·e_z, red/green/blue); the
+model's `line(...)` polylines, particles, planar bodies (in the z = 0 plane) and springs/dampers
+(straight lines) are drawn as well.
+"""
+import numpy as np
+from matplotlib.animation import PillowWriter
+
+from ..errors import LagrgenError
+
+AXIS_COLOURS = ("tab:red", "tab:green", "tab:blue")
+
+
+def is_3d(model):
+    """True if the model has a 3-D body or a drawable point with 3 components."""
+    for kind, points in model.drawables:
+        if kind == "body3d":
+            return True
+        if kind == "point":
+            points = points[:1]          # (position, mass): the mass only sizes the marker
+        if kind != "body" and any(len(pt) == 3 for pt in points):
+            return True
+    return False
+
+
+def spatial(model, position, p):
+    """f(t, q) -> (frames, 3) array; 1- and 2-component positions get zeros for y, z."""
+    from .plotting import numeric_function
+    parts = [numeric_function(model, c, p) for c in list(position)[:3]]
+    while len(parts) < 3:
+        parts.append(lambda t, q: np.zeros(np.shape(t)))
+    return lambda t, q: np.stack([f(t, q) for f in parts], axis=-1)
+
+
+def tracks_3d(model, p, t, q):
+    """[(kind, data)] along the frames: (frames, 3) point arrays; (frames, 3, 3) R for bodies."""
+    from .plotting import numeric_function
+    tracks = []
+    for kind, points in model.drawables:
+        if kind == "body3d":
+            position, R = points
+            Rn = np.stack([np.stack([numeric_function(model, R[i, j], p)(t, q) for j in range(3)],
+                                    axis=-1) for i in range(3)], axis=-2)
+            tracks.append((kind, [spatial(model, position, p)(t, q), Rn]))
+        elif kind == "body":
+            position, angle = points[:2]     # then the drawing shape and the mass (2-D only)
+            a = numeric_function(model, angle, p)(t, q)
+            c, s, z, o = np.cos(a), np.sin(a), np.zeros_like(a), np.ones_like(a)
+            Rn = np.stack([np.stack([c, -s, z], -1), np.stack([s, c, z], -1),
+                           np.stack([z, z, o], -1)], axis=-2)
+            tracks.append(("body3d", [spatial(model, position, p)(t, q), Rn]))
+        elif kind == "point":
+            tracks.append((kind, [spatial(model, points[0], p)(t, q)]))
+        else:
+            tracks.append((kind, [spatial(model, pt, p)(t, q) for pt in points]))
+    return tracks
+
+
+def box(tracks):
+    """(centre, half width) of a cube enclosing every drawn point over all frames."""
+    pts = np.concatenate([np.asarray(arr).reshape(-1, 3) for kind, data in tracks
+                          for arr in (data[:1] if kind == "body3d" else data)])
+    lo, hi = pts.min(axis=0), pts.max(axis=0)
+    size = max((hi - lo).max(), 1e-9)
+    return (lo + hi) / 2, 0.5 * size * 1.15 + 0.05 * size
+
+
+class Scene3D:
+    """The artists of one 3-D frame, updated in place frame by frame."""
+
+    def __init__(self, ax, tracks, size):
+        self.tracks, self.tick = tracks, 0.09 * size
+        self.artists = []
+        for kind, _ in tracks:
+            if kind == "point":
+                artist, = ax.plot([], [], [], "o", color="tab:blue", markersize=7)
+            elif kind == "body3d":
+                artist = [ax.plot([], [], [], "o", color="tab:orange", markersize=6)[0]] + \
+                         [ax.plot([], [], [], "-", color=col, linewidth=2.5)[0]
+                          for col in AXIS_COLOURS]
+            elif kind == "spring":
+                artist, = ax.plot([], [], [], "-", color="tab:green", linewidth=1.2)
+            elif kind == "damper":
+                artist, = ax.plot([], [], [], "-", color="tab:purple", linewidth=3, alpha=0.7)
+            else:
+                artist, = ax.plot([], [], [], "-", color="black", linewidth=2)
+            self.artists.append(artist)
+
+    def update(self, k):
+        """Move every artist to frame k."""
+        for (kind, data), artist in zip(self.tracks, self.artists):
+            if kind == "body3d":
+                x, R = data[0][k], data[1][k]
+                _set(artist[0], x[None, :])
+                for axis in range(3):
+                    _set(artist[axis + 1], np.array([x, x + self.tick * R[:, axis]]))
+            elif kind == "point":
+                _set(artist, data[0][k][None, :])
+            else:
+                _set(artist, np.array([d[k] for d in data]))
+
+
+def _set(artist, pts):
+    artist.set_data(pts[:, 0], pts[:, 1])
+    artist.set_3d_properties(pts[:, 2])
+
+
+def setup_axes(fig, tracks, title):
+    """A 3-D axes with equal scales on a cube around the scene, z up."""
+    ax = fig.add_subplot(1, 1, 1, projection="3d")
+    centre, half = box(tracks)
+    ax.set_xlim(centre[0] - half, centre[0] + half)
+    ax.set_ylim(centre[1] - half, centre[1] + half)
+    ax.set_zlim(centre[2] - half, centre[2] + half)
+    ax.set_box_aspect((1, 1, 1))
+    ax.set_xlabel("x")
+    ax.set_ylabel("y")
+    ax.set_zlabel("z")
+    ax.view_init(elev=20, azim=-60)
+    ax.set_title(title)
+    return ax, 2 * half
+
+
+def animate_3d(model, times, q, path, p, fps=20, dpi=80, title=None):
+    """Write an animated GIF of the 3-D model along q (n × frames) at `times`; return `path`."""
+    from .plotting import new_figure
+    if not model.drawables:
+        raise LagrgenError(f"model {model.name!r} has nothing to draw")
+    tracks = tracks_3d(model, p, times, q)
+    fig = new_figure(5, 5)
+    ax, size = setup_axes(fig, tracks, title or model.name)
+    scene = Scene3D(ax, tracks, size)
+    clock = ax.text2D(0.02, 0.96, "", transform=ax.transAxes, va="top")
+    writer = PillowWriter(fps=fps)
+    with writer.saving(fig, str(path), dpi):
+        for k, t in enumerate(times):
+            scene.update(k)
+            clock.set_text(f"t = {t:.2f}")
+            writer.grab_frame()
+    return path

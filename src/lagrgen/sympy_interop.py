@@ -1,0 +1,229 @@
+"""`from_sympy`: a lagrgen Model from the equations of motion of `sympy.physics.mechanics`.
+
+SymPy's `LagrangesMethod`, `KanesMethod` and `System` all end in M(q, t)·q̈ = F(q, q̇, t, u) once the
+generalized speeds are the coordinates' rates (u = q̇, true of every default joint). Those M and F
+are handed to the Model as they are (lagrgen compiles them, with their analytic Jacobian); the
+build's cache key hashes them, so a changed SymPy model is never served stale.
+"""
+import sympy as sp
+from sympy.core.function import AppliedUndef
+
+from .errors import ModelError
+from .model import Model, check_name
+from .runtime.arguments import key_name
+
+
+def from_sympy(method_or_system, name, defaults=None, inputs=None):
+    """Return a lagrgen `Model` whose equations M(q, t)·q̈ = F(q, q̇, t, u) are those of
+    `method_or_system`.
+
+    For a `KanesMethod` (or a `System`, whose equations are formed with `form_eoms()` if they have
+    not been) the kinematic equations must be u = q̇; M·u̇ = F is then M·q̈ = F with u → q̇.
+
+    Parameters
+    ----------
+    method_or_system : sympy.physics.mechanics LagrangesMethod, KanesMethod or System
+        Without constraints (holonomic, nonholonomic) or auxiliary speeds.
+    name : str
+        The model's name (a Python identifier; it names the compiled module).
+    defaults : dict, optional
+        Parameter defaults keyed by Symbol or name. The parameters are the free symbols of M and F
+        other than t: first those named in `defaults` (in its order), then the others by name;
+        those without a default must be given at run time.
+    inputs : list, optional
+        The inputs (functions of time, or their names) in the order wanted; every function of time
+        in M and F other than the coordinates must be among them. Default: those found, by name.
+
+    Returns
+    -------
+    lagrgen.Model, with the coordinates `method_or_system.q` (in order), usable like any other Model
+    (more physics may be added to it).
+    """
+    from sympy.physics.mechanics import dynamicsymbols
+    t = dynamicsymbols._t
+    q, M, F = _equations(method_or_system, t)
+    coordinates = list(q)
+    for c in coordinates:
+        if not (isinstance(c, AppliedUndef) and c.args == (t,)):
+            raise ModelError(f"coordinate {c} is not a function of time t alone")
+    for i, c in enumerate(coordinates):
+        if M[i, i] == 0:
+            raise ModelError(
+                f"SymPy's mass matrix has a zero diagonal entry for coordinate {c}: its equations "
+                "do not determine that coordinate's acceleration (a System formed with "
+                "LagrangesMethod whose bodies' velocities are written in the speeds u gets M = 0 "
+                "from SymPy; form it with KanesMethod, the default)")
+    velocities = {c.diff(t) for c in coordinates}
+    found_inputs, symbols = set(), set()
+    for e in list(M) + list(F):
+        symbols |= e.free_symbols
+        for d in e.atoms(sp.Derivative):
+            if d not in velocities:
+                raise ModelError(f"the equations contain {d}: only the coordinates' first "
+                                 "derivatives may appear in M and F")
+        found_inputs |= {f for f in e.atoms(AppliedUndef) if f not in coordinates}
+    parameters = _parameters(symbols - {t}, defaults)
+    input_list = _inputs(found_inputs, inputs, t)
+    for f in input_list:
+        if not (isinstance(f, AppliedUndef) and f.args == (t,)):
+            raise ModelError(f"{f} is a function of {f.args}, not of time t alone: lagrgen "
+                             "inputs are functions of t")
+
+    model = Model(name)
+    new_q = model.coordinates([_name(c.func.__name__, "coordinate", c) for c in coordinates])
+    rules = {t: model.t} if t != model.t else {}
+    rules.update(zip(coordinates, new_q))
+    for s, default in parameters:
+        new_p, = model.parameters(s.name) if default is None else \
+            model.parameters(**{s.name: default})
+        rules[s] = new_p
+    if input_list:
+        new_u = model.inputs([_name(f.func.__name__, "input", f) for f in input_list])
+        rules.update(zip(input_list, new_u))
+    model._add_equations(M.xreplace(rules), F.xreplace(rules))
+    return model
+
+
+def _name(name, what, obj):
+    try:
+        return check_name(name, what)
+    except ModelError:
+        raise ModelError(f"the {what} {obj} is named {name!r}, which is not a Python identifier; "
+                         "lagrgen's names become C and Python names: rename it in the SymPy model "
+                         "(e.g. dynamicsymbols('q1') or symbols('m_1'))") from None
+
+
+def _parameters(symbols, defaults):
+    """[(Symbol, default or None)]: those named in `defaults` first (in its order), then by name."""
+    by_name = {}
+    for s in symbols:
+        _name(s.name, "parameter", s)
+        if s.name in by_name:
+            raise ModelError(f"two different symbols are both named {s.name!r} (different "
+                             "assumptions?): give them different names")
+        by_name[s.name] = s
+    given = {}
+    for key, value in (defaults or {}).items():
+        kname = key_name(key)
+        if kname not in by_name:
+            known = ", ".join(sorted(by_name)) or "none"
+            raise ModelError(f"defaults: {kname!r} is not a parameter of the equations (their "
+                             f"parameters are {known})")
+        given[kname] = value
+    order = list(given) + sorted(set(by_name) - set(given))
+    return [(by_name[k], given.get(k)) for k in order]
+
+
+def _inputs(found, inputs, t):
+    """The inputs in order: `inputs` (functions or names) if given, else those found, by name."""
+    by_name = {}
+    for f in found:
+        fname = f.func.__name__
+        if fname in by_name:
+            raise ModelError(f"two different functions are both named {fname!r}")
+        by_name[fname] = f
+    if inputs is None:
+        return [by_name[k] for k in sorted(by_name)]
+    if isinstance(inputs, str):
+        inputs = inputs.replace(",", " ").split()
+    names = [key_name(k) for k in inputs]
+    missing = sorted(set(by_name) - set(names))
+    if missing:
+        raise ModelError(f"the equations depend on {', '.join(missing)}, which "
+                         f"{'is' if len(missing) == 1 else 'are'} not among the inputs given")
+    if len(set(names)) != len(names):
+        raise ModelError(f"inputs: a name is given twice in {names}")
+    return [by_name.get(k, sp.Function(k)(t)) for k in names]
+
+
+def _equations(obj, t):
+    """(q, M, F) of `obj` with M·q̈ = F, in SymPy's own symbols."""
+    from sympy.physics.mechanics import KanesMethod, LagrangesMethod, System
+    if isinstance(obj, System):
+        _no_system_constraints(obj)
+        if obj.eom_method is None:
+            obj.form_eoms()
+        system, obj = obj, obj.eom_method
+        if isinstance(obj, LagrangesMethod):
+            # the bodies' velocities may be written in the System's speeds: u = q̇ puts them back
+            q, M, F = _lagrange(obj)
+            rates = _rates_of_speeds(list(system.q), list(system.u), list(system.kdes), t)
+            return q, M.xreplace(rates), F.xreplace(rates)
+    if isinstance(obj, LagrangesMethod):
+        return _lagrange(obj)
+    if isinstance(obj, KanesMethod):
+        return _kane(obj, t)
+    raise TypeError(f"from_sympy() takes a sympy.physics.mechanics LagrangesMethod, KanesMethod "
+                    f"or System, got {type(obj).__name__}")
+
+
+def _rates_of_speeds(q, u, kdes, t):
+    """{u_j: q̇_i} from kinematic equations that say u = q̇ (in any order); ModelError otherwise."""
+    if not u:
+        return {}
+    solved = sp.solve(kdes, u, dict=True) if len(kdes) == len(u) else []
+    rates = {qi.diff(t) for qi in q}
+    if len(solved) != 1 or any(solved[0].get(uj) not in rates for uj in u) \
+            or len(set(solved[0].values())) != len(u):
+        raise ModelError(f"the kinematic differential equations {list(kdes)} are not u = q̇: "
+                         "from_sympy needs every generalized speed to be a coordinate's rate (as "
+                         "with SymPy's default joints)")
+    return solved[0]
+
+
+def _no_system_constraints(system):
+    for what, attr in (("holonomic constraints", "holonomic_constraints"),
+                       ("nonholonomic constraints", "nonholonomic_constraints"),
+                       ("dependent coordinates", "q_dep"), ("dependent speeds", "u_dep"),
+                       ("auxiliary speeds", "u_aux")):
+        if len(getattr(system, attr)):
+            raise ModelError(f"this System has {what}, which from_sympy does not support yet: "
+                             "give it independent coordinates only")
+
+
+def _lagrange(lm):
+    if getattr(lm, "eom", None) is None:
+        lm.form_lagranges_equations()
+    if len(lm.coneqs):
+        raise ModelError("this LagrangesMethod has constraint equations (hol_coneqs or "
+                         "nonhol_coneqs), which from_sympy does not support yet: give it "
+                         "independent coordinates only")
+    return list(lm.q), sp.Matrix(lm.mass_matrix), sp.Matrix(lm.forcing)
+
+
+def _kane(km, t):
+    for what, attr in (("dependent coordinates", "_qdep"), ("dependent speeds", "_udep"),
+                       ("auxiliary speeds", "_uaux")):
+        if len(getattr(km, attr, ())):
+            raise ModelError(f"this KanesMethod has {what}, which from_sympy does not support "
+                             "yet: give it independent coordinates and speeds only")
+    try:
+        M, F = sp.Matrix(km.mass_matrix), sp.Matrix(km.forcing)
+    except ValueError as exc:
+        raise ModelError(f"the KanesMethod has no equations yet ({exc}): call "
+                         "kanes_equations(bodies, loads) first") from None
+    q, u = list(km.q), list(km.u)
+    kinematics = km.kindiffdict()
+    where = {}  # index of q_i -> index j of the speed u_j = q̇_i
+    for i, qi in enumerate(q):
+        rate = kinematics.get(qi.diff(t))
+        if rate not in u or u.index(rate) in where.values():
+            raise ModelError(
+                f"the kinematic differential equations are not u = q̇: {qi.diff(t)} = {rate}. "
+                "from_sympy needs every generalized speed to be a coordinate's rate (as with "
+                "SymPy's default joints); define the speeds with kd_eqs [u_i - q_i']")
+        where[i] = u.index(rate)
+    if len(u) != len(q):
+        raise ModelError(f"the KanesMethod has {len(u)} speeds for {len(q)} coordinates; "
+                         "from_sympy needs u = q̇")
+    n = len(q)
+    order = [where[i] for i in range(n)]   # row/column of Kane's M for coordinate i
+    M = sp.Matrix(n, n, lambda i, k: M[order[i], order[k]])
+    F = sp.Matrix(n, 1, lambda i, _: F[order[i], 0])
+    to_rates = {u[where[i]]: q[i].diff(t) for i in range(n)}
+    M, F = M.xreplace(to_rates), F.xreplace(to_rates)
+    for e in list(M) + list(F):
+        left = {d for d in e.atoms(sp.Derivative) if d.expr in u}
+        if left:
+            raise ModelError(f"the equations contain the speed derivatives {left}")
+    return q, M, F
