@@ -422,3 +422,23 @@ def test_guard_keeps_the_model_events(tmp_path):
                            atol=1e-12)
     assert sol.guard is None and sol.status == 1 and len(sol.t_events) == 1
     assert sol.y_events[0][0][0] == pytest.approx(0.5, abs=1e-9)
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_energy_of_a_3d_body_and_nan_for_external_equations(backend, tmp_path):
+    """T of a spinning 3-D body is ½·ωᵀIω; a from_sympy model's energies are NaN, never 0."""
+    from lagrgen import rotation
+    m = Model("eng_spin")
+    phi, = m.coordinates("phi")
+    m.rigid_body_3d(2.0, [1.0, 2.0, 3.0], [0, 0, 0], orientation=rotation.z(phi))
+    mod = lagrgen.build(m, backend=backend, out_dir=tmp_path)
+    out = dict(zip(mod.output_names, mod.outputs(0.0, [0.3, 1.5])))
+    assert out["kinetic_energy"] == pytest.approx(3.0 * 1.5 ** 2 / 2, rel=1e-14)
+    import sympy.physics.mechanics as me
+    q = me.dynamicsymbols("q")
+    mass, k = sp.symbols("mass k")
+    lm = me.LagrangesMethod(mass * q.diff() ** 2 / 2 - k * q ** 2 / 2, [q])
+    lm.form_lagranges_equations()
+    ext = lagrgen.build(lagrgen.from_sympy(lm, "eng_ext", defaults={"mass": 2.0, "k": 3.0}),
+                        backend=backend, out_dir=tmp_path)
+    assert np.all(np.isnan(ext.outputs(0.0, [1.0, 2.0])))

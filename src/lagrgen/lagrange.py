@@ -257,12 +257,18 @@ def rate(expr, q, qd, t):
 
 
 def output_expressions(spec, q, qd, t):
-    """[user outputs..., T, V, T + V, Σ Q_j·q̇_j, R] in the internal symbols (see `Model.output`)."""
+    """[user outputs..., T, V, T + V, Σ Q_j·q̇_j, R] in the internal symbols (see `Model.output`);
+    T includes ½·ωᵀ·I·ω of 3-D bodies. A model with external equations (from_sympy) has NaN for
+    the five automatic outputs: its energies are not known to lagrgen."""
     convert = _Converter(spec)
     T = sum((convert(e) for e in spec.kinetic), se.Integer(0))
     for mass, position in spec.particles:
         v = [rate(convert(c), q, qd, t) for c in position]
         T += convert(mass) * sum(vc * vc for vc in v) / 2
+    for inertia, omega in getattr(spec, "bodies_3d", ()):
+        I = [[convert(e) for e in row] for row in inertia.tolist()]
+        w = [convert(e) for e in omega]
+        T += sum(w[i] * I[i][j] * w[j] for i in range(3) for j in range(3)) / 2
     V = sum((convert(e) for e in spec.potential), se.Integer(0))
     R = sum((convert(e) for e in spec.dissipation), se.Integer(0))
     for c, length in spec.dampers:
@@ -274,6 +280,9 @@ def output_expressions(spec, q, qd, t):
         for i in range(len(q)):
             power += sum(fc * diff(rc, q[i]) for fc, rc in zip(f, r)) * qd[i]
     user = [convert(expr) for _, expr in spec.outputs]
+    if getattr(spec, "external", None) is not None:
+        # equations derived elsewhere (lagrgen.from_sympy) carry no energies: NaN, not a wrong 0
+        return user + [se.nan] * 5
     return user + [T, V, T + V, power, R]
 
 
