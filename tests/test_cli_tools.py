@@ -138,15 +138,16 @@ def test_simulate_writes_csv_plot_and_animation(tmp_path):
                "--csv", paths["csv"], "--plot", paths["png"], "--animate", paths["gif"],
                "--frames", 6, cwd=tmp_path)
     header, data = read_csv(paths["csv"])
-    assert header == ["t", "theta1", "theta2", "theta1_dot", "theta2_dot"]
-    assert data.shape == (41, 5)
+    assert header == ["t", "theta1", "theta2", "theta1_dot", "theta2_dot", "kinetic_energy", "potential_energy", "total_energy", "input_power", "rayleigh_dissipation"]
+    assert data.shape == (41, 10)
     assert_allclose(data[[0, -1], 0], [0.0, 2.0])
-    assert_allclose(data[0, 1:], [0.9, 0.0, 0.0, -0.5])
+    assert_allclose(data[0, 1:5], [0.9, 0.0, 0.0, -0.5])
     mod = lagrgen.build(example_model("double_pendulum"), backend="python")
     sol = lagrgen.simulate(mod, (0.0, 2.0), [0.9, 0.0, 0.0, -0.5], method="DOP853",
                            params={"m2": 2.0}, inputs={"F": 0.3}, t_eval=np.linspace(0, 2, 41),
                            rtol=1e-10, atol=1e-12)
-    assert_allclose(data[:, 1:], sol.y.T, rtol=1e-12, atol=1e-14)
+    assert_allclose(data[:, 1:5], sol.y.T, rtol=1e-12, atol=1e-14)
+    assert_allclose(data[:, 5:], lagrgen.evaluate_outputs(mod, sol).T, rtol=1e-12, atol=1e-12)
     assert proc.stdout == ""
     with Image.open(paths["png"]) as image:
         assert image.format == "PNG" and min(image.size) > 100
@@ -164,11 +165,11 @@ def test_simulate_csv_to_stdout_with_a_time_varying_input(tmp_path):
                "--t-end", 1.0, "--samples", 11, "--inputs", "f=2*sin(3*t)", "--quiet",
                "--rtol", 1e-10, "--atol", 1e-12, cwd=tmp_path)
     rows = list(csv.reader(io.StringIO(proc.stdout)))
-    assert rows[0] == ["t", "x1", "s", "x1_dot", "s_dot"] and len(rows) == 12
+    assert rows[0] == ["t", "x1", "s", "x1_dot", "s_dot", "kinetic_energy", "potential_energy", "total_energy", "input_power", "rayleigh_dissipation"] and len(rows) == 12
     mod = lagrgen.build(example_model("two_mass_chain", "relative"), backend="python")
     sol = lagrgen.simulate(mod, (0.0, 1.0), [0, 0, 0, 0], inputs={"f": lambda t: 2 * np.sin(3 * t)},
                            t_eval=np.linspace(0, 1, 11), rtol=1e-10, atol=1e-12)
-    assert_allclose(np.array(rows[1:], dtype=float)[:, 1:], sol.y.T, rtol=1e-9, atol=1e-13)
+    assert_allclose(np.array(rows[1:], dtype=float)[:, 1:5], sol.y.T, rtol=1e-9, atol=1e-13)
     assert proc.stderr == ""
 
 

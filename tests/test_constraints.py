@@ -416,7 +416,7 @@ def test_unconstrained_model_code_has_no_constraint_kernels(built):
     from lagrgen.kernels import all_kernels
     plain = example_model("double_pendulum")
     names = [k.name for k in all_kernels(plain.equations())]
-    assert names == ["mf", "jacobian_b", "dF_du"]
+    assert names == ["mf", "jacobian_b", "dF_du", "outputs"]
     four_bar = [k.name for k in all_kernels(example_model("four_bar").equations())]
     assert {"constraints", "constraint_residuals", "constraint_jacobian"} <= set(four_bar)
 
@@ -602,8 +602,9 @@ def test_cli_show_and_csv(tmp_path, capsys):
     assert main(["simulate", path, "--y0", "1.0,0.4,1.6,2,0,0", "--t-end", "0.2", "--samples",
                  "3", "--backend", "python", "--csv", str(csv_path), "--quiet"]) == 0
     rows = [line.split(",") for line in csv_path.read_text().splitlines()]
-    assert rows[0] == ["t", "th2", "th3", "th4", "th2_dot", "th3_dot", "th4_dot", "B_x", "B_y"]
+    assert rows[0][:9] == ["t", "th2", "th3", "th4", "th2_dot", "th3_dot", "th4_dot", "B_x", "B_y"]
+    assert rows[0][9:12] == ["kinetic_energy", "potential_energy", "total_energy"]
     first = np.array(rows[1], dtype=float)
     mod = lagrgen.build(example_model("four_bar"), backend="python")
     assert np.abs(mod.constraint_residuals(0.0, first[1:7])).max() < 1e-12   # projected y0
-    assert np.allclose(first[7:], mod.constraint_forces(0.0, first[1:7]), rtol=1e-12)
+    assert np.allclose(first[7:9], mod.constraint_forces(0.0, first[1:7]), rtol=1e-12)

@@ -15,19 +15,21 @@ from .errors import (BuildError, CompileError, ConstraintError, LagrgenError, Ma
 _LAZY = {
     "Model": "model",
     "build": "build", "load": "build",
-    "simulate": "simulate", "Signal": "signals",
+    "simulate": "simulate", "evaluate_outputs": "simulate", "output_event": "simulate",
+    "Signal": "signals",
     "simulate_many": "ensemble", "EnsembleResult": "ensemble",
     "sweep": "sweep",
     "equilibrium": "vibration", "linearize": "vibration", "modes": "vibration",
-    "frequency_response": "vibration",
+    "frequency_response": "vibration", "FrozenTimeWarning": "vibration",
     "consistent_state": "constraints",
     "from_sympy": "sympy_interop",
     "export_fmu": "codegen.fmu",
     "rotation": None,
 }
 
-__all__ = ["Model", "build", "load", "simulate", "Signal", "simulate_many", "EnsembleResult", "sweep",
-           "equilibrium", "linearize", "modes", "frequency_response", "consistent_state",
+__all__ = ["Model", "build", "load", "simulate", "evaluate_outputs", "output_event", "Signal",
+           "simulate_many", "EnsembleResult", "sweep", "equilibrium", "linearize", "modes",
+           "frequency_response", "FrozenTimeWarning", "consistent_state",
            "from_sympy", "export_fmu", "rotation",
            "LagrgenError", "ConstraintError", "ModelError", "UnknownNameError", "MassMatrixError",
            "BuildError", "CompileError", "NonFiniteError", "__version__"]

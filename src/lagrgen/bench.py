@@ -4,6 +4,7 @@ Used by `python -m lagrgen bench MODEL.py` and by the scripts in `benchmarks/`. 
 median (or best, for per-call times) of repeats measured in the same run.
 """
 import statistics
+import sys
 import tempfile
 import time
 import timeit
@@ -49,17 +50,35 @@ def build_seconds(make_model, out_dir=None, repeats=3):
     }
 
 
+#: The guard of every timed solve: a solve that needs more steps or wall time than this stops
+#: (and is reported as stopped) instead of running on for minutes and growing without bound.
+MAX_STEPS = 200_000
+MAX_WALL_TIME = 60.0
+
+
+def note(text):
+    """Progress on a terminal (stderr), so a long benchmark is never silent."""
+    if sys.stderr.isatty():
+        print(f"[bench] {text}", file=sys.stderr, flush=True)
+
+
 def solve_seconds(mod, y0, method, t_span=(0.0, 10.0), rtol=1e-8, atol=1e-8, repeats=3,
-                  params=None, inputs=None):
-    """Median wall time of `lagrgen.simulate` and its counters (nfev, njev, nlu, success)."""
+                  params=None, inputs=None, max_steps=MAX_STEPS, max_wall_time=MAX_WALL_TIME):
+    """Median wall time of `lagrgen.simulate` and its counters (nfev, njev, nlu, success);
+    `stopped` holds the guard's message when the step or wall-time limit ended the solve."""
     times, sol = [], None
     for _ in range(repeats):
+        note(f"{mod.name}: {method} on the {getattr(mod, 'backend', '?')} path ...")
         start = time.perf_counter()
         sol = simulate(mod, t_span, y0, method=method, rtol=rtol, atol=atol, params=params,
-                       inputs=inputs)
+                       inputs=inputs, max_steps=max_steps, max_wall_time=max_wall_time)
         times.append(time.perf_counter() - start)
+        if sol.guard is not None:
+            print(f"bench: {mod.name} {method}: {sol.guard} at t = {sol.t[-1]:.4g}",
+                  file=sys.stderr, flush=True)
+            break
     return {"seconds": statistics.median(times), "nfev": sol.nfev, "njev": sol.njev,
-            "nlu": sol.nlu, "success": bool(sol.success)}
+            "nlu": sol.nlu, "success": bool(sol.success), "stopped": sol.guard}
 
 
 def call_seconds(mod, y0, t=0.0):
@@ -100,7 +119,9 @@ def bench_model(make_model, y0=None, methods=METHODS, t_span=(0.0, 10.0), rtol=1
         for method in methods:
             solves["c"][method] = solve_seconds(c, y0, method, t_span, rtol, atol, repeats)
             estimate = solves["c"][method]["nfev"] * calls["python"]["rhs"] * 1.5
-            if estimate > python_solve_limit:
+            if solves["c"][method].get("stopped"):
+                solves["python"][method] = {"skipped": "the C solve was stopped by the guard"}
+            elif estimate > python_solve_limit:
                 solves["python"][method] = {"skipped": f"estimated {estimate:.0f} s"}
             else:
                 solves["python"][method] = solve_seconds(py, y0, method, t_span, rtol, atol,
@@ -136,6 +157,8 @@ def markdown(result):
     for method, cs in result["solves"]["c"].items():
         ps = result["solves"]["python"][method]
         counts = f"{cs['nfev']} / {cs['njev']} / {cs['nlu']}"
+        if cs.get("stopped"):
+            counts += f" (stopped: {cs['stopped']})"
         if "skipped" in ps:
             lines.append(f"| {method} | {_s(cs['seconds'])} | {counts} | skipped "
                          f"({ps['skipped']}) | — |")

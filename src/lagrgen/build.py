@@ -133,7 +133,8 @@ def equations_digest(spec, equations):
              spec.input_names, [[str(e) for e in row] for row in equations.M],
              [str(f) for f in equations.F], [str(e) for e in equations.residuals],
              spec.stabilization, spec.constraint_names, [str(g) for g in equations.events],
-             [(name, terminal, direction) for name, _, terminal, direction in spec.events]]
+             [(name, terminal, direction) for name, _, terminal, direction in spec.events],
+             spec.output_names, [str(e) for e in equations.outputs], spec.units]
     for part in parts:
         h.update(repr(part).encode() + b"\0")
     equations.digest = h.hexdigest()
@@ -147,6 +148,8 @@ def model_info(spec, equations):
         "parameters": list(spec.parameter_names), "inputs": list(spec.input_names),
         "defaults": list(spec.defaults), "content_hash": equations_digest(spec, equations),
         "lagrgen_version": __version__, "dimensions": model_dimensions(spec, equations),
+        "output_names": list(spec.output_names), "units": dict(spec.units),
+        "explicit_time": bool(equations.explicit_time),
         "constraint_names": list(spec.constraint_names),
         "events": [{"name": name, "terminal": terminal, "direction": direction}
                    for name, _, terminal, direction in spec.events],
@@ -157,7 +160,7 @@ def model_dimensions(spec, equations):
     """The sizes that output shapes of `lagrgen.functions` refer to (see `functions.dimensions`)."""
     return dimensions(equations.n, len(spec.parameters), len(spec.inputs),
                       n_constraints=equations.m, n_holonomic=equations.n_holonomic,
-                      n_events=len(equations.events))
+                      n_events=len(equations.events), n_outputs=len(spec.output_names))
 
 
 # -- compiling -------------------------------------------------------------------------------

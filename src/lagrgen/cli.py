@@ -127,11 +127,30 @@ def add_show(sub):
 
 
 # -- shared by modes and simulate ------------------------------------------------------------
+def split_items(text):
+    """The NAME=VALUE items of one option value: separated by ';', or by ',' outside brackets, so
+    `F=Max(0,t-0.5);G=1` and `a=1,b=2` both work."""
+    items, depth, current = [], 0, []
+    for ch in text:
+        if ch in "([{":
+            depth += 1
+        elif ch in ")]}":
+            depth = max(depth - 1, 0)
+        if ch == ";" or (ch == "," and depth == 0):
+            items.append("".join(current))
+            current = []
+        else:
+            current.append(ch)
+    items.append("".join(current))
+    return items
+
+
 def assignments(texts, what):
-    """{name: text} from ["a=1,b=2", "c=3"] (the values of a repeatable NAME=VALUE,... option)."""
+    """{name: text} from ["a=1,b=2", "c=Max(0,t);d=3"] (the values of a repeatable NAME=VALUE
+    option: items separated by ';' or by commas outside brackets)."""
     out = {}
     for text in texts or ():
-        for item in text.split(","):
+        for item in split_items(text):
             if not item.strip():
                 continue
             name, sep, value = item.partition("=")
@@ -199,14 +218,19 @@ def add_run_options(parser):
     parser.add_argument("--backend", choices=("c", "python"), default="c",
                         help="compiled C (default, cached in --out) or pure Python")
     parser.add_argument("--params", action="append", metavar="NAME=VALUE,...",
-                        help="parameter values (others keep their defaults)")
+                        help="parameter values (others keep their defaults); repeat the flag or "
+                        "separate items with ';' or ','")
 
 
 # -- modes ------------------------------------------------------------------------------------
 def modes_table(model, q0, result):
     """The equilibrium, then one row per mode: ω (rad/s), f (Hz), ζ; then the mode shapes."""
     names = model.coordinate_names
-    lines = [f"{model.name}: equilibrium " + ", ".join(f"{c} = {v:.6g}" for c, v in zip(names, q0)),
+    units = model.units
+
+    def with_unit(c, v):
+        return f"{c} = {v:.6g}" + (f" {units[c]}" if units.get(c) else "")
+    lines = [f"{model.name}: equilibrium " + ", ".join(with_unit(c, v) for c, v in zip(names, q0)),
              f"{'mode':>4}  {'omega [rad/s]':>14}  {'f [Hz]':>12}  {'damping ratio':>13}"]
     for i, w in enumerate(result.omega):
         zeta = result.damping_ratios[i]
@@ -215,16 +239,18 @@ def modes_table(model, q0, result):
         else:
             lam = np.real(result.eigenvalues[i])
             lines.append(f"{i + 1:>4}  {'unstable':>14}  {'':>12}  {'':>13}  (omega^2 = {lam:.6g})")
-    width = max(len(c) for c in names)
+    rows = [column(c, units) for c in names]
+    width = max(len(r) for r in rows)
     lines.append("mode shapes (mass-normalized, one column per mode):")
-    for j, c in enumerate(names):
-        lines.append(f"{c:>{width}}  " + "  ".join(f"{np.real(v):>10.5g}" for v in result.shapes[j]))
+    for j, r in enumerate(rows):
+        lines.append(f"{r:>{width}}  " + "  ".join(f"{np.real(v):>10.5g}" for v in result.shapes[j]))
     return "\n".join(lines)
 
 
 def command_modes(args):
     from .outputs.plotting import plot_modes
-    from .vibration import equilibrium, modes
+    import warnings
+    from .vibration import FrozenTimeWarning, equilibrium, modes
     models = models_in(args.model_file, args.model)
     for k, model in enumerate(models):
         params = parameters_option(args, model)
@@ -234,8 +260,12 @@ def command_modes(args):
         mod = build_for(model, args)
         guess = [at.get(c, 0.0) for c in model.coordinate_names]
         u = inputs or None
-        q0 = equilibrium(mod, guess, p=params, u=u)
-        result = modes(mod, q0, p=params, u=u)
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always", FrozenTimeWarning)
+            q0 = equilibrium(mod, guess, p=params, u=u, t=args.t)
+            result = modes(mod, q0, p=params, u=u, t=args.t)
+        if caught and not args.quiet:
+            print(f"lagrgen: warning: {caught[-1].message}", file=sys.stderr)
         if not args.quiet:
             print(("\n" if k else "") + modes_table(model, q0, result))
         if args.plot:
@@ -259,6 +289,9 @@ def add_modes(sub):
     m.add_argument("--inputs", action="append", metavar="NAME=VALUE,...",
                    help="constant inputs at the operating point (default: 0)")
     m.add_argument("--plot", metavar="OUT.png", help="also plot the mode shapes to this image")
+    m.add_argument("--t", type=float, default=0.0, metavar="T",
+                   help="the frozen time of a model that depends explicitly on t (default 0; "
+                   "the result holds at that instant only, and a warning says so)")
     m.set_defaults(run=command_modes)
 
 
@@ -341,16 +374,34 @@ class Watched:
         return self._mod.rhs(t, y, p, u)
 
 
-def write_csv(stream, sol, names):
-    """t, q, q' per output time; then the multipliers λ of a constrained model (M q'' = F + Aᵀλ),
-    one column per constraint name (lambda1, lambda2, ... when unnamed)."""
-    writer = csv.writer(stream, lineterminator="\n")
+def column(name, units):
+    """A CSV header: 'x [m]' when the name has a unit, else the name."""
+    unit = (units or {}).get(name)
+    return f"{name} [{unit}]" if unit else name
+
+
+def write_csv(stream, sol, names, outputs=None, units=None):
+    """t, q, q' (as <coordinate>_dot) per saved time; then the multipliers λ of a constrained
+    model (M q'' = F + Aᵀλ), one column per constraint name; then the outputs. Headers carry
+    units ('x [m]', 'x_dot [m/s]')."""
+    from .outputs.plotting import rate_unit
+    units = dict(units or {})
+    for c in names:
+        if rate_unit(units.get(c)):
+            units[f"{c}_dot"] = rate_unit(units[c])
+    out_names = list(outputs.names) if outputs is not None else []
     lam = getattr(sol, "constraint_forces", np.zeros((0, len(sol.t))))
-    writer.writerow(["t", *names, *(f"{c}_dot" for c in names),
-                     *getattr(sol, "constraint_names", ())])
+    writer = csv.writer(stream, lineterminator="\n")
+    writer.writerow([column("t", {"t": "s"} if units else {}),
+                     *(column(c, units) for c in names),
+                     *(column(f"{c}_dot", units) for c in names),
+                     *getattr(sol, "constraint_names", ()),
+                     *(column(o, units) for o in out_names)])
     for k, t in enumerate(sol.t):
-        writer.writerow([repr(float(t)), *(repr(float(v)) for v in sol.y[:, k]),
-                         *(repr(float(v)) for v in lam[:, k])])
+        values = [*sol.y[:, k], *lam[:, k]]
+        if outputs is not None:
+            values += list(np.asarray(outputs)[:, k])
+        writer.writerow([repr(float(t)), *(repr(float(v)) for v in values)])
 
 
 def command_simulate(args):
@@ -370,17 +421,25 @@ def command_simulate(args):
     progress = Progress(args.t_start, args.t_end, sys.stderr) if show_progress else None
     t_eval = np.linspace(args.t_start, args.t_end, args.samples)
     options = {} if args.max_step is None else {"max_step": args.max_step}
+    if args.max_steps <= 0 or (args.max_time is not None and args.max_time <= 0):
+        raise LagrgenError("--max-steps and --max-time must be positive")
+    plot_outputs = output_choice(args.plot_outputs, mod)
     started = time.perf_counter()
     sol = simulate(Watched(mod, progress) if progress else mod, (args.t_start, args.t_end), y0,
                    method=args.method, params=params or None, inputs=inputs or None,
-                   rtol=args.rtol, atol=args.atol, t_eval=t_eval, **options)
+                   rtol=args.rtol, atol=args.atol, t_eval=t_eval, max_steps=args.max_steps,
+                   max_wall_time=args.max_time, **options)
     seconds = time.perf_counter() - started
     if progress:
         progress.done()
-    if not sol.success:
+    if not sol.success and sol.guard is None:
         reached = sol.t[-1] if len(sol.t) else args.t_start
         raise LagrgenError(f"the integration stopped at t = {reached:.6g}: {sol.message}")
-    written = write_outputs(args, model, sol, params)
+    written = write_outputs(args, model, sol, params, mod, plot_outputs)
+    if sol.guard is not None:
+        for what, path in written:
+            print(f"{what} (partial) -> {path}", file=sys.stderr)
+        raise LagrgenError(f"{sol.message} (raise --max-steps or --max-time to go further)")
     if not args.quiet:
         print(f"{model.name}: {args.method} from t = {args.t_start:g} to {args.t_end:g}, "
               f"{sol.nfev} rhs calls, {seconds:.3f} s ({mod.backend} backend)", file=sys.stderr)
@@ -399,24 +458,58 @@ def consistent_start(mod, y0, args, params):
     return y
 
 
-def write_outputs(args, model, sol, params):
-    """The CSV (stdout if no output is asked for), plot and animation; [(what, path)]."""
+def output_choice(text, mod):
+    """The output names chosen by --plot-outputs ("energy" stands for T, V and T + V)."""
+    if not text:
+        return []
+    chosen = []
+    for name in (n.strip() for n in text.split(",")):
+        if not name:
+            continue
+        names = ENERGIES if name == "energy" else (name,)
+        for n in names:
+            if n not in mod.output_names:
+                raise LagrgenError(f"--plot-outputs: model {mod.name!r} has no output {n!r} "
+                                   f"(its outputs are energy, {', '.join(mod.output_names)})")
+            if n not in chosen:
+                chosen.append(n)
+    return chosen
+
+
+ENERGIES = ("kinetic_energy", "potential_energy", "total_energy")
+
+
+def write_outputs(args, model, sol, params, mod=None, plot_outputs=()):
+    """The CSV (stdout if no output is asked for, or with --csv -), plot and animation;
+    [(what, path)]."""
     from .outputs import plotting
+    from .simulate import evaluate_outputs
     written = []
     names = model.coordinate_names
-    if args.csv:
+    units = model.units
+    outputs = evaluate_outputs(mod, sol) if mod is not None and len(sol.t) else None
+    if args.csv == "-":
+        write_csv(sys.stdout, sol, names, outputs, units)
+        sys.stdout.flush()
+    elif args.csv:
         with open(args.csv, "w", newline="") as stream:
-            write_csv(stream, sol, names)
+            write_csv(stream, sol, names, outputs, units)
         written.append(("time histories (CSV)", args.csv))
     if args.plot:
-        plotting.plot_time_history(sol, names, args.plot, title=model.name)
+        plotting.plot_time_history(sol, names, args.plot, title=model.name, units=units)
         written.append(("plot", args.plot))
+    if plot_outputs:
+        path = Path(args.plot_to or (Path(args.plot).with_name(Path(args.plot).stem + "_outputs.png")
+                                     if args.plot else f"{model.name}_outputs.png"))
+        plotting.plot_series(sol.t, [outputs[n] for n in plot_outputs], plot_outputs, units,
+                             path, title=f"{model.name}: outputs")
+        written.append(("outputs plot", str(path)))
     if args.animate:
         plotting.animate(model, sol, args.animate, params=params or None, fps=args.fps,
                          max_frames=args.frames)
         written.append(("animation", args.animate))
-    if not written:
-        write_csv(sys.stdout, sol, names)
+    if not written and args.csv != "-":
+        write_csv(sys.stdout, sol, names, outputs, units)
     return written
 
 
@@ -434,15 +527,28 @@ def add_simulate(sub):
                    help="initial state: n positions or 2n values q, q' separated by commas, or "
                    "COORD=VALUE,COORD'=VALUE (or COORD_dot=VALUE); default all zero")
     s.add_argument("--inputs", action="append", metavar="NAME=VALUE,...",
-                   help="inputs: numbers or expressions of t, e.g. F=0.5*sin(2*t) (default 0)")
+                   help="inputs: numbers or expressions of t, e.g. F=0.5*sin(2*t) (default 0); "
+                   "repeat the flag or separate items with ';' (commas inside brackets stay: "
+                   "--inputs 'F=Max(0,t-0.5)')")
     s.add_argument("--method", choices=METHODS, default="RK45", help="solve_ivp method (default RK45)")
     s.add_argument("--rtol", type=float, default=1e-6, help="relative tolerance (default 1e-6)")
     s.add_argument("--atol", type=float, default=1e-9, help="absolute tolerance (default 1e-9)")
     s.add_argument("--max-step", type=float, help="largest step solve_ivp may take")
     s.add_argument("--samples", type=int, default=501,
                    help="number of equally spaced output times (default 501)")
-    s.add_argument("--csv", metavar="OUT.csv", help="write t, q, q' (one row per output time) "
-                   "and, for a constrained model, its multipliers (one column per constraint name)")
+    s.add_argument("--csv", metavar="OUT.csv",
+                   help="write t, q, q', the multipliers of a constrained model and the outputs "
+                   "(one row per output time; headers carry units); '-' writes to stdout")
+    s.add_argument("--plot-outputs", metavar="NAME,...",
+                   help="plot these outputs ('energy' = kinetic, potential and total energy; or "
+                   "names from model.output) to --plot-outputs-to (default: <plot>_outputs.png)")
+    s.add_argument("--plot-outputs-to", dest="plot_to", metavar="OUT.png",
+                   help="where --plot-outputs writes its figure")
+    s.add_argument("--max-steps", type=int, default=1_000_000,
+                   help="stop after this many solver steps, keeping the result so far "
+                   "(default 1000000)")
+    s.add_argument("--max-time", type=float, metavar="SECONDS",
+                   help="stop after this much wall time, keeping the result so far")
     s.add_argument("--plot", metavar="OUT.png", help="plot q(t) and q'(t) to this image")
     s.add_argument("--animate", metavar="OUT.gif", help="animate the mechanism to this GIF")
     s.add_argument("--fps", type=int, default=20,
@@ -665,9 +771,23 @@ def main(argv=None):
     args = parser().parse_args(argv)
     try:
         return args.run(args)
+    except BrokenPipeError:
+        return closed_pipe()
     except (LagrgenError, ValueError, OSError, np.linalg.LinAlgError) as exc:
         print(f"lagrgen: error: {exc}", file=sys.stderr)
         return 1
     except KeyboardInterrupt:
         print("lagrgen: interrupted", file=sys.stderr)
         return 130
+
+
+def closed_pipe():
+    """The reader of stdout went away (`... | head`): end quietly. stdout is pointed at devnull so
+    the interpreter's final flush does not complain either."""
+    import os
+    try:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+    except (OSError, ValueError):
+        pass
+    return 0

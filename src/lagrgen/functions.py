@@ -64,6 +64,8 @@ FUNCTIONS = (
                   (Output("M", ("n", "n")), Output("dF_dq", ("n", "n")),
                    Output("dF_dqd", ("n", "n")), Output("dF_du", ("n", "n_inputs"))),
                   "M, ∂F/∂q, ∂F/∂q̇ and ∂F/∂u at one point"),
+    ModelFunction("outputs", "state", (Output("y", ("n_outputs",)),),
+                  "the outputs: the user's, then T, V, T + V, Σ Q_j·q̇_j and R"),
     ModelFunction("constraint_forces", "state", (Output("lam", ("n_constraints",)),),
                   "λ of M·q̈ = F + Aᵀ·λ, A·q̈ = γ (Aᵀλ: the generalized forces of constraint)"),
     ModelFunction("constraint_residuals", "state", (Output("residuals", ("n_residuals",)),),

@@ -9,6 +9,7 @@ assembled from these by the backends:
     jacobian_b   B = [∂F/∂q − ∂(M·a)/∂q | ∂F/∂q̇] for a given a (= q̈); ∂ẏ/∂y's bottom half is M⁻¹·B.
                  At a = 0 it is [∂F/∂q | ∂F/∂q̇], the linearization's −K and −C.
     dF_du        ∂F/∂u, the linearization's input matrix
+    outputs      the model's outputs: the user's, then T, V, T + V, input power, R
     constraints  A (m×n) and γ (m) of A·q̈ = γ                       } only for a model with
     constraint_residuals  Φ, then A·q̇ + b                            } constraints (m > 0);
     constraint_jacobian   ∂(Aᵀλ)/∂q and [∂γ/∂q − ∂(A·a)/∂q | ∂γ/∂q̇]  } a = [q̈, λ] there
@@ -67,6 +68,8 @@ KERNELS = (
                (Output("B", ("n", "2n")),), _jacobian_b),
     KernelSpec("dF_du", "∂F/∂u, n×n_inputs", (Output("dF_du", ("n", "n_inputs")),),
                lambda eq: {"dF_du": flatten(eq.dF_du)}),
+    KernelSpec("outputs", "the user's outputs, then T, V, T + V, Σ Q_j·q̇_j and R",
+               (Output("out", ("n_outputs",)),), lambda eq: {"out": list(eq.outputs)}),
     KernelSpec("constraints", "A (m×n) and γ (m) of the constraints A·q̈ = γ (Baumgarte-stabilized)",
                (Output("A", ("n_constraints", "n")), Output("gamma", ("n_constraints",))),
                lambda eq: {"A": flatten(eq.A), "gamma": list(eq.gamma)}, lambda eq: eq.m > 0),

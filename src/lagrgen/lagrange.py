@@ -174,6 +174,19 @@ class Equations:
                         out[i][j] += d * self.a[k]
         return out
 
+    @cached_property
+    def outputs(self):
+        """The output expressions, in `spec.output_names` order: the user's, then T, V, T + V,
+        the input power Σ Q_j·q̇_j and the Rayleigh function R."""
+        return output_expressions(self.spec, self.q, self.qd, self.t)
+
+    @cached_property
+    def explicit_time(self):
+        """True if M or F depends on t explicitly (a rheonomic model: no static equilibrium in
+        general, so a linearization holds only at one frozen time)."""
+        return any(self.t in e.free_symbols for row in self.M for e in row) or \
+            any(self.t in f.free_symbols for f in self.F)
+
     def differentiate(self):
         """Evaluate (and cache) every Jacobian piece now; return self."""
         _ = self.dF_dq, self.dF_dqd, self.dMa_dq, self.dF_du
@@ -203,6 +216,16 @@ def user_to_internal(spec):
             for i, user in enumerate(users)}
 
 
+def as_piecewise(expr):
+    """`expr` with Heaviside, Min and Max rewritten as Piecewise (H(0) = ½ unless given), the one
+    discontinuous form the derivation differentiates (branch by branch) and the printers print."""
+    expr = sp.sympify(expr)
+    if not expr.has(sp.Heaviside, sp.Min, sp.Max):
+        return expr
+    return expr.replace(lambda e: isinstance(e, (sp.Heaviside, sp.Min, sp.Max)),
+                        lambda e: e.rewrite(sp.Piecewise))
+
+
 class _Converter:
     """Turns a model's SymPy expressions into SymEngine ones in the internal symbols."""
 
@@ -210,7 +233,7 @@ class _Converter:
         self.to_internal = user_to_internal(spec)
 
     def __call__(self, expr):
-        internal = sp.sympify(expr).xreplace(self.to_internal)
+        internal = as_piecewise(expr).xreplace(self.to_internal)
         try:
             return se.sympify(internal)
         except Exception as exc:  # SymEngine raises several types for what it cannot read
@@ -412,6 +435,36 @@ def rate(expr, q, qd, t):
     free = expr.free_symbols
     return sum((diff(expr, qj) * qdj for qj, qdj in zip(q, qd) if qj in free),
                diff(expr, t) if t in free else se.Integer(0))
+
+
+def output_expressions(spec, q, qd, t):
+    """[user outputs..., T, V, T + V, Σ Q_j·q̇_j, R] in the internal symbols (see `Model.output`);
+    T includes ½·ωᵀ·I·ω of 3-D bodies. A model with external equations (from_sympy) has NaN for
+    the five automatic outputs: its energies are not known to lagrgen."""
+    convert = _Converter(spec)
+    T = sum((convert(e) for e in spec.kinetic), se.Integer(0))
+    for mass, position in spec.particles:
+        v = [rate(convert(c), q, qd, t) for c in position]
+        T += convert(mass) * sum(vc * vc for vc in v) / 2
+    for inertia, omega in getattr(spec, "bodies_3d", ()):
+        I = [[convert(e) for e in row] for row in inertia.tolist()]
+        w = [convert(e) for e in omega]
+        T += sum(w[i] * I[i][j] * w[j] for i in range(3) for j in range(3)) / 2
+    V = sum((convert(e) for e in spec.potential), se.Integer(0))
+    R = sum((convert(e) for e in spec.dissipation), se.Integer(0))
+    for c, length in spec.dampers:
+        R += convert(c) * rate(convert(length), q, qd, t) ** 2 / 2
+    power = se.Integer(0)
+    for vector, position in spec.virtual_work:
+        f = [convert(c) for c in vector]
+        r = [convert(c) for c in position]
+        for i in range(len(q)):
+            power += sum(fc * diff(rc, q[i]) for fc, rc in zip(f, r)) * qd[i]
+    user = [convert(expr) for _, expr in spec.outputs]
+    if getattr(spec, "external", None) is not None:
+        # equations derived elsewhere (lagrgen.from_sympy) carry no energies: NaN, not a wrong 0
+        return user + [se.nan] * 5
+    return user + [T, V, T + V, power, R]
 
 
 def derive(spec):

@@ -17,7 +17,18 @@ SUPPORTED_FUNCTIONS = (
     sp.sin, sp.cos, sp.tan, sp.asin, sp.acos, sp.atan, sp.atan2,
     sp.sinh, sp.cosh, sp.tanh, sp.asinh, sp.acosh, sp.atanh,
     sp.exp, sp.log, sp.Abs, sp.sign,
+    # discontinuous: rewritten as Piecewise before differentiation (lagrgen.lagrange)
+    sp.Heaviside, sp.Min, sp.Max, sp.Piecewise,
 )
+
+#: The outputs every built model provides after the user's own (`Model.output`), in this order:
+#: T, V, T + V, then the power Σ Q_j·q̇_j of the applied forces and the Rayleigh function R, so that
+#: d(T + V)/dt = input_power − 2·R for a scleronomic model with R quadratic in q̇.
+ENERGY_OUTPUTS = ("kinetic_energy", "potential_energy", "total_energy")
+EXTRA_OUTPUTS = ("input_power", "rayleigh_dissipation")
+AUTOMATIC_OUTPUTS = ENERGY_OUTPUTS + EXTRA_OUTPUTS
+#: Drawing shapes of rigid bodies (see `Model.rigid_body`).
+SHAPES = ("disk", "bar", "box")
 
 
 def check_name(name, what="name"):
@@ -71,6 +82,28 @@ def split_names(names, what):
     return [check_name(n, what) for n in names]
 
 
+def split_units(units, names, what):
+    """{name: unit} from a space-separated string or an iterable of unit strings, one per name
+    (None: no units). A unit is a label only; "-" or "" means dimensionless."""
+    if units is None:
+        return {}
+    units = units.split() if isinstance(units, str) else list(units)
+    if len(units) != len(names):
+        raise ModelError(f"{len(names)} {what} name(s) {' '.join(names)} but {len(units)} unit(s) "
+                         f"{units!r}: give one unit per name")
+    out = {}
+    for name, unit in zip(names, units):
+        out[name] = check_unit(unit, f"{what} {name!r}")
+    return out
+
+
+def check_unit(unit, where):
+    """`unit` if it is a string without whitespace or control characters, else ModelError."""
+    if not isinstance(unit, str) or any(c.isspace() or not c.isprintable() for c in unit):
+        raise ModelError(f"unit of {where} must be a string without spaces, got {unit!r}")
+    return unit
+
+
 def as_vector(value, what):
     """Return `value` (scalar, list, tuple or Matrix) as a SymPy column Matrix of 1 to 3 entries."""
     if isinstance(value, sp.MatrixBase):
@@ -110,6 +143,8 @@ class Model:
         self._dampers = []         # (c, length): R += ½·c·(d length/dt)², the rate formed in derive
         self._virtual_work = []    # (vector, position): Q_j += vector · ∂position/∂q_j
         self._drawables = []       # (kind, points): what an animation can draw
+        self._outputs = []         # (name, expr): named quantities evaluated along a solution
+        self._units = {}           # name -> unit label (coordinates, parameters, inputs, outputs)
         self._constraints = []     # Φ(q, t) = 0, holonomic
         self._events = []          # (name, g, terminal, direction): roots of g located by solvers
         self._velocity_constraints = []  # A(q, t)·q̇ + b(q, t) = 0
@@ -133,24 +168,39 @@ class Model:
                 f"{self.name!r}: names must be unique within a model")
         self._names[name] = what
 
-    def coordinates(self, names):
-        """Declare generalized coordinates; return them as SymPy functions of t, in order."""
+    def coordinates(self, names, units=None):
+        """Declare generalized coordinates; return them as SymPy functions of t, in order.
+
+        `units` (optional): one unit label per name, e.g. ``coordinates("x theta", units="m rad")``.
+        """
+        names = split_names(names, "coordinate")
+        labels = split_units(units, names, "coordinate")
         new = []
-        for name in split_names(names, "coordinate"):
+        for name in names:
             self._declare(name, "coordinate")
             new.append(sp.Function(name)(self.t))
         self._coordinates.extend(new)
+        self._units.update(labels)
         self._version += 1
         return tuple(new)
 
     def parameters(self, *names, **defaults):
-        """Declare constant parameters (keyword = default value); return them as SymPy symbols."""
+        """Declare constant parameters (keyword = default value); return them as SymPy symbols.
+
+        A default may be a pair ``(value, "unit")``, e.g. ``parameters(m=(1.0, "kg"))``.
+        """
         entries = [(n, None) for n in names] + list(defaults.items())
         if not entries:
             raise ModelError("no parameter names given")
         new = []
         for name, default in entries:
             check_name(name, "parameter")
+            if isinstance(default, tuple):
+                if len(default) != 2:
+                    raise ModelError(f"parameter {name!r}: give a default, or (default, 'unit'), "
+                                     f"got {default!r}")
+                default, unit = default
+                self._units[name] = check_unit(unit, f"parameter {name!r}")
             if default is not None:
                 try:
                     default = float(default)
@@ -167,15 +217,52 @@ class Model:
         self._version += 1
         return tuple(new)
 
-    def inputs(self, names):
-        """Declare time-varying inputs (values given at run time); return SymPy functions of t."""
+    def inputs(self, names, units=None):
+        """Declare time-varying inputs (values given at run time); return SymPy functions of t.
+
+        `units` (optional): one unit label per name, e.g. ``inputs("F", units="N")``.
+        """
+        names = split_names(names, "input")
+        labels = split_units(units, names, "input")
         new = []
-        for name in split_names(names, "input"):
+        for name in names:
             self._declare(name, "input")
             new.append(sp.Function(name)(self.t))
         self._inputs.extend(new)
+        self._units.update(labels)
         self._version += 1
         return tuple(new)
+
+    def output(self, name, expr, units=None):
+        """Declare a named scalar output y = expr(q, q̇, t, p, u), evaluated along a solution.
+
+        Parameters
+        ----------
+        name : str
+            A new name (not one of the automatic outputs ``kinetic_energy``, ... ).
+        expr : SymPy expression of the coordinates, velocities, t, parameters and inputs.
+        units : str, optional
+            A unit label (never changes a number).
+
+        Returns
+        -------
+        The expression, sympified.
+        """
+        check_name(name, "output")
+        if name in AUTOMATIC_OUTPUTS:
+            raise ModelError(f"output name {name!r} is provided automatically; choose another name")
+        expr = self._check(expr, f"output {name!r}")
+        if isinstance(expr, sp.MatrixBase):
+            if len(expr) != 1:
+                raise ModelError(f"output {name!r} must be one scalar, got a {expr.shape} matrix; "
+                                 "declare one output per component")
+            expr = expr[0]
+        self._declare(name, "output")
+        if units is not None:
+            self._units[name] = check_unit(units, f"output {name!r}")
+        self._outputs.append((name, expr))
+        self._changed()
+        return expr
 
     # -- what has been declared ---------------------------------------------------------------
     @property
@@ -207,6 +294,16 @@ class Model:
     @property
     def input_names(self):
         return tuple(u.func.__name__ for u in self._inputs)
+
+    @property
+    def output_names(self):
+        """The user's outputs, then the automatic ones (energies, input power, dissipation)."""
+        return tuple(n for n, _ in self._outputs) + AUTOMATIC_OUTPUTS
+
+    @property
+    def units(self):
+        """{name: unit label} of the coordinates, parameters, inputs and outputs that have one."""
+        return dict(self._units)
 
     @property
     def parameter_defaults(self):
@@ -301,11 +398,17 @@ class Model:
         position = self._check(as_vector(position, "particle position"), "particle position",
                                velocities=False, inputs=False, vector=True)
         self._particles.append((mass, position))
-        self._drawables.append(("point", (position,)))
+        self._drawables.append(("point", (position, mass)))
         self._changed()
 
-    def rigid_body(self, mass, inertia, position, angle):
-        """Planar rigid body: T += ½·mass·ṙ·ṙ + ½·inertia·(d angle/dt)², position of its centre of mass."""
+    def rigid_body(self, mass, inertia, position, angle, shape=None):
+        """Planar rigid body: T += ½·mass·ṙ·ṙ + ½·inertia·(d angle/dt)², position of its centre of mass.
+
+        `shape` (drawing only) is ``("disk", r)``, ``("bar", length)`` or ``("box", width,
+        height)``, drawn about the centre of mass and rotating with `angle`; the size entries may be
+        numbers or parameter expressions.
+        """
+        shape = self._shape(shape)
         mass = self._check(mass, "rigid body mass", velocities=False, inputs=False)
         inertia = self._check(inertia, "rigid body inertia", velocities=False, inputs=False)
         position = self._check(as_vector(position, "rigid body position"), "rigid body position",
@@ -313,8 +416,23 @@ class Model:
         angle = self._check(angle, "rigid body angle", velocities=False, inputs=False)
         self._particles.append((mass, position))
         self._particles.append((inertia, sp.Matrix([angle])))
-        self._drawables.append(("body", (position, angle)))
+        self._drawables.append(("body", (position, angle, shape, mass)))
         self._changed()
+
+    def _shape(self, shape):
+        if shape is None:
+            return None
+        if isinstance(shape, str):
+            shape = (shape,)
+        shape = tuple(shape)
+        sizes = {"disk": 1, "bar": 1, "box": 2}
+        if not shape or shape[0] not in sizes:
+            raise ModelError(f"unknown body shape {shape[:1]!r}: use ('disk', r), ('bar', length) "
+                             "or ('box', width, height)")
+        if len(shape) != 1 + sizes[shape[0]]:
+            raise ModelError(f"shape {shape[0]!r} needs {sizes[shape[0]]} size(s), got {shape[1:]!r}")
+        return (shape[0],) + tuple(self._check(v, f"{shape[0]} size", velocities=False,
+                                               inputs=False) for v in shape[1:])
 
     def rigid_body_3d(self, mass, inertia, position, orientation):
         """Rigid body in space: T += ½·mass·ṙ·ṙ + ½·ωᵀ·I·ω, with ω the body-frame angular velocity
@@ -597,6 +715,7 @@ class Model:
                 kinetic=tuple(self._kinetic), potential=tuple(self._potential),
                 dissipation=tuple(self._dissipation), dampers=tuple(self._dampers),
                 virtual_work=tuple((_frozen(v), _frozen(r)) for v, r in self._virtual_work),
+                outputs=tuple(self._outputs), units=tuple(sorted(self._units.items())),
                 constraints=tuple(self._constraints),
                 velocity_constraints=tuple(self._velocity_constraints),
                 constraint_names=self.constraint_names,
@@ -660,6 +779,12 @@ class ModelSpec:
     dissipation: tuple = ()  # R += expr
     dampers: tuple = ()     # (c, length): R += ½·c·(d length/dt)²
     virtual_work: tuple = ()  # (vector, position): Q_j += vector · ∂position/∂q_j
+    outputs: tuple = ()     # (name, expr): the user's outputs
+    units: tuple = ()       # sorted (name, unit label) pairs
+
+    @property
+    def output_names(self):
+        return tuple(n for n, _ in self.outputs) + AUTOMATIC_OUTPUTS
     constraints: tuple = ()   # Φ_i(q, t) = 0
     velocity_constraints: tuple = ()  # A(q, t)·q̇ + b(q, t) = 0
     constraint_names: tuple = ()  # one per multiplier, holonomic first

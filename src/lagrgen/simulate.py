@@ -4,6 +4,7 @@ User arguments (params, inputs, y0) are converted once here, by `lagrgen.runtime
 functions handed to the solver take raw float64 arrays.
 """
 import math
+import time
 
 import numpy as np
 from scipy.integrate import solve_ivp
@@ -55,8 +56,44 @@ def input_function(mod, inputs):
     return None, u_of_t
 
 
+class _Guard:
+    """A terminal solve_ivp event that ends the integration after `max_steps` steps or
+    `max_wall_time` seconds: solve_ivp evaluates it once per accepted step, so it counts steps; once
+    tripped it changes sign just after the last step taken, where the solver then stops (keeping
+    the result up to there)."""
+
+    terminal = True
+    direction = 0
+
+    def __init__(self, max_steps, max_wall_time):
+        if max_steps is not None and not (int(max_steps) == max_steps and max_steps > 0):
+            raise ValueError(f"max_steps must be a positive integer, got {max_steps!r}")
+        if max_wall_time is not None and not max_wall_time > 0:
+            raise ValueError(f"max_wall_time must be a positive number of seconds, got "
+                             f"{max_wall_time!r}")
+        self.max_steps, self.max_wall_time = max_steps, max_wall_time
+        self.steps, self.start = -1, time.monotonic()
+        self.last_t, self.tripped_at, self.reason = None, None, None
+
+    def __call__(self, t, y):
+        if self.tripped_at is not None:
+            return -1.0 if t > self.tripped_at else 1.0
+        self.steps += 1
+        if self.max_steps is not None and self.steps > self.max_steps:
+            self.reason = f"the step limit max_steps={self.max_steps} was reached"
+        elif self.max_wall_time is not None and \
+                time.monotonic() - self.start > self.max_wall_time:
+            self.reason = f"the wall-time limit max_wall_time={self.max_wall_time:g} s was reached"
+        if self.reason is None or self.last_t is None:
+            self.last_t = t
+            return 1.0
+        self.tripped_at = self.last_t
+        return -1.0
+
+
 def simulate(mod, t_span, y0, method="RK45", params=None, inputs=None, rtol=1e-6, atol=1e-9,
-             t_eval=None, dense_output=False, events=None, engine=None, **options):
+             t_eval=None, dense_output=False, events=None, engine=None, max_steps=None,
+             max_wall_time=None, **options):
     """Integrate ẏ = mod.rhs(t, y) over `t_span` from `y0` = [q0, q̇0], natively in C or with
     SciPy's `solve_ivp` (the same steps either way).
 
@@ -75,11 +112,17 @@ def simulate(mod, t_span, y0, method="RK45", params=None, inputs=None, rtol=1e-6
         inputs are constants or Signals and there are no Python events; otherwise SciPy's
         `solve_ivp` (a callable input says so in `result.message`). "native" insists (ValueError
         saying why not); "scipy" always uses `solve_ivp`. `result.engine` says which ran.
+    max_steps, max_wall_time : a guard for long integrations (None: no limit). When either is
+        reached the integration stops there: the result holds the solution up to that time, with
+        `success` False, `status` −1, `guard` and `message` saying which limit was hit. (The guard
+        is a Python event, so a guarded solve runs on the SciPy engine.)
     **options : passed to `solve_ivp` unchanged (max_step, first_step, ...)
 
     Returns
     -------
-    SciPy's OdeResult, with also `coordinates` (names), `q` and `qd` (views of the rows of `y`).
+    SciPy's OdeResult, with also `coordinates` (names), `q` and `qd` (views of the rows of `y`),
+    `params` and `inputs` (the values used; see `evaluate_outputs`) and `guard` (None, or why the
+    guard stopped the integration).
     A constrained model's result also has `constraint_forces` (λ, n_constraints × len(t), with
     M·q̈ = F + Aᵀλ) and `constraint_residuals` (Φ then A·q̇ + b, (n_holonomic + n_constraints) ×
     len(t)), `constraint_names` and `multipliers` ({name: λ row}, the reaction asked for by
@@ -102,6 +145,12 @@ def simulate(mod, t_span, y0, method="RK45", params=None, inputs=None, rtol=1e-6
     n = mod.n_coordinates
     y0 = state_vector(y0, tuple(mod.coordinates))
     p = parameters_from(mod, params)
+    guard = None
+    compiled_events = events is None and bool(getattr(mod, "event_definitions", ()))
+    if max_steps is not None or max_wall_time is not None:
+        guard = _Guard(max_steps, max_wall_time)
+        events = ([] if events is None else (list(events) if isinstance(events, (list, tuple))
+                                              else [events])) + [guard]
     why_not = None if engine == "scipy" else native_reason(mod, method, inputs, events, options,
                                                             rtol)
     if engine == "native" and why_not:
@@ -131,7 +180,6 @@ def simulate(mod, t_span, y0, method="RK45", params=None, inputs=None, rtol=1e-6
         from .constraints import check_state
         t0 = float(t_span[0])
         check_state(mod, t0, y0, p, u if u_of_t is None else u_of_t(t0))
-    compiled_events = events is None and bool(getattr(mod, "event_definitions", ()))
     if engine != "scipy" and why_not is None:
         sol = solve_native(mod, t_span, y0, method, p, input_specs(mod, inputs), rtol, atol,
                            t_eval, dense_output, native_events(mod) if compiled_events else None,
@@ -139,7 +187,7 @@ def simulate(mod, t_span, y0, method="RK45", params=None, inputs=None, rtol=1e-6
         raise_native_failure(mod, sol, p, u, u_of_t)
     else:
         if compiled_events:
-            events = event_functions(mod, p, u, u_of_t)
+            events = event_functions(mod, p, u, u_of_t) + ([guard] if guard else [])
         if getattr(method, "__name__", method) in STIFF_METHODS:
             options.setdefault("jac", jac)
         sol = solve_ivp(fun, t_span, y0, method=SOLVERS.get(method, method), rtol=rtol,
@@ -148,7 +196,13 @@ def simulate(mod, t_span, y0, method="RK45", params=None, inputs=None, rtol=1e-6
         sol.engine = "scipy"
         if engine is None and why_not and "Python callable" in why_not:
             sol.message = f"{sol.message} (SciPy engine: {why_not})"
+    sol.guard = None
+    if guard is not None:
+        finish_guarded(sol, guard, t_span)
+    sol.params = p
+    sol.inputs = u if u_of_t is None else u_of_t
     sol = with_coordinates(sol, mod.coordinates, n, getattr(mod, "name", None))
+    sol.__dict__["_units"] = dict(getattr(mod, "units", {}))
     if compiled_events:
         sol.event_names = tuple(name for name, _, _ in mod.event_definitions)
     if constrained:
@@ -191,6 +245,94 @@ def raise_native_failure(mod, sol, p, u, u_of_t):
         raise NonFiniteError.at(mod.name, *failure)
 
 
+def finish_guarded(sol, guard, t_span):
+    """Drop the guard's event from `sol` and, if it stopped the run, say so (status −1)."""
+    sol.t_events, sol.y_events = sol.t_events[:-1], sol.y_events[:-1]
+    if not sol.t_events:        # the guard was the only event: as solve_ivp without events
+        sol.t_events = sol.y_events = None
+    if guard.reason is not None and len(sol.t) and sol.status == 1 and \
+            guard.tripped_at is not None:
+        sol.guard = guard.reason
+        sol.success, sol.status = False, -1
+        sol.message = (f"the integration was stopped at t = {guard.tripped_at:.6g} "
+                       f"(of {t_span[1]:g}) after {guard.steps - 1} steps: {guard.reason}; "
+                       "the result holds the solution up to there. A discontinuous force "
+                       "(sign, Heaviside, a stop) can make an explicit solver crawl: try "
+                       "method='Radau', events on the switching surfaces, or a smooth "
+                       "approximation such as tanh(v/eps)")
+
+
+def evaluate_outputs(mod, sol, params=None, inputs=None):
+    """The outputs y_k(t_i, y_i) of `mod` at every saved time of a solution.
+
+    Parameters
+    ----------
+    mod : a built model (either backend)
+    sol : the result of `simulate` (or any object with `t` and `y`)
+    params, inputs : as for `simulate`; by default the values `simulate` stored on `sol`
+
+    Returns
+    -------
+    An `Outputs` table: a (len(mod.output_names), len(sol.t)) float64 array with `names` and
+    `units`; `table["total_energy"]` is one row.
+    """
+    p = getattr(sol, "params", None) if params is None else parameters_from(mod, params)
+    p = parameters_from(mod, None) if p is None else p
+    if inputs is None:
+        held = getattr(sol, "inputs", None)
+        u, u_of_t = (np.zeros(len(mod.inputs)), None) if held is None else \
+            ((None, held) if callable(held) else (held, None))
+    else:
+        u, u_of_t = input_function(mod, inputs)
+    t, y = np.asarray(sol.t, dtype=float), np.asarray(sol.y, dtype=float)
+    out = np.empty((len(mod.output_names), len(t)))
+    for i, ti in enumerate(t):
+        out[:, i] = mod.outputs(ti, np.ascontiguousarray(y[:, i]), p,
+                                u if u_of_t is None else u_of_t(ti))
+    return Outputs(out, mod.output_names, getattr(mod, "units", {}))
+
+
+class Outputs(np.ndarray):
+    """A (n_outputs, n_times) array of output histories that also answers `table[name]`."""
+
+    def __new__(cls, values, names, units):
+        obj = np.asarray(values, dtype=float).view(cls)
+        obj.names, obj.units = tuple(names), dict(units)
+        return obj
+
+    def __array_finalize__(self, obj):
+        self.names = getattr(obj, "names", ())
+        self.units = getattr(obj, "units", {})
+
+    def __getitem__(self, key):
+        if isinstance(key, str):
+            if key not in self.names:
+                raise KeyError(f"no output {key!r}: the outputs are {', '.join(self.names)}")
+            return np.asarray(self)[self.names.index(key)]
+        return np.asarray(self)[key]
+
+
+def output_event(mod, name, params=None, inputs=None, terminal=False, direction=0):
+    """A solve_ivp event function whose root is where the output `name` crosses zero.
+
+    Declare a switching surface (a slip velocity, a gap) as an output and pass this as
+    ``simulate(..., events=[...])``: the solver then locates the switch instead of stepping over it.
+    """
+    names = tuple(mod.output_names)
+    if name not in names:
+        from .runtime.arguments import unknown_name
+        raise unknown_name("output", name, names)
+    k = names.index(name)
+    p = parameters_from(mod, params)
+    u, u_of_t = input_function(mod, inputs)
+    outputs = mod.outputs
+
+    def event(t, y):
+        return outputs(t, y, p, u if u_of_t is None else u_of_t(t))[k]
+    event.terminal, event.direction = terminal, direction
+    return event
+
+
 class SimulationResult(OdeResult):
     """SciPy's OdeResult (the same fields: t, y, nfev, ..., coordinates, q, qd) that can also plot
     itself."""
@@ -212,7 +354,8 @@ class SimulationResult(OdeResult):
         from .outputs.plotting import plot_time_history
         if title is None:
             title = self.__dict__.get("_model_name")
-        return plot_time_history(self, self.coordinates, velocities=velocities, title=title)
+        return plot_time_history(self, self.coordinates, velocities=velocities, title=title,
+                                 units=self.__dict__.get("_units"))
 
 
 def with_coordinates(sol, coordinates, n, model_name=None):

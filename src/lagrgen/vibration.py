@@ -19,6 +19,7 @@ constraints; velocity constraints are imposed on δq the same way (motions that 
 first order). The linearization's `basis` is N; mode shapes are returned in the full
 coordinates, N·φ.
 """
+import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -35,6 +36,19 @@ ZERO_TOL = 1e-9
 
 class EquilibriumError(LagrgenError, RuntimeError):
     """No equilibrium F(q, 0) = 0 was found near the guess."""
+
+
+class FrozenTimeWarning(UserWarning):
+    """The model depends explicitly on t: a result holds only at the one frozen time t given."""
+
+
+def warn_frozen_time(mod, t, what):
+    """Warn (FrozenTimeWarning) that `what` of a rheonomic model `mod` holds only at time t."""
+    if getattr(mod, "explicit_time", False):
+        warnings.warn(
+            f"model {mod.name!r} depends explicitly on t: this {what} is for the frozen time "
+            f"t = {float(t):g} only (the system has no static equilibrium in general; pass t= to "
+            "choose the instant)", FrozenTimeWarning, stacklevel=3)
 
 
 @dataclass
@@ -70,6 +84,30 @@ class Linearization:
     def names(self):
         """The coordinate names, in the order of the rows and columns of M, C, K."""
         return self.coordinates
+
+    def state_matrices(self):
+        """(A, B, C, D) of ẋ = A·x + B·δu, y = C·x + D·δu with x = [δq, δq̇], y = x:
+        A = [[0, I], [−M⁻¹K, −M⁻¹C]], B = [[0], [M⁻¹B]], C = I (2n), D = 0."""
+        n, k = self.n, self.B.shape[1]
+        A = state_matrix(self.M, self.C, self.K)
+        B = np.zeros((2 * n, k))
+        if k:
+            B[n:] = np.linalg.solve(self.M, self.B)
+        return A, B, np.eye(2 * n), np.zeros((2 * n, k))
+
+    def state_space(self):
+        """This linearization as `scipy.signal.StateSpace` (x = [δq, δq̇], u = δu, y = x); a model
+        without inputs gets one zero input column (SciPy needs at least one)."""
+        from scipy.signal import StateSpace
+        A, B, C, D = self.state_matrices()
+        if B.shape[1] == 0:
+            B, D = np.zeros((A.shape[0], 1)), np.zeros((A.shape[0], 1))
+        return StateSpace(A, B, C, D)
+
+    @property
+    def state_names(self):
+        """Names of the states x = [δq, δq̇]: the coordinates, then `<coordinate>_dot`."""
+        return tuple(self.coordinates) + tuple(f"{c}_dot" for c in self.coordinates)
 
 
 @dataclass
@@ -120,6 +158,7 @@ def equilibrium(mod, q_guess, p=None, u=None, t=0.0, tol=1e-9):
     max|F_i| ≤ tol·max(1, max|∂F_i/∂q_j|).
     """
     q_guess, p, u = _operating_point(mod, q_guess, "q_guess", p, u)
+    warn_frozen_time(mod, t, "equilibrium")
     if getattr(mod, "n_constraints", 0):
         return _constrained_equilibrium(mod, q_guess, p, u, t, tol)
     zero = np.zeros_like(q_guess)
@@ -216,8 +255,20 @@ def check_mass_matrix(lin):
 
 
 def linearize(mod, q0, qd0=None, t=0.0, p=None, u=None):
-    """M·δq̈ + C·δq̇ + K·δq = B·δu about (q0, qd0): M(q0), K = −∂F/∂q, C = −∂F/∂q̇, B = ∂F/∂u."""
+    """M·δq̈ + C·δq̇ + K·δq = B·δu about (q0, qd0): M(q0), K = −∂F/∂q, C = −∂F/∂q̇, B = ∂F/∂u.
+
+    Parameters
+    ----------
+    mod : a built model; q0, qd0 : the operating point (qd0 None: at rest)
+    t : the time at which a model that depends explicitly on t is frozen (FrozenTimeWarning)
+    p, u : parameters and constant inputs at the operating point
+
+    Returns
+    -------
+    A `Linearization` (see also `Linearization.state_space`).
+    """
     q0, p, u = _operating_point(mod, q0, "q0", p, u)
+    warn_frozen_time(mod, t, "linearization")
     n = mod.n_coordinates
     qd0 = np.zeros(n) if qd0 is None else as_vector(qd0, n, "qd0")
     M, dF_dq, dF_dqd, dF_du = mod.linear_terms(q0, qd0, float(t), p, u)
@@ -230,13 +281,16 @@ def linearize(mod, q0, qd0=None, t=0.0, p=None, u=None):
     return lin
 
 
-def as_linearization(mod_or_lin, q0=None, p=None, u=None):
-    """A Linearization as given, or the built model linearized at q0 (None: the equilibrium near 0)."""
+def as_linearization(mod_or_lin, q0=None, p=None, u=None, t=0.0):
+    """A Linearization as given, or the built model linearized at q0 (None: the equilibrium near 0)
+    at time t."""
     if isinstance(mod_or_lin, Linearization):
         return mod_or_lin
-    if q0 is None:
-        q0 = equilibrium(mod_or_lin, np.zeros(mod_or_lin.n_coordinates), p=p, u=u)
-    return linearize(mod_or_lin, q0, p=p, u=u)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", FrozenTimeWarning)   # modes warns once, below
+        if q0 is None:
+            q0 = equilibrium(mod_or_lin, np.zeros(mod_or_lin.n_coordinates), p=p, u=u, t=t)
+        return linearize(mod_or_lin, q0, t=t, p=p, u=u)
 
 
 def _is_symmetric(A):
@@ -334,13 +388,16 @@ def damping(M, C, K, shapes, omega):
     return zeta, omega_d
 
 
-def modes(mod_or_lin, q0=None, p=None, u=None):
+def modes(mod_or_lin, q0=None, p=None, u=None, t=0.0):
     """Natural frequencies, mass-normalized mode shapes and damping ratios (see `Modes`).
 
-    `mod_or_lin` is a built model, linearized at q0 (None: the equilibrium found near q = 0), or a
-    `Linearization`.
+    `mod_or_lin` is a built model, linearized at q0 (None: the equilibrium found near q = 0) at
+    time t (for a model that depends explicitly on t: the frozen time, with a FrozenTimeWarning),
+    or a `Linearization`.
     """
-    lin = as_linearization(mod_or_lin, q0, p, u)
+    if not isinstance(mod_or_lin, Linearization):
+        warn_frozen_time(mod_or_lin, t, "modal analysis")
+    lin = as_linearization(mod_or_lin, q0, p, u, t)
     check_mass_matrix(lin)
     lam, shapes = undamped_modes(lin.M, lin.K)
     lam_real = np.real(lam)

@@ -134,6 +134,21 @@ class ExpressionPrinter:
             return repr(v), (ATOM if v >= 0 else MUL)
         if isinstance(e, Constant):
             return repr(float(e)), ATOM
+        kind = type(e).__name__
+        if kind == "NaN":
+            return self.nan, ATOM
+        if kind == "Piecewise":
+            return self._print_piecewise(list(e.args)), ATOM
+        if kind in RELATIONS:
+            a, b = e.args
+            return f"({self.doprint(a)} {RELATIONS[kind]} {self.doprint(b)})", ATOM
+        if kind in ("And", "Or"):
+            op = f" {self.logic[kind]} "
+            return "(" + op.join(self.doprint(a) for a in e.args) + ")", ATOM
+        if kind == "Not":
+            return f"({self.logic['Not']}{self.doprint(e.args[0])})", ATOM
+        if kind in ("BooleanTrue", "BooleanFalse"):
+            return self.logic[kind], ATOM
         if isinstance(e, se.Add):
             return self._print_add(e), ADD
         if isinstance(e, se.Mul):
@@ -146,6 +161,16 @@ class ExpressionPrinter:
                 raise NotImplementedError(f"no {self.language} equivalent for {type(e).__name__}")
             return f"{name}({', '.join(self.doprint(a) for a in e.args)})", ATOM
         raise NotImplementedError(f"cannot print {e!r} ({type(e).__name__}) as {self.language}")
+
+    def _print_piecewise(self, args):
+        """(e1, c1, e2, c2, ...): the first e_k whose c_k holds (NaN if none does)."""
+        if not args:
+            return self.nan
+        value, cond = args[0], args[1]
+        if type(cond).__name__ == "BooleanTrue":
+            return self.doprint(value)
+        return self.conditional(self.doprint(cond), self.doprint(value),
+                                self._print_piecewise(args[2:]))
 
     def _print_add(self, e):
         terms = sorted(e.args, key=_is_negative)
@@ -197,10 +222,19 @@ class ExpressionPrinter:
         return self.real_power(base, exp)
 
 
+#: Relational node types and their operator (the same in C and Python).
+RELATIONS = {"StrictLessThan": "<", "LessThan": "<=", "Equality": "==", "Unequality": "!="}
+
+
 class CPrinter(ExpressionPrinter):
     """C99: libm functions, small integer powers as multiplications, doubles everywhere."""
 
     language = "C"
+    nan = "NAN"
+    logic = {"And": "&&", "Or": "||", "Not": "!", "BooleanTrue": "1", "BooleanFalse": "0"}
+
+    def conditional(self, cond, yes, no):
+        return f"({cond} ? {yes} : {no})"
     functions = {
         "sin": "sin", "cos": "cos", "tan": "tan", "asin": "asin", "acos": "acos", "atan": "atan",
         "atan2": "atan2", "sinh": "sinh", "cosh": "cosh", "tanh": "tanh", "asinh": "asinh",
@@ -229,6 +263,13 @@ class PythonPrinter(ExpressionPrinter):
     """Python: `math` functions bound as globals of the generated module, floats everywhere."""
 
     language = "Python"
+    nan = "_nan"
+    logic = {"And": "and", "Or": "or", "Not": "not ", "BooleanTrue": "True",
+             "BooleanFalse": "False"}
+
+    def conditional(self, cond, yes, no):
+        return f"({yes} if {cond} else {no})"
+
     functions = {k: k for k in CPrinter.functions}
     functions.update({"Abs": "abs", "sign": "_sign"})
 

@@ -19,6 +19,8 @@ def is_3d(model):
     for kind, points in model.drawables:
         if kind == "body3d":
             return True
+        if kind == "point":
+            points = points[:1]          # (position, mass): the mass only sizes the marker
         if kind != "body" and any(len(pt) == 3 for pt in points):
             return True
     return False
@@ -44,12 +46,14 @@ def tracks_3d(model, p, t, q):
                                     axis=-1) for i in range(3)], axis=-2)
             tracks.append((kind, [spatial(model, position, p)(t, q), Rn]))
         elif kind == "body":
-            position, angle = points
+            position, angle = points[:2]     # then the drawing shape and the mass (2-D only)
             a = numeric_function(model, angle, p)(t, q)
             c, s, z, o = np.cos(a), np.sin(a), np.zeros_like(a), np.ones_like(a)
             Rn = np.stack([np.stack([c, -s, z], -1), np.stack([s, c, z], -1),
                            np.stack([z, z, o], -1)], axis=-2)
             tracks.append(("body3d", [spatial(model, position, p)(t, q), Rn]))
+        elif kind == "point":
+            tracks.append((kind, [spatial(model, points[0], p)(t, q)]))
         else:
             tracks.append((kind, [spatial(model, pt, p)(t, q) for pt in points]))
     return tracks

@@ -146,9 +146,19 @@ def render(model, latex=False, matrices=False, simplify=True):
     out += constraint_lines(model, latex)
     if matrices:
         out += matrix_lines(eqs, latex)
+    units = unit_lines(model)
+    if units:
+        out.append(("% " if latex else "# ") + units)
     return "\n".join(out)
 
 
+def unit_lines(model):
+    """'units: x [m], theta [rad], m [kg], F [N]' for the names that carry a unit ('' if none)."""
+    units = model.units
+    names = (list(model.coordinate_names) + list(model.parameter_names) + list(model.input_names)
+             + [n for n in model.output_names if n in units])
+    labelled = [f"{n} [{units[n]}]" for n in names if units.get(n)]
+    return "units: " + ", ".join(labelled) if labelled else ""
 def constraint_lines(model, latex=False):
     """The constraints, one line each with its multiplier (nothing without constraints): the
     equations above then read M·q'' = F + Aᵀ·λ, with A·q'' = γ (Baumgarte-stabilized)."""

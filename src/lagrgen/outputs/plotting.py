@@ -22,10 +22,74 @@ def new_figure(width, height):
     return fig
 
 
-def plot_time_history(sol, coordinates, path=None, velocities=True, title=None):
-    """q_i(t) (and q̇_i(t) below it) for y = [q, q̇] in `sol.y`; saved to `path` if given."""
+def label(name, units):
+    """'x [m]' when `units` gives `name` a unit, else 'name'."""
+    unit = (units or {}).get(name)
+    return f"{name} [{unit}]" if unit else name
+
+
+def unit_groups(names, units):
+    """[(unit or None, [indices])]: the names grouped by unit, in order of first appearance."""
+    groups = {}
+    for i, name in enumerate(names):
+        groups.setdefault((units or {}).get(name), []).append(i)
+    return list(groups.items())
+
+
+def rate_unit(unit):
+    """The unit of a time derivative: 'm' -> 'm/s' (a label only)."""
+    if not unit:
+        return None
+    return f"({unit})/s" if "/" in unit else f"{unit}/s"
+
+
+def plot_series(t, rows, names, units=None, path=None, title=None, time_unit="s"):
+    """One panel per unit group (a quantity with its unit on each y axis), sharing the t axis.
+
+    Parameters
+    ----------
+    t : (m,) times; rows : (k, m) values; names : k names; units : {name: unit} (labels only)
+    path : save the figure here if given; title : the figure title
+
+    Returns
+    -------
+    The matplotlib Figure.
+    """
+    rows = np.atleast_2d(np.asarray(rows, dtype=float))
+    groups = unit_groups(names, units)
+    fig = new_figure(7, max(2.2 * len(groups) + 0.8, 3.5))
+    axes = fig.subplots(len(groups), 1, sharex=True, squeeze=False)[:, 0]
+    for ax, (unit, members) in zip(axes, groups):
+        for i in members:
+            ax.plot(t, rows[i], label=names[i])
+        ax.set_ylabel(f"[{unit}]" if unit else "(no unit)")
+        ax.grid(True, alpha=0.3)
+        ax.legend(loc="upper right", fontsize="small")
+    axes[-1].set_xlabel(f"t [{time_unit}]" if units else "t")
+    if title:
+        axes[0].set_title(title)
+    fig.tight_layout()
+    if path is not None:
+        fig.savefig(path)
+    return fig
+
+
+def plot_time_history(sol, coordinates, path=None, velocities=True, title=None, units=None):
+    """q_i(t) (and q̇_i(t)); with `units` ({name: unit}) one panel per unit group, each axis
+    labelled with its unit; saved to `path` if given."""
     t, y = np.asarray(sol.t), np.asarray(sol.y)
     n = len(coordinates)
+    if units and any(c in units for c in coordinates):
+        names = list(coordinates)
+        rate_units = {}
+        rows = [y[i] for i in range(n)]
+        if velocities:
+            for i, c in enumerate(coordinates):
+                names.append(f"{c}'")
+                rows.append(y[n + i])
+                if rate_unit(units.get(c)):
+                    rate_units[f"{c}'"] = rate_unit(units.get(c))
+        return plot_series(t, rows, names, {**units, **rate_units}, path, title)
     fig = new_figure(7, 5.5 if velocities else 3.5)
     axes = fig.subplots(2 if velocities else 1, 1, sharex=True, squeeze=False)[:, 0]
     for i, name in enumerate(coordinates):
@@ -104,16 +168,74 @@ def planar(model, position, p):
 
 
 def drawable_tracks(model, p, t, q):
-    """[(kind, data)] along the frames: data are (frames, 2) point arrays, plus angles for bodies."""
+    """[(kind, data)] along the frames: data are (frames, 2) point arrays; a body adds its angles,
+    its drawing shape (sizes as numbers) and its mass, a point its mass."""
     tracks = []
     for kind, points in model.drawables:
         if kind == "body":
-            position, angle = points
+            position, angle = points[:2]
+            shape = points[2] if len(points) > 2 else None
+            if shape is not None:
+                shape = (shape[0],) + tuple(float(numeric_function(model, v, p)(np.zeros(1), q[:, :1])[0])
+                                            for v in shape[1:])
+            mass = _mass_value(model, points[3] if len(points) > 3 else None, p, q)
             tracks.append((kind, [planar(model, position, p)(t, q),
-                                  numeric_function(model, angle, p)(t, q)]))
+                                  numeric_function(model, angle, p)(t, q), shape, mass]))
+        elif kind == "point":
+            mass = _mass_value(model, points[1] if len(points) > 1 else None, p, q)
+            tracks.append((kind, [planar(model, points[0], p)(t, q), mass]))
         else:
             tracks.append((kind, [planar(model, pt, p)(t, q) for pt in points]))
     return tracks
+
+
+def _mass_value(model, mass, p, q):
+    if mass is None:
+        return None
+    try:
+        return abs(float(numeric_function(model, mass, p)(np.zeros(1), q[:, :1])[0]))
+    except (TypeError, ValueError):
+        return None
+
+
+def marker_sizes(tracks, smallest=6.0, largest=16.0):
+    """Marker size per point/body track: area proportional to mass, between the two sizes."""
+    masses = [data[-1] for kind, data in tracks if kind in ("point", "body")]
+    known = [m for m in masses if m]
+    top = max(known) if known else 1.0
+    sizes = iter([smallest + (largest - smallest) * np.sqrt(m / top) if m else 9.0
+                  for m in masses] if known else [9.0] * len(masses))
+    return [next(sizes) if kind in ("point", "body") else None for kind, _ in tracks]
+
+
+def shape_outline(shape, centre, angle, points=40):
+    """The outline of a body's drawing shape at `centre`, turned by `angle`: (k, 2) points."""
+    kind = shape[0]
+    if kind == "disk":
+        a = np.linspace(0, 2 * np.pi, points)
+        outline = shape[1] * np.stack([np.cos(a), np.sin(a)], axis=-1)
+    elif kind == "bar":
+        half = shape[1] / 2
+        outline = np.array([[-half, 0.0], [half, 0.0]])
+    else:
+        w, h = shape[1] / 2, shape[2] / 2
+        outline = np.array([[-w, -h], [w, -h], [w, h], [-w, h], [-w, -h]])
+    c, s = np.cos(angle), np.sin(angle)
+    return centre + outline @ np.array([[c, s], [-s, c]])
+
+
+def dashpot(a, b, width=0.05):
+    """A damper symbol from a to b: rod, open cylinder, piston plate, rod."""
+    a, b = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
+    d = b - a
+    length = np.hypot(*d)
+    if length == 0:
+        return np.array([a, b])
+    u, n = d / length, np.array([-d[1], d[0]]) / length
+    p = lambda s, o: a + s * length * u + o * width * n  # noqa: E731
+    nan = np.array([np.nan, np.nan])
+    return np.array([a, p(0.3, 0), nan, p(0.7, 1), p(0.3, 1), p(0.3, -1), p(0.7, -1), nan,
+                     p(0.55, 0.8), p(0.55, -0.8), nan, p(0.55, 0), b])
 
 
 def frame_states(sol, n_frames):
@@ -141,9 +263,20 @@ def zigzag(a, b, coils=6, width=0.05):
 
 
 def scene_limits(tracks):
-    """(xmin, xmax, ymin, ymax) enclosing every drawn point over all frames, with a margin."""
-    points = [np.asarray(arr).reshape(-1, 2) for kind, data in tracks
-              for arr in (data[:1] if kind == "body" else data)]
+    """(xmin, xmax, ymin, ymax) enclosing every drawn point (and body outline) over all frames,
+    with a margin."""
+    points = []
+    for kind, data in tracks:
+        if kind == "body":
+            points.append(np.asarray(data[0]).reshape(-1, 2))
+            if data[2] is not None:
+                reach = max(abs(v) for v in data[2][1:])
+                points.append(np.asarray(data[0]).reshape(-1, 2) + reach)
+                points.append(np.asarray(data[0]).reshape(-1, 2) - reach)
+        elif kind == "point":
+            points.append(np.asarray(data[0]).reshape(-1, 2))
+        else:
+            points.extend(np.asarray(arr).reshape(-1, 2) for arr in data)
     allpts = np.concatenate(points)
     lo, hi = allpts.min(axis=0), allpts.max(axis=0)
     size = max((hi - lo).max(), 1e-9)
@@ -158,16 +291,19 @@ class Scene:
     def __init__(self, ax, tracks, size):
         self.tracks, self.size = tracks, size
         self.artists = []
-        for kind, _ in tracks:
+        for (kind, data), ms in zip(tracks, marker_sizes(tracks)):
             if kind == "point":
-                artist, = ax.plot([], [], "o", color="tab:blue", markersize=8, zorder=3)
+                artist, = ax.plot([], [], "o", color="tab:blue", markersize=ms, zorder=3)
+            elif kind == "body" and data[2] is not None:
+                artist = (ax.plot([], [], "-", color="tab:orange", linewidth=2.5, zorder=3)[0],
+                          ax.plot([], [], "-", color="tab:red", linewidth=1.5, zorder=4)[0])
             elif kind == "body":
-                artist = (ax.plot([], [], "s", color="tab:orange", markersize=9, zorder=3)[0],
+                artist = (ax.plot([], [], "s", color="tab:orange", markersize=ms, zorder=3)[0],
                           ax.plot([], [], "-", color="tab:orange", linewidth=2, zorder=3)[0])
             elif kind == "spring":
                 artist, = ax.plot([], [], "-", color="tab:green", linewidth=1.2)
             elif kind == "damper":
-                artist, = ax.plot([], [], "-", color="tab:purple", linewidth=3, alpha=0.7)
+                artist, = ax.plot([], [], "-", color="tab:purple", linewidth=1.5)
             else:
                 artist, = ax.plot([], [], "-", color="black", linewidth=1.5)
             self.artists.append(artist)
@@ -178,16 +314,49 @@ class Scene:
             if kind == "point":
                 artist.set_data([data[0][k, 0]], [data[0][k, 1]])
             elif kind == "body":
-                (x, y), a = data[0][k], data[1][k]
-                tick = 0.08 * self.size
-                artist[0].set_data([x], [y])
-                artist[1].set_data([x, x + tick * np.cos(a)], [y, y + tick * np.sin(a)])
+                centre, a, shape = data[0][k], data[1][k], data[2]
+                if shape is not None:
+                    outline = shape_outline(shape, centre, a)
+                    artist[0].set_data(outline[:, 0], outline[:, 1])
+                    reach = shape[1] if shape[0] == "disk" else shape[1] / 2
+                    spoke = np.array([centre, centre + reach * np.array([np.cos(a), np.sin(a)])])
+                    artist[1].set_data(spoke[:, 0], spoke[:, 1])
+                else:
+                    (x, y), tick = centre, 0.08 * self.size
+                    artist[0].set_data([x], [y])
+                    artist[1].set_data([x, x + tick * np.cos(a)], [y, y + tick * np.sin(a)])
             elif kind == "spring":
                 pts = zigzag(data[0][k], data[1][k], width=0.025 * self.size)
+                artist.set_data(pts[:, 0], pts[:, 1])
+            elif kind == "damper":
+                pts = dashpot(data[0][k], data[1][k], width=0.02 * self.size)
                 artist.set_data(pts[:, 0], pts[:, 1])
             else:
                 pts = np.array([d[k] for d in data])
                 artist.set_data(pts[:, 0], pts[:, 1])
+
+
+def frames_png(model, sol, prefix, count=4, params=None, dpi=80, title=None):
+    """Save `count` equally spaced frames of the animation as `<prefix><k>.png`; return the paths
+    (to look at a mechanism without a GIF viewer)."""
+    p = model_parameters(model, params)
+    times, y = frame_states(sol, count)
+    tracks = drawable_tracks(model, p, times, y[:len(model.q)])
+    xmin, xmax, ymin, ymax = scene_limits(tracks)
+    paths = []
+    for k, t in enumerate(times):
+        fig = new_figure(5, 5)
+        ax = fig.add_subplot(1, 1, 1)
+        ax.set_xlim(xmin, xmax)
+        ax.set_ylim(ymin, ymax)
+        ax.set_aspect("equal")
+        ax.grid(True, alpha=0.3)
+        ax.set_title(f"{title or model.name}, t = {t:.2f}")
+        Scene(ax, tracks, xmax - xmin).update(k)
+        path = f"{prefix}{k}.png"
+        fig.savefig(path, dpi=dpi)
+        paths.append(path)
+    return paths
 
 
 def animate(model, sol, path, params=None, fps=20, max_frames=120, dpi=80, title=None):

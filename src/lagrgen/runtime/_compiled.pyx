@@ -76,7 +76,9 @@ cdef class CompiledModel:
     cdef readonly str name, content_hash, lagrgen_version
     cdef readonly tuple coordinates, parameters, inputs, constraint_names, event_definitions
     cdef readonly object defaults
-    cdef readonly dict dimensions
+    cdef readonly dict dimensions, units
+    cdef readonly tuple output_names
+    cdef readonly bint explicit_time
     cdef cnp.ndarray _zeros
     cdef bint _defaults_complete
     cdef dict _addresses
@@ -104,6 +106,9 @@ cdef class CompiledModel:
         self._zeros = np.zeros(max(self.n_inputs, 1))
         self._zeros.setflags(write=False)
         self.dimensions = dict(meta["dimensions"])
+        self.output_names = tuple(meta.get("output_names", ()))
+        self.units = dict(meta.get("units", {}))
+        self.explicit_time = bool(meta.get("explicit_time", False))
         self.n_constraints = self.dimensions.get("n_constraints", 0)
         self.constraint_names = tuple(meta.get("constraint_names", ()))
         self.event_definitions = tuple((e["name"], e["terminal"], e["direction"])
@@ -276,7 +281,8 @@ def bind_module(module, capsule):
     model = CompiledModel(capsule)
     for attr in ("name", "coordinates", "parameters", "inputs", "defaults", "n_coordinates",
                  "n_constraints", "constraint_names", "event_definitions", "content_hash",
-                 "lagrgen_version", "dimensions", "time_in_c", "function_address"):
+                 "lagrgen_version", "dimensions", "time_in_c", "function_address", "output_names",
+                 "units", "explicit_time"):
         setattr(module, attr, getattr(model, attr))
     module.backend = "c"
     for spec in FUNCTIONS:

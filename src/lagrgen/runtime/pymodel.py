@@ -22,12 +22,14 @@ _NUMPY_NAMES = {"asin": "arcsin", "acos": "arccos", "atan": "arctan", "atan2": "
                 "asinh": "arcsinh", "acosh": "arccosh", "atanh": "arctanh"}
 #: Fast evaluation on Python floats.
 _NAMESPACE = {name: getattr(math, name) for name in _FUNCTIONS}
-_NAMESPACE["_sign"] = lambda x: float((x > 0) - (x < 0))
+_NAMESPACE["_sign"] = lambda x: float(x > 0) - float(x < 0)
+_NAMESPACE["_nan"] = math.nan
 #: IEEE evaluation on NumPy scalars (sqrt(−1) = nan, 1/0 = inf), as the C code computes, for the
 #: points where Python's float arithmetic raises instead.
 _IEEE_NAMESPACE = {name: getattr(np, _NUMPY_NAMES.get(name, name)) for name in _FUNCTIONS}
 _IEEE_NAMESPACE["_sign"] = np.sign
 _IEEE_NAMESPACE["abs"] = np.abs
+_IEEE_NAMESPACE["_nan"] = np.nan
 
 
 class PythonModel:
@@ -54,6 +56,9 @@ class PythonModel:
         self.content_hash = info["content_hash"]
         self.n_coordinates = n
         self.dimensions = dict(info["dimensions"])
+        self.output_names = tuple(info["output_names"])
+        self.units = dict(info["units"])
+        self.explicit_time = bool(info["explicit_time"])
         self.n_constraints = self.dimensions.get("n_constraints", 0)
         self.constraint_names = tuple(info.get("constraint_names", ()))
         self.event_definitions = tuple((e["name"], e["terminal"], e["direction"])
@@ -194,6 +199,9 @@ class PythonModel:
         B = self._b(t, q, qd, [0.0] * n, p, u)
         dF_du = self._kernel("dF_du", t, q, qd, None, p, u)[0].reshape(n, k)
         return M, B[:, :n].copy(), B[:, n:].copy(), dF_du
+
+    def _outputs(self, t, q, qd, p, u):
+        return self._kernel("outputs", t, q, qd, None, p, u)[0]
 
 
 def _state_caller(model, impl):
