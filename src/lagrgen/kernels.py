@@ -105,7 +105,12 @@ def _signed(expr, memo):
         out = -se.Add(*(-a for a in args)) if lead_negative else se.Add(*args)
     else:
         args = [_signed(a, memo) for a in expr.args]
-        out = expr.func(*args) if any(a is not b for a, b in zip(args, expr.args)) else expr
+        out = expr
+        if any(a is not b for a, b in zip(args, expr.args)):
+            try:
+                out = expr.func(*args)
+            except (AttributeError, TypeError):   # relations, Piecewise: left as they are
+                out = expr
     memo[expr] = out
     return out
 
