@@ -183,20 +183,11 @@ def compile_module(source_path, output_path, flags):
     include = sysconfig.get_paths()["include"]
     cmd = [*compiler_command(), "-shared", *flags, "-I", include, "-I",
            str(PACKAGE / "codegen" / "templates"), str(source_path), "-o", str(output_path)]
-    try:
-        result = subprocess.run(cmd, capture_output=True, text=True)
-    except FileNotFoundError:
-        raise BuildError(
-            f"no C compiler found (tried {cmd[0]!r}): install one (e.g. `apt-get install gcc`), "
-            "set $CC, or use lagrgen.build(model, backend='python')") from None
-    if result.returncode != 0:
-        message = "\n".join((result.stderr or result.stdout).strip().splitlines()[:60])
-        raise CompileError(
-            f"the C compiler failed on {source_path.name} (exit {result.returncode}):\n{message}\n"
-            f"command: {' '.join(shlex.quote(c) for c in cmd)}")
+    _run_compiler(cmd, source_path)
 
 
 def _run_compiler(cmd, source_path):
+    """Run the compiler command `cmd` on `source_path`; BuildError or CompileError on failure."""
     try:
         result = subprocess.run(cmd, capture_output=True, text=True)
     except FileNotFoundError:
