@@ -722,8 +722,7 @@ def write_rows(stream, header, rows):
 
 
 def add_sweep(sub):
-    from .methods import METHODS
-    from .sweep import MEASURES
+    from .methods import MEASURES, METHODS
     s = sub.add_parser("sweep", help="a steady-state measure against a swept parameter",
                        description="Run the model once per value of --param NAME=START:STOP:N "
                        "(a parameter, or a name the --input expressions use, such as a forcing "

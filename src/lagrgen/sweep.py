@@ -9,9 +9,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from .ensemble import simulate_many
+from .methods import MEASURES
 from .simulate import parameters_from
-
-MEASURES = ("amplitude", "max", "final")
 
 
 @dataclass
