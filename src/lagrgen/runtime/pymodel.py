@@ -75,8 +75,15 @@ class PythonModel:
         return describe(self)
 
     def _arguments(self, p, u):
-        return (parameter_vector(p, self.parameters, self.defaults).tolist(),
-                input_vector(u, self.inputs).tolist())
+        """p and u as lists of floats: arrays already in order (what `simulate` passes) take the
+        short path of one finiteness check; anything else goes through `runtime.arguments`."""
+        p_list = _finite_list(p, len(self.parameters))
+        if p_list is None:
+            p_list = parameter_vector(p, self.parameters, self.defaults).tolist()
+        u_list = _finite_list(u, len(self.inputs))
+        if u_list is None:
+            u_list = input_vector(u, self.inputs).tolist()
+        return p_list, u_list
 
     def _factor(self, M, t, q):
         """Cholesky factor of the n×n matrix M, or MassMatrixError naming the state: also when M
@@ -202,6 +209,14 @@ class PythonModel:
 
     def _outputs(self, t, q, qd, p, u):
         return self._kernel("outputs", t, q, qd, None, p, u)[0]
+
+
+def _finite_list(values, size):
+    """`values` as a list when it is a 1-D float64 array of `size` finite numbers, else None."""
+    if type(values) is not np.ndarray or values.dtype != np.float64 or values.shape != (size,):
+        return None
+    out = values.tolist()
+    return out if all(map(math.isfinite, out)) else None
 
 
 def _state_caller(model, impl):
