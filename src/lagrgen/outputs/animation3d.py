@@ -7,7 +7,6 @@ model's `line(...)` polylines, particles, planar bodies (in the z = 0 plane) and
 (straight lines) are drawn as well.
 """
 import numpy as np
-from matplotlib.animation import PillowWriter
 
 from ..errors import LagrgenError
 
@@ -126,7 +125,7 @@ def setup_axes(fig, tracks, title):
 
 def animate_3d(model, times, q, path, p, fps=20, dpi=80, title=None):
     """Write an animated GIF of the 3-D model along q (n × frames) at `times`; return `path`."""
-    from .plotting import new_figure
+    from .plotting import new_figure, write_frames
     if not model.drawables:
         raise LagrgenError(f"model {model.name!r} has nothing to draw")
     tracks = tracks_3d(model, p, times, q)
@@ -134,10 +133,4 @@ def animate_3d(model, times, q, path, p, fps=20, dpi=80, title=None):
     ax, size = setup_axes(fig, tracks, title or model.name)
     scene = Scene3D(ax, tracks, size)
     clock = ax.text2D(0.02, 0.96, "", transform=ax.transAxes, va="top")
-    writer = PillowWriter(fps=fps)
-    with writer.saving(fig, str(path), dpi):
-        for k, t in enumerate(times):
-            scene.update(k)
-            clock.set_text(f"t = {t:.2f}")
-            writer.grab_frame()
-    return path
+    return write_frames(fig, path, times, scene, clock, fps, dpi)

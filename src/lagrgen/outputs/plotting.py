@@ -16,6 +16,25 @@ from ..errors import LagrgenError
 MAX_MODES_PLOTTED = 8
 
 
+def finished(fig, path):
+    """`fig` laid out, and saved to `path` when one is given."""
+    fig.tight_layout()
+    if path is not None:
+        fig.savefig(path)
+    return fig
+
+
+def write_frames(fig, path, times, scene, clock, fps, dpi):
+    """An animated GIF at `path`: for each time, `scene.update(k)`, the clock text, one frame."""
+    writer = PillowWriter(fps=fps)
+    with writer.saving(fig, str(path), dpi):
+        for k, t in enumerate(times):
+            scene.update(k)
+            clock.set_text(f"t = {t:.2f}")
+            writer.grab_frame()
+    return path
+
+
 def new_figure(width, height):
     fig = Figure(figsize=(width, height))
     FigureCanvasAgg(fig)
@@ -68,10 +87,7 @@ def plot_series(t, rows, names, units=None, path=None, title=None, time_unit="s"
     axes[-1].set_xlabel(f"t [{time_unit}]" if units else "t")
     if title:
         axes[0].set_title(title)
-    fig.tight_layout()
-    if path is not None:
-        fig.savefig(path)
-    return fig
+    return finished(fig, path)
 
 
 def plot_time_history(sol, coordinates, path=None, velocities=True, title=None, units=None):
@@ -105,10 +121,7 @@ def plot_time_history(sol, coordinates, path=None, velocities=True, title=None, 
         ax.legend(loc="upper right", fontsize="small")
     if title:
         axes[0].set_title(title)
-    fig.tight_layout()
-    if path is not None:
-        fig.savefig(path)
-    return fig
+    return finished(fig, path)
 
 
 def plot_modes(result, coordinates, path=None, title=None):
@@ -127,10 +140,7 @@ def plot_modes(result, coordinates, path=None, title=None):
     axes[-1].set_xticklabels(coordinates)
     if title:
         fig.suptitle(title)
-    fig.tight_layout()
-    if path is not None:
-        fig.savefig(path)
-    return fig
+    return finished(fig, path)
 
 
 def mode_label(result, i):
@@ -387,13 +397,7 @@ def animate(model, sol, path, params=None, fps=20, max_frames=120, dpi=80, title
     ax.set_title(title or model.name)
     scene = Scene(ax, tracks, xmax - xmin)
     clock = ax.text(0.02, 0.96, "", transform=ax.transAxes, va="top")
-    writer = PillowWriter(fps=fps)
-    with writer.saving(fig, str(path), dpi):
-        for k, t in enumerate(times):
-            scene.update(k)
-            clock.set_text(f"t = {t:.2f}")
-            writer.grab_frame()
-    return path
+    return write_frames(fig, path, times, scene, clock, fps, dpi)
 
 
 def plot_sweep(result, path=None, title=None, linear=None):
@@ -417,7 +421,4 @@ def plot_sweep(result, path=None, title=None, linear=None):
     ax.legend(loc="best", fontsize="small")
     if title:
         ax.set_title(title)
-    fig.tight_layout()
-    if path is not None:
-        fig.savefig(path)
-    return fig
+    return finished(fig, path)
