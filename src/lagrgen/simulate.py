@@ -24,17 +24,17 @@ def parameters_from(mod, params):
 
 
 def input_function(mod, inputs):
-    """Return (u, u_of_t): a constant input vector, or None and a function t -> input vector.
+    """A function t -> the input vector u(t), in input order.
 
     `inputs` maps input names (or the functions `model.inputs` returned) to constants or callables
-    of t; unnamed inputs are zero. A full array gives constant inputs in input order.
+    of t; unnamed inputs are zero. A full array gives constant inputs in input order. Constant
+    inputs give one read-only vector, the same for every t.
     """
     names = tuple(mod.inputs)
-    if inputs is None:
-        return np.zeros(len(names)), None
-    if not isinstance(inputs, dict):
-        return require_finite(as_vector(inputs, len(names), "inputs (the input vector)"), names,
-                              "input"), None
+    if inputs is None or not isinstance(inputs, dict):
+        u0 = np.zeros(len(names)) if inputs is None else require_finite(
+            as_vector(inputs, len(names), "inputs (the input vector)"), names, "input")
+        return constant(u0)
     by_name = {}
     for key, value in inputs.items():
         name = key_name(key)
@@ -46,14 +46,23 @@ def input_function(mod, inputs):
                         "input")
     varying = [(names.index(k), f) for k, f in by_name.items() if callable(f)]
     if not varying:
-        return u0, None
+        return constant(u0)
 
-    def u_of_t(t):
+    def u_at(t):
         u = u0.copy()
         for i, f in varying:
             u[i] = f(t)
         return u
-    return None, u_of_t
+    return u_at
+
+
+def constant(u0):
+    """t -> u0 for every t (u0 made read-only: every call shares it)."""
+    u0.setflags(write=False)
+
+    def u_at(t):
+        return u0
+    return u_at
 
 
 class _Guard:
@@ -155,39 +164,30 @@ def simulate(mod, t_span, y0, method="RK45", params=None, inputs=None, rtol=1e-6
                                                             rtol)
     if engine == "native" and why_not:
         raise ValueError(f"the native engine cannot run this solve: {why_not}")
-    u, u_of_t = input_function(mod, inputs)
+    u_at = input_function(mod, inputs)
     rhs, jacobian = mod.rhs, mod.jacobian
-    if u_of_t is None:
-        def fun(t, y):
-            ydot = rhs(t, y, p, u)
-            if not math.isfinite(ydot.sum()):
-                raise NonFiniteError.at(mod.name, t, y)
-            return ydot
 
-        def jac(t, y):
-            return jacobian(t, y, p, u)
-    else:
-        def fun(t, y):
-            ydot = rhs(t, y, p, u_of_t(t))
-            if not math.isfinite(ydot.sum()):
-                raise NonFiniteError.at(mod.name, t, y)
-            return ydot
+    def fun(t, y):
+        ydot = rhs(t, y, p, u_at(t))
+        if not math.isfinite(ydot.sum()):
+            raise NonFiniteError.at(mod.name, t, y)
+        return ydot
 
-        def jac(t, y):
-            return jacobian(t, y, p, u_of_t(t))
+    def jac(t, y):
+        return jacobian(t, y, p, u_at(t))
     constrained = getattr(mod, "n_constraints", 0) > 0
     if constrained:
         from .constraints import check_state
         t0 = float(t_span[0])
-        check_state(mod, t0, y0, p, u if u_of_t is None else u_of_t(t0))
+        check_state(mod, t0, y0, p, u_at(t0))
     if engine != "scipy" and why_not is None:
         sol = solve_native(mod, t_span, y0, method, p, input_specs(mod, inputs), rtol, atol,
                            t_eval, dense_output, native_events(mod) if compiled_events else None,
                            stop_on_nonfinite=True, **options)
-        raise_native_failure(mod, sol, p, u, u_of_t)
+        raise_native_failure(mod, sol, p, u_at)
     else:
         if compiled_events:
-            events = event_functions(mod, p, u, u_of_t) + ([guard] if guard else [])
+            events = event_functions(mod, p, u_at) + ([guard] if guard else [])
         if getattr(method, "__name__", method) in STIFF_METHODS:
             options.setdefault("jac", jac)
         sol = solve_ivp(fun, t_span, y0, method=SOLVERS.get(method, method), rtol=rtol,
@@ -200,14 +200,14 @@ def simulate(mod, t_span, y0, method="RK45", params=None, inputs=None, rtol=1e-6
     if guard is not None:
         finish_guarded(sol, guard, t_span)
     sol.params = p
-    sol.inputs = u if u_of_t is None else u_of_t
+    sol.inputs = u_at
     sol = with_coordinates(sol, mod.coordinates, n, getattr(mod, "name", None))
     sol.__dict__["_units"] = dict(getattr(mod, "units", {}))
     if compiled_events:
         sol.event_names = tuple(name for name, _, _ in mod.event_definitions)
     if constrained:
         from .constraints import along
-        sol.constraint_forces, sol.constraint_residuals = along(mod, sol, p, u, u_of_t)
+        sol.constraint_forces, sol.constraint_residuals = along(mod, sol, p, u_at)
         sol.constraint_names = tuple(mod.constraint_names)
         sol.multipliers = dict(zip(sol.constraint_names, sol.constraint_forces))
     return sol
@@ -221,24 +221,24 @@ def native_events(mod):
             np.array([direction for _, _, direction in definitions], dtype=float))
 
 
-def event_functions(mod, p, u, u_of_t):
+def event_functions(mod, p, u_at):
     """The model's compiled events as solve_ivp event callables (one per event)."""
     functions = []
     for k, (name, terminal, direction) in enumerate(mod.event_definitions):
         def g(t, y, k=k):
-            return mod.events(t, y, p, u if u_of_t is None else u_of_t(t))[k]
+            return mod.events(t, y, p, u_at(t))[k]
         g.__name__, g.terminal, g.direction = name, terminal, direction
         functions.append(g)
     return functions
 
 
-def raise_native_failure(mod, sol, p, u, u_of_t):
+def raise_native_failure(mod, sol, p, u_at):
     """Raise, for a native solve, the error the SciPy engine raises at the same point: the
     model's own error at the state where it failed, or NonFiniteError."""
     failure = getattr(sol, "mass_matrix_failure", None)
     if failure is not None:
         t, y = failure
-        mod.rhs(t, y, p, u if u_of_t is None else u_of_t(t))
+        mod.rhs(t, y, p, u_at(t))
         raise MassMatrixError.at(mod.name, t, y[:mod.n_coordinates])
     failure = getattr(sol, "nonfinite_failure", None)
     if failure is not None:
@@ -278,17 +278,12 @@ def evaluate_outputs(mod, sol, params=None, inputs=None):
     """
     p = getattr(sol, "params", None) if params is None else parameters_from(mod, params)
     p = parameters_from(mod, None) if p is None else p
-    if inputs is None:
-        held = getattr(sol, "inputs", None)
-        u, u_of_t = (np.zeros(len(mod.inputs)), None) if held is None else \
-            ((None, held) if callable(held) else (held, None))
-    else:
-        u, u_of_t = input_function(mod, inputs)
+    held = getattr(sol, "inputs", None)
+    u_at = held if inputs is None and callable(held) else input_function(mod, inputs)
     t, y = np.asarray(sol.t, dtype=float), np.asarray(sol.y, dtype=float)
     out = np.empty((len(mod.output_names), len(t)))
     for i, ti in enumerate(t):
-        out[:, i] = mod.outputs(ti, np.ascontiguousarray(y[:, i]), p,
-                                u if u_of_t is None else u_of_t(ti))
+        out[:, i] = mod.outputs(ti, np.ascontiguousarray(y[:, i]), p, u_at(ti))
     return Outputs(out, mod.output_names, getattr(mod, "units", {}))
 
 
@@ -324,11 +319,11 @@ def output_event(mod, name, params=None, inputs=None, terminal=False, direction=
         raise unknown_name("output", name, names)
     k = names.index(name)
     p = parameters_from(mod, params)
-    u, u_of_t = input_function(mod, inputs)
+    u_at = input_function(mod, inputs)
     outputs = mod.outputs
 
     def event(t, y):
-        return outputs(t, y, p, u if u_of_t is None else u_of_t(t))[k]
+        return outputs(t, y, p, u_at(t))[k]
     event.terminal, event.direction = terminal, direction
     return event
 
