@@ -13,6 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from .errors import LagrgenError
+from .functions import POWER_TERMS
 
 
 def models_in(path, names=None):
@@ -468,9 +469,10 @@ def output_choice(text, mod):
             continue
         names = ENERGIES if name == "energy" else (name,)
         for n in names:
-            if n not in mod.output_names:
+            known = tuple(mod.output_names) + POWER_TERMS
+            if n not in known:
                 raise LagrgenError(f"--plot-outputs: model {mod.name!r} has no output {n!r} "
-                                   f"(its outputs are energy, {', '.join(mod.output_names)})")
+                                   f"(its outputs are energy, {', '.join(known)})")
             if n not in chosen:
                 chosen.append(n)
     return chosen

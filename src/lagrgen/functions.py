@@ -64,6 +64,8 @@ FUNCTIONS = (
                   (Output("M", ("n", "n")), Output("dF_dq", ("n", "n")),
                    Output("dF_dqd", ("n", "n")), Output("dF_du", ("n", "n_inputs"))),
                   "M, ∂F/∂q, ∂F/∂q̇ and ∂F/∂u at one point"),
+    ModelFunction("power_terms", "state", (Output("P", ("n_power",)),),
+                  "[Σ Q_j·q̇_j, R]: the power of the applied forces and the Rayleigh function"),
     ModelFunction("outputs", "state", (Output("y", ("n_outputs",)),),
                   "the outputs: the user's, then T, V, T + V, Σ Q_j·q̇_j and R"),
     ModelFunction("constraint_forces", "state", (Output("lam", ("n_constraints",)),),
@@ -81,9 +83,15 @@ FUNCTIONS = (
 BY_NAME = {f.name: f for f in FUNCTIONS}
 
 
+#: What `power_terms` returns, beside the outputs: d(T + V)/dt = input_power − 2·R for a
+#: scleronomic model with R quadratic in q̇.
+POWER_TERMS = ("input_power", "rayleigh_dissipation")
+
+
 def dimensions(n, n_params, n_inputs, n_constraints=0, n_holonomic=0, n_events=0, **more):
     """The dimension names of output shapes and their sizes for one model (stored in its
     metadata, so the runtime reads every size from there; add a size by passing it in `more`)."""
     return {"n": n, "2n": 2 * n, "n_params": n_params, "n_inputs": n_inputs,
             "n_constraints": n_constraints, "n_holonomic": n_holonomic,
-            "n_residuals": n_holonomic + n_constraints, "n_events": n_events, **more}
+            "n_residuals": n_holonomic + n_constraints, "n_events": n_events,
+            "n_power": len(POWER_TERMS), **more}

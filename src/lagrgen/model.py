@@ -11,6 +11,7 @@ import sympy as sp
 from sympy.core.function import AppliedUndef
 
 from .errors import ModelError
+from .functions import POWER_TERMS
 
 #: SymPy functions that have a C99 equivalent and that the symbolic core can differentiate.
 SUPPORTED_FUNCTIONS = (
@@ -25,8 +26,8 @@ SUPPORTED_FUNCTIONS = (
 #: T, V, T + V, then the power Σ Q_j·q̇_j of the applied forces and the Rayleigh function R, so that
 #: d(T + V)/dt = input_power − 2·R for a scleronomic model with R quadratic in q̇.
 ENERGY_OUTPUTS = ("kinetic_energy", "potential_energy", "total_energy")
-EXTRA_OUTPUTS = ("input_power", "rayleigh_dissipation")
-AUTOMATIC_OUTPUTS = ENERGY_OUTPUTS + EXTRA_OUTPUTS
+#: Names no user output may take: the energies and the power terms (evaluated beside the outputs).
+AUTOMATIC_OUTPUTS = ENERGY_OUTPUTS + POWER_TERMS
 #: Drawing shapes of rigid bodies (see `Model.rigid_body`).
 SHAPES = ("disk", "bar", "box")
 
@@ -297,8 +298,8 @@ class Model:
 
     @property
     def output_names(self):
-        """The user's outputs, then the automatic ones (energies, input power, dissipation)."""
-        return tuple(n for n, _ in self._outputs) + AUTOMATIC_OUTPUTS
+        """The user's outputs, then "kinetic_energy", "potential_energy", "total_energy"."""
+        return tuple(n for n, _ in self._outputs) + ENERGY_OUTPUTS
 
     @property
     def units(self):
@@ -784,7 +785,7 @@ class ModelSpec:
 
     @property
     def output_names(self):
-        return tuple(n for n, _ in self.outputs) + AUTOMATIC_OUTPUTS
+        return tuple(n for n, _ in self.outputs) + ENERGY_OUTPUTS
     constraints: tuple = ()   # Φ_i(q, t) = 0
     velocity_constraints: tuple = ()  # A(q, t)·q̇ + b(q, t) = 0
     constraint_names: tuple = ()  # one per multiplier, holonomic first

@@ -13,6 +13,7 @@ from scipy.integrate._ivp.ivp import OdeResult
 from .errors import MassMatrixError, NonFiniteError
 from .runtime.arguments import (as_vector, key_name, named_vector, parameter_vector,
                                 require_finite, state_vector, unknown_name)
+from .functions import POWER_TERMS
 from .methods import METHODS, STIFF_METHODS
 from .native_engine import input_specs, native_reason, solve_native
 from .solvers import SOLVERS
@@ -273,18 +274,22 @@ def evaluate_outputs(mod, sol, params=None, inputs=None):
 
     Returns
     -------
-    An `Outputs` table: a (len(mod.output_names), len(sol.t)) float64 array with `names` and
-    `units`; `table["total_energy"]` is one row.
+    An `Outputs` table: a (len(mod.output_names) + 2, len(sol.t)) float64 array with `names`
+    (the outputs, then "input_power" and "rayleigh_dissipation") and `units`;
+    `table["total_energy"]` is one row.
     """
     p = getattr(sol, "params", None) if params is None else parameters_from(mod, params)
     p = parameters_from(mod, None) if p is None else p
     held = getattr(sol, "inputs", None)
     u_at = held if inputs is None and callable(held) else input_function(mod, inputs)
     t, y = np.asarray(sol.t, dtype=float), np.asarray(sol.y, dtype=float)
-    out = np.empty((len(mod.output_names), len(t)))
+    k = len(mod.output_names)
+    out = np.empty((k + len(POWER_TERMS), len(t)))
     for i, ti in enumerate(t):
-        out[:, i] = mod.outputs(ti, np.ascontiguousarray(y[:, i]), p, u_at(ti))
-    return Outputs(out, mod.output_names, getattr(mod, "units", {}))
+        yi = np.ascontiguousarray(y[:, i])
+        out[:k, i] = mod.outputs(ti, yi, p, u_at(ti))
+        out[k:, i] = mod.power_terms(ti, yi, p, u_at(ti))
+    return Outputs(out, tuple(mod.output_names) + POWER_TERMS, getattr(mod, "units", {}))
 
 
 class Outputs(np.ndarray):

@@ -210,6 +210,9 @@ class PythonModel:
     def _outputs(self, t, q, qd, p, u):
         return self._kernel("outputs", t, q, qd, None, p, u)[0]
 
+    def _power_terms(self, t, q, qd, p, u):
+        return self._kernel("outputs", t, q, qd, None, p, u)[1]
+
 
 def _finite_list(values, size):
     """`values` as a list when it is a 1-D float64 array of `size` finite numbers, else None."""
