@@ -1,4 +1,6 @@
-    double M[N * N], a[N + N_CONSTRAINTS], B[N * 2 * N];
+    /* The bottom half of out is B = [∂F/∂q − ∂(M·q̈)/∂q | ∂F/∂q̇] (n×2n, rows of length 2n like
+     * out's), overwritten in place by M⁻¹·B with the factor of M the rhs's q̈ came from. */
+    double M[N * N], a[N + N_CONSTRAINTS], *B = out + 2 * N * N;
     lg_mf(t, y, y + N, lg_zeros, p, u, M, a);
     if (lg_cholesky(M))
         return 1;
@@ -35,5 +37,4 @@
     memset(out, 0, (size_t)2 * N * N * sizeof(double));
     for (int i = 0; i < N; ++i)
         out[i * 2 * N + N + i] = 1.0;
-    memcpy(out + 2 * N * N, B, (size_t)2 * N * N * sizeof(double));
     return 0;
