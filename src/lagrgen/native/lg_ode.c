@@ -143,7 +143,7 @@ typedef struct {
     /* implicit methods */
     double *J, *LU;          /* dim x dim */
     int *piv, *pivc;
-    double *LUc, *ctmp;      /* complex, as (re, im) pairs */
+    double *LUc, *ctmp;      /* complex: real parts, then imaginary parts */
     int have_lu, current_jac;
     double h_abs_old, error_norm_old;
     int has_old;             /* Radau: h_abs_old / error_norm_old are not None */
@@ -260,46 +260,64 @@ static int select_initial_step(solver_t *s, double order, double *h_out)
 }
 
 /* ------------------------------------------------------------------------------------------ */
-/* Dense LU with partial pivoting (LAPACK getrf's pivot choice: the first largest |a| for real,
- * the first largest |re| + |im| for complex), and the matching solves.                        */
+/* Dense LU with partial pivoting in LAPACK's column order (getf2: the first largest |a| for real,
+ * the first largest |re| + |im| for complex, then a rank-1 update column by column that skips a
+ * zero multiplier a_kj; getrs/trsv: every b[i] takes its updates in the order j = 0, 1, ...).
+ * The matrices are stored column-major (a[i + j·n] = A_ij) so that every update runs down a
+ * contiguous column; a complex matrix as its real part then its imaginary part (each n × n,
+ * column-major) and a complex vector as n real parts then n imaginary parts.                   */
+
+/* y[i] -= alpha·x[i], i < len */
+static inline void axpy_sub(double *restrict y, const double *restrict x, double alpha, int len)
+{
+    for (int i = 0; i < len; ++i)
+        y[i] -= alpha * x[i];
+}
+
+/* Swap rows k and p of the n × n column-major matrix a. */
+static void swap_rows(double *a, int n, int k, int p)
+{
+    for (int j = 0; j < n; ++j) {
+        double t = a[k + (size_t)j * n];
+        a[k + (size_t)j * n] = a[p + (size_t)j * n];
+        a[p + (size_t)j * n] = t;
+    }
+}
 
 static int lu_real(double *a, int *piv, int n)
 {
     int info = 0;
     for (int k = 0; k < n; ++k) {
+        double *ak = a + (size_t)k * n;
         int p = k;
-        double best = fabs(a[k * n + k]);
+        double best = fabs(ak[k]);
         for (int i = k + 1; i < n; ++i)
-            if (fabs(a[i * n + k]) > best) {
-                best = fabs(a[i * n + k]);
+            if (fabs(ak[i]) > best) {
+                best = fabs(ak[i]);
                 p = i;
             }
         piv[k] = p;
-        if (a[p * n + k] == 0.0) {
+        if (ak[p] == 0.0) {
             if (!info)
                 info = k + 1;
             continue;
         }
         if (p != k)
-            for (int j = 0; j < n; ++j) {
-                double t = a[k * n + j];
-                a[k * n + j] = a[p * n + j];
-                a[p * n + j] = t;
-            }
-        double inv = 1.0 / a[k * n + k];
-        for (int i = k + 1; i < n; ++i) {
-            double l = a[i * n + k] *= inv;
-            if (l != 0.0)
-                for (int j = k + 1; j < n; ++j)
-                    a[i * n + j] -= l * a[k * n + j];
+            swap_rows(a, n, k, p);
+        double inv = 1.0 / ak[k];
+        for (int i = k + 1; i < n; ++i)
+            ak[i] *= inv;
+        for (int j = k + 1; j < n; ++j) {
+            double *aj = a + (size_t)j * n;
+            if (aj[k] != 0.0)
+                axpy_sub(aj + k + 1, ak + k + 1, aj[k], n - k - 1);
         }
     }
     return info;
 }
 
 /* Solve A x = b in place from the factors: row interchanges, then L (unit) and U column by
- * column (the order of LAPACK's getrs/trsv: every b[i] takes its updates in the order j = 0, 1,
- * ..., and the updates of one column are independent of each other). */
+ * column. */
 static void lu_solve_real(const double *a, const int *piv, int n, double *b)
 {
     for (int k = 0; k < n; ++k)
@@ -308,123 +326,115 @@ static void lu_solve_real(const double *a, const int *piv, int n, double *b)
             b[k] = b[piv[k]];
             b[piv[k]] = t;
         }
-    for (int j = 0; j < n; ++j) {
-        double bj = b[j];
-        if (bj != 0.0)
-            for (int i = j + 1; i < n; ++i)
-                b[i] -= bj * a[i * n + j];
-    }
-    for (int j = n - 1; j >= 0; --j) {
+    for (int j = 0; j < n; ++j)
+        if (b[j] != 0.0)
+            axpy_sub(b + j + 1, a + (size_t)j * n + j + 1, b[j], n - j - 1);
+    for (int j = n - 1; j >= 0; --j)
         if (b[j] != 0.0) {
-            b[j] /= a[j * n + j];
-            double bj = b[j];
-            for (int i = 0; i < j; ++i)
-                b[i] -= bj * a[i * n + j];
+            b[j] /= a[j + (size_t)j * n];
+            axpy_sub(b, a + (size_t)j * n, b[j], j);
         }
-    }
 }
 
-/* Complex numbers as (re, im) pairs of doubles, with the textbook product (as Fortran's
- * complex multiply) and Smith's quotient: no calls to the C runtime's NaN-checking __muldc3. */
-static double cabs1(const double *z) { return fabs(z[0]) + fabs(z[1]); }
+/* Complex numbers with the textbook product (as Fortran's complex multiply) and Smith's
+ * quotient: no calls to the C runtime's NaN-checking __muldc3. */
 
-/* q = a / b (Smith 1962) */
-static void cdiv(const double *a, const double *b, double *q)
+/* (qr, qi) = (ar, ai) / (br, bi) (Smith 1962) */
+static void cdiv(double ar, double ai, double br, double bi, double *qr, double *qi)
 {
     double re, im;
-    if (fabs(b[0]) >= fabs(b[1])) {
-        double r = b[1] / b[0], d = b[0] + b[1] * r;
-        re = (a[0] + a[1] * r) / d;
-        im = (a[1] - a[0] * r) / d;
+    if (fabs(br) >= fabs(bi)) {
+        double r = bi / br, d = br + bi * r;
+        re = (ar + ai * r) / d;
+        im = (ai - ar * r) / d;
     } else {
-        double r = b[0] / b[1], d = b[1] + b[0] * r;
-        re = (a[0] * r + a[1]) / d;
-        im = (a[1] * r - a[0]) / d;
+        double r = br / bi, d = bi + br * r;
+        re = (ar * r + ai) / d;
+        im = (ai * r - ar) / d;
     }
-    q[0] = re;
-    q[1] = im;
+    *qr = re;
+    *qi = im;
 }
 
-/* Complex LU with partial pivoting; a is n x n of (re, im) pairs, row-major. */
+/* (yr, yi)[i] -= (xr, xi)·(lr, li)[i], i < len: a complex axpy on split parts. */
+static inline void caxpy_sub(double *restrict yr, double *restrict yi, const double *restrict lr,
+                             const double *restrict li, double xr, double xi, int len)
+{
+    for (int i = 0; i < len; ++i) {
+        yr[i] -= xr * lr[i] - xi * li[i];
+        yi[i] -= xr * li[i] + xi * lr[i];
+    }
+}
+
+/* Complex LU with partial pivoting; a holds the real then the imaginary part (see above). */
 static int lu_complex(double *a, int *piv, int n)
 {
     int info = 0;
+    size_t nn = (size_t)n * n;
+    double *re = a, *im = a + nn;
     for (int k = 0; k < n; ++k) {
+        double *kr = re + (size_t)k * n, *ki = im + (size_t)k * n;
         int p = k;
-        double best = cabs1(a + 2 * (k * n + k));
+        double best = fabs(kr[k]) + fabs(ki[k]);
         for (int i = k + 1; i < n; ++i)
-            if (cabs1(a + 2 * (i * n + k)) > best) {
-                best = cabs1(a + 2 * (i * n + k));
+            if (fabs(kr[i]) + fabs(ki[i]) > best) {
+                best = fabs(kr[i]) + fabs(ki[i]);
                 p = i;
             }
         piv[k] = p;
-        double *pk = a + 2 * (p * n + k);
-        if (pk[0] == 0.0 && pk[1] == 0.0) {
+        if (kr[p] == 0.0 && ki[p] == 0.0) {
             if (!info)
                 info = k + 1;
             continue;
         }
-        if (p != k)
-            for (int j = 0; j < 2 * n; ++j) {
-                double t = a[2 * k * n + j];
-                a[2 * k * n + j] = a[2 * p * n + j];
-                a[2 * p * n + j] = t;
-            }
-        double one[2] = {1.0, 0.0}, inv[2];
-        cdiv(one, a + 2 * (k * n + k), inv);
+        if (p != k) {
+            swap_rows(re, n, k, p);
+            swap_rows(im, n, k, p);
+        }
+        double inv_r, inv_i;
+        cdiv(1.0, 0.0, kr[k], ki[k], &inv_r, &inv_i);
         for (int i = k + 1; i < n; ++i) {
-            double *lik = a + 2 * (i * n + k);
-            double lr = lik[0] * inv[0] - lik[1] * inv[1];
-            double li = lik[0] * inv[1] + lik[1] * inv[0];
-            lik[0] = lr;
-            lik[1] = li;
-            if (lr != 0.0 || li != 0.0) {
-                double *ri = a + 2 * i * n, *rk = a + 2 * k * n;
-                for (int j = k + 1; j < n; ++j) {
-                    double ur = rk[2 * j], ui = rk[2 * j + 1];
-                    ri[2 * j] -= lr * ur - li * ui;
-                    ri[2 * j + 1] -= lr * ui + li * ur;
-                }
-            }
+            double lr = kr[i] * inv_r - ki[i] * inv_i;
+            double li = kr[i] * inv_i + ki[i] * inv_r;
+            kr[i] = lr;
+            ki[i] = li;
+        }
+        for (int j = k + 1; j < n; ++j) {
+            double *jr = re + (size_t)j * n, *ji = im + (size_t)j * n;
+            if (jr[k] != 0.0 || ji[k] != 0.0)
+                caxpy_sub(jr + k + 1, ji + k + 1, kr + k + 1, ki + k + 1, jr[k], ji[k],
+                          n - k - 1);
         }
     }
     return info;
 }
 
-/* Solve A x = b in place from the complex factors (b: n (re, im) pairs). */
+/* Solve A x = b in place from the complex factors (b: n real parts, then n imaginary parts). */
 static void lu_solve_complex(const double *a, const int *piv, int n, double *b)
 {
+    size_t nn = (size_t)n * n;
+    const double *re = a, *im = a + nn;
+    double *br = b, *bi = b + n;
     for (int k = 0; k < n; ++k)
         if (piv[k] != k) {
             int q = piv[k];
-            double tr = b[2 * k], ti = b[2 * k + 1];
-            b[2 * k] = b[2 * q];
-            b[2 * k + 1] = b[2 * q + 1];
-            b[2 * q] = tr;
-            b[2 * q + 1] = ti;
+            double tr = br[k], ti = bi[k];
+            br[k] = br[q];
+            bi[k] = bi[q];
+            br[q] = tr;
+            bi[q] = ti;
         }
-    for (int j = 0; j < n; ++j) {
-        double br = b[2 * j], bi = b[2 * j + 1];
-        if (br != 0.0 || bi != 0.0)
-            for (int i = j + 1; i < n; ++i) {
-                const double *l = a + 2 * (i * n + j);
-                b[2 * i] -= br * l[0] - bi * l[1];
-                b[2 * i + 1] -= br * l[1] + bi * l[0];
-            }
-    }
-    for (int j = n - 1; j >= 0; --j) {
-        double br = b[2 * j], bi = b[2 * j + 1];
-        if (br != 0.0 || bi != 0.0) {
-            cdiv(b + 2 * j, a + 2 * (j * n + j), b + 2 * j);
-            br = b[2 * j];
-            bi = b[2 * j + 1];
-            for (int i = 0; i < j; ++i) {
-                const double *u = a + 2 * (i * n + j);
-                b[2 * i] -= br * u[0] - bi * u[1];
-                b[2 * i + 1] -= br * u[1] + bi * u[0];
-            }
+    for (int j = 0; j < n; ++j)
+        if (br[j] != 0.0 || bi[j] != 0.0) {
+            size_t c = (size_t)j * n + j + 1;
+            caxpy_sub(br + j + 1, bi + j + 1, re + c, im + c, br[j], bi[j], n - j - 1);
         }
-    }
+    for (int j = n - 1; j >= 0; --j)
+        if (br[j] != 0.0 || bi[j] != 0.0) {
+            size_t c = (size_t)j * n;
+            cdiv(br[j], bi[j], re[c + j], im[c + j], br + j, bi + j);
+            caxpy_sub(br, bi, re + c, im + c, br[j], bi[j], j);
+        }
 }
 
 /* ------------------------------------------------------------------------------------------ */
@@ -599,12 +609,14 @@ static int radau_factor(solver_t *s, double h)
     int n = s->dim;
     double mr = RADAU_MU_REAL / h;
     double mcr = RADAU_MU_COMPLEX_RE / h, mci = RADAU_MU_COMPLEX_IM / h;
-    for (int i = 0; i < n; ++i)
-        for (int j = 0; j < n; ++j) {
+    size_t nn = (size_t)n * n;
+    for (int j = 0; j < n; ++j)
+        for (int i = 0; i < n; ++i) {
             double jij = s->J[i * n + j];
-            s->LU[i * n + j] = (i == j ? mr : 0.0) - jij;
-            s->LUc[2 * (i * n + j)] = (i == j ? mcr : 0.0) - jij;
-            s->LUc[2 * (i * n + j) + 1] = i == j ? mci : 0.0;
+            size_t c = i + (size_t)j * n;
+            s->LU[c] = (i == j ? mr : 0.0) - jij;
+            s->LUc[c] = (i == j ? mcr : 0.0) - jij;
+            s->LUc[nn + c] = i == j ? mci : 0.0;
         }
     s->nlu += 2;
     lu_real(s->LU, s->piv, n);
@@ -645,24 +657,19 @@ static int radau_collocation(solver_t *s, double t, const double *y, double h, d
         if (!finite)
             break;
         /* f_real = F^T TI_REAL - M_real W0; f_complex = F^T TI_COMPLEX - M_complex (W1 + i W2)
-         * with TI_COMPLEX = TI[1] + i TI[2] */
-        double *fr = s->tmp, *fc = s->ctmp;
+         * with TI_COMPLEX = TI[1] + i TI[2]; solved in place in dW = [real, complex re, im] */
+        double *fr = dW, *fcr = dW + n, *fci = dW + 2 * n;
         for (int i = 0; i < n; ++i) {
             double a0 = F[i], a1 = F[n + i], a2 = F[2 * n + i];
             fr[i] = (a0 * RADAU_TI[0] + a1 * RADAU_TI[1] + a2 * RADAU_TI[2]) - mr * W[i];
             double wr = W[n + i], wi = W[2 * n + i];
-            fc[2 * i] = (a0 * RADAU_TI[3] + a1 * RADAU_TI[4] + a2 * RADAU_TI[5])
-                        - (mcr * wr - mci * wi);
-            fc[2 * i + 1] = (a0 * RADAU_TI[6] + a1 * RADAU_TI[7] + a2 * RADAU_TI[8])
-                            - (mcr * wi + mci * wr);
+            fcr[i] = (a0 * RADAU_TI[3] + a1 * RADAU_TI[4] + a2 * RADAU_TI[5])
+                     - (mcr * wr - mci * wi);
+            fci[i] = (a0 * RADAU_TI[6] + a1 * RADAU_TI[7] + a2 * RADAU_TI[8])
+                     - (mcr * wi + mci * wr);
         }
         lu_solve_real(s->LU, s->piv, n, fr);
-        lu_solve_complex(s->LUc, s->pivc, n, fc);
-        for (int i = 0; i < n; ++i) {
-            dW[i] = fr[i];
-            dW[n + i] = fc[2 * i];
-            dW[2 * n + i] = fc[2 * i + 1];
-        }
+        lu_solve_complex(s->LUc, s->pivc, n, fcr);
         double acc = 0.0;
         for (int r = 0; r < 3; ++r)
             for (int i = 0; i < n; ++i) {
@@ -944,9 +951,9 @@ static int bdf_newton(solver_t *s, double t_new, const double *y_predict, double
 static void bdf_factor(solver_t *s, double c)
 {
     int n = s->dim;
-    for (int i = 0; i < n; ++i)
-        for (int j = 0; j < n; ++j)
-            s->LU[i * n + j] = (i == j ? 1.0 : 0.0) - c * s->J[i * n + j];
+    for (int j = 0; j < n; ++j)
+        for (int i = 0; i < n; ++i)
+            s->LU[i + (size_t)j * n] = (i == j ? 1.0 : 0.0) - c * s->J[i * n + j];
     s->nlu++;
     lu_real(s->LU, s->piv, n);
     s->have_lu = 1;
