@@ -409,34 +409,6 @@ static int lu_complex(double *a, int *piv, int n)
     return info;
 }
 
-/* Solve A x = b in place from the complex factors (b: n real parts, then n imaginary parts). */
-static void lu_solve_complex(const double *a, const int *piv, int n, double *b)
-{
-    size_t nn = (size_t)n * n;
-    const double *re = a, *im = a + nn;
-    double *br = b, *bi = b + n;
-    for (int k = 0; k < n; ++k)
-        if (piv[k] != k) {
-            int q = piv[k];
-            double tr = br[k], ti = bi[k];
-            br[k] = br[q];
-            bi[k] = bi[q];
-            br[q] = tr;
-            bi[q] = ti;
-        }
-    for (int j = 0; j < n; ++j)
-        if (br[j] != 0.0 || bi[j] != 0.0) {
-            size_t c = (size_t)j * n + j + 1;
-            caxpy_sub(br + j + 1, bi + j + 1, re + c, im + c, br[j], bi[j], n - j - 1);
-        }
-    for (int j = n - 1; j >= 0; --j)
-        if (br[j] != 0.0 || bi[j] != 0.0) {
-            size_t c = (size_t)j * n;
-            cdiv(br[j], bi[j], re[c + j], im[c + j], br + j, bi + j);
-            caxpy_sub(br, bi, re + c, im + c, br[j], bi[j], j);
-        }
-}
-
 /* ------------------------------------------------------------------------------------------ */
 /* Explicit Runge-Kutta: rk.py (RungeKutta, RK23, RK45, DOP853)                                */
 
@@ -625,6 +597,52 @@ static int radau_factor(solver_t *s, double h)
     return 0;
 }
 
+/* The real and the complex system of one Newton iteration (b: the real right-hand side, then
+ * the complex one's real and imaginary parts), each solved like lu_solve_real (same arithmetic),
+ * with the two systems' sweeps interleaved column by column so that their chains of dependent
+ * updates (each column waits for the previous one's division) overlap in the processor. */
+static void radau_solve(const solver_t *s, double *b)
+{
+    int n = s->dim;
+    size_t nn = (size_t)n * n;
+    const double *a = s->LU, *re = s->LUc, *im = s->LUc + nn;
+    const int *piv = s->piv, *pivc = s->pivc;
+    double *x = b, *br = b + n, *bi = b + 2 * n;
+    for (int k = 0; k < n; ++k) {
+        if (piv[k] != k) {
+            double t = x[k];
+            x[k] = x[piv[k]];
+            x[piv[k]] = t;
+        }
+        if (pivc[k] != k) {
+            int q = pivc[k];
+            double tr = br[k], ti = bi[k];
+            br[k] = br[q];
+            bi[k] = bi[q];
+            br[q] = tr;
+            bi[q] = ti;
+        }
+    }
+    for (int j = 0; j < n; ++j) {
+        size_t c = (size_t)j * n + j + 1;
+        if (x[j] != 0.0)
+            axpy_sub(x + j + 1, a + c, x[j], n - j - 1);
+        if (br[j] != 0.0 || bi[j] != 0.0)
+            caxpy_sub(br + j + 1, bi + j + 1, re + c, im + c, br[j], bi[j], n - j - 1);
+    }
+    for (int j = n - 1; j >= 0; --j) {
+        size_t c = (size_t)j * n;
+        if (x[j] != 0.0) {
+            x[j] /= a[c + j];
+            axpy_sub(x, a + c, x[j], j);
+        }
+        if (br[j] != 0.0 || bi[j] != 0.0) {
+            cdiv(br[j], bi[j], re[c + j], im[c + j], br + j, bi + j);
+            caxpy_sub(br, bi, re + c, im + c, br[j], bi[j], j);
+        }
+    }
+}
+
 /* radau.solve_collocation_system: simplified Newton iterations in the transformed variables W.
  * Z0 is the initial guess (3 x dim). Returns converged; sets *n_iter, *rate, s->Z. Model
  * failure: returns -1. */
@@ -668,8 +686,7 @@ static int radau_collocation(solver_t *s, double t, const double *y, double h, d
             fci[i] = (a0 * RADAU_TI[6] + a1 * RADAU_TI[7] + a2 * RADAU_TI[8])
                      - (mcr * wi + mci * wr);
         }
-        lu_solve_real(s->LU, s->piv, n, fr);
-        lu_solve_complex(s->LUc, s->pivc, n, fcr);
+        radau_solve(s, dW);
         double acc = 0.0;
         for (int r = 0; r < 3; ++r)
             for (int i = 0; i < n; ++i) {
