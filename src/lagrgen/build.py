@@ -17,9 +17,7 @@ import hashlib
 import importlib.machinery
 import importlib.util
 import os
-import shlex
 import shutil
-import subprocess
 import sys
 import sysconfig
 import tempfile
@@ -28,12 +26,15 @@ from contextlib import contextmanager
 from pathlib import Path
 
 from ._version import __version__
-from .errors import BuildError, CompileError, ModelError
-from .functions import dimensions
+from .caching import once_per
+from .errors import BuildError, ModelError
+from .names import check_model_name
+from .runtime.info import ModelInfo
+from .toolchain import (_fsync_dir, compile_flags, compile_module, compile_units,  # noqa: F401
+                        compiler_command, write_atomic)
 
 EXT_SUFFIX = sysconfig.get_config_var("EXT_SUFFIX") or ".so"
 CACHE_DIR = "__lagrgen__"
-DEFAULT_CFLAGS = ("-fPIC", "-fno-math-errno", "-std=gnu11")
 BACKENDS = ("c", "python")
 PACKAGE = Path(__file__).resolve().parent
 #: The sources that determine generated code: a change to any of them changes every key.
@@ -64,13 +65,15 @@ def build(model, out_dir="generated", backend="c", **options):
         raise TypeError(f"build() takes a lagrgen.Model, got {type(model).__name__}")
     if backend not in BACKENDS:
         raise ModelError(f"unknown backend {backend!r}: use one of {', '.join(map(repr, BACKENDS))}")
-    spec = model.spec()
+    start = time.perf_counter()
     equations = model.equations()
-    info = model_info(spec, equations)
+    info = model_info(model.spec(), equations)
     if backend == "python":
         from .codegen.python_module import python_source
         from .runtime.pymodel import PythonModel
-        return PythonModel(info, equations.n, python_source(equations))
+        built = PythonModel(info, python_source(equations))
+        built.build_info = {"cache_hit": False, "seconds": time.perf_counter() - start}
+        return built
     unknown = set(options) - {"verbose", "quiet", "force", "opt_level", "cflags"}
     if unknown:
         raise TypeError(f"build() got unknown option(s) {', '.join(sorted(unknown))}")
@@ -79,7 +82,6 @@ def build(model, out_dir="generated", backend="c", **options):
 
 def load(name, out_dir="generated"):
     """Import the compiled model `name` built earlier into `out_dir`."""
-    from .model import check_model_name
     check_model_name(name)
     out_dir = Path(out_dir)
     marker = out_dir / CACHE_DIR / f"{name}.current"
@@ -109,6 +111,37 @@ def export_c(model, out_dir):
     return paths
 
 
+def export_fmu(model, out_dir=".", params=None, start_time=0.0, stop_time=10.0, tolerance=None,
+               cflags=()):
+    """Write `<out_dir>/<name>.fmu`, an FMI 2.0 Model Exchange FMU of `model` for this platform.
+
+    Its states are x = [q, q̇] (variables named like the coordinates and `<coordinate>_dot`), with
+    ẋ = [q̇, M⁻¹·F]; parameters are tunable parameters, inputs continuous inputs, the coordinates
+    outputs; directional derivatives come from the analytic Jacobian.
+
+    Parameters
+    ----------
+    model : lagrgen.Model
+    out_dir : str or pathlib.Path
+    params : dict, optional
+        Parameter start values (name -> value) replacing the defaults; required for parameters
+        without a default.
+    start_time, stop_time, tolerance : the DefaultExperiment
+    cflags : extra compiler flags (a list)
+
+    Returns
+    -------
+    pathlib.Path of the FMU.
+    """
+    from .codegen.fmu import write_fmu
+    from .model import Model
+    if not isinstance(model, Model):
+        raise TypeError(f"export_fmu() takes a lagrgen.Model, got {type(model).__name__}")
+    equations = model.equations()
+    return write_fmu(model_info(model.spec(), equations), equations, Path(out_dir), params,
+                     start_time, stop_time, tolerance, cflags)
+
+
 # -- what identifies a build -----------------------------------------------------------------
 @functools.lru_cache(maxsize=None)
 def generator_digest():
@@ -122,12 +155,10 @@ def generator_digest():
     return h.hexdigest()
 
 
-def equations_digest(spec, equations):
-    """sha256 of what is compiled: names, defaults, the derived M and F, and the generator
-    (computed once per Equations)."""
-    cached = getattr(equations, "digest", None)
-    if cached is not None:
-        return cached
+@once_per
+def equations_digest(equations):
+    """sha256 of what is compiled: names, defaults, the derived equations and the generator."""
+    spec = equations.spec
     h = hashlib.sha256(generator_digest().encode())
     parts = [spec.name, spec.coordinate_names, spec.parameter_names, spec.defaults,
              spec.input_names, [[str(e) for e in row] for row in equations.M],
@@ -137,140 +168,31 @@ def equations_digest(spec, equations):
              spec.output_names, [str(e) for e in equations.outputs], spec.units]
     for part in parts:
         h.update(repr(part).encode() + b"\0")
-    equations.digest = h.hexdigest()
-    return equations.digest
+    return h.hexdigest()
 
 
 def model_info(spec, equations):
-    """What a built model reports about itself: names, defaults (None: none), hash, version."""
-    return {
-        "name": spec.name, "coordinates": list(spec.coordinate_names),
-        "parameters": list(spec.parameter_names), "inputs": list(spec.input_names),
-        "defaults": list(spec.defaults), "content_hash": equations_digest(spec, equations),
-        "lagrgen_version": __version__, "dimensions": model_dimensions(spec, equations),
-        "output_names": list(spec.output_names), "units": dict(spec.units),
-        "explicit_time": bool(equations.explicit_time),
-        "constraint_names": list(spec.constraint_names),
-        "events": [{"name": name, "terminal": terminal, "direction": direction}
-                   for name, _, terminal, direction in spec.events],
-    }
-
-
-def model_dimensions(spec, equations):
-    """The sizes that output shapes of `lagrgen.functions` refer to (see `functions.dimensions`)."""
-    return dimensions(equations.n, len(spec.parameters), len(spec.inputs),
-                      n_constraints=equations.m, n_holonomic=equations.n_holonomic,
-                      n_events=len(equations.events), n_outputs=len(spec.output_names))
+    """The `ModelInfo` of a built model: names, defaults, units, sizes, flags, hash, version."""
+    return ModelInfo(
+        name=spec.name, coordinates=spec.coordinate_names, parameters=spec.parameter_names,
+        inputs=spec.input_names, defaults=spec.defaults, units=dict(spec.units),
+        output_names=spec.output_names, constraint_names=spec.constraint_names,
+        n_holonomic=equations.n_holonomic,
+        event_definitions=[(name, terminal, direction)
+                           for name, _, terminal, direction in spec.events],
+        explicit_time=bool(equations.explicit_time),
+        content_hash=equations_digest(equations), lagrgen_version=__version__)
 
 
 # -- compiling -------------------------------------------------------------------------------
-def compiler_command():
-    """The C compiler as an argument list (from Python's build configuration, or $CC)."""
-    cc = os.environ.get("CC") or sysconfig.get_config_var("CC") or "cc"
-    return shlex.split(cc)
-
-
-def compile_flags(opt_level="-O2", cflags=()):
-    """The compiler flags: lagrgen's defaults, the optimization level and the user's extra flags
-    (a list of separate flags; one string is split like a shell would)."""
-    if isinstance(cflags, str):
-        cflags = shlex.split(cflags)
-    return [*DEFAULT_CFLAGS, opt_level, *cflags]
-
-
-def compile_module(source_path, output_path, flags):
-    """Compile `source_path` into the extension module `output_path`; CompileError on failure."""
-    include = sysconfig.get_paths()["include"]
-    cmd = [*compiler_command(), "-shared", *flags, "-I", include, "-I",
-           str(PACKAGE / "codegen" / "templates"), str(source_path), "-o", str(output_path)]
-    _run_compiler(cmd, source_path)
-
-
-def _run_compiler(cmd, source_path):
-    """Run the compiler command `cmd` on `source_path`; BuildError or CompileError on failure."""
-    try:
-        result = subprocess.run(cmd, capture_output=True, text=True)
-    except FileNotFoundError:
-        raise BuildError(
-            f"no C compiler found (tried {cmd[0]!r}): install one (e.g. `apt-get install gcc`), "
-            "set $CC, or use lagrgen.build(model, backend='python')") from None
-    if result.returncode != 0:
-        message = "\n".join((result.stderr or result.stdout).strip().splitlines()[:60])
-        raise CompileError(
-            f"the C compiler failed on {source_path.name} (exit {result.returncode}):\n{message}\n"
-            f"command: {' '.join(shlex.quote(c) for c in cmd)}")
-
-
-def compile_jobs():
-    """How many compiler processes run at once: the cores this process may use."""
-    try:
-        return max(1, len(os.sched_getaffinity(0)))
-    except (AttributeError, OSError):
-        return max(1, os.cpu_count() or 1)
-
-
-def compile_units(sources, output_path, flags, unit_flags=None):
-    """Compile the translation units `sources` (paths; the first is the module glue) to objects in
-    parallel (`compile_jobs()` at once) and link them into the extension module `output_path`.
-    `unit_flags(path)` may return the flags of one unit (default: `flags`)."""
-    from concurrent.futures import ThreadPoolExecutor
-    include = sysconfig.get_paths()["include"]
-    templates = str(PACKAGE / "codegen" / "templates")
-
-    def compile_one(source):
-        own = unit_flags(source) if unit_flags else flags
-        obj = source.with_suffix(".o")
-        _run_compiler([*compiler_command(), "-c", *own, "-I", include, "-I", templates,
-                       str(source), "-o", str(obj)], source)
-        return obj
-
-    # longest first, so the last job to start is a short one
-    order = sorted(sources, key=lambda path: -path.stat().st_size)
-    with ThreadPoolExecutor(max_workers=min(compile_jobs(), len(order))) as pool:
-        objects = dict(zip(order, pool.map(compile_one, order)))
-    _run_compiler([*compiler_command(), "-shared", *flags,
-                   *(str(objects[path]) for path in sources), "-o", str(output_path)],
-                  output_path)
-
-
 def build_key(info, flags):
     """The cache key: the equations' digest, the compiler, its flags and the module suffix."""
-    h = hashlib.sha256(info["content_hash"].encode())
+    h = hashlib.sha256(info.content_hash.encode())
     h.update(repr((flags, compiler_command(), EXT_SUFFIX)).encode())
     return h.hexdigest()[:20]
 
 
 # -- files -----------------------------------------------------------------------------------
-def _fsync_dir(path):
-    try:
-        fd = os.open(path, os.O_RDONLY)
-    except OSError:
-        return
-    try:
-        os.fsync(fd)
-    except OSError:
-        pass
-    finally:
-        os.close(fd)
-
-
-def write_atomic(dest, data, mode=0o644):
-    """Write the bytes `data` to `dest` atomically and durably: a reader sees the old or the new
-    file, never a part, and a file open or mapped elsewhere (a loaded module) keeps its contents."""
-    fd, tmp = tempfile.mkstemp(dir=dest.parent, prefix=f".{dest.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "wb") as fh:
-            fh.write(data)
-            fh.flush()
-            os.fsync(fh.fileno())
-        os.chmod(tmp, mode)
-        os.replace(tmp, dest)
-        _fsync_dir(dest.parent)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-
-
 def module_path(entry, name):
     return entry / f"{name}{EXT_SUFFIX}"
 
@@ -358,7 +280,7 @@ def build_c(info, equations, out_dir, verbose=False, quiet=False, force=False, o
     module (the built model). Progress goes to stderr with `verbose`, or on a terminal unless
     `quiet`."""
     start = time.perf_counter()
-    name = info["name"]
+    name = info.name
     flags = compile_flags(opt_level, cflags)
     key = build_key(info, flags)
     cache = Path(out_dir) / CACHE_DIR
@@ -393,7 +315,7 @@ def _finish(module, hit, start, progress):
 
 def _import_or_rebuild(info, equations, entry, flags, progress):
     """Import the entry's module; if that fails, discard the entry, compile it again, import."""
-    name = info["name"]
+    name = info.name
     try:
         return import_extension(name, module_path(entry, name))
     except BuildError as first:
@@ -406,13 +328,13 @@ def _compile_entry(info, equations, entry, flags, progress):
     """Generate the model's C in a private directory, compile it, and rename it to `entry`."""
     from .codegen.c_model import (module_source, standalone_files, translation_units,
                                   unit_sources)
-    name = info["name"]
+    name = info.name
     progress.note("deriving the equations of motion ...")
     equations.differentiate()
     progress.step("derive", f"{equations.n} coordinates")
     files = standalone_files(info, equations)
     units = translation_units(files[f"{name}_model.c"])
-    files[f"{name}_module.c"] = module_source(info, equations.n, units)
+    files[f"{name}_module.c"] = module_source(info, units)
     files.update(unit_sources(name, units))
     size = sum(len(text) for text in files.values())
     progress.step("cse+emit", f"{size / 1024:.0f} KiB of C")
