@@ -560,7 +560,7 @@ def add_bench(sub):
 
 # -- export-fmu -------------------------------------------------------------------------------
 def command_export_fmu(args):
-    from .codegen.fmu import export_fmu
+    from .build import export_fmu
     for model in models_in(args.model_file, args.model):
         params = parameters_option(args, model)
         path = export_fmu(model, args.out, params=params, start_time=args.start_time,
