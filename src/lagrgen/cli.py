@@ -573,6 +573,7 @@ def command_export_fmu(args):
 
 
 def add_export_fmu(sub):
+    from .methods import NATIVE_METHODS
     e = sub.add_parser("export-fmu", help="write each model as an FMU (FMI 2.0 or 3.0, Model "
                        "Exchange or Co-Simulation)",
                        description="Compile every model in MODEL.py into DIR/<name>.fmu, an FMU "
@@ -590,7 +591,7 @@ def add_export_fmu(sub):
                    "FMU integrates with the native engine). Default me")
     e.add_argument("--fmi-version", type=int, choices=(2, 3), default=2,
                    help="FMI version (default 2)")
-    e.add_argument("--method", choices=("RK23", "RK45", "DOP853", "Radau", "BDF"),
+    e.add_argument("--method", choices=NATIVE_METHODS,
                    default="DOP853", help="co-simulation: the native engine's method (DOP853)")
     e.add_argument("--rtol", type=float, help="co-simulation: relative tolerance (default "
                    "--tolerance, or 1e-6)")

@@ -25,6 +25,7 @@ from .._version import __version__
 from ..build import compiler_command, write_atomic  # the toolchain helpers
 from ..build import model_info
 from ..errors import BuildError, CompileError, ModelError
+from ..methods import NATIVE_CODES, NATIVE_METHODS
 from .c_model import TEMPLATES, read_template, standalone_files, substitutions
 
 FMI_HEADERS = {2: TEMPLATES / "fmi2", 3: TEMPLATES / "fmi3"}
@@ -32,8 +33,6 @@ HEADER_FILES = {2: ("fmi2Functions.h", "fmi2FunctionTypes.h", "fmi2TypesPlatform
                 3: ("fmi3Functions.h", "fmi3FunctionTypes.h", "fmi3PlatformTypes.h")}
 NATIVE = Path(__file__).resolve().parent.parent / "native"
 NATIVE_FILES = ("lg_ode.c", "lg_ode.h", "lg_ode_tables.h")
-#: The native engine's methods in the order of lg_ode.h's enum (the values of solver.method).
-METHODS = ("RK23", "RK45", "DOP853", "Radau", "BDF")
 KINDS = ("me", "cs")
 KIND_TITLES = {"me": "Model Exchange", "cs": "Co-Simulation"}
 FMU_CFLAGS = ("-shared", "-fPIC", "-O2", "-fno-math-errno", "-std=gnu11", "-fvisibility=hidden")
@@ -70,15 +69,15 @@ def check_kind(kind, fmi_version):
 def solver_start_values(method, rtol, atol):
     """(method index, rtol, atol) of a co-simulation FMU's solver parameters; ValueError for an
     unknown method or a tolerance that is not positive (rtol) or not >= 0 (atol)."""
-    if method not in METHODS:
+    if method not in NATIVE_METHODS:
         raise ValueError(f"method {method!r} has no native implementation: use one of "
-                         f"{', '.join(METHODS)}")
+                         f"{', '.join(NATIVE_METHODS)}")
     rtol, atol = float(rtol), float(atol)
     if not (math.isfinite(rtol) and rtol > 0):
         raise ValueError(f"rtol must be positive, got {rtol}")
     if not (math.isfinite(atol) and atol >= 0):
         raise ValueError(f"atol must be zero or positive, got {atol}")
-    return METHODS.index(method), rtol, atol
+    return NATIVE_CODES[method], rtol, atol
 
 
 def variable_names(info):
@@ -146,11 +145,12 @@ def source_file_names(name, kind):
 
 
 def method_items():
-    """(name, value, description) of the enumeration solver.method."""
+    """(name, value, description) of the enumeration solver.method: the native engine's methods
+    with their codes in lg_ode.h."""
     what = {"RK23": "explicit Runge-Kutta 3(2)", "RK45": "explicit Runge-Kutta 5(4) (Dormand-Prince)",
             "DOP853": "explicit Runge-Kutta 8(5,3)", "Radau": "implicit Radau IIA order 5 (stiff)",
             "BDF": "implicit BDF orders 1-5 (stiff)"}
-    return [(m, i, what[m]) for i, m in enumerate(METHODS)]
+    return [(m, NATIVE_CODES[m], what[m]) for m in NATIVE_METHODS]
 
 
 def model_description(info, guid, start_values, start_time=0.0, stop_time=10.0, tolerance=None,
@@ -265,7 +265,17 @@ def fmu_core(info, n, guid, start_values, solver):
         n_events_or_1=max(len(events), 1),
         event_terminal=_numbers(e["terminal"] for e in events),
         event_direction=_numbers(e["direction"] for e in events),
-        start_method=method, start_rtol=_number(rtol), start_atol=_number(atol))
+        start_method=method, start_rtol=_number(rtol), start_atol=_number(atol),
+        n_methods=len(NATIVE_METHODS), method_names=method_names())
+
+
+def method_names():
+    """The C initializer of the method names indexed by their native codes."""
+    names = dict((code, name) for name, code in NATIVE_CODES.items())
+    if sorted(names) != list(range(len(names))):
+        raise BuildError("the native methods' codes are not 0, 1, ...: fmu_core.c.in indexes "
+                         "its name table by them")
+    return ", ".join(f'"{names[k]}"' for k in range(len(names)))
 
 
 def fmu_glue(info, n, kind, fmi_version):
