@@ -7,7 +7,8 @@ value reference. The C side is `templates/fmi3.c.in`; building and zipping are i
 from xml.etree import ElementTree as ET
 
 from .._version import __version__
-from .fmu import _number, method_items, value_references, variable_names, xml_text
+from .fmu import (_number, method_items, source_file_names, value_references, variable_names,
+                  xml_text)
 
 
 def model_description_fmi3(info, token, start_values, start_time=0.0, stop_time=10.0,
@@ -91,3 +92,14 @@ def model_description_fmi3(info, token, start_values, start_time=0.0, stop_time=
                 ET.SubElement(structure, element, {"valueReference": str(2 * n + i)})
     return xml_text(root)
 
+
+
+def build_description(name, kind):
+    """The text of sources/buildDescription.xml: the C files that rebuild the FMU (the glue
+    includes the model and the FMU core; a co-simulation FMU adds the native engine)."""
+    root = ET.Element("fmiBuildDescription", {"fmiVersion": "3.0"})
+    files = ET.SubElement(ET.SubElement(root, "BuildConfiguration", {"modelIdentifier": name}),
+                          "SourceFileSet", {"language": "C99"})
+    for file_name in source_file_names(name, kind):
+        ET.SubElement(files, "SourceFile", {"name": file_name})
+    return xml_text(root)

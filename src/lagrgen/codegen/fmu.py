@@ -290,7 +290,7 @@ def fmu_sources(model, params=None, start_time=0.0, stop_time=10.0, tolerance=No
                 fmi_version=2, method="DOP853", rtol=None, atol=None):
     """{file name: text}: the standalone model, the FMU core, the FMI glue and
     modelDescription.xml."""
-    from .fmi3 import model_description_fmi3
+    from .fmi3 import build_description, model_description_fmi3
     check_kind(kind, fmi_version)
     rtol = (tolerance if tolerance is not None else 1e-6) if rtol is None else rtol
     solver = solver_start_values(method, rtol, 1e-3 * rtol if atol is None else atol)
@@ -308,6 +308,8 @@ def fmu_sources(model, params=None, start_time=0.0, stop_time=10.0, tolerance=No
     describe = model_description if fmi_version == 2 else model_description_fmi3
     files["modelDescription.xml"] = describe(info, guid, start_values, start_time, stop_time,
                                              tolerance, kind, solver)
+    if fmi_version == 3:
+        files["buildDescription.xml"] = build_description(name, kind)
     return files
 
 
