@@ -25,14 +25,15 @@ KINDS = [("cs", 2), ("me", 3), ("cs", 3)]
 
 
 def swinging_pendulum():
-    """A pendulum whose third passage through theta = 0 ends the run (a counted terminal
-    event) and whose crossings of theta = 0.2 are only located."""
+    """A pendulum whose second rising passage through theta = 0 (its fourth passage) ends the
+    run (a counted, directed terminal event) and whose crossings of theta = 0.2 are only
+    located."""
     model = Model("counted_pendulum")
     theta, = model.coordinates("theta")
     m, L, g = model.parameters(m=1.0, L=1.0, g=9.81)
     model.particle(m, sp.Matrix([L * sp.sin(theta), -L * sp.cos(theta)]))
     model.potential_energy(-m * g * L * sp.cos(theta))
-    model.event("passes_bottom", theta, terminal=3, direction=0)
+    model.event("rises_through_bottom", theta, terminal=2, direction=1)
     model.event("passes_02", theta - 0.2)
     return model
 
@@ -290,24 +291,39 @@ def test_model_exchange_state_round_trip(tmp_path):
     fmu.freeInstance()
 
 
-@pytest.mark.parametrize("version", [2, 3])
-def test_a_counted_terminal_event_ends_the_cosimulation(tmp_path, version):
-    """The third passage through theta = 0 ends the run, counted across communication steps,
-    where `simulate` ends; FMPy records the state there."""
+@pytest.fixture(scope="module")
+def counted(tmp_path_factory):
+    """The counted pendulum and `simulate`'s run of it, which its fourth passage ends."""
     model = swinging_pendulum()
-    path = lagrgen.export_fmu(model, tmp_path, kind="cs", fmi_version=version, rtol=1e-10,
-                              atol=1e-12)
-    mod = lagrgen.build(model, out_dir=tmp_path / "gen")
+    mod = lagrgen.build(model, out_dir=tmp_path_factory.mktemp("counted"))
     sol = lagrgen.simulate(mod, (0.0, 10.0), {"theta": 0.5}, method="DOP853", rtol=1e-10,
                            atol=1e-12)
-    assert sol.status == 1 and len(sol.t_events[0]) == 3
-    t_end = sol.t_events[0][-1]
+    assert sol.status == 1 and len(sol.t_events[0]) == 2 and len(sol.t_events[1]) == 3
+    return model, sol
+
+
+@pytest.mark.parametrize("kind, version", [("cs", 2), ("cs", 3), ("me", 2), ("me", 3)])
+def test_a_counted_terminal_event_ends_the_run(counted, tmp_path, kind, version):
+    """The second rising passage through theta = 0 ends the run where `simulate` ends: counted
+    in its direction across communication steps by the co-simulation FMU's native engine, and,
+    in Model Exchange, from the event indicators whose crossings FMPy's CVode locates; FMPy
+    records the state there."""
+    model, sol = counted
+    path = lagrgen.export_fmu(model, tmp_path, kind=kind, fmi_version=version, rtol=1e-10,
+                              atol=1e-12)
+    assert validate_fmu(str(path)) == []
+    md = fmpy.read_model_description(str(path))
+    assert md.numberOfEventIndicators == (2 if kind == "me" else 0)
     res = fmpy.simulate_fmu(str(path), start_values={"theta": 0.5}, stop_time=10.0,
                             output_interval=0.05, output=["theta", "theta_dot"],
+                            relative_tolerance=1e-10 if kind == "me" else None,
                             early_return_allowed=True)
-    assert res["time"][-1] == pytest.approx(t_end, rel=1e-9)
-    assert res["time"][-1] < 10.0 and abs(res["theta"][-1]) < 1e-9
-    assert_allclose(res["theta_dot"][-1], sol.y[1, -1], rtol=1e-7)
+    t_end = sol.t_events[0][-1]
+    rtol = 1e-9 if kind == "cs" else 1e-7
+    assert res["time"][-1] == pytest.approx(t_end, rel=rtol)
+    assert abs(res["theta"][-1]) < 1e-7
+    assert_allclose(res["theta_dot"][-1], sol.y[1, -1], rtol=1e-6)
+    assert len(res) < 100                    # it stopped: 10 s would be over 200 samples
 
 
 def test_command_line_kinds_and_errors(tmp_path, capsys):

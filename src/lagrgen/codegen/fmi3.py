@@ -71,6 +71,11 @@ def model_description_fmi3(info, token, start_values, start_time=0.0, stop_time=
     for k, u in enumerate(info["inputs"]):
         variable(base + k, {"causality": "input", "variability": "continuous", "start": "0.0"},
                  f"input {u}")
+    if kind == "me":
+        for k, event in enumerate(info["events"]):
+            variable(vr["events"] + k, {"causality": "local", "variability": "continuous"},
+                     f"event indicator: the function of the event {event['name']} (a terminal "
+                     "event's crossings end the simulation)", name=f"event.{event['name']}")
     if kind == "cs":
         method, rtol, atol = solver
         tunable = {"causality": "parameter", "variability": "tunable"}
@@ -90,6 +95,8 @@ def model_description_fmi3(info, token, start_values, start_time=0.0, stop_time=
         for element in ("ContinuousStateDerivative", "InitialUnknown"):
             for i in range(2 * n):
                 ET.SubElement(structure, element, {"valueReference": str(2 * n + i)})
+        for k in range(len(info["events"])):
+            ET.SubElement(structure, "EventIndicator", {"valueReference": str(vr["events"] + k)})
     return xml_text(root)
 
 

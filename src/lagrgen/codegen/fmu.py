@@ -134,9 +134,11 @@ def _number(value):
 
 def value_references(info):
     """{what: value reference} of the variables after the model's: the solver settings of a
-    co-simulation FMU and time (FMI 3.0), as fmu_core.c.in numbers them."""
+    co-simulation FMU, time and the first event indicator (FMI 3.0), as fmu_core.c.in numbers
+    them."""
     end = 4 * len(info["coordinates"]) + len(info["parameters"]) + len(info["inputs"])
-    return {"solver.rtol": end, "solver.atol": end + 1, "solver.method": end + 2, "time": end + 3}
+    return {"solver.rtol": end, "solver.atol": end + 1, "solver.method": end + 2, "time": end + 3,
+            "events": end + 4}
 
 
 def source_file_names(name, kind):
@@ -165,7 +167,7 @@ def model_description(info, guid, start_values, start_time=0.0, stop_time=10.0, 
         "fmiVersion": "2.0", "modelName": name, "guid": guid,
         "description": f"{name}: M(q, t)·q'' = F(q, q', t, u), states q and q'",
         "generationTool": f"lagrgen {__version__}", "variableNamingConvention": "flat",
-        "numberOfEventIndicators": "0"})
+        "numberOfEventIndicators": str(len(info["events"]) if kind == "me" else 0)})
     common = {"modelIdentifier": name, "canGetAndSetFMUstate": "true",
               "canSerializeFMUstate": "true", "providesDirectionalDerivative": "true",
               "canNotUseMemoryManagementFunctions": "false"}
@@ -258,7 +260,7 @@ def _numbers(values, empty="0.0"):
 
 def fmu_core(info, n, guid, start_values, solver):
     """`<name>_fmu_core.c`: the variables, derivatives, FMU state and native-engine step."""
-    events = info.get("events", [])
+    events = info["events"]
     method, rtol, atol = solver
     return Template(read_template("fmu_core.c.in")).substitute(
         substitutions(info, n), guid=guid, start_parameters=_numbers(start_values),
