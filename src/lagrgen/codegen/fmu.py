@@ -340,10 +340,11 @@ def export_fmu(model, out_dir=".", params=None, start_time=0.0, stop_time=10.0, 
     Its states are x = [q, q̇] (variables named like the coordinates and `<coordinate>_dot`), with
     ẋ = [q̇, M⁻¹·F]; parameters are tunable parameters, inputs continuous inputs, the coordinates
     outputs; directional derivatives come from the analytic Jacobian; the FMU state can be got,
-    set and serialized. A co-simulation FMU advances each communication step with lagrgen's
-    native engine (the inputs held over the step, the model's compiled events located and
-    terminal ones ending the run); its method and tolerances are the tunable parameters
-    `solver.method`, `solver.rtol` and `solver.atol`.
+    set and serialized. A Model Exchange FMU's event indicators are the model's compiled events
+    (a terminal event's last counted crossing terminates the simulation). A co-simulation FMU
+    advances each communication step with lagrgen's native engine (the inputs held over the
+    step, the compiled events located and terminal ones ending the run); its method and
+    tolerances are the tunable parameters `solver.method`, `solver.rtol` and `solver.atol`.
 
     Parameters
     ----------
