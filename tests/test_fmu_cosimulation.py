@@ -11,7 +11,7 @@ import sympy as sp
 from numpy.testing import assert_allclose
 
 import lagrgen
-from lagrgen import Model
+from lagrgen import Model, ModelError
 from lagrgen.cli import main
 from lagrgen.methods import NATIVE_CODES
 
@@ -87,6 +87,8 @@ def test_every_kind_validates_and_is_described(pendulum, kind, version):
     else:
         assert [d.variable.name for d in md.derivatives] == [f"der({s})" for s in STATES]
         assert "solver.rtol" not in variables and "lg_ode.c" not in str(names)
+    for name in ("kinetic_energy", "potential_energy", "total_energy"):
+        assert (variables[name].causality, variables[name].initial) == ("local", "calculated")
     if version == 3:
         assert variables["time"].causality == "independent"
 
@@ -108,13 +110,18 @@ def test_cosimulation_agrees_with_simulate(pendulum, version, method, rtol, atol
               "solver.rtol": rtol, "solver.atol": atol}
     res = fmpy.simulate_fmu(str(fmus["cs", version]), start_values={**start, **params, **solver},
                             input=constant_input(0.5, T), stop_time=T, output_interval=0.05,
-                            output=STATES)
+                            output=STATES + list(mod.output_names))
     sol = lagrgen.simulate(mod, (0.0, T), start, params=params, inputs={"F": 0.5},
                            method=method, rtol=rtol, atol=atol, t_eval=res["time"])
     assert sol.engine == "native" and len(res) == 81
     fmu_y = np.array([res[k] for k in STATES])
     assert np.ptp(fmu_y) > 0.5
     assert_allclose(fmu_y, sol.y, atol=tol, rtol=0)
+    # the model's outputs (here the energies) are variables too, computed from the state
+    p = np.array([{**dict(zip(model.parameter_names, model.parameter_defaults)), **params}[k]
+                  for k in model.parameter_names])
+    want = np.array([mod.outputs(t, y, p, [0.5]) for t, y in zip(sol.t, sol.y.T)]).T
+    assert_allclose(np.array([res[k] for k in mod.output_names]), want, atol=20 * tol, rtol=0)
     # the importer's tolerance replaces solver.rtol's start value: a loose one moves the result
     loose = fmpy.simulate_fmu(str(fmus["cs", version]),
                               start_values={**start, **params,
@@ -396,3 +403,43 @@ def test_a_constrained_model_cosimulates_as_simulate(tmp_path):
     assert np.ptp(fmu_y[0]) > 10.0           # the crank turns over several times
     assert_allclose(fmu_y, sol.y, atol=1e-8, rtol=0)
     assert np.abs(mod.constraint_residuals(T, fmu_y[:, -1])).max() < 1e-8
+
+
+def test_user_outputs_are_variables_and_names_may_not_clash(tmp_path):
+    from fmpy.fmi2 import FMU2Model
+    model = Model("tip_pendulum")
+    theta, = model.coordinates("theta", units="rad")
+    m, L, g = model.parameters(m=(1.0, "kg"), L=(0.7, "m"), g=9.81)
+    tip = sp.Matrix([L * sp.sin(theta), -L * sp.cos(theta)])
+    model.particle(m, tip)
+    model.potential_energy(m * g * tip[1])
+    model.output("tip_x", tip[0], units="m")
+    path = lagrgen.export_fmu(model, tmp_path)
+    assert validate_fmu(str(path)) == []
+    md, variables = by_name(path)
+    assert "[m]" in variables["tip_x"].description
+    fmu = FMU2Model(guid=md.guid, unzipDirectory=fmpy.extract(str(path), tmp_path / "u"),
+                    modelIdentifier=model.name, instanceName="outputs")
+    fmu.instantiate()
+    fmu.setupExperiment(startTime=0.0)
+    fmu.enterInitializationMode()
+    fmu.setReal([variables["theta"].valueReference, variables["theta_dot"].valueReference,
+                 variables["L"].valueReference], [0.4, 1.5, 0.9])
+    fmu.exitInitializationMode()
+    got = fmu.getReal([variables[k].valueReference for k in ("tip_x", "kinetic_energy")])
+    assert_allclose(got, [0.9 * np.sin(0.4), 0.5 * 0.81 * 1.5 ** 2], rtol=1e-15)
+    fmu.terminate()
+    fmu.freeInstance()
+    clash = Model("clash_out")
+    x, = clash.coordinates("x")
+    clash.particle(1, x)
+    clash.output("x_dot", 2 * x)
+    with pytest.raises(ModelError, match="'x_dot' would be used twice"):
+        lagrgen.export_fmu(clash, tmp_path)
+    timed = Model("clash_time")
+    x, = timed.coordinates("x")
+    timed.particle(1, x)
+    timed.output("time", x)
+    assert validate_fmu(str(lagrgen.export_fmu(timed, tmp_path))) == []     # FMI 2.0: no time
+    with pytest.raises(ModelError, match="'time' would be used twice.*FMU's own"):
+        lagrgen.export_fmu(timed, tmp_path, fmi_version=3)

@@ -7,8 +7,8 @@ value reference. The C side is `templates/fmi3.c.in`; building and zipping are i
 from xml.etree import ElementTree as ET
 
 from .._version import __version__
-from .fmu import (_number, method_items, source_file_names, value_references, variable_names,
-                  xml_text)
+from .fmu import (_number, method_items, output_description, source_file_names,
+                  value_references, variable_names, xml_text)
 
 
 def model_description_fmi3(info, token, start_values, start_time=0.0, stop_time=10.0,
@@ -17,7 +17,7 @@ def model_description_fmi3(info, token, start_values, start_time=0.0, stop_time=
     co-simulation FMU's solver settings (`solver` = (method index, rtol, atol)) are tunable
     parameters."""
     name, q = info["name"], info["coordinates"]
-    n, names = len(q), variable_names(info)
+    n, names = len(q), variable_names(info, reserved=("time",))
     vr = value_references(info)
     root = ET.Element("fmiModelDescription", {
         "fmiVersion": "3.0", "modelName": name, "instantiationToken": token,
@@ -88,6 +88,10 @@ def model_description_fmi3(info, token, start_values, start_time=0.0, stop_time=
                                        "start": str(method)},
                  "integration method of the native engine", name="solver.method",
                  type_="Enumeration")
+    for k, output in enumerate(info["output_names"]):
+        variable(vr["outputs"] + k, {"causality": "local", "variability": "continuous",
+                                     "initial": "calculated"}, output_description(info, output),
+                 name=output)
     structure = ET.SubElement(root, "ModelStructure")
     for i in range(n):
         ET.SubElement(structure, "Output", {"valueReference": str(i)})

@@ -80,18 +80,21 @@ def solver_start_values(method, rtol, atol):
     return NATIVE_CODES[method], rtol, atol
 
 
-def variable_names(info):
-    """The FMU's variable names in value-reference order: q, q̇ (`<q>_dot`), der(q), der(q̇),
-    parameters, inputs; ModelError if two coincide."""
+def variable_names(info, reserved=()):
+    """The names of the model's FMU variables in value-reference order: q, q̇ (`<q>_dot`),
+    der(q), der(q̇), parameters, inputs; ModelError if two coincide, or coincide with one of the
+    outputs (variables of their own, after these) or of the `reserved` names."""
     q = info["coordinates"]
     qd = [f"{c}_dot" for c in q]
     names = [*q, *qd, *(f"der({c})" for c in q + qd), *info["parameters"], *info["inputs"]]
     seen = set()
-    for name in names:
+    for name in [*names, *info["output_names"], *reserved]:
         if name in seen:
             raise ModelError(
                 f"model {info['name']!r}: the FMU variable name {name!r} would be used twice (the "
-                "velocities are named <coordinate>_dot): rename the coordinate, parameter or input")
+                "velocities are named <coordinate>_dot, the outputs by their names"
+                + (", and " + ", ".join(reserved) + " is the FMU's own" if reserved else "")
+                + "): rename the coordinate, parameter, input or output")
         seen.add(name)
     return names
 
@@ -134,11 +137,11 @@ def _number(value):
 
 def value_references(info):
     """{what: value reference} of the variables after the model's: the solver settings of a
-    co-simulation FMU, time and the first event indicator (FMI 3.0), as fmu_core.c.in numbers
-    them."""
+    co-simulation FMU, time and the first event indicator (FMI 3.0), the first output, as
+    fmu_core.c.in numbers them."""
     end = 4 * len(info["coordinates"]) + len(info["parameters"]) + len(info["inputs"])
     return {"solver.rtol": end, "solver.atol": end + 1, "solver.method": end + 2, "time": end + 3,
-            "events": end + 4}
+            "events": end + 4, "outputs": end + 4 + len(info["events"])}
 
 
 def source_file_names(name, kind):
@@ -236,6 +239,11 @@ def model_description(info, guid, start_values, start_time=0.0, stop_time=10.0, 
                  {"declaredType": "lagrgen.Method", "start": str(method)},
                  "integration method of the native engine", name="solver.method",
                  type_="Enumeration")
+    vr = value_references(info)
+    for k, output in enumerate(info["output_names"]):
+        variable(vr["outputs"] + k, {"causality": "local", "variability": "continuous",
+                                     "initial": "calculated"}, {}, output_description(info, output),
+                 name=output)
     structure = ET.SubElement(root, "ModelStructure")
     outputs = ET.SubElement(structure, "Outputs")
     for i in range(n):
@@ -246,6 +254,13 @@ def model_description(info, guid, start_values, start_time=0.0, stop_time=10.0, 
         ET.SubElement(derivatives, "Unknown", {"index": str(2 * n + i + 1)})
         ET.SubElement(initial, "Unknown", {"index": str(2 * n + i + 1)})
     return xml_text(root)
+
+
+def output_description(info, output):
+    """The description of the variable of a model output (`model.output` or an energy)."""
+    unit = info["units"].get(output)
+    return f"model output {output}" + (f" [{unit}]" if unit else "") + \
+        " (computed from the state; no directional derivative)"
 
 
 def xml_text(root):
@@ -264,7 +279,7 @@ def fmu_core(info, n, guid, start_values, solver):
     method, rtol, atol = solver
     return Template(read_template("fmu_core.c.in")).substitute(
         substitutions(info, n), guid=guid, start_parameters=_numbers(start_values),
-        n_events_or_1=max(len(events), 1),
+        n_events_or_1=max(len(events), 1), n_outputs_or_1=max(len(info["output_names"]), 1),
         event_terminal=_numbers(e["terminal"] for e in events),
         event_direction=_numbers(e["direction"] for e in events),
         start_method=method, start_rtol=_number(rtol), start_atol=_number(atol),
