@@ -443,3 +443,14 @@ def test_user_outputs_are_variables_and_names_may_not_clash(tmp_path):
     assert validate_fmu(str(lagrgen.export_fmu(timed, tmp_path))) == []     # FMI 2.0: no time
     with pytest.raises(ModelError, match="'time' would be used twice.*FMU's own"):
         lagrgen.export_fmu(timed, tmp_path, fmi_version=3)
+
+
+@pytest.mark.parametrize("version", [2, 3])
+def test_a_failing_step_is_an_error_that_says_why(pendulum, version):
+    """Negative masses make M negative definite: the step fails with the engine's reason."""
+    _, _, fmus = pendulum
+    messages = []
+    with pytest.raises(Exception, match=f"fmi{version}DoStep"):
+        fmpy.simulate_fmu(str(fmus["cs", version]), start_values={"m1": -1.0, "m2": -1.0},
+                          stop_time=1.0, logger=lambda *args: messages.append(args[-1]))
+    assert any(b"mass matrix is not positive definite at t = 0" in m for m in messages)
