@@ -365,7 +365,7 @@ def rebuilt_from_its_sources(path, work):
     import ctypes
     import subprocess
     import xml.etree.ElementTree as ET
-    from lagrgen.build import compiler_command
+    from lagrgen.codegen.fmu import compiler_command      # the toolchain the export uses
     with zipfile.ZipFile(path) as fmu:
         fmu.extractall(work)
     sources = work / "sources"
