@@ -1,13 +1,14 @@
 """The FMI 3.0 model description of an exported FMU (Model Exchange or Co-Simulation).
 
 Same variables and value references as the FMI 2.0 FMU (see `fmu_core.c.in`), as Float64
-variables; FMI 3.0 adds the independent variable `time`, and a derivative names its state by
+variables (solver.method an enumeration); FMI 3.0 adds the independent variable `time` and, in
+Model Exchange, the event indicators as variables `event.<name>`; a derivative names its state by
 value reference. The C side is `templates/fmi3.c.in`; building and zipping are in `fmu.py`.
 """
 from xml.etree import ElementTree as ET
 
 from .._version import __version__
-from .fmu import (_number, method_items, output_description, source_file_names,
+from .fmu import (number_text, method_items, output_description, source_file_names,
                   value_references, variable_names, xml_text)
 
 
@@ -41,9 +42,9 @@ def model_description_fmi3(info, token, start_values, start_time=0.0, stop_time=
                                                 "description": what})
     categories = ET.SubElement(root, "LogCategories")
     ET.SubElement(categories, "Category", {"name": "logStatusError", "description": "errors"})
-    experiment = {"startTime": _number(start_time), "stopTime": _number(stop_time)}
+    experiment = {"startTime": number_text(start_time), "stopTime": number_text(stop_time)}
     if tolerance is not None:
-        experiment["tolerance"] = _number(tolerance)
+        experiment["tolerance"] = number_text(tolerance)
     ET.SubElement(root, "DefaultExperiment", experiment)
     variables = ET.SubElement(root, "ModelVariables")
 
@@ -66,7 +67,7 @@ def model_description_fmi3(info, token, start_values, start_time=0.0, stop_time=
     base = 4 * n
     for j, (p, value) in enumerate(zip(info["parameters"], start_values)):
         variable(base + j, {"causality": "parameter", "variability": "tunable",
-                            "start": _number(value)}, f"parameter {p}")
+                            "start": number_text(value)}, f"parameter {p}")
     base += len(info["parameters"])
     for k, u in enumerate(info["inputs"]):
         variable(base + k, {"causality": "input", "variability": "continuous", "start": "0.0"},
@@ -79,10 +80,10 @@ def model_description_fmi3(info, token, start_values, start_time=0.0, stop_time=
     if kind == "cs":
         method, rtol, atol = solver
         tunable = {"causality": "parameter", "variability": "tunable"}
-        variable(vr["solver.rtol"], {**tunable, "start": _number(rtol)},
+        variable(vr["solver.rtol"], {**tunable, "start": number_text(rtol)},
                  "relative tolerance of the native engine (the experiment's tolerance, when "
                  "the importer gives one, replaces it)", name="solver.rtol")
-        variable(vr["solver.atol"], {**tunable, "start": _number(atol)},
+        variable(vr["solver.atol"], {**tunable, "start": number_text(atol)},
                  "absolute tolerance of the native engine", name="solver.atol")
         variable(vr["solver.method"], {**tunable, "declaredType": "lagrgen.Method",
                                        "start": str(method)},

@@ -131,7 +131,7 @@ def fmu_guid(info, start_values, start_time, stop_time, settings=()):
     return "{" + str(uuid.uuid5(uuid.NAMESPACE_URL, "lagrgen:" + text)) + "}"
 
 
-def _number(value):
+def number_text(value):
     return repr(float(value))
 
 
@@ -197,9 +197,9 @@ def model_description(info, guid, start_values, start_time=0.0, stop_time=10.0, 
     categories = ET.SubElement(root, "LogCategories")
     ET.SubElement(categories, "Category", {"name": "logStatusError",
                                            "description": "errors"})
-    experiment = {"startTime": _number(start_time), "stopTime": _number(stop_time)}
+    experiment = {"startTime": number_text(start_time), "stopTime": number_text(stop_time)}
     if tolerance is not None:
-        experiment["tolerance"] = _number(tolerance)
+        experiment["tolerance"] = number_text(tolerance)
     ET.SubElement(root, "DefaultExperiment", experiment)
     variables = ET.SubElement(root, "ModelVariables")
 
@@ -222,7 +222,7 @@ def model_description(info, guid, start_values, start_time=0.0, stop_time=10.0, 
     base = 4 * n
     for j, (p, value) in enumerate(zip(info["parameters"], start_values)):
         variable(base + j, {"causality": "parameter", "variability": "tunable",
-                            "initial": "exact"}, {"start": _number(value)}, f"parameter {p}")
+                            "initial": "exact"}, {"start": number_text(value)}, f"parameter {p}")
     base += len(info["parameters"])
     for k, u in enumerate(info["inputs"]):
         variable(base + k, {"causality": "input", "variability": "continuous"},
@@ -231,10 +231,10 @@ def model_description(info, guid, start_values, start_time=0.0, stop_time=10.0, 
         vr = value_references(info)
         method, rtol, atol = solver
         tunable = {"causality": "parameter", "variability": "tunable", "initial": "exact"}
-        variable(vr["solver.rtol"], tunable, {"start": _number(rtol)},
+        variable(vr["solver.rtol"], tunable, {"start": number_text(rtol)},
                  "relative tolerance of the native engine (the experiment's tolerance, when "
                  "the importer gives one, replaces it)", name="solver.rtol")
-        variable(vr["solver.atol"], tunable, {"start": _number(atol)},
+        variable(vr["solver.atol"], tunable, {"start": number_text(atol)},
                  "absolute tolerance of the native engine", name="solver.atol")
         variable(vr["solver.method"], tunable,
                  {"declaredType": "lagrgen.Method", "start": str(method)},
@@ -270,8 +270,8 @@ def xml_text(root):
         + "\n"
 
 
-def _numbers(values, empty="0.0"):
-    return ", ".join(_number(v) for v in values) or empty
+def numbers_text(values, empty="0.0"):
+    return ", ".join(number_text(v) for v in values) or empty
 
 
 def fmu_core(info, n, guid, start_values, solver):
@@ -279,11 +279,11 @@ def fmu_core(info, n, guid, start_values, solver):
     events = info["events"]
     method, rtol, atol = solver
     return Template(read_template("fmu_core.c.in")).substitute(
-        substitutions(info, n), guid=guid, start_parameters=_numbers(start_values),
+        substitutions(info, n), guid=guid, start_parameters=numbers_text(start_values),
         n_events_or_1=max(len(events), 1), n_outputs_or_1=max(len(info["output_names"]), 1),
-        event_terminal=_numbers(e["terminal"] for e in events),
-        event_direction=_numbers(e["direction"] for e in events),
-        start_method=method, start_rtol=_number(rtol), start_atol=_number(atol),
+        event_terminal=numbers_text(e["terminal"] for e in events),
+        event_direction=numbers_text(e["direction"] for e in events),
+        start_method=method, start_rtol=number_text(rtol), start_atol=number_text(atol),
         n_methods=len(NATIVE_METHODS), method_names=method_names())
 
 
