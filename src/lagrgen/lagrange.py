@@ -240,25 +240,53 @@ class _Converter:
             raise ModelError(f"cannot convert {expr} for differentiation: {exc}") from None
 
 
-def _add_particle(M, F, mass, position, q, qd, t):
-    """Add a point mass: M += m·JᵀJ, F −= m·Jᵀ·b, with J = ∂r/∂q and b = r̈ at q̈ = 0.
+def _add_particles(M, F, particles, q, qd, t):
+    """Add point masses of constant mass, [(m, r)]: M += Σ m·JᵀJ, F −= Σ m·Jᵀ·b, with J = ∂r/∂q
+    and b = r̈ at q̈ = 0.
 
-    The kinematic products (Σ_c J_ci·J_cj, Σ_c J_ci·b_c) are expanded and added term by term into
-    the `_Terms` accumulators M[i][j], F[i] with the mass as their weight, so that bodies sharing a
-    kinematic product end up with one product times the sum of their masses (see `_Terms.expr`).
+    Composite bodies first: the masses of the particles whose Jacobian columns i and j are the
+    same expressions (every body beyond joint max(i, j) of a chain) are summed before their product
+    Σ_c J_ci·J_cj is formed, and each b is expanded once, its terms summed by mass per column i;
+    so a chain of n bodies forms O(n²) kinematic products instead of O(n³) (the bookkeeping that
+    groups them is O(n³) dictionary updates). The products go into the `_Terms` accumulators
+    M[i][j], F[i] with the summed masses as their weights (see `_Terms.expr`).
     """
     n = len(q)
-    J = [[diff(rc, qi) if qi in free else se.Integer(0) for qi in q]
-         for rc, free in ((rc, rc.free_symbols) for rc in position)]
-    v = [sum((Jc[i] * qd[i] for i in range(n) if Jc[i] != 0), diff(rc, t))
-         for Jc, rc in zip(J, position)]
-    b = [rate(vc, q, qd, t) for vc in v]
-    active = [i for i in range(n) if any(Jc[i] != 0 for Jc in J)]
-    for i in active:
-        for j in active:
-            if j <= i:
-                M[i][j].add(sum(Jc[i] * Jc[j] for Jc in J), mass)
-        F[i].add(sum(Jc[i] * bc for Jc, bc in zip(J, b)), -mass)
+    pair_masses = {}   # (i, j, column i, column j) -> [m]
+    force = {}         # (i, column i) -> per component {term: {numeric coefficient: [m]}}
+    for mass, position in particles:
+        J = [[diff(rc, qi) if qi in free else se.Integer(0) for qi in q]
+             for rc, free in ((rc, rc.free_symbols) for rc in position)]
+        v = [sum((Jc[i] * qd[i] for i in range(n) if Jc[i] != 0), diff(rc, t))
+             for Jc, rc in zip(J, position)]
+        b = [_expanded_terms(rate(vc, q, qd, t)) for vc in v]
+        active = [i for i in range(n) if any(Jc[i] != 0 for Jc in J)]
+        columns = {i: tuple(Jc[i] for Jc in J) for i in active}
+        for i in active:
+            for j in active:
+                if j <= i:
+                    pair_masses.setdefault((i, j, columns[i], columns[j]), []).append(mass)
+            sums = force.setdefault((i, columns[i]), [{} for _ in b])
+            for by_term, terms in zip(sums, b):
+                for coeff, term in terms:
+                    by_term.setdefault(term, {}).setdefault(coeff, []).append(mass)
+    for (i, j, ci, cj), masses in pair_masses.items():
+        M[i][j].add(sum(a * c for a, c in zip(ci, cj)), se.Add(*masses))
+    for (i, column), sums in force.items():
+        for Jci, by_term in zip(column, sums):
+            if Jci == 0:
+                continue
+            for term, by_coeff in by_term.items():
+                weight = se.Add(*(coeff * se.Add(*masses) for coeff, masses in by_coeff.items()))
+                F[i].add(Jci * term, -weight)
+
+
+def _expanded_terms(expr):
+    """[(number, rest)] of the terms of expr expanded."""
+    expr = se.expand(expr)
+    if expr == 0:
+        return []
+    return [_numeric_part(term) for term in (expr.args if isinstance(expr, se.Add) else (expr,))]
 
 
 class _Terms:
@@ -390,6 +418,17 @@ def _structured(terms, kinematic):
         by_kin.setdefault(kin, []).append(coeff * par)
     by_par = {}
     for kin, pars in by_kin.items():
+        if len(pars) == 1 and isinstance(pars[0], se.Mul) and any(
+                isinstance(f, se.Add) for f in pars[0].args):
+            # one product of a composite body's summed masses and parameters: already grouped
+            # (its sums expanded, short, so that cancelling weights give 0)
+            par = se.Mul(*(se.expand(f) if isinstance(f, se.Add) else f for f in pars[0].args))
+            if par == 0:
+                continue
+            c, rest = _numeric_part(par)
+            kinsum = by_par.setdefault(rest, {})
+            kinsum[kin] = kinsum.get(kin, 0) + c
+            continue
         psum = se.expand(se.Add(*pars))
         if psum == 0:
             continue
@@ -485,6 +524,7 @@ def derive(spec):
     F = [_Terms(kinematic) for _ in range(n)]
 
     general_T = [convert(e) for e in spec.kinetic]
+    particles = []
     for mass, position in spec.particles:
         m = convert(mass)
         r = [convert(c) for c in position]
@@ -492,7 +532,8 @@ def derive(spec):
             v = [rate(rc, q, qd, t) for rc in r]
             general_T.append(m * sum(vc * vc for vc in v) / 2)
         else:
-            _add_particle(M, F, m, r, q, qd, t)
+            particles.append((m, r))
+    _add_particles(M, F, particles, q, qd, t)
     for inertia, omega in spec.bodies_3d:
         _add_rotation(M, F, [[convert(e) for e in row] for row in inertia.tolist()],
                       [convert(e) for e in omega], q, qd, t)
