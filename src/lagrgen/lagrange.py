@@ -259,13 +259,15 @@ def _add_particles(M, F, particles, q, qd, t):
              for rc, free in ((rc, rc.free_symbols) for rc in position)]
         v = [sum((Jc[i] * qd[i] for i in range(n) if Jc[i] != 0), diff(rc, t))
              for Jc, rc in zip(J, position)]
-        b = [_expanded_terms(rate(vc, q, qd, t)) for vc in v]
+        rates = [rate(vc, q, qd, t) for vc in v]
+        b = [_expanded_terms(bc) for bc in rates]
         active = [i for i in range(n) if any(Jc[i] != 0 for Jc in J)]
         columns = {i: tuple(Jc[i] for Jc in J) for i in active}
         for i in active:
             for j in active:
                 if j <= i:
                     pair_masses.setdefault((i, j, columns[i], columns[j]), []).append(mass)
+            F[i].record(-mass * sum(Jci * bc for Jci, bc in zip(columns[i], rates)))
             sums = force.setdefault((i, columns[i]), [{} for _ in b])
             for by_term, terms in zip(sums, b):
                 for coeff, term in terms:
@@ -278,7 +280,7 @@ def _add_particles(M, F, particles, q, qd, t):
                 continue
             for term, by_coeff in by_term.items():
                 weight = se.Add(*(coeff * se.Add(*masses) for coeff, masses in by_coeff.items()))
-                F[i].add(Jci * term, -weight)
+                F[i].add(Jci * term, -weight, plain=False)
 
 
 def _expanded_terms(expr):
@@ -303,8 +305,10 @@ class _Terms:
         self.terms = {}      # term without its numeric factor -> coefficient (number or expr)
         self.plain = []      # the weighted expressions as added, for comparison
 
-    def add(self, expr, weight=1):
-        self.plain.append(expr * weight)
+    def add(self, expr, weight=1, plain=True):
+        """Add weight·expr (to the plain sum too unless `plain` is False: see `record`)."""
+        if plain:
+            self.plain.append(expr * weight)
         expr = se.expand(expr)
         if expr == 0:
             return
@@ -312,6 +316,10 @@ class _Terms:
             coeff, rest = _numeric_part(term)
             key = rest
             self.terms[key] = self.terms.get(key, 0) + coeff * weight
+
+    def record(self, expr):
+        """Add expr to the plain sum only: the form of terms added with plain=False."""
+        self.plain.append(expr)
 
     def __iadd__(self, expr):
         self.add(expr)
