@@ -111,27 +111,23 @@ def create_store(path, meta, runs, chunk):
     coords, small, big, attrs = layout(meta, runs)
     skeleton = xr.Dataset({name: (dims, v, a) for name, (dims, v, a) in small.items()},
                           coords=coords, attrs=attrs)
-    skeleton.to_zarr(str(path), mode="w", consolidated=False)
+    try:        # Zarr format 2: the format every Zarr reader knows (strings, consolidation)
+        skeleton.to_zarr(str(path), mode="w", consolidated=False, zarr_format=2)
+    except TypeError:       # xarray before 2024.10 (Zarr 2) writes format 2 without being asked
+        skeleton.to_zarr(str(path), mode="w", consolidated=False)
     group = zarr.open_group(str(path), mode="r+")
-    v3 = _zarr_format(group) == 3
     for name, (dims, shape, dtype, a) in big.items():
         chunks = (chunk,) + tuple(shape[1:])
-        fill = np.nan if dtype == "f8" else None
-        if v3:
-            group.create_array(name, shape=shape, chunks=chunks, dtype=dtype,
-                               fill_value=fill if fill is not None else 0,
-                               dimension_names=dims, attributes=a)
+        fill = np.nan if dtype == "f8" else None     # None: integers and flags are not masked
+        attrs = dict(a, _ARRAY_DIMENSIONS=list(dims))
+        if hasattr(group, "create_array"):
+            group.create_array(name, shape=shape, chunks=chunks, dtype=dtype, fill_value=fill,
+                               attributes=attrs)
         else:
-            arr = group.create_dataset(name, shape=shape, chunks=chunks, dtype=dtype,
-                                       fill_value=fill)
-            arr.attrs.update(dict(a, _ARRAY_DIMENSIONS=list(dims)))
+            group.create_dataset(name, shape=shape, chunks=chunks, dtype=dtype,
+                                 fill_value=fill).attrs.update(attrs)
     group.attrs["complete"] = False
     zarr.consolidate_metadata(str(path))
-
-
-def _zarr_format(group):
-    metadata = getattr(group, "metadata", None)
-    return getattr(metadata, "zarr_format", 2)
 
 
 def write_part(path, start, result):
