@@ -629,7 +629,7 @@ def _worker_target(client, mod):
         if not _UPLOADED.get(key):
             client.upload_file(mod.__file__, load=False)
             _UPLOADED[key] = True
-    return ("module", mod.__name__)
+    return ("module", (mod.__name__, os.path.basename(mod.__file__)))
 
 
 def _on_dask(client, mod, plan, parts, sink, bar):
@@ -653,15 +653,31 @@ def _on_dask(client, mod, plan, parts, sink, bar):
 def _dask_part(part, target, plan, store):
     """One chunk on a Dask worker: import the uploaded compiled model (or use the object)."""
     kind, value = target
-    if kind == "module":
-        import importlib
-        mod = importlib.import_module(value)
-    else:
-        mod = value
+    mod = _uploaded_module(*value) if kind == "module" else value
     stop = np.zeros(1, dtype=np.intc)
     if store is None:
         return solve_part(mod, plan, part, stop=stop)
     return _solve_into(mod, plan, part, StoreSink(store), stop)
+
+
+_WORKER_MODULES = {}
+
+
+def _uploaded_module(name, filename):
+    """The compiled model uploaded into this Dask worker's directory, imported by its path once
+    per worker process (not by name: a module of the same name elsewhere on sys.path, such as the
+    model's description, must not shadow it)."""
+    from distributed import get_worker
+    path = os.path.join(get_worker().local_directory, filename)
+    if path not in _WORKER_MODULES:
+        import importlib.machinery
+        import importlib.util
+        loader = importlib.machinery.ExtensionFileLoader(name, path)
+        spec = importlib.util.spec_from_file_location(name, path, loader=loader)
+        module = importlib.util.module_from_spec(spec)
+        loader.exec_module(module)
+        _WORKER_MODULES[path] = module
+    return _WORKER_MODULES[path]
 
 
 def chunks(runs, parts):
