@@ -280,11 +280,12 @@ def on_sigint(signum, frame):
     hit.append(time.monotonic())
     raise KeyboardInterrupt
 signal.signal(signal.SIGINT, on_sigint)
-P = np.tile(mod.defaults, (400000, 1))
+P = np.tile(mod.defaults, (int(sys.argv[1]), 1))
+t_end = float(sys.argv[2])
 print("start", flush=True)
 try:
-    lagrgen.simulate_many(mod, (0.0, 10.0), [0.5, 0, 0, 0], params=P,
-                          t_eval=np.linspace(0, 10, 11), rtol=1e-10, atol=1e-10, workers=2,
+    lagrgen.simulate_many(mod, (0.0, t_end), [0.5, 0, 0, 0], params=P,
+                          t_eval=np.linspace(0, t_end, 11), rtol=1e-10, atol=1e-10, workers=2,
                           progress=False)
     print("finished", flush=True)
 except KeyboardInterrupt:
@@ -294,10 +295,13 @@ print("usable", bool(ens.success.all()), flush=True)
 """
 
 
-def test_ctrl_c_stops_every_running_batch_quickly(mod):
+@pytest.mark.parametrize("runs, t_end", [(400000, 10.0), (6, 1e5)], ids=["many short runs",
+                                                                         "a few long runs"])
+def test_ctrl_c_stops_every_running_batch_quickly(mod, runs, t_end):
     script = CTRL_C.format(directory=os.path.dirname(mod.__file__), name=mod.__name__)
     env = dict(os.environ, PYTHONPATH=os.pathsep.join(p for p in sys.path if p))
-    proc = subprocess.Popen([sys.executable, "-c", script], stdout=subprocess.PIPE,
+    proc = subprocess.Popen([sys.executable, "-c", script, str(runs), str(t_end)],
+                            stdout=subprocess.PIPE,
                             stderr=subprocess.PIPE, text=True, env=env)
     try:
         assert proc.stdout.readline().strip() == "start"
@@ -310,3 +314,13 @@ def test_ctrl_c_stops_every_running_batch_quickly(mod):
     assert lines[0].startswith("stopped"), (out, err)
     assert float(lines[0].split()[1]) < 0.5
     assert lines[1] == "usable True"
+
+
+def test_step_guard_per_run_in_the_batch(mod):
+    ens = lagrgen.simulate_many(mod, (0.0, 10.0), [0.5, 0, 0, 0], params=masses(mod, 3),
+                                t_eval=[0.0, 10.0], max_steps=5, workers=2)
+    ref = lagrgen.simulate(mod, (0.0, 10.0), [0.5, 0, 0, 0], params=masses(mod, 3)[2],
+                           t_eval=[0.0, 10.0], max_steps=5)
+    assert not ens.success.any() and list(ens.status) == [-1] * 3
+    assert ens.message[2] == ref.message and "max_steps" in ref.message
+    assert_array_equal(ens.y[2, :, :ref.y.shape[1]], ref.y)

@@ -2,7 +2,7 @@
 cluster, collected into arrays (runs × states × times), labelled data (`to_xarray`) or a Zarr store.
 
 The runs are split into contiguous chunks. On the native engine a chunk is one call into C
-(`lagrgen._native.solve_batch`) that loops over its runs without the GIL and without Python
+(`lagrgen.native._ode.solve_batch`) that loops over its runs without the GIL and without Python
 between runs, writing states, multipliers and outputs into preallocated arrays; threads and Dask
 tasks each run whole chunks. Runs that need the SciPy engine (callable inputs, LSODA, a model of
 the Python backend, options only `solve_ivp` has) take the per-run path, one `lagrgen.simulate`
@@ -21,10 +21,12 @@ from typing import Optional
 import numpy as np
 
 from .errors import LagrgenError
-from .native_engine import _t_eval, _tolerances, input_specs, native_reason
-from .runtime.arguments import as_vector, state_vector
+from .methods import BY_NAME
+from .native.engine import (_event_arrays, _t_eval, _tolerances, native_events,
+                             native_reason)
+from .runtime.arguments import as_vector, input_specs, parameters_from, state_vector
 from .signals import Signal, constant_spec
-from .simulate import evaluate_outputs, native_events, parameters_from, simulate
+from .simulate import evaluate_outputs, simulate
 
 #: The messages of the native engine for status 0 and 1 (those of solve_ivp).
 MESSAGES = {0: "The solver successfully reached the end of the integration interval.",
@@ -281,12 +283,12 @@ def solve_part(mod, plan, part, out=None, stop=None):
 def _solve_batch(mod, plan, part, out, stop):
     """The chunk in one call into C; returns the indices of the runs to redo on the per-run
     path (failures, whose error message and partial states come from `simulate`)."""
-    from . import _native
+    from .native import _ode as _native
     cm = mod.compiled_model
     rtol, atol = _tolerances(plan.rtol, plan.atol, plan.dim)
-    jac = cm.function_address("jacobian") if plan.method in ("Radau", "BDF") else 0
+    jac = cm.function_address("jacobian") if BY_NAME[plan.method].stiff else 0
     events = native_events(mod) if getattr(mod, "event_definitions", ()) else None
-    ev_addr, ev_max, ev_dir = _native_event_arrays(events)
+    ev_addr, ev_max, ev_dir = _event_arrays(events)
     extras = []
     if plan.n_constraints:
         extras.append((cm.function_address("constraint_forces"), plan.n_constraints,
@@ -301,14 +303,10 @@ def _solve_batch(mod, plan, part, out, stop):
                         float(plan.t_span[1]), rtol, atol,
                         float(plan.options.get("max_step", np.inf)),
                         float(plan.options.get("first_step") or 0.0), plan.t_eval, ev_addr,
-                        ev_max, ev_dir, True, extras, out["y"], out["status"], out["nfev"], stop)
+                        ev_max, ev_dir, True, extras, out["y"], out["status"], out["nfev"], stop,
+                        int(plan.options.get("max_steps") or 0),
+                        float(plan.options.get("max_wall_time") or 0.0))
     return sorted(set(redo) | set(np.flatnonzero(out["status"] == -1).tolist()))
-
-
-def _native_event_arrays(events):
-    from .native_engine import _event_arrays
-    address, emax, edir = _event_arrays(events)
-    return address, emax, edir
 
 
 def _inconsistent_starts(mod, plan, part):
@@ -328,7 +326,7 @@ def _inconsistent_starts(mod, plan, part):
 
 
 def _run_u(mod, plan, part, i, t):
-    from . import _native
+    from .native import _ode as _native
     return np.array([part.inputs[i, j] if spec[0] == "constant" else
                      _native.signal_values(tuple(spec), t)[0]
                      for j, spec in enumerate(plan.specs or ())])
@@ -389,7 +387,7 @@ def batch_reason(mod, method, options):
     batch collects them (`has_transitions` on the built model)."""
     if options.get("engine") == "scipy":
         return "engine='scipy'"
-    rest = {k: v for k, v in options.items() if k != "engine"}
+    rest = {k: v for k, v in options.items() if k not in ("engine", "max_steps", "max_wall_time")}
     why = native_reason(mod, method, None, None, rest)
     if why:
         return why
