@@ -324,3 +324,16 @@ def test_step_guard_per_run_in_the_batch(mod):
     assert not ens.success.any() and list(ens.status) == [-1] * 3
     assert ens.message[2] == ref.message and "max_steps" in ref.message
     assert_array_equal(ens.y[2, :, :ref.y.shape[1]], ref.y)
+
+
+def test_inputs_as_one_vector_or_one_row_per_run(mod):
+    shared = lagrgen.simulate_many(mod, (0.0, 1.0), [0.2, 0, 0, 0], inputs=np.array([0.3]),
+                                   t_eval=T[:11])
+    rows = lagrgen.simulate_many(mod, (0.0, 1.0), [0.2, 0, 0, 0],
+                                 inputs=np.array([[0.0], [0.3]]), t_eval=T[:11])
+    assert shared.runs == 1 and rows.runs == 2
+    ref = lagrgen.simulate(mod, (0.0, 1.0), [0.2, 0, 0, 0], inputs={"F": 0.3}, t_eval=T[:11])
+    assert_array_equal(shared.y[0], ref.y)
+    assert_array_equal(rows.y[1], ref.y)
+    with pytest.raises(ValueError, match="inputs gives 2 runs but another argument gives 3"):
+        lagrgen.simulate_many(mod, (0.0, 1.0), np.zeros((3, 4)), inputs=[{}, {}], t_eval=T[:11])

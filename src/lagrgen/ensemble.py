@@ -150,16 +150,29 @@ def _rows(values, runs, width, what, convert):
 
 def ensemble_arguments(mod, y0, params, inputs):
     """(Y0 (runs, 2n), P (runs, n_params), inputs list): the runs' arguments, converted once."""
-    runs = max(_count(y0, 1), _count(params, 1), _count(inputs, 0) if not isinstance(
-        inputs, dict) else 1)
+    runs = max(_count(y0, 1), _count(params, 1), _input_count(inputs))
     coordinates = tuple(mod.coordinates)
     Y0 = _rows(y0, runs, 2 * len(coordinates), "y0", lambda v: state_vector(v, coordinates))
     P = _rows(params, runs, len(mod.parameters), "params", lambda v: parameters_from(mod, v))
-    if inputs is None or isinstance(inputs, dict):
+    if _input_count(inputs) == 1 and not isinstance(inputs, (list, tuple)):
         run_inputs = [inputs] * runs
     else:
-        run_inputs = _per_run(list(inputs), runs, 0, "inputs")
+        run_inputs = list(inputs)
+        if len(run_inputs) not in (1, runs):
+            raise ValueError(f"inputs gives {len(run_inputs)} runs but another argument gives "
+                             f"{runs}: give one inputs for all runs or one per run")
+        run_inputs = run_inputs * runs if len(run_inputs) == 1 else run_inputs
     return Y0, P, run_inputs
+
+
+def _input_count(inputs):
+    """The number of runs `inputs` asks for: None, a dict or one input vector are shared; a list
+    (of dicts or vectors) or a 2-D array give one entry per run."""
+    if inputs is None or isinstance(inputs, dict):
+        return 1
+    if isinstance(inputs, (list, tuple)):
+        return len(inputs)
+    return np.shape(inputs)[0] if np.ndim(inputs) == 2 else 1
 
 
 def batch_inputs(mod, inputs, run_inputs):
@@ -169,13 +182,19 @@ def batch_inputs(mod, inputs, run_inputs):
     names = tuple(mod.inputs)
     runs = len(run_inputs)
     U = np.zeros((runs, max(len(names), 1)))
-    if inputs is None or isinstance(inputs, dict):
+    if inputs is None or isinstance(inputs, dict) or (isinstance(inputs, np.ndarray)
+                                                      and inputs.ndim == 1):
         if native_reason(mod, "RK45", inputs, None, {}) is not None:
             return None
         specs = input_specs(mod, inputs)
         for i, spec in enumerate(specs):
             U[:, i] = spec[1]
         return specs, U
+    if isinstance(inputs, np.ndarray) and inputs.ndim == 2:
+        if inputs.shape[1] != len(names):
+            raise ValueError(f"inputs has {inputs.shape[1]} columns, expected {len(names)}")
+        U[:, :len(names)] = inputs
+        return [constant_spec(0.0) for _ in names], U
     per_name = [[] for _ in names]
     for u in run_inputs:
         if native_reason(mod, "RK45", u, None, {}) is not None:
