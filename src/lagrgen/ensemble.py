@@ -432,7 +432,8 @@ def simulate_many(mod, t_span, y0, params=None, inputs=None, t_eval=None, method
     workers : threads on this machine (default: every core for a compiled model, 1 otherwise)
     client : a `dask.distributed.Client`: the runs go to its workers in chunks (the compiled
         model's module is uploaded to the workers once per client)
-    progress : show a progress bar (tqdm) on stderr (default: when stderr is a terminal)
+    progress : True or False: a progress bar of the finished runs (tqdm) on stderr; None or
+        "auto" (default): only on a terminal, once the ensemble has taken a second
     outputs : also evaluate the model's outputs (`mod.output_names`) at every output time
     store : None, or the path of a Zarr store (needs the `ensembles` extra): each chunk is
         written there as it finishes (by the Dask workers themselves with a client), and the
@@ -488,14 +489,13 @@ def simulate_many(mod, t_span, y0, params=None, inputs=None, t_eval=None, method
                   U[a:a + size] if plan.batch else run_inputs[a:a + size])
              for a in range(0, runs, size)]
     meta = ensemble_meta(mod, plan, P)
-    show = sys.stderr.isatty() if progress is None else bool(progress)
     if store is not None:
         from .ensemble_store import create_store, finish_store, open_ensemble
         create_store(store, meta, runs, size)
         sink = StoreSink(store)
     else:
         sink = MemorySink(plan, runs)
-    with _progress_bar(runs, show, getattr(mod, "name", "")) as bar:
+    with RunsBar(runs, "auto" if progress is None else progress, getattr(mod, "name", "")) as bar:
         if client is not None:
             _on_dask(client, mod, plan, parts, sink, bar)
         else:
@@ -585,17 +585,21 @@ def _solve_into(mod, plan, part, sink, stop):
     return result
 
 
-class _progress_bar:
-    """A tqdm bar of finished runs on stderr (a no-op when not shown)."""
+class RunsBar:
+    """A tqdm bar of the finished runs on stderr. `show`: True, False, or "auto" (only on a
+    terminal, and only once the ensemble has taken a second, like `simulate`'s bar)."""
 
     def __init__(self, total, show, name):
-        self.total, self.show, self.name, self.bar = total, show, name, None
+        self.total, self.name, self.bar = total, name, None
+        self.auto = show == "auto"
+        self.show = bool(show) and (not self.auto or sys.stderr.isatty())
 
     def __enter__(self):
         if self.show:
-            from tqdm.auto import tqdm
+            from tqdm import tqdm
             self.bar = tqdm(total=self.total, unit="run", desc=self.name or "runs",
-                            file=sys.stderr, leave=True)
+                            file=sys.stderr, leave=True, dynamic_ncols=True,
+                            delay=1.0 if self.auto else 0.0)
         return self
 
     def update(self, k):
@@ -695,10 +699,3 @@ def _uploaded_module(name, filename):
         loader.exec_module(module)
         _WORKER_MODULES[path] = module
     return _WORKER_MODULES[path]
-
-
-def chunks(runs, parts):
-    """`runs` indices split into at most `parts` contiguous chunks of nearly equal size."""
-    parts = max(1, min(parts, runs))
-    bounds = np.linspace(0, runs, parts + 1).round().astype(int)
-    return [list(range(a, b)) for a, b in zip(bounds[:-1], bounds[1:]) if b > a]
