@@ -202,6 +202,7 @@ def test_a_zarr_store_holds_the_same_dataset(mod, tmp_path):
         assert stored[name].dims == ds[name].dims
     assert list(stored.state.values) == list(ds.state.values)
     assert stored.attrs["complete"] is True and stored.attrs["method"] == "RK45"
+    assert {k: v for k, v in stored.attrs.items() if k != "complete"} == ds.attrs
     again = lagrgen.open_ensemble(str(path))
     assert_array_equal(again.y.values, local.y)
     assert again.y.attrs == ds.y.attrs

@@ -53,6 +53,7 @@ class EnsembleResult:
     params : (runs, n_params) the parameters of every run
     parameter_names, output_names, constraint_names : names, in model order
     units : {name: unit} of the model (labels only)
+    settings : {"method", "rtol", "atol"} of the runs
     transitions : None, or per run the list of (t, name, kind) of a non-smooth model's run
     """
 
@@ -73,6 +74,7 @@ class EnsembleResult:
     units: dict = field(default_factory=dict)
     model_name: str = ""
     transitions: Optional[list] = None
+    settings: dict = field(default_factory=dict)
 
     @property
     def runs(self):
@@ -402,15 +404,15 @@ def _one_run(mod, plan, part, i, out):
 
 def batch_reason(mod, method, options):
     """Why the runs cannot go through the C batch (a str), or None when they can. The hook for
-    non-smooth models: a model whose runs have transitions (API §13) runs per run until the
-    batch collects them (`has_transitions` on the built model)."""
+    non-smooth models: a model with impacts or frictions (`nonsmooth_definitions`, API §13)
+    runs per run, where `simulate` gives each run's transitions, until the batch collects them."""
     if options.get("engine") == "scipy":
         return "engine='scipy'"
     rest = {k: v for k, v in options.items() if k not in ("engine", "max_steps", "max_wall_time")}
     why = native_reason(mod, method, None, None, rest)
     if why:
         return why
-    if getattr(mod, "has_transitions", False):
+    if getattr(mod, "nonsmooth_definitions", ()):
         return "the transitions of a non-smooth model are collected per run"
     return None
 
@@ -553,7 +555,8 @@ class MemorySink:
             multipliers=arr.get("multipliers"), outputs=arr.get("outputs"), params=meta["params"],
             parameter_names=meta["parameters"], output_names=meta["output_names"],
             constraint_names=meta["constraint_names"], units=meta["units"],
-            model_name=meta["model"], transitions=self.transitions)
+            model_name=meta["model"], transitions=self.transitions,
+            settings={k: meta[k] for k in ("method", "rtol", "atol")})
 
 
 class StoreSink:

@@ -92,14 +92,14 @@ def to_dataset(ens):
             "output_names": tuple(ens.output_names) if ens.outputs is not None else (),
             "constraint_names": tuple(ens.constraint_names)
             if ens.multipliers is not None else (),
-            "units": dict(ens.units), "method": "", "rtol": float("nan"), "atol": float("nan")}
+            "units": dict(ens.units), "method": "", "rtol": float("nan"), "atol": float("nan"),
+            **ens.settings}
     coords, small, big, attrs = layout(meta, ens.runs)
     values = {"y": ens.y, "success": ens.success, "status": ens.status, "nfev": ens.nfev,
               "multipliers": ens.multipliers, "outputs": ens.outputs}
     data = {name: (dims, v, a) for name, (dims, v, a) in small.items()}
     for name, (dims, shape, dtype, a) in big.items():
         data[name] = (dims, np.asarray(values[name]).astype(dtype, copy=False), a)
-    attrs = {k: v for k, v in attrs.items() if k not in ("method", "rtol", "atol")}
     return xr.Dataset(data, coords=coords, attrs=attrs)
 
 
