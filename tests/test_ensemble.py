@@ -206,6 +206,10 @@ def test_a_zarr_store_holds_the_same_dataset(mod, tmp_path):
     again = lagrgen.open_ensemble(str(path))
     assert_array_equal(again.y.values, local.y)
     assert again.y.attrs == ds.y.attrs
+    replaced = lagrgen.simulate_many(mod, (0.0, 2.0), [0.4, 0, 0, 0], params=P[:5], t_eval=T,
+                                     store=path)     # a new ensemble replaces an ensemble store
+    assert replaced.sizes["run"] == 5 and "outputs" not in replaced
+    assert_array_equal(replaced.y.values, local.y[:5])
 
 
 def test_a_dask_local_cluster_gives_the_local_result_bit_for_bit(mod, client, tmp_path):
@@ -251,6 +255,14 @@ def test_bad_ensemble_arguments(mod, tmp_path):
     with pytest.raises(ValueError, match="columns, expected 5"):
         lagrgen.simulate_many(mod, (0, 1), [0.1, 0, 0, 0], params=np.ones((2, 3)),
                               t_eval=[0, 1])
+    (tmp_path / "taken").mkdir()
+    (tmp_path / "taken" / "notes.txt").write_text("mine")
+    with pytest.raises(FileExistsError, match="not an ensemble store"):
+        lagrgen.simulate_many(mod, (0, 1), [0.1, 0, 0, 0], t_eval=[0, 1],
+                              store=tmp_path / "taken")
+    assert (tmp_path / "taken" / "notes.txt").read_text() == "mine"
+    with pytest.raises(TypeError, match="local path"):
+        lagrgen.simulate_many(mod, (0, 1), [0.1, 0, 0, 0], t_eval=[0, 1], store="s3://b/x")
     with pytest.raises(FileNotFoundError, match="no ensemble store"):
         lagrgen.open_ensemble(tmp_path / "missing.zarr")
     xr = pytest.importorskip("xarray")

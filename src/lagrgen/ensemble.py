@@ -492,7 +492,8 @@ def simulate_many(mod, t_span, y0, params=None, inputs=None, t_eval=None, method
              for a in range(0, runs, size)]
     meta = ensemble_meta(mod, plan, P)
     if store is not None:
-        from .ensemble_store import create_store, finish_store, open_ensemble
+        from .ensemble_store import create_store, finish_store, open_ensemble, store_path
+        store = store_path(store)
         create_store(store, meta, runs, size)
         sink = StoreSink(store)
     else:

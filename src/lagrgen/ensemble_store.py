@@ -108,6 +108,7 @@ def create_store(path, meta, runs, chunk):
     parameters written, the per-run arrays created empty (NaN) with `chunk` runs per chunk."""
     xr = _xarray()
     import zarr
+    refuse_foreign(path)
     coords, small, big, attrs = layout(meta, runs)
     skeleton = xr.Dataset({name: (dims, v, a) for name, (dims, v, a) in small.items()},
                           coords=coords, attrs=attrs)
@@ -128,6 +129,32 @@ def create_store(path, meta, runs, chunk):
                                  fill_value=fill).attrs.update(attrs)
     group.attrs["complete"] = False
     zarr.consolidate_metadata(str(path))
+
+
+def store_path(store):
+    """The store as an absolute path (Dask workers may run elsewhere in the file system)."""
+    import os
+    if not isinstance(store, (str, os.PathLike)) or "://" in str(store):
+        raise TypeError(f"store must be a local path (str or pathlib.Path), not {store!r}")
+    return os.path.abspath(os.fspath(store))
+
+
+def refuse_foreign(path):
+    """FileExistsError when `path` holds something other than an ensemble store (which a new
+    ensemble replaces)."""
+    import os
+    if not os.path.exists(path):
+        return
+    if os.path.isdir(path) and not os.listdir(path):
+        return
+    try:
+        import zarr
+        if zarr.open_group(path, mode="r").attrs.get("lagrgen_format") == FORMAT:
+            return
+    except Exception:
+        pass
+    raise FileExistsError(f"{path} exists and is not an ensemble store of lagrgen: choose a new "
+                          "path (an ensemble store there would be replaced)")
 
 
 def write_part(path, start, result):
