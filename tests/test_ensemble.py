@@ -243,6 +243,12 @@ def test_bad_ensemble_arguments(mod, tmp_path):
                               t_eval=[0, 1])
     with pytest.raises(ValueError, match="not within `t_span`"):
         lagrgen.simulate_many(mod, (0, 1), [0.1, 0, 0, 0], t_eval=[0, 2])
+    with pytest.raises(ValueError, match="unknown method 'RK99'"):
+        lagrgen.simulate_many(mod, (0, 1), [0.1, 0, 0, 0], t_eval=[0, 1], method="RK99")
+    with pytest.raises(TypeError, match="params"):
+        lagrgen.simulate_many(mod, (0, 1), [0.1, 0, 0, 0], t_eval=[0, 1], args=(1.0,))
+    with pytest.raises(ValueError, match="max_steps must be a positive integer"):
+        lagrgen.simulate_many(mod, (0, 1), [0.1, 0, 0, 0], t_eval=[0, 1], max_steps=-1)
     with pytest.raises(ValueError, match="workers must be a positive integer"):
         lagrgen.simulate_many(mod, (0, 1), [0.1, 0, 0, 0], t_eval=[0, 1], workers=0)
     with pytest.raises(ValueError, match="either workers"):

@@ -26,7 +26,7 @@ from .native.engine import (_event_arrays, _t_eval, _tolerances, native_events,
                              native_reason)
 from .runtime.arguments import as_vector, input_specs, parameters_from, state_vector
 from .signals import Signal, constant_spec
-from .simulate import evaluate_outputs, simulate
+from .simulate import check_run_options, evaluate_outputs, simulate
 
 #: The messages of the native engine for status 0 and 1 (those of solve_ivp).
 MESSAGES = {0: "The solver successfully reached the end of the integration interval.",
@@ -453,6 +453,8 @@ def simulate_many(mod, t_span, y0, params=None, inputs=None, t_eval=None, method
     """
     if t_eval is None:
         raise ValueError("simulate_many needs t_eval: every run is sampled at the same times")
+    check_run_options(method, options.get("engine"), options.get("max_steps"),
+                      options.get("max_wall_time"), options)
     if workers is not None and (int(workers) != workers or workers < 1):
         raise ValueError(f"workers must be a positive integer, got {workers!r}")
     if client is not None and workers is not None:
@@ -518,7 +520,8 @@ def ensemble_meta(mod, plan, P):
             "output_names": tuple(mod.output_names) if plan.outputs else (),
             "constraint_names": tuple(getattr(mod, "constraint_names", ()))
             if plan.n_constraints else (),
-            "units": dict(getattr(mod, "units", {}) or {}), "method": str(plan.method),
+            "units": dict(getattr(mod, "units", {}) or {}),
+            "method": getattr(plan.method, "__name__", str(plan.method)),
             "rtol": float(np.max(plan.rtol)), "atol": float(np.max(plan.atol))}
 
 
