@@ -1,10 +1,10 @@
 """Ensembles (issues 10, 22): the double pendulum (mass m1 varied), t = 0..10 s, RK45 at
 rtol = atol = 1e-8, 101 output times; 10 000 and 100 000 runs on 1 and 2 threads (native engine,
 one C batch per chunk) and on a 2-worker Dask LocalCluster (loopback), each without and with a
-Zarr store. Threads run in a child process that reports its peak memory (ru_maxrss); the Dask rows
-report the client's and the largest worker's peak. Results of every configuration are compared
-bit for bit (states and nfev) with the 1-thread run. Load average recorded per row (the machine is
-shared).
+Zarr store. The configurations run interleaved, round by round, so that each sees the same share
+of a shared machine; the load average is recorded per row. Threads run in a child process that
+reports its peak memory (ru_maxrss); the Dask rows report the larger worker peak. Results of
+every configuration are compared bit for bit (states and nfev) with the 1-thread run.
 
     python benchmarks/ensemble.py [--runs 10000 100000] [--repeats 3] [--no-dask]
 
@@ -31,7 +31,7 @@ RESULTS = ROOT / "benchmarks" / "results" / "ensemble.md"
 T_SPAN, TOL = (0.0, 10.0), 1e-8
 
 CHILD = """
-import importlib.machinery, importlib.util, json, resource, statistics, sys, time
+import importlib.machinery, importlib.util, json, resource, shutil, statistics, sys, time
 import numpy as np
 import lagrgen
 name, path, runs, workers, store, repeats = sys.argv[1:7]
@@ -42,6 +42,9 @@ loader.exec_module(mod)
 runs, workers, repeats = int(runs), int(workers), int(repeats)
 P = np.tile(mod.defaults, (runs, 1))
 P[:, 0] = np.random.default_rng(1).uniform(0.5, 2.0, runs)
+warm = lagrgen.simulate_many(mod, (0.0, 10.0), [0.5, 0.0, 0.0, 0.0], params=P[:4],
+                             t_eval=[0.0, 10.0], workers=workers, progress=False,
+                             store=None if store == "-" else store + ".warm")
 times = []
 for _ in range(repeats):
     start = time.perf_counter()
@@ -54,6 +57,8 @@ for _ in range(repeats):
         digest = [ens.y.tobytes(), ens.nfev.astype("i8").tobytes()]
     del ens
 peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
+if store != "-":
+    shutil.rmtree(store + ".warm", ignore_errors=True)
 out = {"seconds": statistics.median(times), "peak_bytes": peak}
 if store == "-":
     import hashlib
@@ -87,11 +92,16 @@ def worker_peak(client):
     return max(peaks.values())
 
 
+CONFIGS = [("1 thread", 1, False), ("1 thread", 1, True), ("2 threads", 2, False),
+           ("2 threads", 2, True), ("Dask LocalCluster, 2 workers", "dask", False),
+           ("Dask LocalCluster, 2 workers", "dask", True)]
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--runs", type=int, nargs="+", default=[10000, 100000])
     parser.add_argument("--repeats", type=int, default=3,
-                        help="repeats of the runs below 50 000 (larger ones run once)")
+                        help="rounds for the runs below 50 000 (larger ones: one round)")
     parser.add_argument("--no-dask", action="store_true")
     args = parser.parse_args()
 
@@ -99,17 +109,8 @@ def main():
     from double_pendulum import model
     mod = lagrgen.build(model, out_dir=tempfile.mkdtemp(), quiet=True)
     scratch = Path(tempfile.mkdtemp(prefix="lagrgen-ens-bench-"))
+    configs = [c for c in CONFIGS if not (args.no_dask and c[1] == "dask")]
     rows = []
-
-    def add(runs, how, store, seconds, peak, same, base):
-        rows.append({"runs": runs, "how": how, "store": store, "seconds": seconds,
-                     "runs_per_s": runs / seconds, "vs_1_thread": base / seconds,
-                     "peak_mib": peak / 2 ** 20 if peak else None, "identical": same,
-                     "load": os.getloadavg()[0]})
-        print(f"{runs:>7} {how:<28} {'zarr' if store else '-':<5} {seconds:8.2f} s  "
-              f"{base / seconds:5.2f}x  peak {peak / 2 ** 20 if peak else float('nan'):7.0f} MiB  "
-              f"identical {same}  load {os.getloadavg()[0]:.2f}", flush=True)
-
     client = cluster = None
     if not args.no_dask:
         from distributed import Client, LocalCluster
@@ -118,79 +119,83 @@ def main():
         client = Client(cluster)
     try:
         for runs in args.runs:
-            repeats = args.repeats if runs < 50000 else 1
+            rounds = args.repeats if runs < 50000 else 1
             P = np.tile(mod.defaults, (runs, 1))
             P[:, 0] = np.random.default_rng(1).uniform(0.5, 2.0, runs)
-            one = run_child(mod, runs, 1, None, repeats)
-            reference = one["digest"]
-            add(runs, "1 thread", False, one["seconds"], one["peak_bytes"], True, one["seconds"])
-            base = one["seconds"]
-            for workers in (1, 2):
-                if workers == 2:
-                    r = run_child(mod, runs, 2, None, repeats)
-                    add(runs, "2 threads", False, r["seconds"], r["peak_bytes"],
-                        r["digest"] == reference, base)
-                path = scratch / f"threads{workers}-{runs}.zarr"
-                r = run_child(mod, runs, workers, str(path), repeats)
-                add(runs, f"{workers} thread{'s' if workers > 1 else ''}", True, r["seconds"],
-                    r["peak_bytes"], store_digest(path) == reference, base)
-                shutil.rmtree(path, ignore_errors=True)
-            if client is None:
-                continue
-
-            def on_dask(store=None):
-                return lagrgen.simulate_many(mod, T_SPAN, [0.5, 0.0, 0.0, 0.0], params=P,
-                                             t_eval=np.linspace(0.0, 10.0, 101), method="RK45",
-                                             rtol=TOL, atol=TOL, client=client, progress=False,
-                                             store=store)
-            on_dask_warm = lagrgen.simulate_many(mod, T_SPAN, [0.5, 0.0, 0.0, 0.0],
-                                                 params=P[:10], t_eval=[0.0, 10.0],
-                                                 client=client, progress=False)
-            assert on_dask_warm.success.all()
-            times = []
-            for _ in range(repeats):
-                start = time.perf_counter()
-                ens = on_dask()
-                times.append(time.perf_counter() - start)
-            same = digest_of(ens.y, ens.nfev) == reference
-            del ens
-            add(runs, "Dask LocalCluster, 2 workers", False, statistics.median(times),
-                worker_peak(client), same, base)
-            times = []
-            for k in range(repeats):
-                path = scratch / f"dask-{runs}-{k}.zarr"
-                start = time.perf_counter()
-                on_dask(store=path)
-                times.append(time.perf_counter() - start)
-            same = store_digest(path) == reference
-            add(runs, "Dask LocalCluster, 2 workers", True, statistics.median(times),
-                worker_peak(client), same, base)
-            client.restart()       # a fresh peak for the next size
+            if client is not None:
+                client.restart()        # a fresh peak memory for this size
+                warm = lagrgen.simulate_many(mod, T_SPAN, [0.5, 0.0, 0.0, 0.0], params=P[:10],
+                                             t_eval=[0.0, 10.0], client=client, progress=False)
+                assert warm.success.all()
+            seen = {c: {"times": [], "loads": [], "peak": 0, "digest": None} for c in configs}
+            for k in range(rounds):           # interleaved: every configuration sees the load
+                for config in configs:
+                    label, workers, store = config
+                    path = scratch / f"{k}-{workers}-{runs}.zarr" if store else None
+                    load = os.getloadavg()[0]
+                    if workers == "dask":
+                        start = time.perf_counter()
+                        ens = lagrgen.simulate_many(
+                            mod, T_SPAN, [0.5, 0.0, 0.0, 0.0], params=P,
+                            t_eval=np.linspace(0.0, 10.0, 101), method="RK45", rtol=TOL,
+                            atol=TOL, client=client, progress=False, store=path)
+                        seconds = time.perf_counter() - start
+                        digest = None if store else digest_of(ens.y, ens.nfev)
+                        del ens
+                        peak = worker_peak(client)
+                    else:
+                        r = run_child(mod, runs, workers, str(path) if store else None, 1)
+                        seconds, peak, digest = r["seconds"], r["peak_bytes"], r.get("digest")
+                    if store:
+                        digest = store_digest(path)
+                        shutil.rmtree(path, ignore_errors=True)
+                    entry = seen[config]
+                    entry["times"].append(seconds)
+                    entry["loads"].append((load + os.getloadavg()[0]) / 2)
+                    entry["peak"] = max(entry["peak"], peak)
+                    entry["digest"] = digest
+                    print(f"{runs:>7} {label:<28} {'zarr' if store else '-':<5} {seconds:8.2f} s"
+                          f"  peak {peak / 2 ** 20:6.0f} MiB  load {os.getloadavg()[0]:.2f}",
+                          flush=True)
+            reference = seen[configs[0]]["digest"]
+            base = statistics.median(seen[configs[0]]["times"])
+            for config in configs:
+                entry = seen[config]
+                seconds = statistics.median(entry["times"])
+                rows.append({"runs": runs, "how": config[0], "store": config[2],
+                             "seconds": seconds, "runs_per_s": runs / seconds,
+                             "vs_1_thread": base / seconds, "peak_mib": entry["peak"] / 2 ** 20,
+                             "identical": entry["digest"] == reference,
+                             "load": statistics.mean(entry["loads"]), "rounds": rounds})
     finally:
         if client is not None:
             client.close()
             cluster.close()
         shutil.rmtree(scratch, ignore_errors=True)
+    write_table(rows, args)
 
+
+def write_table(rows, args):
     lines = [f"Ensembles of the double pendulum (m1 varied), t = 0..10 s, RK45 rtol = atol = 1e-8, "
-             f"101 output times; native engine, one C batch per chunk of ≤ 500 runs. Seconds are "
-             f"the median of {args.repeats} below 50 000 runs, one run above. Threads ran in a "
-             f"child process (its peak RSS); Dask rows: the largest peak of the two workers (the "
-             f"client holds the whole result without a store). \"identical\": "
-             f"states and nfev equal bit for bit to the 1-thread run. {os.cpu_count()} cores "
-             f"shared with other jobs: the load average (1 min) is given per row.", "",
+             f"101 output times; native engine, one C batch per chunk of ≤ 500 runs. The "
+             f"configurations run interleaved, round by round ({args.repeats} rounds below 50 000 "
+             f"runs, one above; median seconds), so that each sees the same share of a machine "
+             f"shared with other jobs ({os.cpu_count()} cores; the load average during its runs "
+             f"is given). Threads run in a child process (its peak RSS, ru_maxrss); Dask rows: "
+             f"the larger peak of the two worker processes (without a store the client also "
+             f"holds the whole result, as the threads do). \"identical\": states and nfev equal "
+             f"bit for bit to the 1-thread run (with a store: as read back from it).", "",
              "| runs | how | Zarr store | seconds | runs/s | speed-up vs 1 thread | peak memory "
              "| identical | load |", "|---|---|---|---|---|---|---|---|---|"]
     for r in rows:
-        peak = f"{r['peak_mib']:.0f} MiB" if r["peak_mib"] else "–"
         lines.append(f"| {r['runs']} | {r['how']} | {'yes' if r['store'] else 'no'} | "
                      f"{r['seconds']:.2f} | {r['runs_per_s']:.0f} | {r['vs_1_thread']:.2f}× | "
-                     f"{peak} | {'yes' if r['identical'] else 'NO'} | {r['load']:.1f} |")
+                     f"{r['peak_mib']:.0f} MiB | {'yes' if r['identical'] else 'NO'} | "
+                     f"{r['load']:.1f} |")
     targets = []
     for runs in args.runs:
         by = {(r["how"], r["store"]): r for r in rows if r["runs"] == runs}
-        two = by.get(("2 threads", False))
-        one = by.get(("1 thread", False))
+        one, two = by.get(("1 thread", False)), by.get(("2 threads", False))
         dask = by.get(("Dask LocalCluster, 2 workers", False))
         if one and two:
             targets.append(f"{runs} runs: 2 threads {one['seconds'] / two['seconds']:.2f}× one "
