@@ -99,4 +99,6 @@ def _drop_guard_event(sol, guard, t_span):
         sol.t_events = sol.y_events = None
     if guard.reason is not None and len(sol.t) and sol.status == 1 and \
             guard.tripped_at is not None:
+        if len(sol.t) > 1 and sol.t[-2] == guard.tripped_at:   # the guard's root, just after
+            sol.t, sol.y = sol.t[:-1], sol.y[:, :-1]
         stopped_by_guard(sol, guard.reason, guard.tripped_at, t_span[1], guard.steps - 1)

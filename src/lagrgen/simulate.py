@@ -153,7 +153,7 @@ def evaluate_outputs(mod, sol, params=None, inputs=None):
         yi = np.ascontiguousarray(y[:, i])
         out[:k, i] = mod.outputs(ti, yi, p, u_at(ti))
         out[k:, i] = mod.power_terms(ti, yi, p, u_at(ti))
-    return Outputs(out, tuple(mod.output_names) + POWER_TERMS, getattr(mod, "units", {}))
+    return Outputs(out, tuple(mod.output_names) + POWER_TERMS, mod.units)
 
 
 def output_event(mod, name, params=None, inputs=None, terminal=False, direction=0):
