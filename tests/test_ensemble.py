@@ -305,25 +305,33 @@ def on_sigint(signum, frame):
 signal.signal(signal.SIGINT, on_sigint)
 P = np.tile(mod.defaults, (int(sys.argv[1]), 1))
 t_end = float(sys.argv[2])
+store = None if sys.argv[3] == "-" else sys.argv[3]
+if store:
+    import xarray, zarr
 print("start", flush=True)
 try:
     lagrgen.simulate_many(mod, (0.0, t_end), [0.5, 0, 0, 0], params=P,
                           t_eval=np.linspace(0, t_end, 11), rtol=1e-10, atol=1e-10, workers=2,
-                          progress=False)
+                          progress=False, store=store)
     print("finished", flush=True)
 except KeyboardInterrupt:
     print("stopped", time.monotonic() - hit[0], flush=True)
+if store:
+    print("complete", lagrgen.open_ensemble(store).attrs["complete"], flush=True)
 ens = lagrgen.simulate_many(mod, (0.0, 1.0), [0.5, 0, 0, 0], t_eval=[0.0, 1.0], workers=2)
 print("usable", bool(ens.success.all()), flush=True)
 """
 
 
-@pytest.mark.parametrize("runs, t_end", [(400000, 10.0), (6, 1e5)], ids=["many short runs",
-                                                                         "a few long runs"])
-def test_ctrl_c_stops_every_running_batch_quickly(mod, runs, t_end):
+@pytest.mark.parametrize("runs, t_end, store", [(400000, 10.0, False), (6, 1e5, True)],
+                         ids=["many short runs", "a few long runs into a store"])
+def test_ctrl_c_stops_every_running_batch_quickly(mod, runs, t_end, store, tmp_path):
+    if store:
+        pytest.importorskip("zarr")
     script = CTRL_C.format(directory=os.path.dirname(mod.__file__), name=mod.__name__)
     env = dict(os.environ, PYTHONPATH=os.pathsep.join(p for p in sys.path if p))
-    proc = subprocess.Popen([sys.executable, "-c", script, str(runs), str(t_end)],
+    path = str(tmp_path / "cut.zarr") if store else "-"
+    proc = subprocess.Popen([sys.executable, "-c", script, str(runs), str(t_end), path],
                             stdout=subprocess.PIPE,
                             stderr=subprocess.PIPE, text=True, env=env)
     try:
@@ -336,6 +344,8 @@ def test_ctrl_c_stops_every_running_batch_quickly(mod, runs, t_end):
     lines = out.split("\n")
     assert lines[0].startswith("stopped"), (out, err)
     assert float(lines[0].split()[1]) < 0.5
+    if store:
+        assert lines.pop(1) == "complete False"
     assert lines[1] == "usable True"
 
 

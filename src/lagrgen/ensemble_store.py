@@ -111,7 +111,7 @@ def create_store(path, meta, runs, chunk):
     refuse_foreign(path)
     coords, small, big, attrs = layout(meta, runs)
     skeleton = xr.Dataset({name: (dims, v, a) for name, (dims, v, a) in small.items()},
-                          coords=coords, attrs=attrs)
+                          coords=coords, attrs=dict(attrs, complete=False))
     try:        # Zarr format 2: the format every Zarr reader knows (strings, consolidation)
         skeleton.to_zarr(str(path), mode="w", consolidated=False, zarr_format=2)
     except TypeError:       # xarray before 2024.10 (Zarr 2) writes format 2 without being asked
@@ -127,7 +127,6 @@ def create_store(path, meta, runs, chunk):
         else:
             group.create_dataset(name, shape=shape, chunks=chunks, dtype=dtype,
                                  fill_value=fill).attrs.update(attrs)
-    group.attrs["complete"] = False
     zarr.consolidate_metadata(str(path))
 
 
