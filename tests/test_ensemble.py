@@ -206,7 +206,9 @@ def test_a_zarr_store_holds_the_same_dataset(mod, tmp_path):
         assert stored[name].dims == ds[name].dims
     assert list(stored.state.values) == list(ds.state.values)
     assert stored.attrs["complete"] is True and stored.attrs["method"] == "RK45"
-    assert {k: v for k, v in stored.attrs.items() if k != "complete"} == ds.attrs
+    assert stored.attrs["messages"] == {}
+    assert {k: v for k, v in stored.attrs.items() if k not in ("complete", "messages")} == \
+        ds.attrs
     again = lagrgen.open_ensemble(str(path))
     assert_array_equal(again.y.values, local.y)
     assert again.y.attrs == ds.y.attrs
@@ -224,12 +226,19 @@ def test_a_dask_local_cluster_gives_the_local_result_bit_for_bit(mod, client, tm
                                   method="RK45", workers=1)
     remote = lagrgen.simulate_many(mod, (0.0, 2.0), [0.4, 0, 0, 0], params=P, t_eval=T,
                                    method="RK45", client=client)
+    assert_array_equal(remote.y, local.y)
+    assert list(remote.nfev) == list(local.nfev) and remote.success.all()
+    assert remote.message == local.message
+    P[5, 0] = -1.0          # M not positive definite: a failed run, its message kept
+    local = lagrgen.simulate_many(mod, (0.0, 2.0), [0.4, 0, 0, 0], params=P, t_eval=T,
+                                  method="RK45", workers=2)
     stored = lagrgen.simulate_many(mod, (0.0, 2.0), [0.4, 0, 0, 0], params=P, t_eval=T,
                                    method="RK45", client=client, store=tmp_path / "d.zarr")
-    assert_array_equal(remote.y, local.y)
     assert_array_equal(stored.y.values, local.y)
-    assert list(remote.nfev) == list(local.nfev) and remote.success.all()
     assert list(stored.nfev.values) == list(local.nfev)
+    assert list(stored.success.values) == list(local.success) and not local.success[5]
+    assert stored.attrs["messages"] == {"5": local.message[5]}
+    assert "not positive definite" in local.message[5]
     py = lagrgen.build(DOUBLE, backend="python")
     remote_py = lagrgen.simulate_many(py, (0.0, 2.0), [0.4, 0, 0, 0], params=P[:2], t_eval=T,
                                       method="RK45", client=client)

@@ -446,8 +446,9 @@ def simulate_many(mod, t_span, y0, params=None, inputs=None, t_eval=None, method
     Without `store`: an EnsembleResult with t (len(t_eval),), y (runs, 2n, len(t_eval)),
     success, status, nfev, message (one per run), multipliers (constrained models), outputs
     (with outputs=True); `to_xarray()` labels it. With `store`: the store opened lazily as an
-    `xarray.Dataset` (`lagrgen.open_ensemble(store)`): the same variables as `to_xarray()`
-    (except the per-run messages), read from disk when used.
+    `xarray.Dataset` (`lagrgen.open_ensemble(store)`): the same variables as `to_xarray()`,
+    read from disk when used, with `attrs["messages"]` = {run: message} for the runs that did
+    not end normally.
     The number of runs is the largest of the per-run arguments. Ctrl-C stops every chunk that
     is running (within a run's time) and raises KeyboardInterrupt.
     """
@@ -506,7 +507,7 @@ def simulate_many(mod, t_span, y0, params=None, inputs=None, t_eval=None, method
         else:
             _on_threads(mod, plan, parts, max(1, parallel), sink, bar)
     if store is not None:
-        finish_store(store)
+        finish_store(store, sink.messages)
         return open_ensemble(store)
     return sink.result(mod, plan, meta)
 
@@ -564,16 +565,21 @@ class MemorySink:
 
 
 class StoreSink:
-    """Chunks go to a Zarr store (written by whoever solved them); nothing is kept here."""
+    """Chunks go to a Zarr store (written by whoever solved them); only the messages of the
+    runs that did not end normally are kept here, for the store's `messages` attribute."""
 
     def __init__(self, path):
         self.path = str(path)
+        self.messages = {}
 
     def views(self, part):
         return None
 
     def take(self, part, result, in_place=False):
-        pass
+        standard = set(MESSAGES.values()) | {""}
+        for i, message in enumerate(result["message"]):
+            if message not in standard:
+                self.messages[str(part.start + i)] = message
 
 
 def _solve_into(mod, plan, part, sink, stop):

@@ -166,11 +166,12 @@ def write_part(path, start, result):
             group[name][start:start + m] = result[name]
 
 
-def finish_store(path):
-    """Mark the store complete (every chunk written) and consolidate its metadata."""
+def finish_store(path, messages):
+    """Mark the store complete (every chunk written), keep the messages of the runs that did not
+    end normally ({run: message}), and consolidate its metadata."""
     import zarr
     group = zarr.open_group(str(path), mode="r+")
-    group.attrs["complete"] = True
+    group.attrs.update({"complete": True, "messages": dict(messages)})
     zarr.consolidate_metadata(str(path))
 
 
