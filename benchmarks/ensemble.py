@@ -12,9 +12,9 @@ Prints a table and writes it to benchmarks/results/ensemble.md (and .json).
 """
 import argparse
 import hashlib
+import inspect
 import json
 import os
-import resource
 import shutil
 import statistics
 import subprocess
@@ -40,6 +40,7 @@ spec = importlib.util.spec_from_file_location(name, path, loader=loader)
 mod = importlib.util.module_from_spec(spec)
 loader.exec_module(mod)
 runs, workers, repeats = int(runs), int(workers), int(repeats)
+{HWM}
 P = np.tile(mod.defaults, (runs, 1))
 P[:, 0] = np.random.default_rng(1).uniform(0.5, 2.0, runs)
 warm = lagrgen.simulate_many(mod, (0.0, 10.0), [0.5, 0.0, 0.0, 0.0], params=P[:4],
@@ -56,7 +57,7 @@ for _ in range(repeats):
     if store == "-":
         digest = [ens.y.tobytes(), ens.nfev.astype("i8").tobytes()]
     del ens
-peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
+peak = high_water_mark()
 if store != "-":
     shutil.rmtree(store + ".warm", ignore_errors=True)
 out = {"seconds": statistics.median(times), "peak_bytes": peak}
@@ -65,6 +66,20 @@ if store == "-":
     out["digest"] = hashlib.sha256(digest[0] + digest[1]).hexdigest()
 print(json.dumps(out))
 """
+
+
+def high_water_mark():
+    """Peak resident memory of this process in bytes: VmHWM (Linux; reset by exec, unlike
+    ru_maxrss, which a child inherits from the parent it was forked from), else ru_maxrss."""
+    import resource
+    try:
+        with open("/proc/self/status") as f:
+            for line in f:
+                if line.startswith("VmHWM:"):
+                    return int(line.split()[1]) * 1024
+    except OSError:
+        pass
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
 
 
 def digest_of(y, nfev):
@@ -81,14 +96,15 @@ def store_digest(path):
 def run_child(mod, runs, workers, store, repeats):
     env = dict(os.environ)
     env["PYTHONPATH"] = os.pathsep.join([str(ROOT / "src"), env.get("PYTHONPATH", "")])
-    proc = subprocess.run([sys.executable, "-c", CHILD, mod.__name__, mod.__file__, str(runs),
+    script = CHILD.replace("{HWM}", inspect.getsource(high_water_mark))
+    proc = subprocess.run([sys.executable, "-c", script, mod.__name__, mod.__file__, str(runs),
                            str(workers), store or "-", str(repeats)], capture_output=True,
                           text=True, env=env, check=True)
     return json.loads(proc.stdout.strip().splitlines()[-1])
 
 
 def worker_peak(client):
-    peaks = client.run(lambda: resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024)
+    peaks = client.run(high_water_mark)
     return max(peaks.values())
 
 
