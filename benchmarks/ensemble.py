@@ -46,21 +46,23 @@ P[:, 0] = np.random.default_rng(1).uniform(0.5, 2.0, runs)
 warm = lagrgen.simulate_many(mod, (0.0, 10.0), [0.5, 0.0, 0.0, 0.0], params=P[:4],
                              t_eval=[0.0, 10.0], workers=workers, progress=False,
                              store=None if store == "-" else store + ".warm")
-times = []
+times, cpu = [], []
 for _ in range(repeats):
+    cpu0 = time.process_time()
     start = time.perf_counter()
     ens = lagrgen.simulate_many(mod, (0.0, 10.0), [0.5, 0.0, 0.0, 0.0], params=P,
                                 t_eval=np.linspace(0.0, 10.0, 101), method="RK45", rtol=1e-8,
                                 atol=1e-8, workers=workers, progress=False,
                                 store=None if store == "-" else store)
     times.append(time.perf_counter() - start)
+    cpu.append(time.process_time() - cpu0)
     if store == "-":
         digest = [ens.y.tobytes(), ens.nfev.astype("i8").tobytes()]
     del ens
 peak = high_water_mark()
 if store != "-":
     shutil.rmtree(store + ".warm", ignore_errors=True)
-out = {"seconds": statistics.median(times), "peak_bytes": peak}
+out = {"seconds": statistics.median(times), "cpu": statistics.median(cpu), "peak_bytes": peak}
 if store == "-":
     import hashlib
     out["digest"] = hashlib.sha256(digest[0] + digest[1]).hexdigest()
@@ -143,30 +145,36 @@ def main():
                 warm = lagrgen.simulate_many(mod, T_SPAN, [0.5, 0.0, 0.0, 0.0], params=P[:10],
                                              t_eval=[0.0, 10.0], client=client, progress=False)
                 assert warm.success.all()
-            seen = {c: {"times": [], "loads": [], "peak": 0, "digest": None} for c in configs}
+            seen = {c: {"times": [], "cpu": [], "loads": [], "peak": 0, "digest": None}
+                    for c in configs}
             for k in range(rounds):           # interleaved: every configuration sees the load
                 for config in configs:
                     label, workers, store = config
                     path = scratch / f"{k}-{workers}-{runs}.zarr" if store else None
                     load = os.getloadavg()[0]
                     if workers == "dask":
+                        cpu0 = sum(client.run(time.process_time).values()) + time.process_time()
                         start = time.perf_counter()
                         ens = lagrgen.simulate_many(
                             mod, T_SPAN, [0.5, 0.0, 0.0, 0.0], params=P,
                             t_eval=np.linspace(0.0, 10.0, 101), method="RK45", rtol=TOL,
                             atol=TOL, client=client, progress=False, store=path)
                         seconds = time.perf_counter() - start
+                        cpu = sum(client.run(time.process_time).values()) + \
+                            time.process_time() - cpu0
                         digest = None if store else digest_of(ens.y, ens.nfev)
                         del ens
                         peak = worker_peak(client)
                     else:
                         r = run_child(mod, runs, workers, str(path) if store else None, 1)
                         seconds, peak, digest = r["seconds"], r["peak_bytes"], r.get("digest")
+                        cpu = r["cpu"]
                     if store:
                         digest = store_digest(path)
                         shutil.rmtree(path, ignore_errors=True)
                     entry = seen[config]
                     entry["times"].append(seconds)
+                    entry["cpu"].append(cpu)
                     entry["loads"].append((load + os.getloadavg()[0]) / 2)
                     entry["peak"] = max(entry["peak"], peak)
                     entry["digest"] = digest
@@ -181,6 +189,7 @@ def main():
                 rows.append({"runs": runs, "how": config[0], "store": config[2],
                              "seconds": seconds, "runs_per_s": runs / seconds,
                              "vs_1_thread": base / seconds, "peak_mib": entry["peak"] / 2 ** 20,
+                             "cpu_ms_per_run": 1e3 * statistics.median(entry["cpu"]) / runs,
                              "identical": entry["digest"] == reference,
                              "load": statistics.mean(entry["loads"]), "rounds": rounds})
     finally:
@@ -200,13 +209,16 @@ def write_table(rows, args):
              f"is given). Threads run in a child process (its peak RSS, ru_maxrss); Dask rows: "
              f"the larger peak of the two worker processes (without a store the client also "
              f"holds the whole result, as the threads do). \"identical\": states and nfev equal "
-             f"bit for bit to the 1-thread run (with a store: as read back from it).", "",
-             "| runs | how | Zarr store | seconds | runs/s | speed-up vs 1 thread | peak memory "
-             "| identical | load |", "|---|---|---|---|---|---|---|---|---|"]
+             f"bit for bit to the 1-thread run (with a store: as read back from it). \"CPU ms per "
+             f"run\": the CPU time of the process(es) doing the work (child; for Dask the "
+             f"workers and the client) per run, which the load does not change: equal figures "
+             f"for 1 and 2 threads mean the parallel runs cost no extra work.", "",
+             "| runs | how | Zarr store | seconds | runs/s | speed-up vs 1 thread | CPU ms per run "
+             "| peak memory | identical | load |", "|---|---|---|---|---|---|---|---|---|---|"]
     for r in rows:
         lines.append(f"| {r['runs']} | {r['how']} | {'yes' if r['store'] else 'no'} | "
                      f"{r['seconds']:.2f} | {r['runs_per_s']:.0f} | {r['vs_1_thread']:.2f}× | "
-                     f"{r['peak_mib']:.0f} MiB | {'yes' if r['identical'] else 'NO'} | "
+                     f"{r['cpu_ms_per_run']:.3f} | {r['peak_mib']:.0f} MiB | {'yes' if r['identical'] else 'NO'} | "
                      f"{r['load']:.1f} |")
     targets = []
     for runs in args.runs:
