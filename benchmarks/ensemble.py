@@ -12,7 +12,6 @@ Prints a table and writes it to benchmarks/results/ensemble.md (and .json).
 """
 import argparse
 import hashlib
-import inspect
 import json
 import os
 import shutil
@@ -72,6 +71,8 @@ print(json.dumps(out))
 """
 
 
+#: Shared by this script, its children and the Dask workers (pasted into the child's script).
+HWM_SOURCE = '''
 def high_water_mark():
     """Peak resident memory of this process in bytes: VmHWM (Linux; reset by exec, unlike
     ru_maxrss, which a child inherits from the parent it was forked from), else ru_maxrss."""
@@ -84,6 +85,8 @@ def high_water_mark():
     except OSError:
         pass
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
+'''
+exec(HWM_SOURCE)
 
 
 def digest_of(y, nfev):
@@ -102,7 +105,7 @@ def store_digest(path):
 def run_child(mod, runs, workers, store, repeats):
     env = dict(os.environ)
     env["PYTHONPATH"] = os.pathsep.join([str(ROOT / "src"), env.get("PYTHONPATH", "")])
-    script = CHILD.replace("{HWM}", inspect.getsource(high_water_mark))
+    script = CHILD.replace("{HWM}", HWM_SOURCE)
     proc = subprocess.run([sys.executable, "-c", script, mod.__name__, mod.__file__, str(runs),
                            str(workers), store or "-", str(repeats)], capture_output=True,
                           text=True, env=env, check=True)
