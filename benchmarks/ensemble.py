@@ -3,7 +3,7 @@ rtol = atol = 1e-8, 101 output times; 10 000 and 100 000 runs on 1 and 2 threads
 one C batch per chunk) and on a 2-worker Dask LocalCluster (loopback), each without and with a
 Zarr store. The configurations run interleaved, round by round, so that each sees the same share
 of a shared machine; the load average is recorded per row. Threads run in a child process that
-reports its peak memory (ru_maxrss); the Dask rows report the larger worker peak. Results of
+reports its peak memory (VmHWM); the Dask rows report the larger worker peak. Results of
 every configuration are compared bit for bit (states and nfev) with the 1-thread run.
 
     python benchmarks/ensemble.py [--runs 10000 100000] [--repeats 3] [--no-dask]
@@ -112,6 +112,16 @@ def run_child(mod, runs, workers, store, repeats):
     return json.loads(proc.stdout.strip().splitlines()[-1])
 
 
+def fresh_workers(client, mod, P):
+    """Restart the workers (a fresh peak memory) and warm them up: the model uploaded and
+    imported, lagrgen loaded (not timed, as the threads' child is warmed up)."""
+    import lagrgen
+    client.restart()
+    warm = lagrgen.simulate_many(mod, T_SPAN, [0.5, 0.0, 0.0, 0.0], params=P[:10],
+                                 t_eval=[0.0, 10.0], client=client, progress=False)
+    assert warm.success.all()
+
+
 def worker_peak(client):
     peaks = client.run(high_water_mark)
     return max(peaks.values())
@@ -147,11 +157,6 @@ def main():
             rounds = args.repeats if runs < 50000 else 1
             P = np.tile(mod.defaults, (runs, 1))
             P[:, 0] = np.random.default_rng(1).uniform(0.5, 2.0, runs)
-            if client is not None:
-                client.restart()        # a fresh peak memory for this size
-                warm = lagrgen.simulate_many(mod, T_SPAN, [0.5, 0.0, 0.0, 0.0], params=P[:10],
-                                             t_eval=[0.0, 10.0], client=client, progress=False)
-                assert warm.success.all()
             seen = {c: {"times": [], "cpu": [], "loads": [], "peak": 0, "digest": None}
                     for c in configs}
             for k in range(rounds):           # interleaved: every configuration sees the load
@@ -160,6 +165,7 @@ def main():
                     path = scratch / f"{k}-{workers}-{runs}.zarr" if store else None
                     load = os.getloadavg()[0]
                     if workers == "dask":
+                        fresh_workers(client, mod, P)
                         cpu0 = sum(client.run(time.process_time).values()) + time.process_time()
                         start = time.perf_counter()
                         ens = lagrgen.simulate_many(
@@ -213,8 +219,8 @@ def write_table(rows, args):
              f"configurations run interleaved, round by round ({args.repeats} rounds below 50 000 "
              f"runs, one above; median seconds), so that each sees the same share of a machine "
              f"shared with other jobs ({os.cpu_count()} cores; the load average during its runs "
-             f"is given). Threads run in a child process (its peak RSS, ru_maxrss); Dask rows: "
-             f"the larger peak of the two worker processes (without a store the client also "
+             f"is given). Threads run in a child process (its peak RSS, VmHWM); Dask rows: "
+             f"the larger peak of the two worker processes, restarted before each measurement (without a store the client also "
              f"holds the whole result, as the threads do). \"identical\": states and nfev equal "
              f"bit for bit to the 1-thread run (with a store: as read back from it). \"CPU ms per "
              f"run\": the CPU time of the process(es) doing the work (child; for Dask the "

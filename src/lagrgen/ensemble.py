@@ -668,7 +668,8 @@ def _worker_target(client, mod):
 
 def _on_dask(client, mod, plan, parts, sink, bar):
     """The chunks as Dask tasks: each returns compact arrays (or, with a store, writes its chunk
-    itself and returns only the messages)."""
+    itself and returns only the messages). A chunk's result is released on the worker as soon as
+    it has been taken here, so the workers never hold more than the chunks under way."""
     from distributed import as_completed
     target = _worker_target(client, mod)
     path = sink.path if isinstance(sink, StoreSink) else None
@@ -676,9 +677,10 @@ def _on_dask(client, mod, plan, parts, sink, bar):
     by_key = {f.key: part for f, part in zip(futures, parts)}
     try:
         for future, result in as_completed(futures, with_results=True):
-            part = by_key[future.key]
+            part = by_key.pop(future.key)
             sink.take(part, result)
             bar.update(len(part))
+            future.release()
     except BaseException:
         client.cancel(futures)
         raise
