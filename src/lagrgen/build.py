@@ -38,7 +38,8 @@ CACHE_DIR = "__lagrgen__"
 BACKENDS = ("c", "python")
 PACKAGE = Path(__file__).resolve().parent
 #: The sources that determine generated code: a change to any of them changes every key.
-GENERATOR_SOURCES = ("_version.py", "functions.py", "lagrange.py", "kernels.py",
+GENERATOR_SOURCES = ("_version.py", "functions.py", "calculus.py", "terms.py", "contributions.py",
+                     "lagrange.py", "kernels.py", "runtime/info.py",
                      "codegen/*.py", "codegen/templates/*", "codegen/templates/functions/*")
 _loaded = {}
 
@@ -60,13 +61,14 @@ def build(model, out_dir="generated", backend="c", **options):
     -------
     The built model (API.md §3): a module for "c", a `PythonModel` for "python".
     """
-    from .model import Model
-    if not isinstance(model, Model):
+    from .description import Description
+    if not isinstance(model, Description):
         raise TypeError(f"build() takes a lagrgen.Model, got {type(model).__name__}")
     if backend not in BACKENDS:
         raise ModelError(f"unknown backend {backend!r}: use one of {', '.join(map(repr, BACKENDS))}")
     start = time.perf_counter()
-    equations = model.equations()
+    from .lagrange import derived
+    equations = derived(model.spec())
     info = model_info(model.spec(), equations)
     if backend == "python":
         from .codegen.python_module import python_source
@@ -101,11 +103,13 @@ def export_c(model, out_dir):
     """Write just the standalone C model `<name>_model.h` and `<name>_model.c` into `out_dir`;
     return their paths."""
     from .codegen.c_model import standalone_files
-    info = model_info(model.spec(), model.equations())
+    from .lagrange import derived
+    equations = derived(model.spec())
+    info = model_info(model.spec(), equations)
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     paths = []
-    for file_name, text in standalone_files(info, model.equations()).items():
+    for file_name, text in standalone_files(info, equations).items():
         write_atomic(out_dir / file_name, text.encode())
         paths.append(out_dir / file_name)
     return paths
@@ -134,10 +138,11 @@ def export_fmu(model, out_dir=".", params=None, start_time=0.0, stop_time=10.0, 
     pathlib.Path of the FMU.
     """
     from .codegen.fmu import write_fmu
-    from .model import Model
-    if not isinstance(model, Model):
+    from .description import Description
+    if not isinstance(model, Description):
         raise TypeError(f"export_fmu() takes a lagrgen.Model, got {type(model).__name__}")
-    equations = model.equations()
+    from .lagrange import derived
+    equations = derived(model.spec())
     return write_fmu(model_info(model.spec(), equations), equations, Path(out_dir), params,
                      start_time, stop_time, tolerance, cflags)
 
