@@ -1,13 +1,12 @@
 """Checking what a user declares: names, units, vectors, and every expression (its symbols,
 functions, derivatives and numbers) against what the model declares. Beside the records
 (`lagrgen.records`): a record holds only checked expressions."""
-import math
-
 import sympy as sp
 from sympy.core.function import AppliedUndef
 
 from .errors import ModelError
 from .names import check_name
+from .numbers import fits_a_double
 
 #: SymPy functions that have a C99 equivalent and that the symbolic core can differentiate.
 SUPPORTED_FUNCTIONS = (
@@ -17,15 +16,6 @@ SUPPORTED_FUNCTIONS = (
     # discontinuous: rewritten as Piecewise before differentiation (lagrgen.lagrange)
     sp.Heaviside, sp.Min, sp.Max, sp.Piecewise,
 )
-
-
-def fits_a_double(number):
-    """True if the SymPy number rounds to a finite double that is zero only when it is zero."""
-    try:
-        value = float(number)
-    except (OverflowError, TypeError):
-        return False
-    return math.isfinite(value) and (value != 0 or number == 0)
 
 
 def split_names(names, what):
@@ -138,6 +128,6 @@ def check_expression(scope, expr, where, velocities=True, inputs=True, vector=Fa
     for number in expr.atoms(sp.Number):
         if not fits_a_double(number):
             raise ModelError(
-                f"{where}: the number {sp.N(number, 6)} does not fit a double (|x| between "
-                "2.2e-308 and 1.8e308): rescale the model's units or parameters")
+                f"{where}: the number {sp.N(number, 6)} does not fit a double (|x| up to "
+                "1.8e308): rescale the model's units or parameters")
     return expr

@@ -13,6 +13,7 @@ from .caching import once_per
 from .checks import as_vector, check_expression, check_unit, split_names, split_units
 from .errors import ModelError
 from .names import check_model_name, check_name
+from .numbers import is_zero
 from .records import (AUTOMATIC_OUTPUTS, BAUMGARTE_DEFAULTS, ENERGY_OUTPUTS, Body3D, Constraint,
                       Damper, Dissipation, Event, ExternalEquations, Force, GeneralizedForce,
                       KineticEnergy, ModelSpec, Output, Particle, PlanarBody, PotentialEnergy,
@@ -307,7 +308,7 @@ class Description:
         kin = self._orientation(orientation, "torque_3d orientation")
         for j, coordinate in enumerate(self._coordinates):
             arm = kin.W_fixed[:, j]
-            if any(e != 0 for e in arm):
+            if not all(is_zero(e) for e in arm):
                 self._physics.append(GeneralizedForce(coordinate, moment.dot(arm)))
         self._changed()
 
@@ -438,7 +439,7 @@ class Description:
                 raise ModelError(
                     f"{where} ({expr} = 0) is not linear in the velocities: its coefficient of "
                     f"{v} is {c}, which depends on velocities; write it as A(q, t)·q̇ + b(q, t)")
-        if not any(c != 0 for c in coefficients):
+        if all(is_zero(c) for c in coefficients):
             raise ModelError(
                 f"{where} ({expr} = 0) involves no velocity: a constraint on positions alone is "
                 "holonomic, add it with model.constraint(expr)")

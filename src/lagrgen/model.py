@@ -4,8 +4,9 @@ its derived equations of motion and their display.
 This is the face of the description: it stands after the derivation and the display code it
 calls, so the description itself (`description`, `records`, `checks`) imports neither.
 """
-from .checks import (SUPPORTED_FUNCTIONS, as_vector, check_unit, fits_a_double,  # noqa: F401
+from .checks import (SUPPORTED_FUNCTIONS, as_vector, check_unit,  # noqa: F401
                      split_names, split_units)
+from .numbers import fits_a_double  # noqa: F401
 from .description import SHAPES, Description  # noqa: F401
 from .errors import ModelError
 from .names import check_model_name, check_name  # noqa: F401
