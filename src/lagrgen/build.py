@@ -8,8 +8,9 @@ Layout of an output directory:
     __lagrgen__/<name>.current      the key of the entry last published into the directory
 The key is a hash of what is compiled: the frozen model description (every symbol with its
 assumptions; or the equations themselves when M and F come from outside, as from `from_sympy`),
-lagrgen's generator sources and version, the compiler and flags. So no change to a model, and no
-change to lagrgen, can be served stale, and a cache hit derives nothing. Everything is written to a temporary file or directory first and renamed into place after an
+lagrgen's generator sources and version, the versions of SymPy and SymEngine, the compiler and
+flags. So no change to a model, and no change to lagrgen, can be served stale, and a cache hit
+derives nothing. Everything is written to a temporary file or directory first and renamed into place after an
 fsync, so a build that dies halfway leaves nothing a later load would pick up; a cache entry whose
 module does not match its recorded digest, or does not import, is discarded and compiled again.
 """
@@ -80,7 +81,7 @@ def build(model, out_dir="generated", backend="c", **options):
     unknown = set(options) - {"verbose", "quiet", "force", "opt_level", "cflags"}
     if unknown:
         raise TypeError(f"build() got unknown option(s) {', '.join(sorted(unknown))}")
-    return build_c(spec.name, content_digest(spec),
+    return build_c(spec.name, content_digest(spec, lambda: derived(spec)),
                    lambda: (model_info(spec, derived(spec)), derived(spec)), Path(out_dir),
                    **options)
 
@@ -175,16 +176,16 @@ def generator_digest():
     return h.hexdigest()
 
 
-@once_per
-def content_digest(spec):
+def content_digest(spec, equations):
     """sha256 identifying what a build compiles: of the frozen description `spec` and the
-    generator, or — when M and F come from outside (`spec.external`) — of the derived equations.
-    Computed once per spec."""
+    generator, or — when M and F come from outside (`spec.external`) — of the derived equations
+    (`equations()` is then called)."""
     if spec.external is not None:
-        return equations_digest(derived(spec))
+        return equations_digest(equations())
     return description_digest(spec)
 
 
+@once_per
 def description_digest(spec):
     """sha256 of the generator and every field of the frozen description `spec`, SymPy objects by
     `srepr` (which keeps the assumptions of symbols, unlike `str`)."""
@@ -264,7 +265,7 @@ def model_info(spec, equations):
         event_definitions=[(name, terminal, direction)
                            for name, _, terminal, direction in spec.events],
         explicit_time=bool(equations.explicit_time),
-        content_hash=content_digest(spec), lagrgen_version=__version__)
+        content_hash=content_digest(spec, lambda: equations), lagrgen_version=__version__)
 
 
 # -- compiling -------------------------------------------------------------------------------

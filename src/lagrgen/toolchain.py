@@ -33,10 +33,18 @@ def compile_flags(opt_level="-O2", cflags=()):
 
 def compile_module(source_path, output_path, flags):
     """Compile `source_path` into the extension module `output_path`; CompileError on failure."""
-    include = sysconfig.get_paths()["include"]
-    cmd = [*compiler_command(), "-shared", *flags, "-I", include, "-I",
-           str(TEMPLATES), str(source_path), "-o", str(output_path)]
-    run_compiler(cmd, source_path)
+    compile_units([source_path], output_path, flags)
+
+
+#: Flags that, given when linking, make GCC add startup code (crtfastmath.o) that switches the
+#: whole process to flush subnormals to zero the moment the module is loaded; they are kept for
+#: compiling, where they act on the model's own code only.
+PROCESS_WIDE_FLAGS = ("-ffast-math", "-Ofast", "-funsafe-math-optimizations")
+
+
+def link_flags(flags):
+    """`flags` without those that would change the floating-point mode of the whole process."""
+    return [f for f in flags if f not in PROCESS_WIDE_FLAGS]
 
 
 def run_compiler(cmd, source_path):
@@ -74,16 +82,16 @@ def compile_units(sources, output_path, flags, unit_flags=None):
         own = unit_flags(source) if unit_flags else flags
         obj = source.with_suffix(".o")
         run_compiler([*compiler_command(), "-c", *own, "-I", include, "-I", templates,
-                       str(source), "-o", str(obj)], source)
+                      str(source), "-o", str(obj)], source)
         return obj
 
     # longest first, so the last job to start is a short one
     order = sorted(sources, key=lambda path: -path.stat().st_size)
     with ThreadPoolExecutor(max_workers=min(compile_jobs(), len(order))) as pool:
         objects = dict(zip(order, pool.map(compile_one, order)))
-    run_compiler([*compiler_command(), "-shared", *flags,
-                   *(str(objects[path]) for path in sources), "-o", str(output_path)],
-                  output_path)
+    run_compiler([*compiler_command(), "-shared", *link_flags(flags),
+                  *(str(objects[path]) for path in sources), "-o", str(output_path)],
+                 output_path)
 
 
 # -- files -----------------------------------------------------------------------------------
