@@ -308,3 +308,26 @@ def test_the_import_graph_sees_an_import_inside_a_function(tmp_path):
     assert imported_modules("model", path, modules) == {"outputs.display"}
     path.write_text("from lagrgen.outputs import display\n")
     assert imported_modules("model", path, modules) == {"outputs", "outputs.display"}
+
+
+def test_architecture_md_lists_the_stages_of_the_import_check():
+    """ARCHITECTURE.md's table of rooms names the same stages, in order, with the same modules."""
+    from pathlib import Path
+    text = (Path(__file__).resolve().parent.parent / "ARCHITECTURE.md").read_text()
+    rows = [line for line in text.splitlines() if line.startswith("| ") and "`" in line]
+    assert [row.split("|")[1].strip() for row in rows] == [stage for stage, _ in STAGES]
+    for row, (stage, entries) in zip(rows, STAGES):
+        named = row.split("|")[2]
+        assert all(f"`{entry or '__init__'}" in named for entry in entries), stage
+
+
+def test_every_physics_record_has_one_contribution_function():
+    """A physics kind is a record of lagrgen.records with its contribution in CONTRIBUTIONS."""
+    import dataclasses
+    from lagrgen import contributions, records
+    kinds = {cls for cls in vars(records).values()
+             if isinstance(cls, type) and dataclasses.is_dataclass(cls)}
+    not_physics = {records.ModelSpec, records.Constraint, records.VelocityConstraint,
+                   records.ExternalEquations}
+    assert kinds - not_physics == set(contributions.CONTRIBUTIONS)
+    assert len(set(contributions.CONTRIBUTIONS.values())) == len(contributions.CONTRIBUTIONS)

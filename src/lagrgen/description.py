@@ -309,8 +309,7 @@ class Description:
         for j, coordinate in enumerate(self._coordinates):
             arm = kin.W_fixed[:, j]
             if not all(is_zero(e) for e in arm):
-                self._physics.append(GeneralizedForce(coordinate, moment.dot(arm)))
-        self._changed()
+                self._add(GeneralizedForce(coordinate, moment.dot(arm)))
 
     def _orientation(self, orientation, where):
         """The checked `bodies3d.Kinematics` of a 3×3 orientation matrix (computed once each)."""
