@@ -119,12 +119,16 @@ def export_c(model, out_dir):
 
 
 def export_fmu(model, out_dir=".", params=None, start_time=0.0, stop_time=10.0, tolerance=None,
-               cflags=()):
-    """Write `<out_dir>/<name>.fmu`, an FMI 2.0 Model Exchange FMU of `model` for this platform.
+               cflags=(), *, kind="me", fmi_version=2, method="DOP853", rtol=None, atol=None):
+    """Write `<out_dir>/<name>.fmu`, an FMU of `model` for this platform: FMI 2.0 or 3.0, Model
+    Exchange or Co-Simulation.
 
     Its states are x = [q, q̇] (variables named like the coordinates and `<coordinate>_dot`), with
     ẋ = [q̇, M⁻¹·F]; parameters are tunable parameters, inputs continuous inputs, the coordinates
-    outputs; directional derivatives come from the analytic Jacobian.
+    outputs; directional derivatives come from the analytic Jacobian; the FMU state can be got,
+    set and serialized. A Model Exchange FMU's event indicators are the model's compiled events.
+    A co-simulation FMU advances each communication step with lagrgen's native engine; its method
+    and tolerances are the tunable parameters `solver.method`, `solver.rtol` and `solver.atol`.
 
     Parameters
     ----------
@@ -135,6 +139,10 @@ def export_fmu(model, out_dir=".", params=None, start_time=0.0, stop_time=10.0, 
         without a default.
     start_time, stop_time, tolerance : the DefaultExperiment
     cflags : extra compiler flags (a list)
+    kind : "me" (Model Exchange) or "cs" (Co-Simulation)
+    fmi_version : 2 or 3
+    method, rtol, atol : the co-simulation solver's start values (one of RK23, RK45, DOP853,
+        Radau, BDF; rtol defaults to `tolerance` or 1e-6, atol to rtol/1000)
 
     Returns
     -------
@@ -146,7 +154,8 @@ def export_fmu(model, out_dir=".", params=None, start_time=0.0, stop_time=10.0, 
         raise TypeError(f"export_fmu() takes a lagrgen.Model, got {type(model).__name__}")
     equations = derived(model.spec())
     return write_fmu(model_info(model.spec(), equations), equations, Path(out_dir), params,
-                     start_time, stop_time, tolerance, cflags)
+                     start_time, stop_time, tolerance, cflags, kind=kind,
+                     fmi_version=fmi_version, method=method, rtol=rtol, atol=atol)
 
 
 def derived(spec):
