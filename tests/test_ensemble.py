@@ -315,6 +315,7 @@ signal.signal(signal.SIGINT, on_sigint)
 P = np.tile(mod.defaults, (int(sys.argv[1]), 1))
 t_end = float(sys.argv[2])
 store = None if sys.argv[3] == "-" else sys.argv[3]
+lagrgen.simulate_many, lagrgen.open_ensemble      # imported before the clock starts
 if store:
     import xarray, zarr
 print("start", flush=True)
@@ -345,6 +346,10 @@ def test_ctrl_c_stops_every_running_batch_quickly(mod, runs, t_end, store, tmp_p
                             stderr=subprocess.PIPE, text=True, env=env)
     try:
         assert proc.stdout.readline().strip() == "start"
+        waited = time.monotonic()
+        while store and not os.path.exists(os.path.join(path, "y")) and \
+                time.monotonic() - waited < 30:
+            time.sleep(0.05)            # the store is created: the runs are under way
         time.sleep(1.0)
         proc.send_signal(signal.SIGINT)
         out, err = proc.communicate(timeout=60)
