@@ -176,7 +176,7 @@ STAGES = [
     ("build", ["build"]),
     ("display", ["outputs"]),
     ("running", ["progress", "results", "solvers", "scipy_engine", "native",
-                 "simulate", "constraints", "ensemble"]),
+                 "simulate", "constraints", "ensemble", "ensemble_store"]),
     ("analysis", ["vibration", "sweep", "bench"]),
     ("face", ["model", "sympy_interop", "expressions", "cli", "__main__", ""]),
 ]
