@@ -16,7 +16,8 @@ runtime = Extension(
 # The native integration engine (issue 10): lagrgen/native/lg_ode.c, a C port of SciPy's _ivp.
 native = Extension(
     "lagrgen._native",
-    ["src/lagrgen/_native.pyx", "src/lagrgen/native/lg_ode.c"],
+    ["src/lagrgen/_native.pyx", "src/lagrgen/native/lg_ode.c",
+     "src/lagrgen/native/lg_hybrid.c"],
     include_dirs=[numpy.get_include(), "src/lagrgen/native"],
     define_macros=[("NPY_NO_DEPRECATED_API", "NPY_1_7_API_VERSION")],
     extra_compile_args=["-O3", "-std=c99", "-fno-math-errno", "-fno-fast-math"],

@@ -134,7 +134,8 @@ def equations_digest(spec, equations):
              [str(f) for f in equations.F], [str(e) for e in equations.residuals],
              spec.stabilization, spec.constraint_names, [str(g) for g in equations.events],
              [(name, terminal, direction) for name, _, terminal, direction in spec.events],
-             spec.output_names, [str(e) for e in equations.outputs], spec.units]
+             spec.output_names, [str(e) for e in equations.outputs], spec.units,
+             hybrid_description(spec, equations)]
     for part in parts:
         h.update(repr(part).encode() + b"\0")
     equations.digest = h.hexdigest()
@@ -153,14 +154,28 @@ def model_info(spec, equations):
         "constraint_names": list(spec.constraint_names),
         "events": [{"name": name, "terminal": terminal, "direction": direction}
                    for name, _, terminal, direction in spec.events],
+        "nonsmooth": _nonsmooth().describe(spec),
     }
+
+
+def hybrid_description(spec, equations):
+    """The impacts' and frictions' records and terms, for the content hash."""
+    if not spec.nonsmooth:
+        return []
+    return [_nonsmooth().describe(spec), [str(e) for e in _nonsmooth().terms(equations)]]
+
+
+def _nonsmooth():
+    from . import nonsmooth
+    return nonsmooth
 
 
 def model_dimensions(spec, equations):
     """The sizes that output shapes of `lagrgen.functions` refer to (see `functions.dimensions`)."""
     return dimensions(equations.n, len(spec.parameters), len(spec.inputs),
                       n_constraints=equations.m, n_holonomic=equations.n_holonomic,
-                      n_events=len(equations.events), n_outputs=len(spec.output_names))
+                      n_events=len(equations.events), n_outputs=len(spec.output_names),
+                      n_hybrid=_nonsmooth().n_terms(spec.nonsmooth, equations.n))
 
 
 # -- compiling -------------------------------------------------------------------------------

@@ -78,6 +78,12 @@ FUNCTIONS = (
                   "A, λ and ∂(Aᵀλ)/∂q (λ held fixed) at one point"),
     ModelFunction("events", "state", (Output("g", ("n_events",)),),
                   "g_k(t, q, q̇, u): the model's event functions (model.event)"),
+    ModelFunction("hybrid_terms", "state",
+                  (Output("M", ("n", "n")), Output("F", ("n",)),
+                   Output("A", ("n_constraints", "n")), Output("gamma", ("n_constraints",)),
+                   Output("terms", ("n_hybrid",))),
+                  "M, F, the constraints' A and γ, and the impacts' and frictions' terms "
+                  "(lagrgen.nonsmooth) that the hybrid drivers assemble each mode from"),
 )
 
 BY_NAME = {f.name: f for f in FUNCTIONS}
@@ -88,10 +94,12 @@ BY_NAME = {f.name: f for f in FUNCTIONS}
 POWER_TERMS = ("input_power", "rayleigh_dissipation")
 
 
-def dimensions(n, n_params, n_inputs, n_constraints=0, n_holonomic=0, n_events=0, **more):
+def dimensions(n, n_params, n_inputs, n_constraints=0, n_holonomic=0, n_events=0, n_hybrid=0,
+               **more):
     """The dimension names of output shapes and their sizes for one model (stored in its
     metadata, so the runtime reads every size from there; add a size by passing it in `more`)."""
     return {"n": n, "2n": 2 * n, "n_params": n_params, "n_inputs": n_inputs,
             "n_constraints": n_constraints, "n_holonomic": n_holonomic,
             "n_residuals": n_holonomic + n_constraints, "n_events": n_events,
+            "n_hybrid": n_hybrid,
             "n_power": len(POWER_TERMS), **more}

@@ -154,6 +154,7 @@ class Model:
         self._external = None      # (M, F) derived elsewhere (lagrgen.from_sympy), added as given
         self._bodies_3d = []       # (inertia 3×3, ω body frame): T += ½·ωᵀ·I·ω (lagrgen.bodies3d)
         self._kinematics = {}      # orientation → bodies3d.Kinematics, computed once each
+        self._nonsmooth = []       # nonsmooth.Impact / nonsmooth.Friction, in declaration order
         self._version = 0
 
     @property
@@ -605,6 +606,54 @@ class Model:
         self._events.append((name, expr, terminal, int(direction)))
         self._changed()
 
+    def impact(self, name, gap, restitution=1.0):
+        """A unilateral contact gap(q, t) ≥ 0 (API.md §13): on closing contact q̇ jumps by Newton's
+        law along ∇gap with restitution `restitution` (a number in [0, 1] or an expression of
+        parameters); accumulating impacts become a resting contact, released when its multiplier
+        (the contact force, M·q̈ = F + ∇gapᵀ·λ) would turn negative. See `lagrgen.hybrid`."""
+        from .nonsmooth import Impact, check_restitution
+        check_name(name, "impact name")
+        where = f"impact {name}"
+        gap = self._check(gap, where, velocities=False, inputs=False)
+        e = check_restitution(self._check(restitution, where + " restitution", velocities=False,
+                                          inputs=False), name)
+        if any(e.has(c) for c in self._coordinates):
+            raise ModelError(f"{where}: restitution must not depend on the coordinates")
+        if not any(gap.has(c) for c in self._coordinates):
+            raise ModelError(f"{where}: the gap {gap} involves no coordinate")
+        self._declare(name, "impact")
+        self._nonsmooth.append(Impact(name, gap, e))
+        self._changed()
+
+    def friction(self, name, slip_velocity, normal_force, mu, mu_static=None):
+        """Coulomb friction with sticking on the slip velocity v = w(q, t)·q̇ + b(q, t) (API.md
+        §13): a force −mu·|N|·sign(v) along ∂v/∂q̇ while slipping; v = 0 held while the force that
+        takes is at most mu_static·|N| (mu_static defaults to mu). `normal_force` is an expression
+        or the name of a constraint or impact whose multiplier is N."""
+        from .nonsmooth import Friction, check_affine_in_velocities, check_coefficient
+        check_name(name, "friction name")
+        where = f"friction {name}"
+        v = check_affine_in_velocities(
+            self._check(slip_velocity, where, inputs=False), self.qd, where)
+        if isinstance(normal_force, str):
+            check_name(normal_force, "normal_force name")
+            normal = normal_force
+        else:
+            normal = self._check(normal_force, where + " normal_force")
+        mu = check_coefficient(self._check(mu, where + " mu", velocities=False, inputs=False),
+                               where, "mu")
+        mu_s = mu if mu_static is None else check_coefficient(
+            self._check(mu_static, where + " mu_static", velocities=False, inputs=False), where,
+            "mu_static")
+        self._declare(name, "friction")
+        self._nonsmooth.append(Friction(name, v, normal, mu, mu_s))
+        self._changed()
+
+    @property
+    def nonsmooth(self):
+        """The impacts and frictions (`lagrgen.nonsmooth` records), in declaration order."""
+        return tuple(self._nonsmooth)
+
     def velocity_constraint(self, expr, name=None):
         """Add a constraint linear in the velocities, A(q, t)·q̇ + b(q, t) = 0 (nonholonomic,
         e.g. a knife edge −sin θ·ẋ + cos θ·ẏ = 0); its multiplier enters M·q̈ = F + Aᵀ·λ.
@@ -722,7 +771,8 @@ class Model:
                 constraint_names=self.constraint_names,
                 stabilization=self._stabilization, events=tuple(self._events),
                 external=self._external,
-                bodies_3d=tuple((_frozen(i), _frozen(w)) for i, w in self._bodies_3d)))
+                bodies_3d=tuple((_frozen(i), _frozen(w)) for i, w in self._bodies_3d),
+                nonsmooth=tuple(self._nonsmooth)))
         return self._spec[1]
 
     def equations(self):
@@ -793,6 +843,7 @@ class ModelSpec:
     events: tuple = ()        # (name, g, terminal, direction)
     bodies_3d: tuple = ()     # (inertia 3×3, body-frame ω): T += ½·ωᵀ·I·ω
     external: tuple = None  # (M, F) derived elsewhere (e.g. by SymPy), added to the derived ones
+    nonsmooth: tuple = ()   # nonsmooth.Impact / nonsmooth.Friction (Model.impact, Model.friction)
 
     @property
     def qd(self):

@@ -155,6 +155,9 @@ def simulate(mod, t_span, y0, method="RK45", params=None, inputs=None, rtol=1e-6
     n = mod.n_coordinates
     y0 = state_vector(y0, tuple(mod.coordinates))
     p = parameters_from(mod, params)
+    if getattr(mod, "nonsmooth_definitions", ()):
+        return simulate_nonsmooth(mod, t_span, y0, method, p, inputs, rtol, atol, t_eval,
+                                  events, engine, options)
     guard = None
     compiled_events = events is None and bool(getattr(mod, "event_definitions", ()))
     if max_steps is not None or max_wall_time is not None:
@@ -211,6 +214,55 @@ def simulate(mod, t_span, y0, method="RK45", params=None, inputs=None, rtol=1e-6
         sol.constraint_forces, sol.constraint_residuals = along(mod, sol, p, u_at)
         sol.constraint_names = tuple(mod.constraint_names)
         sol.multipliers = dict(zip(sol.constraint_names, sol.constraint_forces))
+    return sol
+
+
+def simulate_nonsmooth(mod, t_span, y0, method, p, inputs, rtol, atol, t_eval, events, engine,
+                       options):
+    """`simulate` for a model with impacts or frictions (`lagrgen.hybrid`): smooth segments with
+    the switches between them, natively in C or with `solve_ivp`; the result also has
+    `transitions` [(t, name, kind)] and `mode` {name: mode at the end}."""
+    from . import hybrid
+    if events is not None:
+        raise ValueError("a model with impacts or frictions takes no Python events: declare them "
+                         "with model.event")
+    if not isinstance(method, str) or method not in ("RK23", "RK45", "DOP853", "Radau", "BDF",
+                                                      "LSODA"):
+        raise ValueError(f"a model with impacts or frictions runs with RK23, RK45, DOP853, Radau "
+                         f"or BDF, not {getattr(method, '__name__', method)!r}")
+    if options.pop("dense_output", False):
+        raise ValueError("dense_output is not available for a model with impacts or frictions: "
+                         "give t_eval")
+    switching = {k: options.pop(k) for k in ("rest_velocity", "gap_tol", "max_transitions")
+                 if k in options}
+    why_not = None if engine == "scipy" else native_reason(mod, method, inputs, None, options,
+                                                            rtol)
+    if engine == "native" and why_not:
+        raise ValueError(f"the native engine cannot run this solve: {why_not}")
+    u_at = input_function(mod, inputs)
+    if t_eval is not None:
+        from .native_engine import _t_eval
+        t_eval = _t_eval(t_eval, *map(float, t_span))
+    if engine != "scipy" and why_not is None:
+        out = hybrid.solve_hybrid_native(mod, t_span, y0, method, p, input_specs(mod, inputs),
+                                         rtol, atol, t_eval, **switching, **options)
+        engine_name = "native"
+    else:
+        out = hybrid.simulate_hybrid(mod, t_span, y0, method, p, u_at, rtol, atol, t_eval,
+                                     **switching, **options)
+        engine_name = "scipy"
+    sol = OdeResult(t=out["t"], y=out["y"], sol=None, t_events=None, y_events=None,
+                    nfev=out["nfev"], njev=0, nlu=0, status=out["status"],
+                    message=out["message"], success=out["status"] >= 0)
+    sol.engine = engine_name
+    sol.transitions = out["transitions"]
+    sol.mode = out["mode"]
+    sol.n_segments = out["n_segments"]
+    sol.guard = None
+    sol.params = p
+    sol.inputs = u_at
+    sol = with_coordinates(sol, mod.coordinates, mod.n_coordinates, getattr(mod, "name", None))
+    sol.__dict__["_units"] = dict(getattr(mod, "units", {}))
     return sol
 
 

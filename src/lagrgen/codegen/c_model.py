@@ -120,6 +120,7 @@ def substitutions(info, n):
         n_inputs=len(info["inputs"]), n_or_1=max(n, 1),
         n_constraints=info["dimensions"]["n_constraints"],
         n_events=info["dimensions"]["n_events"],
+        n_hybrid=info["dimensions"].get("n_hybrid", 0),
         n_outputs=info["dimensions"]["n_outputs"],
         n_residuals=info["dimensions"]["n_residuals"],
         n_params_or_1=max(len(info["parameters"]), 1),

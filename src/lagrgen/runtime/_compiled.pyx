@@ -75,6 +75,7 @@ cdef class CompiledModel:
     cdef readonly int n_coordinates, n_params, n_inputs, n_constraints
     cdef readonly str name, content_hash, lagrgen_version
     cdef readonly tuple coordinates, parameters, inputs, constraint_names, event_definitions
+    cdef readonly tuple nonsmooth_definitions
     cdef readonly object defaults
     cdef readonly dict dimensions, units
     cdef readonly tuple output_names
@@ -113,6 +114,7 @@ cdef class CompiledModel:
         self.constraint_names = tuple(meta.get("constraint_names", ()))
         self.event_definitions = tuple((e["name"], e["terminal"], e["direction"])
                                        for e in meta.get("events", ()))
+        self.nonsmooth_definitions = nonsmooth_definitions(meta)
         self._addresses = {}
         cdef int i
         for i in range(self.model.n_functions):
@@ -276,13 +278,19 @@ cdef class StateArgumentsFunction(BoundFunction):
 CALLABLES = {"state": StateFunction, "q": CoordinateFunction, "q_qd": StateArgumentsFunction}
 
 
+def nonsmooth_definitions(meta):
+    """((name, kind, normal), ...) of the model's impacts and frictions (`lagrgen.nonsmooth`)."""
+    return tuple((e["name"], e["kind"], None if e["normal"] is None else tuple(e["normal"]))
+                 for e in meta.get("nonsmooth", ()))
+
+
 def bind_module(module, capsule):
     """Make `module` (a freshly imported model module) a built model: called by its PyInit."""
     model = CompiledModel(capsule)
     for attr in ("name", "coordinates", "parameters", "inputs", "defaults", "n_coordinates",
                  "n_constraints", "constraint_names", "event_definitions", "content_hash",
                  "lagrgen_version", "dimensions", "time_in_c", "function_address", "output_names",
-                 "units", "explicit_time"):
+                 "units", "explicit_time", "nonsmooth_definitions"):
         setattr(module, attr, getattr(model, attr))
     module.backend = "c"
     for spec in FUNCTIONS:

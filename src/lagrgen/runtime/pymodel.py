@@ -63,6 +63,9 @@ class PythonModel:
         self.constraint_names = tuple(info.get("constraint_names", ()))
         self.event_definitions = tuple((e["name"], e["terminal"], e["direction"])
                                        for e in info.get("events", ()))
+        self.nonsmooth_definitions = tuple(
+            (e["name"], e["kind"], None if e["normal"] is None else tuple(e["normal"]))
+            for e in info.get("nonsmooth", ()))
         self.source = source
         code = compile(source, f"<lagrgen python backend: {self.name}>", "exec")
         self._kernels, self._ieee_kernels = dict(_NAMESPACE), dict(_IEEE_NAMESPACE)
@@ -179,6 +182,15 @@ class PythonModel:
         if not self.event_definitions:
             return np.zeros(0)
         return self._kernel("events", t, q, qd, None, p, u)[0]
+
+    def _hybrid_terms(self, t, q, qd, p, u):
+        n, m = self.n_coordinates, self.n_constraints
+        M, F = self._mf(t, q, qd, p, u)
+        A, gamma = (self._kernel("constraints", t, q, qd, None, p, u) if m
+                    else (np.zeros(0), np.zeros(0)))
+        terms = (self._kernel("nonsmooth", t, q, qd, None, p, u)[0]
+                 if self.dimensions.get("n_hybrid", 0) else np.zeros(0))
+        return M, F, A.reshape(m, n), gamma, terms
 
     def _constraint_forces(self, t, q, qd, p, u):
         if not self.n_constraints:
