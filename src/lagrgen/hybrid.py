@@ -266,6 +266,9 @@ class Switching:
             if i < s.ni and self.contact[i] and i not in closing:
                 self.contact[i] = False
                 self._record(t, i, "release")
+        fr = s.terms(t, y)[5]
+        fired = list(fired) + [s.ni + j for j in range(s.nf) if s.ni + j not in fired
+                               and self.slip[j] != 0 and abs(fr[j, 0]) <= 1e3 * self.gap_tol]
         for k in fired:
             j = k - s.ni
             if j >= 0 and self.slip[j] == 0:

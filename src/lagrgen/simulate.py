@@ -157,7 +157,7 @@ def simulate(mod, t_span, y0, method="RK45", params=None, inputs=None, rtol=1e-6
     p = parameters_from(mod, params)
     if getattr(mod, "nonsmooth_definitions", ()):
         return simulate_nonsmooth(mod, t_span, y0, method, p, inputs, rtol, atol, t_eval,
-                                  events, engine, options)
+                                  dense_output, events, engine, options)
     guard = None
     compiled_events = events is None and bool(getattr(mod, "event_definitions", ()))
     if max_steps is not None or max_wall_time is not None:
@@ -217,8 +217,8 @@ def simulate(mod, t_span, y0, method="RK45", params=None, inputs=None, rtol=1e-6
     return sol
 
 
-def simulate_nonsmooth(mod, t_span, y0, method, p, inputs, rtol, atol, t_eval, events, engine,
-                       options):
+def simulate_nonsmooth(mod, t_span, y0, method, p, inputs, rtol, atol, t_eval, dense_output,
+                       events, engine, options):
     """`simulate` for a model with impacts or frictions (`lagrgen.hybrid`): smooth segments with
     the switches between them, natively in C or with `solve_ivp`; the result also has
     `transitions` [(t, name, kind)] and `mode` {name: mode at the end}."""
@@ -230,7 +230,7 @@ def simulate_nonsmooth(mod, t_span, y0, method, p, inputs, rtol, atol, t_eval, e
                                                       "LSODA"):
         raise ValueError(f"a model with impacts or frictions runs with RK23, RK45, DOP853, Radau "
                          f"or BDF, not {getattr(method, '__name__', method)!r}")
-    if options.pop("dense_output", False):
+    if dense_output:
         raise ValueError("dense_output is not available for a model with impacts or frictions: "
                          "give t_eval")
     switching = {k: options.pop(k) for k in ("rest_velocity", "gap_tol", "max_transitions")

@@ -497,7 +497,7 @@ static int hy_try_stick(hy_ctx *c, double t, const double *y, int j)
 }
 
 /* The switch after a segment ended at (t, y) on the events fired[0..nfired). */
-static int hy_switch(hy_ctx *c, double t, double *y, const int *fired, int nfired)
+static int hy_switch(hy_ctx *c, double t, double *y, int *fired, int nfired)
 {
     lg_hybrid_t *h = c->h;
     int nc = 0, err;
@@ -522,6 +522,15 @@ static int hy_switch(hy_ctx *c, double t, double *y, const int *fired, int nfire
             if (hy_record(c, t, i, LG_RELEASE))
                 return -1;
         }
+    }
+    if (hy_terms(c, t, y, c->u))
+        return 1;
+    for (int j = 0; j < c->nf; ++j) {        /* slip velocities at zero with the one that fired */
+        int in = 0;
+        for (int a = 0; a < nfired; ++a)
+            in |= fired[a] == c->ni + j;
+        if (!in && h->slip[j] != 0 && fabs(FR(c, j)[0]) <= 1e3 * h->gap_tol)
+            fired[nfired++] = c->ni + j;
     }
     for (int a = 0; a < nfired; ++a) {
         int j = fired[a] - c->ni;
