@@ -315,3 +315,38 @@ def test_options_that_do_not_apply_are_refused(built):
         lagrgen.simulate(mod, (0, 1), {"y": 1.0}, dense_output=True)
     with pytest.raises(ValueError, match="Python events"):
         lagrgen.simulate(mod, (0, 1), {"y": 1.0}, events=[lambda t, y: y[0]])
+
+
+# -- results: ensembles, CSV and plots ---------------------------------------------------------------
+def test_simulate_many_runs_the_hybrid_solve_per_run(built):
+    mod = built(ball_model)
+    heights = np.array([0.5, 1.0, 2.0])
+    y0 = np.column_stack([heights, np.zeros(3)])
+    ens = lagrgen.simulate_many(mod, (0, 1.5), y0, t_eval=np.linspace(0, 1.5, 31), **TOL)
+    assert ens.success.all()
+    for k, h in enumerate(heights):
+        one = lagrgen.simulate(mod, (0, 1.5), y0[k], t_eval=np.linspace(0, 1.5, 31), **TOL)
+        assert_allclose(ens.y[k], one.y, rtol=1e-12, atol=1e-14)
+        assert np.all(ens.y[k][0] >= -1e-9)
+
+
+def test_csv_and_plot_mark_the_transitions(built, tmp_path):
+    import io
+
+    import matplotlib
+    matplotlib.use("Agg")
+    from lagrgen.cli import write_csv
+    mod = built(ball_model)
+    sol = lagrgen.simulate(mod, (0, 2), {"y": 1.0}, t_eval=np.linspace(0, 2, 201), **TOL)
+    stream = io.StringIO()
+    write_csv(stream, sol, ("y",))
+    rows = stream.getvalue().splitlines()
+    assert rows[0].split(",")[-1] == "transition"
+    marked = [r for r in rows[1:] if r.endswith("floor:impact")]
+    assert len(marked) == len(sol.transitions) == 3
+    for row, (t, _, _) in zip(marked, sol.transitions):
+        assert 0 <= float(row.split(",")[0]) - t < 0.01
+    fig = sol.plot()
+    lines = [ln for ax in fig.axes for ln in ax.get_lines() if ln.get_linestyle() == ":"]
+    assert len(lines) == 2 * len(sol.transitions)
+    assert {ln.get_xdata()[0] for ln in lines} == {t for t, *_ in sol.transitions}
