@@ -13,12 +13,12 @@ runtime = Extension(
     extra_compile_args=["-O2"],
 )
 
-# The native integration engine (issue 10): lagrgen/native/lg_ode.c, a C port of SciPy's _ivp.
+# The native integration engine: lagrgen/native/lg_ode.c, a C port of SciPy's _ivp, and its wrapper.
 native = Extension(
-    "lagrgen._native",
-    ["src/lagrgen/_native.pyx", "src/lagrgen/native/lg_ode.c",
+    "lagrgen.native._ode",
+    ["src/lagrgen/native/_ode.pyx", "src/lagrgen/native/lg_ode.c",
      "src/lagrgen/native/lg_hybrid.c"],
-    include_dirs=[numpy.get_include(), "src/lagrgen/native"],
+    include_dirs=[numpy.get_include(), "src/lagrgen/native", TEMPLATES],
     define_macros=[("NPY_NO_DEPRECATED_API", "NPY_1_7_API_VERSION")],
     extra_compile_args=["-O3", "-std=c99", "-fno-math-errno", "-fno-fast-math"],
 )
@@ -26,14 +26,13 @@ native = Extension(
 setup(
     packages=["lagrgen", "lagrgen.codegen", "lagrgen.codegen.templates",
               "lagrgen.codegen.templates.functions", "lagrgen.codegen.templates.fmi2",
-              "lagrgen.runtime", "lagrgen.outputs"],
+              "lagrgen.runtime", "lagrgen.outputs", "lagrgen.native"],
     package_dir={"": "src"},
     package_data={"lagrgen.codegen.templates": ["*.in", "*.h"],
                   "lagrgen.codegen.templates.functions": ["*.c"],
                   "lagrgen.codegen.templates.fmi2": ["*.h", "*.txt"],
                   "lagrgen.runtime": ["*.pxd"],
-                  "lagrgen": ["native/*.c", "native/*.h", "native/LICENSE.scipy",
-                              "native/README.md"]},
+                  "lagrgen.native": ["*.c", "*.h", "*.pxd", "LICENSE.scipy", "README.md"]},
     ext_modules=cythonize([runtime, native], compiler_directives={"language_level": "3"},
                           quiet=True, include_path=["src"]),
     zip_safe=False,

@@ -18,6 +18,21 @@ import lagrgen  # noqa: E402
 
 BACKENDS = ["python", "c"]
 
+#: SciPy's release series that lagrgen's native engine is a port of (native/README.md).
+SCIPY_PORTED = (1, 17)
+
+
+def counts_close(ours, ref, rel=0.05, slack=3):
+    """True when solver counts (an int or a tuple of ints: nfev, njev, ...) agree within `rel`
+    relative plus `slack`. The native engine takes SciPy's steps, but a last-bit difference of
+    OpenBLAS's sums (another CPU, another SciPy build) can flip one accept/reject or event
+    decision; outside SciPy's ported release series the counts may drift a little more."""
+    import scipy
+    ported = tuple(int(x) for x in scipy.__version__.split(".")[:2]) == SCIPY_PORTED
+    rel = rel if ported else 4 * rel
+    pairs = zip(ours, ref) if isinstance(ours, tuple) else [(ours, ref)]
+    return all(abs(a - b) <= rel * max(a, b) + slack for a, b in pairs)
+
 #: (file stem, attribute) of every Model defined by the example files.
 EXAMPLE_MODELS = [
     ("double_pendulum", "model"),

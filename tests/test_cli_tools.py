@@ -210,17 +210,22 @@ def test_error_messages(args, message, capsys, tmp_path, monkeypatch):
 
 
 def test_progress_only_on_request(tmp_path):
-    from lagrgen.cli import Progress
-    quiet = run("simulate", DOUBLE, "--backend", "python", "--t-end", 1, "--samples", 3,
-                cwd=tmp_path)
-    assert "simulate [" not in quiet.stderr
+    from lagrgen.progress import ProgressBar
+    quiet = run("simulate", DOUBLE, "--t-end", 1, "--samples", 3, cwd=tmp_path)
+    assert "simulate:" not in quiet.stderr and "native engine" in quiet.stderr
+    asked = run("simulate", DOUBLE, "--t-end", 1, "--samples", 3, "--progress", cwd=tmp_path)
+    assert "simulate:" in asked.stderr and "100%" in asked.stderr
     stream = io.StringIO()
-    progress = Progress(0.0, 10.0, stream, every=0.0)
+    progress = ProgressBar(0.0, 10.0, show=True, stream=stream, mininterval=0)
     progress(2.5)
-    progress(5.0)
-    progress.done()
-    lines = stream.getvalue().splitlines()
-    assert len(lines) == 3 and re.search(r"25\.0%", lines[0]) and "100.0%" in lines[-1]
+    progress.close(10.0)
+    text = stream.getvalue()
+    assert " 25%" in text and "100%" in text and "t = 10 of 10" in text
+    silent = io.StringIO()
+    auto = ProgressBar(0.0, 10.0, show="auto", stream=silent)    # not a terminal: nothing
+    auto(5.0)
+    auto.close(10.0)
+    assert silent.getvalue() == ""
 
 
 def test_bench_prints_and_writes_a_table_of_both_paths(tmp_path):

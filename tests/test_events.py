@@ -7,6 +7,8 @@ from numpy.testing import assert_allclose
 import lagrgen
 from lagrgen import Model, ModelError
 
+from conftest import counts_close
+
 
 def falling_ball():
     model = Model("falling_ball")
@@ -39,7 +41,7 @@ def test_compiled_events_on_both_engines_and_backends(ball):
         assert_allclose(sol.t_events[1], [0.5], rtol=1e-9)
         assert sol.t[-1] == pytest.approx(t_hit, rel=1e-9)
         assert_allclose(sol.y_events[0][0][1], 0.0, atol=1e-9)
-    assert results[0].nfev == results[1].nfev
+    assert counts_close(results[0].nfev, results[1].nfev)
     assert_allclose(ball.events(0.0, [0.3, 2.0, 0, 0]), [2.0, -0.7])
     assert_allclose(py.events(0.0, [0.3, 2.0, 0, 0]), [2.0, -0.7])
 

@@ -6,12 +6,14 @@ Layout of an output directory:
     <name><EXT_SUFFIX>              the model's module, importable with the directory on sys.path
     __lagrgen__/<name>-<key>/       the cache: one immutable entry per key (sources, module, digest)
     __lagrgen__/<name>.current      the key of the entry last published into the directory
-The key is a hash of what is compiled (the derived equations, lagrgen's generator sources and
-version, compiler and flags), so no change to a model, and no change to lagrgen, can be served
-stale. Everything is written to a temporary file or directory first and renamed into place after an
+The key is a hash of what is compiled: the frozen model description (every symbol with its
+assumptions; or the equations themselves when M and F come from outside, as from `from_sympy`),
+lagrgen's generator sources and version, the compiler and flags. So no change to a model, and no
+change to lagrgen, can be served stale, and a cache hit derives nothing. Everything is written to a temporary file or directory first and renamed into place after an
 fsync, so a build that dies halfway leaves nothing a later load would pick up; a cache entry whose
 module does not match its recorded digest, or does not import, is discarded and compiled again.
 """
+import dataclasses
 import functools
 import hashlib
 import importlib.machinery
@@ -24,6 +26,7 @@ import sys
 import sysconfig
 import tempfile
 import time
+import weakref
 from contextlib import contextmanager
 from pathlib import Path
 
@@ -65,16 +68,17 @@ def build(model, out_dir="generated", backend="c", **options):
     if backend not in BACKENDS:
         raise ModelError(f"unknown backend {backend!r}: use one of {', '.join(map(repr, BACKENDS))}")
     spec = model.spec()
-    equations = model.equations()
-    info = model_info(spec, equations)
     if backend == "python":
         from .codegen.python_module import python_source
         from .runtime.pymodel import PythonModel
-        return PythonModel(info, equations.n, python_source(equations))
+        equations = model.equations()
+        return PythonModel(model_info(spec, equations), equations.n, python_source(equations))
     unknown = set(options) - {"verbose", "quiet", "force", "opt_level", "cflags"}
     if unknown:
         raise TypeError(f"build() got unknown option(s) {', '.join(sorted(unknown))}")
-    return build_c(info, equations, Path(out_dir), **options)
+    return build_c(spec.name, content_digest(spec, model.equations),
+                   lambda: (model_info(spec, model.equations()), model.equations()),
+                   Path(out_dir), **options)
 
 
 def load(name, out_dir="generated"):
@@ -112,14 +116,91 @@ def export_c(model, out_dir):
 # -- what identifies a build -----------------------------------------------------------------
 @functools.lru_cache(maxsize=None)
 def generator_digest():
-    """sha256 of lagrgen's generator sources (derivation, kernels, printers, templates)."""
+    """sha256 of lagrgen's generator sources (derivation, kernels, printers, templates) and of
+    the versions of the symbolic libraries that derive the equations."""
+    from importlib.metadata import PackageNotFoundError, version
     h = hashlib.sha256(__version__.encode())
+    for library in ("sympy", "symengine"):
+        try:
+            h.update(f"{library} {version(library)}\0".encode())
+        except PackageNotFoundError:
+            pass
     for pattern in GENERATOR_SOURCES:
         for path in sorted(PACKAGE.glob(pattern)):
             if path.is_file():
                 h.update(path.relative_to(PACKAGE).as_posix().encode() + b"\0")
                 h.update(path.read_bytes())
     return h.hexdigest()
+
+
+def content_digest(spec, equations=None):
+    """sha256 identifying what a build compiles: of the frozen description `spec` and the
+    generator, or — when M and F come from outside (`spec.external`) — of the derived equations
+    (`equations()` is then called). Computed once per spec."""
+    cached = _digests.get(spec)
+    if cached is None:
+        if spec.external is not None:
+            cached = equations_digest(spec, equations())
+        else:
+            cached = description_digest(spec)
+        _digests[spec] = cached
+    return cached
+
+
+_digests = weakref.WeakKeyDictionary()
+
+
+def description_digest(spec):
+    """sha256 of the generator and every field of the frozen description `spec`, SymPy objects by
+    `srepr` (which keeps the assumptions of symbols, unlike `str`)."""
+    h = hashlib.sha256(generator_digest().encode())
+    h.update(_canonical(spec).encode())
+    return h.hexdigest()
+
+
+def _canonical(obj, memo=None):
+    """A text that identifies `obj`: SymPy objects by their tree (class names, symbol names with
+    their assumptions, exact numbers), dataclasses, tuples, lists and dicts by their parts,
+    anything else by repr. Shared subexpressions are spelled once per call (`memo`)."""
+    import sympy as sp
+    memo = {} if memo is None else memo
+    if isinstance(obj, (sp.Basic, sp.MatrixBase)):
+        return _expression_text(obj, memo)
+    if dataclasses.is_dataclass(obj) and not isinstance(obj, type):
+        parts = (f"{f.name}={_canonical(getattr(obj, f.name), memo)}"
+                 for f in dataclasses.fields(obj))
+        return f"{type(obj).__name__}({', '.join(parts)})"
+    if isinstance(obj, (tuple, list)):
+        return f"{type(obj).__name__}[{', '.join(_canonical(x, memo) for x in obj)}]"
+    if isinstance(obj, dict):
+        items = sorted(obj.items(), key=lambda kv: repr(kv[0]))
+        return "{" + ", ".join(f"{_canonical(k, memo)}: {_canonical(v, memo)}"
+                               for k, v in items) + "}"
+    return repr(obj)
+
+
+def _expression_text(expr, memo):
+    """The tree of a SymPy expression or matrix as text (see `_canonical`)."""
+    import sympy as sp
+    if isinstance(expr, sp.MatrixBase):
+        rows = (",".join(_expression_text(e, memo) for e in expr.row(i))
+                for i in range(expr.rows))
+        return f"Matrix[{';'.join(rows)}]"
+    try:
+        return memo[expr]
+    except KeyError:
+        pass
+    if expr.is_Symbol:
+        text = f"Symbol({expr.name!r}, {sorted(expr.assumptions0.items())})"
+    elif expr.is_Number or not expr.args:
+        text = sp.srepr(expr)
+    else:
+        head = type(expr).__name__
+        if isinstance(expr, sp.core.function.AppliedUndef):
+            head = f"Function({expr.func.__name__!r})"
+        text = f"{head}({','.join(_expression_text(a, memo) for a in expr.args)})"
+    memo[expr] = text
+    return text
 
 
 def equations_digest(spec, equations):
@@ -147,7 +228,7 @@ def model_info(spec, equations):
     return {
         "name": spec.name, "coordinates": list(spec.coordinate_names),
         "parameters": list(spec.parameter_names), "inputs": list(spec.input_names),
-        "defaults": list(spec.defaults), "content_hash": equations_digest(spec, equations),
+        "defaults": list(spec.defaults), "content_hash": content_digest(spec, lambda: equations),
         "lagrgen_version": __version__, "dimensions": model_dimensions(spec, equations),
         "output_names": list(spec.output_names), "units": dict(spec.units),
         "explicit_time": bool(equations.explicit_time),
@@ -248,9 +329,9 @@ def compile_units(sources, output_path, flags, unit_flags=None):
                   output_path)
 
 
-def build_key(info, flags):
-    """The cache key: the equations' digest, the compiler, its flags and the module suffix."""
-    h = hashlib.sha256(info["content_hash"].encode())
+def build_key(digest, flags):
+    """The cache key: the content digest, the compiler, its flags and the module suffix."""
+    h = hashlib.sha256(digest.encode())
     h.update(repr((flags, compiler_command(), EXT_SUFFIX)).encode())
     return h.hexdigest()[:20]
 
@@ -367,15 +448,15 @@ class _Progress:
                   file=sys.stderr, flush=True)
 
 
-def build_c(info, equations, out_dir, verbose=False, quiet=False, force=False, opt_level="-O2",
-            cflags=()):
-    """Generate, compile, cache, publish and import the model `info` with `equations`; return the
-    module (the built model). Progress goes to stderr with `verbose`, or on a terminal unless
-    `quiet`."""
+def build_c(name, digest, derive, out_dir, verbose=False, quiet=False, force=False,
+            opt_level="-O2", cflags=()):
+    """Generate, compile, cache, publish and import the model `name` whose content digest is
+    `digest`; `derive()` gives (info, equations) and is called only when something must be
+    compiled. Returns the module (the built model). Progress goes to stderr with `verbose`, or on
+    a terminal unless `quiet`."""
     start = time.perf_counter()
-    name = info["name"]
     flags = compile_flags(opt_level, cflags)
-    key = build_key(info, flags)
+    key = build_key(digest, flags)
     cache = Path(out_dir) / CACHE_DIR
     entry = cache / f"{name}-{key}"
     progress = _Progress(name, verbose or (not quiet and sys.stderr.isatty()))
@@ -390,8 +471,8 @@ def build_c(info, equations, out_dir, verbose=False, quiet=False, force=False, o
     try:
         hit = not force and entry_is_valid(entry, name)
         if not hit:
-            _compile_entry(info, equations, entry, flags, progress)
-        module = _import_or_rebuild(info, equations, entry, flags, progress)
+            _compile_entry(*derive(), entry, flags, progress)
+        module = _import_or_rebuild(name, derive, entry, flags, progress)
         _publish(out_dir, name, entry, key, force)
     finally:
         lock.__exit__(None, None, None)
@@ -406,14 +487,13 @@ def _finish(module, hit, start, progress):
     return module
 
 
-def _import_or_rebuild(info, equations, entry, flags, progress):
+def _import_or_rebuild(name, derive, entry, flags, progress):
     """Import the entry's module; if that fails, discard the entry, compile it again, import."""
-    name = info["name"]
     try:
         return import_extension(name, module_path(entry, name))
     except BuildError as first:
         progress.note(f"cached module did not import ({first}); compiling again")
-        _compile_entry(info, equations, entry, flags, progress)
+        _compile_entry(*derive(), entry, flags, progress)
         return import_extension(name, module_path(entry, name))
 
 

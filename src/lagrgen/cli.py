@@ -331,50 +331,6 @@ def initial_state(text, model):
     return y0
 
 
-class Progress:
-    """Prints how far the integration has got, at most every `every` seconds, to `stream`."""
-
-    def __init__(self, t0, t1, stream, every=0.5):
-        self.t0, self.t1, self.stream = t0, t1, stream
-        self.start = self.last = time.monotonic()
-        self.tty = stream.isatty()
-        self.every = every if self.tty else 4 * every
-        self.shown = False
-
-    def line(self, t):
-        fraction = min(max((t - self.t0) / ((self.t1 - self.t0) or 1.0), 0.0), 1.0)
-        bar = "#" * int(30 * fraction)
-        return (f"simulate [{bar:<30}] {100 * fraction:5.1f}%  t = {t:.4g} of {self.t1:.4g}  "
-                f"({time.monotonic() - self.start:.1f} s)")
-
-    def __call__(self, t):
-        now = time.monotonic()
-        if now - self.last >= self.every:
-            self.last = now
-            self.shown = True
-            self.stream.write(("\r" if self.tty else "") + self.line(t) + ("" if self.tty else "\n"))
-            self.stream.flush()
-
-    def done(self):
-        if self.shown:
-            self.stream.write(("\r" if self.tty else "") + self.line(self.t1) + "\n")
-            self.stream.flush()
-
-
-class Watched:
-    """A built model whose `rhs` reports each time it is called at to a Progress."""
-
-    def __init__(self, mod, progress):
-        self._mod, self._progress = mod, progress
-
-    def __getattr__(self, name):
-        return getattr(self._mod, name)
-
-    def rhs(self, t, y, p=None, u=None):
-        self._progress(t)
-        return self._mod.rhs(t, y, p, u)
-
-
 def column(name, units):
     """A CSV header: 'x [m]' when the name has a unit, else the name."""
     unit = (units or {}).get(name)
@@ -430,21 +386,18 @@ def command_simulate(args):
     mod = build_for(model, args)
     if mod.n_constraints:
         y0 = consistent_start(mod, y0, args, params)
-    show_progress = args.progress or (sys.stderr.isatty() and not args.quiet)
-    progress = Progress(args.t_start, args.t_end, sys.stderr) if show_progress else None
+    progress = True if args.progress else (False if args.quiet else "auto")
     t_eval = np.linspace(args.t_start, args.t_end, args.samples)
     options = {} if args.max_step is None else {"max_step": args.max_step}
     if args.max_steps <= 0 or (args.max_time is not None and args.max_time <= 0):
         raise LagrgenError("--max-steps and --max-time must be positive")
     plot_outputs = output_choice(args.plot_outputs, mod)
     started = time.perf_counter()
-    sol = simulate(Watched(mod, progress) if progress else mod, (args.t_start, args.t_end), y0,
-                   method=args.method, params=params or None, inputs=inputs or None,
-                   rtol=args.rtol, atol=args.atol, t_eval=t_eval, max_steps=args.max_steps,
-                   max_wall_time=args.max_time, **options)
+    sol = simulate(mod, (args.t_start, args.t_end), y0, method=args.method,
+                   params=params or None, inputs=inputs or None, rtol=args.rtol, atol=args.atol,
+                   t_eval=t_eval, max_steps=args.max_steps, max_wall_time=args.max_time,
+                   progress=progress, **options)
     seconds = time.perf_counter() - started
-    if progress:
-        progress.done()
     if not sol.success and sol.guard is None:
         reached = sol.t[-1] if len(sol.t) else args.t_start
         raise LagrgenError(f"the integration stopped at t = {reached:.6g}: {sol.message}")
@@ -455,7 +408,8 @@ def command_simulate(args):
         raise LagrgenError(f"{sol.message} (raise --max-steps or --max-time to go further)")
     if not args.quiet:
         print(f"{model.name}: {args.method} from t = {args.t_start:g} to {args.t_end:g}, "
-              f"{sol.nfev} rhs calls, {seconds:.3f} s ({mod.backend} backend)", file=sys.stderr)
+              f"{sol.nfev} rhs calls, {seconds:.3f} s ({mod.backend} backend, {sol.engine} "
+              "engine)", file=sys.stderr)
         for what, path in written:
             print(f"{what} -> {path}", file=sys.stderr)
     return 0

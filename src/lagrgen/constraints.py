@@ -9,7 +9,7 @@ import numpy as np
 
 from .errors import ConstraintError
 from .runtime.arguments import input_vector, state_vector
-from .simulate import parameters_from
+from .runtime.arguments import parameters_from
 
 #: Relative singular value below which A counts as rank-deficient (dependent constraints).
 RANK_TOL = 1e-10

@@ -17,7 +17,8 @@ import numpy as np
 
 from .errors import LagrgenError
 from .runtime.arguments import as_vector, state_vector
-from .simulate import parameters_from, simulate
+from .runtime.arguments import parameters_from
+from .simulate import simulate
 
 
 @dataclass

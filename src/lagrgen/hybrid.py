@@ -26,7 +26,7 @@ limit (μ_s·|N| − |λ| ↓ 0). Then:
   forces within their cones) before the next segment; `max_transitions` bounds chattering.
 
 `HybridSystem` holds that logic; `simulate_hybrid` runs it with `solve_ivp` (engine "scipy") or in
-C (`lagrgen._native.solve_hybrid`, `native/lg_hybrid.c`, the same rules).
+C (`lagrgen.native._ode.solve_hybrid`, `native/lg_hybrid.c`, the same rules).
 """
 import numpy as np
 
@@ -455,7 +455,7 @@ NORMAL_KINDS = {None: 0, "constraint": 1, "impact": 2}
 
 def solve_hybrid_native(mod, t_span, y0, method, p, u_spec, rtol, atol, t_eval=None,
                         rest_velocity=None, gap_tol=GAP_TOL, max_transitions=MAX_TRANSITIONS,
-                        max_step=np.inf, first_step=None):
+                        max_step=np.inf, first_step=None, poll=None):
     """The hybrid solve of `simulate_hybrid` in C (`native/lg_hybrid.c`): the same segments,
     events and switching rules with no Python per step or per switch.
 
@@ -463,8 +463,8 @@ def solve_hybrid_native(mod, t_span, y0, method, p, u_spec, rtol, atol, t_eval=N
     -------
     dict as `simulate_hybrid`
     """
-    from . import _native
-    from .native_engine import _tolerances
+    from .native import _ode
+    from .native.engine import _tolerances
     system = HybridSystem(mod, p, None)
     n = mod.n_coordinates
     rtol, atol = _tolerances(rtol, atol, 2 * n)
@@ -472,12 +472,12 @@ def solve_hybrid_native(mod, t_span, y0, method, p, u_spec, rtol, atol, t_eval=N
     index = [0 if ref is None else int(ref[1]) for ref in system.normal]
     t0, tf = map(float, t_span)
     first = 0.0 if first_step is None else float(first_step)
-    out = _native.solve_hybrid(
+    out = _ode.solve_hybrid(
         method, mod.compiled_model.function_address("hybrid_terms"), n, system.m, system.ni,
         system.nf, kinds, index, np.asarray(p, dtype=float), list(u_spec), t0, tf,
         np.asarray(y0, dtype=float), rtol, atol, float(max_step), first, t_eval,
         -1.0 if rest_velocity is None else float(rest_velocity), float(gap_tol),
-        int(max_transitions))
+        int(max_transitions), poll)
     transitions = [(float(t), system.names[int(k)], KIND_NAMES[int(kind)])
                    for t, k, kind in out["transitions"]]
     mode = {d[0]: CONTACT if c else OPEN for d, c in zip(system.impacts, out["contact"])}
@@ -485,3 +485,59 @@ def solve_hybrid_native(mod, t_span, y0, method, p, u_spec, rtol, atol, t_eval=N
     return dict(t=out["t"], y=out["y"].T.copy(), transitions=transitions, mode=mode,
                 nfev=out["nfev"], status=out["status"], message=out["message"],
                 n_segments=out["n_segments"], success=out["status"] >= 0)
+
+
+def simulate_nonsmooth(mod, t_span, y0, method, p, inputs, u_at, rtol, atol, t_eval, dense_output,
+                       events, engine, progress, options):
+    """`simulate` for a model with impacts or frictions: the hybrid solve in C (`engine` None or
+    "native", when the native engine can run the model) or with `solve_ivp`. Returns an OdeResult
+    with also `transitions`, `mode`, `n_segments`, `engine` and `guard` (None).
+
+    max_steps and max_wall_time are not applied to a hybrid solve: `max_transitions` bounds its
+    switching, and Ctrl-C ends a native one."""
+    from scipy.integrate._ivp.ivp import OdeResult
+
+    from .native.engine import _t_eval, native_reason
+    from .runtime.arguments import input_specs
+    if events is not None:
+        raise ValueError("a model with impacts or frictions takes no Python events: declare them "
+                         "with model.event")
+    if not isinstance(method, str) or method not in ("RK23", "RK45", "DOP853", "Radau", "BDF"):
+        raise ValueError(f"a model with impacts or frictions runs with RK23, RK45, DOP853, Radau "
+                         f"or BDF, not {getattr(method, '__name__', method)!r}")
+    if dense_output:
+        raise ValueError("dense_output is not available for a model with impacts or frictions: "
+                         "give t_eval")
+    options = dict(options)
+    switching = {k: options.pop(k) for k in ("rest_velocity", "gap_tol", "max_transitions")
+                 if k in options}
+    why_not = None if engine == "scipy" else native_reason(mod, method, inputs, None, options,
+                                                            rtol)
+    if engine == "native" and why_not:
+        raise ValueError(f"the native engine cannot run this solve: {why_not}")
+    if t_eval is not None:
+        t_eval = _t_eval(t_eval, *map(float, t_span))
+    if engine != "scipy" and why_not is None:
+        from .native._ode import Poll
+        from .progress import ProgressBar
+        bar = ProgressBar(*t_span, show=progress) if progress else None
+        try:
+            out = solve_hybrid_native(mod, t_span, y0, method, p, input_specs(mod, inputs), rtol,
+                                      atol, t_eval, poll=Poll(bar), **switching, **options)
+        finally:
+            if bar is not None:
+                bar.close()
+        engine_name = "native"
+    else:
+        out = simulate_hybrid(mod, t_span, y0, method, p, u_at, rtol, atol, t_eval,
+                              **switching, **options)
+        engine_name = "scipy"
+    sol = OdeResult(t=out["t"], y=out["y"], sol=None, t_events=None, y_events=None,
+                    nfev=out["nfev"], njev=0, nlu=0, status=out["status"],
+                    message=out["message"], success=out["status"] >= 0)
+    sol.engine = engine_name
+    sol.transitions = out["transitions"]
+    sol.mode = out["mode"]
+    sol.n_segments = out["n_segments"]
+    sol.guard = None
+    return sol

@@ -12,6 +12,7 @@ from sympy.core.function import AppliedUndef
 
 from .errors import ModelError
 from .functions import POWER_TERMS
+from .numbers import fits_a_double, is_zero
 
 #: SymPy functions that have a C99 equivalent and that the symbolic core can differentiate.
 SUPPORTED_FUNCTIONS = (
@@ -61,15 +62,6 @@ def check_model_name(name):
         raise ModelError(f"a model cannot be called {name!r}: that is the name of a module Python "
                          "or lagrgen needs, which the compiled model would hide; choose another name")
     return name
-
-
-def fits_a_double(number):
-    """True if the SymPy number rounds to a finite double that is zero only when it is zero."""
-    try:
-        value = float(number)
-    except (OverflowError, TypeError):
-        return False
-    return math.isfinite(value) and (value != 0 or number == 0)
 
 
 def split_names(names, what):
@@ -375,8 +367,8 @@ class Model:
         for number in expr.atoms(sp.Number):
             if not fits_a_double(number):
                 raise ModelError(
-                    f"{where}: the number {sp.N(number, 6)} does not fit a double (|x| between "
-                    "2.2e-308 and 1.8e308): rescale the model's units or parameters")
+                    f"{where}: the number {sp.N(number, 6)} does not fit a double (|x| up to "
+                    "1.8e308): rescale the model's units or parameters")
         return expr
 
     def _coordinate(self, coordinate):
@@ -478,7 +470,7 @@ class Model:
         kin = self._orientation(orientation, "torque_3d orientation")
         for j, coordinate in enumerate(self._coordinates):
             arm = kin.W_fixed[:, j]
-            if any(e != 0 for e in arm):
+            if not all(is_zero(e) for e in arm):
                 self._virtual_work.append((sp.Matrix([moment.dot(arm)]),
                                            sp.Matrix([coordinate])))
         self._changed()
@@ -667,7 +659,7 @@ class Model:
                 raise ModelError(
                     f"{where} ({expr} = 0) is not linear in the velocities: its coefficient of "
                     f"{v} is {c}, which depends on velocities; write it as A(q, t)·q̇ + b(q, t)")
-        if not any(c != 0 for c in coefficients):
+        if all(is_zero(c) for c in coefficients):
             raise ModelError(
                 f"{where} ({expr} = 0) involves no velocity: a constraint on positions alone is "
                 "holonomic, add it with model.constraint(expr)")

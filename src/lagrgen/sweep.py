@@ -10,7 +10,7 @@ import numpy as np
 
 from .ensemble import simulate_many
 from .methods import MEASURES
-from .simulate import parameters_from
+from .runtime.arguments import parameters_from
 
 
 @dataclass

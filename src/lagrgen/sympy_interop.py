@@ -10,6 +10,7 @@ from sympy.core.function import AppliedUndef
 
 from .errors import ModelError
 from .model import Model, check_name
+from .numbers import is_zero
 from .runtime.arguments import key_name
 
 
@@ -47,7 +48,7 @@ def from_sympy(method_or_system, name, defaults=None, inputs=None):
         if not (isinstance(c, AppliedUndef) and c.args == (t,)):
             raise ModelError(f"coordinate {c} is not a function of time t alone")
     for i, c in enumerate(coordinates):
-        if M[i, i] == 0:
+        if is_zero(M[i, i]):
             raise ModelError(
                 f"SymPy's mass matrix has a zero diagonal entry for coordinate {c}: its equations "
                 "do not determine that coordinate's acceleration (a System formed with "

@@ -28,7 +28,7 @@ from scipy.optimize import linear_sum_assignment, root
 
 from .runtime.arguments import as_vector, input_vector
 from .errors import LagrgenError, MassMatrixError, UnknownNameError
-from .simulate import parameters_from
+from .runtime.arguments import parameters_from
 
 #: Relative size below which an eigenvalue ω² (or an imaginary part, an asymmetry) counts as zero.
 ZERO_TOL = 1e-9

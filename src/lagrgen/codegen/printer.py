@@ -5,7 +5,6 @@ type) and statements (`Declare` a CSE temporary, `Store` an output entry) that e
 Symbols print by name: the internal names `q[i]`, `qd[i]`, `a[i]`, `p[j]`, `u[k]` and `t` are valid
 array accesses in both languages, and no user-chosen name ever reaches the generated code.
 """
-import math
 from dataclasses import dataclass
 from fractions import Fraction
 
@@ -13,6 +12,7 @@ import symengine as se
 from symengine.lib.symengine_wrapper import Constant
 
 from ..errors import ModelError
+from ..numbers import fits_a_double
 
 ADD, MUL, ATOM = 1, 2, 3
 #: Integers up to 2⁵³ are exact doubles and print as they are; larger ones as rounded doubles.
@@ -20,16 +20,11 @@ EXACT_INTEGER = 2 ** 53
 
 
 def double(value, expr):
-    """`value` (int, Fraction, Float) correctly rounded to a double; ModelError if it does not fit."""
-    try:
-        v = float(value)
-    except OverflowError:
-        v = math.inf
-    if not math.isfinite(v) or (v == 0 and value != 0):
+    """`value` (int, Fraction, Float) correctly rounded to a double; ModelError if it overflows."""
+    if not fits_a_double(value):
         raise ModelError(f"the number {expr} in the equations does not fit a double "
-                         f"(|x| must lie between 2.2e-308 and 1.8e308): rescale the model's units "
-                         "or parameters")
-    return v
+                         f"(|x| up to 1.8e308): rescale the model's units or parameters")
+    return float(value)
 
 
 @dataclass

@@ -6,8 +6,8 @@
  * as one (n + r) linear system by Gaussian elimination with partial pivoting; a segment is one
  * lg_solve with terminal events (all falling through zero); between segments the impact law
  * (generalized Newton, projected Gauss–Seidel on the Delassus matrix) and the switching rules.
- * The model's functions keep their signature f(t, y, p, u, out): the segment's rhs and events
- * receive this driver's context in place of p.
+ * The model's functions keep their signature f(t, y, p, u, out); the segment's rhs, Jacobian and
+ * events are lg_solve's system hooks (sys_rhs, sys_jac, sys_events) with this driver's context.
  */
 #include "lg_hybrid.h"
 
@@ -217,9 +217,9 @@ static int hy_solve(hy_ctx *c, double t, const double *y, const double *u, const
 }
 
 /* -- the segment's functions (p is the context) --------------------------------------------- */
-static int hy_rhs(double t, const double *y, const double *p, const double *u, double *ydot)
+static int hy_rhs(void *ctx, double t, const double *y, const double *u, double *ydot)
 {
-    hy_ctx *c = (hy_ctx *)(void *)p;
+    hy_ctx *c = (hy_ctx *)ctx;
     if (hy_solve(c, t, y, u, c->contact, c->slip))
         return 1;
     memcpy(ydot, y + c->n, c->n * sizeof(double));
@@ -228,17 +228,17 @@ static int hy_rhs(double t, const double *y, const double *p, const double *u, d
 }
 
 /* ∂ẏ/∂y by forward differences (the stiff methods' Jacobian in a mode). */
-static int hy_jacobian(double t, const double *y, const double *p, const double *u, double *J)
+static int hy_jacobian(void *ctx, double t, const double *y, const double *u, double *J)
 {
-    hy_ctx *c = (hy_ctx *)(void *)p;
+    hy_ctx *c = (hy_ctx *)ctx;
     int dim = 2 * c->n;
-    if (hy_rhs(t, y, p, u, c->fy))
+    if (hy_rhs(ctx, t, y, u, c->fy))
         return 1;
     memcpy(c->yp, y, dim * sizeof(double));
     for (int k = 0; k < dim; ++k) {
         double step = 1.4901161193847656e-08 * fmax(1.0, fabs(y[k]));
         c->yp[k] = y[k] + step;
-        if (hy_rhs(t, c->yp, p, u, c->fy2))
+        if (hy_rhs(ctx, t, c->yp, u, c->fy2))
             return 1;
         for (int a = 0; a < dim; ++a)
             J[a * dim + k] = (c->fy2[a] - c->fy[a]) / step;
@@ -256,9 +256,9 @@ static void hy_event_values(hy_ctx *c, const int *contact, const int *slip, doub
                                          : slip[j] * FR(c, j)[0];
 }
 
-static int hy_events(double t, const double *y, const double *p, const double *u, double *values)
+static int hy_events(void *ctx, double t, const double *y, const double *u, double *values)
 {
-    hy_ctx *c = (hy_ctx *)(void *)p;
+    hy_ctx *c = (hy_ctx *)ctx;
     if (hy_solve(c, t, y, u, c->contact, c->slip))
         return 1;
     hy_event_values(c, c->contact, c->slip, values);
@@ -690,12 +690,13 @@ int lg_hybrid_solve(lg_hybrid_t *h, const lg_options_t *options, lg_hybrid_resul
         lg_problem_t pb;
         memset(&pb, 0, sizeof pb);
         pb.dim = dim;
-        pb.rhs = hy_rhs;
-        pb.jacobian = hy_jacobian;
-        pb.p = (const double *)(void *)&c;
+        pb.sys_rhs = hy_rhs;
+        pb.sys_jac = hy_jacobian;
+        pb.sys_events = ne ? hy_events : NULL;
+        pb.sys_ctx = &c;
+        pb.p = h->p;
         pb.n_inputs = h->n_inputs;
         pb.inputs = h->inputs;
-        pb.events = ne ? hy_events : NULL;
         pb.n_events = ne;
         pb.event_max = emax;
         pb.event_direction = edir;
@@ -727,6 +728,13 @@ int lg_hybrid_solve(lg_hybrid_t *h, const lg_options_t *options, lg_hybrid_resul
         }
         res->nfev += seg.nfev;
         res->n_segments += 1;
+        if (seg.stopped) {
+            res->status = -1;
+            res->stopped = seg.stopped;
+            snprintf(res->message, sizeof res->message, "stopped at t = %.9g", seg.t_reached);
+            lg_result_free(&seg);
+            break;
+        }
         if (seg.status < 0) {
             res->status = -1;
             snprintf(res->message, sizeof res->message, "at t = %.9g: %s", seg.t.len ?

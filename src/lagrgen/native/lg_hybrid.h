@@ -34,7 +34,8 @@ typedef struct {
 } lg_hybrid_t;
 
 typedef struct {
-    int status;                  /* 0 reached tf, -1 failure */
+    int status;                  /* 0 reached tf, -1 failure or stopped */
+    int stopped;                 /* 0, or a segment's lg_result_t.stopped (the poll: Ctrl-C) */
     char message[256];
     long nfev, n_segments;
     lg_buf_t t, y;               /* output times and states */

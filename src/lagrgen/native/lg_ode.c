@@ -3,6 +3,7 @@
  * Developers); each function names the SciPy function it ports. Operations are kept in SciPy's
  * order so that the step-size decisions, and hence the steps, are the same as solve_ivp's.
  */
+#define _POSIX_C_SOURCE 200809L   /* clock_gettime under -std=c99 */
 #include "lg_ode.h"
 
 #include <float.h>
@@ -11,6 +12,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <time.h>
 
 #include "lg_ode_tables.h"
 
@@ -163,7 +165,9 @@ static int fun(solver_t *s, double t, const double *y, double *out)
 {
     s->nfev++;
     eval_inputs(s, t);
-    int bad = s->pb->rhs(t, y, s->pb->p, s->u, out) ? 1 : 0;
+    const lg_problem_t *pb = s->pb;
+    int bad = (pb->sys_rhs ? pb->sys_rhs(pb->sys_ctx, t, y, s->u, out)
+                           : pb->rhs(t, y, pb->p, s->u, out)) ? 1 : 0;
     if (!bad && s->op->stop_on_nonfinite) {
         double sum = 0.0;   /* NaN or inf anywhere makes the sum non-finite */
         for (int i = 0; i < s->dim; ++i)
@@ -185,7 +189,9 @@ static int jac(solver_t *s, double t, const double *y)
 {
     s->njev++;
     eval_inputs(s, t);
-    if (s->pb->jacobian(t, y, s->pb->p, s->u, s->J)) {
+    const lg_problem_t *pb = s->pb;
+    if (pb->sys_jac ? pb->sys_jac(pb->sys_ctx, t, y, s->u, s->J)
+                    : pb->jacobian(t, y, pb->p, s->u, s->J)) {
         s->model_error = 1;
         s->error_t = t;
         memcpy(s->error_y, y, s->dim * sizeof(double));
@@ -1208,7 +1214,9 @@ static int store_dense(solver_t *s, lg_result_t *r)
 static int eval_events(solver_t *s, double t, const double *y, double *g)
 {
     eval_inputs(s, t);
-    if (s->pb->events(t, y, s->pb->p, s->u, g)) {
+    const lg_problem_t *pb = s->pb;
+    if (pb->sys_events ? pb->sys_events(pb->sys_ctx, t, y, s->u, g)
+                       : pb->events(t, y, pb->p, s->u, g)) {
         s->model_error = 2;
         s->error_t = t;
         memcpy(s->error_y, y, s->dim * sizeof(double));
@@ -1520,6 +1528,33 @@ static int handle_step_events(solver_t *s, lg_result_t *r, double *g, double *g_
     return 0;
 }
 
+/* Seconds of a monotonic clock. */
+static double wall_seconds(void)
+{
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
+}
+
+/* The guards after an accepted step: LG_STOP_* when the solve must end here, else 0. */
+static int guard_stop(const lg_options_t *op, const lg_result_t *r, double t, double start,
+                      double *next_poll)
+{
+    if (op->max_steps > 0 && r->n_steps >= op->max_steps)
+        return LG_STOP_STEPS;
+    if (op->max_wall_time <= 0 && !op->poll)
+        return 0;
+    double now = wall_seconds();
+    if (op->max_wall_time > 0 && now - start > op->max_wall_time)
+        return LG_STOP_WALL;
+    if (op->poll && now >= *next_poll) {
+        *next_poll = now + (op->poll_interval > 0 ? op->poll_interval : 0.05);
+        if (op->poll(op->poll_ctx, t))
+            return LG_STOP_POLL;
+    }
+    return 0;
+}
+
 static void model_failure_message(solver_t *s, lg_result_t *r)
 {
     if (s->model_error == 2)
@@ -1533,9 +1568,9 @@ static void model_failure_message(solver_t *s, lg_result_t *r)
 int lg_solve(const lg_problem_t *pb, const lg_options_t *op, lg_result_t *r)
 {
     memset(r, 0, sizeof *r);
-    if (op->method < LG_RK23 || op->method > LG_BDF || pb->dim < 0 || !pb->rhs
-        || ((op->method == LG_RADAU || op->method == LG_BDF) && !pb->jacobian)
-        || (pb->n_events > 0 && !pb->events) || pb->n_events > 64) {
+    if (op->method < LG_RK23 || op->method > LG_BDF || pb->dim < 0 || !(pb->rhs || pb->sys_rhs)
+        || ((op->method == LG_RADAU || op->method == LG_BDF) && !(pb->jacobian || pb->sys_jac))
+        || (pb->n_events > 0 && !(pb->events || pb->sys_events)) || pb->n_events > 64) {
         set_message(r, "invalid solver options");
         r->status = -1;
         return -1;
@@ -1553,6 +1588,8 @@ int lg_solve(const lg_problem_t *pb, const lg_options_t *op, lg_result_t *r)
     s.atol = op->atol;
     s.max_step = op->max_step;
     int n = s.dim, rc = 0, status = 0;
+    double start = (op->max_wall_time > 0 || op->poll) ? wall_seconds() : 0.0;
+    double next_poll = start + (op->poll_interval > 0 ? op->poll_interval : 0.05);
     double *g = NULL, *g_new = NULL, *count = NULL, *gtmp = NULL;
     if (solver_alloc(&s))
         goto nomem;
@@ -1626,6 +1663,19 @@ int lg_solve(const lg_problem_t *pb, const lg_options_t *op, lg_result_t *r)
         }
         if (terminate || finished) {
             status = terminate ? 1 : 0;
+            break;
+        }
+        r->stopped = guard_stop(op, r, s.t, start, &next_poll);
+        if (r->stopped) {
+            status = -1;
+            r->t_reached = s.t;
+            if (r->stopped == LG_STOP_STEPS)
+                set_message(r, "the step limit max_steps=%ld was reached", op->max_steps);
+            else if (r->stopped == LG_STOP_WALL)
+                set_message(r, "the wall-time limit max_wall_time=%g s was reached",
+                            op->max_wall_time);
+            else
+                set_message(r, "the solve was stopped at t = %.17g", s.t);
             break;
         }
     }

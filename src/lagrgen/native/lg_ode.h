@@ -26,8 +26,17 @@ typedef int (*lg_jac_fn)(double t, const double *y, const double *p, const doubl
 /* n_events event values g_i(t, y); return 0 (nonzero stops the solve with status -1). */
 typedef int (*lg_events_fn)(double t, const double *y, const double *p, const double *u,
                             double *values);
+/* Optional system hooks: when set, the engine evaluates the system through them (with sys_ctx)
+ * instead of the model's rhs / jacobian / events; y is the engine's state of length dim and u the
+ * inputs at t. Same return convention as the model functions. */
+typedef int (*lg_sys_fn)(void *ctx, double t, const double *y, const double *u, double *out);
+/* Called about every poll_interval seconds of wall time during a solve (after an accepted step);
+ * nonzero stops the solve (status -1, stopped = LG_STOP_POLL) keeping the result so far. */
+typedef int (*lg_poll_fn)(void *ctx, double t);
 
 enum { LG_RK23 = 0, LG_RK45 = 1, LG_DOP853 = 2, LG_RADAU = 3, LG_BDF = 4 };
+/* Why a solve stopped before tf (lg_result_t.stopped). */
+enum { LG_STOP_NONE = 0, LG_STOP_STEPS = 1, LG_STOP_WALL = 2, LG_STOP_POLL = 3 };
 enum { LG_SIGNAL_CONSTANT = 0, LG_SIGNAL_LINEAR = 1, LG_SIGNAL_CUBIC = 2,
        LG_SIGNAL_PREVIOUS = 3 };
 
@@ -55,6 +64,10 @@ typedef struct {
     int n_events;
     const double *event_max;    /* per event: count that terminates (INFINITY: never) */
     const double *event_direction; /* per event: >0 rising, <0 falling, 0 both */
+    lg_sys_fn sys_rhs;          /* NULL: rhs */
+    lg_sys_fn sys_jac;          /* NULL: jacobian */
+    lg_sys_fn sys_events;       /* NULL: events */
+    void *sys_ctx;
 } lg_problem_t;
 
 typedef struct {
@@ -70,6 +83,11 @@ typedef struct {
     int n_eval;
     int dense;                  /* keep the per-step interpolant coefficients */
     int stop_on_nonfinite;      /* 1: a NaN/inf derivative ends the solve (model_failure 3) */
+    long max_steps;             /* > 0: stop after this many accepted steps (LG_STOP_STEPS) */
+    double max_wall_time;       /* > 0: stop after this many seconds (LG_STOP_WALL) */
+    lg_poll_fn poll;            /* NULL: never called */
+    void *poll_ctx;
+    double poll_interval;       /* seconds between polls (<= 0: 0.05) */
 } lg_options_t;
 
 /* A growable array of doubles. */
@@ -79,7 +97,9 @@ typedef struct {
 } lg_buf_t;
 
 typedef struct {
-    int status;                 /* 0 reached tf, 1 terminal event, -1 failure */
+    int status;                 /* 0 reached tf, 1 terminal event, -1 failure or stopped */
+    int stopped;                /* LG_STOP_*: a guard or the poll ended the solve at t_reached */
+    double t_reached;           /* the time of the last accepted step when stopped */
     char message[256];
     long nfev, njev, nlu;
     long n_steps;               /* accepted steps */
@@ -96,7 +116,8 @@ typedef struct {
     lg_buf_t ev, ev_y;
 } lg_result_t;
 
-/* Run one solve. Returns 0 when it ran (the outcome is in result->status), -1 when out of
+/* Zero-initialise lg_problem_t and lg_options_t (memset) so that fields not set are off.
+ * Run one solve. Returns 0 when it ran (the outcome is in result->status), -1 when out of
  * memory or given invalid options (result->message says which). Always free the result. */
 int lg_solve(const lg_problem_t *problem, const lg_options_t *options, lg_result_t *result);
 void lg_result_free(lg_result_t *result);

@@ -105,3 +105,88 @@ def state_vector(y0, coordinates, what="y0"):
         names = list(coordinates) + [f"{c}_dot" for c in coordinates]
         return named_vector(y0, names, np.zeros(2 * n), "state")
     return as_vector(y0, 2 * n, f"{what} (= [q0, qd0] for coordinates {', '.join(coordinates)})")
+
+
+def parameters_from(mod, params):
+    """The parameter vector of the built model `mod` for `params`: None, a dict (names or
+    Symbols -> value) or an array."""
+    return parameter_vector(params, tuple(mod.parameters), np.asarray(mod.defaults, dtype=float))
+
+
+def input_function(mod, inputs):
+    """A function t -> the input vector u(t), in input order.
+
+    `inputs` maps input names (or the functions `model.inputs` returned) to constants or callables
+    of t; unnamed inputs are zero. A full array gives constant inputs in input order. Constant
+    inputs give one read-only vector, the same for every t.
+    """
+    names = tuple(mod.inputs)
+    if inputs is None or not isinstance(inputs, dict):
+        u0 = np.zeros(len(names)) if inputs is None else require_finite(
+            as_vector(inputs, len(names), "inputs (the input vector)"), names, "input")
+        return constant(u0)
+    by_name = {}
+    for key, value in inputs.items():
+        name = key_name(key)
+        if name not in names:
+            raise unknown_name("input", name, names)
+        by_name[name] = value
+    constants = {k: v for k, v in by_name.items() if not callable(v)}
+    u0 = require_finite(named_vector(constants, names, np.zeros(len(names)), "input"), names,
+                        "input")
+    varying = [(names.index(k), f) for k, f in by_name.items() if callable(f)]
+    if not varying:
+        return constant(u0)
+
+    def u_at(t):
+        u = u0.copy()
+        for i, f in varying:
+            u[i] = f(t)
+        return u
+    return u_at
+
+
+def constant(u0):
+    """t -> u0 for every t (u0 made read-only: every call shares it)."""
+    u0.setflags(write=False)
+
+    def u_at(t):
+        return u0
+    return u_at
+
+
+def python_callable_inputs(inputs):
+    """The names of the inputs given as Python callables (not constants or lagrgen.Signals)."""
+    from ..signals import Signal
+    if not isinstance(inputs, dict):
+        return []
+    return [key_name(k) for k, v in inputs.items() if callable(v) and not isinstance(v, Signal)]
+
+
+def input_specs(mod, inputs):
+    """The native engine's per-input descriptions for `inputs` (None, an array, or a dict of
+    constants and Signals; unnamed inputs are 0)."""
+    from ..signals import Signal, constant_spec
+    names = tuple(mod.inputs)
+    if inputs is None:
+        return [constant_spec(0.0) for _ in names]
+    if not isinstance(inputs, dict):
+        u = require_finite(as_vector(inputs, len(names), "inputs (the input vector)"), names,
+                           "input")
+        return [constant_spec(x) for x in u]
+    inputs = {key_name(k): v for k, v in inputs.items()}
+    unknown = [k for k in inputs if k not in names]
+    if unknown:
+        raise unknown_name("input", unknown[0], names)
+    specs = []
+    for name in names:
+        v = inputs.get(name, 0.0)
+        if isinstance(v, Signal):
+            specs.append(v.native_spec())
+        else:
+            x = float(v)
+            if not np.isfinite(x):
+                raise ValueError(f"input {name!r} is {x}: parameters and inputs must be finite "
+                                 "numbers")
+            specs.append(constant_spec(x))
+    return specs

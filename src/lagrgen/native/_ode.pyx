@@ -3,70 +3,20 @@
 """One native solve (lagrgen/native/lg_ode.c) with the GIL released, returning plain arrays.
 
 The model's C functions are passed as integer addresses (see CompiledModel.function_address);
-nothing here imports SciPy. `lagrgen.native_engine` builds the user-facing OdeResult.
+nothing here imports SciPy. `lagrgen.native.engine` builds the user-facing OdeResult.
 """
 import numpy as np
 cimport numpy as cnp
 from libc.stdint cimport uintptr_t
 from libc.stdlib cimport calloc, free
-from libc.string cimport memcpy
+from libc.string cimport memcpy, memset
+from cpython.exc cimport PyErr_CheckSignals
 
 cnp.import_array()
 
-cdef extern from "lg_ode.h":
-    ctypedef int (*lg_rhs_fn)(double, const double *, const double *, const double *,
-                              double *) noexcept nogil
-    ctypedef int (*lg_jac_fn)(double, const double *, const double *, const double *,
-                              double *) noexcept nogil
-    ctypedef int (*lg_events_fn)(double, const double *, const double *, const double *,
-                                 double *) noexcept nogil
-    ctypedef struct lg_signal_t:
-        int kind
-        int m
-        double value
-        const double *ts
-        const double *values
-        const double *coef
-    ctypedef struct lg_problem_t:
-        int dim
-        lg_rhs_fn rhs
-        lg_jac_fn jacobian
-        const double *p
-        int n_inputs
-        const lg_signal_t *inputs
-        lg_events_fn events
-        int n_events
-        const double *event_max
-        const double *event_direction
-    ctypedef struct lg_options_t:
-        int method
-        double t0, tf
-        const double *y0
-        double rtol
-        double rtol_given
-        const double *atol
-        double max_step
-        double first_step
-        const double *t_eval
-        int n_eval
-        int dense
-        int stop_on_nonfinite
-    ctypedef struct lg_buf_t:
-        double *data
-        size_t len, cap
-    ctypedef struct lg_result_t:
-        int status
-        char message[256]
-        long nfev, njev, nlu
-        long n_steps
-        int model_failure
-        double fail_t
-        lg_buf_t t, y, seg, coef, ev, ev_y, fail_y
-    int lg_solve(const lg_problem_t *, const lg_options_t *, lg_result_t *) nogil
-    void lg_result_free(lg_result_t *) nogil
-    double lg_signal_eval(const lg_signal_t *, double) nogil
+from lagrgen.native.lg_ode cimport *
+from lagrgen.methods import BY_NAME, NATIVE_CODES as METHOD_CODES
 
-METHOD_CODES = {"RK23": 0, "RK45": 1, "DOP853": 2, "Radau": 3, "BDF": 4}
 SIGNAL_CODES = {"constant": 0, "linear": 1, "cubic": 2, "previous": 3}
 
 
@@ -124,10 +74,40 @@ def signal_values(tuple spec, t):
     return out
 
 
+cdef class Poll:
+    """What a native solve does about every `interval` seconds of wall time: run pending signal
+    handlers (Ctrl-C raises KeyboardInterrupt there, in the main thread), stop when `stop` (an
+    object with is_set(), e.g. threading.Event) is set, and call `progress(t)`. An exception is
+    kept in `error` and ends the solve; the caller re-raises it."""
+    cdef public object progress, stop, error
+    cdef public double interval
+
+    def __init__(self, progress=None, stop=None, double interval=0.05):
+        self.progress, self.stop, self.error, self.interval = progress, stop, None, interval
+
+    cdef int check(self, double t) noexcept:
+        try:
+            PyErr_CheckSignals()
+            if self.stop is not None and self.stop.is_set():
+                return 1
+            if self.progress is not None:
+                self.progress(t)
+        except BaseException as exc:
+            self.error = exc
+            return 1
+        return 0
+
+
+cdef int poll_callback(void *ctx, double t) noexcept nogil:
+    with gil:
+        return (<Poll>ctx).check(t)
+
+
 def solve(str method, uintptr_t rhs, uintptr_t jacobian, int dim, p, list inputs, double t0,
           double tf, y0, double rtol, atol, double max_step, double first_step, t_eval,
           bint dense, uintptr_t events=0, event_max=None, event_direction=None,
-          bint stop_on_nonfinite=False):
+          bint stop_on_nonfinite=False, long max_steps=0, double max_wall_time=0.0,
+          Poll poll=None):
     """Run one solve in C without the GIL.
 
     Parameters
@@ -153,18 +133,24 @@ def solve(str method, uintptr_t rhs, uintptr_t jacobian, int dim, p, list inputs
     stop_on_nonfinite : bool
         End the solve at the first NaN/inf derivative (model_failure 3) instead of letting the
         method react to it as SciPy's do (rejected steps, Newton failures).
+    max_steps, max_wall_time : int, float
+        Stop after this many accepted steps / seconds (0: no limit); `stopped` says which.
+    poll : Poll or None
+        Called about every poll.interval seconds; its exception (KeyboardInterrupt on Ctrl-C) is
+        raised here after the solve has stopped and freed its memory.
 
     Returns
     -------
     dict
-        t, y (len(t), dim), status, message, nfev, njev, nlu, n_steps, seg (steps, 5),
+        t, y (len(t), dim), status, stopped (0, or 1/2/3: max_steps, max_wall_time, poll),
+        t_reached (when stopped), message, nfev, njev, nlu, n_steps, seg (steps, 5),
         coef (1-D), ev (k, 2) of (index, t), ev_y (k, dim), model_failure (0, 1 mass matrix
         not positive definite, 2 events function, 3 non-finite derivative), fail_t, fail_y (the
         state of that call).
     """
     if method not in METHOD_CODES:
         raise ValueError(f"method {method!r} has no native implementation")
-    if rhs == 0 or (METHOD_CODES[method] >= 3 and jacobian == 0):
+    if rhs == 0 or (BY_NAME[method].stiff and jacobian == 0):
         raise ValueError("a null model function address")
     cdef cnp.ndarray pa = f64(p if len(p) else [0.0])
     cdef cnp.ndarray y0a = f64(y0), atola = f64(atol)
@@ -179,6 +165,8 @@ def solve(str method, uintptr_t rhs, uintptr_t jacobian, int dim, p, list inputs
     cdef lg_problem_t pb
     cdef lg_options_t op
     cdef lg_result_t res
+    memset(&pb, 0, sizeof(pb))
+    memset(&op, 0, sizeof(op))
     cdef lg_signal_t *sig = <lg_signal_t *>calloc(len(inputs) + 1, sizeof(lg_signal_t))
     if sig == NULL:
         raise MemoryError()
@@ -209,12 +197,21 @@ def solve(str method, uintptr_t rhs, uintptr_t jacobian, int dim, p, list inputs
         op.n_eval = 0 if te is None else te.shape[0]
         op.dense = dense
         op.stop_on_nonfinite = stop_on_nonfinite
+        op.max_steps = max_steps
+        op.max_wall_time = max_wall_time
+        if poll is not None:
+            op.poll = poll_callback
+            op.poll_ctx = <void *>poll
+            op.poll_interval = poll.interval
         with nogil:
             rc = lg_solve(&pb, &op, &res)
         try:
             if rc < 0:
                 raise MemoryError(res.message.decode())
+            if poll is not None and poll.error is not None:
+                raise poll.error
             return dict(t=buf_array(&res.t, 0), y=buf_array(&res.y, dim), status=res.status,
+                        stopped=res.stopped, t_reached=res.t_reached,
                         message=res.message.decode(), nfev=res.nfev, njev=res.njev,
                         nlu=res.nlu, n_steps=res.n_steps, seg=buf_array(&res.seg, 5),
                         coef=buf_array(&res.coef, 0), ev=buf_array(&res.ev, 2),
@@ -242,6 +239,7 @@ cdef extern from "lg_hybrid.h":
         int *slip
     ctypedef struct lg_hybrid_result_t:
         int status
+        int stopped
         char message[256]
         long nfev, n_segments
         lg_buf_t t, y, transitions
@@ -252,7 +250,7 @@ cdef extern from "lg_hybrid.h":
 def solve_hybrid(str method, uintptr_t terms, int n, int m, int ni, int nf, normal_kind,
                  normal_index, p, list inputs, double t0, double tf, y0, double rtol, atol,
                  double max_step, double first_step, t_eval, double rest_velocity,
-                 double gap_tol, long max_transitions):
+                 double gap_tol, long max_transitions, Poll poll=None):
     """Run a hybrid solve (lagrgen/native/lg_hybrid.c) in C without the GIL.
 
     Parameters
@@ -264,7 +262,7 @@ def solve_hybrid(str method, uintptr_t terms, int n, int m, int ni, int nf, norm
     normal_kind, normal_index : arrays of int (nf)
         Per friction: 0 expression, 1 constraint k, 2 impact k (the index).
     rest_velocity : float
-        < 0: the relative default. Other arguments as `solve`.
+        < 0: the relative default. Other arguments as `solve` (poll: Ctrl-C, progress, stop).
 
     Returns
     -------
@@ -289,6 +287,9 @@ def solve_hybrid(str method, uintptr_t terms, int n, int m, int ni, int nf, norm
     cdef lg_hybrid_t hy
     cdef lg_options_t op
     cdef lg_hybrid_result_t res
+    memset(&hy, 0, sizeof(hy))
+    memset(&op, 0, sizeof(op))
+    memset(&res, 0, sizeof(res))
     cdef lg_signal_t *sig = <lg_signal_t *>calloc(len(inputs) + 1, sizeof(lg_signal_t))
     if sig == NULL:
         raise MemoryError()
@@ -321,11 +322,17 @@ def solve_hybrid(str method, uintptr_t terms, int n, int m, int ni, int nf, norm
         op.n_eval = 0 if te is None else te.shape[0]
         op.dense = 0
         op.stop_on_nonfinite = 1
+        if poll is not None:
+            op.poll = poll_callback
+            op.poll_ctx = <void *>poll
+            op.poll_interval = poll.interval
         with nogil:
             rc = lg_hybrid_solve(&hy, &op, &res)
         try:
             if rc < 0:
                 raise MemoryError(res.message.decode())
+            if poll is not None and poll.error is not None:
+                raise poll.error
             return dict(t=buf_array(&res.t, 0), y=buf_array(&res.y, dim), status=res.status,
                         message=res.message.decode(), nfev=res.nfev,
                         n_segments=res.n_segments, transitions=buf_array(&res.transitions, 3),

@@ -1,4 +1,4 @@
-"""The native integration engine: a whole solve in C (lagrgen._native) without the GIL.
+"""The native integration engine: a whole solve in C (`lagrgen.native._ode`) without the GIL.
 
 `solve_native` takes the same steps as `scipy.integrate.solve_ivp` (the C core is a port of
 SciPy 1.17's _ivp) and returns SciPy's `OdeResult`, with `sol.sol` rebuilt from SciPy's own
@@ -15,10 +15,11 @@ from scipy.integrate._ivp.ivp import OdeResult
 from scipy.integrate._ivp.radau import RadauDenseOutput
 from scipy.integrate._ivp.rk import Dop853DenseOutput, RkDenseOutput
 
-from .runtime.arguments import key_name, unknown_name
-from .signals import Signal, constant_spec
+from ..errors import MassMatrixError, NonFiniteError
+from ..methods import BY_NAME, NATIVE_METHODS
+from ..results import stopped_by_guard
+from ..runtime.arguments import input_specs, python_callable_inputs
 
-NATIVE_METHODS = ("RK23", "RK45", "DOP853", "Radau", "BDF")
 NATIVE_OPTIONS = ("max_step", "first_step")
 EPS = np.finfo(float).eps
 
@@ -31,7 +32,7 @@ def native_reason(mod, method, inputs, events, options, rtol=0.0):
     mod : built model
     method : str or class
     inputs : None, dict or array
-    events : None or anything solve_ivp accepts
+    events : None or anything solve_ivp accepts (Python events)
     options : dict of extra solve_ivp options
     rtol : float or array
 
@@ -39,11 +40,8 @@ def native_reason(mod, method, inputs, events, options, rtol=0.0):
     -------
     str or None
     """
-    if getattr(mod, "backend", None) != "c" or not hasattr(mod, "compiled_model"):
+    if mod.backend != "c":
         return "the model is not compiled (backend 'c')"
-    cm = mod.compiled_model
-    if not hasattr(cm, "function_address"):
-        return "the compiled model's runtime has no function_address"
     if any(type(getattr(mod, f, None)).__module__ != "lagrgen.runtime._compiled"
            for f in ("rhs", "jacobian")):
         return "the model's rhs or jacobian is not its compiled C function (a wrapper?)"
@@ -51,11 +49,10 @@ def native_reason(mod, method, inputs, events, options, rtol=0.0):
         return f"method {getattr(method, '__name__', method)!r} has no native implementation"
     if events is not None:
         return "Python-callable events need the SciPy engine"
-    if isinstance(inputs, dict):
-        callables = [k for k, v in inputs.items() if callable(v) and not isinstance(v, Signal)]
-        if callables:
-            return (f"input {callables[0]!r} is a Python callable; use a constant or a "
-                    "lagrgen.Signal for the native engine")
+    callables = python_callable_inputs(inputs)
+    if callables:
+        return (f"input {callables[0]!r} is a Python callable; use a constant or a "
+                "lagrgen.Signal for the native engine")
     if np.ndim(rtol) != 0:
         return "an array rtol is only supported by the SciPy engine"
     other = [k for k in options if k not in NATIVE_OPTIONS]
@@ -64,32 +61,44 @@ def native_reason(mod, method, inputs, events, options, rtol=0.0):
     return None
 
 
-def input_specs(mod, inputs):
-    """The C core's per-input descriptions for `inputs` (None, an array, or a dict of constants
-    and Signals; unnamed inputs are 0)."""
-    names = tuple(mod.inputs)
-    if inputs is None:
-        return [constant_spec(0.0) for _ in names]
-    if not isinstance(inputs, dict):
-        u = np.asarray(inputs, dtype=float).reshape(-1)
-        if u.size != len(names):
-            raise ValueError(f"inputs must have {len(names)} values, got {u.size}")
-        return [constant_spec(x) for x in u]
-    inputs = {key_name(k): v for k, v in inputs.items()}
-    unknown = [k for k in inputs if k not in names]
-    if unknown:
-        raise unknown_name("input", unknown[0], names)
-    specs = []
-    for name in names:
-        v = inputs.get(name, 0.0)
-        if isinstance(v, Signal):
-            specs.append(v.native_spec())
-        else:
-            x = float(v)
-            if np.isnan(x):
-                raise ValueError(f"input {name!r} is NaN")
-            specs.append(constant_spec(x))
-    return specs
+def simulate_native(mod, t_span, y0, method, p, inputs, u_at, rtol, atol, t_eval=None,
+                    dense_output=False, max_steps=None, max_wall_time=None, progress=None,
+                    **options):
+    """One `simulate` run on the native engine: the model's compiled events, Ctrl-C and the
+    guards handled in C, failures raised as the SciPy engine raises them. Returns the OdeResult
+    with `guard` (None, or why a guard stopped it)."""
+    from ._ode import Poll
+    events = native_events(mod) if mod.event_definitions else None
+    sol = solve_native(mod, t_span, y0, method, p, input_specs(mod, inputs), rtol, atol, t_eval,
+                       dense_output, events, stop_on_nonfinite=True, max_steps=max_steps,
+                       max_wall_time=max_wall_time, poll=Poll(progress), **options)
+    raise_native_failure(mod, sol, p, u_at)
+    sol.guard = None
+    if sol.stopped in ("max_steps", "max_wall_time"):
+        limit = max_steps if sol.stopped == "max_steps" else f"{max_wall_time:g} s"
+        what = "step" if sol.stopped == "max_steps" else "wall-time"
+        stopped_by_guard(sol, f"the {what} limit {sol.stopped}={limit} was reached",
+                         sol.t_reached, float(t_span[1]), sol.n_steps)
+    return sol
+
+
+def native_events(mod):
+    """(address of the model's C events function, terminal counts, directions)."""
+    definitions = mod.event_definitions
+    return (mod.compiled_model.function_address("events"),
+            np.array([terminal for _, terminal, _ in definitions], dtype=np.intc),
+            np.array([direction for _, _, direction in definitions], dtype=float))
+
+
+def raise_native_failure(mod, sol, p, u_at):
+    """Raise, for a native solve, the error the SciPy engine raises at the same point: the
+    model's own error at the state where it failed, or NonFiniteError."""
+    if sol.mass_matrix_failure is not None:
+        t, y = sol.mass_matrix_failure
+        mod.rhs(t, y, p, u_at(t))
+        raise MassMatrixError.at(mod.name, t, y[:mod.n_coordinates])
+    if sol.nonfinite_failure is not None:
+        raise NonFiniteError.at(mod.name, *sol.nonfinite_failure)
 
 
 def _tolerances(rtol, atol, dim):
@@ -99,7 +108,7 @@ def _tolerances(rtol, atol, dim):
                       f"Setting `rtol = np.maximum(rtol, {100 * EPS})`.", stacklevel=3)
     if np.ndim(rtol) != 0:
         raise ValueError("the native engine takes a scalar rtol")
-    rtol = float(rtol)       # _native clips it to 100 EPS; Radau/BDF's Newton tolerance uses it as given
+    rtol = float(rtol)       # _ode clips it to 100 EPS; Radau/BDF's Newton tolerance uses it as given
     atol = np.asarray(atol, dtype=float)
     if atol.ndim > 0 and atol.shape != (dim,):
         raise ValueError("`atol` has wrong shape.")
@@ -148,26 +157,29 @@ def _event_arrays(events):
     return int(address), np.array(emax), direction
 
 
-def _interpolant(method, row, coef, dim):
+def _interpolant(dense, row, coef, dim):
+    """SciPy's DenseOutput of one native step: `dense` is the method's kind (methods.TABLE), `row`
+    the step's (t_old, t, offset, order, h) and coef[offset:] its coefficient block."""
     t_old, t, off, order, h = row
     off, order = int(off), int(order)
     if order < 0:
         return ConstantDenseOutput(t_old, t, coef[off:off + dim].copy())
-    if method == "BDF":
+    if dense == "bdf":
         D = coef[off:off + (order + 1) * dim].reshape(order + 1, dim).copy()
         return BdfDenseOutput(t_old, t, h, order, D)
     y_old = coef[off:off + dim].copy()
     block = coef[off + dim:off + dim + order * dim]
-    if method == "DOP853":
+    if dense == "dop853":
         return Dop853DenseOutput(t_old, t, y_old, block.reshape(7, dim).copy())
-    if method == "Radau":
+    if dense == "radau":
         return RadauDenseOutput(t_old, t, y_old, block.reshape(dim, 3).copy())
     return RkDenseOutput(t_old, t, y_old, block.reshape(dim, order).copy())
 
 
 def solve_native(mod, t_span, y0, method="RK45", p=None, u_spec=None, rtol=1e-3, atol=1e-6,
                  t_eval=None, dense_output=False, events=None, max_step=np.inf,
-                 first_step=None, stop_on_nonfinite=False):
+                 first_step=None, stop_on_nonfinite=False, max_steps=None, max_wall_time=None,
+                 poll=None):
     """Integrate a compiled model entirely in C, step for step as `solve_ivp`.
 
     Parameters
@@ -197,8 +209,15 @@ def solve_native(mod, t_span, y0, method="RK45", p=None, u_spec=None, rtol=1e-3,
         engine = "native", n_steps, and mass_matrix_failure: None, or (t, y) of the model
         call that found M not positive definite (the solve then has status -1), and
         nonfinite_failure: None or (t, y) (with stop_on_nonfinite).
+    max_steps, max_wall_time : int, float, optional
+        Stop after this many accepted steps or seconds of wall time (None: no limit): the result
+        then holds the solution up to there, with status -1 and `stopped` naming the limit
+        ("max_steps" or "max_wall_time"; None otherwise) and `t_reached` the time reached.
+    poll : lagrgen.native._ode.Poll, optional
+        Run about every 0.05 s of wall time (signals, progress, a stop flag); its exception
+        (KeyboardInterrupt on Ctrl-C) ends the solve and is raised.
     """
-    from . import _native
+    from . import _ode
     if method not in NATIVE_METHODS:
         raise ValueError(f"method {method!r} has no native implementation: use one of "
                          f"{', '.join(NATIVE_METHODS)} (LSODA runs on the SciPy engine)")
@@ -235,14 +254,16 @@ def solve_native(mod, t_span, y0, method="RK45", p=None, u_spec=None, rtol=1e-3,
             raise ValueError("`first_step` exceeds bounds.")
     te = _t_eval(t_eval, t0, tf)
     ev_addr, ev_max, ev_dir = _event_arrays(events)
-    jac = cm.function_address("jacobian") if method in ("Radau", "BDF") else 0
-    out = _native.solve(method, cm.function_address("rhs"), jac, dim, p, list(u_spec), t0, tf,
-                        y0, rtol, atol, max_step, first, te, bool(dense_output), ev_addr,
-                        ev_max, ev_dir, bool(stop_on_nonfinite))
+    jac = cm.function_address("jacobian") if BY_NAME[method].stiff else 0
+    out = _ode.solve(method, cm.function_address("rhs"), jac, dim, p, list(u_spec), t0, tf,
+                     y0, rtol, atol, max_step, first, te, bool(dense_output), ev_addr,
+                     ev_max, ev_dir, bool(stop_on_nonfinite), _limit(max_steps, "max_steps"),
+                     _limit(max_wall_time, "max_wall_time"), poll)
     ts, ys = out["t"], out["y"].T.copy()
     sol = None
     if dense_output:
-        interps = [_interpolant(method, row, out["coef"], dim) for row in out["seg"]]
+        interps = [_interpolant(BY_NAME[method].dense, row, out["coef"], dim)
+                   for row in out["seg"]]
         if te is None:
             breaks = ts
         else:
@@ -263,4 +284,19 @@ def solve_native(mod, t_span, y0, method="RK45", p=None, u_spec=None, rtol=1e-3,
                      nfev=out["nfev"], njev=out["njev"], nlu=out["nlu"], status=status,
                      message=out["message"], success=status >= 0, engine="native",
                      n_steps=out["n_steps"], mass_matrix_failure=mass_failure,
-                     nonfinite_failure=nonfinite_failure)
+                     nonfinite_failure=nonfinite_failure, stopped=STOPPED[out["stopped"]],
+                     t_reached=out["t_reached"] if out["stopped"] else None)
+
+
+#: lg_result_t.stopped -> the name of the limit that ended the solve.
+STOPPED = {0: None, 1: "max_steps", 2: "max_wall_time", 3: "poll"}
+
+
+def _limit(value, name):
+    """A guard for the C core: None -> 0 (no limit); otherwise a positive number."""
+    if value is None:
+        return 0
+    if not value > 0 or (name == "max_steps" and int(value) != value):
+        kind = "integer" if name == "max_steps" else "number of seconds"
+        raise ValueError(f"{name} must be a positive {kind}, got {value!r}")
+    return int(value) if name == "max_steps" else float(value)
