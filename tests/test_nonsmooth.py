@@ -66,6 +66,18 @@ def coulomb_block():
     return model
 
 
+def pushed_block():
+    """A block on a rough floor pushed by an input force F."""
+    model = Model("pushed_block")
+    x, = model.coordinates("x")
+    F, = model.inputs("F")
+    m, mu, mu_s = model.parameters(m=1.0, mu=0.2, mu_s=0.3)
+    model.particle(m, sp.Matrix([x, 0]))
+    model.generalized_force(x, F)
+    model.friction("floor", x.diff(model.t), m * G, mu, mu_static=mu_s)
+    return model
+
+
 def belt_oscillator():
     model = Model("belt")
     x, = model.coordinates("x")
@@ -248,6 +260,29 @@ def test_coulomb_block_loses_two_mu_g_over_k_per_half_cycle_and_sticks(built):
             assert t == pytest.approx((i + 1) * np.pi / np.sqrt(k / m), rel=1e-8)
         assert abs(k * sol.y[0, -1]) <= mu * m * G
         assert sol.mode == {"floor": "stick"} and abs(sol.y[1, -1]) < 1e-10
+
+
+def test_an_input_force_beyond_the_static_limit_breaks_the_block_loose(built):
+    mod = built(pushed_block)
+    m, mu, mu_s = 1.0, 0.2, 0.3
+    held = both(mod, (0, 1), {}, inputs={"F": 0.9 * mu_s * m * G})
+    for sol in held:
+        assert sol.transitions == [] and sol.mode == {"floor": "stick"}
+        assert np.all(sol.y == 0)
+    ramp = lagrgen.Signal([0, 2], [0, 2 * mu_s * m * G], kind="linear")
+    for sol in both(mod, (0, 2), {}, inputs={"F": ramp}, t_eval=np.linspace(0, 2, 201)):
+        assert [(name, kind) for _, name, kind in sol.transitions] == [("floor", "slip")]
+        assert sol.transitions[0][0] == pytest.approx(1.0, rel=1e-8)   # F(t) = mu_s·m·g
+        # then m·ẍ = F(t) − mu·m·g: ẋ(2) = ∫₁² (mu_s·g·t − mu·g) dt
+        assert sol.y[1, -1] == pytest.approx(mu_s * G * 1.5 - mu * G, rel=1e-7)
+
+
+@pytest.mark.parametrize("method", ["Radau", "BDF", "DOP853"])
+def test_every_method_switches_alike_on_both_engines(built, method):
+    mod = built(coulomb_block)
+    for sol in both(mod, (0, 8), {"x": 1.0}, method=method, rtol=1e-9, atol=1e-11):
+        assert [kind for *_, kind in sol.transitions] == ["slip"] * 4 + ["stick"]
+        assert sol.y[0, -1] == pytest.approx(-(1 - 5 * 2 * 0.1 * G / 10), abs=1e-6)
 
 
 def test_belt_driven_stick_slip_oscillator(built):
