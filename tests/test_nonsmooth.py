@@ -385,3 +385,26 @@ def test_csv_and_plot_mark_the_transitions(built, tmp_path):
     lines = [ln for ax in fig.axes for ln in ax.get_lines() if ln.get_linestyle() == ":"]
     assert len(lines) == 2 * len(sol.transitions)
     assert {ln.get_xdata()[0] for ln in lines} == {t for t, *_ in sol.transitions}
+
+
+def test_a_stop_request_ends_the_native_hybrid_solve(built):
+    import threading
+
+    from lagrgen.hybrid import solve_hybrid_native
+    from lagrgen.native._ode import Poll
+    from lagrgen.runtime.arguments import input_specs
+    mod = built(ball_model)
+    stop = threading.Event()
+    stop.set()
+    elastic = np.array([G, 1.0])                      # e = 1: it bounces for ever
+    out = solve_hybrid_native(mod, (0, 1e5), [1.0, 0.0], "RK45", elastic,
+                              input_specs(mod, None), 1e-8, 1e-10,
+                              poll=Poll(stop=stop, interval=0.01))
+    assert out["status"] == -1 and "stopped" in out["message"]
+    assert out["t"][-1] < 1e5
+
+
+def test_an_fmu_of_a_model_with_impacts_is_refused():
+    from lagrgen.codegen.fmu import fmu_sources
+    with pytest.raises(ModelError, match="impacts or frictions"):
+        fmu_sources(ball_model("ball_fmu"))

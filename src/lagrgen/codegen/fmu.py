@@ -162,6 +162,10 @@ def fmu_sources(model, params=None, start_time=0.0, stop_time=10.0, tolerance=No
     from ..build import model_info
     equations = model.equations()
     info = model_info(model.spec(), equations)
+    if info.get("nonsmooth"):
+        raise ModelError(f"model {info['name']!r} has impacts or frictions "
+                         f"({', '.join(e['name'] for e in info['nonsmooth'])}): an FMU would "
+                         "integrate it without its switches; simulate it with lagrgen.simulate")
     if not stop_time > start_time:
         raise ModelError(f"stop time {stop_time} must be greater than the start time {start_time}")
     start_values = parameter_start_values(info, params)

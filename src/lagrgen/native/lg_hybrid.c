@@ -9,9 +9,11 @@
  * The model's functions keep their signature f(t, y, p, u, out); the segment's rhs, Jacobian and
  * events are lg_solve's system hooks (sys_rhs, sys_jac, sys_events) with this driver's context.
  */
+#define _POSIX_C_SOURCE 200809L   /* clock_gettime under -std=c99 */
 #include "lg_hybrid.h"
 
 #include <math.h>
+#include <time.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -574,6 +576,13 @@ static double hy_lift_off(hy_ctx *c, double t, const double *y)
 }
 
 /* -- the driver ----------------------------------------------------------------------------- */
+static double hy_wall_seconds(void)
+{
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
+}
+
 static void *hy_alloc(void **list, int *count, size_t bytes)
 {
     void *p = calloc(1, bytes ? bytes : 1);
@@ -678,7 +687,18 @@ int lg_hybrid_solve(lg_hybrid_t *h, const lg_options_t *options, lg_hybrid_resul
         ++eval_i;
     }
     snprintf(res->message, sizeof res->message, "The solver successfully reached the end.");
+    double interval = options->poll_interval > 0 ? options->poll_interval : 0.05;
+    double next_poll = hy_wall_seconds() + interval;
     while (t < tf) {
+        if (options->poll && hy_wall_seconds() >= next_poll) {   /* between segments too */
+            next_poll = hy_wall_seconds() + interval;
+            if (options->poll(options->poll_ctx, t)) {
+                res->status = -1;
+                res->stopped = LG_STOP_POLL;
+                snprintf(res->message, sizeof res->message, "stopped at t = %.9g", t);
+                break;
+            }
+        }
         memcpy(mode_c, h->contact, (h->ni + 1) * sizeof(int));
         memcpy(mode_s, h->slip, (h->nf + 1) * sizeof(int));
         c.contact = mode_c;
