@@ -408,3 +408,48 @@ def test_an_fmu_of_a_model_with_impacts_is_refused():
     from lagrgen.codegen.fmu import fmu_sources
     with pytest.raises(ModelError, match="impacts or frictions"):
         fmu_sources(ball_model("ball_fmu"))
+
+
+def test_ctrl_c_ends_a_native_hybrid_solve_within_half_a_second(tmp_path):
+    import subprocess
+    import sys
+    import textwrap
+    lagrgen.build(ball_model("ball_sigint"), out_dir=tmp_path)
+    code = textwrap.dedent(f"""
+        import os, signal, threading, time
+        import lagrgen
+        mod = lagrgen.load("ball_sigint", out_dir={str(tmp_path)!r})
+        sent = []
+        def interrupt():
+            time.sleep(0.5)
+            sent.append(time.monotonic())
+            os.kill(os.getpid(), signal.SIGINT)
+        threading.Thread(target=interrupt, daemon=True).start()
+        try:
+            lagrgen.simulate(mod, (0, 1e7), [1.0, 0.0], params={{"e": 1.0}})
+            print("not interrupted")
+        except KeyboardInterrupt:
+            print("interrupted after", time.monotonic() - sent[0])
+        sol = lagrgen.simulate(mod, (0, 1), [1.0, 0.0])
+        print("usable", sol.engine, sol.success)
+    """)
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                          timeout=120)
+    lines = proc.stdout.split("\n")
+    assert lines[0].startswith("interrupted after"), proc.stdout + proc.stderr
+    assert float(lines[0].split()[-1]) < 0.5
+    assert lines[1] == "usable native True"
+
+
+@pytest.mark.parametrize("stem, y0, kinds", [
+    ("bouncing_ball", {"y": 0.2}, {"impact"}),
+    ("stick_slip", {"x_dot": 0.4}, {"slip", "stick"}),
+    ("impact_pendulum", {"theta": 0.5}, {"impact"}),
+    ("impact_damper", {"x1_dot": 1.0}, {"impact"}),
+    ("friction_damper", {}, {"stick", "slip"}),
+])
+def test_the_examples_switch(stem, y0, kinds):
+    from conftest import load_example
+    mod = lagrgen.build(load_example(stem).model, backend="python")
+    sol = lagrgen.simulate(mod, (0, 2), y0, rtol=1e-8, atol=1e-10)
+    assert sol.success and kinds <= {kind for *_, kind in sol.transitions}
