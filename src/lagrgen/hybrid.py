@@ -24,6 +24,9 @@ limit (μ_s·|N| − |λ| ↓ 0). Then:
   sticking force is within μ_s·|N|, else slip on in the direction −sign(λ) ("slip"); a sticking
   contact slips when its force reaches μ_s·|N|. The mode is made consistent (forces ≥ 0, sticking
   forces within their cones) before the next segment; `max_transitions` bounds chattering.
+* Tolerances. A gap counts as closed within `gap_tol` (default 1e-9); a slip velocity counts as
+  zero within 1000·gap_tol (at the start, and for frictions stopping together with the one whose
+  event fired).
 
 `HybridSystem` holds that logic; `simulate_hybrid` runs it with `solve_ivp` (engine "scipy") or in
 C (`lagrgen.native._ode.solve_hybrid`, `native/lg_hybrid.c`, the same rules).
@@ -239,8 +242,8 @@ class Switching:
         self.transitions.append((float(t), self.system.names[k], kind))
 
     def start(self, t, y):
-        """Settle the initial mode: frictions with v = 0 try sticking, closed contacts with
-        ġ ≤ 0 are held; returns y (unchanged)."""
+        """Settle the initial mode: frictions with v = 0 (|v| ≤ 1000·gap_tol) try sticking,
+        closed contacts with ġ ≤ 0 are held; returns y (unchanged)."""
         s = self.system
         _, _, _, _, (_, _, imp, fr) = s.solve(t, y, self.contact, self.slip)
         for i in range(s.ni):
@@ -248,7 +251,7 @@ class Switching:
                 self.contact[i] = True
         for j in range(s.nf):
             v = fr[j, 0]
-            self.slip[j] = 0 if v == 0 else (1 if v > 0 else -1)
+            self.slip[j] = 0 if abs(v) <= 1e3 * self.gap_tol else (1 if v > 0 else -1)
         return self.settle(t, y, record=False)
 
     def switch(self, t, y, fired):

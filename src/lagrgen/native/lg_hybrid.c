@@ -446,7 +446,7 @@ static int hy_start(hy_ctx *c, double t, const double *y)
             h->contact[i] = 1;
     for (int j = 0; j < c->nf; ++j) {
         double v = FR(c, j)[0];
-        h->slip[j] = v == 0 ? 0 : (v > 0 ? 1 : -1);
+        h->slip[j] = fabs(v) <= 1e3 * h->gap_tol ? 0 : (v > 0 ? 1 : -1);
     }
     return hy_settle(c, t, y, 0);
 }

@@ -27,7 +27,7 @@ typedef struct {
     const int *normal_kind;      /* nf */
     const int *normal_index;     /* nf */
     double rest_velocity;        /* < 0: 1e-6 times the largest impact speed of the contact */
-    double gap_tol;
+    double gap_tol;              /* a gap within it is closed; a slip velocity within 1000× is 0 */
     long max_transitions;
     int *contact;                /* ni, in/out: 1 held */
     int *slip;                   /* nf, in/out: +1/-1 slipping that way, 0 sticking */
