@@ -104,6 +104,20 @@ def sliding_blocks():
     return model
 
 
+def slope_model():
+    """A block on a slope of angle α held by a constraint written as a signed distance (unit
+    gradient), so that its multiplier is the normal force."""
+    model = Model("slope")
+    x, y = model.coordinates("x y")
+    m, a, mu, mu_s = model.parameters(m=1.5, alpha=0.3, mu=0.2, mu_s=0.25)
+    model.particle(m, sp.Matrix([x, y]))
+    model.potential_energy(m * G * y)
+    model.constraint(x * sp.sin(a) + y * sp.cos(a), name="surface")
+    model.friction("slide", x.diff(model.t) * sp.cos(a) - y.diff(model.t) * sp.sin(a),
+                   "surface", mu, mu_static=mu_s)
+    return model
+
+
 def rod_model():
     """A rod (centre height y, angle θ) falling flat onto two supports under its ends."""
     model = Model("rod")
@@ -312,6 +326,21 @@ def test_normal_force_from_a_constraint_and_from_a_contact(built):
         assert_allclose(sol.y[0, -1], v0 ** 2 / (2 * mu * G), rtol=1e-9)
         assert_allclose(sol.y[2, -1], v0 ** 2 / (2 * mu * G), rtol=1e-9)
         assert sol.mode == {"floor": "contact", "slide1": "stick", "slide2": "stick"}
+
+
+def test_block_on_a_slope_sticks_below_the_friction_angle_and_slides_above(built):
+    mod = built(slope_model)
+    m, a, mu = 1.5, 0.3, 0.2
+    held = both(mod, (0, 1), {}, params={"mu": 0.35, "mu_s": 0.4})     # tan α = 0.309
+    for sol in held:
+        assert sol.transitions == [] and sol.mode == {"slide": "stick"}
+        assert np.abs(sol.y).max() < 1e-12
+        assert_allclose(sol.multipliers["surface"], m * G * np.cos(a), rtol=1e-12)
+    accel = G * (np.sin(a) - mu * np.cos(a))
+    for sol in both(mod, (0, 1), {}):
+        assert sol.mode == {"slide": "slip"}
+        s = sol.y[0, -1] * np.cos(a) - sol.y[1, -1] * np.sin(a)
+        assert s == pytest.approx(accel / 2, rel=1e-8)         # y = −x·tan α falls with x
 
 
 def test_chattering_is_bounded_by_max_transitions(built):
