@@ -118,6 +118,19 @@ def slope_model():
     return model
 
 
+def lifted_ball():
+    """A ball resting on the floor, pulled up by an input force F."""
+    model = Model("lifted_ball")
+    y, = model.coordinates("y")
+    F, = model.inputs("F")
+    m, = model.parameters(m=0.5)
+    model.particle(m, sp.Matrix([0, y]))
+    model.potential_energy(m * G * y)
+    model.generalized_force(y, F)
+    model.impact("floor", y, restitution=0.5)
+    return model
+
+
 def rod_model():
     """A rod (centre height y, angle θ) falling flat onto two supports under its ends."""
     model = Model("rod")
@@ -236,6 +249,19 @@ def test_pendulum_against_a_wall_reverses_its_rate_by_e(built):
             assert abs(before[0]) < 1e-9
             assert after[1] == pytest.approx(-0.7 * before[1], rel=1e-12)
         assert np.all(sol.y[0] >= -1e-9)
+
+
+def test_a_resting_contact_is_released_when_its_force_would_turn_negative(built):
+    mod = built(lifted_ball)
+    m = 0.5
+    ramp = lagrgen.Signal([0, 2], [0, 2 * 2 * m * G], kind="linear")    # F = 2·m·g·t
+    for sol in both(mod, (0, 1.5), {}, inputs={"F": ramp}, t_eval=np.linspace(0, 1.5, 151)):
+        assert [(name, kind) for _, name, kind in sol.transitions] == [("floor", "release")]
+        assert sol.transitions[0][0] == pytest.approx(0.5, rel=1e-8)   # F = m·g
+        assert np.all(sol.y[:, sol.t <= 0.5] == 0)
+        # after release ÿ = 2·g·t − g from rest at t = 0.5: y = g·(t − 0.5)³/3
+        assert sol.y[0, -1] == pytest.approx(G / 3, rel=1e-7)
+        assert sol.mode == {"floor": "open"}
 
 
 def test_simultaneous_impacts_follow_the_generalized_newton_law(built):
