@@ -407,7 +407,8 @@ def simulate_hybrid(mod, t_span, y0, method, p, u_at, rtol, atol, t_eval=None,
 
         def fun(tt, yy):
             return system.rhs(tt, yy, contact, slip)
-        events = [_event(system, k, contact, slip) for k in range(system.n_events)]
+        values = _EventValues(system, contact, slip)
+        events = [_event(values, k) for k in range(system.n_events)]
         sol = solve_ivp(fun, (t, t_end), y, method=SOLVERS.get(method, method), rtol=rtol,
                         atol=atol, dense_output=te_all is not None, events=events or None,
                         **options)
@@ -445,9 +446,23 @@ def simulate_hybrid(mod, t_span, y0, method, p, u_at, rtol, atol, t_eval=None,
                 success=status >= 0)
 
 
-def _event(system, k, contact, slip):
+class _EventValues:
+    """All event values of a mode at (t, y), computed once for the solve_ivp event callables."""
+
+    def __init__(self, system, contact, slip):
+        self.system, self.contact, self.slip = system, contact, slip
+        self.key, self.values = None, None
+
+    def __call__(self, t, y):
+        key = (t, y.tobytes())
+        if key != self.key:
+            self.key, self.values = key, self.system.events(t, y, self.contact, self.slip)
+        return self.values
+
+
+def _event(values, k):
     def g(t, y):
-        return system.events(t, y, contact, slip)[k]
+        return values(t, y)[k]
     g.terminal, g.direction = True, -1
     return g
 
