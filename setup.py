@@ -26,11 +26,13 @@ native = Extension(
 setup(
     packages=["lagrgen", "lagrgen.codegen", "lagrgen.codegen.templates",
               "lagrgen.codegen.templates.functions", "lagrgen.codegen.templates.fmi2",
+              "lagrgen.codegen.templates.fmi3",
               "lagrgen.runtime", "lagrgen.outputs", "lagrgen.native"],
     package_dir={"": "src"},
     package_data={"lagrgen.codegen.templates": ["*.in", "*.h"],
                   "lagrgen.codegen.templates.functions": ["*.c"],
                   "lagrgen.codegen.templates.fmi2": ["*.h", "*.txt"],
+                  "lagrgen.codegen.templates.fmi3": ["*.h", "*.txt"],
                   "lagrgen.runtime": ["*.pxd"],
                   "lagrgen.native": ["*.c", "*.h", "*.pxd", "LICENSE.scipy", "README.md"]},
     ext_modules=cythonize([runtime, native], compiler_directives={"language_level": "3"},

@@ -123,10 +123,10 @@ def test_the_cache_key_covers_the_generator(monkeypatch, tmp_path):
     model.particle(1, sp.Matrix([x]))
     first = lagrgen.build(model, out_dir=tmp_path)
     info = build.model_info(model.spec(), model.equations())
-    build._digests.clear()
+    build.description_digest.cache_clear()
     monkeypatch.setattr(build, "generator_digest", lambda: "a changed generator")
-    assert build.model_info(model.spec(), model.equations())["content_hash"] != info["content_hash"]
-    assert first.content_hash == info["content_hash"]
+    assert build.model_info(model.spec(), model.equations()).content_hash != info.content_hash
+    assert first.content_hash == info.content_hash
 
 
 # -- a light import ------------------------------------------------------------------------------
@@ -139,6 +139,44 @@ def test_importing_a_compiled_model_imports_neither_sympy_nor_scipy(double):
     lines = run([sys.executable, "-c", code, str(out_dir)]).stdout.splitlines()
     assert float(lines[0]) == pytest.approx(double.rhs(0.0, [0.5, 0, 0, 0])[2])
     assert lines[1] == "[]"
+
+
+def test_load_imports_neither_sympy_nor_scipy(double):
+    """`lagrgen.load` checks the name without SymPy and imports the module without SciPy."""
+    code = ("import sys, lagrgen; m = lagrgen.load('double_pendulum', out_dir=sys.argv[1]); "
+            "print(m.rhs(0.0, [0.5, 0, 0, 0])[2]); "
+            "print(sorted(k for k in ('sympy', 'scipy', 'symengine', 'matplotlib') "
+            "if k in sys.modules))")
+    lines = run([sys.executable, "-c", code, str(_out_dir_of(double))]).stdout.splitlines()
+    assert float(lines[0]) == pytest.approx(double.rhs(0.0, [0.5, 0, 0, 0])[2])
+    assert lines[1] == "[]"
+    code = ("import sys, lagrgen\ntry:\n    lagrgen.load('numpy', out_dir=sys.argv[1])\n"
+            "except lagrgen.ModelError as exc:\n    print('refused', 'sympy' in sys.modules)")
+    assert run([sys.executable, "-c", code, str(_out_dir_of(double))]).stdout.split() == \
+        ["refused", "False"]
+
+
+def test_a_built_model_has_exactly_the_names_its_protocol_lists(both):
+    """Every public name of a built model is in its backend's Protocol and the other way round, and
+    the Protocol lists one callable per registered model function."""
+    from lagrgen.runtime.protocol import BuiltModel, CompiledBuiltModel, PythonBuiltModel
+
+    def names(protocol):
+        found = set()
+        for cls in protocol.__mro__:
+            if cls.__module__ == "lagrgen.runtime.protocol":
+                found |= set(getattr(cls, "__annotations__", {}))
+                found |= {k for k, v in vars(cls).items() if callable(v) and not k.startswith("_")}
+        return found
+
+    assert {f.name for f in FUNCTIONS} <= names(BuiltModel)
+    protocol = CompiledBuiltModel if both.backend == "c" else PythonBuiltModel
+    public = {k for k in dir(both) if not k.startswith("_")}
+    assert public == names(protocol)
+    for name in names(protocol):
+        getattr(both, name)
+    assert both.dimensions == both.info.dimensions
+    assert both.n_coordinates == len(both.coordinates) == both.dimensions["n"]
 
 
 def _out_dir_of(mod):

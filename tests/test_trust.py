@@ -195,3 +195,21 @@ def test_the_description_key_sees_every_part_of_the_description():
     held = oscillator()
     held.velocity_constraint(sp.diff(held.q[0], held.t))
     assert description_digest(held.spec()) != base
+
+
+def test_a_fast_math_model_leaves_the_process_floating_point_mode_alone(tmp_path):
+    """-ffast-math at link time would add GCC's crtfastmath.o, which makes the whole process
+    flush subnormals to zero when the module loads; lagrgen compiles with the user's flags but
+    links without them."""
+    code = textwrap.dedent(f"""
+        import numpy as np, sympy as sp, lagrgen
+        model = lagrgen.Model("fast_osc")
+        x, = model.coordinates("x")
+        model.particle(1, sp.Matrix([x]))
+        model.potential_energy(2 * x ** 2)
+        mod = lagrgen.build(model, out_dir={str(tmp_path)!r}, cflags="-ffast-math -O2")
+        print(mod.rhs(0.0, [1.0, 0.0])[1], float(np.array([1e-310])[0] / 2))
+    """)
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         check=True).stdout.split()
+    assert float(out[0]) == -4.0 and float(out[1]) == 5e-311

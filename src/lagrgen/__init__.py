@@ -23,7 +23,7 @@ _LAZY = {
     "frequency_response": "vibration", "FrozenTimeWarning": "vibration",
     "consistent_state": "constraints",
     "from_sympy": "sympy_interop",
-    "export_fmu": "codegen.fmu",
+    "export_fmu": "build",
     "rotation": None,
 }
 

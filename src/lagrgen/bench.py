@@ -68,7 +68,7 @@ def solve_seconds(mod, y0, method, t_span=(0.0, 10.0), rtol=1e-8, atol=1e-8, rep
     `stopped` holds the guard's message when the step or wall-time limit ended the solve."""
     times, sol = [], None
     for _ in range(repeats):
-        note(f"{mod.name}: {method} on the {getattr(mod, 'backend', '?')} path ...")
+        note(f"{mod.name}: {method} on the {mod.backend} path ...")
         start = time.perf_counter()
         sol = simulate(mod, t_span, y0, method=method, rtol=rtol, atol=atol, params=params,
                        inputs=inputs, max_steps=max_steps, max_wall_time=max_wall_time)
@@ -86,7 +86,7 @@ def call_seconds(mod, y0, t=0.0):
     y0 = np.asarray(y0, dtype=float)
     out = {"rhs": per_call_seconds(mod.rhs, t, y0),
            "jacobian": per_call_seconds(mod.jacobian, t, y0)}
-    if hasattr(mod, "time_in_c"):
+    if mod.backend == "c":
         for which in ("rhs", "jacobian"):
             single = mod.time_in_c(which, t, y0, repeat=10)
             repeat = max(10, int(0.1 / max(single, 1e-9)))
@@ -100,7 +100,7 @@ def default_state(mod):
     q0 = 0.1, 0.2, ... (equal values often make a linkage singular) projected onto the
     constraints by `lagrgen.consistent_state`."""
     n = mod.n_coordinates
-    if not getattr(mod, "n_constraints", 0):
+    if not mod.n_constraints:
         return np.concatenate([np.full(n, 0.1), np.zeros(n)])
     from .constraints import consistent_state
     return consistent_state(mod, np.concatenate([0.1 * np.arange(1, n + 1), np.zeros(n)]))

@@ -8,8 +8,9 @@ Layout of an output directory:
     __lagrgen__/<name>.current      the key of the entry last published into the directory
 The key is a hash of what is compiled: the frozen model description (every symbol with its
 assumptions; or the equations themselves when M and F come from outside, as from `from_sympy`),
-lagrgen's generator sources and version, the compiler and flags. So no change to a model, and no
-change to lagrgen, can be served stale, and a cache hit derives nothing. Everything is written to a temporary file or directory first and renamed into place after an
+lagrgen's generator sources and version, the versions of SymPy and SymEngine, the compiler and
+flags. So no change to a model, and no change to lagrgen, can be served stale, and a cache hit
+derives nothing. Everything is written to a temporary file or directory first and renamed into place after an
 fsync, so a build that dies halfway leaves nothing a later load would pick up; a cache entry whose
 module does not match its recorded digest, or does not import, is discarded and compiled again.
 """
@@ -19,24 +20,24 @@ import hashlib
 import importlib.machinery
 import importlib.util
 import os
-import shlex
 import shutil
-import subprocess
 import sys
 import sysconfig
 import tempfile
 import time
-import weakref
 from contextlib import contextmanager
 from pathlib import Path
 
 from ._version import __version__
-from .errors import BuildError, CompileError, ModelError
-from .functions import dimensions
+from .caching import once_per
+from .errors import BuildError, ModelError
+from .names import check_model_name
+from .runtime.info import ModelInfo
+from .toolchain import (_fsync_dir, compile_flags, compile_module, compile_units,  # noqa: F401
+                        compiler_command, write_atomic)
 
 EXT_SUFFIX = sysconfig.get_config_var("EXT_SUFFIX") or ".so"
 CACHE_DIR = "__lagrgen__"
-DEFAULT_CFLAGS = ("-fPIC", "-fno-math-errno", "-std=gnu11")
 BACKENDS = ("c", "python")
 PACKAGE = Path(__file__).resolve().parent
 #: The sources that determine generated code: a change to any of them changes every key.
@@ -67,12 +68,15 @@ def build(model, out_dir="generated", backend="c", **options):
         raise TypeError(f"build() takes a lagrgen.Model, got {type(model).__name__}")
     if backend not in BACKENDS:
         raise ModelError(f"unknown backend {backend!r}: use one of {', '.join(map(repr, BACKENDS))}")
+    start = time.perf_counter()
     spec = model.spec()
     if backend == "python":
         from .codegen.python_module import python_source
         from .runtime.pymodel import PythonModel
         equations = model.equations()
-        return PythonModel(model_info(spec, equations), equations.n, python_source(equations))
+        built = PythonModel(model_info(spec, equations), python_source(equations))
+        built.build_info = {"cache_hit": False, "seconds": time.perf_counter() - start}
+        return built
     unknown = set(options) - {"verbose", "quiet", "force", "opt_level", "cflags"}
     if unknown:
         raise TypeError(f"build() got unknown option(s) {', '.join(sorted(unknown))}")
@@ -83,7 +87,6 @@ def build(model, out_dir="generated", backend="c", **options):
 
 def load(name, out_dir="generated"):
     """Import the compiled model `name` built earlier into `out_dir`."""
-    from .model import check_model_name
     check_model_name(name)
     out_dir = Path(out_dir)
     marker = out_dir / CACHE_DIR / f"{name}.current"
@@ -113,6 +116,46 @@ def export_c(model, out_dir):
     return paths
 
 
+def export_fmu(model, out_dir=".", params=None, start_time=0.0, stop_time=10.0, tolerance=None,
+               cflags=(), *, kind="me", fmi_version=2, method="DOP853", rtol=None, atol=None):
+    """Write `<out_dir>/<name>.fmu`, an FMU of `model` for this platform: FMI 2.0 or 3.0, Model
+    Exchange or Co-Simulation.
+
+    Its states are x = [q, q̇] (variables named like the coordinates and `<coordinate>_dot`), with
+    ẋ = [q̇, M⁻¹·F]; parameters are tunable parameters, inputs continuous inputs, the coordinates
+    outputs; directional derivatives come from the analytic Jacobian; the FMU state can be got,
+    set and serialized. A Model Exchange FMU's event indicators are the model's compiled events.
+    A co-simulation FMU advances each communication step with lagrgen's native engine; its method
+    and tolerances are the tunable parameters `solver.method`, `solver.rtol` and `solver.atol`.
+
+    Parameters
+    ----------
+    model : lagrgen.Model
+    out_dir : str or pathlib.Path
+    params : dict, optional
+        Parameter start values (name -> value) replacing the defaults; required for parameters
+        without a default.
+    start_time, stop_time, tolerance : the DefaultExperiment
+    cflags : extra compiler flags (a list)
+    kind : "me" (Model Exchange) or "cs" (Co-Simulation)
+    fmi_version : 2 or 3
+    method, rtol, atol : the co-simulation solver's start values (one of RK23, RK45, DOP853,
+        Radau, BDF; rtol defaults to `tolerance` or 1e-6, atol to rtol/1000)
+
+    Returns
+    -------
+    pathlib.Path of the FMU.
+    """
+    from .codegen.fmu import write_fmu
+    from .model import Model
+    if not isinstance(model, Model):
+        raise TypeError(f"export_fmu() takes a lagrgen.Model, got {type(model).__name__}")
+    equations = model.equations()
+    return write_fmu(model_info(model.spec(), equations), equations, Path(out_dir), params,
+                     start_time, stop_time, tolerance, cflags, kind=kind,
+                     fmi_version=fmi_version, method=method, rtol=rtol, atol=atol)
+
+
 # -- what identifies a build -----------------------------------------------------------------
 @functools.lru_cache(maxsize=None)
 def generator_digest():
@@ -133,23 +176,16 @@ def generator_digest():
     return h.hexdigest()
 
 
-def content_digest(spec, equations=None):
+def content_digest(spec, equations):
     """sha256 identifying what a build compiles: of the frozen description `spec` and the
     generator, or — when M and F come from outside (`spec.external`) — of the derived equations
-    (`equations()` is then called). Computed once per spec."""
-    cached = _digests.get(spec)
-    if cached is None:
-        if spec.external is not None:
-            cached = equations_digest(spec, equations())
-        else:
-            cached = description_digest(spec)
-        _digests[spec] = cached
-    return cached
+    (`equations()` is then called)."""
+    if spec.external is not None:
+        return equations_digest(equations())
+    return description_digest(spec)
 
 
-_digests = weakref.WeakKeyDictionary()
-
-
+@once_per
 def description_digest(spec):
     """sha256 of the generator and every field of the frozen description `spec`, SymPy objects by
     `srepr` (which keeps the assumptions of symbols, unlike `str`)."""
@@ -203,12 +239,10 @@ def _expression_text(expr, memo):
     return text
 
 
-def equations_digest(spec, equations):
-    """sha256 of what is compiled: names, defaults, the derived M and F, and the generator
-    (computed once per Equations)."""
-    cached = getattr(equations, "digest", None)
-    if cached is not None:
-        return cached
+@once_per
+def equations_digest(equations):
+    """sha256 of what is compiled: names, defaults, the derived equations and the generator."""
+    spec = equations.spec
     h = hashlib.sha256(generator_digest().encode())
     parts = [spec.name, spec.coordinate_names, spec.parameter_names, spec.defaults,
              spec.input_names, [[str(e) for e in row] for row in equations.M],
@@ -219,24 +253,22 @@ def equations_digest(spec, equations):
              hybrid_description(spec, equations)]
     for part in parts:
         h.update(repr(part).encode() + b"\0")
-    equations.digest = h.hexdigest()
-    return equations.digest
+    return h.hexdigest()
 
 
 def model_info(spec, equations):
-    """What a built model reports about itself: names, defaults (None: none), hash, version."""
-    return {
-        "name": spec.name, "coordinates": list(spec.coordinate_names),
-        "parameters": list(spec.parameter_names), "inputs": list(spec.input_names),
-        "defaults": list(spec.defaults), "content_hash": content_digest(spec, lambda: equations),
-        "lagrgen_version": __version__, "dimensions": model_dimensions(spec, equations),
-        "output_names": list(spec.output_names), "units": dict(spec.units),
-        "explicit_time": bool(equations.explicit_time),
-        "constraint_names": list(spec.constraint_names),
-        "events": [{"name": name, "terminal": terminal, "direction": direction}
-                   for name, _, terminal, direction in spec.events],
-        "nonsmooth": _nonsmooth().describe(spec),
-    }
+    """The `ModelInfo` of a built model: names, defaults, units, sizes, flags, hash, version."""
+    return ModelInfo(
+        name=spec.name, coordinates=spec.coordinate_names, parameters=spec.parameter_names,
+        inputs=spec.input_names, defaults=spec.defaults, units=dict(spec.units),
+        output_names=spec.output_names, constraint_names=spec.constraint_names,
+        n_holonomic=equations.n_holonomic,
+        event_definitions=[(name, terminal, direction)
+                           for name, _, terminal, direction in spec.events],
+        explicit_time=bool(equations.explicit_time),
+        content_hash=content_digest(spec, lambda: equations), lagrgen_version=__version__,
+        nonsmooth_definitions=[(e["name"], e["kind"], e["normal"])
+                               for e in _nonsmooth().describe(spec)])
 
 
 def hybrid_description(spec, equations):
@@ -251,84 +283,7 @@ def _nonsmooth():
     return nonsmooth
 
 
-def model_dimensions(spec, equations):
-    """The sizes that output shapes of `lagrgen.functions` refer to (see `functions.dimensions`)."""
-    return dimensions(equations.n, len(spec.parameters), len(spec.inputs),
-                      n_constraints=equations.m, n_holonomic=equations.n_holonomic,
-                      n_events=len(equations.events), n_outputs=len(spec.output_names),
-                      n_hybrid=_nonsmooth().n_terms(spec.nonsmooth, equations.n))
-
-
 # -- compiling -------------------------------------------------------------------------------
-def compiler_command():
-    """The C compiler as an argument list (from Python's build configuration, or $CC)."""
-    cc = os.environ.get("CC") or sysconfig.get_config_var("CC") or "cc"
-    return shlex.split(cc)
-
-
-def compile_flags(opt_level="-O2", cflags=()):
-    """The compiler flags: lagrgen's defaults, the optimization level and the user's extra flags
-    (a list of separate flags; one string is split like a shell would)."""
-    if isinstance(cflags, str):
-        cflags = shlex.split(cflags)
-    return [*DEFAULT_CFLAGS, opt_level, *cflags]
-
-
-def compile_module(source_path, output_path, flags):
-    """Compile `source_path` into the extension module `output_path`; CompileError on failure."""
-    include = sysconfig.get_paths()["include"]
-    cmd = [*compiler_command(), "-shared", *flags, "-I", include, "-I",
-           str(PACKAGE / "codegen" / "templates"), str(source_path), "-o", str(output_path)]
-    _run_compiler(cmd, source_path)
-
-
-def _run_compiler(cmd, source_path):
-    """Run the compiler command `cmd` on `source_path`; BuildError or CompileError on failure."""
-    try:
-        result = subprocess.run(cmd, capture_output=True, text=True)
-    except FileNotFoundError:
-        raise BuildError(
-            f"no C compiler found (tried {cmd[0]!r}): install one (e.g. `apt-get install gcc`), "
-            "set $CC, or use lagrgen.build(model, backend='python')") from None
-    if result.returncode != 0:
-        message = "\n".join((result.stderr or result.stdout).strip().splitlines()[:60])
-        raise CompileError(
-            f"the C compiler failed on {source_path.name} (exit {result.returncode}):\n{message}\n"
-            f"command: {' '.join(shlex.quote(c) for c in cmd)}")
-
-
-def compile_jobs():
-    """How many compiler processes run at once: the cores this process may use."""
-    try:
-        return max(1, len(os.sched_getaffinity(0)))
-    except (AttributeError, OSError):
-        return max(1, os.cpu_count() or 1)
-
-
-def compile_units(sources, output_path, flags, unit_flags=None):
-    """Compile the translation units `sources` (paths; the first is the module glue) to objects in
-    parallel (`compile_jobs()` at once) and link them into the extension module `output_path`.
-    `unit_flags(path)` may return the flags of one unit (default: `flags`)."""
-    from concurrent.futures import ThreadPoolExecutor
-    include = sysconfig.get_paths()["include"]
-    templates = str(PACKAGE / "codegen" / "templates")
-
-    def compile_one(source):
-        own = unit_flags(source) if unit_flags else flags
-        obj = source.with_suffix(".o")
-        _run_compiler([*compiler_command(), "-c", *own, "-I", include, "-I", templates,
-                       str(source), "-o", str(obj)], source)
-        return obj
-
-    # longest first, so the last job to start is a short one
-    order = sorted(sources, key=lambda path: -path.stat().st_size)
-    with ThreadPoolExecutor(max_workers=min(compile_jobs(), len(order))) as pool:
-        objects = dict(zip(order, pool.map(compile_one, order)))
-    _run_compiler([*compiler_command(), "-shared", *flags,
-                   *(str(objects[path]) for path in sources), "-o", str(output_path)],
-                  output_path)
-
-
 def build_key(digest, flags):
     """The cache key: the content digest, the compiler, its flags and the module suffix."""
     h = hashlib.sha256(digest.encode())
@@ -337,36 +292,6 @@ def build_key(digest, flags):
 
 
 # -- files -----------------------------------------------------------------------------------
-def _fsync_dir(path):
-    try:
-        fd = os.open(path, os.O_RDONLY)
-    except OSError:
-        return
-    try:
-        os.fsync(fd)
-    except OSError:
-        pass
-    finally:
-        os.close(fd)
-
-
-def write_atomic(dest, data, mode=0o644):
-    """Write the bytes `data` to `dest` atomically and durably: a reader sees the old or the new
-    file, never a part, and a file open or mapped elsewhere (a loaded module) keeps its contents."""
-    fd, tmp = tempfile.mkstemp(dir=dest.parent, prefix=f".{dest.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "wb") as fh:
-            fh.write(data)
-            fh.flush()
-            os.fsync(fh.fileno())
-        os.chmod(tmp, mode)
-        os.replace(tmp, dest)
-        _fsync_dir(dest.parent)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-
-
 def module_path(entry, name):
     return entry / f"{name}{EXT_SUFFIX}"
 
@@ -501,13 +426,13 @@ def _compile_entry(info, equations, entry, flags, progress):
     """Generate the model's C in a private directory, compile it, and rename it to `entry`."""
     from .codegen.c_model import (module_source, standalone_files, translation_units,
                                   unit_sources)
-    name = info["name"]
+    name = info.name
     progress.note("deriving the equations of motion ...")
     equations.differentiate()
     progress.step("derive", f"{equations.n} coordinates")
     files = standalone_files(info, equations)
     units = translation_units(files[f"{name}_model.c"])
-    files[f"{name}_module.c"] = module_source(info, equations.n, units)
+    files[f"{name}_module.c"] = module_source(info, units)
     files.update(unit_sources(name, units))
     size = sum(len(text) for text in files.values())
     progress.step("cse+emit", f"{size / 1024:.0f} KiB of C")

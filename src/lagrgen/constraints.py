@@ -68,7 +68,7 @@ def consistent_state(mod, y_guess, t=0.0, p=None, u=None, tol=1e-12, max_iter=50
     y = np.array(state_vector(y_guess, tuple(mod.coordinates), "y_guess"), dtype=float)
     if not np.all(np.isfinite(y)):
         raise ValueError(f"y_guess must be finite, got {y}")
-    if not getattr(mod, "n_constraints", 0):
+    if not mod.n_constraints:
         return y
     p = parameters_from(mod, p)
     u = input_vector(u, tuple(mod.inputs))
@@ -100,7 +100,7 @@ def consistent_state(mod, y_guess, t=0.0, p=None, u=None, tol=1e-12, max_iter=50
 
 def check_state(mod, t, y, p, u=None):
     """Raise ConstraintError if the constraints of `mod` are redundant at (t, y)."""
-    if getattr(mod, "n_constraints", 0):
+    if mod.n_constraints:
         _, A, _ = velocity_terms(mod, float(t), np.asarray(y[:mod.n_coordinates]), p, u)
         check_independent(mod, t, y, A, "initial state")
 

@@ -93,13 +93,7 @@ BY_NAME = {f.name: f for f in FUNCTIONS}
 #: scleronomic model with R quadratic in q̇.
 POWER_TERMS = ("input_power", "rayleigh_dissipation")
 
+#: Entries of `hybrid_terms`' `terms` per impact and per friction, beside the n of its gradient
+#: (the layout is in `lagrgen.nonsmooth`).
+HYBRID_FIELDS = {"impact": 4, "friction": 5}
 
-def dimensions(n, n_params, n_inputs, n_constraints=0, n_holonomic=0, n_events=0, n_hybrid=0,
-               **more):
-    """The dimension names of output shapes and their sizes for one model (stored in its
-    metadata, so the runtime reads every size from there; add a size by passing it in `more`)."""
-    return {"n": n, "2n": 2 * n, "n_params": n_params, "n_inputs": n_inputs,
-            "n_constraints": n_constraints, "n_holonomic": n_holonomic,
-            "n_residuals": n_holonomic + n_constraints, "n_events": n_events,
-            "n_hybrid": n_hybrid,
-            "n_power": len(POWER_TERMS), **more}

@@ -14,12 +14,12 @@ assembled from these by the backends:
     constraint_residuals  Φ, then A·q̇ + b                            } constraints (m > 0);
     constraint_jacobian   ∂(Aᵀλ)/∂q and [∂γ/∂q − ∂(A·a)/∂q | ∂γ/∂q̇]  } a = [q̈, λ] there
 """
-import weakref
 from dataclasses import dataclass
 
 import symengine as se
 
 from . import nonsmooth
+from .caching import once_per
 from .functions import Output
 
 #: The arguments of every kernel, in order (C: `double t, const double *q, ...`).
@@ -90,9 +90,6 @@ KERNELS = (
                when=lambda eq: bool(eq.spec.nonsmooth)),
 )
 
-_computed = weakref.WeakKeyDictionary()
-
-
 def _signed(expr, memo):
     """`expr` with every sum inside it written as ±S where S is the one of S, −S whose term with the
     smallest hash has a positive coefficient (the same value), so that CSE sees X and −X as one."""
@@ -142,9 +139,7 @@ def cse_kernel(spec, outputs):
     return Kernel(spec, list(replacements), result)
 
 
+@once_per
 def all_kernels(eq):
     """The kernels of KERNELS for the equations `eq`, in order (computed once per Equations)."""
-    if eq not in _computed:
-        _computed[eq] = [cse_kernel(k, k.expressions(eq)) for k in KERNELS
-                         if k.when is None or k.when(eq)]
-    return _computed[eq]
+    return [cse_kernel(k, k.expressions(eq)) for k in KERNELS if k.when is None or k.when(eq)]

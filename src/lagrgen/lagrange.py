@@ -446,7 +446,7 @@ def output_expressions(spec, q, qd, t):
     for mass, position in spec.particles:
         v = [rate(convert(c), q, qd, t) for c in position]
         T += convert(mass) * sum(vc * vc for vc in v) / 2
-    for inertia, omega in getattr(spec, "bodies_3d", ()):
+    for inertia, omega in spec.bodies_3d:
         I = [[convert(e) for e in row] for row in inertia.tolist()]
         w = [convert(e) for e in omega]
         T += sum(w[i] * I[i][j] * w[j] for i in range(3) for j in range(3)) / 2
@@ -461,7 +461,7 @@ def output_expressions(spec, q, qd, t):
         for i in range(len(q)):
             power += sum(fc * diff(rc, q[i]) for fc, rc in zip(f, r)) * qd[i]
     user = [convert(expr) for _, expr in spec.outputs]
-    if getattr(spec, "external", None) is not None:
+    if spec.external is not None:
         # equations derived elsewhere (lagrgen.from_sympy) carry no energies: NaN, not a wrong 0
         return user + [se.nan] * 5
     return user + [T, V, T + V, power, R]

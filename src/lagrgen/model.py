@@ -2,9 +2,7 @@
 
 A `Model` only records what the user says; `lagrgen.lagrange` turns it into equations of motion.
 """
-import keyword
 import math
-import sys
 from dataclasses import dataclass
 
 import sympy as sp
@@ -12,6 +10,7 @@ from sympy.core.function import AppliedUndef
 
 from .errors import ModelError
 from .functions import POWER_TERMS
+from .names import check_model_name, check_name
 from .numbers import fits_a_double, is_zero
 
 #: SymPy functions that have a C99 equivalent and that the symbolic core can differentiate.
@@ -33,35 +32,6 @@ AUTOMATIC_OUTPUTS = ENERGY_OUTPUTS + POWER_TERMS
 SHAPES = ("disk", "bar", "box")
 
 
-def check_name(name, what="name"):
-    """Return `name` if it is a valid, non-keyword Python identifier, else raise ModelError."""
-    if not isinstance(name, str) or not name.isidentifier() or keyword.iskeyword(name):
-        raise ModelError(
-            f"invalid {what} {name!r}: names must be valid Python identifiers "
-            "(letters, digits and underscores, not starting with a digit, not a Python keyword)")
-    return name
-
-
-#: Names a model cannot take: lagrgen and the packages it runs on (besides the standard library's).
-RESERVED_NAMES = frozenset({"lagrgen", "numpy", "scipy", "sympy", "symengine", "matplotlib",
-                            "Cython", "setuptools", "pytest", "dask", "distributed", "fmpy",
-                            "mujoco", "filelock", "mpmath", "PIL"})
-MAX_NAME_LENGTH = 100
-
-
-def check_model_name(name):
-    """Return `name` if it can name a compiled module: an ASCII identifier other than 'lagrgen'."""
-    check_name(name, "model name")
-    if not name.isascii():
-        raise ModelError(f"invalid model name {name!r}: it becomes the name of a compiled Python "
-                         "module, so use ASCII letters, digits and underscores only")
-    if len(name) > MAX_NAME_LENGTH:
-        raise ModelError(f"model name {name[:20]}... is {len(name)} characters long: it names "
-                         f"files, so use at most {MAX_NAME_LENGTH}")
-    if name in RESERVED_NAMES or name in getattr(sys, "stdlib_module_names", ()):
-        raise ModelError(f"a model cannot be called {name!r}: that is the name of a module Python "
-                         "or lagrgen needs, which the compiled model would hide; choose another name")
-    return name
 
 
 def split_names(names, what):

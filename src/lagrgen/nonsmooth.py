@@ -19,9 +19,10 @@ import sympy as sp
 import symengine as se
 
 from .errors import ModelError
+from .functions import HYBRID_FIELDS
 
-IMPACT_FIELDS = 4
-FRICTION_FIELDS = 5
+IMPACT_FIELDS = HYBRID_FIELDS["impact"]
+FRICTION_FIELDS = HYBRID_FIELDS["friction"]
 
 
 @dataclass(frozen=True)

@@ -9,9 +9,9 @@ import sympy as sp
 from sympy.core.function import AppliedUndef
 
 from .errors import ModelError
-from .model import Model, check_name
+from .model import Model
+from .names import check_name, key_name
 from .numbers import is_zero
-from .runtime.arguments import key_name
 
 
 def from_sympy(method_or_system, name, defaults=None, inputs=None):

@@ -44,7 +44,7 @@ class FrozenTimeWarning(UserWarning):
 
 def warn_frozen_time(mod, t, what):
     """Warn (FrozenTimeWarning) that `what` of a rheonomic model `mod` holds only at time t."""
-    if getattr(mod, "explicit_time", False):
+    if mod.explicit_time:
         warnings.warn(
             f"model {mod.name!r} depends explicitly on t: this {what} is for the frozen time "
             f"t = {float(t):g} only (the system has no static equilibrium in general; pass t= to "
@@ -159,7 +159,7 @@ def equilibrium(mod, q_guess, p=None, u=None, t=0.0, tol=1e-9):
     """
     q_guess, p, u = _operating_point(mod, q_guess, "q_guess", p, u)
     warn_frozen_time(mod, t, "equilibrium")
-    if getattr(mod, "n_constraints", 0):
+    if mod.n_constraints:
         return _constrained_equilibrium(mod, q_guess, p, u, t, tol)
     zero = np.zeros_like(q_guess)
 
@@ -275,7 +275,7 @@ def linearize(mod, q0, qd0=None, t=0.0, p=None, u=None):
     lin = Linearization(M=M, C=-dF_dqd, K=-dF_dq, B=dF_du, q0=q0, qd0=qd0, t=float(t), p=p, u=u,
                         coordinates=tuple(mod.coordinates), inputs=tuple(mod.inputs),
                         name=mod.name)
-    if getattr(mod, "n_constraints", 0):
+    if mod.n_constraints:
         lin = _reduce(mod, lin)
     check_mass_matrix(lin)
     return lin

@@ -1,10 +1,8 @@
 """The C files of a model: the standalone model (`<name>_model.h`, `<name>_model.c`: plain C, no
 Python) and the thin Python module glue (`<name>_module.c`) that includes it."""
-import json
 from pathlib import Path
 from string import Template
 
-from .._version import __version__
 from ..functions import FUNCTIONS
 from ..kernels import KERNEL_ARGUMENTS, all_kernels
 from .printer import c_function, kernel_statements
@@ -24,11 +22,11 @@ def c_string(text):
 
 def legend(info):
     """Comment lines saying which array slot holds which of the user's names."""
-    n = len(info["coordinates"])
+    n = len(info.coordinates)
     lines = [f" *   y[{i}] = q[{i}] = {c}, y[{n + i}] = qd[{i}] = its rate"
-             for i, c in enumerate(info["coordinates"])]
-    lines += [f" *   p[{i}] = {name}" for i, name in enumerate(info["parameters"])]
-    lines += [f" *   u[{i}] = {name}" for i, name in enumerate(info["inputs"])]
+             for i, c in enumerate(info.coordinates)]
+    lines += [f" *   p[{i}] = {name}" for i, name in enumerate(info.parameters)]
+    lines += [f" *   u[{i}] = {name}" for i, name in enumerate(info.inputs)]
     return "\n".join(lines)
 
 
@@ -112,53 +110,48 @@ def _double(value):
     return "NAN" if value is None else repr(float(value))
 
 
-def substitutions(info, n):
-    """Template values shared by the header, the model and the glue."""
-    return dict(
-        name=info["name"], version=__version__, content_hash=info["content_hash"],
-        legend=legend(info), n=n, n_states=2 * n, n_params=len(info["parameters"]),
-        n_inputs=len(info["inputs"]), n_or_1=max(n, 1),
-        n_constraints=info["dimensions"]["n_constraints"],
-        n_events=info["dimensions"]["n_events"],
-        n_hybrid=info["dimensions"].get("n_hybrid", 0),
-        n_outputs=info["dimensions"]["n_outputs"],
-        n_residuals=info["dimensions"]["n_residuals"],
-        n_params_or_1=max(len(info["parameters"]), 1),
-        n_inputs_or_1=max(len(info["inputs"]), 1))
+def substitutions(info):
+    """Template values shared by the header, the model, the glue and the FMU: the name, version,
+    hash, slot legend, and every size of `info.dimensions` (`2n` as n_states), each also as
+    `<size>_or_1` (C arrays are never empty)."""
+    sizes = {("n_states" if key == "2n" else key): value for key, value in info.dimensions.items()}
+    return dict(name=info.name, version=info.lagrgen_version, content_hash=info.content_hash,
+                legend=legend(info), **sizes,
+                **{f"{key}_or_1": max(value, 1) for key, value in sizes.items()})
 
 
-def model_header(info, n):
+def model_header(info):
     """`<name>_model.h`: the standalone model's interface."""
     return Template(read_template("model.h.in")).substitute(
-        substitutions(info, n), guard=f"LAGRGEN_{info['name'].upper()}_MODEL_H",
-        prototypes=prototypes(info["name"]))
+        substitutions(info), guard=f"LAGRGEN_{info.name.upper()}_MODEL_H",
+        prototypes=prototypes(info.name))
 
 
 def model_source(info, equations, max_statements=400):
     """`<name>_model.c`: kernels, linear algebra, model functions and metadata in plain C."""
-    defaults = info["defaults"] or [0.0]
+    defaults = info.defaults or [0.0]
     units = []
     kernels = kernel_functions(equations, max_statements, units)
     split = units[0] > 0
     return Template(read_template("model.c.in")).substitute(
-        substitutions(info, equations.n), linalg=read_template("linalg.c.in"),
+        substitutions(info), linalg=read_template("linalg.c.in"),
         kernels=kernels, tu_setup=TU_SETUP if split else "",
         tu0_begin="#if LG_IN_TU(0)\n" if split else "", tu0_end="\n#endif" if split else "",
         constraint_solver=read_template("constraints.c.in"),
-        functions=model_functions(info["name"]),
-        coordinate_names=_names(info["coordinates"]),
-        parameter_names=_names(info["parameters"]), input_names=_names(info["inputs"]),
+        functions=model_functions(info.name),
+        coordinate_names=_names(info.coordinates),
+        parameter_names=_names(info.parameters), input_names=_names(info.inputs),
         defaults=", ".join(_double(d) for d in defaults),
-        metadata=c_string(json.dumps(info, sort_keys=True)))
+        metadata=c_string(info.to_json()))
 
 
-def module_source(info, n, units=0):
+def module_source(info, units=0):
     """`<name>_module.c`: the Python extension glue that includes `<name>_model.c` (as unit 0 of
     a model whose kernel parts are compiled as `units` separate units, see `unit_sources`)."""
-    table = ",\n".join(f'    {{"{f.name}", {info["name"]}_{f.name}}}' for f in FUNCTIONS)
-    text = Template(read_template("module.c.in")).substitute(substitutions(info, n), table=table)
+    table = ",\n".join(f'    {{"{f.name}", {info.name}_{f.name}}}' for f in FUNCTIONS)
+    text = Template(read_template("module.c.in")).substitute(substitutions(info), table=table)
     if units:
-        include = f'#include "{info["name"]}_model.c"'
+        include = f'#include "{info.name}_model.c"'
         text = text.replace(include, "#define LG_TU 0\n" + include, 1)
     return text
 
@@ -172,8 +165,8 @@ def unit_sources(name, units):
 
 def standalone_files(info, equations):
     """{file name: text} of the standalone C model."""
-    name = info["name"]
-    return {f"{name}_model.h": model_header(info, equations.n),
+    name = info.name
+    return {f"{name}_model.h": model_header(info),
             f"{name}_model.c": model_source(info, equations)}
 
 

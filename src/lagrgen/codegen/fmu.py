@@ -1,14 +1,17 @@
-"""FMI 2.0 Model Exchange export: the standalone C model, an FMI glue file, modelDescription.xml,
-compiled and zipped into `<name>.fmu`.
+"""FMU export: the standalone C model, the FMU core (`<name>_fmu_core.c`), the FMI glue
+(`<name>_fmu.c`), modelDescription.xml and, for co-simulation, lagrgen's native ODE engine,
+compiled and zipped into `<name>.fmu`. FMI 2.0 (Model Exchange or Co-Simulation) here; the FMI
+3.0 description is in `fmi3.py`.
 
-The FMU's continuous states are x = [q, q̇] with ẋ = rhs(t, x, p, u); `providesDirectionalDerivative`
-is backed by the analytic Jacobian ∂ẋ/∂x and by ∂ẋ/∂u = [0; M⁻¹·∂F/∂u].
+The FMU's continuous states are x = [q, q̇] with ẋ = rhs(t, x, p, u); directional derivatives
+are backed by the analytic Jacobian ∂ẋ/∂x and by ∂ẋ/∂u = [0; M⁻¹·∂F/∂u]. A co-simulation FMU's
+communication step is one solve of the native engine (a C port of SciPy's solve_ivp) with the
+inputs held, its method and tolerances the parameters solver.method, solver.rtol, solver.atol.
 """
 import io
 import math
 import platform
 import shutil
-import subprocess
 import sys
 import tempfile
 import uuid
@@ -18,37 +21,78 @@ from string import Template
 from xml.etree import ElementTree as ET
 
 from .._version import __version__
-from ..errors import BuildError, CompileError, ModelError
+from ..errors import BuildError, ModelError
+from ..methods import NATIVE_CODES, NATIVE_METHODS
+from ..toolchain import compiler_command, run_compiler, write_atomic
 from .c_model import TEMPLATES, read_template, standalone_files, substitutions
 
-FMI_HEADERS = TEMPLATES / "fmi2"
-HEADER_FILES = ("fmi2Functions.h", "fmi2FunctionTypes.h", "fmi2TypesPlatform.h")
+FMI_HEADERS = {2: TEMPLATES / "fmi2", 3: TEMPLATES / "fmi3"}
+HEADER_FILES = {2: ("fmi2Functions.h", "fmi2FunctionTypes.h", "fmi2TypesPlatform.h"),
+                3: ("fmi3Functions.h", "fmi3FunctionTypes.h", "fmi3PlatformTypes.h")}
+NATIVE = Path(__file__).resolve().parent.parent / "native"
+NATIVE_FILES = ("lg_ode.c", "lg_ode.h", "lg_ode_tables.h")
+KINDS = ("me", "cs")
+KIND_TITLES = {"me": "Model Exchange", "cs": "Co-Simulation"}
 FMU_CFLAGS = ("-shared", "-fPIC", "-O2", "-fno-math-errno", "-std=gnu11", "-fvisibility=hidden")
 
 
-def platform_folder():
-    """(binaries folder, shared library suffix) of this platform in FMI 2.0's naming."""
-    bits = "64" if sys.maxsize > 2 ** 32 else "32"
+def platform_folder(fmi_version=2):
+    """(binaries folder, shared library suffix) of this platform in the FMI version's naming
+    (FMI 2.0: linux64, darwin64, win64; FMI 3.0: x86_64-linux, aarch64-darwin, ...)."""
     system = platform.system()
     names = {"Linux": ("linux", ".so"), "Darwin": ("darwin", ".dylib"), "Windows": ("win", ".dll")}
     if system not in names:
-        raise BuildError(f"FMI 2.0 names no binaries folder for the platform {system!r}")
+        raise BuildError(f"FMI {fmi_version}.0 names no binaries folder for the platform "
+                         f"{system!r}")
     folder, suffix = names[system]
-    return folder + bits, suffix
+    if fmi_version == 2:
+        return folder + ("64" if sys.maxsize > 2 ** 32 else "32"), suffix
+    machine = platform.machine().lower()
+    arch = {"amd64": "x86_64", "x86_64": "x86_64", "arm64": "aarch64", "aarch64": "aarch64",
+            "i386": "x86", "i686": "x86", "x86": "x86"}.get(machine)
+    if arch is None:
+        raise BuildError(f"FMI 3.0 names no binaries folder for the machine {machine!r}")
+    return f"{arch}-{folder}", suffix
 
 
-def variable_names(info):
-    """The FMU's variable names in value-reference order: q, q̇ (`<q>_dot`), der(q), der(q̇),
-    parameters, inputs; ModelError if two coincide."""
-    q = info["coordinates"]
+def check_kind(kind, fmi_version):
+    """ValueError unless `kind` is "me" or "cs" and `fmi_version` 2 or 3."""
+    if kind not in KINDS:
+        raise ValueError(f"kind must be 'me' (Model Exchange) or 'cs' (Co-Simulation), got "
+                         f"{kind!r}")
+    if fmi_version not in (2, 3):
+        raise ValueError(f"fmi_version must be 2 or 3, got {fmi_version!r}")
+
+
+def solver_start_values(method, rtol, atol):
+    """(method index, rtol, atol) of a co-simulation FMU's solver parameters; ValueError for an
+    unknown method or a tolerance that is not positive (rtol) or not >= 0 (atol)."""
+    if method not in NATIVE_METHODS:
+        raise ValueError(f"method {method!r} has no native implementation: use one of "
+                         f"{', '.join(NATIVE_METHODS)}")
+    rtol, atol = float(rtol), float(atol)
+    if not (math.isfinite(rtol) and rtol > 0):
+        raise ValueError(f"rtol must be positive, got {rtol}")
+    if not (math.isfinite(atol) and atol >= 0):
+        raise ValueError(f"atol must be zero or positive, got {atol}")
+    return NATIVE_CODES[method], rtol, atol
+
+
+def variable_names(info, reserved=()):
+    """The names of the model's FMU variables in value-reference order: q, q̇ (`<q>_dot`),
+    der(q), der(q̇), parameters, inputs; ModelError if two coincide, or coincide with one of the
+    outputs (variables of their own, after these) or of the `reserved` names."""
+    q = info.coordinates
     qd = [f"{c}_dot" for c in q]
-    names = [*q, *qd, *(f"der({c})" for c in q + qd), *info["parameters"], *info["inputs"]]
+    names = [*q, *qd, *(f"der({c})" for c in (*q, *qd)), *info.parameters, *info.inputs]
     seen = set()
-    for name in names:
+    for name in [*names, *info.output_names, *reserved]:
         if name in seen:
             raise ModelError(
-                f"model {info['name']!r}: the FMU variable name {name!r} would be used twice (the "
-                "velocities are named <coordinate>_dot): rename the coordinate, parameter or input")
+                f"model {info.name!r}: the FMU variable name {name!r} would be used twice (the "
+                "velocities are named <coordinate>_dot, the outputs by their names"
+                + (", and " + ", ".join(reserved) + " is the FMU's own" if reserved else "")
+                + "): rename the coordinate, parameter, input or output")
         seen.add(name)
     return names
 
@@ -56,18 +100,18 @@ def variable_names(info):
 def parameter_start_values(info, params=None):
     """Start values of the parameters: the defaults, overridden by `params` (name -> value);
     ModelError for a parameter that has neither or an unknown or non-finite value."""
-    names = info["parameters"]
-    values = dict(zip(names, info["defaults"]))
+    names = info.parameters
+    values = dict(zip(names, info.defaults))
     for key, value in (params or {}).items():
         if key not in values:
-            raise ModelError(f"params: model {info['name']!r} has no parameter {key!r} (its "
+            raise ModelError(f"params: model {info.name!r} has no parameter {key!r} (its "
                              f"parameters are {', '.join(names) or 'none'})")
         values[key] = value
     out = []
     for name in names:
         value = values[name]
         if value is None:
-            raise ModelError(f"parameter {name!r} of model {info['name']!r} has no default, and an "
+            raise ModelError(f"parameter {name!r} of model {info.name!r} has no default, and an "
                              "FMU needs a start value for every parameter: give it a default or "
                              "a value at export (params={...} or --params)")
         value = float(value)
@@ -77,46 +121,91 @@ def parameter_start_values(info, params=None):
     return out
 
 
-def fmu_guid(info, start_values, start_time, stop_time):
-    """A GUID determined by the model's content hash and what the description adds to it."""
-    text = repr((info["content_hash"], start_values, start_time, stop_time, __version__))
+def fmu_guid(info, start_values, start_time, stop_time, settings=()):
+    """A GUID determined by the model's content hash and what the description adds to it
+    (`settings`: the kind, FMI version and solver start values)."""
+    text = repr((info.content_hash, start_values, start_time, stop_time, __version__,
+                 *settings))
     return "{" + str(uuid.uuid5(uuid.NAMESPACE_URL, "lagrgen:" + text)) + "}"
 
 
-def _number(value):
+def number_text(value):
     return repr(float(value))
 
 
-def model_description(info, guid, start_values, start_time=0.0, stop_time=10.0, tolerance=None):
-    """The text of modelDescription.xml (FMI 2.0, Model Exchange). Variables are listed in
-    value-reference order, so a variable's index is its value reference + 1."""
-    name, q = info["name"], info["coordinates"]
+def value_references(info):
+    """{what: value reference} of the variables after the model's: the solver settings of a
+    co-simulation FMU, time and the first event indicator (FMI 3.0), the first output, as
+    fmu_core.c.in numbers them."""
+    end = 4 * len(info.coordinates) + len(info.parameters) + len(info.inputs)
+    return {"solver.rtol": end, "solver.atol": end + 1, "solver.method": end + 2, "time": end + 3,
+            "events": end + 4, "outputs": end + 4 + len(info.event_definitions)}
+
+
+def source_file_names(name, kind):
+    """The C files an importer compiles to rebuild the FMU (the glue includes the others)."""
+    return [f"{name}_fmu.c", *(["lg_ode.c"] if kind == "cs" else [])]
+
+
+def method_items():
+    """(name, value, description) of the enumeration solver.method: the native engine's methods
+    with their codes in lg_ode.h."""
+    what = {"RK23": "explicit Runge-Kutta 3(2)",
+            "RK45": "explicit Runge-Kutta 5(4) (Dormand-Prince)",
+            "DOP853": "explicit Runge-Kutta 8(5,3)", "Radau": "implicit Radau IIA order 5 (stiff)",
+            "BDF": "implicit BDF orders 1-5 (stiff)"}
+    return [(m, NATIVE_CODES[m], what.get(m, m)) for m in NATIVE_METHODS]
+
+
+def model_description(info, guid, start_values, start_time=0.0, stop_time=10.0, tolerance=None,
+                      kind="me", solver=None):
+    """The text of modelDescription.xml (FMI 2.0, Model Exchange or Co-Simulation). The model's
+    variables are listed in value-reference order, so such a variable's index is its value
+    reference + 1; a co-simulation FMU's solver settings (`solver` = (method index, rtol,
+    atol)) follow them."""
+    name, q = info.name, info.coordinates
     n, names = len(q), variable_names(info)
     root = ET.Element("fmiModelDescription", {
         "fmiVersion": "2.0", "modelName": name, "guid": guid,
         "description": f"{name}: M(q, t)·q'' = F(q, q', t, u), states q and q'",
         "generationTool": f"lagrgen {__version__}", "variableNamingConvention": "flat",
-        "numberOfEventIndicators": "0"})
-    me = ET.SubElement(root, "ModelExchange", {
-        "modelIdentifier": name, "providesDirectionalDerivative": "true",
-        "canGetAndSetFMUstate": "false", "canSerializeFMUstate": "false",
-        "completedIntegratorStepNotNeeded": "true", "canNotUseMemoryManagementFunctions": "false"})
-    sources = ET.SubElement(me, "SourceFiles")
-    ET.SubElement(sources, "File", {"name": f"{name}_fmu.c"})
+        "numberOfEventIndicators": str(len(info.event_definitions) if kind == "me" else 0)})
+    common = {"modelIdentifier": name, "canGetAndSetFMUstate": "true",
+              "canSerializeFMUstate": "true", "providesDirectionalDerivative": "true",
+              "canNotUseMemoryManagementFunctions": "false"}
+    if kind == "me":
+        element = ET.SubElement(root, "ModelExchange", {
+            **common, "completedIntegratorStepNotNeeded": "true"})
+    else:
+        element = ET.SubElement(root, "CoSimulation", {
+            **common, "canHandleVariableCommunicationStepSize": "true",
+            "canInterpolateInputs": "false", "maxOutputDerivativeOrder": "0",
+            "canRunAsynchronuously": "false", "canBeInstantiatedOnlyOncePerProcess": "false"})
+    sources = ET.SubElement(element, "SourceFiles")
+    for file_name in source_file_names(name, kind):
+        ET.SubElement(sources, "File", {"name": file_name})
+    if kind == "cs":
+        types = ET.SubElement(root, "TypeDefinitions")
+        enumeration = ET.SubElement(ET.SubElement(types, "SimpleType", {
+            "name": "lagrgen.Method", "description": "the native engine's integration method"}),
+            "Enumeration")
+        for item, value, what in method_items():
+            ET.SubElement(enumeration, "Item", {"name": item, "value": str(value),
+                                                "description": what})
     categories = ET.SubElement(root, "LogCategories")
     ET.SubElement(categories, "Category", {"name": "logStatusError",
                                            "description": "errors"})
-    experiment = {"startTime": _number(start_time), "stopTime": _number(stop_time)}
+    experiment = {"startTime": number_text(start_time), "stopTime": number_text(stop_time)}
     if tolerance is not None:
-        experiment["tolerance"] = _number(tolerance)
+        experiment["tolerance"] = number_text(tolerance)
     ET.SubElement(root, "DefaultExperiment", experiment)
     variables = ET.SubElement(root, "ModelVariables")
 
-    def variable(vr, attributes, real, description):
+    def variable(vr, attributes, real, description, name=None, type_="Real"):
         sv = ET.SubElement(variables, "ScalarVariable", {
-            "name": names[vr], "valueReference": str(vr), "description": description,
+            "name": name or names[vr], "valueReference": str(vr), "description": description,
             **attributes})
-        ET.SubElement(sv, "Real", real)
+        ET.SubElement(sv, type_, real)
 
     for i, c in enumerate(q):
         variable(i, {"causality": "output", "variability": "continuous", "initial": "exact"},
@@ -129,13 +218,31 @@ def model_description(info, guid, start_values, start_time=0.0, stop_time=10.0, 
                              "initial": "calculated"},
                  {"derivative": str(i + 1)}, f"time derivative of {names[i]}")
     base = 4 * n
-    for j, (p, value) in enumerate(zip(info["parameters"], start_values)):
+    for j, (p, value) in enumerate(zip(info.parameters, start_values)):
         variable(base + j, {"causality": "parameter", "variability": "tunable",
-                            "initial": "exact"}, {"start": _number(value)}, f"parameter {p}")
-    base += len(info["parameters"])
-    for k, u in enumerate(info["inputs"]):
+                            "initial": "exact"}, {"start": number_text(value)}, f"parameter {p}")
+    base += len(info.parameters)
+    for k, u in enumerate(info.inputs):
         variable(base + k, {"causality": "input", "variability": "continuous"},
                  {"start": "0.0"}, f"input {u}")
+    if kind == "cs":
+        vr = value_references(info)
+        method, rtol, atol = solver
+        tunable = {"causality": "parameter", "variability": "tunable", "initial": "exact"}
+        variable(vr["solver.rtol"], tunable, {"start": number_text(rtol)},
+                 "relative tolerance of the native engine (the experiment's tolerance, when "
+                 "the importer gives one, replaces it)", name="solver.rtol")
+        variable(vr["solver.atol"], tunable, {"start": number_text(atol)},
+                 "absolute tolerance of the native engine", name="solver.atol")
+        variable(vr["solver.method"], tunable,
+                 {"declaredType": "lagrgen.Method", "start": str(method)},
+                 "integration method of the native engine", name="solver.method",
+                 type_="Enumeration")
+    vr = value_references(info)
+    for k, output in enumerate(info.output_names):
+        variable(vr["outputs"] + k, {"causality": "local", "variability": "continuous",
+                                     "initial": "calculated"}, {}, output_description(info, output),
+                 name=output)
     structure = ET.SubElement(root, "ModelStructure")
     outputs = ET.SubElement(structure, "Outputs")
     for i in range(n):
@@ -145,67 +252,133 @@ def model_description(info, guid, start_values, start_time=0.0, stop_time=10.0, 
     for i in range(2 * n):
         ET.SubElement(derivatives, "Unknown", {"index": str(2 * n + i + 1)})
         ET.SubElement(initial, "Unknown", {"index": str(2 * n + i + 1)})
+    return xml_text(root)
+
+
+def output_description(info, output):
+    """The description of the variable of a model output (`model.output` or an energy)."""
+    unit = info.units.get(output)
+    return f"model output {output}" + (f" [{unit}]" if unit else "") + \
+        " (computed from the state; no directional derivative)"
+
+
+def xml_text(root):
     ET.indent(root)
     return '<?xml version="1.0" encoding="UTF-8"?>\n' + ET.tostring(root, encoding="unicode") \
         + "\n"
 
 
-def fmu_glue(info, n, guid, start_values):
-    """`<name>_fmu.c`: the FMI 2.0 functions, around `<name>_model.c` (which it includes)."""
-    return Template(read_template("fmu.c.in")).substitute(
-        substitutions(info, n), guid=guid,
-        start_parameters=", ".join(_number(v) for v in start_values) or "0.0")
+def numbers_text(values, empty="0.0"):
+    return ", ".join(number_text(v) for v in values) or empty
 
 
-def fmu_sources(model, params=None, start_time=0.0, stop_time=10.0, tolerance=None):
-    """{file name: text}: the standalone model, the FMI glue and modelDescription.xml."""
-    from ..build import model_info
-    equations = model.equations()
-    info = model_info(model.spec(), equations)
-    if info.get("nonsmooth"):
-        raise ModelError(f"model {info['name']!r} has impacts or frictions "
-                         f"({', '.join(e['name'] for e in info['nonsmooth'])}): an FMU would "
+def fmu_core(info, guid, start_values, solver):
+    """`<name>_fmu_core.c`: the variables, derivatives, FMU state and native-engine step."""
+    events = info.event_definitions
+    method, rtol, atol = solver
+    return Template(read_template("fmu_core.c.in")).substitute(
+        substitutions(info), guid=guid, start_parameters=numbers_text(start_values),
+        n_events_or_1=max(len(events), 1), n_outputs_or_1=max(len(info.output_names), 1),
+        event_terminal=numbers_text(terminal for _, terminal, _ in events),
+        event_direction=numbers_text(direction for _, _, direction in events),
+        start_method=method, start_rtol=number_text(rtol), start_atol=number_text(atol),
+        n_methods=len(NATIVE_METHODS), method_names=method_names())
+
+
+def method_names():
+    """The C initializer of the method names indexed by their native codes."""
+    names = dict((code, name) for name, code in NATIVE_CODES.items())
+    if sorted(names) != list(range(len(names))):
+        raise BuildError("the native methods' codes are not 0, 1, ...: fmu_core.c.in indexes "
+                         "its name table by them")
+    return ", ".join(f'"{names[k]}"' for k in range(len(names)))
+
+
+def fmu_glue(info, kind, fmi_version):
+    """`<name>_fmu.c`: the FMI functions of the version and kind, around `<name>_fmu_core.c`."""
+    return Template(read_template(f"fmi{fmi_version}.c.in")).substitute(
+        substitutions(info), kind_title=KIND_TITLES[kind],
+        cosimulation=int(kind == "cs"),
+        fmu_type="fmi2CoSimulation" if kind == "cs" else "fmi2ModelExchange")
+
+
+def fmu_sources(info, equations, params=None, start_time=0.0, stop_time=10.0, tolerance=None,
+                kind="me", fmi_version=2, method="DOP853", rtol=None, atol=None):
+    """{file name: text}: the standalone model, the FMU core, the FMI glue and
+    modelDescription.xml."""
+    from .fmi3 import build_description, model_description_fmi3
+    check_kind(kind, fmi_version)
+    rtol = (tolerance if tolerance is not None else 1e-6) if rtol is None else rtol
+    solver = solver_start_values(method, rtol, 1e-3 * rtol if atol is None else atol)
+    if info.nonsmooth_definitions:
+        raise ModelError(f"model {info.name!r} has impacts or frictions "
+                         f"({', '.join(e[0] for e in info.nonsmooth_definitions)}): an FMU would "
                          "integrate it without its switches; simulate it with lagrgen.simulate")
     if not stop_time > start_time:
         raise ModelError(f"stop time {stop_time} must be greater than the start time {start_time}")
     start_values = parameter_start_values(info, params)
-    guid = fmu_guid(info, start_values, start_time, stop_time)
+    settings = () if (kind, fmi_version) == ("me", 2) else (kind, fmi_version, solver)
+    guid = fmu_guid(info, start_values, start_time, stop_time, settings)
     files = standalone_files(info, equations)
-    files[f"{info['name']}_fmu.c"] = fmu_glue(info, equations.n, guid, start_values)
-    files["modelDescription.xml"] = model_description(info, guid, start_values, start_time,
-                                                      stop_time, tolerance)
+    name = info.name
+    files[f"{name}_fmu_core.c"] = fmu_core(info, guid, start_values, solver)
+    files[f"{name}_fmu.c"] = fmu_glue(info, kind, fmi_version)
+    describe = model_description if fmi_version == 2 else model_description_fmi3
+    files["modelDescription.xml"] = describe(info, guid, start_values, start_time, stop_time,
+                                             tolerance, kind, solver)
+    if fmi_version == 3:
+        files["buildDescription.xml"] = build_description(name, kind)
     return files
 
 
-def export_fmu(model, out_dir=".", params=None, start_time=0.0, stop_time=10.0, tolerance=None,
-               cflags=()):
-    """Write `<out_dir>/<name>.fmu`, an FMI 2.0 Model Exchange FMU of `model` for this platform.
+def compile_fmu(work, name, kind, fmi_version, library, cflags=()):
+    """Compile `<name>_fmu.c` (and, for co-simulation, the native engine) in `work` into
+    `library`; CompileError with the compiler's message when it fails."""
+    sources = [str(work / file_name) for file_name in source_file_names(name, kind)]
+    run_compiler([*compiler_command(), *FMU_CFLAGS, *cflags, "-I", str(work), "-I",
+                  str(FMI_HEADERS[fmi_version]), *sources, "-o", str(library), "-lm"],
+                 work / f"{name}_fmu.c")
+
+
+def write_fmu(info, equations, out_dir=".", params=None, start_time=0.0, stop_time=10.0,
+              tolerance=None, cflags=(), *, kind="me", fmi_version=2, method="DOP853", rtol=None,
+              atol=None):
+    """Write `<out_dir>/<name>.fmu`, an FMU of the model `info` with `equations` for this
+    platform: FMI 2.0 or 3.0, Model Exchange or Co-Simulation (`lagrgen.export_fmu`).
 
     Its states are x = [q, q̇] (variables named like the coordinates and `<coordinate>_dot`), with
     ẋ = [q̇, M⁻¹·F]; parameters are tunable parameters, inputs continuous inputs, the coordinates
-    outputs; directional derivatives come from the analytic Jacobian.
+    outputs; directional derivatives come from the analytic Jacobian; the FMU state can be got,
+    set and serialized. A Model Exchange FMU's event indicators are the model's compiled events
+    (a terminal event's last counted crossing terminates the simulation). A co-simulation FMU
+    advances each communication step with lagrgen's native engine (the inputs held over the
+    step, the compiled events located and terminal ones ending the run); its method and
+    tolerances are the tunable parameters `solver.method`, `solver.rtol` and `solver.atol`.
 
     Parameters
     ----------
-    model : lagrgen.Model
+    info, equations : the model's `ModelInfo` and derived equations
     out_dir : str or pathlib.Path
     params : dict, optional
         Parameter start values (name -> value) replacing the defaults; required for parameters
         without a default.
     start_time, stop_time, tolerance : the DefaultExperiment
     cflags : extra compiler flags (a list)
+    kind : "me" (Model Exchange) or "cs" (Co-Simulation)
+    fmi_version : 2 or 3
+    method, rtol, atol : the co-simulation solver's start values (one of RK23, RK45, DOP853,
+        Radau, BDF; rtol defaults to `tolerance` or 1e-6, atol to rtol/1000)
 
     Returns
     -------
     pathlib.Path of the FMU.
     """
-    from ..build import compiler_command, write_atomic
-    from ..model import Model
-    if not isinstance(model, Model):
-        raise TypeError(f"export_fmu() takes a lagrgen.Model, got {type(model).__name__}")
-    name = model.name
-    files = fmu_sources(model, params, start_time, stop_time, tolerance)
-    folder, suffix = platform_folder()
+    name = info.name
+    files = fmu_sources(info, equations, params, start_time, stop_time, tolerance, kind,
+                        fmi_version, method, rtol, atol)
+    folder, suffix = platform_folder(fmi_version)
+    if kind == "cs":
+        files.update({f: (NATIVE / f).read_text(encoding="utf-8") for f in NATIVE_FILES})
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     work = Path(tempfile.mkdtemp(prefix=f"lagrgen-fmu-{name}-"))
@@ -213,28 +386,29 @@ def export_fmu(model, out_dir=".", params=None, start_time=0.0, stop_time=10.0, 
         for file_name, text in files.items():
             (work / file_name).write_text(text, encoding="utf-8")
         library = work / f"{name}{suffix}"
-        cmd = [*compiler_command(), *FMU_CFLAGS, *cflags, "-I", str(work), "-I", str(FMI_HEADERS),
-               str(work / f"{name}_fmu.c"), "-o", str(library), "-lm"]
-        try:
-            result = subprocess.run(cmd, capture_output=True, text=True)
-        except FileNotFoundError:
-            raise BuildError(f"no C compiler found (tried {cmd[0]!r}): install one or set $CC") \
-                from None
-        if result.returncode != 0:
-            message = "\n".join((result.stderr or result.stdout).strip().splitlines()[:60])
-            raise CompileError(f"the C compiler failed on {name}_fmu.c:\n{message}\ncommand: "
-                               + " ".join(cmd))
-        buffer = io.BytesIO()
-        with zipfile.ZipFile(buffer, "w", zipfile.ZIP_DEFLATED) as fmu:
-            fmu.writestr("modelDescription.xml", files["modelDescription.xml"])
-            fmu.write(library, f"binaries/{folder}/{name}{suffix}")
-            for file_name in (f"{name}_fmu.c", f"{name}_model.c", f"{name}_model.h"):
-                fmu.writestr(f"sources/{file_name}", files[file_name])
-            for header in HEADER_FILES:
-                fmu.write(FMI_HEADERS / header, f"sources/{header}")
-            fmu.write(FMI_HEADERS / "LICENSE.txt", "documentation/licenses/fmi2-headers.txt")
+        compile_fmu(work, name, kind, fmi_version, library, cflags)
         path = out_dir / f"{name}.fmu"
-        write_atomic(path, buffer.getvalue())
+        write_atomic(path, fmu_archive(files, library, f"binaries/{folder}/{name}{suffix}",
+                                       kind, fmi_version))
         return path
     finally:
         shutil.rmtree(work, ignore_errors=True)
+
+
+def fmu_archive(files, library, library_path, kind, fmi_version):
+    """The bytes of the .fmu zip: the description, the binary, the sources and the licences."""
+    headers = FMI_HEADERS[fmi_version]
+    buffer = io.BytesIO()
+    with zipfile.ZipFile(buffer, "w", zipfile.ZIP_DEFLATED) as fmu:
+        fmu.writestr("modelDescription.xml", files["modelDescription.xml"])
+        fmu.write(library, library_path)
+        for file_name, text in files.items():
+            if file_name != "modelDescription.xml":
+                fmu.writestr(f"sources/{file_name}", text)
+        for header in HEADER_FILES[fmi_version]:
+            fmu.write(headers / header, f"sources/{header}")
+        fmu.write(headers / "LICENSE.txt",
+                  f"documentation/licenses/fmi{fmi_version}-headers.txt")
+        if kind == "cs":
+            fmu.write(NATIVE / "LICENSE.scipy", "documentation/licenses/scipy-lg_ode.txt")
+    return buffer.getvalue()

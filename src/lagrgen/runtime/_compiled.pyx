@@ -10,7 +10,6 @@ of `lagrgen.functions.FUNCTIONS`.
 Thread safety: nothing a call depends on is stored in a shared object. Converted arguments are
 locals of the call, which keeps them alive for as long as C (or a nogil loop) reads them.
 """
-import json
 import time
 
 import numpy as np
@@ -20,8 +19,9 @@ from libc.math cimport isfinite
 
 from lagrgen.runtime.abi cimport LG_ABI_VERSION, LG_CAPSULE_NAME, lg_function, lg_model_t
 from lagrgen.errors import BuildError, ConstraintError, MassMatrixError
-from lagrgen.functions import FUNCTIONS, dimensions
+from lagrgen.functions import FUNCTIONS
 from lagrgen.runtime.describe import BuiltModule
+from lagrgen.runtime.info import INFO_ATTRIBUTES, ModelInfo
 from lagrgen.runtime.arguments import (defaults_array, input_vector, parameter_vector,
                                        require_finite)
 
@@ -72,14 +72,12 @@ cdef class CompiledModel:
     """A model's compiled equations: sizes, names, and the C function table of its module."""
 
     cdef const lg_model_t *model
+    cdef readonly object info
     cdef readonly int n_coordinates, n_params, n_inputs, n_constraints
-    cdef readonly str name, content_hash, lagrgen_version
-    cdef readonly tuple coordinates, parameters, inputs, constraint_names, event_definitions
-    cdef readonly tuple nonsmooth_definitions
+    cdef readonly str name
+    cdef readonly tuple parameters, inputs
     cdef readonly object defaults
-    cdef readonly dict dimensions, units
-    cdef readonly tuple output_names
-    cdef readonly bint explicit_time
+    cdef readonly dict dimensions
     cdef cnp.ndarray _zeros
     cdef bint _defaults_complete
     cdef dict _addresses
@@ -92,29 +90,20 @@ cdef class CompiledModel:
             raise BuildError(
                 f"this model was compiled for lagrgen runtime ABI {self.model.abi_version}, "
                 f"but the installed lagrgen uses {LG_ABI_VERSION}: rebuild it")
-        meta = json.loads(self.model.metadata.decode("utf-8"))
+        info = ModelInfo.from_json(self.model.metadata.decode("utf-8"))
+        self.info = info
+        self.name = info.name
         self.n_coordinates = self.model.n
         self.n_params = self.model.n_params
         self.n_inputs = self.model.n_inputs
-        self.name = meta["name"]
-        self.content_hash = meta["content_hash"]
-        self.lagrgen_version = meta["lagrgen_version"]
-        self.coordinates = tuple(meta["coordinates"])
-        self.parameters = tuple(meta["parameters"])
-        self.inputs = tuple(meta["inputs"])
-        self.defaults = defaults_array(meta["defaults"])
+        self.n_constraints = info.n_constraints
+        self.parameters = info.parameters
+        self.inputs = info.inputs
+        self.dimensions = info.dimensions
+        self.defaults = defaults_array(info.defaults)
         self._defaults_complete = bool(np.isfinite(self.defaults).all())
         self._zeros = np.zeros(max(self.n_inputs, 1))
         self._zeros.setflags(write=False)
-        self.dimensions = dict(meta["dimensions"])
-        self.output_names = tuple(meta.get("output_names", ()))
-        self.units = dict(meta.get("units", {}))
-        self.explicit_time = bool(meta.get("explicit_time", False))
-        self.n_constraints = self.dimensions.get("n_constraints", 0)
-        self.constraint_names = tuple(meta.get("constraint_names", ()))
-        self.event_definitions = tuple((e["name"], e["terminal"], e["direction"])
-                                       for e in meta.get("events", ()))
-        self.nonsmooth_definitions = nonsmooth_definitions(meta)
         self._addresses = {}
         cdef int i
         for i in range(self.model.n_functions):
@@ -278,21 +267,17 @@ cdef class StateArgumentsFunction(BoundFunction):
 CALLABLES = {"state": StateFunction, "q": CoordinateFunction, "q_qd": StateArgumentsFunction}
 
 
-def nonsmooth_definitions(meta):
-    """((name, kind, normal), ...) of the model's impacts and frictions (`lagrgen.nonsmooth`)."""
-    return tuple((e["name"], e["kind"], None if e["normal"] is None else tuple(e["normal"]))
-                 for e in meta.get("nonsmooth", ()))
-
-
 def bind_module(module, capsule):
     """Make `module` (a freshly imported model module) a built model: called by its PyInit."""
     model = CompiledModel(capsule)
-    for attr in ("name", "coordinates", "parameters", "inputs", "defaults", "n_coordinates",
-                 "n_constraints", "constraint_names", "event_definitions", "content_hash",
-                 "lagrgen_version", "dimensions", "time_in_c", "function_address", "output_names",
-                 "units", "explicit_time", "nonsmooth_definitions"):
-        setattr(module, attr, getattr(model, attr))
+    module.info = model.info
+    for attr in INFO_ATTRIBUTES:
+        setattr(module, attr, getattr(model.info, attr))
+    module.defaults = model.defaults
+    module.time_in_c = model.time_in_c
+    module.function_address = model.function_address
     module.backend = "c"
+    module.build_info = {}
     for spec in FUNCTIONS:
         setattr(module, spec.name, CALLABLES[spec.call](model, spec))
     module.compiled_model = model

@@ -6,25 +6,13 @@ Non-finite parameter and input values are refused here (ValueError), the same on
 import numpy as np
 
 from ..errors import UnknownNameError
+from ..names import key_name  # noqa: F401  (re-exported: the runtime reads keys with it)
 
 
 def unknown_name(what, key, names):
     """The one "unknown name" error: `key` is not among the model's `names` of kind `what`."""
     known = ", ".join(names) if names else "none"
     return UnknownNameError(f"unknown {what} name {key!r}: the model's {what}s are {known}")
-
-
-def key_name(key):
-    """The name a user's key stands for: a str, a SymPy Symbol, or an applied function u(t)."""
-    if isinstance(key, str):
-        return key
-    if getattr(key, "is_Symbol", False):
-        return key.name
-    func = getattr(key, "func", None)
-    if getattr(key, "is_Function", False) and getattr(func, "__name__", None):
-        return func.__name__
-    raise TypeError(f"keys must be names (str) or the SymPy symbols/functions the model returned, "
-                    f"got {key!r} of type {type(key).__name__}")
 
 
 def defaults_array(defaults):

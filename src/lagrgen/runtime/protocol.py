@@ -1,28 +1,42 @@
 """The interface of a built model (API.md §3), as both backends provide it.
 
 A compiled model is the imported module itself (its attributes are bound by
-`lagrgen.runtime._compiled.bind_module`); a Python model is a `PythonModel`. Their model functions
-come from one registry, `lagrgen.functions.FUNCTIONS`; this Protocol documents the result for
-readers and type checkers.
+`lagrgen.runtime._compiled.bind_module`); a Python model is a `PythonModel`. Both take their names,
+sizes and flags from one `ModelInfo` (`INFO_ATTRIBUTES`) and their model functions from one
+registry, `lagrgen.functions.FUNCTIONS`. These Protocols list every public name of the result, so
+code that holds a built model reads them without guards (tests/test_structure.py checks both
+backends against them).
 """
-from typing import Protocol, Tuple
+from typing import Dict, Protocol, Tuple
 
 import numpy as np
+
+from .info import ModelInfo
 
 
 class BuiltModel(Protocol):
     """What `lagrgen.build` returns, on either backend."""
 
+    info: ModelInfo               # the record the attributes below are read from
     name: str
     backend: str                  # "c" or "python"
     coordinates: Tuple[str, ...]
     parameters: Tuple[str, ...]
     inputs: Tuple[str, ...]
-    defaults: np.ndarray          # float64, NaN where a value must be given at run time
-    n_coordinates: int
+    defaults: np.ndarray          # float64, read-only, NaN where a value must be given at run time
+    units: Dict[str, str]         # name -> unit label, for the names that have one
+    output_names: Tuple[str, ...]  # the user's outputs, then the three energies
+    constraint_names: Tuple[str, ...]  # one per multiplier λ: holonomic, then velocity constraints
+    event_definitions: Tuple[Tuple[str, int, int], ...]  # (name, terminal, direction)
+    explicit_time: bool           # M or F depends on t explicitly
     content_hash: str             # of the derived equations and lagrgen's generator
-    dimensions: dict              # sizes the output shapes refer to ("n", "2n", "n_inputs", ...)
+    lagrgen_version: str
+    n_coordinates: int
+    n_constraints: int
+    dimensions: Dict[str, int]    # sizes the output shapes refer to ("n", "2n", "n_inputs", ...)
+    build_info: dict              # how the build went: cache_hit, seconds (and step times for C)
 
+    # -- one callable per entry of lagrgen.functions.FUNCTIONS --------------------------------
     def mass_matrix(self, q, t=0.0, p=None, u=None) -> np.ndarray:
         """M(q, t), (n, n)."""
 
@@ -37,3 +51,39 @@ class BuiltModel(Protocol):
 
     def linear_terms(self, q, qd, t=0.0, p=None, u=None) -> tuple:
         """(M, ∂F/∂q, ∂F/∂q̇, ∂F/∂u) at one point."""
+
+    def power_terms(self, t, y, p=None, u=None) -> np.ndarray:
+        """[Σ Q_j·q̇_j, R], (n_power,)."""
+
+    def outputs(self, t, y, p=None, u=None) -> np.ndarray:
+        """The outputs (the user's, then T, V, T + V), (n_outputs,)."""
+
+    def constraint_forces(self, t, y, p=None, u=None) -> np.ndarray:
+        """λ, (n_constraints,)."""
+
+    def constraint_residuals(self, t, y, p=None, u=None) -> np.ndarray:
+        """Φ, then A·q̇ + b, (n_residuals,)."""
+
+    def constraint_terms(self, q, qd, t=0.0, p=None, u=None) -> tuple:
+        """(A, λ, ∂(Aᵀλ)/∂q) at one point."""
+
+    def events(self, t, y, p=None, u=None) -> np.ndarray:
+        """g_k, (n_events,)."""
+
+
+class CompiledBuiltModel(BuiltModel, Protocol):
+    """What the C backend adds: its compiled runtime object and the addresses of its C functions."""
+
+    compiled_model: object        # lagrgen.runtime._compiled.CompiledModel
+
+    def time_in_c(self, which, t, y, p=None, u=None, repeat=10000) -> float:
+        """Seconds per call of the C function `which`, looped inside C."""
+
+    def function_address(self, name) -> int:
+        """The address of the C function `name`."""
+
+
+class PythonBuiltModel(BuiltModel, Protocol):
+    """What the Python backend adds: the printed source of its kernels."""
+
+    source: str

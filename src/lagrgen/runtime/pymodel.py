@@ -13,6 +13,7 @@ from ..errors import ConstraintError, MassMatrixError
 from ..functions import FUNCTIONS
 from .arguments import as_vector, defaults_array, input_vector, parameter_vector
 from .describe import describe
+from .info import INFO_ATTRIBUTES
 
 #: A Cholesky pivot below this fraction of its diagonal entry of M counts as zero (LG_PIVOT_TOL in C).
 PIVOT_TOL = 1e-14
@@ -37,35 +38,20 @@ class PythonModel:
 
     Parameters
     ----------
-    info : dict
-        name, coordinates, parameters, inputs, defaults, content_hash (as in the C metadata).
-    n : int
-        The number of coordinates.
+    info : lagrgen.runtime.info.ModelInfo
+        What the model says about itself (names, defaults, sizes, flags).
     source : str
         Python source of the kernels (`lagrgen.codegen.python_module.python_source`).
     """
 
     backend = "python"
 
-    def __init__(self, info, n, source):
-        self.name = info["name"]
-        self.coordinates = tuple(info["coordinates"])
-        self.parameters = tuple(info["parameters"])
-        self.inputs = tuple(info["inputs"])
-        self.defaults = defaults_array(info["defaults"])
-        self.content_hash = info["content_hash"]
-        self.n_coordinates = n
-        self.dimensions = dict(info["dimensions"])
-        self.output_names = tuple(info["output_names"])
-        self.units = dict(info["units"])
-        self.explicit_time = bool(info["explicit_time"])
-        self.n_constraints = self.dimensions.get("n_constraints", 0)
-        self.constraint_names = tuple(info.get("constraint_names", ()))
-        self.event_definitions = tuple((e["name"], e["terminal"], e["direction"])
-                                       for e in info.get("events", ()))
-        self.nonsmooth_definitions = tuple(
-            (e["name"], e["kind"], None if e["normal"] is None else tuple(e["normal"]))
-            for e in info.get("nonsmooth", ()))
+    def __init__(self, info, source):
+        self.info = info
+        for name in INFO_ATTRIBUTES:
+            setattr(self, name, getattr(info, name))
+        self.defaults = defaults_array(info.defaults)
+        self.build_info = {}
         self.source = source
         code = compile(source, f"<lagrgen python backend: {self.name}>", "exec")
         self._kernels, self._ieee_kernels = dict(_NAMESPACE), dict(_IEEE_NAMESPACE)

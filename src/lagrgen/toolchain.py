@@ -1,0 +1,125 @@
+"""The C toolchain: the compiler command and flags, running the compiler, and durable atomic writes.
+
+Under both the build (`lagrgen.build`) and the FMU writer (`lagrgen.codegen.fmu`), so that no writer
+reaches into the build. Imports nothing of lagrgen but the exceptions.
+"""
+import os
+import shlex
+import subprocess
+import sysconfig
+import tempfile
+from pathlib import Path
+
+from .errors import BuildError, CompileError
+
+DEFAULT_CFLAGS = ("-fPIC", "-fno-math-errno", "-std=gnu11")
+#: The headers generated code includes (lagrgen_model.h, the FMI headers' folder).
+TEMPLATES = Path(__file__).resolve().parent / "codegen" / "templates"
+
+
+def compiler_command():
+    """The C compiler as an argument list (from Python's build configuration, or $CC)."""
+    cc = os.environ.get("CC") or sysconfig.get_config_var("CC") or "cc"
+    return shlex.split(cc)
+
+
+def compile_flags(opt_level="-O2", cflags=()):
+    """The compiler flags: lagrgen's defaults, the optimization level and the user's extra flags
+    (a list of separate flags; one string is split like a shell would)."""
+    if isinstance(cflags, str):
+        cflags = shlex.split(cflags)
+    return [*DEFAULT_CFLAGS, opt_level, *cflags]
+
+
+def compile_module(source_path, output_path, flags):
+    """Compile `source_path` into the extension module `output_path`; CompileError on failure."""
+    compile_units([source_path], output_path, flags)
+
+
+#: Flags that, given when linking, make GCC add startup code (crtfastmath.o) that switches the
+#: whole process to flush subnormals to zero the moment the module is loaded; they are kept for
+#: compiling, where they act on the model's own code only.
+PROCESS_WIDE_FLAGS = ("-ffast-math", "-Ofast", "-funsafe-math-optimizations")
+
+
+def link_flags(flags):
+    """`flags` without those that would change the floating-point mode of the whole process."""
+    return [f for f in flags if f not in PROCESS_WIDE_FLAGS]
+
+
+def run_compiler(cmd, source_path):
+    """Run the compiler command `cmd` on `source_path`; BuildError or CompileError on failure."""
+    try:
+        result = subprocess.run(cmd, capture_output=True, text=True)
+    except FileNotFoundError:
+        raise BuildError(
+            f"no C compiler found (tried {cmd[0]!r}): install one (e.g. `apt-get install gcc`), "
+            "set $CC, or use lagrgen.build(model, backend='python')") from None
+    if result.returncode != 0:
+        message = "\n".join((result.stderr or result.stdout).strip().splitlines()[:60])
+        raise CompileError(
+            f"the C compiler failed on {source_path.name} (exit {result.returncode}):\n{message}\n"
+            f"command: {' '.join(shlex.quote(c) for c in cmd)}")
+
+
+def compile_jobs():
+    """How many compiler processes run at once: the cores this process may use."""
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except (AttributeError, OSError):
+        return max(1, os.cpu_count() or 1)
+
+
+def compile_units(sources, output_path, flags, unit_flags=None):
+    """Compile the translation units `sources` (paths; the first is the module glue) to objects in
+    parallel (`compile_jobs()` at once) and link them into the extension module `output_path`.
+    `unit_flags(path)` may return the flags of one unit (default: `flags`)."""
+    from concurrent.futures import ThreadPoolExecutor
+    include = sysconfig.get_paths()["include"]
+    templates = str(TEMPLATES)
+
+    def compile_one(source):
+        own = unit_flags(source) if unit_flags else flags
+        obj = source.with_suffix(".o")
+        run_compiler([*compiler_command(), "-c", *own, "-I", include, "-I", templates,
+                      str(source), "-o", str(obj)], source)
+        return obj
+
+    # longest first, so the last job to start is a short one
+    order = sorted(sources, key=lambda path: -path.stat().st_size)
+    with ThreadPoolExecutor(max_workers=min(compile_jobs(), len(order))) as pool:
+        objects = dict(zip(order, pool.map(compile_one, order)))
+    run_compiler([*compiler_command(), "-shared", *link_flags(flags),
+                  *(str(objects[path]) for path in sources), "-o", str(output_path)],
+                 output_path)
+
+
+# -- files -----------------------------------------------------------------------------------
+def _fsync_dir(path):
+    try:
+        fd = os.open(path, os.O_RDONLY)
+    except OSError:
+        return
+    try:
+        os.fsync(fd)
+    except OSError:
+        pass
+    finally:
+        os.close(fd)
+
+
+def write_atomic(dest, data, mode=0o644):
+    """Write the bytes `data` to `dest` atomically and durably: a reader sees the old or the new
+    file, never a part, and a file open or mapped elsewhere (a loaded module) keeps its contents."""
+    fd, tmp = tempfile.mkstemp(dir=dest.parent, prefix=f".{dest.name}.", suffix=".tmp")
+    try:
+        with os.fdopen(fd, "wb") as fh:
+            fh.write(data)
+            fh.flush()
+            os.fsync(fh.fileno())
+        os.chmod(tmp, mode)
+        os.replace(tmp, dest)
+        _fsync_dir(dest.parent)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
