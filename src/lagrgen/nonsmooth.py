@@ -1,8 +1,8 @@
-"""Impacts, resting contact and Coulomb friction with sticking: their description and derivation.
+"""Impacts, resting contact and Coulomb friction with sticking: their derivation.
 
-`Model.impact` and `Model.friction` record an `Impact` or a `Friction`; `terms(eq)` derives what the
-hybrid drivers (`lagrgen.hybrid` with SciPy, `native/lg_hybrid.c` in C) need at a state, as one
-row-major vector `terms` of the model function `hybrid_terms`:
+`Model.impact` and `Model.friction` record an `Impact` or a `Friction` (`lagrgen.records`);
+`terms(eq)` derives what the hybrid drivers (`lagrgen.hybrid` with SciPy, `native/lg_hybrid.c` in
+C) need at a state, as one row-major vector `terms` of the model function `hybrid_terms`:
 
     per impact i (4 + n):   g, ġ, γ, e, W (n)        W = ∂g/∂q, W·q̈ = γ keeps g̈ = 0,
                                                       γ = −(∂ġ/∂q·q̇ + ∂ġ/∂t), e the restitution
@@ -13,37 +13,14 @@ row-major vector `terms` of the model function `hybrid_terms`:
 Impacts come first, then frictions, each in declaration order. The mode equations, impact law and
 switching rules themselves are in `lagrgen.hybrid` (and its C port).
 """
-from dataclasses import dataclass
-
-import sympy as sp
 import symengine as se
 
 from .errors import ModelError
 from .functions import HYBRID_FIELDS
+from .records import Friction, Impact
 
 IMPACT_FIELDS = HYBRID_FIELDS["impact"]
 FRICTION_FIELDS = HYBRID_FIELDS["friction"]
-
-
-@dataclass(frozen=True)
-class Impact:
-    """A unilateral contact gap(q, t) ≥ 0 with Newton's restitution coefficient."""
-    name: str
-    gap: object
-    restitution: object
-
-
-@dataclass(frozen=True)
-class Friction:
-    """Coulomb friction on the slip velocity v(q, q̇, t) = w(q, t)·q̇ + b(q, t).
-
-    `normal_force` is an expression, or the name (str) of a constraint or impact whose multiplier
-    is the normal force."""
-    name: str
-    slip_velocity: object
-    normal_force: object
-    mu: object
-    mu_static: object
 
 
 def record_size(element, n):
@@ -120,32 +97,3 @@ def rate_at_fixed_qd(expr, q, qd, t):
         if qj in free:
             total = total + diff(expr, qj) * vj
     return total
-
-
-# -- description checks (called by Model.impact / Model.friction) ----------------------------------
-def check_restitution(e, name):
-    """`e` must be a number in [0, 1] or an expression of parameters."""
-    if e.is_number:
-        value = float(e)
-        if not 0.0 <= value <= 1.0:
-            raise ModelError(f"impact {name!r}: restitution must be between 0 and 1, got {value}")
-    return e
-
-
-def check_affine_in_velocities(expr, qd, where):
-    """`expr` must be w(q, t)·q̇ + b(q, t) with w not identically zero."""
-    coefficients = [sp.diff(expr, v) for v in qd]
-    for v, c in zip(qd, coefficients):
-        if any(c.has(w) for w in qd):
-            raise ModelError(f"{where}: the slip velocity {expr} is not linear in the velocities "
-                             f"(its coefficient of {v} is {c}); write it as w(q, t)·q̇ + b(q, t)")
-    if not any(c != 0 for c in coefficients):
-        raise ModelError(f"{where}: the slip velocity {expr} involves no velocity of a coordinate")
-    return expr
-
-
-def check_coefficient(value, where, what):
-    """A friction coefficient: a number ≥ 0 or an expression of parameters."""
-    if value.is_number and not float(value) >= 0:
-        raise ModelError(f"{where}: {what} must be ≥ 0, got {value}")
-    return value

@@ -5,40 +5,13 @@ The data flow is one way: these functions take a Model (its geometry, `model.dra
 values and a solution; they never build or derive anything.
 """
 import numpy as np
-import sympy as sp
-from matplotlib.animation import PillowWriter
-from matplotlib.backends.backend_agg import FigureCanvasAgg
-from matplotlib.figure import Figure
 
-from ..runtime.arguments import defaults_array, parameter_vector
 from ..errors import LagrgenError
+from ..runtime.arguments import defaults_array, parameter_vector
+from .animation3d import animate_3d, is_3d
+from .figures import finished, new_figure, numeric_function, write_frames  # noqa: F401
 
 MAX_MODES_PLOTTED = 8
-
-
-def finished(fig, path):
-    """`fig` laid out, and saved to `path` when one is given."""
-    fig.tight_layout()
-    if path is not None:
-        fig.savefig(path)
-    return fig
-
-
-def write_frames(fig, path, times, scene, clock, fps, dpi):
-    """An animated GIF at `path`: for each time, `scene.update(k)`, the clock text, one frame."""
-    writer = PillowWriter(fps=fps)
-    with writer.saving(fig, str(path), dpi):
-        for k, t in enumerate(times):
-            scene.update(k)
-            clock.set_text(f"t = {t:.2f}")
-            writer.grab_frame()
-    return path
-
-
-def new_figure(width, height):
-    fig = Figure(figsize=(width, height))
-    FigureCanvasAgg(fig)
-    return fig
 
 
 def label(name, units):
@@ -181,17 +154,6 @@ def model_parameters(model, params):
     """The parameter vector for `model` from None (defaults), a dict or a full array."""
     return parameter_vector(params, model.parameter_names,
                             defaults_array(model.parameter_defaults))
-
-
-def numeric_function(model, expr, p):
-    """f(t, q) for q of shape (n, frames): `expr` with the parameter values p substituted."""
-    n = len(model.q)
-    Q = sp.symbols(f"_q0:{n}") if n else ()
-    T = sp.Symbol("_t")
-    values = {s: sp.Float(v) for s, v in zip(model.parameter_symbols, p)}
-    plain = sp.sympify(expr).xreplace(values).xreplace({**dict(zip(model.q, Q)), model.t: T})
-    f = sp.lambdify([T, Q], plain, "numpy")
-    return lambda t, q: np.broadcast_to(np.asarray(f(t, tuple(q)), dtype=float), np.shape(t))
 
 
 def planar(model, position, p):
@@ -408,7 +370,6 @@ def animate(model, sol, path, params=None, fps=20, max_frames=120, dpi=80, title
     duration = float(sol.t[-1] - sol.t[0])
     n_frames = int(np.clip(round(duration * fps), 2, max_frames))
     times, y = frame_states(sol, n_frames)
-    from .animation3d import animate_3d, is_3d
     if is_3d(model):                      # 3-D bodies or 3-component points: matplotlib's 3-D axes
         return animate_3d(model, times, y[:len(model.q)], path, p, fps=fps, dpi=dpi, title=title)
     tracks = drawable_tracks(model, p, times, y[:len(model.q)])
