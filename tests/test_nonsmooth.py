@@ -508,3 +508,15 @@ def test_the_examples_switch(stem, y0, kinds):
     mod = lagrgen.build(load_example(stem).model, backend="python")
     sol = lagrgen.simulate(mod, (0, 2), y0, rtol=1e-8, atol=1e-10)
     assert sol.success and kinds <= {kind for *_, kind in sol.transitions}
+
+
+@pytest.mark.parametrize("engine", ENGINES)
+def test_max_steps_and_max_wall_time_bound_the_whole_hybrid_solve(built, engine):
+    mod = built(ball_model)
+    sol = lagrgen.simulate(mod, (0, 1e4), {"y": 1.0}, params={"e": 1.0}, engine=engine,
+                           max_steps=300, **TOL)
+    assert not sol.success and sol.guard and "max_steps=300" in sol.message
+    assert 0 < sol.t[-1] < 1e4 and len(sol.transitions) > 2
+    sol = lagrgen.simulate(mod, (0, 1e7), {"y": 1.0}, params={"e": 1.0}, engine=engine,
+                           max_wall_time=0.2, **TOL)
+    assert not sol.success and "max_wall_time" in sol.guard

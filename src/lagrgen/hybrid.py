@@ -31,6 +31,8 @@ limit (μ_s·|N| − |λ| ↓ 0). Then:
 `HybridSystem` holds that logic; `simulate_hybrid` runs it with `solve_ivp` (engine "scipy") or in
 C (`lagrgen.native._ode.solve_hybrid`, `native/lg_hybrid.c`, the same rules).
 """
+import time
+
 import numpy as np
 
 OPEN, CONTACT, STICK, SLIP = "open", "contact", "stick", "slip"
@@ -381,7 +383,7 @@ class ChatteringError(RuntimeError):
 
 def simulate_hybrid(mod, t_span, y0, method, p, u_at, rtol, atol, t_eval=None,
                     rest_velocity=None, gap_tol=GAP_TOL, max_transitions=MAX_TRANSITIONS,
-                    **options):
+                    max_steps=None, max_wall_time=None, **options):
     """Integrate a model with impacts or frictions segment by segment with `solve_ivp`.
 
     Returns
@@ -397,6 +399,7 @@ def simulate_hybrid(mod, t_span, y0, method, p, u_at, rtol, atol, t_eval=None,
     t, y = t0, sw.start(t0, np.asarray(y0, dtype=float))
     ts, ys = [np.array([t0])], [y[:, None]]
     nfev, segments, status, message = 0, 0, 0, "The solver successfully reached the end."
+    steps, started, stopped = 0, time.monotonic(), None
     te_all = None if t_eval is None else np.asarray(t_eval, dtype=float)
     if te_all is not None:
         ts, ys = [te_all[te_all <= t0]], [np.repeat(y[:, None], np.sum(te_all <= t0), axis=1)]
@@ -414,6 +417,7 @@ def simulate_hybrid(mod, t_span, y0, method, p, u_at, rtol, atol, t_eval=None,
                         **options)
         nfev += sol.nfev
         segments += 1
+        steps += len(sol.t) - 1
         if sol.status < 0:
             status, message = -1, sol.message
             break
@@ -425,6 +429,13 @@ def simulate_hybrid(mod, t_span, y0, method, p, u_at, rtol, atol, t_eval=None,
             te = te_all[(te_all > t) & (te_all <= t_stop)]
             ts.append(te)
             ys.append(sol.sol(te) if len(te) else np.zeros((len(y), 0)))
+        if max_steps is not None and steps >= max_steps:
+            stopped = "max_steps"
+        elif max_wall_time is not None and time.monotonic() - started > max_wall_time:
+            stopped = "max_wall_time"
+        if stopped is not None:             # checked between segments on this engine
+            status, message, t = -1, f"stopped at t = {sol.t[-1]:.9g}", sol.t[-1]
+            break
         if sol.status == 0:
             t, y = t_end, sol.y[:, -1]
             continue
@@ -443,7 +454,7 @@ def simulate_hybrid(mod, t_span, y0, method, p, u_at, rtol, atol, t_eval=None,
             ys.append(y[:, None])
     return dict(t=np.concatenate(ts), y=np.concatenate(ys, axis=1), transitions=sw.transitions,
                 mode=sw.mode(), nfev=nfev, status=status, message=message, n_segments=segments,
-                success=status >= 0)
+                success=status >= 0, stopped=stopped, t_reached=t, n_steps=steps)
 
 
 class _EventValues:
@@ -468,12 +479,15 @@ def _event(values, k):
 
 
 KIND_NAMES = ("impact", CONTACT, "release", STICK, SLIP)
+#: lg_result_t.stopped codes of the guards (LG_STOP_STEPS, LG_STOP_WALL).
+GUARDS = {1: "max_steps", 2: "max_wall_time"}
 NORMAL_KINDS = {None: 0, "constraint": 1, "impact": 2}
 
 
 def solve_hybrid_native(mod, t_span, y0, method, p, u_spec, rtol, atol, t_eval=None,
                         rest_velocity=None, gap_tol=GAP_TOL, max_transitions=MAX_TRANSITIONS,
-                        max_step=np.inf, first_step=None, poll=None):
+                        max_step=np.inf, first_step=None, poll=None, max_steps=None,
+                        max_wall_time=None):
     """The hybrid solve of `simulate_hybrid` in C (`native/lg_hybrid.c`): the same segments,
     events and switching rules with no Python per step or per switch.
 
@@ -495,24 +509,28 @@ def solve_hybrid_native(mod, t_span, y0, method, p, u_spec, rtol, atol, t_eval=N
         system.nf, kinds, index, np.asarray(p, dtype=float), list(u_spec), t0, tf,
         np.asarray(y0, dtype=float), rtol, atol, float(max_step), first, t_eval,
         -1.0 if rest_velocity is None else float(rest_velocity), float(gap_tol),
-        int(max_transitions), poll)
+        int(max_transitions), poll, int(max_steps or 0), float(max_wall_time or 0.0))
     transitions = [(float(t), system.names[int(k)], KIND_NAMES[int(kind)])
                    for t, k, kind in out["transitions"]]
     mode = {d[0]: CONTACT if c else OPEN for d, c in zip(system.impacts, out["contact"])}
     mode.update({d[0]: STICK if s == 0 else SLIP for d, s in zip(system.frictions, out["slip"])})
     return dict(t=out["t"], y=out["y"].T.copy(), transitions=transitions, mode=mode,
                 nfev=out["nfev"], status=out["status"], message=out["message"],
-                n_segments=out["n_segments"], success=out["status"] >= 0)
+                n_segments=out["n_segments"], success=out["status"] >= 0,
+                stopped=GUARDS.get(out["stopped"]), t_reached=out["t_reached"],
+                n_steps=out["n_steps"])
 
 
 def simulate_nonsmooth(mod, t_span, y0, method, p, inputs, u_at, rtol, atol, t_eval, dense_output,
-                       events, engine, progress, options):
+                       events, engine, progress, options, max_steps=None, max_wall_time=None):
     """`simulate` for a model with impacts or frictions: the hybrid solve in C (`engine` None or
     "native", when the native engine can run the model) or with `solve_ivp`. Returns an OdeResult
     with also `transitions`, `mode`, `n_segments`, `engine` and `guard` (None).
 
-    max_steps and max_wall_time are not applied to a hybrid solve: `max_transitions` bounds its
-    switching, and Ctrl-C ends a native one."""
+    max_steps and max_wall_time bound the whole solve (all segments): inside the segments on the
+    native engine, between them on the SciPy engine; `max_transitions` bounds the switching, and
+    Ctrl-C ends a native solve."""
+    from .results import stopped_by_guard
     from scipy.integrate._ivp.ivp import OdeResult
 
     from .native.engine import _t_eval, native_reason
@@ -541,14 +559,16 @@ def simulate_nonsmooth(mod, t_span, y0, method, p, inputs, u_at, rtol, atol, t_e
         bar = ProgressBar(*t_span, show=progress) if progress else None
         try:
             out = solve_hybrid_native(mod, t_span, y0, method, p, input_specs(mod, inputs), rtol,
-                                      atol, t_eval, poll=Poll(bar), **switching, **options)
+                                      atol, t_eval, poll=Poll(bar), max_steps=max_steps,
+                                      max_wall_time=max_wall_time, **switching, **options)
         finally:
             if bar is not None:
                 bar.close()
         engine_name = "native"
     else:
         out = simulate_hybrid(mod, t_span, y0, method, p, u_at, rtol, atol, t_eval,
-                              **switching, **options)
+                              max_steps=max_steps, max_wall_time=max_wall_time, **switching,
+                              **options)
         engine_name = "scipy"
     sol = OdeResult(t=out["t"], y=out["y"], sol=None, t_events=None, y_events=None,
                     nfev=out["nfev"], njev=0, nlu=0, status=out["status"],
@@ -558,4 +578,9 @@ def simulate_nonsmooth(mod, t_span, y0, method, p, inputs, u_at, rtol, atol, t_e
     sol.mode = out["mode"]
     sol.n_segments = out["n_segments"]
     sol.guard = None
+    if out["stopped"] is not None:
+        limit = max_steps if out["stopped"] == "max_steps" else f"{max_wall_time:g} s"
+        what = "step" if out["stopped"] == "max_steps" else "wall-time"
+        stopped_by_guard(sol, f"the {what} limit {out['stopped']}={limit} was reached",
+                         out["t_reached"], float(t_span[1]), out["n_steps"])
     return sol

@@ -74,7 +74,8 @@ def simulate(mod, t_span, y0, method="RK45", params=None, inputs=None, rtol=1e-6
     if getattr(mod, "nonsmooth_definitions", ()):
         from .hybrid import simulate_nonsmooth
         sol = simulate_nonsmooth(mod, t_span, y0, method, p, inputs, u_at, rtol, atol, t_eval,
-                                 dense_output, events, engine, progress, options)
+                                 dense_output, events, engine, progress, options, max_steps,
+                                 max_wall_time)
         return finished_result(mod, sol, p, u_at)
     why_not = None if engine == "scipy" else native_reason(mod, method, inputs, events, options,
                                                             rtol)

@@ -240,8 +240,9 @@ cdef extern from "lg_hybrid.h":
     ctypedef struct lg_hybrid_result_t:
         int status
         int stopped
+        double t_reached
         char message[256]
-        long nfev, n_segments
+        long nfev, n_steps, n_segments
         lg_buf_t t, y, transitions
     int lg_hybrid_solve(lg_hybrid_t *, const lg_options_t *, lg_hybrid_result_t *) nogil
     void lg_hybrid_result_free(lg_hybrid_result_t *) nogil
@@ -250,7 +251,8 @@ cdef extern from "lg_hybrid.h":
 def solve_hybrid(str method, uintptr_t terms, int n, int m, int ni, int nf, normal_kind,
                  normal_index, p, list inputs, double t0, double tf, y0, double rtol, atol,
                  double max_step, double first_step, t_eval, double rest_velocity,
-                 double gap_tol, long max_transitions, Poll poll=None):
+                 double gap_tol, long max_transitions, Poll poll=None, long max_steps=0,
+                 double max_wall_time=0.0):
     """Run a hybrid solve (lagrgen/native/lg_hybrid.c) in C without the GIL.
 
     Parameters
@@ -322,6 +324,8 @@ def solve_hybrid(str method, uintptr_t terms, int n, int m, int ni, int nf, norm
         op.n_eval = 0 if te is None else te.shape[0]
         op.dense = 0
         op.stop_on_nonfinite = 1
+        op.max_steps = max_steps
+        op.max_wall_time = max_wall_time
         if poll is not None:
             op.poll = poll_callback
             op.poll_ctx = <void *>poll
@@ -334,7 +338,8 @@ def solve_hybrid(str method, uintptr_t terms, int n, int m, int ni, int nf, norm
             if poll is not None and poll.error is not None:
                 raise poll.error
             return dict(t=buf_array(&res.t, 0), y=buf_array(&res.y, dim), status=res.status,
-                        message=res.message.decode(), nfev=res.nfev,
+                        message=res.message.decode(), nfev=res.nfev, n_steps=res.n_steps,
+                        stopped=res.stopped, t_reached=res.t_reached,
                         n_segments=res.n_segments, transitions=buf_array(&res.transitions, 3),
                         contact=contact[:ni].copy(), slip=slip[:nf].copy())
         finally:

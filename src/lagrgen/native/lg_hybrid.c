@@ -688,7 +688,7 @@ int lg_hybrid_solve(lg_hybrid_t *h, const lg_options_t *options, lg_hybrid_resul
     }
     snprintf(res->message, sizeof res->message, "The solver successfully reached the end.");
     double interval = options->poll_interval > 0 ? options->poll_interval : 0.05;
-    double next_poll = hy_wall_seconds() + interval;
+    double started = hy_wall_seconds(), next_poll = started + interval;
     while (t < tf) {
         if (options->poll && hy_wall_seconds() >= next_poll) {   /* between segments too */
             next_poll = hy_wall_seconds() + interval;
@@ -721,6 +721,12 @@ int lg_hybrid_solve(lg_hybrid_t *h, const lg_options_t *options, lg_hybrid_resul
         pb.event_max = emax;
         pb.event_direction = edir;
         lg_options_t op = *options;
+        if (options->max_steps > 0)                     /* the guards hold for the whole solve */
+            op.max_steps = options->max_steps - res->n_steps > 0
+                               ? options->max_steps - res->n_steps : 1;
+        if (options->max_wall_time > 0)
+            op.max_wall_time = fmax(options->max_wall_time - (hy_wall_seconds() - started),
+                                    1e-9);
         op.t0 = t;
         op.tf = t_end;
         op.y0 = y;
@@ -747,11 +753,20 @@ int lg_hybrid_solve(lg_hybrid_t *h, const lg_options_t *options, lg_hybrid_resul
             goto done;
         }
         res->nfev += seg.nfev;
+        res->n_steps += seg.n_steps;
         res->n_segments += 1;
         if (seg.stopped) {
             res->status = -1;
             res->stopped = seg.stopped;
+            res->t_reached = seg.t_reached;
             snprintf(res->message, sizeof res->message, "stopped at t = %.9g", seg.t_reached);
+            if (options->t_eval == NULL && seg.t.len > 1
+                && (hy_push(&res->t, seg.t.data + 1, seg.t.len - 1)
+                    || hy_push(&res->y, seg.y.data + dim, (seg.t.len - 1) * dim))) {
+                lg_result_free(&seg);
+                rc = -1;
+                goto done;
+            }
             lg_result_free(&seg);
             break;
         }

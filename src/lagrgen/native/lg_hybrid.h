@@ -35,9 +35,11 @@ typedef struct {
 
 typedef struct {
     int status;                  /* 0 reached tf, -1 failure or stopped */
-    int stopped;                 /* 0, or a segment's lg_result_t.stopped (the poll: Ctrl-C) */
+    int stopped;                 /* 0, or LG_STOP_*: a guard (max_steps, max_wall_time of the
+                                  * options, for the whole solve) or the poll ended it */
+    double t_reached;            /* where it stopped */
     char message[256];
-    long nfev, n_segments;
+    long nfev, n_steps, n_segments;
     lg_buf_t t, y;               /* output times and states */
     lg_buf_t transitions;        /* (t, element, kind) triples */
 } lg_hybrid_result_t;
