@@ -42,7 +42,7 @@ BACKENDS = ("c", "python")
 PACKAGE = Path(__file__).resolve().parent
 #: The sources that determine generated code: a change to any of them changes every key.
 GENERATOR_SOURCES = ("_version.py", "functions.py", "calculus.py", "terms.py", "contributions.py",
-                     "lagrange.py", "kernels.py", "runtime/info.py",
+                     "lagrange.py", "nonsmooth.py", "kernels.py", "runtime/info.py",
                      "codegen/*.py", "codegen/templates/*", "codegen/templates/functions/*")
 _loaded = {}
 
