@@ -384,3 +384,19 @@ def test_inputs_as_one_vector_or_one_row_per_run(mod):
     assert_array_equal(rows.y[1], ref.y)
     with pytest.raises(ValueError, match="inputs gives 2 runs but another argument gives 3"):
         lagrgen.simulate_many(mod, (0.0, 1.0), np.zeros((3, 4)), inputs=[{}, {}], t_eval=T[:11])
+
+
+def test_transitions_of_a_nonsmooth_model_per_run(compile_once):
+    ball = compile_once(example_model("bouncing_ball"))
+    e = np.array([0.9, 0.5])
+    P = np.tile(ball.defaults, (2, 1))
+    P[:, ball.parameters.index("e")] = e
+    t = np.linspace(0.0, 2.0, 11)
+    ens = lagrgen.simulate_many(ball, (0.0, 2.0), {"y": 1.0}, params=P, t_eval=t)
+    assert len(ens.transitions) == 2
+    for k in range(2):
+        ref = lagrgen.simulate(ball, (0.0, 2.0), {"y": 1.0}, params=P[k], t_eval=t)
+        assert ens.transitions[k] == list(ref.transitions)
+        assert_array_equal(ens.y[k], ref.y)
+    assert ens.transitions[0][0][1:] == ("floor", "impact")
+    assert len(ens.transitions[0]) != len(ens.transitions[1])
