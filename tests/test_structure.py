@@ -160,3 +160,175 @@ def test_split_standalone_file_is_one_plain_c_unit(split_model, tmp_path):
     symbols = subprocess.run(["nm", str(tmp_path / "m.o")], capture_output=True, text=True).stdout
     assert " T split9_rhs" in symbols and "part0" in symbols
     assert " T lg_" not in symbols  # the parts stay internal (static) in the one-file build
+
+
+# -- the import graph: one way, no cycles -----------------------------------------------------------
+#: The package's modules by stage, in data-flow order (ARCHITECTURE.md): a module may import one of
+#: its own stage or an earlier one, never a later one. An entry names a module or a whole package.
+STAGES = [
+    ("base", ["_version", "errors", "numbers", "names", "caching", "functions", "methods",
+              "signals", "toolchain"]),
+    ("description", ["rotation", "bodies3d", "records", "checks", "description"]),
+    ("derivation", ["calculus", "terms", "contributions", "lagrange", "nonsmooth"]),
+    ("kernels", ["kernels"]),
+    ("code", ["codegen"]),
+    ("runtime", ["runtime"]),
+    ("build", ["build"]),
+    ("display", ["outputs"]),
+    ("running", ["progress", "results", "solvers", "scipy_engine", "native",
+                 "simulate", "constraints", "ensemble", "ensemble_store",
+                 "hybrid"]),
+    ("analysis", ["vibration", "sweep", "bench"]),
+    ("face", ["model", "sympy_interop", "expressions", "cli", "__main__", ""]),
+]
+PACKAGE = lagrgen.__path__[0]
+
+
+def package_modules():
+    """{module name relative to lagrgen ('' for the package): its file} for .py and .pyx files."""
+    from pathlib import Path
+    root = Path(PACKAGE)
+    out = {}
+    for path in sorted(root.rglob("*.py")) + sorted(root.rglob("*.pyx")):
+        parts = list(path.relative_to(root).with_suffix("").parts)
+        if parts[-1] == "__init__":
+            parts = parts[:-1]
+        out[".".join(parts)] = path
+    return out
+
+
+def imported_modules(name, path, modules):
+    """The package modules `name` imports anywhere in its file (top level or inside functions)."""
+    import ast
+    import re
+    text = path.read_text()
+    if path.suffix == ".pyx":
+        found = set(re.findall(r"^\s*from lagrgen\.([\w.]+) c?import", text, re.M))
+        return {m for m in found if m in modules}
+    package = name.split(".") if path.name == "__init__.py" else name.split(".")[:-1]
+    package = [p for p in package if p]
+    found = set()
+    for node in ast.walk(ast.parse(text)):
+        if isinstance(node, ast.ImportFrom):
+            if node.level:
+                base = package[:len(package) - node.level + 1]
+            elif node.module == "lagrgen" or (node.module or "").startswith("lagrgen."):
+                base = []
+                node_module = node.module[len("lagrgen"):].lstrip(".")
+                target = node_module
+                found |= {c for c in [target] + [f"{target}.{a.name}".strip(".") for a in node.names]
+                          if c in modules}
+                continue
+            else:
+                continue
+            target = ".".join(base + ([node.module] if node.module else []))
+            found |= {c for c in [target] + [f"{target}.{a.name}".strip(".") for a in node.names]
+                      if c in modules}
+        elif isinstance(node, ast.Import):
+            found |= {a.name[len("lagrgen."):] for a in node.names
+                      if a.name.startswith("lagrgen.") and a.name[len("lagrgen."):] in modules}
+    return found - {name, ""} if name else found - {""}
+
+
+def import_graph():
+    modules = package_modules()
+    return {name: imported_modules(name, path, modules) for name, path in modules.items()}
+
+
+def stage_of(name):
+    """The index in STAGES of the module `name` (the longest entry naming it or its package)."""
+    best = None
+    for index, (_, entries) in enumerate(STAGES):
+        for entry in entries:
+            if name == entry or (entry and name.startswith(entry + ".")):
+                if best is None or len(entry) > best[1]:
+                    best = (index, len(entry))
+    assert best is not None, f"module lagrgen.{name} has no stage: add it to STAGES (and ARCHITECTURE.md)"
+    return best[0]
+
+
+def test_every_module_has_a_stage_and_imports_none_of_a_later_one():
+    graph = import_graph()
+    assert {"model", "lagrange", "kernels", "codegen.c_model", "runtime.pymodel", "build",
+            "simulate", "outputs.plotting", "runtime._compiled"} <= set(graph)
+    late = [f"lagrgen.{a or '__init__'} ({STAGES[stage_of(a)][0]}) imports lagrgen.{b} "
+            f"({STAGES[stage_of(b)][0]})"
+            for a, targets in graph.items() for b in targets if stage_of(b) > stage_of(a)]
+    assert late == []
+
+
+def test_the_runtime_imports_only_the_base_and_itself():
+    graph = import_graph()
+    allowed = {i for i, (stage, _) in enumerate(STAGES) if stage in ("base", "runtime")}
+    for name, targets in graph.items():
+        if name.startswith("runtime."):
+            assert {b for b in targets if stage_of(b) not in allowed} == set(), name
+
+
+def import_cycles(graph):
+    """The strongly connected components of more than one module (Tarjan's algorithm)."""
+    index, low, on_stack, stack, cycles = {}, {}, set(), [], []
+
+    def visit(v):
+        index[v] = low[v] = len(index)
+        stack.append(v)
+        on_stack.add(v)
+        for w in graph[v]:
+            if w not in index:
+                visit(w)
+                low[v] = min(low[v], low[w])
+            elif w in on_stack:
+                low[v] = min(low[v], index[w])
+        if low[v] == index[v]:
+            component = set()
+            while True:
+                w = stack.pop()
+                on_stack.discard(w)
+                component.add(w)
+                if w == v:
+                    break
+            if len(component) > 1:
+                cycles.append(component)
+
+    for v in graph:
+        if v not in index:
+            visit(v)
+    return cycles
+
+
+def test_the_package_has_no_import_cycle():
+    assert import_cycles(import_graph()) == []
+    assert import_cycles({"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": {"a"}}) == [{"a", "b", "c"}]
+
+
+def test_the_import_graph_sees_an_import_inside_a_function(tmp_path):
+    """The checker itself: a lazy import is an import (a later module reached from a function)."""
+    modules = {"model": None, "outputs.display": None, "outputs": None}
+    path = tmp_path / "model.py"
+    path.write_text("def f():\n    from .outputs.display import latex_block\n")
+    assert imported_modules("model", path, modules) == {"outputs.display"}
+    path.write_text("from lagrgen.outputs import display\n")
+    assert imported_modules("model", path, modules) == {"outputs", "outputs.display"}
+
+
+def test_architecture_md_lists_the_stages_of_the_import_check():
+    """ARCHITECTURE.md's table of rooms names the same stages, in order, with the same modules."""
+    from pathlib import Path
+    text = (Path(__file__).resolve().parent.parent / "ARCHITECTURE.md").read_text()
+    rows = [line for line in text.splitlines() if line.startswith("| ") and "`" in line]
+    assert [row.split("|")[1].strip() for row in rows] == [stage for stage, _ in STAGES]
+    for row, (stage, entries) in zip(rows, STAGES):
+        named = row.split("|")[2]
+        assert all(f"`{entry or '__init__'}" in named for entry in entries), stage
+
+
+def test_every_physics_record_has_one_contribution_function():
+    """A physics kind is a record of lagrgen.records with its contribution in CONTRIBUTIONS."""
+    import dataclasses
+    from lagrgen import contributions, records
+    kinds = {cls for cls in vars(records).values()
+             if isinstance(cls, type) and dataclasses.is_dataclass(cls)}
+    not_physics = {records.ModelSpec, records.Constraint, records.VelocityConstraint,
+                   records.ExternalEquations, records.Impact, records.Friction}
+    assert kinds - not_physics == set(contributions.CONTRIBUTIONS)
+    assert len(set(contributions.CONTRIBUTIONS.values())) == len(contributions.CONTRIBUTIONS)

@@ -174,27 +174,7 @@ def body_inertia(model, inertia):
     return I
 
 
-def add_rotation(M, F, inertia, omega, q, qd, t, diff):
-    """M += Wᵀ·I·W, F −= Wᵀ·(I·b + ω × I·ω) for T = ½·ωᵀ·I·ω with ω = W·q̇ + w₀ (SymEngine,
-    internal symbols; W = ∂ω/∂q̇, b = Σ ∂ω/∂q_j·q̇_j + ∂ω/∂t the part of ω̇ without q̈)."""
-    n = len(q)
-    W = [[diff(w, s) for s in qd] for w in omega]
-    b = [sum((diff(w, qj) * qdj for qj, qdj in zip(q, qd)), diff(w, t)) for w in omega]
-    Iw = [sum(inertia[a][c] * omega[c] for c in range(3)) for a in range(3)]
-    h = [sum(inertia[a][c] * b[c] for c in range(3)) for a in range(3)]
-    h = [h[0] + omega[1] * Iw[2] - omega[2] * Iw[1],
-         h[1] + omega[2] * Iw[0] - omega[0] * Iw[2],
-         h[2] + omega[0] * Iw[1] - omega[1] * Iw[0]]
-    active = [j for j in range(n) if any(W[a][j] != 0 for a in range(3))]
-    IW = {j: [sum(inertia[a][c] * W[c][j] for c in range(3)) for a in range(3)] for j in active}
-    for i in active:
-        for j in active:
-            if j <= i:
-                M[i][j] += sum(W[a][i] * IW[j][a] for a in range(3))
-        F[i] -= sum(W[a][i] * h[a] for a in range(3))
-
-
 def rotational_kinetic_energy(model):
     """Σ ½·ωᵀ·I·ω over the model's `rigid_body_3d`s (SymPy, in the model's symbols): the part of T
     that is not in its particles and kinetic-energy terms (for energy outputs)."""
-    return sum(((w.T * I * w)[0] / 2 for I, w in model._bodies_3d), sp.Integer(0))
+    return sum(((w.T * I * w)[0] / 2 for I, w in model.spec().bodies_3d), sp.Integer(0))

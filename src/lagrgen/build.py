@@ -41,7 +41,8 @@ CACHE_DIR = "__lagrgen__"
 BACKENDS = ("c", "python")
 PACKAGE = Path(__file__).resolve().parent
 #: The sources that determine generated code: a change to any of them changes every key.
-GENERATOR_SOURCES = ("_version.py", "functions.py", "lagrange.py", "kernels.py",
+GENERATOR_SOURCES = ("_version.py", "functions.py", "calculus.py", "terms.py", "contributions.py",
+                     "lagrange.py", "nonsmooth.py", "kernels.py", "runtime/info.py",
                      "codegen/*.py", "codegen/templates/*", "codegen/templates/functions/*")
 _loaded = {}
 
@@ -63,8 +64,8 @@ def build(model, out_dir="generated", backend="c", **options):
     -------
     The built model (API.md §3): a module for "c", a `PythonModel` for "python".
     """
-    from .model import Model
-    if not isinstance(model, Model):
+    from .description import Description
+    if not isinstance(model, Description):
         raise TypeError(f"build() takes a lagrgen.Model, got {type(model).__name__}")
     if backend not in BACKENDS:
         raise ModelError(f"unknown backend {backend!r}: use one of {', '.join(map(repr, BACKENDS))}")
@@ -73,16 +74,16 @@ def build(model, out_dir="generated", backend="c", **options):
     if backend == "python":
         from .codegen.python_module import python_source
         from .runtime.pymodel import PythonModel
-        equations = model.equations()
+        equations = derived(spec)
         built = PythonModel(model_info(spec, equations), python_source(equations))
         built.build_info = {"cache_hit": False, "seconds": time.perf_counter() - start}
         return built
     unknown = set(options) - {"verbose", "quiet", "force", "opt_level", "cflags"}
     if unknown:
         raise TypeError(f"build() got unknown option(s) {', '.join(sorted(unknown))}")
-    return build_c(spec.name, content_digest(spec, model.equations),
-                   lambda: (model_info(spec, model.equations()), model.equations()),
-                   Path(out_dir), **options)
+    return build_c(spec.name, content_digest(spec, lambda: derived(spec)),
+                   lambda: (model_info(spec, derived(spec)), derived(spec)), Path(out_dir),
+                   **options)
 
 
 def load(name, out_dir="generated"):
@@ -106,11 +107,12 @@ def export_c(model, out_dir):
     """Write just the standalone C model `<name>_model.h` and `<name>_model.c` into `out_dir`;
     return their paths."""
     from .codegen.c_model import standalone_files
-    info = model_info(model.spec(), model.equations())
+    equations = derived(model.spec())
+    info = model_info(model.spec(), equations)
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     paths = []
-    for file_name, text in standalone_files(info, model.equations()).items():
+    for file_name, text in standalone_files(info, equations).items():
         write_atomic(out_dir / file_name, text.encode())
         paths.append(out_dir / file_name)
     return paths
@@ -147,13 +149,20 @@ def export_fmu(model, out_dir=".", params=None, start_time=0.0, stop_time=10.0, 
     pathlib.Path of the FMU.
     """
     from .codegen.fmu import write_fmu
-    from .model import Model
-    if not isinstance(model, Model):
+    from .description import Description
+    if not isinstance(model, Description):
         raise TypeError(f"export_fmu() takes a lagrgen.Model, got {type(model).__name__}")
-    equations = model.equations()
+    equations = derived(model.spec())
     return write_fmu(model_info(model.spec(), equations), equations, Path(out_dir), params,
                      start_time, stop_time, tolerance, cflags, kind=kind,
                      fmi_version=fmi_version, method=method, rtol=rtol, atol=atol)
+
+
+def derived(spec):
+    """The `Equations` of the frozen description `spec`, derived once per spec (SymPy and
+    SymEngine are imported here, when first needed: `load` needs neither)."""
+    from .lagrange import derived as derived_once
+    return derived_once(spec)
 
 
 # -- what identifies a build -----------------------------------------------------------------
@@ -249,7 +258,8 @@ def equations_digest(equations):
              [str(f) for f in equations.F], [str(e) for e in equations.residuals],
              spec.stabilization, spec.constraint_names, [str(g) for g in equations.events],
              [(name, terminal, direction) for name, _, terminal, direction in spec.events],
-             spec.output_names, [str(e) for e in equations.outputs], spec.units]
+             spec.output_names, [str(e) for e in equations.outputs], spec.units,
+             hybrid_description(spec, equations)]
     for part in parts:
         h.update(repr(part).encode() + b"\0")
     return h.hexdigest()
@@ -265,7 +275,21 @@ def model_info(spec, equations):
         event_definitions=[(name, terminal, direction)
                            for name, _, terminal, direction in spec.events],
         explicit_time=bool(equations.explicit_time),
-        content_hash=content_digest(spec, lambda: equations), lagrgen_version=__version__)
+        content_hash=content_digest(spec, lambda: equations), lagrgen_version=__version__,
+        nonsmooth_definitions=[(e["name"], e["kind"], e["normal"])
+                               for e in _nonsmooth().describe(spec)])
+
+
+def hybrid_description(spec, equations):
+    """The impacts' and frictions' records and terms, for the content hash."""
+    if not spec.nonsmooth:
+        return []
+    return [_nonsmooth().describe(spec), [str(e) for e in _nonsmooth().terms(equations)]]
+
+
+def _nonsmooth():
+    from . import nonsmooth
+    return nonsmooth
 
 
 # -- compiling -------------------------------------------------------------------------------

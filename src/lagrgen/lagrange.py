@@ -8,38 +8,11 @@ from functools import cached_property
 import symengine as se
 import sympy as sp
 
+from .caching import once_per
+from .calculus import diff, internal_symbols, rate  # noqa: F401  (rate: the derivation's d/dt)
+from .contributions import CONTRIBUTIONS, Sums, add_kinetic_energy
 from .errors import ModelError
-
-
-def internal_symbols(prefix, count):
-    """Return the SymEngine symbols prefix[0] .. prefix[count-1]."""
-    return tuple(se.Symbol(f"{prefix}[{i}]") for i in range(count))
-
-
-def diff(expr, var):
-    """Return ∂expr/∂var, with |g|' = sign(g)·g' and sign' = 0 (SymEngine leaves both unevaluated)."""
-    d = se.diff(expr, var)
-    pending = d.atoms(se.Derivative, se.Subs)
-    if not pending:
-        return d
-    fixes = {}
-    for node in pending:
-        inner = node.args[0]
-        if isinstance(node, se.Subs):
-            inner = inner.args[0]
-            if isinstance(inner, se.sign):
-                fixes[node] = se.Integer(0)
-            elif isinstance(inner, se.Abs):
-                fixes[node] = se.sign(node.args[2])
-            else:
-                raise ModelError(f"cannot differentiate {expr} with respect to {var}")
-        elif isinstance(inner, se.Abs):
-            fixes[node] = se.sign(inner.args[0]) * diff(inner.args[0], node.args[1])
-        elif isinstance(inner, se.sign):
-            fixes[node] = se.Integer(0)
-        elif not any(isinstance(n, se.Subs) for n in pending):
-            raise ModelError(f"cannot differentiate {inner} with respect to {node.args[1]}")
-    return d.subs(fixes)
+from .records import ExternalEquations
 
 
 class Equations:
@@ -56,8 +29,9 @@ class Equations:
     i.e. ċ + 2α·c + β²·Φ = 0. λ lives in the kernel argument `a` after q̈: λ_k = a[n + k].
     """
 
-    def __init__(self, spec, M, F, symbols, constraints=None, events=()):
+    def __init__(self, spec, M, F, symbols, constraints=None, events=(), energies=None):
         self.spec = spec
+        self.energies = energies
         self.events = list(events)
         self.n = len(F)
         self.M = M
@@ -177,8 +151,14 @@ class Equations:
     @cached_property
     def outputs(self):
         """The output expressions, in `spec.output_names` order: the user's, then T, V, T + V,
-        the input power Σ Q_j·q̇_j and the Rayleigh function R."""
-        return output_expressions(self.spec, self.q, self.qd, self.t)
+        the input power Σ Q_j·q̇_j and the Rayleigh function R. A model with external equations
+        (from_sympy) has NaN for those five: its energies are not known to lagrgen."""
+        convert = _Converter(self.spec)
+        user = [convert(expr) for _, expr in self.spec.outputs]
+        if self.spec.external is not None or self.energies is None:
+            return user + [se.nan] * 5
+        T, V, power, R = self.energies
+        return user + [T, V, T + V, power, R]
 
     @cached_property
     def explicit_time(self):
@@ -240,278 +220,10 @@ class _Converter:
             raise ModelError(f"cannot convert {expr} for differentiation: {exc}") from None
 
 
-def _add_particles(M, F, particles, q, qd, t):
-    """Add point masses of constant mass, [(m, r)]: M += Σ m·JᵀJ, F −= Σ m·Jᵀ·b, with J = ∂r/∂q
-    and b = r̈ at q̈ = 0.
-
-    Composite bodies first: the masses of the particles whose Jacobian columns i and j are the
-    same expressions (every body beyond joint max(i, j) of a chain) are summed before their product
-    Σ_c J_ci·J_cj is formed, and each b is expanded once, its terms summed by mass per column i;
-    so a chain of n bodies forms O(n²) kinematic products instead of O(n³) (the bookkeeping that
-    groups them is O(n³) dictionary updates). The products go into the `_Terms` accumulators
-    M[i][j], F[i] with the summed masses as their weights (see `_Terms.expr`).
-    """
-    n = len(q)
-    pair_masses = {}   # (i, j, column i, column j) -> [m]
-    force = {}         # (i, column i) -> per component {term: {numeric coefficient: [m]}}
-    for mass, position in particles:
-        J = [[diff(rc, qi) if qi in free else se.Integer(0) for qi in q]
-             for rc, free in ((rc, rc.free_symbols) for rc in position)]
-        v = [sum((Jc[i] * qd[i] for i in range(n) if Jc[i] != 0), diff(rc, t))
-             for Jc, rc in zip(J, position)]
-        rates = [rate(vc, q, qd, t) for vc in v]
-        b = [_expanded_terms(bc) for bc in rates]
-        active = [i for i in range(n) if any(Jc[i] != 0 for Jc in J)]
-        columns = {i: tuple(Jc[i] for Jc in J) for i in active}
-        for i in active:
-            for j in active:
-                if j <= i:
-                    pair_masses.setdefault((i, j, columns[i], columns[j]), []).append(mass)
-            F[i].record(-mass * sum(Jci * bc for Jci, bc in zip(columns[i], rates)))
-            sums = force.setdefault((i, columns[i]), [{} for _ in b])
-            for by_term, terms in zip(sums, b):
-                for coeff, term in terms:
-                    by_term.setdefault(term, {}).setdefault(coeff, []).append(mass)
-    for (i, j, ci, cj), masses in pair_masses.items():
-        M[i][j].add(sum(a * c for a, c in zip(ci, cj)), se.Add(*masses))
-    for (i, column), sums in force.items():
-        for Jci, by_term in zip(column, sums):
-            if Jci == 0:
-                continue
-            for term, by_coeff in by_term.items():
-                weight = se.Add(*(coeff * se.Add(*masses) for coeff, masses in by_coeff.items()))
-                F[i].add(Jci * term, -weight, plain=False)
-
-
-def _expanded_terms(expr):
-    """[(number, rest)] of the terms of expr expanded."""
-    expr = se.expand(expr)
-    if expr == 0:
-        return []
-    return [_numeric_part(term) for term in (expr.args if isinstance(expr, se.Add) else (expr,))]
-
-
-class _Terms:
-    """A sum Σ weight·expr kept as expanded terms, collected by structure when it is read.
-
-    `expr()` returns the same sum regrouped: terms are split into a kinematic part (the factors
-    that depend on q, q̇, a, t or u) and a parameter part; parameter parts of equal kinematic parts
-    are added (Σ m_k once per product), kinematic parts with equal parameter sums are added next
-    (sin²x·X + cos²x·X = X applied there), and common factors are taken out of both sums.
-    """
-
-    def __init__(self, kinematic):
-        self.kinematic = kinematic
-        self.terms = {}      # term without its numeric factor -> coefficient (number or expr)
-        self.plain = []      # the weighted expressions as added, for comparison
-
-    def add(self, expr, weight=1, plain=True):
-        """Add weight·expr (to the plain sum too unless `plain` is False: see `record`)."""
-        if plain:
-            self.plain.append(expr * weight)
-        expr = se.expand(expr)
-        if expr == 0:
-            return
-        for term in (expr.args if isinstance(expr, se.Add) else (expr,)):
-            coeff, rest = _numeric_part(term)
-            key = rest
-            self.terms[key] = self.terms.get(key, 0) + coeff * weight
-
-    def record(self, expr):
-        """Add expr to the plain sum only: the form of terms added with plain=False."""
-        self.plain.append(expr)
-
-    def __iadd__(self, expr):
-        self.add(expr)
-        return self
-
-    def __isub__(self, expr):
-        self.add(expr, -1)
-        return self
-
-    def __eq__(self, other):
-        return self.expr() == other
-
-    def __ne__(self, other):
-        return not self.__eq__(other)
-
-    def expr(self):
-        """The sum, regrouped; the plain sum instead if regrouping made it longer."""
-        structured = _structured(self.terms, self.kinematic)
-        plain = se.Add(*self.plain)
-        return structured if se.count_ops(structured) <= se.count_ops(plain) else plain
-
-
-def _numeric_part(term):
-    """(number, rest) with term = number·rest."""
-    if isinstance(term, se.Number):
-        return term, se.Integer(1)
-    if isinstance(term, se.Mul):
-        args = term.args
-        if isinstance(args[0], se.Number):
-            return args[0], se.Mul(*args[1:])
-    return se.Integer(1), term
-
-
-def _split_kinematic(term, kinematic):
-    """(kinematic part, parameter part) of a product."""
-    kin, par = [], []
-    for f in (term.args if isinstance(term, se.Mul) else (term,)):
-        (kin if f.free_symbols & kinematic else par).append(f)
-    return se.Mul(*kin), se.Mul(*par)
-
-
-def _factor_out(terms):
-    """(common, [term / common]) for a list of products: the factors every term shares, each at its
-    lowest (positive integer) power."""
-    def powers(term):
-        out = {}
-        for f in (term.args if isinstance(term, se.Mul) else (term,)):
-            if isinstance(f, se.Number):
-                continue
-            base, exp = (f.args[0], f.args[1]) if isinstance(f, se.Pow) else (f, se.Integer(1))
-            if isinstance(exp, se.Integer) and int(exp) > 0:
-                out[base] = int(exp)
-        return out
-    if len(terms) == 1:
-        return terms[0], [se.Integer(1)]
-    common = powers(terms[0])
-    for term in terms[1:]:
-        if not common:
-            break
-        p = powers(term)
-        common = {b: min(e, p[b]) for b, e in common.items() if b in p}
-    if not common:
-        return se.Integer(1), terms
-    factor = se.Mul(*(b ** e for b, e in common.items()))
-    return factor, [t / factor for t in terms]
-
-
-def _pythagoras(kinsum):
-    """{term: coeff} with every c·X·sin²x + c·X·cos²x replaced by c·X."""
-    changed = True
-    while changed:
-        changed = False
-        for term in list(kinsum):
-            if term not in kinsum:
-                continue
-            for f in (term.args if isinstance(term, se.Mul) else (term,)):
-                if isinstance(f, se.Pow) and f.args[1] == 2 and isinstance(f.args[0], se.sin):
-                    x = f.args[0].args[0]
-                    partner = term / f * se.cos(x) ** 2
-                    if partner in kinsum and kinsum[partner] == kinsum[term]:
-                        c = kinsum.pop(term)
-                        kinsum.pop(partner)
-                        rest = term / f
-                        kinsum[rest] = kinsum.get(rest, 0) + c
-                        if kinsum[rest] == 0:
-                            del kinsum[rest]
-                        changed = True
-                        break
-    return kinsum
-
-
-def _add_terms(coeffs):
-    """Σ coeff·term of a {term: coeff} dict."""
-    return se.Add(*(c * t for t, c in coeffs.items()))
-
-
-def _structured(terms, kinematic):
-    """Σ coeff·term of `terms` ({term: coeff}), regrouped (see `_Terms`)."""
-    by_kin = {}
-    for term, coeff in terms.items():
-        if coeff == 0:
-            continue
-        kin, par = _split_kinematic(term, kinematic)
-        by_kin.setdefault(kin, []).append(coeff * par)
-    by_par = {}
-    for kin, pars in by_kin.items():
-        if len(pars) == 1 and isinstance(pars[0], se.Mul) and any(
-                isinstance(f, se.Add) for f in pars[0].args):
-            # one product of a composite body's summed masses and parameters: already grouped
-            # (its sums expanded, short, so that cancelling weights give 0)
-            par = se.Mul(*(se.expand(f) if isinstance(f, se.Add) else f for f in pars[0].args))
-            if par == 0:
-                continue
-            c, rest = _numeric_part(par)
-            kinsum = by_par.setdefault(rest, {})
-            kinsum[kin] = kinsum.get(kin, 0) + c
-            continue
-        psum = se.expand(se.Add(*pars))
-        if psum == 0:
-            continue
-        c, rest = _numeric_part(psum)
-        if isinstance(psum, se.Add):
-            numeric = [_numeric_part(a) for a in psum.args]
-            c = numeric[0][0]
-            common, rests = _factor_out([r for _, r in numeric])
-            rest = common * se.Add(*(cc / c * r for (cc, _), r in zip(numeric, rests)))
-        kinsum = by_par.setdefault(rest, {})
-        kinsum[kin] = kinsum.get(kin, 0) + c
-    out = []
-    for par, kinsum in by_par.items():
-        kinsum = _pythagoras({k: v for k, v in kinsum.items() if v != 0})
-        if not kinsum:
-            continue
-        items = list(kinsum.items())
-        common, rests = _factor_out([k for k, _ in items])
-        out.append(par * common * se.Add(*(c * r for (_, c), r in zip(items, rests))))
-    return se.Add(*out)
-
-
-def _add_rotation(M, F, inertia, omega, q, qd, t):
-    """Add T = ½·ωᵀ·I·ω of a 3-D body, ω = W·q̇ + w₀ in body axes (I constant): M += Wᵀ·I·W,
-    F −= Wᵀ·(I·b + ω × I·ω), with b = ω̇ at q̈ = 0 (Euler's equations projected on the q̇_j)."""
-    from .bodies3d import add_rotation
-    add_rotation(M, F, inertia, omega, q, qd, t, diff)
-
-
-def _add_kinetic_energy(M, F, T, q, qd, t):
-    """Add a general T: M += ∂²T/∂q̇∂q̇ᵀ, F += ∂T/∂q − (∂²T/∂q̇∂qᵀ)·q̇ − ∂²T/∂q̇∂t."""
-    n = len(q)
-    dT_dqd = [diff(T, s) for s in qd]
-    for i in range(n):
-        for j in range(i + 1):
-            M[i][j] += diff(dT_dqd[i], qd[j])
-        F[i] += diff(T, q[i]) - sum(diff(dT_dqd[i], q[j]) * qd[j] for j in range(n)) \
-            - diff(dT_dqd[i], t)
-
-
-def rate(expr, q, qd, t):
-    """d expr/dt = Σ ∂expr/∂q_j·q̇_j + ∂expr/∂t for an expression of q and t (internal symbols)."""
-    free = expr.free_symbols
-    return sum((diff(expr, qj) * qdj for qj, qdj in zip(q, qd) if qj in free),
-               diff(expr, t) if t in free else se.Integer(0))
-
-
-def output_expressions(spec, q, qd, t):
-    """[user outputs..., T, V, T + V, Σ Q_j·q̇_j, R] in the internal symbols (see `Model.output`);
-    T includes ½·ωᵀ·I·ω of 3-D bodies. A model with external equations (from_sympy) has NaN for
-    the five automatic outputs: its energies are not known to lagrgen."""
-    convert = _Converter(spec)
-    T = sum((convert(e) for e in spec.kinetic), se.Integer(0))
-    for mass, position in spec.particles:
-        v = [rate(convert(c), q, qd, t) for c in position]
-        T += convert(mass) * sum(vc * vc for vc in v) / 2
-    for inertia, omega in spec.bodies_3d:
-        I = [[convert(e) for e in row] for row in inertia.tolist()]
-        w = [convert(e) for e in omega]
-        T += sum(w[i] * I[i][j] * w[j] for i in range(3) for j in range(3)) / 2
-    V = sum((convert(e) for e in spec.potential), se.Integer(0))
-    R = sum((convert(e) for e in spec.dissipation), se.Integer(0))
-    for c, length in spec.dampers:
-        R += convert(c) * rate(convert(length), q, qd, t) ** 2 / 2
-    power = se.Integer(0)
-    for vector, position in spec.virtual_work:
-        f = [convert(c) for c in vector]
-        r = [convert(c) for c in position]
-        for i in range(len(q)):
-            power += sum(fc * diff(rc, q[i]) for fc, rc in zip(f, r)) * qd[i]
-    user = [convert(expr) for _, expr in spec.outputs]
-    if spec.external is not None:
-        # equations derived elsewhere (lagrgen.from_sympy) carry no energies: NaN, not a wrong 0
-        return user + [se.nan] * 5
-    return user + [T, V, T + V, power, R]
+@once_per
+def derived(spec):
+    """The `Equations` of the frozen description `spec`, derived once per ModelSpec."""
+    return derive(spec)
 
 
 def derive(spec):
@@ -527,37 +239,17 @@ def derive(spec):
                internal_symbols("u", len(spec.inputs)), se.Symbol("t"))
     q, qd, _, _, _, t = symbols
     convert = _Converter(spec)
-    kinematic = set(q) | set(qd) | set(symbols[4]) | {t}
-    M = [[_Terms(kinematic) for _ in range(n)] for _ in range(n)]
-    F = [_Terms(kinematic) for _ in range(n)]
-
-    general_T = [convert(e) for e in spec.kinetic]
-    particles = []
-    for mass, position in spec.particles:
-        m = convert(mass)
-        r = [convert(c) for c in position]
-        if m.free_symbols & (set(q) | {t}):
-            v = [rate(rc, q, qd, t) for rc in r]
-            general_T.append(m * sum(vc * vc for vc in v) / 2)
-        else:
-            particles.append((m, r))
-    _add_particles(M, F, particles, q, qd, t)
-    for inertia, omega in spec.bodies_3d:
-        _add_rotation(M, F, [[convert(e) for e in row] for row in inertia.tolist()],
-                      [convert(e) for e in omega], q, qd, t)
-    if general_T:
-        _add_kinetic_energy(M, F, sum(general_T), q, qd, t)
-    V = sum((convert(e) for e in spec.potential), se.Integer(0))
-    R = sum((convert(e) for e in spec.dissipation), se.Integer(0))
-    for c, length in spec.dampers:
-        R += convert(c) * rate(convert(length), q, qd, t) ** 2 / 2
+    sums = Sums(convert, q, qd, t, kinematic=set(q) | set(qd) | set(symbols[4]) | {t})
+    for record in spec.physics:
+        if not isinstance(record, ExternalEquations):
+            CONTRIBUTIONS[type(record)](record, sums)
+    sums.add_particles()
+    M, F = sums.M, sums.F
+    if sums.general_T:
+        add_kinetic_energy(M, F, sum(sums.general_T), q, qd, t)
     for i in range(n):
-        F[i] -= diff(V, q[i]) + diff(R, qd[i])
-    for vector, position in spec.virtual_work:
-        f = [convert(c) for c in vector]
-        r = [convert(c) for c in position]
-        for i in range(n):
-            F[i] += sum(fc * diff(rc, q[i]) for fc, rc in zip(f, r))
+        F[i] -= diff(sums.V, q[i]) + diff(sums.R, qd[i])
+        F[i] += sums.Q[i]
 
     M = [[M[i][j].expr() if j <= i else None for j in range(n)] for i in range(n)]
     F = [f.expr() for f in F]
@@ -571,7 +263,8 @@ def derive(spec):
             M[i][j] = M[j][i]
     _check_mass_matrix(spec, M, qd)
     events = [convert(g) for _, g, _, _ in spec.events]
-    return Equations(spec, M, F, symbols, _constraints(spec, convert, q, qd, t), events)
+    energies = (sums.T, sums.V, sums.power, sums.R)
+    return Equations(spec, M, F, symbols, _constraints(spec, convert, q, qd, t), events, energies)
 
 
 def _constraints(spec, convert, q, qd, t):

@@ -9,6 +9,7 @@ model's `line(...)` polylines, particles, planar bodies (in the z = 0 plane) and
 import numpy as np
 
 from ..errors import LagrgenError
+from .figures import new_figure, numeric_function, write_frames
 
 AXIS_COLOURS = ("tab:red", "tab:green", "tab:blue")
 
@@ -27,7 +28,6 @@ def is_3d(model):
 
 def spatial(model, position, p):
     """f(t, q) -> (frames, 3) array; 1- and 2-component positions get zeros for y, z."""
-    from .plotting import numeric_function
     parts = [numeric_function(model, c, p) for c in list(position)[:3]]
     while len(parts) < 3:
         parts.append(lambda t, q: np.zeros(np.shape(t)))
@@ -36,7 +36,6 @@ def spatial(model, position, p):
 
 def tracks_3d(model, p, t, q):
     """[(kind, data)] along the frames: (frames, 3) point arrays; (frames, 3, 3) R for bodies."""
-    from .plotting import numeric_function
     tracks = []
     for kind, points in model.drawables:
         if kind == "body3d":
@@ -125,7 +124,6 @@ def setup_axes(fig, tracks, title):
 
 def animate_3d(model, times, q, path, p, fps=20, dpi=80, title=None):
     """Write an animated GIF of the 3-D model along q (n × frames) at `times`; return `path`."""
-    from .plotting import new_figure, write_frames
     if not model.drawables:
         raise LagrgenError(f"model {model.name!r} has nothing to draw")
     tracks = tracks_3d(model, p, times, q)

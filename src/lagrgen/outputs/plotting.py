@@ -5,40 +5,13 @@ The data flow is one way: these functions take a Model (its geometry, `model.dra
 values and a solution; they never build or derive anything.
 """
 import numpy as np
-import sympy as sp
-from matplotlib.animation import PillowWriter
-from matplotlib.backends.backend_agg import FigureCanvasAgg
-from matplotlib.figure import Figure
 
-from ..runtime.arguments import defaults_array, parameter_vector
 from ..errors import LagrgenError
+from ..runtime.arguments import defaults_array, parameter_vector
+from .animation3d import animate_3d, is_3d
+from .figures import finished, new_figure, numeric_function, write_frames  # noqa: F401
 
 MAX_MODES_PLOTTED = 8
-
-
-def finished(fig, path):
-    """`fig` laid out, and saved to `path` when one is given."""
-    fig.tight_layout()
-    if path is not None:
-        fig.savefig(path)
-    return fig
-
-
-def write_frames(fig, path, times, scene, clock, fps, dpi):
-    """An animated GIF at `path`: for each time, `scene.update(k)`, the clock text, one frame."""
-    writer = PillowWriter(fps=fps)
-    with writer.saving(fig, str(path), dpi):
-        for k, t in enumerate(times):
-            scene.update(k)
-            clock.set_text(f"t = {t:.2f}")
-            writer.grab_frame()
-    return path
-
-
-def new_figure(width, height):
-    fig = Figure(figsize=(width, height))
-    FigureCanvasAgg(fig)
-    return fig
 
 
 def label(name, units):
@@ -62,13 +35,15 @@ def rate_unit(unit):
     return f"({unit})/s" if "/" in unit else f"{unit}/s"
 
 
-def plot_series(t, rows, names, units=None, path=None, title=None, time_unit="s"):
+def plot_series(t, rows, names, units=None, path=None, title=None, time_unit="s",
+                transitions=None):
     """One panel per unit group (a quantity with its unit on each y axis), sharing the t axis.
 
     Parameters
     ----------
     t : (m,) times; rows : (k, m) values; names : k names; units : {name: unit} (labels only)
     path : save the figure here if given; title : the figure title
+    transitions : [(t, name, kind)] of a hybrid solve (`sol.transitions`): vertical markers
 
     Returns
     -------
@@ -87,7 +62,28 @@ def plot_series(t, rows, names, units=None, path=None, title=None, time_unit="s"
     axes[-1].set_xlabel(f"t [{time_unit}]" if units else "t")
     if title:
         axes[0].set_title(title)
+    mark_transitions(axes, transitions)
     return finished(fig, path)
+
+
+#: Marker colours of the transition kinds of a hybrid solve.
+TRANSITION_COLOURS = {"impact": "tab:red", "contact": "tab:purple", "release": "tab:orange",
+                      "stick": "tab:green", "slip": "tab:gray"}
+
+
+def mark_transitions(axes, transitions, limit=200):
+    """Thin vertical lines at the switching times (coloured by kind, one legend entry per kind);
+    the first `limit` only."""
+    if not transitions:
+        return
+    seen = set()
+    for t, _, kind in list(transitions)[:limit]:
+        for k, ax in enumerate(axes):
+            label = kind if k == 0 and kind not in seen else None
+            ax.axvline(t, color=TRANSITION_COLOURS.get(kind, "k"), lw=0.6, ls=":", alpha=0.8,
+                       label=label)
+        seen.add(kind)
+    axes[0].legend(loc="upper right", fontsize="small")
 
 
 def plot_time_history(sol, coordinates, path=None, velocities=True, title=None, units=None):
@@ -105,7 +101,8 @@ def plot_time_history(sol, coordinates, path=None, velocities=True, title=None, 
                 rows.append(y[n + i])
                 if rate_unit(units.get(c)):
                     rate_units[f"{c}'"] = rate_unit(units.get(c))
-        return plot_series(t, rows, names, {**units, **rate_units}, path, title)
+        return plot_series(t, rows, names, {**units, **rate_units}, path, title,
+                           transitions=getattr(sol, "transitions", None))
     fig = new_figure(7, 5.5 if velocities else 3.5)
     axes = fig.subplots(2 if velocities else 1, 1, sharex=True, squeeze=False)[:, 0]
     for i, name in enumerate(coordinates):
@@ -121,6 +118,7 @@ def plot_time_history(sol, coordinates, path=None, velocities=True, title=None, 
         ax.legend(loc="upper right", fontsize="small")
     if title:
         axes[0].set_title(title)
+    mark_transitions(axes, getattr(sol, "transitions", None))
     return finished(fig, path)
 
 
@@ -156,17 +154,6 @@ def model_parameters(model, params):
     """The parameter vector for `model` from None (defaults), a dict or a full array."""
     return parameter_vector(params, model.parameter_names,
                             defaults_array(model.parameter_defaults))
-
-
-def numeric_function(model, expr, p):
-    """f(t, q) for q of shape (n, frames): `expr` with the parameter values p substituted."""
-    n = len(model.q)
-    Q = sp.symbols(f"_q0:{n}") if n else ()
-    T = sp.Symbol("_t")
-    values = {s: sp.Float(v) for s, v in zip(model.parameter_symbols, p)}
-    plain = sp.sympify(expr).xreplace(values).xreplace({**dict(zip(model.q, Q)), model.t: T})
-    f = sp.lambdify([T, Q], plain, "numpy")
-    return lambda t, q: np.broadcast_to(np.asarray(f(t, tuple(q)), dtype=float), np.shape(t))
 
 
 def planar(model, position, p):
@@ -383,7 +370,6 @@ def animate(model, sol, path, params=None, fps=20, max_frames=120, dpi=80, title
     duration = float(sol.t[-1] - sol.t[0])
     n_frames = int(np.clip(round(duration * fps), 2, max_frames))
     times, y = frame_states(sol, n_frames)
-    from .animation3d import animate_3d, is_3d
     if is_3d(model):                      # 3-D bodies or 3-component points: matplotlib's 3-D axes
         return animate_3d(model, times, y[:len(model.q)], path, p, fps=fps, dpi=dpi, title=title)
     tracks = drawable_tracks(model, p, times, y[:len(model.q)])

@@ -1,0 +1,160 @@
+"""Checking what a user declares: names, units, vectors, and every expression (its symbols,
+functions, derivatives and numbers) against what the model declares. Beside the records
+(`lagrgen.records`): a record holds only checked expressions."""
+import sympy as sp
+from sympy.core.function import AppliedUndef
+
+from .errors import ModelError
+from .names import check_name
+from .numbers import fits_a_double
+
+#: SymPy functions that have a C99 equivalent and that the symbolic core can differentiate.
+SUPPORTED_FUNCTIONS = (
+    sp.sin, sp.cos, sp.tan, sp.asin, sp.acos, sp.atan, sp.atan2,
+    sp.sinh, sp.cosh, sp.tanh, sp.asinh, sp.acosh, sp.atanh,
+    sp.exp, sp.log, sp.Abs, sp.sign,
+    # discontinuous: rewritten as Piecewise before differentiation (lagrgen.lagrange)
+    sp.Heaviside, sp.Min, sp.Max, sp.Piecewise,
+)
+
+
+def split_names(names, what):
+    """Return a list of names from a space/comma-separated string or an iterable of strings."""
+    if isinstance(names, str):
+        names = names.replace(",", " ").split()
+    else:
+        names = list(names)
+    if not names:
+        raise ModelError(f"no {what} names given")
+    return [check_name(n, what) for n in names]
+
+
+def split_units(units, names, what):
+    """{name: unit} from a space-separated string or an iterable of unit strings, one per name
+    (None: no units). A unit is a label only; "-" or "" means dimensionless."""
+    if units is None:
+        return {}
+    units = units.split() if isinstance(units, str) else list(units)
+    if len(units) != len(names):
+        raise ModelError(f"{len(names)} {what} name(s) {' '.join(names)} but {len(units)} unit(s) "
+                         f"{units!r}: give one unit per name")
+    out = {}
+    for name, unit in zip(names, units):
+        out[name] = check_unit(unit, f"{what} {name!r}")
+    return out
+
+
+def check_unit(unit, where):
+    """`unit` if it is a string without whitespace or control characters, else ModelError."""
+    if not isinstance(unit, str) or any(c.isspace() or not c.isprintable() for c in unit):
+        raise ModelError(f"unit of {where} must be a string without spaces, got {unit!r}")
+    return unit
+
+
+def as_vector(value, what):
+    """Return `value` (scalar, list, tuple or Matrix) as a SymPy column Matrix of 1 to 3 entries."""
+    if isinstance(value, sp.MatrixBase):
+        vec = sp.Matrix(value).reshape(len(value), 1)
+    elif isinstance(value, (list, tuple)):
+        vec = sp.Matrix([sp.sympify(v) for v in value])
+    else:
+        vec = sp.Matrix([sp.sympify(value)])
+    if not 1 <= len(vec) <= 3:
+        raise ModelError(f"{what} must have 1 to 3 components, got {len(vec)}")
+    return vec
+
+
+
+def check_expression(scope, expr, where, velocities=True, inputs=True, vector=False):
+    """Return `expr` sympified, after checking every symbol and function in it is one `scope` (a
+    `Description`: its name, t, parameters, coordinates and inputs) declares.
+
+    A scalar is expected unless `vector`; a 1×1 matrix counts as its entry."""
+    try:
+        expr = sp.sympify(expr)
+    except (sp.SympifyError, TypeError) as exc:
+        raise ModelError(f"{where}: cannot read {expr!r} as a SymPy expression ({exc})") from None
+    if isinstance(expr, sp.MatrixBase):
+        if vector:
+            for e in expr:
+                check_expression(scope, e, where, velocities, inputs)
+            return expr
+        if expr.shape != (1, 1):
+            raise ModelError(f"{where} must be a scalar expression, got a {expr.shape[0]}×"
+                             f"{expr.shape[1]} matrix")
+        expr = expr[0, 0]
+    if not isinstance(expr, sp.Expr):
+        kind = "a relation (an equation or inequality)" if isinstance(
+            expr, (sp.Rel, sp.logic.boolalg.Boolean)) else f"a {type(expr).__name__}"
+        raise ModelError(f"{where}: {expr} is {kind}, not an expression; write the quantity "
+                         "itself (for a switch use Piecewise, Heaviside or sign)")
+    allowed = set(scope.parameter_symbols) | {scope.t}
+    for s in expr.free_symbols - allowed:
+        twin = next((p for p in scope.parameter_symbols if p.name == s.name), None)
+        if twin is not None or s.name == "t":
+            raise ModelError(
+                f"{where}: symbol {s} is not the {'parameter' if twin else 'time'} {s.name} of "
+                f"model {scope.name!r}, only a symbol of the same name with other assumptions "
+                f"({s.assumptions0 or 'none'}); use the symbol "
+                f"{'model.parameters' if twin else 'model.t'} returned")
+        raise ModelError(
+            f"{where}: symbol {s} is neither a coordinate, a parameter, an input nor t; "
+            f"declare it with model.parameters({s}=...) or model.inputs('{s}')")
+    for d in expr.atoms(sp.Derivative):
+        if d.expr not in scope.q or d.variables != (scope.t,):
+            raise ModelError(
+                f"{where}: {d} is not allowed; only first time derivatives of coordinates "
+                "(velocities) may appear")
+        if not velocities:
+            raise ModelError(f"{where}: must not depend on velocities, but contains {d}")
+    for f in expr.atoms(AppliedUndef):
+        if f in scope.q:
+            continue
+        if f in scope.input_functions:
+            if not inputs:
+                raise ModelError(
+                    f"{where}: must not depend on input {f.func.__name__} (its time derivative "
+                    "is not known); use t for a prescribed motion")
+            continue
+        raise ModelError(
+            f"{where}: {f} is neither a coordinate nor an input of model {scope.name!r}; "
+            "coordinates and inputs must be functions of model.t declared on this model")
+    for f in expr.atoms(sp.Function):
+        if not isinstance(f, AppliedUndef) and not isinstance(f, SUPPORTED_FUNCTIONS):
+            names = ", ".join(fn.__name__ for fn in SUPPORTED_FUNCTIONS)
+            raise ModelError(f"{where}: function {f.func.__name__} is not supported (use {names})")
+    if expr.has(sp.zoo, sp.oo, sp.nan, -sp.oo):
+        raise ModelError(f"{where}: expression {expr} contains an infinity or NaN")
+    for number in expr.atoms(sp.Number):
+        if not fits_a_double(number):
+            raise ModelError(
+                f"{where}: the number {sp.N(number, 6)} does not fit a double (|x| up to "
+                "1.8e308): rescale the model's units or parameters")
+    return expr
+
+
+# -- impacts and friction (Model.impact, Model.friction) ---------------------------------------
+def check_restitution(e, name):
+    """`e`, a number in [0, 1] or an expression of parameters."""
+    if e.is_number and not 0.0 <= float(e) <= 1.0:
+        raise ModelError(f"impact {name!r}: restitution must be between 0 and 1, got {float(e)}")
+    return e
+
+
+def check_affine_in_velocities(expr, qd, where):
+    """`expr`, which must be w(q, t)·q̇ + b(q, t) with w not identically zero."""
+    coefficients = [sp.diff(expr, v) for v in qd]
+    for v, c in zip(qd, coefficients):
+        if any(c.has(w) for w in qd):
+            raise ModelError(f"{where}: the slip velocity {expr} is not linear in the velocities "
+                             f"(its coefficient of {v} is {c}); write it as w(q, t)·q̇ + b(q, t)")
+    if all(c == 0 for c in coefficients):
+        raise ModelError(f"{where}: the slip velocity {expr} involves no velocity of a coordinate")
+    return expr
+
+
+def check_coefficient(value, where, what):
+    """`value`, a friction coefficient: a number ≥ 0 or an expression of parameters."""
+    if value.is_number and not float(value) >= 0:
+        raise ModelError(f"{where}: {what} must be ≥ 0, got {value}")
+    return value

@@ -1,0 +1,590 @@
+"""The model description: coordinates, parameters, inputs and the physics, recorded as the typed
+records of `lagrgen.records` (SymPy expressions, checked by `lagrgen.checks`).
+
+`Description` only records what the user says; `Description.spec()` freezes it into a `ModelSpec`,
+from which `lagrgen.lagrange` derives the equations of motion. `lagrgen.Model` is this class plus
+the derived equations.
+"""
+import math
+
+import sympy as sp
+
+from .caching import once_per
+from .checks import (as_vector, check_affine_in_velocities, check_coefficient, check_expression,
+                     check_restitution, check_unit, split_names, split_units)
+from .errors import ModelError
+from .names import check_model_name, check_name
+from .numbers import is_zero
+from .records import (AUTOMATIC_OUTPUTS, BAUMGARTE_DEFAULTS, ENERGY_OUTPUTS, Body3D, Constraint,
+                      Damper, Dissipation, Event, ExternalEquations, Force, GeneralizedForce,
+                      Friction, Impact, KineticEnergy, ModelSpec, Output, Particle, PlanarBody,
+                      PotentialEnergy, Spring, Torque, VelocityConstraint, frozen)
+
+#: Drawing shapes of rigid bodies (see `Description.rigid_body`).
+SHAPES = ("disk", "bar", "box")
+
+
+class Description:
+    """What the user declares about a mechanical system, recorded as typed records (the base of
+    `lagrgen.Model`, which adds the derived equations).
+
+    Lagrange's equations d/dt(∂T/∂q̇) − ∂T/∂q + ∂V/∂q + ∂R/∂q̇ = Q are derived from what is added here.
+    """
+
+    def __init__(self, name):
+        self._name = check_model_name(name)
+        self.t = sp.Symbol("t")
+        self._names = {"t": "time"}
+        self._coordinates = []
+        self._parameters = []
+        self._defaults = []
+        self._inputs = []
+        self._physics = []         # records of lagrgen.records: what enters T, V, R and Q
+        self._external = None      # ExternalEquations (lagrgen.from_sympy), added as given
+        self._drawables = []       # (kind, points): what an animation can draw
+        self._outputs = []         # Output records: named quantities evaluated along a solution
+        self._units = {}           # name -> unit label (coordinates, parameters, inputs, outputs)
+        self._constraints = []     # Constraint records: Φ(q, t) = 0
+        self._velocity_constraints = []  # VelocityConstraint records: A(q, t)·q̇ + b(q, t) = 0
+        self._events = []          # Event records: roots of g located by the solvers
+        self._nonsmooth = []       # Impact / Friction records, in declaration order
+        self._stabilization = BAUMGARTE_DEFAULTS
+        self._kinematics = {}      # orientation → bodies3d.Kinematics, computed once each
+
+    @property
+    def name(self):
+        """The model's name (read-only: it names the compiled module and its files)."""
+        return self._name
+
+    # -- declarations -------------------------------------------------------------------------
+    def _declare(self, name, what):
+        if name in self._names:
+            raise ModelError(
+                f"{what} name {name!r} is already used for the {self._names[name]} of model "
+                f"{self.name!r}: names must be unique within a model")
+        self._names[name] = what
+
+    def coordinates(self, names, units=None):
+        """Declare generalized coordinates; return them as SymPy functions of t, in order.
+
+        `units` (optional): one unit label per name, e.g. ``coordinates("x theta", units="m rad")``.
+        """
+        names = split_names(names, "coordinate")
+        labels = split_units(units, names, "coordinate")
+        new = []
+        for name in names:
+            self._declare(name, "coordinate")
+            new.append(sp.Function(name)(self.t))
+        self._coordinates.extend(new)
+        self._units.update(labels)
+        self._changed()
+        return tuple(new)
+
+    def parameters(self, *names, **defaults):
+        """Declare constant parameters (keyword = default value); return them as SymPy symbols.
+
+        A default may be a pair ``(value, "unit")``, e.g. ``parameters(m=(1.0, "kg"))``.
+        """
+        entries = [(n, None) for n in names] + list(defaults.items())
+        if not entries:
+            raise ModelError("no parameter names given")
+        new = []
+        for name, default in entries:
+            check_name(name, "parameter")
+            if isinstance(default, tuple):
+                if len(default) != 2:
+                    raise ModelError(f"parameter {name!r}: give a default, or (default, 'unit'), "
+                                     f"got {default!r}")
+                default, unit = default
+                self._units[name] = check_unit(unit, f"parameter {name!r}")
+            if default is not None:
+                try:
+                    default = float(default)
+                except (TypeError, ValueError):
+                    raise ModelError(
+                        f"default of parameter {name!r} must be a number, got {default!r}") from None
+                if not math.isfinite(default):
+                    raise ModelError(f"default of parameter {name!r} must be finite, got {default}")
+            self._declare(name, "parameter")
+            symbol = sp.Symbol(name)
+            self._parameters.append(symbol)
+            self._defaults.append(default)
+            new.append(symbol)
+        self._changed()
+        return tuple(new)
+
+    def inputs(self, names, units=None):
+        """Declare time-varying inputs (values given at run time); return SymPy functions of t.
+
+        `units` (optional): one unit label per name, e.g. ``inputs("F", units="N")``.
+        """
+        names = split_names(names, "input")
+        labels = split_units(units, names, "input")
+        new = []
+        for name in names:
+            self._declare(name, "input")
+            new.append(sp.Function(name)(self.t))
+        self._inputs.extend(new)
+        self._units.update(labels)
+        self._changed()
+        return tuple(new)
+
+    def output(self, name, expr, units=None):
+        """Declare a named scalar output y = expr(q, q̇, t, p, u), evaluated along a solution.
+
+        Parameters
+        ----------
+        name : str
+            A new name (not one of the automatic outputs ``kinetic_energy``, ... ).
+        expr : SymPy expression of the coordinates, velocities, t, parameters and inputs.
+        units : str, optional
+            A unit label (never changes a number).
+
+        Returns
+        -------
+        The expression, sympified.
+        """
+        check_name(name, "output")
+        if name in AUTOMATIC_OUTPUTS:
+            raise ModelError(f"output name {name!r} is provided automatically; choose another name")
+        expr = self._check(expr, f"output {name!r}")
+        if isinstance(expr, sp.MatrixBase):
+            if len(expr) != 1:
+                raise ModelError(f"output {name!r} must be one scalar, got a {expr.shape} matrix; "
+                                 "declare one output per component")
+            expr = expr[0]
+        self._declare(name, "output")
+        if units is not None:
+            self._units[name] = check_unit(units, f"output {name!r}")
+        self._outputs.append(Output(name, expr))
+        self._changed()
+        return expr
+
+    # -- what has been declared ---------------------------------------------------------------
+    @property
+    def q(self):
+        """The generalized coordinates q_i(t), in declaration order."""
+        return tuple(self._coordinates)
+
+    @property
+    def qd(self):
+        """The generalized speeds dq_i/dt, in declaration order."""
+        return tuple(c.diff(self.t) for c in self._coordinates)
+
+    @property
+    def parameter_symbols(self):
+        return tuple(self._parameters)
+
+    @property
+    def input_functions(self):
+        return tuple(self._inputs)
+
+    @property
+    def coordinate_names(self):
+        return tuple(c.func.__name__ for c in self._coordinates)
+
+    @property
+    def parameter_names(self):
+        return tuple(s.name for s in self._parameters)
+
+    @property
+    def input_names(self):
+        return tuple(u.func.__name__ for u in self._inputs)
+
+    @property
+    def output_names(self):
+        """The user's outputs, then "kinetic_energy", "potential_energy", "total_energy"."""
+        return tuple(o.name for o in self._outputs) + ENERGY_OUTPUTS
+
+    @property
+    def units(self):
+        """{name: unit label} of the coordinates, parameters, inputs and outputs that have one."""
+        return dict(self._units)
+
+    @property
+    def parameter_defaults(self):
+        """Defaults in parameter order; None where a value must be given at run time."""
+        return tuple(self._defaults)
+
+    # -- checking expressions -----------------------------------------------------------------
+    def _check(self, expr, where, velocities=True, inputs=True, vector=False):
+        """`expr` sympified and checked against this model's declarations (`checks.check_expression`)."""
+        return check_expression(self, expr, where, velocities, inputs, vector)
+
+    def _coordinate(self, coordinate):
+        if isinstance(coordinate, str):
+            for c in self._coordinates:
+                if c.func.__name__ == coordinate:
+                    return c
+        elif coordinate in self._coordinates:
+            return coordinate
+        raise ModelError(
+            f"{coordinate!r} is not a generalized coordinate of model {self.name!r} "
+            f"(its coordinates are {', '.join(self.coordinate_names) or 'none'})")
+
+    def _changed(self):
+        _frozen_spec.forget(self)
+
+    def _add(self, record):
+        """Record one physics term (a record of `lagrgen.records`)."""
+        self._physics.append(record)
+        self._changed()
+
+    # -- physics ------------------------------------------------------------------------------
+    def particle(self, mass, position):
+        """T += ½·mass·ṙ·ṙ with ṙ the total time derivative of `position` (1 to 3 components)."""
+        mass = self._check(mass, "particle mass", velocities=False, inputs=False)
+        position = self._check(as_vector(position, "particle position"), "particle position",
+                               velocities=False, inputs=False, vector=True)
+        self._drawables.append(("point", (position, mass)))
+        self._add(Particle(mass, frozen(position)))
+
+    def rigid_body(self, mass, inertia, position, angle, shape=None):
+        """Planar rigid body: T += ½·mass·ṙ·ṙ + ½·inertia·(d angle/dt)², position of its centre of mass.
+
+        `shape` (drawing only) is ``("disk", r)``, ``("bar", length)`` or ``("box", width,
+        height)``, drawn about the centre of mass and rotating with `angle`; the size entries may be
+        numbers or parameter expressions.
+        """
+        shape = self._shape(shape)
+        mass = self._check(mass, "rigid body mass", velocities=False, inputs=False)
+        inertia = self._check(inertia, "rigid body inertia", velocities=False, inputs=False)
+        position = self._check(as_vector(position, "rigid body position"), "rigid body position",
+                               velocities=False, inputs=False, vector=True)
+        angle = self._check(angle, "rigid body angle", velocities=False, inputs=False)
+        self._drawables.append(("body", (position, angle, shape, mass)))
+        self._add(PlanarBody(mass, inertia, frozen(position), angle))
+
+    def _shape(self, shape):
+        if shape is None:
+            return None
+        if isinstance(shape, str):
+            shape = (shape,)
+        shape = tuple(shape)
+        sizes = {"disk": 1, "bar": 1, "box": 2}
+        if not shape or shape[0] not in sizes:
+            raise ModelError(f"unknown body shape {shape[:1]!r}: use ('disk', r), ('bar', length) "
+                             "or ('box', width, height)")
+        if len(shape) != 1 + sizes[shape[0]]:
+            raise ModelError(f"shape {shape[0]!r} needs {sizes[shape[0]]} size(s), got {shape[1:]!r}")
+        return (shape[0],) + tuple(self._check(v, f"{shape[0]} size", velocities=False,
+                                               inputs=False) for v in shape[1:])
+
+    def rigid_body_3d(self, mass, inertia, position, orientation):
+        """Rigid body in space: T += ½·mass·ṙ·ṙ + ½·ωᵀ·I·ω, with ω the body-frame angular velocity
+        (ω̃ = Rᵀ·Ṙ) of the orientation R.
+
+        Parameters
+        ----------
+        mass : expression, the body's mass.
+        inertia : 3×3 matrix (symmetric, positive semi-definite), or 3 principal moments (list or
+            tuple), about the centre of mass in body axes; constant (parameters and numbers only).
+        position : 3 components, the centre of mass in the fixed frame (coordinates, t).
+        orientation : 3×3 rotation matrix R(q, t) mapping body-frame components to fixed-frame
+            ones, best built from `lagrgen.rotation` (``rotation.z(psi) * rotation.x(theta)``).
+        """
+        from .bodies3d import body_inertia
+        mass = self._check(mass, "rigid body mass", velocities=False, inputs=False)
+        inertia = body_inertia(self, inertia)
+        position = self._check(as_vector(position, "rigid body position"), "rigid body position",
+                               velocities=False, inputs=False, vector=True)
+        if len(position) != 3:
+            raise ModelError(f"rigid_body_3d position must have 3 components (x, y, z), got "
+                             f"{len(position)}")
+        kin = self._orientation(orientation, "rigid_body_3d orientation")
+        self._drawables.append(("body3d", (position, kin.R)))
+        self._add(Body3D(mass, frozen(position), frozen(inertia), frozen(kin.omega)))
+
+    def torque_3d(self, moment, orientation):
+        """A moment acting on the body of orientation R: Q_j += moment · ∂ω_fixed/∂q̇_j.
+
+        Parameters
+        ----------
+        moment : 3 components in the fixed frame (may depend on q, q̇, t, inputs).
+        orientation : the body's 3×3 rotation matrix, as given to `rigid_body_3d`.
+        """
+        moment = self._check(as_vector(moment, "torque_3d moment"), "torque_3d moment",
+                             vector=True)
+        if len(moment) != 3:
+            raise ModelError(f"torque_3d moment must have 3 components, got {len(moment)}")
+        kin = self._orientation(orientation, "torque_3d orientation")
+        for j, coordinate in enumerate(self._coordinates):
+            arm = kin.W_fixed[:, j]
+            if not all(is_zero(e) for e in arm):
+                self._add(GeneralizedForce(coordinate, moment.dot(arm)))
+
+    def _orientation(self, orientation, where):
+        """The checked `bodies3d.Kinematics` of a 3×3 orientation matrix (computed once each)."""
+        from .bodies3d import Kinematics, check_rotation
+        if not isinstance(orientation, sp.MatrixBase) or orientation.shape != (3, 3):
+            shape = getattr(orientation, "shape", None)
+            raise ModelError(f"{where} must be a 3×3 SymPy Matrix (e.g. from lagrgen.rotation), "
+                             f"got {type(orientation).__name__}" + (f" of shape {shape}" if shape
+                                                                    else ""))
+        self._check(orientation, where, velocities=False, inputs=False, vector=True)
+        key = (sp.ImmutableMatrix(orientation), getattr(orientation, "factors", None))
+        if key not in self._kinematics:
+            check_rotation(orientation, [*self._coordinates, self.t, *self._parameters], where)
+            self._kinematics[key] = Kinematics(orientation, self._coordinates, self.t)
+        return self._kinematics[key]
+
+    def kinetic_energy(self, expr):
+        """T += expr (may contain coordinates, velocities, t and parameters)."""
+        self._add(KineticEnergy(self._check(expr, "kinetic energy", inputs=False)))
+
+    def potential_energy(self, expr):
+        """V += expr (coordinates, t, parameters, inputs)."""
+        self._add(PotentialEnergy(self._check(expr, "potential energy", velocities=False)))
+
+    def spring(self, k, length, rest=0, ends=None):
+        """V += ½·k·(length − rest)²; `ends=(a, b)` optionally names the two points it joins."""
+        k = self._check(k, "spring stiffness", velocities=False)
+        length = self._check(length, "spring length", velocities=False, inputs=False)
+        rest = self._check(rest, "spring rest length", velocities=False)
+        self._add_ends("spring", ends)
+        self._add(Spring(k, length, rest))
+
+    def damper(self, c, length, ends=None):
+        """Rayleigh R += ½·c·(d length/dt)²; `ends=(a, b)` optionally names the two points it joins."""
+        c = self._check(c, "damping coefficient", velocities=False)
+        length = self._check(length, "damper length", velocities=False, inputs=False)
+        self._add_ends("damper", ends)
+        self._add(Damper(c, length))
+
+    def dissipation(self, expr):
+        """R += expr, a Rayleigh dissipation function of the velocities."""
+        self._add(Dissipation(self._check(expr, "dissipation function")))
+
+    def force(self, vector, at):
+        """Q_j += vector · ∂at/∂q_j (virtual work of a force applied at the point `at`)."""
+        vector = self._check(as_vector(vector, "force"), "force", vector=True)
+        at = self._check(as_vector(at, "force point"), "force point", velocities=False, inputs=False, vector=True)
+        if len(vector) != len(at):
+            raise ModelError(
+                f"force has {len(vector)} components but its point of application has {len(at)}")
+        self._add(Force(frozen(vector), frozen(at)))
+
+    def torque(self, moment, angle):
+        """Q_j += moment · ∂angle/∂q_j."""
+        moment = self._check(moment, "torque")
+        angle = self._check(angle, "torque angle", velocities=False, inputs=False)
+        self._add(Torque(moment, angle))
+
+    def generalized_force(self, coordinate, expr):
+        """Q_j += expr for the coordinate j given (its function or its name)."""
+        coordinate = self._coordinate(coordinate)
+        expr = self._check(expr, "generalized force")
+        self._add(GeneralizedForce(coordinate, expr))
+
+    # -- constraints --------------------------------------------------------------------------
+    def constraint(self, expr, name=None):
+        """Add a holonomic constraint Φ(q, t) = 0 (coordinates, t and parameters only; an
+        equation lhs = rhs means lhs − rhs = 0).
+
+        Its multiplier λ_i enters the equations as M·q̈ = F + Φ_qᵀ·λ (see `lagrgen.lagrange`);
+        `name` (an identifier) names λ_i in results (`sol.multipliers[name]`), CSV columns and
+        `show`; unnamed constraints are lambda1, lambda2, ... in the order of `constraint_names`.
+        """
+        where = f"constraint {len(self._constraints) + 1}"
+        expr = self._check(self._equation(expr), where, velocities=False, inputs=False)
+        if not any(expr.has(c) for c in self._coordinates):
+            raise ModelError(f"{where} ({expr} = 0) does not involve any coordinate: it is not a "
+                             "constraint on the motion")
+        self._name_constraint(name)
+        self._constraints.append(Constraint(expr, name))
+        self._changed()
+
+    def _name_constraint(self, name):
+        if name is None:
+            return
+        check_name(name, "constraint name")
+        if name.startswith("lambda") and name[6:].isdigit():
+            raise ModelError(f"constraint name {name!r} is reserved for unnamed constraints; "
+                             "choose another name")
+        self._declare(name, "constraint")
+
+    def event(self, name, expr, terminal=False, direction=0):
+        """Declare an event: a root of `expr` (a function of q, q̇, t, parameters, inputs) that
+        the solvers locate, as solve_ivp's events; compiled with the model.
+
+        Parameters
+        ----------
+        name : str, a Python identifier unique among the model's events
+        expr : the event function g; an event happens where g crosses zero
+        terminal : bool or int, stop the integration at the first (or this many) occurrences
+        direction : 0 (any crossing), +1 (g rising) or -1 (g falling)
+        """
+        check_name(name, "event")
+        if any(e.name == name for e in self._events):
+            raise ModelError(f"event {name!r} is already declared on model {self.name!r}")
+        if direction not in (-1, 0, 1):
+            raise ModelError(f"event {name!r}: direction must be -1, 0 or +1, got {direction!r}")
+        if isinstance(terminal, bool):
+            terminal = int(terminal)
+        if not isinstance(terminal, int) or terminal < 0:
+            raise ModelError(f"event {name!r}: terminal must be True, False or a count >= 0")
+        expr = self._check(expr, f"event {name}")
+        self._events.append(Event(name, expr, terminal, int(direction)))
+        self._changed()
+
+    def impact(self, name, gap, restitution=1.0):
+        """A unilateral contact gap(q, t) ≥ 0 (API.md §13): on closing contact q̇ jumps by Newton's
+        law along ∇gap with restitution `restitution` (a number in [0, 1] or an expression of
+        parameters); accumulating impacts become a resting contact, released when its multiplier
+        (the contact force, M·q̈ = F + ∇gapᵀ·λ) would turn negative. See `lagrgen.hybrid`."""
+        check_name(name, "impact name")
+        where = f"impact {name}"
+        gap = self._check(gap, where, velocities=False, inputs=False)
+        e = check_restitution(self._check(restitution, where + " restitution", velocities=False,
+                                          inputs=False), name)
+        if any(e.has(c) for c in self._coordinates):
+            raise ModelError(f"{where}: restitution must not depend on the coordinates")
+        if not any(gap.has(c) for c in self._coordinates):
+            raise ModelError(f"{where}: the gap {gap} involves no coordinate")
+        self._declare(name, "impact")
+        self._nonsmooth.append(Impact(name, gap, e))
+        self._changed()
+
+    def friction(self, name, slip_velocity, normal_force, mu, mu_static=None):
+        """Coulomb friction with sticking on the slip velocity v = w(q, t)·q̇ + b(q, t) (API.md
+        §13): a force −mu·|N|·sign(v) along ∂v/∂q̇ while slipping; v = 0 held while the force that
+        takes is at most mu_static·|N| (mu_static defaults to mu). `normal_force` is an expression
+        or the name of a constraint or impact whose multiplier is N: write that constraint or gap
+        as a signed distance (a gradient of unit length, e.g. x·sin α + y·cos α for a slope), so
+        that its multiplier is a force; likewise v should be the sliding speed itself."""
+        check_name(name, "friction name")
+        where = f"friction {name}"
+        v = check_affine_in_velocities(
+            self._check(slip_velocity, where, inputs=False), self.qd, where)
+        if isinstance(normal_force, str):
+            check_name(normal_force, "normal_force name")
+            normal = normal_force
+        else:
+            normal = self._check(normal_force, where + " normal_force")
+        mu = check_coefficient(self._check(mu, where + " mu", velocities=False, inputs=False),
+                               where, "mu")
+        mu_s = mu if mu_static is None else check_coefficient(
+            self._check(mu_static, where + " mu_static", velocities=False, inputs=False), where,
+            "mu_static")
+        self._declare(name, "friction")
+        self._nonsmooth.append(Friction(name, v, normal, mu, mu_s))
+        self._changed()
+
+    @property
+    def nonsmooth(self):
+        """The impacts and frictions (`Impact`, `Friction` records), in declaration order."""
+        return tuple(self._nonsmooth)
+
+    def velocity_constraint(self, expr, name=None):
+        """Add a constraint linear in the velocities, A(q, t)·q̇ + b(q, t) = 0 (nonholonomic,
+        e.g. a knife edge −sin θ·ẋ + cos θ·ẏ = 0); its multiplier enters M·q̈ = F + Aᵀ·λ.
+        `name` as for `constraint`."""
+        where = f"velocity constraint {len(self._velocity_constraints) + 1}"
+        expr = self._check(self._equation(expr), where, velocities=True, inputs=False)
+        qd = self.qd
+        coefficients = [sp.diff(expr, v) for v in qd]
+        for v, c in zip(qd, coefficients):
+            if any(c.has(w) for w in qd):
+                raise ModelError(
+                    f"{where} ({expr} = 0) is not linear in the velocities: its coefficient of "
+                    f"{v} is {c}, which depends on velocities; write it as A(q, t)·q̇ + b(q, t)")
+        if all(is_zero(c) for c in coefficients):
+            raise ModelError(
+                f"{where} ({expr} = 0) involves no velocity: a constraint on positions alone is "
+                "holonomic, add it with model.constraint(expr)")
+        self._name_constraint(name)
+        self._velocity_constraints.append(VelocityConstraint(expr, name))
+        self._changed()
+
+    def constraint_stabilization(self, alpha=BAUMGARTE_DEFAULTS[0], beta=BAUMGARTE_DEFAULTS[1]):
+        """Set Baumgarte's drift control (1/s): the constraints are imposed at the acceleration
+        level as Φ̈ + 2α·Φ̇ + β²·Φ = 0 (holonomic) and ċ + 2α·c = 0 (velocity constraints c = 0).
+        α = β = 0 switches it off."""
+        values = []
+        for name, value in (("alpha", alpha), ("beta", beta)):
+            try:
+                value = float(value)
+            except (TypeError, ValueError):
+                raise ModelError(f"Baumgarte {name} must be a number, got {value!r}") from None
+            if not (math.isfinite(value) and value >= 0):
+                raise ModelError(f"Baumgarte {name} must be finite and ≥ 0, got {value}")
+            values.append(value)
+        self._stabilization = tuple(values)
+        self._changed()
+
+    @staticmethod
+    def _equation(expr):
+        """An equation lhs = rhs as lhs − rhs (a constraint means expr = 0)."""
+        return expr.lhs - expr.rhs if isinstance(expr, sp.Equality) else expr
+
+    @property
+    def constraints(self):
+        """The holonomic constraints Φ_i (each meaning Φ_i = 0), in declaration order."""
+        return tuple(c.expr for c in self._constraints)
+
+    @property
+    def velocity_constraints(self):
+        """The velocity constraints (each meaning A(q,t)·q̇ + b = 0), in declaration order."""
+        return tuple(c.expr for c in self._velocity_constraints)
+
+    @property
+    def constraint_names(self):
+        """The names of the multipliers λ: the holonomic constraints, then the velocity ones
+        (the order of A's rows); lambda<k> (k from 1 in that order) where none was given."""
+        records = self._constraints + self._velocity_constraints
+        return tuple(c.name or f"lambda{k + 1}" for k, c in enumerate(records))
+
+    def line(self, *points):
+        """Draw a polyline through `points` in animations (an extension: rods, outlines)."""
+        pts = tuple(self._check(as_vector(p, "line point"), "line point", velocities=False,
+                                inputs=False, vector=True) for p in points)
+        if len(pts) < 2:
+            raise ModelError("a line needs at least two points")
+        self._drawables.append(("line", pts))
+
+    def _add_ends(self, kind, ends):
+        if ends is None:
+            return
+        if len(ends) != 2:
+            raise ModelError(f"{kind} ends must be a pair of points, got {len(ends)}")
+        a, b = (self._check(as_vector(p, f"{kind} end"), f"{kind} end", velocities=False,
+                            inputs=False, vector=True) for p in ends)
+        self._drawables.append((kind, (a, b)))
+
+    def _add_equations(self, M, F):
+        """Add externally derived equations M·q̈ = F (SymPy, in this model's own symbols) to what
+        Lagrange's equations of the declared physics give. Private: `lagrgen.from_sympy` uses it."""
+        n = len(self._coordinates)
+        M, F = sp.Matrix(M), sp.Matrix(F)
+        if M.shape != (n, n) or F.shape not in ((n, 1), (1, n)):
+            raise ModelError(f"external equations of model {self.name!r} must be M ({n}×{n}) and "
+                             f"F ({n}), got shapes {M.shape} and {F.shape}")
+        M = self._check(M, "mass matrix", velocities=False, inputs=False, vector=True)
+        F = self._check(F.reshape(n, 1), "forcing", vector=True)
+        if self._external is not None:
+            M, F = M + self._external.M, F + self._external.F
+        self._external = ExternalEquations(frozen(M), frozen(F))
+        self._changed()
+
+    @property
+    def drawables(self):
+        """What an animation can draw: (kind, points) pairs, in declaration order."""
+        return tuple(self._drawables)
+
+    def spec(self):
+        """A frozen snapshot of the description (`ModelSpec`): what `lagrgen.build` works from."""
+        return _frozen_spec(self)
+
+
+@once_per
+def _frozen_spec(description):
+    """The `ModelSpec` of `description` as it stands (forgotten whenever it changes)."""
+    d = description
+    physics = tuple(d._physics) + ((d._external,) if d._external is not None else ())
+    return ModelSpec(
+        name=d.name, t=d.t, coordinates=d.q, parameters=d.parameter_symbols,
+        defaults=d.parameter_defaults, inputs=d.input_functions, physics=physics,
+        outputs=tuple(d._outputs), units=tuple(sorted(d._units.items())),
+        constraints=d.constraints, velocity_constraints=d.velocity_constraints,
+        constraint_names=d.constraint_names, stabilization=d._stabilization,
+        events=tuple(d._events), nonsmooth=tuple(d._nonsmooth))

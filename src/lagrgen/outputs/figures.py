@@ -1,0 +1,43 @@
+"""What every picture shares: a figure on matplotlib's Agg canvas, its finishing step, the GIF
+frame loop, and the numeric function of a drawing expression (for the 2-D and 3-D animations)."""
+import numpy as np
+import sympy as sp
+from matplotlib.animation import PillowWriter
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.figure import Figure
+
+
+def finished(fig, path):
+    """`fig` laid out, and saved to `path` when one is given."""
+    fig.tight_layout()
+    if path is not None:
+        fig.savefig(path)
+    return fig
+
+
+def write_frames(fig, path, times, scene, clock, fps, dpi):
+    """An animated GIF at `path`: for each time, `scene.update(k)`, the clock text, one frame."""
+    writer = PillowWriter(fps=fps)
+    with writer.saving(fig, str(path), dpi):
+        for k, t in enumerate(times):
+            scene.update(k)
+            clock.set_text(f"t = {t:.2f}")
+            writer.grab_frame()
+    return path
+
+
+def new_figure(width, height):
+    fig = Figure(figsize=(width, height))
+    FigureCanvasAgg(fig)
+    return fig
+
+
+def numeric_function(model, expr, p):
+    """f(t, q) for q of shape (n, frames): `expr` with the parameter values p substituted."""
+    n = len(model.q)
+    Q = sp.symbols(f"_q0:{n}") if n else ()
+    T = sp.Symbol("_t")
+    values = {s: sp.Float(v) for s, v in zip(model.parameter_symbols, p)}
+    plain = sp.sympify(expr).xreplace(values).xreplace({**dict(zip(model.q, Q)), model.t: T})
+    f = sp.lambdify([T, Q], plain, "numpy")
+    return lambda t, q: np.broadcast_to(np.asarray(f(t, tuple(q)), dtype=float), np.shape(t))
