@@ -91,7 +91,9 @@ def simulate(mod, t_span, y0, method="RK45", params=None, inputs=None, rtol=1e-6
     finally:
         if bar is not None:
             bar.close()
-    return finished_result(mod, sol, p, u_at)
+    sol = finished_result(mod, sol, p, u_at)
+    sol.__dict__.update(_built=mod, _method=getattr(method, "__name__", method))   # for display
+    return sol
 
 
 def check_run_options(method, engine, max_steps, max_wall_time, options):
