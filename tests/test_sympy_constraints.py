@@ -213,3 +213,58 @@ def test_kane_auxiliary_speeds_are_refused():
     km.kanes_equations([me.Particle("p", P, m)], [(P, -x * N.x)])
     with pytest.raises(lagrgen.ModelError, match="auxiliary"):
         lagrgen.from_sympy(km, "bad")
+
+
+def kane_four_bar(rocker_mass=True):
+    """A four-bar linkage: cranks of lengths l1 (at O) and l3 (at D = (d, 0)) joined by a coupler
+    l2; point masses at the joints A and B and at the middle C of the second crank (without it
+    q3 has no inertia of its own: a ModelError, see below); q1 independent, q2, q3 dependent through the loop
+    closure, their speeds through its time derivative."""
+    q1, q2, q3 = me.dynamicsymbols("q1:4")
+    u1, u2, u3 = me.dynamicsymbols("u1:4")
+    l1, l2, l3, d, mA, mB, g = sp.symbols("l1 l2 l3 d m_A m_B g", positive=True)
+    N = me.ReferenceFrame("N")
+    O = me.Point("O")
+    A = O.locatenew("A", l1 * (sp.cos(q1) * N.x + sp.sin(q1) * N.y))
+    B = A.locatenew("B", l2 * (sp.cos(q2) * N.x + sp.sin(q2) * N.y))
+    loop = (B.pos_from(O) - (d * N.x + l3 * (sp.cos(q3) * N.x + sp.sin(q3) * N.y)))
+    config = [loop.dot(N.x), loop.dot(N.y)]
+    to_u = {q.diff(): u for q, u in zip((q1, q2, q3), (u1, u2, u3))}
+    velocity = [sp.diff(c, t).xreplace(to_u) for c in config]
+    C = O.locatenew("C", d * N.x + l3 / 2 * (sp.cos(q3) * N.x + sp.sin(q3) * N.y))
+    O.set_vel(N, 0)
+    C.set_vel(N, C.pos_from(O).dt(N).xreplace(to_u))
+    A.set_vel(N, A.pos_from(O).dt(N).xreplace(to_u))
+    B.set_vel(N, B.pos_from(O).dt(N).xreplace(to_u))
+    km = me.KanesMethod(N, q_ind=[q1], u_ind=[u1], q_dependent=[q2, q3],
+                        u_dependent=[u2, u3], configuration_constraints=config,
+                        velocity_constraints=velocity,
+                        kd_eqs=[u - q.diff() for q, u in zip((q1, q2, q3), (u1, u2, u3))])
+    mC = sp.Symbol("m_C", positive=True)
+    bodies = [me.Particle("pA", A, mA), me.Particle("pB", B, mB)]
+    loads = [(A, -mA * g * N.y), (B, -mB * g * N.y)]
+    if rocker_mass:
+        bodies.append(me.Particle("pC", C, mC))
+        loads.append((C, -mC * g * N.y))
+    km.kanes_equations(bodies, loads)
+    return km, {l1: 1.0, l2: 2.0, l3: 1.5, d: 2.0, mA: 0.7, mB: 1.1, mC: 0.4, g: 9.81}
+
+
+def test_kane_four_bar(backend, out_dir):
+    km, values = kane_four_bar()
+    model = lagrgen.from_sympy(km, "sym_four_bar", defaults=values)
+    assert len(model.spec().constraints) == 2 and not model.spec().velocity_constraints
+    mod = lagrgen.build(model, backend=backend, out_dir=out_dir)
+    for guess in ([1.0, 0.2, 1.3, 0.8, 0.0, 0.0], [1.6, 0.0, 1.8, -1.5, 0.3, 0.1]):
+        y = check_kane(km, values, mod, guess)
+        assert_allclose(mod.constraint_residuals(0.0, y), 0, atol=1e-10)
+    sol = lagrgen.simulate(mod, (0, 1), lagrgen.consistent_state(mod, [1.0, 0.2, 1.3, 0, 0, 0]),
+                           method="DOP853", rtol=1e-9, atol=1e-11)
+    assert sol.success and np.abs(sol.constraint_residuals).max() < 1e-7
+
+
+def test_a_massless_dependent_coordinate_is_explained():
+    km, values = kane_four_bar(rocker_mass=False)
+    with pytest.raises(lagrgen.ModelError, match="q3.*no inertia of its own"):
+        lagrgen.from_sympy(km, "bad", defaults={k: v for k, v in values.items()
+                                                 if k.name != "m_C"})

@@ -67,6 +67,12 @@ def from_sympy(method_or_system, name, defaults=None, inputs=None):
         if not (isinstance(c, AppliedUndef) and c.args == (t,)):
             raise ModelError(f"coordinate {c} is not a function of time t alone")
     for i, c in enumerate(coordinates):
+        if is_zero(M[i, i]) and (holonomic or velocity):
+            raise ModelError(
+                f"coordinate {c} has no inertia of its own (a zero diagonal entry of the mass "
+                "matrix formed with every coordinate independent): lagrgen imposes constraints "
+                "through multipliers on M·q̈ = F + Aᵀλ and needs M positive definite. Give the "
+                f"body that {c} moves a mass or inertia, or make {c} independent")
         if is_zero(M[i, i]):
             raise ModelError(
                 f"SymPy's mass matrix has a zero diagonal entry for coordinate {c}: its equations "
