@@ -3,12 +3,12 @@
 Same variables and value references as the FMI 2.0 FMU (see `fmu_core.c.in`), as Float64
 variables (solver.method an enumeration); FMI 3.0 adds the independent variable `time` and, in
 Model Exchange, the event indicators as variables `event.<name>`; a derivative names its state by
-value reference. The C side is `templates/fmi3.c.in`; building and zipping are in `fmu.py`.
+value reference. The C side is `templates/fmi3.c.in`; the shared variables in `fmi2.py`, building and zipping in `fmu.py`.
 """
 from xml.etree import ElementTree as ET
 
 from .._version import __version__
-from .fmu import (number_text, method_items, output_description, source_file_names,
+from .fmi2 import (number_text, method_items, output_description, source_file_names,
                   value_references, variable_names, xml_text)
 
 
