@@ -135,3 +135,13 @@ def test_command_writes_one_gif_per_mode(tmp_path):
     written = sorted(p.name for p in (tmp_path / "anim").iterdir())
     assert written == ["double_pendulum_mode1.gif", "double_pendulum_mode2.gif"]
     assert all(len(frames(tmp_path / "anim" / w)) == 36 for w in written)
+
+
+def test_a_loaded_model_asks_for_the_description(pendulum_modes, tmp_path):
+    import types
+    model, mod, _ = pendulum_modes
+    res = lagrgen.modes(mod, [0.0, 0.0])
+    assert res.model is mod
+    res.model = types.SimpleNamespace(name="double_pendulum")   # as `load` gives: no drawing
+    with pytest.raises(LagrgenError, match=r"loaded.*model=model"):
+        res.animate(0, tmp_path / "x.gif")

@@ -177,7 +177,7 @@ class Modes:
                 "these modes were computed from a Linearization and know no mechanism to draw: "
                 "call lagrgen.modes(mod, q0) with the built model, or pass the description, "
                 "result.animate(k, path, model=model)")
-        source = getattr(self.model, "source_model", None)
+        source = getattr(self.model, "_source_model", None)
         if source is None:
             raise LagrgenError(
                 f"the built model {self.model.name!r} was loaded, not built in this session, so "

@@ -16,7 +16,7 @@ def drawing_model(sol, model=None):
     if model is not None:
         return model
     built = sol.__dict__.get("_built")
-    source = getattr(built, "source_model", None)
+    source = getattr(built, "_source_model", None)
     if source is None:
         name = sol.__dict__.get("_model_name") or "this model"
         raise LagrgenError(
