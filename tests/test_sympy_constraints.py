@@ -268,3 +268,32 @@ def test_a_massless_dependent_coordinate_is_explained():
     with pytest.raises(lagrgen.ModelError, match="q3.*no inertia of its own"):
         lagrgen.from_sympy(km, "bad", defaults={k: v for k, v in values.items()
                                                  if k.name != "m_C"})
+
+
+def test_a_system_with_a_dependent_coordinate(backend, out_dir):
+    """A `System` (KanesMethod underneath) of a bob at (x, y), y dependent through the rod."""
+    x, y = me.dynamicsymbols("x y")
+    ux, uy = me.dynamicsymbols("u_x u_y")
+    m, g, L = sp.symbols("m g L", positive=True)
+    ground = me.RigidBody("ground")
+    N = ground.frame
+    system = me.System.from_newtonian(ground)
+    system.add_coordinates(x, y, independent=[True, False])
+    system.add_speeds(ux, uy, independent=[True, False])
+    system.add_kdes(ux - x.diff(), uy - y.diff())
+    P = system.fixed_point.locatenew("P", x * N.x + y * N.y)
+    P.set_vel(N, ux * N.x + uy * N.y)
+    system.add_bodies(me.Particle("bob", P, m))
+    system.add_holonomic_constraints(x ** 2 + y ** 2 - L ** 2)
+    system.velocity_constraints = [x * ux + y * uy]
+    system.apply_uniform_gravity(-g * N.y)
+    values = {m: 0.9, g: 9.81, L: 1.2}
+    model = lagrgen.from_sympy(system, "sym_system_rod", defaults=values)
+    assert len(model.spec().constraints) == 1 and not model.spec().velocity_constraints
+    mod = lagrgen.build(model, backend=backend, out_dir=out_dir)
+    check_kane(system.eom_method, values, mod, [0.5, -1.0, 0.4, 0.1])
+    rod = lagrgen.build(lagrgen.from_sympy(kane_pendulum_with_dependent_coordinate()[0],
+                                           "sym_kane_rod", defaults=values),
+                        backend=backend, out_dir=out_dir)
+    y0 = lagrgen.consistent_state(mod, [0.5, -1.0, 0.4, 0.1])
+    assert_allclose(mod.constraint_forces(0.0, y0), rod.constraint_forces(0.0, y0), rtol=1e-12)

@@ -171,11 +171,17 @@ def _equations(obj, t):
     the velocity constraints c(q, q̇, t), in SymPy's own symbols."""
     from sympy.physics.mechanics import KanesMethod, LagrangesMethod, System
     if isinstance(obj, System):
-        _no_system_constraints(obj)
+        if len(obj.u_aux):
+            raise ModelError("this System has auxiliary speeds, which from_sympy does not "
+                             "support: form the equations without them")
         if obj.eom_method is None:
-            obj.form_eoms()
+            try:
+                obj.form_eoms()
+            except ValueError as exc:
+                raise ModelError(f"SymPy could not form the System's equations: {exc}") from None
         system, obj = obj, obj.eom_method
         if isinstance(obj, LagrangesMethod):
+            _no_system_constraints(system)
             # the bodies' velocities may be written in the System's speeds: u = q̇ puts them back
             q, M, F, holonomic, velocity = _lagrange(obj)
             rates = _rates_of_speeds(list(system.q), list(system.u), list(system.kdes), t)
@@ -208,8 +214,9 @@ def _no_system_constraints(system):
                        ("dependent coordinates", "q_dep"), ("dependent speeds", "u_dep"),
                        ("auxiliary speeds", "u_aux")):
         if len(getattr(system, attr)):
-            raise ModelError(f"this System has {what}, which from_sympy does not support yet: "
-                             "give it independent coordinates only")
+            raise ModelError(f"this System has {what} and forms its equations with "
+                             "LagrangesMethod, which from_sympy does not support: form them with "
+                             "KanesMethod (System.form_eoms(), the default)")
 
 
 def _lagrange(lm):
