@@ -43,7 +43,9 @@ def from_sympy(method_or_system, name, defaults=None, inputs=None):
     Parameters
     ----------
     method_or_system : sympy.physics.mechanics LagrangesMethod, KanesMethod or System
-        Without constraints (holonomic, nonholonomic) or auxiliary speeds.
+        Constraints (`hol_coneqs`, `nonhol_coneqs`; Kane's or a System's dependent coordinates
+        and speeds) become the model's constraints (see the module docstring for the multipliers'
+        sign); auxiliary speeds are refused.
     name : str
         The model's name (a Python identifier; it names the compiled module).
     defaults : dict, optional
