@@ -137,3 +137,19 @@ def test_unknown_drawing_says_to_pass_the_model(pendulum):
     with pytest.raises(LagrgenError, match=r"sol\.animate\(model=model\)"):
         sol.animate()
     assert len(sol.animate(model=model, fps=10)) == 2
+
+
+def test_constrained_summary_and_a_3d_animation(build):
+    cart = build(example_model("cartesian_pendulum"))
+    sol = lagrgen.simulate(cart, (0, 0.5), lagrgen.consistent_state(cart, [0.8, -0.5, 0, 0]))
+    run, coords = tables(sol._repr_html_())
+    fields = {row[0]: row[1] for row in run}
+    assert_allclose(float(fields["λ rod (final)"]), sol.multipliers["rod"][-1], rtol=1e-5)
+    assert [row[0] for row in coords[1:]] == ["x", "y"]
+    top = build(example_model("pendulum3d"))
+    y0 = np.zeros(2 * top.n_coordinates)
+    y0[0], y0[top.n_coordinates + 1] = 0.6, 1.5
+    sol = lagrgen.simulate(top, (0, 0.5), y0)
+    shots = js_frames(sol.animate(fps=8)._repr_html_())
+    assert len(shots) == 4
+    assert ImageChops.difference(shots[0].convert("RGB"), shots[-1].convert("RGB")).getbbox()

@@ -108,6 +108,8 @@ def summary_html(sol):
             _row("method", sol.__dict__.get("_method", "")), _row("t", span),
             _row("output points", len(t)), _row("steps", steps), _row("evaluations", counts),
             _row("result", status), _row("message", sol.get("message", ""))]
+    for name, lam in (sol.get("multipliers") or {}).items():
+        rows.append(_row(f"λ {name} (final)", f"{np.asarray(lam)[-1]:.6g}" if len(lam) else ""))
     units = sol.__dict__.get("_units") or {}
     coordinates = list(sol.get("coordinates", ()))
     n = len(coordinates)
