@@ -169,14 +169,14 @@ STAGES = [
     ("base", ["_version", "errors", "numbers", "names", "caching", "functions", "methods",
               "signals", "toolchain"]),
     ("description", ["rotation", "bodies3d", "records", "checks", "description"]),
-    ("derivation", ["calculus", "terms", "contributions", "lagrange"]),
+    ("derivation", ["calculus", "terms", "contributions", "lagrange", "nonsmooth"]),
     ("kernels", ["kernels"]),
     ("code", ["codegen"]),
     ("runtime", ["runtime"]),
     ("build", ["build"]),
     ("display", ["outputs"]),
     ("running", ["progress", "results", "solvers", "scipy_engine", "native",
-                 "simulate", "constraints", "ensemble"]),
+                 "simulate", "constraints", "ensemble", "hybrid"]),
     ("analysis", ["vibration", "sweep", "bench"]),
     ("face", ["model", "sympy_interop", "expressions", "cli", "__main__", ""]),
 ]
@@ -328,6 +328,6 @@ def test_every_physics_record_has_one_contribution_function():
     kinds = {cls for cls in vars(records).values()
              if isinstance(cls, type) and dataclasses.is_dataclass(cls)}
     not_physics = {records.ModelSpec, records.Constraint, records.VelocityConstraint,
-                   records.ExternalEquations}
+                   records.ExternalEquations, records.Impact, records.Friction}
     assert kinds - not_physics == set(contributions.CONTRIBUTIONS)
     assert len(set(contributions.CONTRIBUTIONS.values())) == len(contributions.CONTRIBUTIONS)

@@ -42,7 +42,7 @@ BACKENDS = ("c", "python")
 PACKAGE = Path(__file__).resolve().parent
 #: The sources that determine generated code: a change to any of them changes every key.
 GENERATOR_SOURCES = ("_version.py", "functions.py", "calculus.py", "terms.py", "contributions.py",
-                     "lagrange.py", "kernels.py", "runtime/info.py",
+                     "lagrange.py", "nonsmooth.py", "kernels.py", "runtime/info.py",
                      "codegen/*.py", "codegen/templates/*", "codegen/templates/functions/*")
 _loaded = {}
 
@@ -261,7 +261,8 @@ def equations_digest(equations):
              [str(f) for f in equations.F], [str(e) for e in equations.residuals],
              spec.stabilization, spec.constraint_names, [str(g) for g in equations.events],
              [(name, terminal, direction) for name, _, terminal, direction in spec.events],
-             spec.output_names, [str(e) for e in equations.outputs], spec.units]
+             spec.output_names, [str(e) for e in equations.outputs], spec.units,
+             hybrid_description(spec, equations)]
     for part in parts:
         h.update(repr(part).encode() + b"\0")
     return h.hexdigest()
@@ -277,7 +278,21 @@ def model_info(spec, equations):
         event_definitions=[(name, terminal, direction)
                            for name, _, terminal, direction in spec.events],
         explicit_time=bool(equations.explicit_time),
-        content_hash=content_digest(spec, lambda: equations), lagrgen_version=__version__)
+        content_hash=content_digest(spec, lambda: equations), lagrgen_version=__version__,
+        nonsmooth_definitions=[(e["name"], e["kind"], e["normal"])
+                               for e in _nonsmooth().describe(spec)])
+
+
+def hybrid_description(spec, equations):
+    """The impacts' and frictions' records and terms, for the content hash."""
+    if not spec.nonsmooth:
+        return []
+    return [_nonsmooth().describe(spec), [str(e) for e in _nonsmooth().terms(equations)]]
+
+
+def _nonsmooth():
+    from . import nonsmooth
+    return nonsmooth
 
 
 # -- compiling -------------------------------------------------------------------------------

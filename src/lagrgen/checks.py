@@ -131,3 +131,30 @@ def check_expression(scope, expr, where, velocities=True, inputs=True, vector=Fa
                 f"{where}: the number {sp.N(number, 6)} does not fit a double (|x| up to "
                 "1.8e308): rescale the model's units or parameters")
     return expr
+
+
+# -- impacts and friction (Model.impact, Model.friction) ---------------------------------------
+def check_restitution(e, name):
+    """`e`, a number in [0, 1] or an expression of parameters."""
+    if e.is_number and not 0.0 <= float(e) <= 1.0:
+        raise ModelError(f"impact {name!r}: restitution must be between 0 and 1, got {float(e)}")
+    return e
+
+
+def check_affine_in_velocities(expr, qd, where):
+    """`expr`, which must be w(q, t)·q̇ + b(q, t) with w not identically zero."""
+    coefficients = [sp.diff(expr, v) for v in qd]
+    for v, c in zip(qd, coefficients):
+        if any(c.has(w) for w in qd):
+            raise ModelError(f"{where}: the slip velocity {expr} is not linear in the velocities "
+                             f"(its coefficient of {v} is {c}); write it as w(q, t)·q̇ + b(q, t)")
+    if all(c == 0 for c in coefficients):
+        raise ModelError(f"{where}: the slip velocity {expr} involves no velocity of a coordinate")
+    return expr
+
+
+def check_coefficient(value, where, what):
+    """`value`, a friction coefficient: a number ≥ 0 or an expression of parameters."""
+    if value.is_number and not float(value) >= 0:
+        raise ModelError(f"{where}: {what} must be ≥ 0, got {value}")
+    return value

@@ -348,8 +348,10 @@ def column(name, units):
 
 def write_csv(stream, sol, names, outputs=None, units=None):
     """t, q, q' (as <coordinate>_dot) per saved time; then the multipliers λ of a constrained
-    model (M q'' = F + Aᵀλ), one column per constraint name; then the outputs. Headers carry
-    units ('x [m]', 'x_dot [m/s]')."""
+    model (M q'' = F + Aᵀλ), one column per constraint name; then the outputs; then, for a model
+    with impacts or frictions, a column "transition" naming the switches ("floor:impact", joined
+    by ";") on the first row at or after their time (at a switch the result holds the state
+    before and after it: the first of the two rows). Headers carry units ('x [m]', 'x_dot [m/s]')."""
     from .outputs.plotting import rate_unit
     units = dict(units or {})
     for c in names:
@@ -357,17 +359,27 @@ def write_csv(stream, sol, names, outputs=None, units=None):
             units[f"{c}_dot"] = rate_unit(units[c])
     out_names = list(outputs.names) if outputs is not None else []
     lam = getattr(sol, "constraint_forces", np.zeros((0, len(sol.t))))
+    transitions = getattr(sol, "transitions", None)
+    marks = {}
+    for t, name, kind in transitions or ():
+        k = int(np.searchsorted(sol.t, t, side="left"))
+        if k < len(sol.t):
+            marks.setdefault(k, []).append(f"{name}:{kind}")
     writer = csv.writer(stream, lineterminator="\n")
     writer.writerow([column("t", {"t": "s"} if units else {}),
                      *(column(c, units) for c in names),
                      *(column(f"{c}_dot", units) for c in names),
                      *getattr(sol, "constraint_names", ()),
-                     *(column(o, units) for o in out_names)])
+                     *(column(o, units) for o in out_names),
+                     *(["transition"] if transitions is not None else [])])
     for k, t in enumerate(sol.t):
         values = [*sol.y[:, k], *lam[:, k]]
         if outputs is not None:
             values += list(np.asarray(outputs)[:, k])
-        writer.writerow([repr(float(t)), *(repr(float(v)) for v in values)])
+        row = [repr(float(t)), *(repr(float(v)) for v in values)]
+        if transitions is not None:
+            row.append(";".join(marks.get(k, ())))
+        writer.writerow(row)
 
 
 def command_simulate(args):

@@ -10,14 +10,15 @@ import math
 import sympy as sp
 
 from .caching import once_per
-from .checks import as_vector, check_expression, check_unit, split_names, split_units
+from .checks import (as_vector, check_affine_in_velocities, check_coefficient, check_expression,
+                     check_restitution, check_unit, split_names, split_units)
 from .errors import ModelError
 from .names import check_model_name, check_name
 from .numbers import is_zero
 from .records import (AUTOMATIC_OUTPUTS, BAUMGARTE_DEFAULTS, ENERGY_OUTPUTS, Body3D, Constraint,
                       Damper, Dissipation, Event, ExternalEquations, Force, GeneralizedForce,
-                      KineticEnergy, ModelSpec, Output, Particle, PlanarBody, PotentialEnergy,
-                      Spring, Torque, VelocityConstraint, frozen)
+                      Friction, Impact, KineticEnergy, ModelSpec, Output, Particle, PlanarBody,
+                      PotentialEnergy, Spring, Torque, VelocityConstraint, frozen)
 
 #: Drawing shapes of rigid bodies (see `Description.rigid_body`).
 SHAPES = ("disk", "bar", "box")
@@ -46,6 +47,7 @@ class Description:
         self._constraints = []     # Constraint records: Φ(q, t) = 0
         self._velocity_constraints = []  # VelocityConstraint records: A(q, t)·q̇ + b(q, t) = 0
         self._events = []          # Event records: roots of g located by the solvers
+        self._nonsmooth = []       # Impact / Friction records, in declaration order
         self._stabilization = BAUMGARTE_DEFAULTS
         self._kinematics = {}      # orientation → bodies3d.Kinematics, computed once each
 
@@ -425,6 +427,54 @@ class Description:
         self._events.append(Event(name, expr, terminal, int(direction)))
         self._changed()
 
+    def impact(self, name, gap, restitution=1.0):
+        """A unilateral contact gap(q, t) ≥ 0 (API.md §13): on closing contact q̇ jumps by Newton's
+        law along ∇gap with restitution `restitution` (a number in [0, 1] or an expression of
+        parameters); accumulating impacts become a resting contact, released when its multiplier
+        (the contact force, M·q̈ = F + ∇gapᵀ·λ) would turn negative. See `lagrgen.hybrid`."""
+        check_name(name, "impact name")
+        where = f"impact {name}"
+        gap = self._check(gap, where, velocities=False, inputs=False)
+        e = check_restitution(self._check(restitution, where + " restitution", velocities=False,
+                                          inputs=False), name)
+        if any(e.has(c) for c in self._coordinates):
+            raise ModelError(f"{where}: restitution must not depend on the coordinates")
+        if not any(gap.has(c) for c in self._coordinates):
+            raise ModelError(f"{where}: the gap {gap} involves no coordinate")
+        self._declare(name, "impact")
+        self._nonsmooth.append(Impact(name, gap, e))
+        self._changed()
+
+    def friction(self, name, slip_velocity, normal_force, mu, mu_static=None):
+        """Coulomb friction with sticking on the slip velocity v = w(q, t)·q̇ + b(q, t) (API.md
+        §13): a force −mu·|N|·sign(v) along ∂v/∂q̇ while slipping; v = 0 held while the force that
+        takes is at most mu_static·|N| (mu_static defaults to mu). `normal_force` is an expression
+        or the name of a constraint or impact whose multiplier is N: write that constraint or gap
+        as a signed distance (a gradient of unit length, e.g. x·sin α + y·cos α for a slope), so
+        that its multiplier is a force; likewise v should be the sliding speed itself."""
+        check_name(name, "friction name")
+        where = f"friction {name}"
+        v = check_affine_in_velocities(
+            self._check(slip_velocity, where, inputs=False), self.qd, where)
+        if isinstance(normal_force, str):
+            check_name(normal_force, "normal_force name")
+            normal = normal_force
+        else:
+            normal = self._check(normal_force, where + " normal_force")
+        mu = check_coefficient(self._check(mu, where + " mu", velocities=False, inputs=False),
+                               where, "mu")
+        mu_s = mu if mu_static is None else check_coefficient(
+            self._check(mu_static, where + " mu_static", velocities=False, inputs=False), where,
+            "mu_static")
+        self._declare(name, "friction")
+        self._nonsmooth.append(Friction(name, v, normal, mu, mu_s))
+        self._changed()
+
+    @property
+    def nonsmooth(self):
+        """The impacts and frictions (`Impact`, `Friction` records), in declaration order."""
+        return tuple(self._nonsmooth)
+
     def velocity_constraint(self, expr, name=None):
         """Add a constraint linear in the velocities, A(q, t)·q̇ + b(q, t) = 0 (nonholonomic,
         e.g. a knife edge −sin θ·ẋ + cos θ·ẏ = 0); its multiplier enters M·q̈ = F + Aᵀ·λ.
@@ -537,4 +587,4 @@ def _frozen_spec(description):
         outputs=tuple(d._outputs), units=tuple(sorted(d._units.items())),
         constraints=d.constraints, velocity_constraints=d.velocity_constraints,
         constraint_names=d.constraint_names, stabilization=d._stabilization,
-        events=tuple(d._events))
+        events=tuple(d._events), nonsmooth=tuple(d._nonsmooth))

@@ -78,6 +78,12 @@ FUNCTIONS = (
                   "A, λ and ∂(Aᵀλ)/∂q (λ held fixed) at one point"),
     ModelFunction("events", "state", (Output("g", ("n_events",)),),
                   "g_k(t, q, q̇, u): the model's event functions (model.event)"),
+    ModelFunction("hybrid_terms", "state",
+                  (Output("M", ("n", "n")), Output("F", ("n",)),
+                   Output("A", ("n_constraints", "n")), Output("gamma", ("n_constraints",)),
+                   Output("terms", ("n_hybrid",))),
+                  "M, F, the constraints' A and γ, and the impacts' and frictions' terms "
+                  "(lagrgen.nonsmooth) that the hybrid drivers assemble each mode from"),
 )
 
 BY_NAME = {f.name: f for f in FUNCTIONS}
@@ -86,4 +92,8 @@ BY_NAME = {f.name: f for f in FUNCTIONS}
 #: What `power_terms` returns, beside the outputs: d(T + V)/dt = input_power − 2·R for a
 #: scleronomic model with R quadratic in q̇.
 POWER_TERMS = ("input_power", "rayleigh_dissipation")
+
+#: Entries of `hybrid_terms`' `terms` per impact and per friction, beside the n of its gradient
+#: (the layout is in `lagrgen.nonsmooth`).
+HYBRID_FIELDS = {"impact": 4, "friction": 5}
 

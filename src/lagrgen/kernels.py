@@ -18,6 +18,7 @@ from dataclasses import dataclass
 
 import symengine as se
 
+from . import nonsmooth
 from .caching import once_per
 from .functions import Output
 
@@ -84,6 +85,9 @@ KERNELS = (
     KernelSpec("events", "the event functions g_k(t, q, q̇, u), whose roots the solvers locate",
                (Output("g", ("n_events",)),), lambda eq: {"g": list(eq.events)},
                when=lambda eq: bool(eq.events)),
+    KernelSpec("nonsmooth", "the impacts' and frictions' terms (layout in lagrgen.nonsmooth)",
+               (Output("terms", ("n_hybrid",)),), lambda eq: {"terms": nonsmooth.terms(eq)},
+               when=lambda eq: bool(eq.spec.nonsmooth)),
 )
 
 def _signed(expr, memo):

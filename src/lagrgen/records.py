@@ -131,6 +131,26 @@ class VelocityConstraint:
     name: str = None
 
 
+@dataclass(frozen=True)
+class Impact:
+    """A unilateral contact gap(q, t) ≥ 0 with Newton's restitution coefficient (`Model.impact`)."""
+    name: str
+    gap: sp.Expr
+    restitution: sp.Expr
+
+
+@dataclass(frozen=True)
+class Friction:
+    """Coulomb friction with sticking on v(q, q̇, t) = w(q, t)·q̇ + b(q, t) (`Model.friction`);
+    `normal_force` an expression, or the name (str) of a constraint or impact whose multiplier
+    is the normal force."""
+    name: str
+    slip_velocity: sp.Expr
+    normal_force: object
+    mu: sp.Expr
+    mu_static: sp.Expr
+
+
 class Event(NamedTuple):
     """A root of g(t, q, q̇, u) located by the solvers, as solve_ivp's events."""
     name: str
@@ -174,6 +194,7 @@ class ModelSpec:
     constraint_names: tuple = ()  # one per multiplier, holonomic first
     stabilization: tuple = (0.0, 0.0)  # Baumgarte (α, β), 1/s
     events: tuple = ()        # Event(name, g, terminal, direction)
+    nonsmooth: tuple = ()     # Impact / Friction records, in declaration order
 
     @property
     def external(self):

@@ -45,6 +45,9 @@ def simulate(mod, t_span, y0, method="RK45", params=None, inputs=None, rtol=1e-6
         was hit. Ctrl-C ends a native solve within a fraction of a second (KeyboardInterrupt).
     progress : False, True, or "auto" (on a terminal, once the run takes longer than a second):
         a progress bar of the simulated time on stderr
+    A model with impacts or frictions (`model.impact`, `model.friction`) runs as a hybrid solve
+    (`lagrgen.hybrid`, API.md §13): its result also has `transitions` [(t, name, kind)], `mode`
+    and `n_segments`; options `rest_velocity`, `gap_tol`, `max_transitions`; no dense_output.
     **options : passed to `solve_ivp` unchanged (max_step, first_step, ...)
 
     Returns
@@ -68,6 +71,12 @@ def simulate(mod, t_span, y0, method="RK45", params=None, inputs=None, rtol=1e-6
     y0 = state_vector(y0, tuple(mod.coordinates))
     p = parameters_from(mod, params)
     u_at = input_function(mod, inputs)
+    if getattr(mod, "nonsmooth_definitions", ()):
+        from .hybrid import simulate_nonsmooth
+        sol = simulate_nonsmooth(mod, t_span, y0, method, p, inputs, u_at, rtol, atol, t_eval,
+                                 dense_output, events, engine, progress, options, max_steps,
+                                 max_wall_time)
+        return finished_result(mod, sol, p, u_at)
     why_not = None if engine == "scipy" else native_reason(mod, method, inputs, events, options,
                                                             rtol)
     if engine == "native" and why_not:

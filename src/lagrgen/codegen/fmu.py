@@ -115,6 +115,10 @@ def fmu_sources(info, equations, params=None, start_time=0.0, stop_time=10.0, to
     check_kind(kind, fmi_version)
     rtol = (tolerance if tolerance is not None else 1e-6) if rtol is None else rtol
     solver = solver_start_values(method, rtol, 1e-3 * rtol if atol is None else atol)
+    if info.nonsmooth_definitions:
+        raise ModelError(f"model {info.name!r} has impacts or frictions "
+                         f"({', '.join(e[0] for e in info.nonsmooth_definitions)}): an FMU would "
+                         "integrate it without its switches; simulate it with lagrgen.simulate")
     if not stop_time > start_time:
         raise ModelError(f"stop time {stop_time} must be greater than the start time {start_time}")
     start_values = parameter_start_values(info, params)

@@ -221,3 +221,128 @@ def solve(str method, uintptr_t rhs, uintptr_t jacobian, int dim, p, list inputs
             lg_result_free(&res)
     finally:
         free(sig)
+
+
+cdef extern from "lg_hybrid.h":
+    ctypedef struct lg_hybrid_t:
+        int n, m, ni, nf
+        lg_rhs_fn terms
+        const double *p
+        int n_inputs
+        const lg_signal_t *inputs
+        const int *normal_kind
+        const int *normal_index
+        double rest_velocity
+        double gap_tol
+        long max_transitions
+        int *contact
+        int *slip
+    ctypedef struct lg_hybrid_result_t:
+        int status
+        int stopped
+        double t_reached
+        char message[256]
+        long nfev, n_steps, n_segments
+        lg_buf_t t, y, transitions
+    int lg_hybrid_solve(lg_hybrid_t *, const lg_options_t *, lg_hybrid_result_t *) nogil
+    void lg_hybrid_result_free(lg_hybrid_result_t *) nogil
+
+
+def solve_hybrid(str method, uintptr_t terms, int n, int m, int ni, int nf, normal_kind,
+                 normal_index, p, list inputs, double t0, double tf, y0, double rtol, atol,
+                 double max_step, double first_step, t_eval, double rest_velocity,
+                 double gap_tol, long max_transitions, Poll poll=None, long max_steps=0,
+                 double max_wall_time=0.0):
+    """Run a hybrid solve (lagrgen/native/lg_hybrid.c) in C without the GIL.
+
+    Parameters
+    ----------
+    terms : int
+        Address of the model's C hybrid_terms function.
+    n, m, ni, nf : int
+        Coordinates, model constraints, impacts, frictions.
+    normal_kind, normal_index : arrays of int (nf)
+        Per friction: 0 expression, 1 constraint k, 2 impact k (the index).
+    rest_velocity : float
+        < 0: the relative default. Other arguments as `solve` (poll: Ctrl-C, progress, stop).
+
+    Returns
+    -------
+    dict
+        t, y (len(t), 2n), transitions (k, 3) of (t, element, kind code), contact (ni),
+        slip (nf), status, message, nfev, n_segments.
+    """
+    if method not in METHOD_CODES:
+        raise ValueError(f"method {method!r} has no native implementation")
+    if terms == 0:
+        raise ValueError("a null model function address")
+    cdef int dim = 2 * n
+    cdef cnp.ndarray pa = f64(p if len(p) else [0.0])
+    cdef cnp.ndarray y0a = f64(y0), atola = f64(atol)
+    if y0a.shape[0] != dim or atola.shape[0] != dim:
+        raise ValueError(f"y0 and atol must have {dim} values")
+    cdef cnp.ndarray te = None if t_eval is None else f64(t_eval)
+    cdef cnp.ndarray nk = np.ascontiguousarray(list(normal_kind) + [0], dtype=np.intc)
+    cdef cnp.ndarray nx = np.ascontiguousarray(list(normal_index) + [0], dtype=np.intc)
+    cdef cnp.ndarray contact = np.zeros(ni + 1, dtype=np.intc)
+    cdef cnp.ndarray slip = np.ones(nf + 1, dtype=np.intc)
+    cdef lg_hybrid_t hy
+    cdef lg_options_t op
+    cdef lg_hybrid_result_t res
+    memset(&hy, 0, sizeof(hy))
+    memset(&op, 0, sizeof(op))
+    memset(&res, 0, sizeof(res))
+    cdef lg_signal_t *sig = <lg_signal_t *>calloc(len(inputs) + 1, sizeof(lg_signal_t))
+    if sig == NULL:
+        raise MemoryError()
+    keep = []
+    cdef int rc
+    try:
+        fill_signals(inputs, sig, keep)
+        hy.n, hy.m, hy.ni, hy.nf = n, m, ni, nf
+        hy.terms = <lg_rhs_fn>terms
+        hy.p = <const double *>cnp.PyArray_DATA(pa)
+        hy.n_inputs = len(inputs)
+        hy.inputs = sig
+        hy.normal_kind = <const int *>cnp.PyArray_DATA(nk)
+        hy.normal_index = <const int *>cnp.PyArray_DATA(nx)
+        hy.rest_velocity = rest_velocity
+        hy.gap_tol = gap_tol
+        hy.max_transitions = max_transitions
+        hy.contact = <int *>cnp.PyArray_DATA(contact)
+        hy.slip = <int *>cnp.PyArray_DATA(slip)
+        op.method = METHOD_CODES[method]
+        op.t0 = t0
+        op.tf = tf
+        op.y0 = <const double *>cnp.PyArray_DATA(y0a)
+        op.rtol = max(rtol, 100 * 2.220446049250313e-16)
+        op.rtol_given = rtol
+        op.atol = <const double *>cnp.PyArray_DATA(atola)
+        op.max_step = max_step
+        op.first_step = first_step
+        op.t_eval = NULL if te is None else <const double *>cnp.PyArray_DATA(te)
+        op.n_eval = 0 if te is None else te.shape[0]
+        op.dense = 0
+        op.stop_on_nonfinite = 1
+        op.max_steps = max_steps
+        op.max_wall_time = max_wall_time
+        if poll is not None:
+            op.poll = poll_callback
+            op.poll_ctx = <void *>poll
+            op.poll_interval = poll.interval
+        with nogil:
+            rc = lg_hybrid_solve(&hy, &op, &res)
+        try:
+            if rc < 0:
+                raise MemoryError(res.message.decode())
+            if poll is not None and poll.error is not None:
+                raise poll.error
+            return dict(t=buf_array(&res.t, 0), y=buf_array(&res.y, dim), status=res.status,
+                        message=res.message.decode(), nfev=res.nfev, n_steps=res.n_steps,
+                        stopped=res.stopped, t_reached=res.t_reached,
+                        n_segments=res.n_segments, transitions=buf_array(&res.transitions, 3),
+                        contact=contact[:ni].copy(), slip=slip[:nf].copy())
+        finally:
+            lg_hybrid_result_free(&res)
+    finally:
+        free(sig)

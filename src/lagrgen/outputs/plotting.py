@@ -35,13 +35,15 @@ def rate_unit(unit):
     return f"({unit})/s" if "/" in unit else f"{unit}/s"
 
 
-def plot_series(t, rows, names, units=None, path=None, title=None, time_unit="s"):
+def plot_series(t, rows, names, units=None, path=None, title=None, time_unit="s",
+                transitions=None):
     """One panel per unit group (a quantity with its unit on each y axis), sharing the t axis.
 
     Parameters
     ----------
     t : (m,) times; rows : (k, m) values; names : k names; units : {name: unit} (labels only)
     path : save the figure here if given; title : the figure title
+    transitions : [(t, name, kind)] of a hybrid solve (`sol.transitions`): vertical markers
 
     Returns
     -------
@@ -60,7 +62,28 @@ def plot_series(t, rows, names, units=None, path=None, title=None, time_unit="s"
     axes[-1].set_xlabel(f"t [{time_unit}]" if units else "t")
     if title:
         axes[0].set_title(title)
+    mark_transitions(axes, transitions)
     return finished(fig, path)
+
+
+#: Marker colours of the transition kinds of a hybrid solve.
+TRANSITION_COLOURS = {"impact": "tab:red", "contact": "tab:purple", "release": "tab:orange",
+                      "stick": "tab:green", "slip": "tab:gray"}
+
+
+def mark_transitions(axes, transitions, limit=200):
+    """Thin vertical lines at the switching times (coloured by kind, one legend entry per kind);
+    the first `limit` only."""
+    if not transitions:
+        return
+    seen = set()
+    for t, _, kind in list(transitions)[:limit]:
+        for k, ax in enumerate(axes):
+            label = kind if k == 0 and kind not in seen else None
+            ax.axvline(t, color=TRANSITION_COLOURS.get(kind, "k"), lw=0.6, ls=":", alpha=0.8,
+                       label=label)
+        seen.add(kind)
+    axes[0].legend(loc="upper right", fontsize="small")
 
 
 def plot_time_history(sol, coordinates, path=None, velocities=True, title=None, units=None):
@@ -78,7 +101,8 @@ def plot_time_history(sol, coordinates, path=None, velocities=True, title=None, 
                 rows.append(y[n + i])
                 if rate_unit(units.get(c)):
                     rate_units[f"{c}'"] = rate_unit(units.get(c))
-        return plot_series(t, rows, names, {**units, **rate_units}, path, title)
+        return plot_series(t, rows, names, {**units, **rate_units}, path, title,
+                           transitions=getattr(sol, "transitions", None))
     fig = new_figure(7, 5.5 if velocities else 3.5)
     axes = fig.subplots(2 if velocities else 1, 1, sharex=True, squeeze=False)[:, 0]
     for i, name in enumerate(coordinates):
@@ -94,6 +118,7 @@ def plot_time_history(sol, coordinates, path=None, velocities=True, title=None, 
         ax.legend(loc="upper right", fontsize="small")
     if title:
         axes[0].set_title(title)
+    mark_transitions(axes, getattr(sol, "transitions", None))
     return finished(fig, path)
 
 

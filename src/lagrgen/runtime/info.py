@@ -9,7 +9,7 @@ import json
 from dataclasses import asdict, dataclass, fields
 
 from ..errors import BuildError
-from ..functions import POWER_TERMS
+from ..functions import HYBRID_FIELDS, POWER_TERMS
 
 
 @dataclass(frozen=True)
@@ -18,7 +18,8 @@ class ModelInfo:
 
     `defaults` are floats, None where a value must be given at run time; `event_definitions` are
     (name, terminal, direction) triples; `n_holonomic` counts the holonomic constraints, which come
-    first in `constraint_names`.
+    first in `constraint_names`; `nonsmooth_definitions` are (name, "impact" | "friction", normal)
+    triples of the impacts and frictions (`lagrgen.nonsmooth`), normal None or (kind, index).
     """
 
     name: str
@@ -34,6 +35,7 @@ class ModelInfo:
     explicit_time: bool = False
     content_hash: str = ""
     lagrgen_version: str = ""
+    nonsmooth_definitions: tuple = ()
 
     def __post_init__(self):
         for name in ("coordinates", "parameters", "inputs", "defaults", "output_names",
@@ -42,6 +44,9 @@ class ModelInfo:
         object.__setattr__(self, "event_definitions",
                            tuple(tuple(e) for e in self.event_definitions))
         object.__setattr__(self, "units", dict(self.units))
+        object.__setattr__(self, "nonsmooth_definitions", tuple(
+            (name, kind, None if normal is None else tuple(normal))
+            for name, kind, normal in self.nonsmooth_definitions))
 
     @property
     def n_coordinates(self):
@@ -60,7 +65,9 @@ class ModelInfo:
                 "n_inputs": len(self.inputs), "n_constraints": m,
                 "n_holonomic": self.n_holonomic, "n_residuals": self.n_holonomic + m,
                 "n_events": len(self.event_definitions), "n_power": len(POWER_TERMS),
-                "n_outputs": len(self.output_names)}
+                "n_outputs": len(self.output_names),
+                "n_hybrid": sum(HYBRID_FIELDS[kind] + n for _, kind, _ in
+                                self.nonsmooth_definitions)}
 
     def to_json(self):
         """The record as JSON (with its dimensions, for readers of the C metadata)."""
@@ -82,4 +89,5 @@ class ModelInfo:
 #: What both backends expose from their ModelInfo, each as an attribute of the same name.
 INFO_ATTRIBUTES = ("name", "coordinates", "parameters", "inputs", "units", "output_names",
                    "constraint_names", "event_definitions", "explicit_time", "content_hash",
-                   "lagrgen_version", "n_coordinates", "n_constraints", "dimensions")
+                   "lagrgen_version", "n_coordinates", "n_constraints", "dimensions",
+                   "nonsmooth_definitions")

@@ -28,6 +28,7 @@ class BuiltModel(Protocol):
     output_names: Tuple[str, ...]  # the user's outputs, then the three energies
     constraint_names: Tuple[str, ...]  # one per multiplier λ: holonomic, then velocity constraints
     event_definitions: Tuple[Tuple[str, int, int], ...]  # (name, terminal, direction)
+    nonsmooth_definitions: Tuple[tuple, ...]  # (name, "impact" | "friction", normal), §13
     explicit_time: bool           # M or F depends on t explicitly
     content_hash: str             # of the derived equations and lagrgen's generator
     lagrgen_version: str
@@ -69,6 +70,10 @@ class BuiltModel(Protocol):
 
     def events(self, t, y, p=None, u=None) -> np.ndarray:
         """g_k, (n_events,)."""
+
+    def hybrid_terms(self, t, y, p=None, u=None) -> tuple:
+        """(M, F, A, γ, terms): what the hybrid drivers assemble each mode from (n_hybrid terms
+        of the impacts and frictions, layout in lagrgen.nonsmooth)."""
 
 
 class CompiledBuiltModel(BuiltModel, Protocol):

@@ -169,6 +169,15 @@ class PythonModel:
             return np.zeros(0)
         return self._kernel("events", t, q, qd, None, p, u)[0]
 
+    def _hybrid_terms(self, t, q, qd, p, u):
+        n, m = self.n_coordinates, self.n_constraints
+        M, F = self._mf(t, q, qd, p, u)
+        A, gamma = (self._kernel("constraints", t, q, qd, None, p, u) if m
+                    else (np.zeros(0), np.zeros(0)))
+        terms = (self._kernel("nonsmooth", t, q, qd, None, p, u)[0]
+                 if self.dimensions.get("n_hybrid", 0) else np.zeros(0))
+        return M, F, A.reshape(m, n), gamma, terms
+
     def _constraint_forces(self, t, q, qd, p, u):
         if not self.n_constraints:
             return np.zeros(0)

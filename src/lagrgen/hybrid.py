@@ -1,0 +1,586 @@
+"""Hybrid simulation of impacts, resting contact and Coulomb friction with sticking (API.md §13).
+
+A solve is a sequence of smooth segments. In a segment every impact is `open` or in `contact`
+(gap = 0 held) and every friction `slips` in a fixed direction s = ±1 or `sticks` (v = 0 held); the
+held rows join the model's own constraints in
+
+    M·q̈ = F + Σ_slip (−μ_j·|N_j|·s_j)·w_jᵀ + Rᵀ·λ,    R·q̈ = γ_R,
+
+solved as one linear system (N_j the value of an expression, or |λ| of the constraint or contact
+it names). A segment ends at the first terminal event: an open gap closing (g ↓ 0), a contact force
+turning negative (λ ↓ 0), a slip velocity reaching zero (s·v ↓ 0), a sticking force reaching its
+limit (μ_s·|N| − |λ| ↓ 0). Then:
+
+* Impacts. The closing contacts C (g ≤ gap_tol, ġ < 0) and the held contacts H take impulses
+  Λ ≥ 0 by the generalized Newton law: ġ⁺ = ġ⁻ + D·Λ with the Delassus matrix D = W·P·Wᵀ (P the
+  inverse mass on the model's constraints), ġ⁺_i + e_i·ġ⁻_i ≥ 0 complementary to Λ_i (e = 0 for
+  H) — a small LCP solved by projected Gauss–Seidel; q̇⁺ = q̇⁻ + P·Wᵀ·Λ. For one contact this is
+  q̇⁺ = q̇⁻ − (1 + e)·M⁻¹∇g·ġ⁻/(∇gᵀM⁻¹∇g). Simultaneous impacts are therefore simultaneous (not
+  sequential): a symmetric body landing on two supports keeps its symmetry.
+* Resting contact. When the rebound velocity e·|ġ⁻| is at most `rest_velocity` (default 10⁻⁶
+  times the largest impact speed of that contact so far, so e = 0 always rests) the contact is
+  held ("contact") if its force is then ≥ 0; a Zeno sequence of bounces ends there.
+* Release when a contact force turns negative; stick when a slip velocity reaches 0 and the
+  sticking force is within μ_s·|N|, else slip on in the direction −sign(λ) ("slip"); a sticking
+  contact slips when its force reaches μ_s·|N|. The mode is made consistent (forces ≥ 0, sticking
+  forces within their cones) before the next segment; `max_transitions` bounds chattering.
+* Tolerances. A gap counts as closed within `gap_tol` (default 1e-9); a slip velocity counts as
+  zero within 1000·gap_tol (at the start, and for frictions stopping together with the one whose
+  event fired).
+
+`HybridSystem` holds that logic; `simulate_hybrid` runs it with `solve_ivp` (engine "scipy") or in
+C (`lagrgen.native._ode.solve_hybrid`, `native/lg_hybrid.c`, the same rules).
+"""
+import time
+
+import numpy as np
+
+OPEN, CONTACT, STICK, SLIP = "open", "contact", "stick", "slip"
+#: Defaults of the switching tolerances (see `simulate_hybrid`).
+GAP_TOL = 1e-9
+REST_FACTOR = 1e-6
+MAX_TRANSITIONS = 100000
+PGS_SWEEPS = 200
+
+
+class HybridSystem:
+    """The impacts and frictions of a built model, assembled for one mode at a state.
+
+    Parameters
+    ----------
+    mod : built model with impacts or frictions (`mod.nonsmooth_definitions`)
+    p : parameter vector
+    u_at : t -> input vector
+    """
+
+    def __init__(self, mod, p, u_at):
+        self.mod, self.p, self.u_at = mod, p, u_at
+        self.n = n = mod.n_coordinates
+        self.m = getattr(mod, "n_constraints", 0)
+        defs = mod.nonsmooth_definitions
+        self.names = [d[0] for d in defs]
+        self.impacts = [d for d in defs if d[1] == "impact"]
+        self.frictions = [d for d in defs if d[1] == "friction"]
+        self.ni, self.nf = len(self.impacts), len(self.frictions)
+        self.normal = [d[2] for d in self.frictions]
+        self.n_events = self.ni + self.nf
+        self._impact_size, self._friction_size = 4 + n, 5 + n
+
+    # -- the model's terms ----------------------------------------------------------------------
+    def terms(self, t, y):
+        """(M, F, A, γ, impacts, frictions) at (t, y): impacts (ni, 4 + n) rows [g, ġ, γ, e, W],
+        frictions (nf, 5 + n) rows [v, γ, μ, μ_s, N, w]."""
+        M, F, A, gamma, terms = self.mod.hybrid_terms(t, y, self.p, self.u_at(t))
+        k = self.ni * self._impact_size
+        impacts = terms[:k].reshape(self.ni, self._impact_size)
+        frictions = terms[k:].reshape(self.nf, self._friction_size)
+        return M, F, A, gamma, impacts, frictions
+
+    def solve(self, t, y, contact, slip):
+        """Accelerations and forces in the mode (contact: bool per impact; slip: per friction
+        +1/−1 slipping in that direction, 0 sticking).
+
+        Returns
+        -------
+        (q̈, λ of the impacts (0 where open), λ of the frictions (0 where slipping), N of the
+        frictions, the terms)
+        """
+        n, m = self.n, self.m
+        M, F, A, gamma, imp, fr = self.terms(t, y)
+        rows = [A[k] for k in range(m)]
+        rhs = list(gamma)
+        impact_row, friction_row = {}, {}
+        for i in range(self.ni):
+            if contact[i]:
+                impact_row[i] = len(rows)
+                rows.append(imp[i, 4:])
+                rhs.append(imp[i, 2])
+        for j in range(self.nf):
+            if slip[j] == 0:
+                friction_row[j] = len(rows)
+                rows.append(fr[j, 5:])
+                rhs.append(fr[j, 1])
+        r = len(rows)
+        R = np.array(rows).reshape(r, n)
+        force = F.copy()
+        linked = []            # (friction j, row of its normal force, −μ·s)
+        for j in range(self.nf):
+            if slip[j] == 0:
+                continue
+            c = -fr[j, 2] * slip[j]
+            row = self._normal_row(j, impact_row)
+            if row is None:
+                if self.normal[j] is None:
+                    force += c * abs(fr[j, 4]) * fr[j, 5:]
+            else:
+                linked.append((j, row, c))
+        sigma = np.ones(r)
+        for _ in range(4):
+            K = np.zeros((n + r, n + r))
+            K[:n, :n] = M
+            K[:n, n:] = -R.T
+            K[n:, :n] = R
+            for j, row, c in linked:
+                K[:n, n + row] -= c * sigma[row] * fr[j, 5:]
+            x = np.linalg.solve(K, np.concatenate([force, rhs]))
+            lam = x[n:]
+            new_sigma = np.where(lam < 0, -1.0, 1.0)
+            if all(new_sigma[row] == sigma[row] for _, row, _ in linked):
+                break
+            sigma = new_sigma
+        qdd = x[:n]
+        lam_impact = np.array([lam[impact_row[i]] if i in impact_row else 0.0
+                               for i in range(self.ni)])
+        lam_friction = np.array([lam[friction_row[j]] if j in friction_row else 0.0
+                                 for j in range(self.nf)])
+        normal = np.empty(self.nf)
+        for j in range(self.nf):
+            row = self._normal_row(j, impact_row)
+            normal[j] = abs(lam[row]) if row is not None else (
+                abs(fr[j, 4]) if self.normal[j] is None else 0.0)
+        return qdd, lam_impact, lam_friction, normal, (M, A, imp, fr)
+
+    def _normal_row(self, j, impact_row):
+        """The row of R whose multiplier is friction j's normal force, or None."""
+        ref = self.normal[j]
+        if ref is None:
+            return None
+        kind, k = ref
+        if kind == "constraint":
+            return k
+        return impact_row.get(k)
+
+    def rhs(self, t, y, contact, slip):
+        """ẏ = [q̇, q̈] in the mode."""
+        qdd = self.solve(t, y, contact, slip)[0]
+        return np.concatenate([y[self.n:], qdd])
+
+    def events(self, t, y, contact, slip):
+        """The event values of the mode, all falling through zero at a switch: g (open), λ
+        (contact), s·v (slipping), μ_s·|N| − |λ| (sticking)."""
+        _, lam_i, lam_f, normal, (_, _, imp, fr) = self.solve(t, y, contact, slip)
+        values = np.empty(self.n_events)
+        for i in range(self.ni):
+            values[i] = lam_i[i] if contact[i] else imp[i, 0]
+        for j in range(self.nf):
+            values[self.ni + j] = (fr[j, 3] * normal[j] - abs(lam_f[j]) if slip[j] == 0
+                                   else slip[j] * fr[j, 0])
+        return values
+
+    # -- the reset map --------------------------------------------------------------------------
+    def inverse_mass(self, M, A):
+        """P = M⁻¹ − M⁻¹Aᵀ(AM⁻¹Aᵀ)⁻¹AM⁻¹: the velocity change per generalized impulse that keeps
+        the model's constraints A·q̇ = const."""
+        Minv = np.linalg.inv(M)
+        if not self.m:
+            return Minv
+        X = Minv @ A.T
+        return Minv - X @ np.linalg.solve(A @ X, X.T)
+
+    def impact(self, t, y, contact, closing, rebound):
+        """q̇⁺ by the generalized Newton law (see the module) for the closing impacts (indices)
+        and the held ones; `rebound` gives e per closing impact. Returns (y⁺, ġ⁻ of each
+        closing impact)."""
+        n = self.n
+        M, _, A, _, imp, _ = self.terms(t, y)
+        involved = list(closing) + [i for i in range(self.ni) if contact[i] and i not in closing]
+        e = np.array([rebound[i] if i in closing else 0.0 for i in involved])
+        W = imp[involved, 4:]
+        P = self.inverse_mass(M, A)
+        D = W @ P @ W.T
+        before = imp[involved, 1]
+        target = -e * np.minimum(before, 0.0)
+        impulse = projected_gauss_seidel(D, before, target)
+        y_plus = y.copy()
+        y_plus[n:] = y[n:] + P @ W.T @ impulse
+        return y_plus, before[:len(closing)]
+
+
+def projected_gauss_seidel(D, before, target, sweeps=PGS_SWEEPS):
+    """Λ ≥ 0 with after = before + D·Λ ≥ target, Λ_i·(after_i − target_i) = 0 (an LCP), by
+    projected Gauss–Seidel sweeps; exact in one sweep for one contact."""
+    k = len(before)
+    impulse = np.zeros(k)
+    after = before.astype(float).copy()
+    for _ in range(sweeps):
+        change = 0.0
+        for i in range(k):
+            if D[i, i] <= 0:
+                continue
+            new = max(0.0, impulse[i] - (after[i] - target[i]) / D[i, i])
+            delta = new - impulse[i]
+            if delta:
+                after += D[:, i] * delta
+                impulse[i] = new
+                change = max(change, abs(delta) * D[i, i])
+        if change <= 1e-15 * (1.0 + np.abs(before).max(initial=0.0)):
+            break
+    return impulse
+
+
+class Switching:
+    """The mode of every element and the rules that change it at a switching time."""
+
+    def __init__(self, system, contact=None, slip=None, rest_velocity=None, gap_tol=GAP_TOL,
+                 max_transitions=MAX_TRANSITIONS):
+        self.system = system
+        self.contact = [False] * system.ni if contact is None else list(contact)
+        self.slip = [1] * system.nf if slip is None else list(slip)
+        self.rest_velocity = rest_velocity
+        self.gap_tol = gap_tol
+        self.max_transitions = max_transitions
+        self.fastest = [0.0] * system.ni
+        self.bounced = []          # the impacts that just bounced (for `lift_off`)
+        self.transitions = []
+
+    def mode(self):
+        """{name: "open" | "contact" | "stick" | "slip"}."""
+        s = self.system
+        out = {d[0]: CONTACT if c else OPEN for d, c in zip(s.impacts, self.contact)}
+        out.update({d[0]: STICK if v == 0 else SLIP for d, v in zip(s.frictions, self.slip)})
+        return out
+
+    def _record(self, t, k, kind):
+        self.transitions.append((float(t), self.system.names[k], kind))
+
+    def start(self, t, y):
+        """Settle the initial mode: frictions with v = 0 (|v| ≤ 1000·gap_tol) try sticking,
+        closed contacts with ġ ≤ 0 are held; returns y (unchanged)."""
+        s = self.system
+        _, _, _, _, (_, _, imp, fr) = s.solve(t, y, self.contact, self.slip)
+        for i in range(s.ni):
+            if imp[i, 0] <= self.gap_tol and imp[i, 1] <= 0:
+                self.contact[i] = True
+        for j in range(s.nf):
+            v = fr[j, 0]
+            self.slip[j] = 0 if abs(v) <= 1e3 * self.gap_tol else (1 if v > 0 else -1)
+        return self.settle(t, y, record=False)
+
+    def switch(self, t, y, fired):
+        """The state and mode after the segment ended at (t, y) on the events `fired`."""
+        s = self.system
+        closing = []
+        imp = s.terms(t, y)[4]
+        for i in range(s.ni):
+            if not self.contact[i] and (i in fired or imp[i, 0] <= self.gap_tol) \
+                    and imp[i, 1] < 0:
+                closing.append(i)
+        if closing:
+            y = self._impacts(t, y, closing, imp)
+        for i in fired:
+            if i < s.ni and self.contact[i] and i not in closing:
+                self.contact[i] = False
+                self._record(t, i, "release")
+        fr = s.terms(t, y)[5]
+        fired = list(fired) + [s.ni + j for j in range(s.nf) if s.ni + j not in fired
+                               and self.slip[j] != 0 and abs(fr[j, 0]) <= 1e3 * self.gap_tol]
+        for k in fired:
+            j = k - s.ni
+            if j >= 0 and self.slip[j] == 0:
+                lam = s.solve(t, y, self.contact, self.slip)[2][j]
+                self.slip[j] = -1 if lam > 0 else 1
+                self._record(t, k, SLIP)
+            elif j >= 0:
+                self._try_stick(t, y, j)
+        return self.settle(t, y)
+
+    def _impacts(self, t, y, closing, imp):
+        """Apply the impact law to the closing contacts; those whose rebound e·|ġ⁻| is at most
+        the rest velocity take e = 0 and are held when their force is then ≥ 0."""
+        s = self.system
+        e, resting = {}, []
+        for i in closing:
+            speed = -imp[i, 1]
+            self.fastest[i] = max(self.fastest[i], speed)
+            rest = self.rest_velocity if self.rest_velocity is not None \
+                else REST_FACTOR * self.fastest[i]
+            e[i] = imp[i, 3]
+            if e[i] * speed <= rest:
+                e[i] = 0.0
+                resting.append(i)
+        y, _ = s.impact(t, y, self.contact, closing, e)
+        for i in closing:
+            if i in resting:
+                self.contact[i] = True
+                if s.solve(t, y, self.contact, self.slip)[1][i] >= 0:
+                    self._record(t, i, CONTACT)
+                    continue
+                self.contact[i] = False
+            self._record(t, i, "impact")
+            self.bounced.append(i)
+        return y
+
+    def _try_stick(self, t, y, j):
+        """Friction j reached v = 0: stick if the holding force is within μ_s·|N|, else slip on
+        in the direction the force pushes."""
+        s = self.system
+        slip = list(self.slip)
+        slip[j] = 0
+        _, _, lam_f, normal, (_, _, _, fr) = s.solve(t, y, self.contact, slip)
+        if abs(lam_f[j]) <= fr[j, 3] * normal[j]:
+            self.slip[j] = 0
+            self._record(t, s.ni + j, STICK)
+        else:
+            self.slip[j] = -1 if lam_f[j] > 0 else 1
+            self._record(t, s.ni + j, SLIP)
+
+    def settle(self, t, y, record=True):
+        """Make the mode consistent at (t, y): no negative contact force, no sticking force beyond
+        its limit, no sticking friction with v ≠ 0 (after an impact)."""
+        s = self.system
+        for _ in range(2 * (s.ni + s.nf) + 2):
+            _, lam_i, lam_f, normal, (_, _, _, fr) = s.solve(t, y, self.contact, self.slip)
+            changed = False
+            for i in range(s.ni):
+                if self.contact[i] and lam_i[i] < 0:
+                    self.contact[i] = False
+                    changed = True
+                    if record:
+                        self._record(t, i, "release")
+            for j in range(s.nf):
+                if self.slip[j] != 0:
+                    continue
+                v = fr[j, 0]
+                if abs(v) > 1e3 * self.gap_tol or abs(lam_f[j]) > fr[j, 3] * normal[j]:
+                    self.slip[j] = (1 if v > 0 else -1) if abs(v) > 1e3 * self.gap_tol else (
+                        -1 if lam_f[j] > 0 else 1)
+                    changed = True
+                    if record:
+                        self._record(t, s.ni + j, SLIP)
+            if not changed:
+                break
+        if len(self.transitions) > self.max_transitions:
+            raise ChatteringError(t, self.max_transitions)
+        return y
+
+    def lift_off(self, t, y):
+        """How long the segment's first piece should be: half the predicted flight time of a
+        contact that just bounced (g ≈ 0, ġ > 0, g̈ < 0), else inf, so that a flight shorter than a
+        step is not stepped over."""
+        s = self.system
+        bounced, self.bounced = self.bounced, []
+        if not bounced:
+            return np.inf
+        qdd, _, _, _, (_, _, imp, _) = s.solve(t, y, self.contact, self.slip)
+        shortest = np.inf
+        for i in bounced:
+            if self.contact[i] or imp[i, 1] <= 0:
+                continue
+            gdd = imp[i, 4:] @ qdd - imp[i, 2]
+            if gdd < 0:
+                shortest = min(shortest, imp[i, 1] / -gdd)
+        return shortest
+
+
+class ChatteringError(RuntimeError):
+    """More mode switches than `max_transitions`: the system chatters."""
+
+    def __init__(self, t, limit):
+        super().__init__(f"more than {limit} mode switches by t = {t:.9g}: the contacts or "
+                         "frictions chatter (raise max_transitions, or check the model)")
+        self.t = t
+
+
+def simulate_hybrid(mod, t_span, y0, method, p, u_at, rtol, atol, t_eval=None,
+                    rest_velocity=None, gap_tol=GAP_TOL, max_transitions=MAX_TRANSITIONS,
+                    max_steps=None, max_wall_time=None, **options):
+    """Integrate a model with impacts or frictions segment by segment with `solve_ivp`.
+
+    Returns
+    -------
+    OdeResult-like dict fields: t, y, transitions, mode, nfev, status, message, n_segments
+    """
+    from scipy.integrate import solve_ivp
+    from .solvers import SOLVERS
+    system = HybridSystem(mod, p, u_at)
+    sw = Switching(system, rest_velocity=rest_velocity, gap_tol=gap_tol,
+                   max_transitions=max_transitions)
+    t0, tf = map(float, t_span)
+    t, y = t0, sw.start(t0, np.asarray(y0, dtype=float))
+    ts, ys = [np.array([t0])], [y[:, None]]
+    nfev, segments, status, message = 0, 0, 0, "The solver successfully reached the end."
+    steps, started, stopped = 0, time.monotonic(), None
+    te_all = None if t_eval is None else np.asarray(t_eval, dtype=float)
+    if te_all is not None:
+        ts, ys = [te_all[te_all <= t0]], [np.repeat(y[:, None], np.sum(te_all <= t0), axis=1)]
+    while t < tf:
+        contact, slip = tuple(sw.contact), tuple(sw.slip)
+        piece = sw.lift_off(t, y)
+        t_end = min(tf, t + 0.5 * piece) if np.isfinite(piece) else tf
+
+        def fun(tt, yy):
+            return system.rhs(tt, yy, contact, slip)
+        values = _EventValues(system, contact, slip)
+        events = [_event(values, k) for k in range(system.n_events)]
+        sol = solve_ivp(fun, (t, t_end), y, method=SOLVERS.get(method, method), rtol=rtol,
+                        atol=atol, dense_output=te_all is not None, events=events or None,
+                        **options)
+        nfev += sol.nfev
+        segments += 1
+        steps += len(sol.t) - 1
+        if sol.status < 0:
+            status, message = -1, sol.message
+            break
+        t_stop = sol.t[-1]
+        if te_all is None:
+            ts.append(sol.t[1:])
+            ys.append(sol.y[:, 1:])
+        else:
+            te = te_all[(te_all > t) & (te_all <= t_stop)]
+            ts.append(te)
+            ys.append(sol.sol(te) if len(te) else np.zeros((len(y), 0)))
+        if max_steps is not None and steps >= max_steps:
+            stopped = "max_steps"
+        elif max_wall_time is not None and time.monotonic() - started > max_wall_time:
+            stopped = "max_wall_time"
+        if stopped is not None:             # checked between segments on this engine
+            status, message, t = -1, f"stopped at t = {sol.t[-1]:.9g}", sol.t[-1]
+            break
+        if sol.status == 0:
+            t, y = t_end, sol.y[:, -1]
+            continue
+        fired = [k for k in range(system.n_events) if len(sol.t_events[k])]
+        t_hit = min(sol.t_events[k][0] for k in fired)
+        fired = [k for k in fired if sol.t_events[k][0] == t_hit]
+        y_hit = sol.y_events[fired[0]][0]
+        try:
+            y = sw.switch(t_hit, y_hit, fired)
+        except ChatteringError as exc:
+            status, message = -1, str(exc)
+            break
+        t = t_hit
+        if te_all is None:
+            ts.append(np.array([t]))
+            ys.append(y[:, None])
+    return dict(t=np.concatenate(ts), y=np.concatenate(ys, axis=1), transitions=sw.transitions,
+                mode=sw.mode(), nfev=nfev, status=status, message=message, n_segments=segments,
+                success=status >= 0, stopped=stopped, t_reached=t, n_steps=steps)
+
+
+class _EventValues:
+    """All event values of a mode at (t, y), computed once for the solve_ivp event callables."""
+
+    def __init__(self, system, contact, slip):
+        self.system, self.contact, self.slip = system, contact, slip
+        self.key, self.values = None, None
+
+    def __call__(self, t, y):
+        key = (t, y.tobytes())
+        if key != self.key:
+            self.key, self.values = key, self.system.events(t, y, self.contact, self.slip)
+        return self.values
+
+
+def _event(values, k):
+    def g(t, y):
+        return values(t, y)[k]
+    g.terminal, g.direction = True, -1
+    return g
+
+
+KIND_NAMES = ("impact", CONTACT, "release", STICK, SLIP)
+#: lg_result_t.stopped codes of the guards (LG_STOP_STEPS, LG_STOP_WALL).
+GUARDS = {1: "max_steps", 2: "max_wall_time"}
+NORMAL_KINDS = {None: 0, "constraint": 1, "impact": 2}
+
+
+def solve_hybrid_native(mod, t_span, y0, method, p, u_spec, rtol, atol, t_eval=None,
+                        rest_velocity=None, gap_tol=GAP_TOL, max_transitions=MAX_TRANSITIONS,
+                        max_step=np.inf, first_step=None, poll=None, max_steps=None,
+                        max_wall_time=None):
+    """The hybrid solve of `simulate_hybrid` in C (`native/lg_hybrid.c`): the same segments,
+    events and switching rules with no Python per step or per switch.
+
+    Returns
+    -------
+    dict as `simulate_hybrid`
+    """
+    from .native import _ode
+    from .native.engine import _tolerances
+    system = HybridSystem(mod, p, None)
+    n = mod.n_coordinates
+    rtol, atol = _tolerances(rtol, atol, 2 * n)
+    kinds = [NORMAL_KINDS[None if ref is None else ref[0]] for ref in system.normal]
+    index = [0 if ref is None else int(ref[1]) for ref in system.normal]
+    t0, tf = map(float, t_span)
+    first = 0.0 if first_step is None else float(first_step)
+    out = _ode.solve_hybrid(
+        method, mod.compiled_model.function_address("hybrid_terms"), n, system.m, system.ni,
+        system.nf, kinds, index, np.asarray(p, dtype=float), list(u_spec), t0, tf,
+        np.asarray(y0, dtype=float), rtol, atol, float(max_step), first, t_eval,
+        -1.0 if rest_velocity is None else float(rest_velocity), float(gap_tol),
+        int(max_transitions), poll, int(max_steps or 0), float(max_wall_time or 0.0))
+    transitions = [(float(t), system.names[int(k)], KIND_NAMES[int(kind)])
+                   for t, k, kind in out["transitions"]]
+    mode = {d[0]: CONTACT if c else OPEN for d, c in zip(system.impacts, out["contact"])}
+    mode.update({d[0]: STICK if s == 0 else SLIP for d, s in zip(system.frictions, out["slip"])})
+    return dict(t=out["t"], y=out["y"].T.copy(), transitions=transitions, mode=mode,
+                nfev=out["nfev"], status=out["status"], message=out["message"],
+                n_segments=out["n_segments"], success=out["status"] >= 0,
+                stopped=GUARDS.get(out["stopped"]), t_reached=out["t_reached"],
+                n_steps=out["n_steps"])
+
+
+def simulate_nonsmooth(mod, t_span, y0, method, p, inputs, u_at, rtol, atol, t_eval, dense_output,
+                       events, engine, progress, options, max_steps=None, max_wall_time=None):
+    """`simulate` for a model with impacts or frictions: the hybrid solve in C (`engine` None or
+    "native", when the native engine can run the model) or with `solve_ivp`. Returns an OdeResult
+    with also `transitions`, `mode`, `n_segments`, `engine` and `guard` (None).
+
+    max_steps and max_wall_time bound the whole solve (all segments): inside the segments on the
+    native engine, between them on the SciPy engine; `max_transitions` bounds the switching, and
+    Ctrl-C ends a native solve."""
+    from .results import stopped_by_guard
+    from scipy.integrate._ivp.ivp import OdeResult
+
+    from .native.engine import _t_eval, native_reason
+    from .runtime.arguments import input_specs
+    if events is not None:
+        raise ValueError("a model with impacts or frictions takes no Python events: declare them "
+                         "with model.event")
+    if not isinstance(method, str) or method not in ("RK23", "RK45", "DOP853", "Radau", "BDF"):
+        raise ValueError(f"a model with impacts or frictions runs with RK23, RK45, DOP853, Radau "
+                         f"or BDF, not {getattr(method, '__name__', method)!r}")
+    if dense_output:
+        raise ValueError("dense_output is not available for a model with impacts or frictions: "
+                         "give t_eval")
+    options = dict(options)
+    switching = {k: options.pop(k) for k in ("rest_velocity", "gap_tol", "max_transitions")
+                 if k in options}
+    why_not = None if engine == "scipy" else native_reason(mod, method, inputs, None, options,
+                                                            rtol)
+    if engine == "native" and why_not:
+        raise ValueError(f"the native engine cannot run this solve: {why_not}")
+    if t_eval is not None:
+        t_eval = _t_eval(t_eval, *map(float, t_span))
+    if engine != "scipy" and why_not is None:
+        from .native._ode import Poll
+        from .progress import ProgressBar
+        bar = ProgressBar(*t_span, show=progress) if progress else None
+        try:
+            out = solve_hybrid_native(mod, t_span, y0, method, p, input_specs(mod, inputs), rtol,
+                                      atol, t_eval, poll=Poll(bar), max_steps=max_steps,
+                                      max_wall_time=max_wall_time, **switching, **options)
+        finally:
+            if bar is not None:
+                bar.close()
+        engine_name = "native"
+    else:
+        out = simulate_hybrid(mod, t_span, y0, method, p, u_at, rtol, atol, t_eval,
+                              max_steps=max_steps, max_wall_time=max_wall_time, **switching,
+                              **options)
+        engine_name = "scipy"
+    sol = OdeResult(t=out["t"], y=out["y"], sol=None, t_events=None, y_events=None,
+                    nfev=out["nfev"], njev=0, nlu=0, status=out["status"],
+                    message=out["message"], success=out["status"] >= 0)
+    sol.engine = engine_name
+    sol.transitions = out["transitions"]
+    sol.mode = out["mode"]
+    sol.n_segments = out["n_segments"]
+    sol.guard = None
+    if out["stopped"] is not None:
+        limit = max_steps if out["stopped"] == "max_steps" else f"{max_wall_time:g} s"
+        what = "step" if out["stopped"] == "max_steps" else "wall-time"
+        stopped_by_guard(sol, f"the {what} limit {out['stopped']}={limit} was reached",
+                         out["t_reached"], float(t_span[1]), out["n_steps"])
+    return sol

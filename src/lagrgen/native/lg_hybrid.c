@@ -1,0 +1,841 @@
+/* lagrgen's hybrid driver (see lg_hybrid.h): the C port of lagrgen/hybrid.py. The mode equations
+ *
+ *     M·q̈ = F + Σ_slip (−μ_j·|N_j|·s_j)·w_jᵀ + Rᵀ·λ,    R·q̈ = γ_R
+ *
+ * (R: the model's constraints, the held contacts' W_i, the sticking frictions' w_j) are solved
+ * as one (n + r) linear system by Gaussian elimination with partial pivoting; a segment is one
+ * lg_solve with terminal events (all falling through zero); between segments the impact law
+ * (generalized Newton, projected Gauss–Seidel on the Delassus matrix) and the switching rules.
+ * The model's functions keep their signature f(t, y, p, u, out); the segment's rhs, Jacobian and
+ * events are lg_solve's system hooks (sys_rhs, sys_jac, sys_events) with this driver's context.
+ */
+#define _POSIX_C_SOURCE 200809L   /* clock_gettime under -std=c99 */
+#include "lg_hybrid.h"
+
+#include <math.h>
+#include <time.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#define IMPACT_FIELDS 4
+#define FRICTION_FIELDS 5
+#define REST_FACTOR 1e-6
+#define PGS_SWEEPS 200
+
+typedef struct {
+    lg_hybrid_t *h;
+    int n, m, ni, nf, rmax;
+    double *terms;                 /* hybrid_terms output */
+    double *K, *x, *R, *rhs, *sigma, *force;
+    double *lam_i, *lam_f, *normal, *qdd;
+    double *u;                     /* inputs at a switching time */
+    double *P, *Minv, *work, *D, *WP, *impulse, *after, *target, *before, *e;
+    int *row_of_impact, *row_of_friction, *involved, *closing, *resting, *bounced;
+    int n_bounced;
+    double *fastest, *fy, *fy2, *yp;
+    const int *contact, *slip;     /* the mode of the current evaluation */
+    lg_hybrid_result_t *result;
+} hy_ctx;
+
+/* -- buffers -------------------------------------------------------------------------------- */
+static int hy_push(lg_buf_t *b, const double *x, size_t k)
+{
+    if (b->len + k > b->cap) {
+        size_t cap = b->cap ? b->cap : 64;
+        while (cap < b->len + k)
+            cap *= 2;
+        double *d = (double *)realloc(b->data, cap * sizeof(double));
+        if (!d)
+            return -1;
+        b->data = d;
+        b->cap = cap;
+    }
+    memcpy(b->data + b->len, x, k * sizeof(double));
+    b->len += k;
+    return 0;
+}
+
+void lg_hybrid_result_free(lg_hybrid_result_t *r)
+{
+    free(r->t.data);
+    free(r->y.data);
+    free(r->transitions.data);
+    memset(&r->t, 0, sizeof r->t);
+    memset(&r->y, 0, sizeof r->y);
+    memset(&r->transitions, 0, sizeof r->transitions);
+}
+
+/* -- linear algebra ------------------------------------------------------------------------- */
+/* Solve K·x = b (k×k, row-major, overwritten) in place in b; 1 when K is singular. */
+static int hy_lu_solve(double *K, double *b, int k)
+{
+    for (int c = 0; c < k; ++c) {
+        int piv = c;
+        for (int r = c + 1; r < k; ++r)
+            if (fabs(K[r * k + c]) > fabs(K[piv * k + c]))
+                piv = r;
+        if (!(fabs(K[piv * k + c]) > 0))
+            return 1;
+        if (piv != c) {
+            for (int j = 0; j < k; ++j) {
+                double s = K[c * k + j];
+                K[c * k + j] = K[piv * k + j];
+                K[piv * k + j] = s;
+            }
+            double s = b[c];
+            b[c] = b[piv];
+            b[piv] = s;
+        }
+        for (int r = c + 1; r < k; ++r) {
+            double f = K[r * k + c] / K[c * k + c];
+            if (f == 0)
+                continue;
+            for (int j = c; j < k; ++j)
+                K[r * k + j] -= f * K[c * k + j];
+            b[r] -= f * b[c];
+        }
+    }
+    for (int r = k - 1; r >= 0; --r) {
+        double s = b[r];
+        for (int j = r + 1; j < k; ++j)
+            s -= K[r * k + j] * b[j];
+        b[r] = s / K[r * k + r];
+    }
+    return 0;
+}
+
+/* -- the model's terms ---------------------------------------------------------------------- */
+#define M_(c) ((c)->terms)
+#define F_(c) ((c)->terms + (c)->n * (c)->n)
+#define A_(c) ((c)->terms + (c)->n * (c)->n + (c)->n)
+#define G_(c) ((c)->terms + (c)->n * (c)->n + (c)->n + (c)->m * (c)->n)
+#define IMP(c, i) ((c)->terms + (c)->n * (c)->n + (c)->n + (c)->m * (c)->n + (c)->m \
+                   + (size_t)(i) * (IMPACT_FIELDS + (c)->n))
+#define FR(c, j) (IMP(c, (c)->ni) + (size_t)(j) * (FRICTION_FIELDS + (c)->n))
+
+static int hy_terms(hy_ctx *c, double t, const double *y, const double *u)
+{
+    return c->h->terms(t, y, c->h->p, u, c->terms);
+}
+
+static int hy_normal_row(const hy_ctx *c, int j)
+{
+    int kind = c->h->normal_kind[j], k = c->h->normal_index[j];
+    if (kind == LG_NORMAL_CONSTRAINT)
+        return k;
+    if (kind == LG_NORMAL_IMPACT)
+        return c->row_of_impact[k];
+    return -1;
+}
+
+/* q̈, the contact and sticking multipliers and the normal forces in the mode (contact, slip),
+ * into c->qdd, lam_i, lam_f, normal; the terms stay in c->terms. 1: singular or model failure. */
+static int hy_solve(hy_ctx *c, double t, const double *y, const double *u, const int *contact,
+                    const int *slip)
+{
+    int n = c->n, m = c->m;
+    if (hy_terms(c, t, y, u))
+        return 1;
+    int r = 0;
+    for (int k = 0; k < m; ++k, ++r) {
+        memcpy(c->R + (size_t)r * n, A_(c) + (size_t)k * n, n * sizeof(double));
+        c->rhs[r] = G_(c)[k];
+    }
+    for (int i = 0; i < c->ni; ++i) {
+        c->row_of_impact[i] = -1;
+        if (contact[i]) {
+            c->row_of_impact[i] = r;
+            memcpy(c->R + (size_t)r * n, IMP(c, i) + IMPACT_FIELDS, n * sizeof(double));
+            c->rhs[r++] = IMP(c, i)[2];
+        }
+    }
+    for (int j = 0; j < c->nf; ++j) {
+        c->row_of_friction[j] = -1;
+        if (slip[j] == 0) {
+            c->row_of_friction[j] = r;
+            memcpy(c->R + (size_t)r * n, FR(c, j) + FRICTION_FIELDS, n * sizeof(double));
+            c->rhs[r++] = FR(c, j)[1];
+        }
+    }
+    memcpy(c->force, F_(c), n * sizeof(double));
+    for (int j = 0; j < c->nf; ++j) {
+        if (slip[j] == 0 || hy_normal_row(c, j) >= 0
+            || c->h->normal_kind[j] != LG_NORMAL_EXPRESSION)
+            continue;
+        double f = -FR(c, j)[2] * slip[j] * fabs(FR(c, j)[4]);
+        for (int a = 0; a < n; ++a)
+            c->force[a] += f * FR(c, j)[FRICTION_FIELDS + a];
+    }
+    int k = n + r;
+    for (int a = 0; a < r; ++a)
+        c->sigma[a] = 1.0;
+    for (int iter = 0; iter < 4; ++iter) {
+        memset(c->K, 0, (size_t)k * k * sizeof(double));
+        for (int a = 0; a < n; ++a)
+            for (int b = 0; b < n; ++b)
+                c->K[a * k + b] = M_(c)[a * n + b];
+        for (int q = 0; q < r; ++q)
+            for (int a = 0; a < n; ++a) {
+                c->K[a * k + n + q] = -c->R[q * n + a];
+                c->K[(n + q) * k + a] = c->R[q * n + a];
+            }
+        for (int j = 0; j < c->nf; ++j) {
+            int row = hy_normal_row(c, j);
+            if (slip[j] == 0 || row < 0)
+                continue;
+            double f = -FR(c, j)[2] * slip[j];
+            for (int a = 0; a < n; ++a)
+                c->K[a * k + n + row] -= f * c->sigma[row] * FR(c, j)[FRICTION_FIELDS + a];
+        }
+        memcpy(c->x, c->force, n * sizeof(double));
+        memcpy(c->x + n, c->rhs, r * sizeof(double));
+        if (hy_lu_solve(c->K, c->x, k))
+            return 1;
+        int same = 1;
+        for (int j = 0; j < c->nf; ++j) {
+            int row = hy_normal_row(c, j);
+            if (slip[j] == 0 || row < 0)
+                continue;
+            double s = c->x[n + row] < 0 ? -1.0 : 1.0;
+            if (s != c->sigma[row]) {
+                c->sigma[row] = s;
+                same = 0;
+            }
+        }
+        if (same)
+            break;
+    }
+    memcpy(c->qdd, c->x, n * sizeof(double));
+    for (int i = 0; i < c->ni; ++i)
+        c->lam_i[i] = c->row_of_impact[i] >= 0 ? c->x[n + c->row_of_impact[i]] : 0.0;
+    for (int j = 0; j < c->nf; ++j) {
+        c->lam_f[j] = c->row_of_friction[j] >= 0 ? c->x[n + c->row_of_friction[j]] : 0.0;
+        int row = hy_normal_row(c, j);
+        c->normal[j] = row >= 0 ? fabs(c->x[n + row])
+                       : (c->h->normal_kind[j] == LG_NORMAL_EXPRESSION ? fabs(FR(c, j)[4]) : 0.0);
+    }
+    return 0;
+}
+
+/* -- the segment's functions (p is the context) --------------------------------------------- */
+static int hy_rhs(void *ctx, double t, const double *y, const double *u, double *ydot)
+{
+    hy_ctx *c = (hy_ctx *)ctx;
+    if (hy_solve(c, t, y, u, c->contact, c->slip))
+        return 1;
+    memcpy(ydot, y + c->n, c->n * sizeof(double));
+    memcpy(ydot + c->n, c->qdd, c->n * sizeof(double));
+    return 0;
+}
+
+/* ∂ẏ/∂y by forward differences (the stiff methods' Jacobian in a mode). */
+static int hy_jacobian(void *ctx, double t, const double *y, const double *u, double *J)
+{
+    hy_ctx *c = (hy_ctx *)ctx;
+    int dim = 2 * c->n;
+    if (hy_rhs(ctx, t, y, u, c->fy))
+        return 1;
+    memcpy(c->yp, y, dim * sizeof(double));
+    for (int k = 0; k < dim; ++k) {
+        double step = 1.4901161193847656e-08 * fmax(1.0, fabs(y[k]));
+        c->yp[k] = y[k] + step;
+        if (hy_rhs(ctx, t, c->yp, u, c->fy2))
+            return 1;
+        for (int a = 0; a < dim; ++a)
+            J[a * dim + k] = (c->fy2[a] - c->fy[a]) / step;
+        c->yp[k] = y[k];
+    }
+    return 0;
+}
+
+static void hy_event_values(hy_ctx *c, const int *contact, const int *slip, double *values)
+{
+    for (int i = 0; i < c->ni; ++i)
+        values[i] = contact[i] ? c->lam_i[i] : IMP(c, i)[0];
+    for (int j = 0; j < c->nf; ++j)
+        values[c->ni + j] = slip[j] == 0 ? FR(c, j)[3] * c->normal[j] - fabs(c->lam_f[j])
+                                         : slip[j] * FR(c, j)[0];
+}
+
+static int hy_events(void *ctx, double t, const double *y, const double *u, double *values)
+{
+    hy_ctx *c = (hy_ctx *)ctx;
+    if (hy_solve(c, t, y, u, c->contact, c->slip))
+        return 1;
+    hy_event_values(c, c->contact, c->slip, values);
+    return 0;
+}
+
+/* -- the impact law ------------------------------------------------------------------------- */
+/* P = M⁻¹ − M⁻¹Aᵀ(AM⁻¹Aᵀ)⁻¹AM⁻¹ into c->P (terms at the state already in c->terms). */
+static int hy_inverse_mass(hy_ctx *c)
+{
+    int n = c->n, m = c->m;
+    for (int col = 0; col < n; ++col) {
+        memcpy(c->work, M_(c), (size_t)n * n * sizeof(double));
+        for (int a = 0; a < n; ++a)
+            c->x[a] = a == col;
+        if (hy_lu_solve(c->work, c->x, n))
+            return 1;
+        for (int a = 0; a < n; ++a)
+            c->Minv[a * n + col] = c->x[a];
+    }
+    memcpy(c->P, c->Minv, (size_t)n * n * sizeof(double));
+    if (!m)
+        return 0;
+    /* X = M⁻¹Aᵀ (n×m) in WP, S = A·X (m×m); P −= X·S⁻¹·Xᵀ */
+    const double *A = A_(c);
+    for (int a = 0; a < n; ++a)
+        for (int k = 0; k < m; ++k) {
+            double s = 0;
+            for (int b = 0; b < n; ++b)
+                s += c->Minv[a * n + b] * A[k * n + b];
+            c->WP[a * m + k] = s;
+        }
+    for (int col = 0; col < n; ++col) {      /* z = S⁻¹·Xᵀ[:, col] */
+        for (int k = 0; k < m; ++k)
+            for (int l = 0; l < m; ++l) {
+                double s = 0;
+                for (int b = 0; b < n; ++b)
+                    s += A[k * n + b] * c->WP[b * m + l];
+                c->work[k * m + l] = s;
+            }
+        for (int k = 0; k < m; ++k)
+            c->x[k] = c->WP[col * m + k];
+        if (hy_lu_solve(c->work, c->x, m))
+            return 1;
+        for (int a = 0; a < n; ++a) {
+            double s = 0;
+            for (int k = 0; k < m; ++k)
+                s += c->WP[a * m + k] * c->x[k];
+            c->P[a * n + col] -= s;
+        }
+    }
+    return 0;
+}
+
+/* q̇⁺ by the generalized Newton law for the closing impacts (closing[0..nc), restitution e[]
+ * per closing one) and the held ones (e = 0); y updated in place; before[] gets ġ⁻. */
+static int hy_impact(hy_ctx *c, double t, double *y, const double *u, const int *closing, int nc,
+                     const double *e)
+{
+    int n = c->n, k = 0;
+    if (hy_terms(c, t, y, u) || hy_inverse_mass(c))
+        return 1;
+    for (int a = 0; a < nc; ++a)
+        c->involved[k++] = closing[a];
+    for (int i = 0; i < c->ni; ++i) {
+        int in = 0;
+        for (int a = 0; a < nc; ++a)
+            in |= closing[a] == i;
+        if (c->h->contact[i] && !in)
+            c->involved[k++] = i;
+    }
+    /* WP = P·Wᵀ (n×k), D = W·P·Wᵀ (k×k) */
+    for (int a = 0; a < n; ++a)
+        for (int q = 0; q < k; ++q) {
+            double s = 0;
+            const double *W = IMP(c, c->involved[q]) + IMPACT_FIELDS;
+            for (int b = 0; b < n; ++b)
+                s += c->P[a * n + b] * W[b];
+            c->WP[a * k + q] = s;
+        }
+    double scale = 1.0;
+    for (int q = 0; q < k; ++q) {
+        const double *W = IMP(c, c->involved[q]) + IMPACT_FIELDS;
+        for (int l = 0; l < k; ++l) {
+            double s = 0;
+            for (int b = 0; b < n; ++b)
+                s += W[b] * c->WP[b * k + l];
+            c->D[q * k + l] = s;
+        }
+        c->before[q] = IMP(c, c->involved[q])[1];
+        c->after[q] = c->before[q];
+        c->target[q] = q < nc ? -e[q] * fmin(c->before[q], 0.0) : 0.0;
+        c->impulse[q] = 0.0;
+        scale = fmax(scale, fabs(c->before[q]));
+    }
+    for (int sweep = 0; sweep < PGS_SWEEPS; ++sweep) {
+        double change = 0;
+        for (int q = 0; q < k; ++q) {
+            double d = c->D[q * k + q];
+            if (d <= 0)
+                continue;
+            double nw = fmax(0.0, c->impulse[q] - (c->after[q] - c->target[q]) / d);
+            double delta = nw - c->impulse[q];
+            if (delta != 0) {
+                for (int l = 0; l < k; ++l)
+                    c->after[l] += c->D[l * k + q] * delta;
+                c->impulse[q] = nw;
+                change = fmax(change, fabs(delta) * d);
+            }
+        }
+        if (change <= 1e-15 * scale)
+            break;
+    }
+    for (int a = 0; a < n; ++a) {
+        double s = 0;
+        for (int q = 0; q < k; ++q)
+            s += c->WP[a * k + q] * c->impulse[q];
+        y[n + a] += s;
+    }
+    return 0;
+}
+
+/* -- the switching rules -------------------------------------------------------------------- */
+static int hy_record(hy_ctx *c, double t, int element, int kind)
+{
+    double row[3] = {t, (double)element, (double)kind};
+    return hy_push(&c->result->transitions, row, 3);
+}
+
+static void hy_inputs(hy_ctx *c, double t)
+{
+    for (int k = 0; k < c->h->n_inputs; ++k)
+        c->u[k] = lg_signal_eval(&c->h->inputs[k], t);
+}
+
+static int hy_solve_mode(hy_ctx *c, double t, const double *y)
+{
+    return hy_solve(c, t, y, c->u, c->h->contact, c->h->slip);
+}
+
+/* Make the mode consistent: no negative contact force, no sticking force beyond its limit, no
+ * sticking friction with v != 0. */
+static int hy_settle(hy_ctx *c, double t, const double *y, int record)
+{
+    lg_hybrid_t *h = c->h;
+    for (int it = 0; it < 2 * (c->ni + c->nf) + 2; ++it) {
+        if (hy_solve_mode(c, t, y))
+            return 1;
+        int changed = 0;
+        for (int i = 0; i < c->ni; ++i)
+            if (h->contact[i] && c->lam_i[i] < 0) {
+                h->contact[i] = 0;
+                changed = 1;
+                if (record && hy_record(c, t, i, LG_RELEASE))
+                    return -1;
+            }
+        for (int j = 0; j < c->nf; ++j) {
+            if (h->slip[j] != 0)
+                continue;
+            double v = FR(c, j)[0];
+            int moving = fabs(v) > 1e3 * h->gap_tol;
+            if (moving || fabs(c->lam_f[j]) > FR(c, j)[3] * c->normal[j]) {
+                h->slip[j] = moving ? (v > 0 ? 1 : -1) : (c->lam_f[j] > 0 ? -1 : 1);
+                changed = 1;
+                if (record && hy_record(c, t, c->ni + j, LG_SLIP))
+                    return -1;
+            }
+        }
+        if (!changed)
+            break;
+    }
+    return 0;
+}
+
+static int hy_start(hy_ctx *c, double t, const double *y)
+{
+    lg_hybrid_t *h = c->h;
+    hy_inputs(c, t);
+    if (hy_solve_mode(c, t, y))
+        return 1;
+    for (int i = 0; i < c->ni; ++i)
+        if (IMP(c, i)[0] <= h->gap_tol && IMP(c, i)[1] <= 0)
+            h->contact[i] = 1;
+    for (int j = 0; j < c->nf; ++j) {
+        double v = FR(c, j)[0];
+        h->slip[j] = fabs(v) <= 1e3 * h->gap_tol ? 0 : (v > 0 ? 1 : -1);
+    }
+    return hy_settle(c, t, y, 0);
+}
+
+static int hy_impacts(hy_ctx *c, double t, double *y, int nc)
+{
+    lg_hybrid_t *h = c->h;
+    for (int a = 0; a < nc; ++a) {
+        int i = c->closing[a];
+        double speed = -IMP(c, i)[1];
+        c->fastest[i] = fmax(c->fastest[i], speed);
+        double rest = h->rest_velocity >= 0 ? h->rest_velocity : REST_FACTOR * c->fastest[i];
+        c->e[a] = IMP(c, i)[3];
+        c->resting[a] = c->e[a] * speed <= rest;
+        if (c->resting[a])
+            c->e[a] = 0.0;
+    }
+    if (hy_impact(c, t, y, c->u, c->closing, nc, c->e))
+        return 1;
+    for (int a = 0; a < nc; ++a) {
+        int i = c->closing[a];
+        if (c->resting[a]) {
+            h->contact[i] = 1;
+            if (hy_solve_mode(c, t, y))
+                return 1;
+            if (c->lam_i[i] >= 0) {
+                if (hy_record(c, t, i, LG_CONTACT))
+                    return -1;
+                continue;
+            }
+            h->contact[i] = 0;
+        }
+        if (hy_record(c, t, i, LG_IMPACT))
+            return -1;
+        c->bounced[c->n_bounced++] = i;
+    }
+    return 0;
+}
+
+static int hy_try_stick(hy_ctx *c, double t, const double *y, int j)
+{
+    lg_hybrid_t *h = c->h;
+    h->slip[j] = 0;
+    if (hy_solve_mode(c, t, y))
+        return 1;
+    if (fabs(c->lam_f[j]) <= FR(c, j)[3] * c->normal[j])
+        return hy_record(c, t, c->ni + j, LG_STICK) ? -1 : 0;
+    h->slip[j] = c->lam_f[j] > 0 ? -1 : 1;
+    return hy_record(c, t, c->ni + j, LG_SLIP) ? -1 : 0;
+}
+
+/* The switch after a segment ended at (t, y) on the events fired[0..nfired). */
+static int hy_switch(hy_ctx *c, double t, double *y, int *fired, int nfired)
+{
+    lg_hybrid_t *h = c->h;
+    int nc = 0, err;
+    hy_inputs(c, t);
+    if (hy_terms(c, t, y, c->u))
+        return 1;
+    for (int i = 0; i < c->ni; ++i) {
+        int hit = 0;
+        for (int a = 0; a < nfired; ++a)
+            hit |= fired[a] == i;
+        if (!h->contact[i] && (hit || IMP(c, i)[0] <= h->gap_tol) && IMP(c, i)[1] < 0)
+            c->closing[nc++] = i;
+    }
+    if (nc && (err = hy_impacts(c, t, y, nc)))
+        return err;
+    for (int a = 0; a < nfired; ++a) {
+        int i = fired[a], was_closing = 0;
+        for (int b = 0; b < nc; ++b)
+            was_closing |= c->closing[b] == i;
+        if (i < c->ni && h->contact[i] && !was_closing) {
+            h->contact[i] = 0;
+            if (hy_record(c, t, i, LG_RELEASE))
+                return -1;
+        }
+    }
+    if (hy_terms(c, t, y, c->u))
+        return 1;
+    for (int j = 0; j < c->nf; ++j) {        /* slip velocities at zero with the one that fired */
+        int in = 0;
+        for (int a = 0; a < nfired; ++a)
+            in |= fired[a] == c->ni + j;
+        if (!in && h->slip[j] != 0 && fabs(FR(c, j)[0]) <= 1e3 * h->gap_tol)
+            fired[nfired++] = c->ni + j;
+    }
+    for (int a = 0; a < nfired; ++a) {
+        int j = fired[a] - c->ni;
+        if (j < 0)
+            continue;
+        if (h->slip[j] == 0) {
+            if (hy_solve_mode(c, t, y))
+                return 1;
+            h->slip[j] = c->lam_f[j] > 0 ? -1 : 1;
+            if (hy_record(c, t, fired[a], LG_SLIP))
+                return -1;
+        } else if ((err = hy_try_stick(c, t, y, j))) {
+            return err;
+        }
+    }
+    return hy_settle(c, t, y, 1);
+}
+
+/* Half the predicted flight of a contact that just bounced (inf when none). */
+static double hy_lift_off(hy_ctx *c, double t, const double *y)
+{
+    int nb = c->n_bounced;
+    c->n_bounced = 0;
+    if (!nb)
+        return INFINITY;
+    hy_inputs(c, t);
+    if (hy_solve_mode(c, t, y))
+        return INFINITY;
+    double shortest = INFINITY;
+    for (int a = 0; a < nb; ++a) {
+        int i = c->bounced[a];
+        if (c->h->contact[i] || IMP(c, i)[1] <= 0)
+            continue;
+        double gdd = -IMP(c, i)[2];
+        for (int b = 0; b < c->n; ++b)
+            gdd += IMP(c, i)[IMPACT_FIELDS + b] * c->qdd[b];
+        if (gdd < 0)
+            shortest = fmin(shortest, IMP(c, i)[1] / -gdd);
+    }
+    return shortest;
+}
+
+/* -- the driver ----------------------------------------------------------------------------- */
+static double hy_wall_seconds(void)
+{
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
+}
+
+static void *hy_alloc(void **list, int *count, size_t bytes)
+{
+    void *p = calloc(1, bytes ? bytes : 1);
+    list[(*count)++] = p;
+    return p;
+}
+
+int lg_hybrid_solve(lg_hybrid_t *h, const lg_options_t *options, lg_hybrid_result_t *res)
+{
+    memset(res, 0, sizeof *res);
+    hy_ctx c;
+    memset(&c, 0, sizeof c);
+    c.h = h;
+    c.result = res;
+    c.n = h->n;
+    c.m = h->m;
+    c.ni = h->ni;
+    c.nf = h->nf;
+    int n = h->n, dim = 2 * n, ne = h->ni + h->nf;
+    int rmax = h->m + h->ni + h->nf, kmax = n + rmax, big = kmax > ne ? kmax : ne;
+    c.rmax = rmax;
+    size_t nterms = (size_t)n * n + n + (size_t)h->m * n + h->m
+                    + (size_t)h->ni * (IMPACT_FIELDS + n) + (size_t)h->nf * (FRICTION_FIELDS + n);
+    void *blocks[64];
+    int nb = 0, rc = 0;
+    size_t D = sizeof(double);
+    size_t sq = (size_t)(big > n ? big : n);
+    c.terms = hy_alloc(blocks, &nb, nterms * D);
+    c.K = hy_alloc(blocks, &nb, (size_t)kmax * kmax * D);
+    c.x = hy_alloc(blocks, &nb, (sq + 1) * D);
+    c.R = hy_alloc(blocks, &nb, ((size_t)rmax * n + 1) * D);
+    c.rhs = hy_alloc(blocks, &nb, (rmax + 1) * D);
+    c.sigma = hy_alloc(blocks, &nb, (rmax + 1) * D);
+    c.force = hy_alloc(blocks, &nb, n * D);
+    c.lam_i = hy_alloc(blocks, &nb, (h->ni + 1) * D);
+    c.lam_f = hy_alloc(blocks, &nb, (h->nf + 1) * D);
+    c.normal = hy_alloc(blocks, &nb, (h->nf + 1) * D);
+    c.qdd = hy_alloc(blocks, &nb, n * D);
+    c.u = hy_alloc(blocks, &nb, (h->n_inputs + 1) * D);
+    c.P = hy_alloc(blocks, &nb, (size_t)n * n * D);
+    c.Minv = hy_alloc(blocks, &nb, (size_t)n * n * D);
+    c.work = hy_alloc(blocks, &nb, sq * sq * D);
+    c.D = hy_alloc(blocks, &nb, ((size_t)h->ni * h->ni + 1) * D);
+    c.WP = hy_alloc(blocks, &nb, ((size_t)n * (h->ni > h->m ? h->ni : h->m) + 1) * D);
+    c.impulse = hy_alloc(blocks, &nb, (h->ni + 1) * D);
+    c.after = hy_alloc(blocks, &nb, (h->ni + 1) * D);
+    c.target = hy_alloc(blocks, &nb, (h->ni + 1) * D);
+    c.before = hy_alloc(blocks, &nb, (h->ni + 1) * D);
+    c.e = hy_alloc(blocks, &nb, (h->ni + 1) * D);
+    c.fastest = hy_alloc(blocks, &nb, (h->ni + 1) * D);
+    c.fy = hy_alloc(blocks, &nb, dim * D);
+    c.fy2 = hy_alloc(blocks, &nb, dim * D);
+    c.yp = hy_alloc(blocks, &nb, dim * D);
+    c.row_of_impact = hy_alloc(blocks, &nb, (h->ni + 1) * sizeof(int));
+    c.row_of_friction = hy_alloc(blocks, &nb, (h->nf + 1) * sizeof(int));
+    c.involved = hy_alloc(blocks, &nb, (h->ni + 1) * sizeof(int));
+    c.closing = hy_alloc(blocks, &nb, (h->ni + 1) * sizeof(int));
+    c.resting = hy_alloc(blocks, &nb, (h->ni + 1) * sizeof(int));
+    c.bounced = hy_alloc(blocks, &nb, (h->ni + 1) * sizeof(int));
+    double *y = hy_alloc(blocks, &nb, dim * D);
+    double *emax = hy_alloc(blocks, &nb, (ne + 1) * D);
+    double *edir = hy_alloc(blocks, &nb, (ne + 1) * D);
+    int *fired = hy_alloc(blocks, &nb, (ne + 1) * sizeof(int));
+    int *mode_c = hy_alloc(blocks, &nb, (h->ni + 1) * sizeof(int));
+    int *mode_s = hy_alloc(blocks, &nb, (h->nf + 1) * sizeof(int));
+    for (int k = 0; k < nb; ++k)
+        if (!blocks[k])
+            rc = -1;
+    double *te_buf = hy_alloc(blocks, &nb, ((options->t_eval ? options->n_eval : 0) + 1) * D);
+    for (int k = 0; k < nb; ++k)
+        if (!blocks[k])
+            rc = -1;
+    if (rc) {
+        snprintf(res->message, sizeof res->message, "out of memory");
+        rc = -1;
+        goto done;
+    }
+    for (int k = 0; k < ne; ++k) {
+        emax[k] = 1.0;
+        edir[k] = -1.0;
+    }
+    memcpy(y, options->y0, dim * D);
+    double t = options->t0, tf = options->tf;
+    int err = hy_start(&c, t, y);
+    if (err) {
+        res->status = -1;
+        snprintf(res->message, sizeof res->message, err < 0 ? "out of memory" :
+                 "the model failed at the initial state (mass matrix or mode equations singular)");
+        rc = err < 0 ? -1 : 0;
+        goto done;
+    }
+    if (!options->t_eval && (hy_push(&res->t, &t, 1) || hy_push(&res->y, y, dim))) {
+        rc = -1;
+        goto done;
+    }
+    int eval_i = 0;
+    while (options->t_eval && eval_i < options->n_eval && options->t_eval[eval_i] <= t) {
+        if (hy_push(&res->t, &options->t_eval[eval_i], 1) || hy_push(&res->y, y, dim)) {
+            rc = -1;
+            goto done;
+        }
+        ++eval_i;
+    }
+    snprintf(res->message, sizeof res->message, "The solver successfully reached the end.");
+    double interval = options->poll_interval > 0 ? options->poll_interval : 0.05;
+    double started = hy_wall_seconds(), next_poll = started + interval;
+    while (t < tf) {
+        if (options->poll && hy_wall_seconds() >= next_poll) {   /* between segments too */
+            next_poll = hy_wall_seconds() + interval;
+            if (options->poll(options->poll_ctx, t)) {
+                res->status = -1;
+                res->stopped = LG_STOP_POLL;
+                snprintf(res->message, sizeof res->message, "stopped at t = %.9g", t);
+                break;
+            }
+        }
+        memcpy(mode_c, h->contact, (h->ni + 1) * sizeof(int));
+        memcpy(mode_s, h->slip, (h->nf + 1) * sizeof(int));
+        c.contact = mode_c;
+        c.slip = mode_s;
+        double piece = hy_lift_off(&c, t, y);
+        double t_end = isfinite(piece) ? fmin(tf, t + 0.5 * piece) : tf;
+        if (!(t_end > t))
+            t_end = tf;
+        lg_problem_t pb;
+        memset(&pb, 0, sizeof pb);
+        pb.dim = dim;
+        pb.sys_rhs = hy_rhs;
+        pb.sys_jac = hy_jacobian;
+        pb.sys_events = ne ? hy_events : NULL;
+        pb.sys_ctx = &c;
+        pb.p = h->p;
+        pb.n_inputs = h->n_inputs;
+        pb.inputs = h->inputs;
+        pb.n_events = ne;
+        pb.event_max = emax;
+        pb.event_direction = edir;
+        lg_options_t op = *options;
+        if (options->max_steps > 0)                     /* the guards hold for the whole solve */
+            op.max_steps = options->max_steps - res->n_steps > 0
+                               ? options->max_steps - res->n_steps : 1;
+        if (options->max_wall_time > 0)
+            op.max_wall_time = fmax(options->max_wall_time - (hy_wall_seconds() - started),
+                                    1e-9);
+        op.t0 = t;
+        op.tf = t_end;
+        op.y0 = y;
+        op.dense = 0;
+        int first = eval_i, last = eval_i, extra = 0;
+        if (options->t_eval) {
+            /* the t_eval points of the piece, then t_end (dropped after: the next start) */
+            while (last < options->n_eval && options->t_eval[last] <= t_end)
+                ++last;
+            memcpy(te_buf, options->t_eval + first, (size_t)(last - first) * D);
+            if (last == first || te_buf[last - first - 1] < t_end) {
+                te_buf[last - first] = t_end;
+                extra = 1;
+            }
+            op.t_eval = te_buf;
+            op.n_eval = last - first + extra;
+        }
+        lg_result_t seg;
+        memset(&seg, 0, sizeof seg);
+        if (lg_solve(&pb, &op, &seg) < 0) {
+            snprintf(res->message, sizeof res->message, "%s", seg.message);
+            lg_result_free(&seg);
+            rc = -1;
+            goto done;
+        }
+        res->nfev += seg.nfev;
+        res->n_steps += seg.n_steps;
+        res->n_segments += 1;
+        if (seg.stopped) {
+            res->status = -1;
+            res->stopped = seg.stopped;
+            res->t_reached = seg.t_reached;
+            snprintf(res->message, sizeof res->message, "stopped at t = %.9g", seg.t_reached);
+            if (options->t_eval == NULL && seg.t.len > 1
+                && (hy_push(&res->t, seg.t.data + 1, seg.t.len - 1)
+                    || hy_push(&res->y, seg.y.data + dim, (seg.t.len - 1) * dim))) {
+                lg_result_free(&seg);
+                rc = -1;
+                goto done;
+            }
+            lg_result_free(&seg);
+            break;
+        }
+        if (seg.status < 0) {
+            res->status = -1;
+            snprintf(res->message, sizeof res->message, "at t = %.9g: %s", seg.t.len ?
+                     seg.t.data[seg.t.len - 1] : t, seg.message);
+            lg_result_free(&seg);
+            break;
+        }
+        size_t rows = seg.t.len;
+        if (options->t_eval) {
+            size_t keep = rows;
+            if (extra && seg.status == 0)
+                --keep;                                   /* t_end, not asked for */
+            if (hy_push(&res->t, seg.t.data, keep) || hy_push(&res->y, seg.y.data, keep * dim)) {
+                lg_result_free(&seg);
+                rc = -1;
+                goto done;
+            }
+            eval_i = first + (int)keep;
+        } else if (rows > 1 && (hy_push(&res->t, seg.t.data + 1, rows - 1)
+                                || hy_push(&res->y, seg.y.data + dim, (rows - 1) * dim))) {
+            lg_result_free(&seg);
+            rc = -1;
+            goto done;
+        }
+        if (seg.status == 0) {
+            memcpy(y, seg.y.data + (rows - 1) * dim, dim * D);
+            t = t_end;
+            lg_result_free(&seg);
+            continue;
+        }
+        /* terminal event(s): the earliest time, every event found there */
+        size_t nev = seg.ev.len / 2;
+        double t_hit = INFINITY;
+        for (size_t a = 0; a < nev; ++a)
+            t_hit = fmin(t_hit, seg.ev.data[2 * a + 1]);
+        int nfired = 0;
+        for (size_t a = 0; a < nev; ++a)
+            if (seg.ev.data[2 * a + 1] == t_hit) {
+                if (nfired == 0)
+                    memcpy(y, seg.ev_y.data + a * dim, dim * D);
+                fired[nfired++] = (int)seg.ev.data[2 * a];
+            }
+        lg_result_free(&seg);
+        t = t_hit;
+        err = hy_switch(&c, t, y, fired, nfired);
+        if (err) {
+            res->status = -1;
+            snprintf(res->message, sizeof res->message, err < 0 ? "out of memory" :
+                     "at t = %.9g the model failed while switching modes", t);
+            rc = err < 0 ? -1 : 0;
+            break;
+        }
+        if ((long)(res->transitions.len / 3) > h->max_transitions) {
+            res->status = -1;
+            snprintf(res->message, sizeof res->message,
+                     "more than %ld mode switches by t = %.9g: the contacts or frictions chatter "
+                     "(raise max_transitions, or check the model)", h->max_transitions, t);
+            break;
+        }
+        if (!options->t_eval && (hy_push(&res->t, &t, 1) || hy_push(&res->y, y, dim))) {
+            rc = -1;
+            goto done;
+        }
+    }
+done:
+    for (int k = 0; k < nb; ++k)
+        free(blocks[k]);
+    return rc;
+}

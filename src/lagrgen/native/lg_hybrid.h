@@ -1,0 +1,57 @@
+/* lagrgen's hybrid driver: impacts, resting contact and Coulomb friction with sticking, a solve
+ * as a sequence of smooth lg_solve segments with the switches between them (the C port of
+ * lagrgen/hybrid.py: the same modes, events, impact law and switching rules).
+ *
+ * Reentrant: everything lives in the caller's lg_hybrid_t and lg_hybrid_result_t.
+ */
+#ifndef LG_HYBRID_H
+#define LG_HYBRID_H
+
+#include "lg_ode.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/* Transition kinds (lg_hybrid_result_t.transitions rows are (t, element, kind)). */
+enum { LG_IMPACT = 0, LG_CONTACT = 1, LG_RELEASE = 2, LG_STICK = 3, LG_SLIP = 4 };
+/* What a friction's normal force is: an expression, a constraint's or an impact's multiplier. */
+enum { LG_NORMAL_EXPRESSION = 0, LG_NORMAL_CONSTRAINT = 1, LG_NORMAL_IMPACT = 2 };
+
+typedef struct {
+    int n, m, ni, nf;            /* coordinates, model constraints, impacts, frictions */
+    lg_rhs_fn terms;             /* the model's hybrid_terms: M, F, A, γ, terms (lagrgen.nonsmooth) */
+    const double *p;
+    int n_inputs;
+    const lg_signal_t *inputs;
+    const int *normal_kind;      /* nf */
+    const int *normal_index;     /* nf */
+    double rest_velocity;        /* < 0: 1e-6 times the largest impact speed of the contact */
+    double gap_tol;              /* a gap within it is closed; a slip velocity within 1000× is 0 */
+    long max_transitions;
+    int *contact;                /* ni, in/out: 1 held */
+    int *slip;                   /* nf, in/out: +1/-1 slipping that way, 0 sticking */
+} lg_hybrid_t;
+
+typedef struct {
+    int status;                  /* 0 reached tf, -1 failure or stopped */
+    int stopped;                 /* 0, or LG_STOP_*: a guard (max_steps, max_wall_time of the
+                                  * options, for the whole solve) or the poll ended it */
+    double t_reached;            /* where it stopped */
+    char message[256];
+    long nfev, n_steps, n_segments;
+    lg_buf_t t, y;               /* output times and states */
+    lg_buf_t transitions;        /* (t, element, kind) triples */
+} lg_hybrid_result_t;
+
+/* Run a hybrid solve from y0 over [t0, tf] (options: method, tolerances, max_step, t_eval; its
+ * y0, t0, tf, dense and events are set per segment). The initial mode is settled first (closed
+ * gaps with ġ <= 0 held, frictions with v = 0 tried sticking). Returns 0 when it ran (the
+ * outcome in result->status), -1 when out of memory. Always free the result. */
+int lg_hybrid_solve(lg_hybrid_t *h, const lg_options_t *options, lg_hybrid_result_t *result);
+void lg_hybrid_result_free(lg_hybrid_result_t *result);
+
+#ifdef __cplusplus
+}
+#endif
+#endif

@@ -1,0 +1,522 @@
+"""Impacts, resting contact and Coulomb friction with sticking (API.md §13), against closed forms,
+on the native (C) and SciPy engines and on both backends."""
+import numpy as np
+import pytest
+import sympy as sp
+from numpy.testing import assert_allclose
+
+import lagrgen
+from lagrgen import Model, ModelError
+from lagrgen.hybrid import projected_gauss_seidel
+
+G = 9.81
+TOL = dict(rtol=1e-10, atol=1e-12)
+ENGINES = ("native", "scipy")
+
+
+def ball_model(name="ball"):
+    model = Model(name)
+    y, = model.coordinates("y")
+    g, e = model.parameters(g=G, e=0.8)
+    model.particle(1, sp.Matrix([0, y]))
+    model.potential_energy(g * y)
+    model.impact("floor", y, restitution=e)
+    return model
+
+
+def two_masses():
+    model = Model("two_masses")
+    x1, x2 = model.coordinates("x1 x2")
+    m1, m2, e = model.parameters(m1=1.0, m2=3.0, e=0.6)
+    model.particle(m1, sp.Matrix([x1, 0]))
+    model.particle(m2, sp.Matrix([x2, 0]))
+    model.impact("touch", x2 - x1 - 0.5, restitution=e)
+    return model
+
+
+def box_model():
+    """A particle bouncing elastically between two walls under gravity (e = 1 at both)."""
+    model = Model("box")
+    x, y = model.coordinates("x y")
+    model.particle(1, sp.Matrix([x, y]))
+    model.potential_energy(G * y)
+    model.impact("left", x + 1, restitution=1)
+    model.impact("right", 1 - x, restitution=1)
+    model.impact("floor", y, restitution=1)
+    return model
+
+
+def pendulum_wall():
+    model = Model("pendulum_wall")
+    th, = model.coordinates("theta")
+    L, e = model.parameters(L=1.0, e=0.7)
+    model.particle(1, sp.Matrix([L * sp.sin(th), -L * sp.cos(th)]))
+    model.potential_energy(-G * L * sp.cos(th))
+    model.impact("wall", L * sp.sin(th), restitution=e)
+    return model
+
+
+def coulomb_block():
+    model = Model("coulomb_block")
+    x, = model.coordinates("x")
+    m, k, mu = model.parameters(m=1.0, k=10.0, mu=0.1)
+    model.particle(m, sp.Matrix([x, 0]))
+    model.potential_energy(k * x ** 2 / 2)
+    model.friction("floor", x.diff(model.t), m * G, mu)
+    return model
+
+
+def pushed_block():
+    """A block on a rough floor pushed by an input force F."""
+    model = Model("pushed_block")
+    x, = model.coordinates("x")
+    F, = model.inputs("F")
+    m, mu, mu_s = model.parameters(m=1.0, mu=0.2, mu_s=0.3)
+    model.particle(m, sp.Matrix([x, 0]))
+    model.generalized_force(x, F)
+    model.friction("floor", x.diff(model.t), m * G, mu, mu_static=mu_s)
+    return model
+
+
+def belt_oscillator():
+    model = Model("belt")
+    x, = model.coordinates("x")
+    m, k, mu_k, mu_s, vb = model.parameters(m=1.0, k=20.0, mu_k=0.3, mu_s=0.5, v_b=0.4)
+    model.particle(m, sp.Matrix([x, 0]))
+    model.potential_energy(k * x ** 2 / 2)
+    model.friction("belt", x.diff(model.t) - vb, m * G, mu_k, mu_static=mu_s)
+    return model
+
+
+def sliding_blocks():
+    """One block held on the floor by a constraint (normal force its multiplier), one resting on
+    a floor contact (normal force the contact's multiplier)."""
+    model = Model("sliding_blocks")
+    x1, y1, x2, y2 = model.coordinates("x1 y1 x2 y2")
+    m, mu = model.parameters(m=2.0, mu=0.25)
+    model.particle(m, sp.Matrix([x1, y1]))
+    model.particle(m, sp.Matrix([x2, y2]))
+    model.potential_energy(m * G * (y1 + y2))
+    model.constraint(y1, name="surface")
+    model.impact("floor", y2, restitution=0.5)
+    model.friction("slide1", x1.diff(model.t), "surface", mu)
+    model.friction("slide2", x2.diff(model.t), "floor", mu)
+    return model
+
+
+def slope_model():
+    """A block on a slope of angle α held by a constraint written as a signed distance (unit
+    gradient), so that its multiplier is the normal force."""
+    model = Model("slope")
+    x, y = model.coordinates("x y")
+    m, a, mu, mu_s = model.parameters(m=1.5, alpha=0.3, mu=0.2, mu_s=0.25)
+    model.particle(m, sp.Matrix([x, y]))
+    model.potential_energy(m * G * y)
+    model.constraint(x * sp.sin(a) + y * sp.cos(a), name="surface")
+    model.friction("slide", x.diff(model.t) * sp.cos(a) - y.diff(model.t) * sp.sin(a),
+                   "surface", mu, mu_static=mu_s)
+    return model
+
+
+def lifted_ball():
+    """A ball resting on the floor, pulled up by an input force F."""
+    model = Model("lifted_ball")
+    y, = model.coordinates("y")
+    F, = model.inputs("F")
+    m, = model.parameters(m=0.5)
+    model.particle(m, sp.Matrix([0, y]))
+    model.potential_energy(m * G * y)
+    model.generalized_force(y, F)
+    model.impact("floor", y, restitution=0.5)
+    return model
+
+
+def rod_model():
+    """A rod (centre height y, angle θ) falling flat onto two supports under its ends."""
+    model = Model("rod")
+    y, th = model.coordinates("y theta")
+    a, e = model.parameters(a=0.5, e=0.5)
+    model.particle(1, sp.Matrix([0, y]))
+    model.rigid_body(1, 0.1, sp.Matrix([0, y]), th)
+    model.potential_energy(2 * G * y)
+    model.impact("left", y - a * sp.sin(th), restitution=e)
+    model.impact("right", y + a * sp.sin(th), restitution=e)
+    return model
+
+
+@pytest.fixture(scope="module")
+def built(compile_once):
+    cache = {}
+
+    def get(factory):
+        if factory not in cache:
+            cache[factory] = compile_once(factory())
+        return cache[factory]
+    return get
+
+
+def both(mod, *args, **kwargs):
+    """The same hybrid solve on both engines, checked to give the same transitions."""
+    kwargs = {**TOL, **kwargs}
+    native = lagrgen.simulate(mod, *args, engine="native", **kwargs)
+    scipy = lagrgen.simulate(mod, *args, engine="scipy", **kwargs)
+    assert native.engine == "native" and scipy.engine == "scipy"
+    assert native.success and scipy.success, (native.message, scipy.message)
+    assert [tr[1:] for tr in native.transitions] == [tr[1:] for tr in scipy.transitions]
+    assert_allclose([tr[0] for tr in native.transitions], [tr[0] for tr in scipy.transitions],
+                    atol=1e-6)
+    assert native.mode == scipy.mode
+    return native, scipy
+
+
+def jump_at(sol, t):
+    """(y⁻, y⁺) at a switching time: the result holds both states at that time."""
+    k = np.flatnonzero(sol.t == t)
+    assert len(k) == 2, "a switch is saved twice: before and after"
+    return sol.y[:, k[0]], sol.y[:, k[1]]
+
+
+# -- impacts -------------------------------------------------------------------------------
+@pytest.mark.parametrize("engine", ENGINES)
+def test_bouncing_ball_impact_times_and_rest_at_the_zeno_time(built, engine):
+    mod = built(ball_model)
+    h, e = 1.0, 0.8
+    sol = lagrgen.simulate(mod, (0, 6), {"y": h}, engine=engine, **TOL)
+    t1 = np.sqrt(2 * h / G)
+    v1 = G * t1
+    times = [t for t, name, kind in sol.transitions]
+    kinds = [kind for _, _, kind in sol.transitions]
+    assert kinds[:-1] == ["impact"] * (len(kinds) - 1) and kinds[-1] == "contact"
+    predicted = t1 + np.concatenate(([0], np.cumsum([2 * e ** k * v1 / G
+                                                     for k in range(1, len(times))])))
+    assert_allclose(times, predicted, rtol=1e-9, atol=1e-11)
+    zeno = t1 + 2 * e * v1 / (G * (1 - e))
+    assert times[-1] == pytest.approx(zeno, abs=1e-5)
+    assert sol.mode == {"floor": "contact"}
+    after = sol.t > times[-1]
+    assert np.all(np.abs(sol.y[:, after]) < 1e-9)      # it stays at rest on the floor
+    for t in times[:5]:
+        before, after_ = jump_at(sol, t)
+        assert after_[1] == pytest.approx(-e * before[1], rel=1e-12)
+
+
+def test_bouncing_ball_python_backend_matches_compiled(built):
+    py = lagrgen.build(ball_model(), backend="python")
+    mod = built(ball_model)
+    a = lagrgen.simulate(py, (0, 2), {"y": 1.0}, **TOL)
+    b = lagrgen.simulate(mod, (0, 2), {"y": 1.0}, **TOL)
+    assert a.engine == "scipy" and b.engine == "native"
+    assert [k for *_, k in a.transitions] == [k for *_, k in b.transitions]
+    assert_allclose([t for t, *_ in a.transitions], [t for t, *_ in b.transitions], rtol=1e-9)
+    y = [1.0, -2.0]
+    for got, want in zip(py.hybrid_terms(0.3, y), mod.hybrid_terms(0.3, y)):
+        assert_allclose(got, want, rtol=1e-14)
+
+
+def test_two_masses_conserve_momentum_and_reverse_relative_velocity_by_e(built):
+    mod = built(two_masses)
+    m1, m2, e = 1.0, 3.0, 0.6
+    for sol in both(mod, (0, 2), {"x1": 0.0, "x2": 1.0, "x1_dot": 2.0, "x2_dot": -0.5}):
+        assert [k for *_, k in sol.transitions] == ["impact"]
+        t_hit = sol.transitions[0][0]
+        assert t_hit == pytest.approx(0.5 / 2.5, rel=1e-10)
+        before, after = jump_at(sol, t_hit)
+        assert m1 * after[2] + m2 * after[3] == pytest.approx(m1 * before[2] + m2 * before[3])
+        assert after[3] - after[2] == pytest.approx(-e * (before[3] - before[2]), rel=1e-12)
+        assert sol.mode == {"touch": "open"}
+
+
+def test_elastic_impacts_keep_the_energy(built):
+    mod = built(box_model)
+    y0 = {"x": 0.3, "y": 1.0, "x_dot": 3.0, "y_dot": 0.5}
+    for sol in both(mod, (0, 8), y0, t_eval=np.linspace(0, 8, 81)):
+        names = {name for _, name, _ in sol.transitions}
+        assert names == {"left", "right", "floor"} and len(sol.transitions) > 20
+        assert all(kind == "impact" for *_, kind in sol.transitions)
+        energy = 0.5 * (sol.y[2] ** 2 + sol.y[3] ** 2) + G * sol.y[1]
+        assert_allclose(energy, energy[0], rtol=1e-7)
+        assert np.all(np.abs(sol.y[0]) <= 1 + 1e-9) and np.all(sol.y[1] >= -1e-9)
+        assert_allclose(sol.t, np.linspace(0, 8, 81))
+
+
+def test_pendulum_against_a_wall_reverses_its_rate_by_e(built):
+    mod = built(pendulum_wall)
+    for sol in both(mod, (0, 3), {"theta": 0.4}):
+        impacts = [t for t, _, kind in sol.transitions if kind == "impact"]
+        assert len(impacts) >= 3
+        for t in impacts:
+            before, after = jump_at(sol, t)
+            assert abs(before[0]) < 1e-9
+            assert after[1] == pytest.approx(-0.7 * before[1], rel=1e-12)
+        assert np.all(sol.y[0] >= -1e-9)
+
+
+def test_a_resting_contact_is_released_when_its_force_would_turn_negative(built):
+    mod = built(lifted_ball)
+    m = 0.5
+    ramp = lagrgen.Signal([0, 2], [0, 2 * 2 * m * G], kind="linear")    # F = 2·m·g·t
+    for sol in both(mod, (0, 1.5), {}, inputs={"F": ramp}, t_eval=np.linspace(0, 1.5, 151)):
+        assert [(name, kind) for _, name, kind in sol.transitions] == [("floor", "release")]
+        assert sol.transitions[0][0] == pytest.approx(0.5, rel=1e-8)   # F = m·g
+        assert np.all(sol.y[:, sol.t <= 0.5] == 0)
+        # after release ÿ = 2·g·t − g from rest at t = 0.5: y = g·(t − 0.5)³/3
+        assert sol.y[0, -1] == pytest.approx(G / 3, rel=1e-7)
+        assert sol.mode == {"floor": "open"}
+
+
+def test_simultaneous_impacts_follow_the_generalized_newton_law(built):
+    mod = built(rod_model)
+    for sol in both(mod, (0, 0.6), {"y": 0.5}):
+        first = sol.transitions[:2]
+        assert {name for _, name, _ in first} == {"left", "right"}
+        assert first[0][0] == first[1][0]
+        before, after = jump_at(sol, first[0][0])
+        assert after[2] == pytest.approx(-0.5 * before[2], rel=1e-10)   # ẏ⁺ = −e·ẏ⁻
+        assert abs(after[3]) < 1e-12                                        # θ̇ stays 0
+
+
+def test_projected_gauss_seidel_solves_the_impact_lcp():
+    D = np.array([[2.0, 1.0], [1.0, 2.0]])
+    before = np.array([-1.0, -0.2])
+    target = np.array([0.5, 0.1])
+    impulse = projected_gauss_seidel(D, before, target)
+    after = before + D @ impulse
+    assert np.all(impulse >= 0) and np.all(after >= target - 1e-12)
+    assert_allclose(impulse * (after - target), 0, atol=1e-12)
+    assert_allclose(impulse, [0.75, 0.0], atol=1e-12)      # the second is pushed clear
+
+
+# -- friction ------------------------------------------------------------------------------
+def test_coulomb_block_loses_two_mu_g_over_k_per_half_cycle_and_sticks(built):
+    mod = built(coulomb_block)
+    m, k, mu = 1.0, 10.0, 0.1
+    d = 2 * mu * m * G / k
+    for sol in both(mod, (0, 8), {"x": 1.0}):
+        kinds = [kind for *_, kind in sol.transitions]
+        assert kinds == ["slip"] * 4 + ["stick"]
+        for i, (t, _, _) in enumerate(sol.transitions):
+            x = jump_at(sol, t)[0][0]
+            assert x == pytest.approx((-1) ** (i + 1) * (1 - (i + 1) * d), abs=1e-8)
+            assert t == pytest.approx((i + 1) * np.pi / np.sqrt(k / m), rel=1e-8)
+        assert abs(k * sol.y[0, -1]) <= mu * m * G
+        assert sol.mode == {"floor": "stick"} and abs(sol.y[1, -1]) < 1e-10
+
+
+def test_an_input_force_beyond_the_static_limit_breaks_the_block_loose(built):
+    mod = built(pushed_block)
+    m, mu, mu_s = 1.0, 0.2, 0.3
+    held = both(mod, (0, 1), {}, inputs={"F": 0.9 * mu_s * m * G})
+    for sol in held:
+        assert sol.transitions == [] and sol.mode == {"floor": "stick"}
+        assert np.all(sol.y == 0)
+    ramp = lagrgen.Signal([0, 2], [0, 2 * mu_s * m * G], kind="linear")
+    for sol in both(mod, (0, 2), {}, inputs={"F": ramp}, t_eval=np.linspace(0, 2, 201)):
+        assert [(name, kind) for _, name, kind in sol.transitions] == [("floor", "slip")]
+        assert sol.transitions[0][0] == pytest.approx(1.0, rel=1e-8)   # F(t) = mu_s·m·g
+        # then m·ẍ = F(t) − mu·m·g: ẋ(2) = ∫₁² (mu_s·g·t − mu·g) dt
+        assert sol.y[1, -1] == pytest.approx(mu_s * G * 1.5 - mu * G, rel=1e-7)
+
+
+@pytest.mark.parametrize("method", ["Radau", "BDF", "DOP853"])
+def test_every_method_switches_alike_on_both_engines(built, method):
+    mod = built(coulomb_block)
+    for sol in both(mod, (0, 8), {"x": 1.0}, method=method, rtol=1e-9, atol=1e-11):
+        assert [kind for *_, kind in sol.transitions] == ["slip"] * 4 + ["stick"]
+        assert sol.y[0, -1] == pytest.approx(-(1 - 5 * 2 * 0.1 * G / 10), abs=1e-6)
+
+
+def test_belt_driven_stick_slip_oscillator(built):
+    mod = built(belt_oscillator)
+    m, k, mu_k, mu_s, vb = 1.0, 20.0, 0.3, 0.5, 0.4
+    xs, c, w = mu_s * m * G / k, mu_k * m * G / k, np.sqrt(k / m)
+    peak = c + np.sqrt((xs - c) ** 2 + (vb / w) ** 2)
+    for sol in both(mod, (0, 6), {"x": 0.0, "x_dot": vb}, t_eval=np.linspace(0, 6, 60001)):
+        kinds = [kind for *_, kind in sol.transitions]
+        assert kinds[:4] == ["slip", "stick", "slip", "stick"]
+        x_at = [np.interp(t, sol.t, sol.y[0]) for t, *_ in sol.transitions]
+        slips = [x for x, (*_, kind) in zip(x_at, sol.transitions) if kind == "slip"]
+        sticks = [x for x, (*_, kind) in zip(x_at, sol.transitions) if kind == "stick"]
+        assert_allclose(slips, xs, rtol=1e-8)
+        assert_allclose(sticks, 2 * c - xs, rtol=1e-7)
+        assert sol.transitions[0][0] == pytest.approx(xs / vb, rel=1e-9)
+        assert sol.y[0].max() == pytest.approx(peak, rel=1e-6)
+
+
+def test_normal_force_from_a_constraint_and_from_a_contact(built):
+    mod = built(sliding_blocks)
+    m, mu, v0 = 2.0, 0.25, 1.5
+    for sol in both(mod, (0, 1.5), {"x1_dot": v0, "x2_dot": v0}):
+        stops = {name: t for t, name, kind in sol.transitions if kind == "stick"}
+        assert stops["slide1"] == pytest.approx(v0 / (mu * G), rel=1e-9)
+        assert stops["slide2"] == pytest.approx(v0 / (mu * G), rel=1e-9)
+        assert_allclose(sol.y[0, -1], v0 ** 2 / (2 * mu * G), rtol=1e-9)
+        assert_allclose(sol.y[2, -1], v0 ** 2 / (2 * mu * G), rtol=1e-9)
+        assert sol.mode == {"floor": "contact", "slide1": "stick", "slide2": "stick"}
+
+
+def test_block_on_a_slope_sticks_below_the_friction_angle_and_slides_above(built):
+    mod = built(slope_model)
+    m, a, mu = 1.5, 0.3, 0.2
+    held = both(mod, (0, 1), {}, params={"mu": 0.35, "mu_s": 0.4})     # tan α = 0.309
+    for sol in held:
+        assert sol.transitions == [] and sol.mode == {"slide": "stick"}
+        assert np.abs(sol.y).max() < 1e-12
+        assert_allclose(sol.multipliers["surface"], m * G * np.cos(a), rtol=1e-12)
+    accel = G * (np.sin(a) - mu * np.cos(a))
+    for sol in both(mod, (0, 1), {}):
+        assert sol.mode == {"slide": "slip"}
+        s = sol.y[0, -1] * np.cos(a) - sol.y[1, -1] * np.sin(a)
+        assert s == pytest.approx(accel / 2, rel=1e-8)         # y = −x·tan α falls with x
+
+
+def test_chattering_is_bounded_by_max_transitions(built):
+    mod = built(ball_model)
+    for engine in ENGINES:
+        sol = lagrgen.simulate(mod, (0, 6), {"y": 1.0}, engine=engine, max_transitions=5, **TOL)
+        assert not sol.success and "mode switches" in sol.message
+        assert len(sol.transitions) <= 7
+
+
+# -- the description ---------------------------------------------------------------------------
+def test_bad_descriptions_are_model_errors():
+    model = Model("bad")
+    x, = model.coordinates("x")
+    k, = model.parameters(k=1.0)
+    with pytest.raises(ModelError, match="restitution must be between 0 and 1"):
+        model.impact("wall", x, restitution=1.5)
+    with pytest.raises(ModelError, match="involves no coordinate"):
+        model.impact("wall", k, restitution=0.5)
+    with pytest.raises(ModelError, match="not linear in the velocities"):
+        model.friction("f", x.diff(model.t) ** 2, 1.0, 0.1)
+    with pytest.raises(ModelError, match="mu must be ≥ 0"):
+        model.friction("f", x.diff(model.t), 1.0, -0.1)
+    model.impact("wall", x, restitution=0.5)
+    with pytest.raises(ModelError, match="already used"):
+        model.friction("wall", x.diff(model.t), 1.0, 0.1)
+    model.particle(1, sp.Matrix([x, 0]))
+    model.friction("f", x.diff(model.t), "nowhere", 0.1)
+    with pytest.raises(ModelError, match="names no constraint or impact"):
+        lagrgen.build(model, backend="python")
+
+
+def test_options_that_do_not_apply_are_refused(built):
+    mod = built(ball_model)
+    with pytest.raises(ValueError, match="dense_output"):
+        lagrgen.simulate(mod, (0, 1), {"y": 1.0}, dense_output=True)
+    with pytest.raises(ValueError, match="Python events"):
+        lagrgen.simulate(mod, (0, 1), {"y": 1.0}, events=[lambda t, y: y[0]])
+
+
+# -- results: ensembles, CSV and plots ---------------------------------------------------------------
+def test_simulate_many_runs_the_hybrid_solve_per_run(built):
+    mod = built(ball_model)
+    heights = np.array([0.5, 1.0, 2.0])
+    y0 = np.column_stack([heights, np.zeros(3)])
+    ens = lagrgen.simulate_many(mod, (0, 1.5), y0, t_eval=np.linspace(0, 1.5, 31), **TOL)
+    assert ens.success.all()
+    for k, h in enumerate(heights):
+        one = lagrgen.simulate(mod, (0, 1.5), y0[k], t_eval=np.linspace(0, 1.5, 31), **TOL)
+        assert_allclose(ens.y[k], one.y, rtol=1e-12, atol=1e-14)
+        assert np.all(ens.y[k][0] >= -1e-9)
+
+
+def test_csv_and_plot_mark_the_transitions(built, tmp_path):
+    import io
+
+    import matplotlib
+    matplotlib.use("Agg")
+    from lagrgen.cli import write_csv
+    mod = built(ball_model)
+    sol = lagrgen.simulate(mod, (0, 2), {"y": 1.0}, t_eval=np.linspace(0, 2, 201), **TOL)
+    stream = io.StringIO()
+    write_csv(stream, sol, ("y",))
+    rows = stream.getvalue().splitlines()
+    assert rows[0].split(",")[-1] == "transition"
+    marked = [r for r in rows[1:] if r.endswith("floor:impact")]
+    assert len(marked) == len(sol.transitions) == 3
+    for row, (t, _, _) in zip(marked, sol.transitions):
+        assert 0 <= float(row.split(",")[0]) - t < 0.01
+    fig = sol.plot()
+    lines = [ln for ax in fig.axes for ln in ax.get_lines() if ln.get_linestyle() == ":"]
+    assert len(lines) == 2 * len(sol.transitions)
+    assert {ln.get_xdata()[0] for ln in lines} == {t for t, *_ in sol.transitions}
+
+
+def test_a_stop_request_ends_the_native_hybrid_solve(built):
+    import threading
+
+    from lagrgen.hybrid import solve_hybrid_native
+    from lagrgen.native._ode import Poll
+    from lagrgen.runtime.arguments import input_specs
+    mod = built(ball_model)
+    stop = threading.Event()
+    stop.set()
+    elastic = np.array([G, 1.0])                      # e = 1: it bounces for ever
+    out = solve_hybrid_native(mod, (0, 1e5), [1.0, 0.0], "RK45", elastic,
+                              input_specs(mod, None), 1e-8, 1e-10,
+                              poll=Poll(stop=stop, interval=0.01))
+    assert out["status"] == -1 and "stopped" in out["message"]
+    assert out["t"][-1] < 1e5
+
+
+def test_an_fmu_of_a_model_with_impacts_is_refused(tmp_path):
+    with pytest.raises(ModelError, match="impacts or frictions"):
+        lagrgen.export_fmu(ball_model("ball_fmu"), tmp_path)
+    assert not list(tmp_path.iterdir())
+
+
+def test_ctrl_c_ends_a_native_hybrid_solve_within_half_a_second(tmp_path):
+    import subprocess
+    import sys
+    import textwrap
+    lagrgen.build(ball_model("ball_sigint"), out_dir=tmp_path)
+    code = textwrap.dedent(f"""
+        import os, signal, threading, time
+        import lagrgen
+        mod = lagrgen.load("ball_sigint", out_dir={str(tmp_path)!r})
+        sent = []
+        def interrupt():
+            time.sleep(0.5)
+            sent.append(time.monotonic())
+            os.kill(os.getpid(), signal.SIGINT)
+        threading.Thread(target=interrupt, daemon=True).start()
+        try:
+            lagrgen.simulate(mod, (0, 1e7), [1.0, 0.0], params={{"e": 1.0}})
+            print("not interrupted")
+        except KeyboardInterrupt:
+            print("interrupted after", time.monotonic() - sent[0])
+        sol = lagrgen.simulate(mod, (0, 1), [1.0, 0.0])
+        print("usable", sol.engine, sol.success)
+    """)
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                          timeout=120)
+    lines = proc.stdout.split("\n")
+    assert lines[0].startswith("interrupted after"), proc.stdout + proc.stderr
+    assert float(lines[0].split()[-1]) < 0.5
+    assert lines[1] == "usable native True"
+
+
+@pytest.mark.parametrize("stem, y0, kinds", [
+    ("bouncing_ball", {"y": 0.2}, {"impact"}),
+    ("stick_slip", {"x_dot": 0.4}, {"slip", "stick"}),
+    ("impact_pendulum", {"theta": 0.5}, {"impact"}),
+    ("impact_damper", {"x1_dot": 1.0}, {"impact"}),
+    ("friction_damper", {}, {"stick", "slip"}),
+])
+def test_the_examples_switch(stem, y0, kinds):
+    from conftest import load_example
+    mod = lagrgen.build(load_example(stem).model, backend="python")
+    sol = lagrgen.simulate(mod, (0, 2), y0, rtol=1e-8, atol=1e-10)
+    assert sol.success and kinds <= {kind for *_, kind in sol.transitions}
+
+
+@pytest.mark.parametrize("engine", ENGINES)
+def test_max_steps_and_max_wall_time_bound_the_whole_hybrid_solve(built, engine):
+    mod = built(ball_model)
+    sol = lagrgen.simulate(mod, (0, 1e4), {"y": 1.0}, params={"e": 1.0}, engine=engine,
+                           max_steps=300, **TOL)
+    assert not sol.success and sol.guard and "max_steps=300" in sol.message
+    assert 0 < sol.t[-1] < 1e4 and len(sol.transitions) > 2
+    sol = lagrgen.simulate(mod, (0, 1e7), {"y": 1.0}, params={"e": 1.0}, engine=engine,
+                           max_wall_time=0.2, **TOL)
+    assert not sol.success and "max_wall_time" in sol.guard
