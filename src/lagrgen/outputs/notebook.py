@@ -105,7 +105,7 @@ def summary_html(sol):
     span = f"{t[0]:.6g} … {t[-1]:.6g}" if len(t) else "(no points)"
     status = "success" if sol.get("success") else f"failed (status {sol.get('status')})"
     rows = [_row("model", name), _row("engine", sol.get("engine", "")),
-            _row("method", sol.__dict__.get("_method", "")), _row("t", span),
+            _row("method", sol.__dict__.get("_method") or ""), _row("t", span),
             _row("output points", len(t)), _row("steps", steps), _row("evaluations", counts),
             _row("result", status), _row("message", sol.get("message", ""))]
     for name, lam in (sol.get("multipliers") or {}).items():
