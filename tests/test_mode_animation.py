@@ -145,3 +145,13 @@ def test_a_loaded_model_asks_for_the_description(pendulum_modes, tmp_path):
     res.model = types.SimpleNamespace(name="double_pendulum")   # as `load` gives: no drawing
     with pytest.raises(LagrgenError, match=r"loaded.*model=model"):
         res.animate(0, tmp_path / "x.gif")
+
+
+def test_without_a_path_the_mode_shows_itself_in_a_notebook(pendulum_modes, tmp_path):
+    from test_notebook_display import js_frames
+    model, mod, res = pendulum_modes
+    anim = res.animate(1, frames_per_period=6)
+    text = anim._repr_html_()
+    assert "mode 2" in anim.title and len(js_frames(text)) == 6
+    with Image.open(anim.save(tmp_path / "m.gif")) as im:
+        assert im.n_frames == 6

@@ -1,6 +1,6 @@
 """`examples/tour.ipynb` runs from start to end (nbclient, a fresh kernel, a tmp working directory)
 and shows what it says: the equations as LaTeX, the simulation summaries with the coordinates,
-three HTML/JavaScript animations with their frames, a mode-shape GIF written and displayed."""
+four HTML/JavaScript animations (one a mode) with their frames, a mode-shape GIF written and displayed."""
 import os
 import re
 import time
@@ -69,7 +69,8 @@ def test_animations_have_their_frames(executed):
     nb, _, _ = executed
     animations = [h for h in outputs(nb, "text/html") if "<script" in h]
     counts = [len(re.findall(r'frames\[\d+\] = "data:image/png;base64,', h)) for h in animations]
-    assert counts == [20, 24, 20]      # fps × duration of each sol.animate(fps=...)
+    assert counts == [20, 12, 24, 20]  # fps × duration of each sol.animate(fps=...);
+    # the inline mode animation has frames_per_period frames
 
 
 def test_mode_gif_written_and_shown(executed):

@@ -143,7 +143,7 @@ class Modes:
     def __len__(self):
         return len(self.omega)
 
-    def animate(self, k, path, model=None, amplitude=None, periods=1, frames_per_period=36,
+    def animate(self, k, path=None, model=None, amplitude=None, periods=1, frames_per_period=36,
                 fps=20, dpi=80, title=None):
         """Write the k-th mode (0-based: `omega[k]`, `shapes[:, k]`) moving on the mechanism to
         `path` (.gif with Pillow, .mp4 with ffmpeg): q(t) = q0 + a·φ_k·sin(ω_k·t) over `periods`
@@ -152,7 +152,8 @@ class Modes:
         Parameters
         ----------
         k : int, the mode
-        path : str or pathlib.Path, ending in .gif or .mp4
+        path : str or pathlib.Path, ending in .gif or .mp4; None: return an animation that shows
+            itself in a notebook (HTML/JavaScript frames, `.save(path)` later)
         model : the `lagrgen.Model` to draw (default: the one the analysed built model was built
             from)
         amplitude : a (default: the largest drawn displacement is ~18 % of the mechanism's size)
@@ -160,7 +161,8 @@ class Modes:
 
         Returns
         -------
-        The path written (the amplitude used is kept as `last_amplitude`).
+        The path written, or the notebook animation (the amplitude used is kept as
+        `last_amplitude`).
         """
         from .outputs.modeshapes import animate_mode
         model = self._drawing_model(model)

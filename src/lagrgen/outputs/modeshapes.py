@@ -113,11 +113,12 @@ def check_mode_index(result, k):
 
 def animate_mode(model, result, k, path, p, amplitude=None, periods=1, frames_per_period=36,
                  fps=20, dpi=80, title=None):
-    """Write the k-th mode of `result` moving on `model`'s drawing to `path` (.gif or .mp4).
+    """Write the k-th mode of `result` moving on `model`'s drawing to `path` (.gif or .mp4), or,
+    with path None, return it as a `NotebookAnimation` (shows itself in a notebook).
 
     Returns
     -------
-    (path, amplitude): the file written and the amplitude a of the mass-normalized φ_k used.
+    (path or NotebookAnimation, amplitude): the amplitude a of the mass-normalized φ_k used.
     """
     k = check_mode_index(result, k)
     lin = result.linearization
@@ -125,6 +126,9 @@ def animate_mode(model, result, k, path, p, amplitude=None, periods=1, frames_pe
     if amplitude is None:
         amplitude = visible_amplitude(model, p, lin.q0, shape)
     times, q = mode_motion(result, k, amplitude, periods, frames_per_period)
-    fig, scene, clock = mechanism_scene(model, times, q, p,
-                                        title or mode_title(model.name, result, k))
+    title = title or mode_title(model.name, result, k)
+    if path is None:
+        from .notebook import NotebookAnimation
+        return NotebookAnimation(model, times, q, p, fps=fps, dpi=dpi, title=title), amplitude
+    fig, scene, clock = mechanism_scene(model, times, q, p, title)
     return write_frames(fig, path, times, scene, clock, fps, dpi), amplitude
