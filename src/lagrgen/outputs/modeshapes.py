@@ -14,13 +14,16 @@ from .plotting import drawable_tracks, mechanism_scene
 
 #: The largest drawn displacement as a fraction of the mechanism's size at q0.
 VISIBLE_FRACTION = 0.18
+#: The length of a shapeless body's orientation tick (3-D: its axes) as a fraction of the size.
+TICK = 0.09
 #: The period assumed for a mode with ω = 0 (rigid body) or ω² < 0 (unstable): only for drawing.
 NOMINAL_PERIOD = 1.0
 
 
-def drawn_points(model, p, q):
+def drawn_points(model, p, q, tick=0.0):
     """(frames, k, d) array of every point the animation draws (particles, body centres and the
-    ends of their spokes or axes, line and spring ends) for q of shape (n, frames)."""
+    ends of their spokes or axes, line and spring ends) for q of shape (n, frames); a body drawn
+    without a shape gets the end of a tick of length `tick` along its angle (as the scene's)."""
     times = np.zeros(q.shape[1])
     points = []
     if is_3d(model):
@@ -28,14 +31,14 @@ def drawn_points(model, p, q):
             if kind == "body3d":
                 x, R = data
                 points.append(x)
-                points.extend(x + R[:, :, i] for i in range(3))
+                points.extend(x + tick * R[:, :, i] for i in range(3))
             else:
                 points.extend(data)
         return np.stack(points, axis=1)
     for kind, data in drawable_tracks(model, p, times, q):
         if kind == "body":
             centre, angle, shape = data[0], data[1], data[2]
-            reach = 1.0 if shape is None else (shape[1] if shape[0] == "disk" else shape[1] / 2)
+            reach = tick if shape is None else (shape[1] if shape[0] == "disk" else shape[1] / 2)
             points.append(centre)
             points.append(centre + reach * np.stack([np.cos(angle), np.sin(angle)], axis=-1))
         elif kind == "point":
@@ -52,10 +55,10 @@ def mechanism_size(model, p, q0):
     return size if size > 1e-12 else 1.0
 
 
-def largest_displacement(model, p, q0, shape, a):
-    """max over drawn points of |r(q0 + a·φ) − r(q0)|."""
+def largest_displacement(model, p, q0, shape, a, tick=0.0):
+    """max over drawn points of |r(q0 + a·φ) − r(q0)| (`tick`: see `drawn_points`)."""
     q = np.stack([q0, q0 + a * shape], axis=1)
-    pts = drawn_points(model, p, q)
+    pts = drawn_points(model, p, q, tick)
     return float(np.linalg.norm(pts[1] - pts[0], axis=-1).max())
 
 
@@ -69,7 +72,7 @@ def visible_amplitude(model, p, q0, shape, fraction=VISIBLE_FRACTION):
         raise LagrgenError("the mode shape is zero: there is nothing to animate")
     a = 1e-4 * size / scale
     for _ in range(3):
-        moved = largest_displacement(model, p, q0, shape, a)
+        moved = largest_displacement(model, p, q0, shape, a, TICK * size)
         if moved <= 1e-14 * size:
             raise LagrgenError(
                 f"mode shape moves nothing that model {model.name!r} draws: add particles, "
