@@ -18,6 +18,7 @@ _LAZY = {
     "simulate": "simulate", "evaluate_outputs": "simulate", "output_event": "simulate",
     "Signal": "signals",
     "simulate_many": "ensemble", "EnsembleResult": "ensemble",
+    "open_ensemble": "ensemble_store",
     "sweep": "sweep",
     "equilibrium": "vibration", "linearize": "vibration", "modes": "vibration",
     "frequency_response": "vibration", "FrozenTimeWarning": "vibration",
@@ -28,7 +29,8 @@ _LAZY = {
 }
 
 __all__ = ["Model", "build", "load", "simulate", "evaluate_outputs", "output_event", "Signal",
-           "simulate_many", "EnsembleResult", "sweep", "equilibrium", "linearize", "modes",
+           "simulate_many", "EnsembleResult", "open_ensemble", "sweep", "equilibrium", "linearize",
+           "modes",
            "frequency_response", "FrozenTimeWarning", "consistent_state",
            "from_sympy", "export_fmu", "rotation",
            "LagrgenError", "ConstraintError", "ModelError", "UnknownNameError", "MassMatrixError",

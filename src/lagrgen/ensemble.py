@@ -1,24 +1,38 @@
 """Ensembles: many runs of one built model (parameter sweeps, Monte Carlo), on threads or on a Dask
-cluster, collected into arrays (runs × states × times).
+cluster, collected into arrays (runs × states × times), labelled data (`to_xarray`) or a Zarr store.
 
-Each run is one `lagrgen.simulate`; on the native engine a run holds no GIL, so threads use every
-core. A run that fails (a singular mass matrix, a non-finite derivative, a step-size collapse) is
-reported in its row (`success`, `status`, `message`; its states are NaN) and does not lose the
-others. Arguments are converted once, here, for all runs.
+The runs are split into contiguous chunks. On the native engine a chunk is one call into C
+(`lagrgen.native._ode.solve_batch`) that loops over its runs without the GIL and without Python
+between runs, writing states, multipliers and outputs into preallocated arrays; threads and Dask
+tasks each run whole chunks. Runs that need the SciPy engine (callable inputs, LSODA, a model of
+the Python backend, options only `solve_ivp` has) take the per-run path, one `lagrgen.simulate`
+each. A run that fails (a singular mass matrix, a non-finite derivative, a step-size collapse) is
+reported in its row (`success`, `status`, `message`) and does not lose the others; its row is
+recomputed on the per-run path so that it reads exactly as a single `simulate` would.
 """
 import math
 import os
 import sys
-import time
-from concurrent.futures import ThreadPoolExecutor
+import threading
+from concurrent.futures import FIRST_COMPLETED, ThreadPoolExecutor, wait
 from dataclasses import dataclass, field
+from typing import Optional
 
 import numpy as np
 
 from .errors import LagrgenError
-from .runtime.arguments import as_vector, state_vector
-from .runtime.arguments import parameters_from
-from .simulate import simulate
+from .methods import BY_NAME
+from .native.engine import (_event_arrays, _t_eval, _tolerances, native_events,
+                             native_reason)
+from .runtime.arguments import as_vector, input_specs, parameters_from, state_vector
+from .signals import Signal, constant_spec
+from .simulate import check_run_options, evaluate_outputs, simulate
+
+#: The messages of the native engine for status 0 and 1 (those of solve_ivp).
+MESSAGES = {0: "The solver successfully reached the end of the integration interval.",
+            1: "A termination event occurred."}
+#: Runs per chunk at most: one Zarr chunk along `run`, one task, one step of the progress bar.
+MAX_CHUNK = 500
 
 
 @dataclass
@@ -33,6 +47,14 @@ class EnsembleResult:
     message : list of str, one per run
     coordinates : the coordinate names
     engines : list of str, the engine each run used ("native" or "scipy")
+    multipliers : (runs, n_constraints, len(t)) constraint forces λ (M·q̈ = F + Aᵀλ) of a
+        constrained model, else None
+    outputs : (runs, len(output_names), len(t)) the model's outputs when `outputs=True`, else None
+    params : (runs, n_params) the parameters of every run
+    parameter_names, output_names, constraint_names : names, in model order
+    units : {name: unit} of the model (labels only)
+    settings : {"method", "rtol", "atol"} of the runs
+    transitions : None, or per run the list of (t, name, kind) of a non-smooth model's run
     """
 
     t: np.ndarray
@@ -43,6 +65,16 @@ class EnsembleResult:
     message: list
     coordinates: tuple = ()
     engines: list = field(default_factory=list)
+    multipliers: Optional[np.ndarray] = None
+    outputs: Optional[np.ndarray] = None
+    params: Optional[np.ndarray] = None
+    parameter_names: tuple = ()
+    output_names: tuple = ()
+    constraint_names: tuple = ()
+    units: dict = field(default_factory=dict)
+    model_name: str = ""
+    transitions: Optional[list] = None
+    settings: dict = field(default_factory=dict)
 
     @property
     def runs(self):
@@ -57,6 +89,22 @@ class EnsembleResult:
     def qd(self):
         """(runs, n, len(t)) velocities."""
         return self.y[:, len(self.coordinates):]
+
+    def to_xarray(self):
+        """The ensemble as an `xarray.Dataset` (needs the `ensembles` extra).
+
+        Returns
+        -------
+        xarray.Dataset with `y` (run, state, time), the states named like the coordinates then
+        `<coordinate>_dot`; one variable (run) per parameter; `success`, `status`, `nfev` (run);
+        `multipliers` (run, constraint, time) and `outputs` (run, output, time) when present;
+        units in each variable's attrs (`units`, or `state_units` / `output_units` by name).
+        """
+        from .ensemble_store import to_dataset
+        return to_dataset(self)
+
+
+# ---------------------------------------------------------------- arguments, converted once
 
 
 def _count(values, single_ndim):
@@ -81,65 +129,297 @@ def _per_run(values, runs, single_ndim, what):
     return list(values)
 
 
+def _rows(values, runs, width, what, convert):
+    """(runs, width) float array of per-run vectors: a 2-D array is checked as a whole, anything
+    else converted entry by entry with `convert`."""
+    if isinstance(values, np.ndarray) and values.ndim == 2 and values.dtype.kind in "fiu":
+        if values.shape[1] != width:
+            raise ValueError(f"{what} has {values.shape[1]} columns, expected {width}")
+        if values.shape[0] not in (1, runs):
+            raise ValueError(f"{what} gives {values.shape[0]} runs but another argument gives "
+                             f"{runs}: give one {what} for all runs or one per run")
+        out = np.ascontiguousarray(np.broadcast_to(values, (runs, width)), dtype=float)
+        if not np.all(np.isfinite(out)):
+            bad = np.argwhere(~np.isfinite(out))[0]
+            raise ValueError(f"{what} of run {bad[0]} has a NaN or infinite entry (column "
+                             f"{bad[1]})")
+        return out
+    shared = _count(values, 1) == 1
+    if shared:
+        return np.tile(convert(values), (runs, 1)) if runs else np.empty((0, width))
+    return np.array([convert(v) for v in _per_run(values, runs, 1, what)], dtype=float)
+
+
 def ensemble_arguments(mod, y0, params, inputs):
     """(Y0 (runs, 2n), P (runs, n_params), inputs list): the runs' arguments, converted once."""
-    runs = max(_count(y0, 1), _count(params, 1), _count(inputs, 0) if not isinstance(
-        inputs, dict) else 1)
+    runs = max(_count(y0, 1), _count(params, 1), _input_count(inputs))
     coordinates = tuple(mod.coordinates)
-    Y0 = np.array([state_vector(v, coordinates) for v in _per_run(y0, runs, 1, "y0")])
-    P = np.array([parameters_from(mod, v) for v in _per_run(params, runs, 1, "params")])
-    if inputs is None or isinstance(inputs, dict):
+    Y0 = _rows(y0, runs, 2 * len(coordinates), "y0", lambda v: state_vector(v, coordinates))
+    P = _rows(params, runs, len(mod.parameters), "params", lambda v: parameters_from(mod, v))
+    if _input_count(inputs) == 1 and not isinstance(inputs, (list, tuple)):
         run_inputs = [inputs] * runs
     else:
-        run_inputs = _per_run(list(inputs), runs, 0, "inputs")
+        run_inputs = list(inputs)
+        if len(run_inputs) not in (1, runs):
+            raise ValueError(f"inputs gives {len(run_inputs)} runs but another argument gives "
+                             f"{runs}: give one inputs for all runs or one per run")
+        run_inputs = run_inputs * runs if len(run_inputs) == 1 else run_inputs
     return Y0, P, run_inputs
 
 
-def _one_run(mod, t_span, y0, p, inputs, t_eval, method, rtol, atol, options):
-    """(y (2n, len(t_eval)), success, status, nfev, message, engine) of one run; never raises for a
-    failure of the run itself."""
-    n2, k = 2 * mod.n_coordinates, len(t_eval)
-    y = np.full((n2, k), np.nan)
+def _input_count(inputs):
+    """The number of runs `inputs` asks for: None, a dict or one input vector are shared; a list
+    (of dicts or vectors) or a 2-D array give one entry per run."""
+    if inputs is None or isinstance(inputs, dict):
+        return 1
+    if isinstance(inputs, (list, tuple)):
+        return len(inputs)
+    return np.shape(inputs)[0] if np.ndim(inputs) == 2 else 1
+
+
+def batch_inputs(mod, inputs, run_inputs):
+    """(shared input specs, U (runs, max(n_inputs, 1))) for the C batch, or None when some run's
+    inputs need the SciPy engine or differ between runs in a way the batch does not carry (a
+    callable, different Signals for one input). U holds each constant input's value per run."""
+    names = tuple(mod.inputs)
+    runs = len(run_inputs)
+    U = np.zeros((runs, max(len(names), 1)))
+    if inputs is None or isinstance(inputs, dict) or (isinstance(inputs, np.ndarray)
+                                                      and inputs.ndim == 1):
+        if native_reason(mod, "RK45", inputs, None, {}) is not None:
+            return None
+        specs = input_specs(mod, inputs)
+        for i, spec in enumerate(specs):
+            U[:, i] = spec[1]
+        return specs, U
+    if isinstance(inputs, np.ndarray) and inputs.ndim == 2:
+        if inputs.shape[1] != len(names):
+            raise ValueError(f"inputs has {inputs.shape[1]} columns, expected {len(names)}")
+        U[:, :len(names)] = inputs
+        return [constant_spec(0.0) for _ in names], U
+    per_name = [[] for _ in names]
+    for u in run_inputs:
+        if native_reason(mod, "RK45", u, None, {}) is not None:
+            return None
+        for i, spec_or_signal in enumerate(_input_entries(mod, u)):
+            per_name[i].append(spec_or_signal)
+    specs = []
+    for i, entries in enumerate(per_name):
+        signals = [e for e in entries if isinstance(e, Signal)]
+        if not signals:
+            U[:, i] = entries
+            specs.append(constant_spec(0.0))
+        elif len(signals) == runs and all(s is signals[0] for s in signals):
+            specs.append(signals[0].native_spec())
+        else:
+            return None
+    return specs, U
+
+
+def _input_entries(mod, u):
+    """Per input of one run: its Signal, or its constant value."""
+    specs = input_specs(mod, u)
+    if isinstance(u, dict):
+        from .runtime.arguments import key_name
+        by_name = {key_name(k): v for k, v in u.items()}
+        return [by_name[name] if isinstance(by_name.get(name), Signal) else spec[1]
+                for name, spec in zip(mod.inputs, specs)]
+    return [spec[1] for spec in specs]
+
+
+# ---------------------------------------------------------------- the plan and one chunk
+
+
+@dataclass
+class Plan:
+    """What every chunk shares: the times, the method and tolerances, what to compute, and (for
+    the C batch) the shared input specs. Small and picklable: it travels with each Dask task."""
+
+    t_span: tuple
+    t_eval: np.ndarray
+    method: str
+    rtol: float
+    atol: object
+    options: dict
+    outputs: bool
+    batch: bool
+    specs: Optional[list] = None
+    dim: int = 0
+    n_outputs: int = 0
+    n_constraints: int = 0
+
+
+@dataclass
+class Part:
+    """One chunk of runs [start, start + len(Y0)): their initial states, parameters and inputs
+    (U for the C batch, else the list of per-run inputs)."""
+
+    start: int
+    Y0: np.ndarray
+    P: np.ndarray
+    inputs: object
+
+    def __len__(self):
+        return len(self.Y0)
+
+
+def empty_part_result(plan, m):
+    """The arrays of one chunk's results, to be filled (states NaN until written)."""
+    k = len(plan.t_eval)
+    out = {"y": np.full((m, plan.dim, k), np.nan), "status": np.zeros(m, dtype=np.intc),
+           "nfev": np.zeros(m, dtype=np.dtype("l")), "success": np.zeros(m, dtype=bool)}
+    if plan.n_constraints:
+        out["multipliers"] = np.full((m, plan.n_constraints, k), np.nan)
+    if plan.outputs:
+        out["outputs"] = np.full((m, plan.n_outputs, k), np.nan)
+    return out
+
+
+def solve_part(mod, plan, part, out=None, stop=None):
+    """Solve one chunk; fill `out` (arrays of `empty_part_result`, or new ones) and return it
+    with also `message` and `engines` (lists) and `transitions` (None or a list per run)."""
+    m = len(part)
+    if out is None:
+        out = empty_part_result(plan, m)
+    stop = np.zeros(1, dtype=np.intc) if stop is None else stop
+    out["message"] = [""] * m
+    out["engines"] = ["native"] * m
+    out["transitions"] = None
+    if plan.batch:
+        rerun = _solve_batch(mod, plan, part, out, stop)
+    else:
+        rerun = range(m)
+    for i in rerun:
+        if stop[0]:
+            break
+        _one_run(mod, plan, part, i, out)
+    done = out["status"] != -2
+    out["success"][:] = (out["status"] >= 0) & done
+    for i in np.flatnonzero(done & (out["status"] >= 0)):
+        if not out["message"][i]:
+            out["message"][i] = MESSAGES[int(out["status"][i])]
+    return out
+
+
+def _solve_batch(mod, plan, part, out, stop):
+    """The chunk in one call into C; returns the indices of the runs to redo on the per-run
+    path (failures, whose error message and partial states come from `simulate`)."""
+    from .native import _ode as _native
+    cm = mod.compiled_model
+    rtol, atol = _tolerances(plan.rtol, plan.atol, plan.dim)
+    jac = cm.function_address("jacobian") if BY_NAME[plan.method].stiff else 0
+    events = native_events(mod) if getattr(mod, "event_definitions", ()) else None
+    ev_addr, ev_max, ev_dir = _event_arrays(events)
+    extras = []
+    if plan.n_constraints:
+        extras.append((cm.function_address("constraint_forces"), plan.n_constraints,
+                       out["multipliers"]))
+    if plan.outputs:
+        extras.append((cm.function_address("outputs"), plan.n_outputs, out["outputs"]))
+    P = part.P if part.P.shape[1] else np.zeros((len(part), 1))
+    redo = _inconsistent_starts(mod, plan, part)
+    _native.solve_batch(plan.method, cm.function_address("rhs"), jac, plan.dim,
+                        np.ascontiguousarray(part.Y0), np.ascontiguousarray(P), plan.specs,
+                        np.ascontiguousarray(part.inputs), float(plan.t_span[0]),
+                        float(plan.t_span[1]), rtol, atol,
+                        float(plan.options.get("max_step", np.inf)),
+                        float(plan.options.get("first_step") or 0.0), plan.t_eval, ev_addr,
+                        ev_max, ev_dir, True, extras, out["y"], out["status"], out["nfev"], stop,
+                        int(plan.options.get("max_steps") or 0),
+                        float(plan.options.get("max_wall_time") or 0.0))
+    return sorted(set(redo) | set(np.flatnonzero(out["status"] == -1).tolist()))
+
+
+def _inconsistent_starts(mod, plan, part):
+    """Runs of a constrained model whose initial state `simulate` rejects (redundant
+    constraints): they go to the per-run path, which reports the error."""
+    if not plan.n_constraints:
+        return []
+    from .constraints import check_state
+    bad = []
+    t0 = float(plan.t_span[0])
+    for i in range(len(part)):
+        try:
+            check_state(mod, t0, part.Y0[i], part.P[i], _run_u(mod, plan, part, i, t0))
+        except (LagrgenError, np.linalg.LinAlgError, ArithmeticError):
+            bad.append(i)
+    return bad
+
+
+def _run_u(mod, plan, part, i, t):
+    from .native import _ode as _native
+    return np.array([part.inputs[i, j] if spec[0] == "constant" else
+                     _native.signal_values(tuple(spec), t)[0]
+                     for j, spec in enumerate(plan.specs or ())])
+
+
+def _run_inputs_for_simulate(mod, plan, part, i):
+    """The `inputs` argument of run i for `simulate` (from U and the shared specs, or as given)."""
+    if not plan.batch:
+        return part.inputs[i]
+    values = {}
+    for j, (name, spec) in enumerate(zip(mod.inputs, plan.specs)):
+        values[name] = float(part.inputs[i, j]) if spec[0] == "constant" else _signal_of(spec)
+    return values
+
+
+def _signal_of(spec):
+    kind, _, ts, values, _ = spec
+    return Signal(ts, values, kind=kind)
+
+
+def _one_run(mod, plan, part, i, out):
+    """Run i of the chunk through `lagrgen.simulate`, into row i of `out`; a failure of the run
+    itself (not of the arguments) is kept in its row."""
+    k = len(plan.t_eval)
+    for key in ("y", "multipliers", "outputs"):
+        if key in out:
+            out[key][i] = np.nan
     try:
-        sol = simulate(mod, t_span, y0, method=method, params=p, inputs=inputs, rtol=rtol,
-                       atol=atol, t_eval=t_eval, **options)
+        sol = simulate(mod, plan.t_span, part.Y0[i], method=plan.method, params=part.P[i],
+                       inputs=_run_inputs_for_simulate(mod, plan, part, i), rtol=plan.rtol,
+                       atol=plan.atol, t_eval=plan.t_eval, **plan.options)
     except (LagrgenError, np.linalg.LinAlgError, FloatingPointError, ArithmeticError) as exc:
-        return y, False, -1, 0, str(exc), "scipy"
-    y[:, :sol.y.shape[1]] = sol.y
-    return (y, bool(sol.success), int(sol.status), int(sol.nfev), str(sol.message),
-            getattr(sol, "engine", "scipy"))
+        out["status"][i], out["nfev"][i], out["message"][i] = -1, 0, str(exc)
+        out["engines"][i] = "scipy" if not plan.batch else "native"
+        return
+    saved = min(sol.y.shape[1], k)
+    out["y"][i, :, :saved] = sol.y[:, :saved]
+    out["status"][i], out["nfev"][i] = int(sol.status), int(sol.nfev)
+    out["message"][i] = str(sol.message)
+    out["engines"][i] = getattr(sol, "engine", "scipy")
+    if "multipliers" in out:
+        out["multipliers"][i, :, :saved] = sol.constraint_forces[:, :saved]
+    if "outputs" in out:
+        out["outputs"][i, :, :saved] = evaluate_outputs(mod, sol)[:plan.n_outputs, :saved]
+    transitions = getattr(sol, "transitions", None)
+    if transitions is not None:             # non-smooth models (API §13): one list per run
+        if out["transitions"] is None:
+            out["transitions"] = [None] * len(part)
+        out["transitions"][i] = list(transitions)
 
 
-def _run_chunk(mod, indices, t_span, Y0, P, run_inputs, t_eval, method, rtol, atol, options):
-    return [_one_run(mod, t_span, Y0[i], P[i], run_inputs[i], t_eval, method, rtol, atol, options)
-            for i in indices]
+# ---------------------------------------------------------------- the driver
 
 
-class _Progress:
-    """A one-line progress report of finished runs on stderr (only on a terminal)."""
-
-    def __init__(self, total, show):
-        self.total, self.done, self.show = total, 0, show
-        self.start = self.last = time.perf_counter()
-
-    def add(self, k):
-        self.done += k
-        now = time.perf_counter()
-        if self.show and (now - self.last > 0.2 or self.done == self.total):
-            self.last = now
-            print(f"\r[lagrgen] runs {self.done}/{self.total} ({now - self.start:.1f} s)",
-                  end="\n" if self.done == self.total else "", file=sys.stderr, flush=True)
-
-
-def chunks(runs, parts):
-    """`runs` indices split into at most `parts` contiguous chunks of nearly equal size."""
-    parts = max(1, min(parts, runs))
-    bounds = np.linspace(0, runs, parts + 1).round().astype(int)
-    return [list(range(a, b)) for a, b in zip(bounds[:-1], bounds[1:]) if b > a]
+def batch_reason(mod, method, options):
+    """Why the runs cannot go through the C batch (a str), or None when they can. The hook for
+    non-smooth models: a model with impacts or frictions (`nonsmooth_definitions`, API §13)
+    runs per run, where `simulate` gives each run's transitions, until the batch collects them."""
+    if options.get("engine") == "scipy":
+        return "engine='scipy'"
+    rest = {k: v for k, v in options.items() if k not in ("engine", "max_steps", "max_wall_time")}
+    why = native_reason(mod, method, None, None, rest)
+    if why:
+        return why
+    if getattr(mod, "nonsmooth_definitions", ()):
+        return "the transitions of a non-smooth model are collected per run"
+    return None
 
 
 def simulate_many(mod, t_span, y0, params=None, inputs=None, t_eval=None, method="RK45",
-                  rtol=1e-6, atol=1e-9, workers=None, client=None, progress=None, **options):
+                  rtol=1e-6, atol=1e-9, workers=None, client=None, progress=None, outputs=False,
+                  store=None, **options):
     """Integrate many runs of `mod` that share `t_span` and `t_eval`.
 
     Parameters
@@ -147,80 +427,290 @@ def simulate_many(mod, t_span, y0, params=None, inputs=None, t_eval=None, method
     mod : a built model (either backend)
     y0 : one state (2n,) or a dict, or one per run: (runs, 2n) or a list
     params : None, one vector or dict, an (runs, n_params) array, or a list of dicts/vectors
-    inputs : None or one dict shared by all runs, or a list of dicts (one per run)
+    inputs : None or one dict shared by all runs, a list of dicts (one per run), or an
+        (runs, n_inputs) array of constant inputs
     t_eval : the output times (required: every run is sampled on them)
     method, rtol, atol, **options : as for `lagrgen.simulate`
     workers : threads on this machine (default: every core for a compiled model, 1 otherwise)
-    client : a `dask.distributed.Client`: the runs go to its workers in a few chunks per worker
-    progress : show a progress line on stderr (default: when stderr is a terminal)
+    client : a `dask.distributed.Client`: the runs go to its workers in chunks (the compiled
+        model's module is uploaded to the workers once per client)
+    progress : True or False: a progress bar of the finished runs (tqdm) on stderr; None or
+        "auto" (default): only on a terminal, once the ensemble has taken a second
+    outputs : also evaluate the model's outputs (`mod.output_names`) at every output time
+    store : None, or the path of a Zarr store (needs the `ensembles` extra): each chunk is
+        written there as it finishes (by the Dask workers themselves with a client), and the
+        whole result is never held in memory
 
     Returns
     -------
-    EnsembleResult with t (len(t_eval),), y (runs, 2n, len(t_eval)), success, status, nfev,
-    message (one per run). The number of runs is the largest of the per-run arguments.
+    Without `store`: an EnsembleResult with t (len(t_eval),), y (runs, 2n, len(t_eval)),
+    success, status, nfev, message (one per run), multipliers (constrained models), outputs
+    (with outputs=True); `to_xarray()` labels it. With `store`: the store opened lazily as an
+    `xarray.Dataset` (`lagrgen.open_ensemble(store)`): the same variables as `to_xarray()`,
+    read from disk when used, with `attrs["messages"]` = {run: message} for the runs that did
+    not end normally.
+    The number of runs is the largest of the per-run arguments. Ctrl-C stops every chunk that
+    is running (within a run's time) and raises KeyboardInterrupt.
     """
     if t_eval is None:
         raise ValueError("simulate_many needs t_eval: every run is sampled at the same times")
-    t_eval = as_vector(t_eval, np.size(t_eval), "t_eval")
+    check_run_options(method, options.get("engine"), options.get("max_steps"),
+                      options.get("max_wall_time"), options)
+    if workers is not None and (int(workers) != workers or workers < 1):
+        raise ValueError(f"workers must be a positive integer, got {workers!r}")
+    if client is not None and workers is not None:
+        raise ValueError("give either workers (threads here) or client (Dask workers), not both")
+    t0, tf = map(float, t_span)
+    t_eval = _t_eval(as_vector(t_eval, np.size(t_eval), "t_eval"), t0, tf)
+    if len(t_eval) == 0:
+        raise ValueError("t_eval must hold at least one time")
     Y0, P, run_inputs = ensemble_arguments(mod, y0, params, inputs)
     runs = len(Y0)
-    show = sys.stderr.isatty() if progress is None else progress
-    args = (t_span, Y0, P, run_inputs, t_eval, method, rtol, atol, options)
-    if client is not None:
-        rows = _on_dask(client, mod, runs, args)
+    if runs == 0:
+        raise ValueError("simulate_many needs at least one run")
+    why_not = batch_reason(mod, method, options) if getattr(mod, "backend", "") == "c" else \
+        "the model is not compiled"
+    packed = None if why_not else batch_inputs(mod, inputs, run_inputs)
+    if packed is not None and np.ndim(rtol) == 0:
+        specs, U = packed
+        _tolerances(rtol, atol, 2 * mod.n_coordinates)   # argument errors before any run
+        for j, name in enumerate(mod.inputs):
+            if np.any(np.isnan(U[:, j])):
+                raise ValueError(f"input {name!r} is NaN in some run")
     else:
-        if workers is None:
-            workers = (os.cpu_count() or 1) if getattr(mod, "backend", "") == "c" else 1
-        rows = _on_threads(mod, runs, int(workers), args, _Progress(runs, show))
-    y, success, status, nfev, message, engines = zip(*rows)
-    return EnsembleResult(t=t_eval, y=np.array(y), success=np.array(success, dtype=bool),
-                          status=np.array(status, dtype=int), nfev=np.array(nfev, dtype=int),
-                          message=list(message), coordinates=tuple(mod.coordinates),
-                          engines=list(engines))
+        specs, U = None, None
+    plan = Plan(t_span=(t0, tf), t_eval=t_eval, method=method, rtol=rtol, atol=atol,
+                options=dict(options), outputs=bool(outputs), batch=specs is not None,
+                specs=specs, dim=2 * mod.n_coordinates,
+                n_outputs=len(getattr(mod, "output_names", ())) if outputs else 0,
+                n_constraints=getattr(mod, "n_constraints", 0))
+    if outputs and not hasattr(mod, "outputs"):
+        raise ValueError(f"model {mod.name!r} has no outputs function")
+    parallel = len(client.scheduler_info().get("workers", {})) if client is not None else \
+        int(workers) if workers is not None else \
+        (os.cpu_count() or 1) if getattr(mod, "backend", "") == "c" else 1
+    size = max(1, min(MAX_CHUNK, math.ceil(runs / (4 * max(parallel, 1)))))
+    parts = [Part(a, Y0[a:a + size], P[a:a + size],
+                  U[a:a + size] if plan.batch else run_inputs[a:a + size])
+             for a in range(0, runs, size)]
+    meta = ensemble_meta(mod, plan, P)
+    if store is not None:
+        from .ensemble_store import create_store, finish_store, open_ensemble, store_path
+        store = store_path(store)
+        create_store(store, meta, runs, size)
+        sink = StoreSink(store)
+    else:
+        sink = MemorySink(plan, runs)
+    with RunsBar(runs, "auto" if progress is None else progress, getattr(mod, "name", "")) as bar:
+        if client is not None:
+            _on_dask(client, mod, plan, parts, sink, bar)
+        else:
+            _on_threads(mod, plan, parts, max(1, parallel), sink, bar)
+    if store is not None:
+        finish_store(store, sink.messages)
+        return open_ensemble(store)
+    return sink.result(mod, plan, meta)
 
 
-def _on_threads(mod, runs, workers, args, progress):
-    if workers <= 1:
-        rows = []
-        for i in range(runs):
-            rows.extend(_run_chunk(mod, [i], *args))
-            progress.add(1)
-        return rows
-    parts = chunks(runs, max(workers * 4, math.ceil(runs / 50)))
-    with ThreadPoolExecutor(max_workers=workers) as pool:
-        futures = [pool.submit(_run_chunk, mod, part, *args) for part in parts]
-        rows = []
+def ensemble_meta(mod, plan, P):
+    """What labels the results: names, units, parameters per run, times."""
+    coordinates = tuple(mod.coordinates)
+    return {"model": getattr(mod, "name", ""), "coordinates": coordinates,
+            "states": coordinates + tuple(f"{c}_dot" for c in coordinates),
+            "parameters": tuple(mod.parameters), "params": P, "t": plan.t_eval,
+            "output_names": tuple(mod.output_names) if plan.outputs else (),
+            "constraint_names": tuple(getattr(mod, "constraint_names", ()))
+            if plan.n_constraints else (),
+            "units": dict(getattr(mod, "units", {}) or {}),
+            "method": getattr(plan.method, "__name__", str(plan.method)),
+            "rtol": float(np.max(plan.rtol)), "atol": float(np.max(plan.atol))}
+
+
+class MemorySink:
+    """Collects the chunks into whole arrays (runs first)."""
+
+    def __init__(self, plan, runs):
+        self.arrays = empty_part_result(plan, runs)
+        self.message = [""] * runs
+        self.engines = [""] * runs
+        self.transitions = None
+
+    def views(self, part):
+        """Row slices of the whole arrays for a chunk solved here (written in place)."""
+        return {k: v[part.start:part.start + len(part)] for k, v in self.arrays.items()}
+
+    def take(self, part, result, in_place=False):
+        a, b = part.start, part.start + len(part)
+        if not in_place:
+            for key, value in self.arrays.items():
+                value[a:b] = result[key]
+        self.message[a:b] = result["message"]
+        self.engines[a:b] = result["engines"]
+        if result.get("transitions") is not None:
+            if self.transitions is None:
+                self.transitions = [None] * len(self.message)
+            self.transitions[a:b] = result["transitions"]
+
+    def result(self, mod, plan, meta):
+        arr = self.arrays
+        return EnsembleResult(
+            t=plan.t_eval, y=arr["y"], success=arr["success"],
+            status=arr["status"].astype(int), nfev=arr["nfev"].astype(int),
+            message=self.message, coordinates=meta["coordinates"], engines=self.engines,
+            multipliers=arr.get("multipliers"), outputs=arr.get("outputs"), params=meta["params"],
+            parameter_names=meta["parameters"], output_names=meta["output_names"],
+            constraint_names=meta["constraint_names"], units=meta["units"],
+            model_name=meta["model"], transitions=self.transitions,
+            settings={k: meta[k] for k in ("method", "rtol", "atol")})
+
+
+class StoreSink:
+    """Chunks go to a Zarr store (written by whoever solved them); only the messages of the
+    runs that did not end normally are kept here, for the store's `messages` attribute."""
+
+    def __init__(self, path):
+        self.path = str(path)
+        self.messages = {}
+
+    def views(self, part):
+        return None
+
+    def take(self, part, result, in_place=False):
+        standard = set(MESSAGES.values()) | {""}
+        for i, message in enumerate(result["message"]):
+            if message not in standard:
+                self.messages[str(part.start + i)] = message
+
+
+def _solve_into(mod, plan, part, sink, stop):
+    """Solve one chunk where it runs (thread or Dask worker) and write it to its place: the
+    in-memory arrays (here), or the store."""
+    if isinstance(sink, StoreSink):
+        from .ensemble_store import write_part
+        result = solve_part(mod, plan, part, stop=stop)
+        if not stop[0]:
+            write_part(sink.path, part.start, result)
+        return {"message": result["message"], "engines": result["engines"],
+                "transitions": result["transitions"], "stopped": bool(stop[0])}
+    views = sink.views(part)
+    result = solve_part(mod, plan, part, out=views, stop=stop)
+    result["stopped"] = bool(stop[0])
+    return result
+
+
+class RunsBar:
+    """A tqdm bar of the finished runs on stderr. `show`: True, False, or "auto" (only on a
+    terminal, and only once the ensemble has taken a second, like `simulate`'s bar)."""
+
+    def __init__(self, total, show, name):
+        self.total, self.name, self.bar = total, name, None
+        self.auto = show == "auto"
+        self.show = bool(show) and (not self.auto or sys.stderr.isatty())
+
+    def __enter__(self):
+        if self.show:
+            from tqdm import tqdm
+            self.bar = tqdm(total=self.total, unit="run", desc=self.name or "runs",
+                            file=sys.stderr, leave=True, dynamic_ncols=True,
+                            delay=1.0 if self.auto else 0.0)
+        return self
+
+    def update(self, k):
+        if self.bar is not None:
+            self.bar.update(k)
+
+    def __exit__(self, *exc):
+        if self.bar is not None:
+            self.bar.close()
+
+
+def _on_threads(mod, plan, parts, workers, sink, bar):
+    """The chunks on a thread pool (even for one thread: the main thread only waits, so Ctrl-C
+    reaches it at once; it then sets the shared stop flag that every running batch reads)."""
+    stop = np.zeros(1, dtype=np.intc)
+    pool = ThreadPoolExecutor(max_workers=workers, thread_name_prefix="lagrgen-ensemble")
+    futures = {}
+    try:
+        for part in parts:
+            futures[pool.submit(_solve_into, mod, plan, part, sink, stop)] = part
+        pending = set(futures)
+        while pending:
+            done, pending = wait(pending, timeout=0.1, return_when=FIRST_COMPLETED)
+            for future in done:
+                part = futures[future]
+                sink.take(part, future.result(), in_place=isinstance(sink, MemorySink))
+                bar.update(len(part))
+    except BaseException:
+        stop[0] = 1
         for future in futures:
-            result = future.result()
-            progress.add(len(result))
-            rows.extend(result)
-    return rows
+            future.cancel()
+        raise
+    finally:
+        pool.shutdown(wait=True)
 
 
-def _on_dask(client, mod, runs, args):
-    """Run the chunks on a Dask cluster; a compiled model's module file is uploaded to every
-    worker and imported there by name."""
-    n_workers = max(1, len(client.scheduler_info().get("workers", {})))
-    parts = chunks(runs, 3 * n_workers)
-    if getattr(mod, "backend", "") == "c":
-        client.upload_file(mod.__file__, load=False)
-        target = ("module", mod.__name__)
-    else:
-        target = ("object", mod)
-    futures = client.map(_dask_chunk, [target] * len(parts), parts, [args] * len(parts),
-                         pure=False)
-    rows = []
-    for result in client.gather(futures):
-        rows.extend(result)
-    return rows
+_UPLOADED = {}
+_UPLOAD_LOCK = threading.Lock()
 
 
-def _dask_chunk(target, indices, args):
+def _worker_target(client, mod):
+    """What a Dask task needs to find the model: a compiled model's module (its file uploaded to
+    the workers once per client and module file), or the model object itself."""
+    if getattr(mod, "backend", "") != "c":
+        return ("object", mod)
+    key = (id(client), client.scheduler.address, mod.__file__)
+    with _UPLOAD_LOCK:
+        if not _UPLOADED.get(key):
+            client.upload_file(mod.__file__, load=False)
+            _UPLOADED[key] = True
+    return ("module", (mod.__name__, os.path.basename(mod.__file__)))
+
+
+def _on_dask(client, mod, plan, parts, sink, bar):
+    """The chunks as Dask tasks: each returns compact arrays (or, with a store, writes its chunk
+    itself and returns only the messages). A chunk's result is released on the worker as soon as
+    it has been taken here, so the workers never hold more than the chunks under way."""
+    from distributed import as_completed
+    target = _worker_target(client, mod)
+    path = sink.path if isinstance(sink, StoreSink) else None
+    futures = client.map(_dask_part, parts, target=target, plan=plan, store=path, pure=False)
+    by_key = {f.key: part for f, part in zip(futures, parts)}
+    try:
+        for future, result in as_completed(futures, with_results=True):
+            part = by_key.pop(future.key)
+            sink.take(part, result)
+            bar.update(len(part))
+            future.release()
+    except BaseException:
+        client.cancel(futures)
+        raise
+
+
+def _dask_part(part, target, plan, store):
     """One chunk on a Dask worker: import the uploaded compiled model (or use the object)."""
     kind, value = target
-    if kind == "module":
-        import importlib
-        mod = importlib.import_module(value)
-    else:
-        mod = value
-    return _run_chunk(mod, indices, *args)
+    mod = _uploaded_module(*value) if kind == "module" else value
+    stop = np.zeros(1, dtype=np.intc)
+    if store is None:
+        return solve_part(mod, plan, part, stop=stop)
+    return _solve_into(mod, plan, part, StoreSink(store), stop)
+
+
+_WORKER_MODULES = {}
+
+
+def _uploaded_module(name, filename):
+    """The compiled model uploaded into this Dask worker's directory, imported by its path once
+    per worker process (not by name: a module of the same name elsewhere on sys.path, such as the
+    model's description, must not shadow it)."""
+    from distributed import get_worker
+    path = os.path.join(get_worker().local_directory, filename)
+    if path not in _WORKER_MODULES:
+        import importlib.machinery
+        import importlib.util
+        loader = importlib.machinery.ExtensionFileLoader(name, path)
+        spec = importlib.util.spec_from_file_location(name, path, loader=loader)
+        module = importlib.util.module_from_spec(spec)
+        loader.exec_module(module)
+        _WORKER_MODULES[path] = module
+    return _WORKER_MODULES[path]

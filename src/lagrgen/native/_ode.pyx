@@ -10,6 +10,7 @@ cimport numpy as cnp
 from libc.stdint cimport uintptr_t
 from libc.stdlib cimport calloc, free
 from libc.string cimport memcpy, memset
+from libc.math cimport NAN
 from cpython.exc cimport PyErr_CheckSignals
 
 cnp.import_array()
@@ -221,6 +222,186 @@ def solve(str method, uintptr_t rhs, uintptr_t jacobian, int dim, p, list inputs
             lg_result_free(&res)
     finally:
         free(sig)
+
+
+ctypedef int (*lg_state_fn)(double, const double *, const double *, const double *,
+                            double *) noexcept nogil
+
+
+cdef void save_states(const lg_result_t *res, int dim, Py_ssize_t k, double *y_run) noexcept nogil:
+    """y_run (dim, k), row-major, from the solve's saved states; NaN after the last saved time."""
+    cdef Py_ssize_t saved = <Py_ssize_t>(res.t.len), j, d
+    for d in range(dim):
+        for j in range(k):
+            y_run[d * k + j] = res.y.data[j * dim + d] if j < saved else NAN
+
+
+cdef void evaluate_along(lg_state_fn fn, int width, const lg_result_t *res, int dim, Py_ssize_t k,
+                         const double *p, const lg_signal_t *sig, int n_inputs, double *u,
+                         double *tmp, double *out) noexcept nogil:
+    """out (width, k), row-major: fn(t_j, y_j, p, u(t_j)) at every saved time (NaN after the last
+    one, and where fn reports a failure)."""
+    cdef Py_ssize_t saved = <Py_ssize_t>(res.t.len), j, c
+    cdef int i, rc
+    for j in range(k):
+        rc = 1
+        if j < saved:
+            for i in range(n_inputs):
+                u[i] = lg_signal_eval(&sig[i], res.t.data[j])
+            rc = fn(res.t.data[j], &res.y.data[j * dim], p, u, tmp)
+        for c in range(width):
+            out[c * k + j] = tmp[c] if rc == 0 else NAN
+
+
+cdef int stop_flag_set(void *ctx, double t) noexcept nogil:
+    """The poll of a batch: nonzero (stop) once the shared flag is set; needs no GIL."""
+    return (<volatile int *>ctx)[0]
+
+
+def solve_batch(str method, uintptr_t rhs, uintptr_t jacobian, int dim, const double[:, ::1] Y0,
+                const double[:, ::1] P, list inputs, const double[:, ::1] U, double t0, double tf,
+                double rtol, const double[::1] atol, double max_step, double first_step,
+                const double[::1] t_eval, uintptr_t events, event_max, event_direction,
+                bint stop_on_nonfinite, list extras, double[:, :, ::1] y_out,
+                int[::1] status, long[::1] nfev, int[::1] stop, long max_steps=0,
+                double max_wall_time=0.0):
+    """Solve runs i = 0..len(Y0)-1 one after another in C, without the GIL and without Python
+    between runs, each from Y0[i] with parameters P[i], saving its states at t_eval.
+
+    Parameters
+    ----------
+    method, rhs, jacobian, dim, rtol, atol, max_step, first_step, events, event_max,
+    event_direction, stop_on_nonfinite :
+        As for `solve` (rtol a float; atol an array of dim).
+    Y0 : (runs, dim) initial states;  P : (runs, n_params) parameters (n_params >= 1 columns)
+    inputs : one (kind, value, ts, values, coef) spec per input, shared by the runs, except that
+        the value of each "constant" input is taken from U
+    U : (runs, max(n_inputs, 1)) per-run values of the constant inputs
+    t_eval : (k,) output times (required)
+    extras : list of (address, width, out): a model function f(t, y, p, u, out) with `width`
+        outputs evaluated at every saved state into out (runs, width, k) (NaN past the last one)
+    y_out : (runs, dim, k) states (NaN after the last saved time)
+    status, nfev : (runs,) filled per run (status 0 reached tf, 1 terminal event, -1 failure,
+        -2 not run because `stop[0]` was set)
+    stop : (1,) a flag read before every run and about every 0.05 s within one: nonzero stops the
+        batch (set it from another thread; the run under way ends with status -2)
+    max_steps, max_wall_time : per-run guards (0: none); a guarded run ends with status -1
+
+    Returns
+    -------
+    int : the number of runs solved
+    """
+    if method not in METHOD_CODES:
+        raise ValueError(f"method {method!r} has no native implementation")
+    if rhs == 0 or (BY_NAME[method].stiff and jacobian == 0):
+        raise ValueError("a null model function address")
+    cdef Py_ssize_t runs = Y0.shape[0], k = t_eval.shape[0], i
+    cdef int n_inputs = len(inputs), n_extra = len(extras), e, done = 0
+    if Y0.shape[1] != dim or atol.shape[0] != dim or P.shape[0] != runs or U.shape[0] != runs \
+            or U.shape[1] < n_inputs or y_out.shape[0] != runs or y_out.shape[1] != dim \
+            or y_out.shape[2] != k or status.shape[0] != runs or nfev.shape[0] != runs \
+            or k == 0 or P.shape[1] == 0 or stop.shape[0] != 1:
+        raise ValueError("solve_batch: inconsistent array shapes")
+    cdef int n_events = 0 if event_max is None else len(event_max)
+    if n_events and events == 0:
+        raise ValueError("event counts given without an events function")
+    cdef cnp.ndarray emax = f64(event_max if n_events else [0.0])
+    cdef cnp.ndarray edir = f64(event_direction if n_events else [0.0])
+    cdef double[:, :, ::1] view
+    keep = []
+    cdef lg_signal_t *shared = <lg_signal_t *>calloc(n_inputs + 1, sizeof(lg_signal_t))
+    cdef lg_signal_t *sig = <lg_signal_t *>calloc(n_inputs + 1, sizeof(lg_signal_t))
+    cdef lg_state_fn *fns = <lg_state_fn *>calloc(n_extra + 1, sizeof(lg_state_fn))
+    cdef int *widths = <int *>calloc(n_extra + 1, sizeof(int))
+    cdef double **outs = <double **>calloc(n_extra + 1, sizeof(double *))
+    cdef double *u = <double *>calloc(n_inputs + 1, sizeof(double))
+    cdef int max_width = 1
+    for address, width, out in extras:
+        max_width = max(max_width, int(width))
+    cdef double *tmp = <double *>calloc(max_width, sizeof(double))
+    cdef lg_problem_t pb
+    cdef lg_options_t op
+    cdef lg_result_t res
+    cdef int rc = 0, ok = 1
+    cdef int *stop_flag = &stop[0]
+    try:
+        if not (shared and sig and fns and widths and outs and u and tmp):
+            raise MemoryError()
+        fill_signals(inputs, shared, keep)
+        for e, (address, width, out) in enumerate(extras):
+            view = out
+            if address == 0 or view.shape[0] != runs or view.shape[1] != width or \
+                    view.shape[2] != k:
+                raise ValueError("solve_batch: an extra function's output has the wrong shape")
+            fns[e] = <lg_state_fn><uintptr_t>address
+            widths[e] = width
+            outs[e] = &view[0, 0, 0]
+        memset(&pb, 0, sizeof(pb))
+        memset(&op, 0, sizeof(op))
+        pb.dim = dim
+        pb.rhs = <lg_rhs_fn>rhs
+        pb.jacobian = <lg_jac_fn>jacobian
+        pb.n_inputs = n_inputs
+        pb.inputs = sig
+        pb.events = <lg_events_fn>events
+        pb.n_events = n_events
+        pb.event_max = <const double *>cnp.PyArray_DATA(emax)
+        pb.event_direction = <const double *>cnp.PyArray_DATA(edir)
+        op.method = METHOD_CODES[method]
+        op.t0 = t0
+        op.tf = tf
+        op.rtol = max(rtol, 100 * 2.220446049250313e-16)
+        op.rtol_given = rtol
+        op.atol = &atol[0]
+        op.max_step = max_step
+        op.first_step = first_step
+        op.t_eval = &t_eval[0]
+        op.n_eval = <int>k
+        op.dense = 0
+        op.stop_on_nonfinite = stop_on_nonfinite
+        op.max_steps = max_steps
+        op.max_wall_time = max_wall_time
+        op.poll = stop_flag_set
+        op.poll_ctx = <void *>stop_flag
+        op.poll_interval = 0.05
+        with nogil:
+            for i in range(runs):
+                if (<volatile int *>stop_flag)[0]:
+                    status[i] = -2
+                    nfev[i] = 0
+                    continue
+                memcpy(sig, shared, (n_inputs + 1) * sizeof(lg_signal_t))
+                for e in range(n_inputs):
+                    if sig[e].kind == 0:
+                        sig[e].value = U[i, e]
+                pb.p = &P[i, 0]
+                op.y0 = &Y0[i, 0]
+                memset(&res, 0, sizeof(res))
+                rc = lg_solve(&pb, &op, &res)
+                if rc < 0:
+                    lg_result_free(&res)
+                    ok = 0
+                    break
+                status[i] = -2 if res.stopped == LG_STOP_POLL else \
+                    (-1 if res.stopped != LG_STOP_NONE else res.status)
+                nfev[i] = res.nfev
+                save_states(&res, dim, k, &y_out[i, 0, 0])
+                for e in range(n_extra):
+                    evaluate_along(fns[e], widths[e], &res, dim, k, &P[i, 0], sig, n_inputs, u,
+                                   tmp, outs[e] + i * widths[e] * k)
+                lg_result_free(&res)
+                done += 1
+        if not ok:
+            raise MemoryError("the native engine ran out of memory (or was given invalid options)")
+        return done
+    finally:
+        free(shared)
+        free(sig)
+        free(fns)
+        free(widths)
+        free(outs)
+        free(u)
+        free(tmp)
 
 
 cdef extern from "lg_hybrid.h":
