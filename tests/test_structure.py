@@ -12,7 +12,7 @@ from numpy.testing import assert_allclose
 import lagrgen
 from lagrgen.build import compiler_command, model_info
 from lagrgen.codegen.c_model import standalone_files, translation_units
-from conftest import load_example
+from conftest import ROOT, load_example
 
 t = sp.Symbol("t")
 
@@ -181,7 +181,8 @@ STAGES = [
     ("analysis", ["vibration", "sweep", "bench"]),
     ("face", ["model", "sympy_interop", "expressions", "cli", "__main__", ""]),
 ]
-PACKAGE = lagrgen.__path__[0]
+#: The package's sources in this checkout (the installed package has no .pyx files).
+PACKAGE = ROOT / "src" / "lagrgen"
 
 
 def package_modules():

@@ -77,13 +77,16 @@ def build(model, out_dir="generated", backend="c", **options):
         equations = derived(spec)
         built = PythonModel(model_info(spec, equations), python_source(equations))
         built.build_info = {"cache_hit": False, "seconds": time.perf_counter() - start}
+        built._source_model = model
         return built
     unknown = set(options) - {"verbose", "quiet", "force", "opt_level", "cflags"}
     if unknown:
         raise TypeError(f"build() got unknown option(s) {', '.join(sorted(unknown))}")
-    return build_c(spec.name, content_digest(spec, lambda: derived(spec)),
-                   lambda: (model_info(spec, derived(spec)), derived(spec)), Path(out_dir),
-                   **options)
+    built = build_c(spec.name, content_digest(spec, lambda: derived(spec)),
+                    lambda: (model_info(spec, derived(spec)), derived(spec)), Path(out_dir),
+                    **options)
+    built._source_model = model      # the description it was built from: what animations draw
+    return built
 
 
 def load(name, out_dir="generated"):

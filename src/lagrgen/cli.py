@@ -276,6 +276,13 @@ def command_modes(args):
             plot_modes(result, model.coordinate_names, path, title=f"{model.name}: mode shapes")
             if not args.quiet:
                 print(f"mode shapes -> {path}")
+        if args.animate:
+            Path(args.animate).mkdir(parents=True, exist_ok=True)
+            for i in range(len(result)):
+                path = result.animate(i, Path(args.animate) / f"{model.name}_mode{i + 1}.gif",
+                                      model=model)
+                if not args.quiet:
+                    print(f"mode {i + 1} animation -> {path}")
     return 0
 
 
@@ -290,6 +297,8 @@ def add_modes(sub):
     m.add_argument("--inputs", action="append", metavar="NAME=VALUE,...",
                    help="constant inputs at the operating point (default: 0)")
     m.add_argument("--plot", metavar="OUT.png", help="also plot the mode shapes to this image")
+    m.add_argument("--animate", metavar="DIR", help="also write each mode shape moving on the "
+                   "mechanism to DIR/<model>_mode<k>.gif")
     m.add_argument("--t", type=float, default=0.0, metavar="T",
                    help="the frozen time of a model that depends explicitly on t (default 0; "
                    "the result holds at that instant only, and a warning says so)")

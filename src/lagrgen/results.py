@@ -28,6 +28,17 @@ class SimulationResult(OdeResult):
         return plot_time_history(self, self.coordinates, velocities=velocities, title=title,
                                  units=self.__dict__.get("_units"))
 
+    def animate(self, model=None, params=None, fps=20, max_frames=120, dpi=72, title=None):
+        """The mechanism moving along this solution, as an object that shows itself in a notebook
+        (HTML/JavaScript frames) and has `.save(path)` (GIF or MP4); see
+        `lagrgen.outputs.notebook.animation` (`model`: the drawing, default the simulated one)."""
+        from .outputs.notebook import animation
+        return animation(self, model, params, fps, max_frames, dpi, title)
+
+    def _repr_html_(self):
+        from .outputs.notebook import summary_html
+        return summary_html(self)
+
 
 def with_coordinates(sol, coordinates, n, model_name=None):
     """`sol` as a SimulationResult with also `coordinates`, `q` (n × len(t)) and `qd`

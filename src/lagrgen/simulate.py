@@ -76,7 +76,7 @@ def simulate(mod, t_span, y0, method="RK45", params=None, inputs=None, rtol=1e-6
         sol = simulate_nonsmooth(mod, t_span, y0, method, p, inputs, u_at, rtol, atol, t_eval,
                                  dense_output, events, engine, progress, options, max_steps,
                                  max_wall_time)
-        return finished_result(mod, sol, p, u_at)
+        return finished_result(mod, sol, p, u_at, method)
     why_not = None if engine == "scipy" else native_reason(mod, method, inputs, events, options,
                                                             rtol)
     if engine == "native" and why_not:
@@ -100,7 +100,7 @@ def simulate(mod, t_span, y0, method="RK45", params=None, inputs=None, rtol=1e-6
     finally:
         if bar is not None:
             bar.close()
-    return finished_result(mod, sol, p, u_at)
+    return finished_result(mod, sol, p, u_at, method)
 
 
 def check_run_options(method, engine, max_steps, max_wall_time, options):
@@ -119,13 +119,14 @@ def check_run_options(method, engine, max_steps, max_wall_time, options):
                          f"{max_wall_time!r}")
 
 
-def finished_result(mod, sol, p, u_at):
+def finished_result(mod, sol, p, u_at, method=None):
     """The solver's OdeResult as the SimulationResult of `simulate`: names, the values used,
     event names and, for a constrained model, its multipliers and residuals along the run."""
     sol.params = p
     sol.inputs = u_at
     sol = with_coordinates(sol, mod.coordinates, mod.n_coordinates, mod.name)
     sol.__dict__["_units"] = dict(mod.units)
+    sol.__dict__.update(_built=mod, _method=getattr(method, "__name__", method))   # for display
     if mod.event_definitions:
         sol.event_names = tuple(name for name, _, _ in mod.event_definitions)
     if mod.n_constraints:

@@ -4,7 +4,26 @@ SymPy's `LagrangesMethod`, `KanesMethod` and `System` all end in M(q, t)·q̈ = 
 generalized speeds are the coordinates' rates (u = q̇, true of every default joint). Those M and F
 are handed to the Model as they are (lagrgen compiles them, with their analytic Jacobian); the
 build's cache key hashes them, so a changed SymPy model is never served stale.
+
+Constraints become lagrgen's (API.md §9: M·q̈ = F + Aᵀλ):
+
+- `LagrangesMethod(L, q, hol_coneqs=Φ, nonhol_coneqs=c)`: each Φ_i(q, t) = 0 is
+  `model.constraint(Φ_i)` and each c_i(q, q̇, t) = 0 `model.velocity_constraint(c_i)`; M and F are
+  SymPy's without the multiplier columns. SymPy writes M·q̈ = F + lam_coeffsᵀ·λ with
+  lam_coeffs = −∂(Φ̇, c)/∂q̇ = −A, so lagrgen's multipliers are the negatives of SymPy's
+  `lam_vec`: λ_lagrgen = −λ_SymPy.
+- `KanesMethod` with `q_dependent`, `configuration_constraints`, `u_dependent` and
+  `velocity_constraints`: Kane's equations are formed again with every coordinate and speed
+  independent (the same bodies and loads), which gives M·q̈ = F of the unconstrained system in all
+  coordinates; each configuration constraint is a `model.constraint`, and each velocity
+  constraint that is not a time derivative of the configuration constraints (independent of their
+  Jacobian rows) a `model.velocity_constraint`. Kane's projected equations eliminate the
+  multipliers; lagrgen's λ are the constraint forces along A (per unit of each constraint as
+  written).
 """
+import random
+
+import numpy as np
 import sympy as sp
 from sympy.core.function import AppliedUndef
 
@@ -24,7 +43,9 @@ def from_sympy(method_or_system, name, defaults=None, inputs=None):
     Parameters
     ----------
     method_or_system : sympy.physics.mechanics LagrangesMethod, KanesMethod or System
-        Without constraints (holonomic, nonholonomic) or auxiliary speeds.
+        Constraints (`hol_coneqs`, `nonhol_coneqs`; Kane's or a System's dependent coordinates
+        and speeds) become the model's constraints (see the module docstring for the multipliers'
+        sign); auxiliary speeds are refused.
     name : str
         The model's name (a Python identifier; it names the compiled module).
     defaults : dict, optional
@@ -42,12 +63,18 @@ def from_sympy(method_or_system, name, defaults=None, inputs=None):
     """
     from sympy.physics.mechanics import dynamicsymbols
     t = dynamicsymbols._t
-    q, M, F = _equations(method_or_system, t)
+    q, M, F, holonomic, velocity = _equations(method_or_system, t)
     coordinates = list(q)
     for c in coordinates:
         if not (isinstance(c, AppliedUndef) and c.args == (t,)):
             raise ModelError(f"coordinate {c} is not a function of time t alone")
     for i, c in enumerate(coordinates):
+        if is_zero(M[i, i]) and (holonomic or velocity):
+            raise ModelError(
+                f"coordinate {c} has no inertia of its own (a zero diagonal entry of the mass "
+                "matrix formed with every coordinate independent): lagrgen imposes constraints "
+                "through multipliers on M·q̈ = F + Aᵀλ and needs M positive definite. Give the "
+                f"body that {c} moves a mass or inertia, or make {c} independent")
         if is_zero(M[i, i]):
             raise ModelError(
                 f"SymPy's mass matrix has a zero diagonal entry for coordinate {c}: its equations "
@@ -56,7 +83,7 @@ def from_sympy(method_or_system, name, defaults=None, inputs=None):
                 "from SymPy; form it with KanesMethod, the default)")
     velocities = {c.diff(t) for c in coordinates}
     found_inputs, symbols = set(), set()
-    for e in list(M) + list(F):
+    for e in list(M) + list(F) + list(holonomic) + list(velocity):
         symbols |= e.free_symbols
         for d in e.atoms(sp.Derivative):
             if d not in velocities:
@@ -82,6 +109,10 @@ def from_sympy(method_or_system, name, defaults=None, inputs=None):
         new_u = model.inputs([_name(f.func.__name__, "input", f) for f in input_list])
         rules.update(zip(input_list, new_u))
     model._add_equations(M.xreplace(rules), F.xreplace(rules))
+    for expr in holonomic:
+        model.constraint(expr.xreplace(rules))
+    for expr in velocity:
+        model.velocity_constraint(expr.xreplace(rules))
     return model
 
 
@@ -138,18 +169,25 @@ def _inputs(found, inputs, t):
 
 
 def _equations(obj, t):
-    """(q, M, F) of `obj` with M·q̈ = F, in SymPy's own symbols."""
+    """(q, M, F, holonomic, velocity) of `obj`: M·q̈ = F, the holonomic constraints Φ(q, t) and
+    the velocity constraints c(q, q̇, t), in SymPy's own symbols."""
     from sympy.physics.mechanics import KanesMethod, LagrangesMethod, System
     if isinstance(obj, System):
-        _no_system_constraints(obj)
+        if len(obj.u_aux):
+            raise ModelError("this System has auxiliary speeds, which from_sympy does not "
+                             "support: form the equations without them")
         if obj.eom_method is None:
-            obj.form_eoms()
+            try:
+                obj.form_eoms()
+            except ValueError as exc:
+                raise ModelError(f"SymPy could not form the System's equations: {exc}") from None
         system, obj = obj, obj.eom_method
         if isinstance(obj, LagrangesMethod):
+            _no_system_constraints(system)
             # the bodies' velocities may be written in the System's speeds: u = q̇ puts them back
-            q, M, F = _lagrange(obj)
+            q, M, F, holonomic, velocity = _lagrange(obj)
             rates = _rates_of_speeds(list(system.q), list(system.u), list(system.kdes), t)
-            return q, M.xreplace(rates), F.xreplace(rates)
+            return q, M.xreplace(rates), F.xreplace(rates), holonomic, velocity
     if isinstance(obj, LagrangesMethod):
         return _lagrange(obj)
     if isinstance(obj, KanesMethod):
@@ -178,26 +216,86 @@ def _no_system_constraints(system):
                        ("dependent coordinates", "q_dep"), ("dependent speeds", "u_dep"),
                        ("auxiliary speeds", "u_aux")):
         if len(getattr(system, attr)):
-            raise ModelError(f"this System has {what}, which from_sympy does not support yet: "
-                             "give it independent coordinates only")
+            raise ModelError(f"this System has {what} and forms its equations with "
+                             "LagrangesMethod, which from_sympy does not support: form them with "
+                             "KanesMethod (System.form_eoms(), the default)")
 
 
 def _lagrange(lm):
+    """(q, M, F, Φ, c) of a LagrangesMethod: M and F without the multiplier columns."""
     if getattr(lm, "eom", None) is None:
         lm.form_lagranges_equations()
-    if len(lm.coneqs):
-        raise ModelError("this LagrangesMethod has constraint equations (hol_coneqs or "
-                         "nonhol_coneqs), which from_sympy does not support yet: give it "
-                         "independent coordinates only")
-    return list(lm.q), sp.Matrix(lm.mass_matrix), sp.Matrix(lm.forcing)
+    n = len(lm.q)
+    holonomic = list(getattr(lm, "_hol_coneqs", ()))
+    velocity = list(lm.coneqs[len(holonomic):]) if len(lm.coneqs) else []
+    M = sp.Matrix(lm.mass_matrix)[:, :n]
+    return list(lm.q), M, sp.Matrix(lm.forcing), holonomic, velocity
 
 
 def _kane(km, t):
-    for what, attr in (("dependent coordinates", "_qdep"), ("dependent speeds", "_udep"),
-                       ("auxiliary speeds", "_uaux")):
-        if len(getattr(km, attr, ())):
-            raise ModelError(f"this KanesMethod has {what}, which from_sympy does not support "
-                             "yet: give it independent coordinates and speeds only")
+    """(q, M, F, Φ, c) of a KanesMethod (see the module docstring for dependent q and u)."""
+    if len(getattr(km, "_uaux", ())):
+        raise ModelError("this KanesMethod has auxiliary speeds, which from_sympy does not "
+                         "support: form the equations without u_auxiliary")
+    if len(getattr(km, "_qdep", ())) or len(getattr(km, "_udep", ())):
+        return _kane_constrained(km, t)
+    q, M, F = _kane_free(km, t)
+    return q, M, F, [], []
+
+
+def _kane_constrained(km, t):
+    """Kane's equations with every coordinate and speed independent, and the constraints."""
+    from sympy.physics.mechanics import KanesMethod
+    if getattr(km, "_bodylist", None) is None:
+        raise ModelError("the KanesMethod has no equations yet: call kanes_equations(bodies, "
+                         "loads) first")
+    kd_eqs = [rate - value for rate, value in km.kindiffdict().items()]
+    free = KanesMethod(km._inertial, q_ind=list(km.q), u_ind=list(km.u), kd_eqs=kd_eqs)
+    free.kanes_equations(km._bodylist, km._forcelist or [])
+    q, M, F = _kane_free(free, t)
+    to_rates = {u: r for r, u in _speed_of_rate(free, t).items()}
+    holonomic = [sp.sympify(e) for e in km._f_h]
+    velocity = []
+    if len(km._k_nh):
+        rows = km._k_nh * sp.Matrix(km.u) + km._f_nh
+        velocity = [sp.sympify(e).xreplace(to_rates) for e in rows]
+    return q, M, F, holonomic, _nonholonomic(q, holonomic, velocity, t)
+
+
+def _speed_of_rate(km, t):
+    """{q̇_i: u_j} of kinematic equations u = q̇."""
+    kinematics = km.kindiffdict()
+    return {qi.diff(t): kinematics[qi.diff(t)] for qi in km.q}
+
+
+def _nonholonomic(q, holonomic, velocity, t, seed=0):
+    """The velocity constraints whose rows ∂c/∂q̇ are independent of the holonomic constraints'
+    ∂Φ/∂q and of each other (at a random point): those that are not Φ̇ = 0 restated."""
+    if not velocity:
+        return []
+    rates = [qi.diff(t) for qi in q]
+    exprs = list(holonomic) + list(velocity)
+    rows = [[sp.diff(e, qi) for qi in q] for e in holonomic] + \
+           [[sp.diff(e, r) for r in rates] for e in velocity]
+    rng = random.Random(seed)
+    atoms = set()
+    for e in exprs:
+        atoms |= {a for a in e.atoms(AppliedUndef)} | (e.free_symbols - {t})
+    point = {a: sp.Float(rng.uniform(0.3, 1.3)) for a in atoms}
+    point[t] = sp.Float(rng.uniform(0.3, 1.3))
+    numeric = [[complex(sp.sympify(v).xreplace(point).doit().evalf()).real for v in row]
+               for row in rows]
+    chosen, basis = [], [numeric[i] for i in range(len(holonomic))]
+    for k, e in enumerate(velocity):
+        trial = basis + [numeric[len(holonomic) + k]]
+        if np.linalg.matrix_rank(np.array(trial), tol=1e-9 * max(1.0, np.abs(trial).max())) \
+                == len(trial):
+            basis, chosen = trial, chosen + [e]
+    return chosen
+
+
+def _kane_free(km, t):
+    """(q, M, F) of a KanesMethod whose coordinates and speeds are all independent."""
     try:
         M, F = sp.Matrix(km.mass_matrix), sp.Matrix(km.forcing)
     except ValueError as exc:

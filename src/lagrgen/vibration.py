@@ -128,6 +128,7 @@ class Modes:
     omega_damped: np.ndarray
     eigenvalues: np.ndarray
     linearization: Linearization = field(repr=False, default=None)
+    model: object = field(repr=False, default=None)   # the built model analysed (None: from a lin)
 
     @property
     def frequencies_hz(self):
@@ -141,6 +142,50 @@ class Modes:
 
     def __len__(self):
         return len(self.omega)
+
+    def animate(self, k, path=None, model=None, amplitude=None, periods=1, frames_per_period=36,
+                fps=20, dpi=80, title=None):
+        """Write the k-th mode (0-based: `omega[k]`, `shapes[:, k]`) moving on the mechanism to
+        `path` (.gif with Pillow, .mp4 with ffmpeg): q(t) = q0 + a·φ_k·sin(ω_k·t) over `periods`
+        periods, drawn like `simulate`'s animation, frequency and damping ratio in the title.
+
+        Parameters
+        ----------
+        k : int, the mode
+        path : str or pathlib.Path, ending in .gif or .mp4; None: return an animation that shows
+            itself in a notebook (HTML/JavaScript frames, `.save(path)` later)
+        model : the `lagrgen.Model` to draw (default: the one the analysed built model was built
+            from)
+        amplitude : a (default: the largest drawn displacement is ~18 % of the mechanism's size)
+        periods, frames_per_period, fps, dpi, title : the animation
+
+        Returns
+        -------
+        The path written, or the notebook animation (the amplitude used is kept as
+        `last_amplitude`).
+        """
+        from .outputs.modeshapes import animate_mode
+        model = self._drawing_model(model)
+        path, self.last_amplitude = animate_mode(
+            model, self, k, path, self.linearization.p, amplitude, periods, frames_per_period,
+            fps, dpi, title)
+        return path
+
+    def _drawing_model(self, model):
+        if model is not None:
+            return model
+        if self.model is None:
+            raise LagrgenError(
+                "these modes were computed from a Linearization and know no mechanism to draw: "
+                "call lagrgen.modes(mod, q0) with the built model, or pass the description, "
+                "result.animate(k, path, model=model)")
+        source = getattr(self.model, "_source_model", None)
+        if source is None:
+            raise LagrgenError(
+                f"the built model {self.model.name!r} was loaded, not built in this session, so "
+                "its drawing is unknown: pass the lagrgen.Model, result.animate(k, path, "
+                "model=model)")
+        return source
 
 
 def _operating_point(mod, q, name, p, u):
@@ -406,7 +451,8 @@ def modes(mod_or_lin, q0=None, p=None, u=None, t=0.0):
     zeta, omega_d = damping(lin.M, lin.C, lin.K, shapes, np.nan_to_num(omega))
     shapes = lin.to_coordinates(shapes)
     return Modes(omega=omega, shapes=shapes, damping_ratios=zeta, omega_damped=omega_d,
-                 eigenvalues=lam, linearization=lin)
+                 eigenvalues=lam, linearization=lin,
+                 model=None if isinstance(mod_or_lin, Linearization) else mod_or_lin)
 
 
 def input_index(names, input, model_name=""):

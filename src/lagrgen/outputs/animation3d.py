@@ -122,8 +122,9 @@ def setup_axes(fig, tracks, title):
     return ax, 2 * half
 
 
-def animate_3d(model, times, q, path, p, fps=20, dpi=80, title=None):
-    """Write an animated GIF of the 3-D model along q (n × frames) at `times`; return `path`."""
+def scene_3d(model, times, q, p, title=None):
+    """(figure, scene, clock text) of the 3-D model along q (n × frames) at `times`."""
+    from .figures import new_figure
     if not model.drawables:
         raise LagrgenError(f"model {model.name!r} has nothing to draw")
     tracks = tracks_3d(model, p, times, q)
@@ -131,4 +132,11 @@ def animate_3d(model, times, q, path, p, fps=20, dpi=80, title=None):
     ax, size = setup_axes(fig, tracks, title or model.name)
     scene = Scene3D(ax, tracks, size)
     clock = ax.text2D(0.02, 0.96, "", transform=ax.transAxes, va="top")
+    return fig, scene, clock
+
+
+def animate_3d(model, times, q, path, p, fps=20, dpi=80, title=None):
+    """Write an animated GIF of the 3-D model along q (n × frames) at `times`; return `path`."""
+    from .figures import write_frames
+    fig, scene, clock = scene_3d(model, times, q, p, title)
     return write_frames(fig, path, times, scene, clock, fps, dpi)

@@ -6,6 +6,8 @@ from matplotlib.animation import PillowWriter
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
+from ..errors import LagrgenError
+
 
 def finished(fig, path):
     """`fig` laid out, and saved to `path` when one is given."""
@@ -15,9 +17,30 @@ def finished(fig, path):
     return fig
 
 
+MOVIE_SUFFIXES = (".gif", ".mp4")
+
+
+def movie_writer(path, fps):
+    """matplotlib's writer for `path` by its suffix: Pillow for .gif, ffmpeg for .mp4."""
+    from pathlib import Path
+    suffix = Path(path).suffix.lower()
+    if suffix == ".gif":
+        return PillowWriter(fps=fps)
+    if suffix == ".mp4":
+        from matplotlib.animation import FFMpegWriter
+        if not FFMpegWriter.isAvailable():
+            raise LagrgenError(
+                f"cannot write {str(path)!r}: an MP4 needs the ffmpeg program, which was not "
+                "found on PATH (install ffmpeg, or write a .gif instead)")
+        return FFMpegWriter(fps=fps)
+    raise ValueError(f"cannot write an animation to {str(path)!r}: the file name must end in "
+                     f"{' or '.join(MOVIE_SUFFIXES)}")
+
+
 def write_frames(fig, path, times, scene, clock, fps, dpi):
-    """An animated GIF at `path`: for each time, `scene.update(k)`, the clock text, one frame."""
-    writer = PillowWriter(fps=fps)
+    """An animation at `path` (GIF or MP4, by its suffix): for each time, `scene.update(k)`, the
+    clock text, one frame."""
+    writer = movie_writer(path, fps)
     with writer.saving(fig, str(path), dpi):
         for k, t in enumerate(times):
             scene.update(k)

@@ -356,23 +356,29 @@ def frames_png(model, sol, prefix, count=4, params=None, dpi=80, title=None):
     return paths
 
 
-def animate(model, sol, path, params=None, fps=20, max_frames=120, dpi=80, title=None):
-    """Write an animated GIF of `model.drawables` moving along the solution `sol` (y = [q, q̇]).
-
-    `params` are the parameter values used in the simulation (None, a dict or a full array). The
-    frames are equally spaced in time, at `fps` frames per simulated second up to `max_frames`.
-    """
+def check_drawable(model):
+    """LagrgenError unless `model` has something to draw."""
     if not model.drawables:
         raise LagrgenError(
             f"model {model.name!r} has nothing to draw: add particles, rigid bodies, "
             "model.line(...) or springs/dampers with ends=(a, b)")
-    p = model_parameters(model, params)
+
+
+def animation_frames(sol, fps, max_frames):
+    """(times, y at those times): equally spaced, `fps` frames per simulated second, between 2
+    and `max_frames` frames."""
     duration = float(sol.t[-1] - sol.t[0])
-    n_frames = int(np.clip(round(duration * fps), 2, max_frames))
-    times, y = frame_states(sol, n_frames)
-    if is_3d(model):                      # 3-D bodies or 3-component points: matplotlib's 3-D axes
-        return animate_3d(model, times, y[:len(model.q)], path, p, fps=fps, dpi=dpi, title=title)
-    tracks = drawable_tracks(model, p, times, y[:len(model.q)])
+    return frame_states(sol, int(np.clip(round(duration * fps), 2, max_frames)))
+
+
+def mechanism_scene(model, times, q, p, title=None):
+    """(figure, scene, clock text) of the mechanism along q (n × frames): on 2-D axes, or on
+    matplotlib's 3-D axes for a 3-D model; `scene.update(k)` moves it to frame k."""
+    check_drawable(model)
+    if is_3d(model):
+        from .animation3d import scene_3d
+        return scene_3d(model, times, q, p, title=title)
+    tracks = drawable_tracks(model, p, times, q)
     xmin, xmax, ymin, ymax = scene_limits(tracks)
     fig = new_figure(5, 5)
     ax = fig.add_subplot(1, 1, 1)
@@ -383,6 +389,21 @@ def animate(model, sol, path, params=None, fps=20, max_frames=120, dpi=80, title
     ax.set_title(title or model.name)
     scene = Scene(ax, tracks, xmax - xmin)
     clock = ax.text(0.02, 0.96, "", transform=ax.transAxes, va="top")
+    return fig, scene, clock
+
+
+def animate(model, sol, path, params=None, fps=20, max_frames=120, dpi=80, title=None):
+    """Write an animated GIF of `model.drawables` moving along the solution `sol` (y = [q, q̇]).
+
+    `params` are the parameter values used in the simulation (None, a dict or a full array). The
+    frames are equally spaced in time, at `fps` frames per simulated second up to `max_frames`.
+    """
+    check_drawable(model)
+    p = model_parameters(model, params)
+    times, y = animation_frames(sol, fps, max_frames)
+    if is_3d(model):                      # 3-D bodies or 3-component points: matplotlib's 3-D axes
+        return animate_3d(model, times, y[:len(model.q)], path, p, fps=fps, dpi=dpi, title=title)
+    fig, scene, clock = mechanism_scene(model, times, y[:len(model.q)], p, title)
     return write_frames(fig, path, times, scene, clock, fps, dpi)
 
 
