@@ -213,3 +213,11 @@ def test_a_fast_math_model_leaves_the_process_floating_point_mode_alone(tmp_path
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                          check=True).stdout.split()
     assert float(out[0]) == -4.0 and float(out[1]) == 5e-311
+
+
+@pytest.mark.parametrize("t_span, message", [((0, 1, 2), "two numbers"), ((0, np.inf), "finite"),
+                                             ("ab", "two numbers"), ((0, "x"), "two numbers")])
+def test_a_bad_time_span_says_what_a_time_span_is(chatter, t_span, message):
+    mod, _ = chatter
+    with pytest.raises(ValueError, match=message):
+        lagrgen.simulate(mod, t_span, [1.0, 0.0])

@@ -308,7 +308,7 @@ def _solve_batch(mod, plan, part, out, stop):
     cm = mod.compiled_model
     rtol, atol = _tolerances(plan.rtol, plan.atol, plan.dim)
     jac = cm.function_address("jacobian") if BY_NAME[plan.method].stiff else 0
-    events = native_events(mod) if getattr(mod, "event_definitions", ()) else None
+    events = native_events(mod) if mod.event_definitions else None
     ev_addr, ev_max, ev_dir = _event_arrays(events)
     extras = []
     if plan.n_constraints:
@@ -412,7 +412,7 @@ def batch_reason(mod, method, options):
     why = native_reason(mod, method, None, None, rest)
     if why:
         return why
-    if getattr(mod, "nonsmooth_definitions", ()):
+    if mod.nonsmooth_definitions:
         return "the transitions of a non-smooth model are collected per run"
     return None
 
@@ -468,7 +468,7 @@ def simulate_many(mod, t_span, y0, params=None, inputs=None, t_eval=None, method
     runs = len(Y0)
     if runs == 0:
         raise ValueError("simulate_many needs at least one run")
-    why_not = batch_reason(mod, method, options) if getattr(mod, "backend", "") == "c" else \
+    why_not = batch_reason(mod, method, options) if mod.backend == "c" else \
         "the model is not compiled"
     packed = None if why_not else batch_inputs(mod, inputs, run_inputs)
     if packed is not None and np.ndim(rtol) == 0:
@@ -482,13 +482,13 @@ def simulate_many(mod, t_span, y0, params=None, inputs=None, t_eval=None, method
     plan = Plan(t_span=(t0, tf), t_eval=t_eval, method=method, rtol=rtol, atol=atol,
                 options=dict(options), outputs=bool(outputs), batch=specs is not None,
                 specs=specs, dim=2 * mod.n_coordinates,
-                n_outputs=len(getattr(mod, "output_names", ())) if outputs else 0,
-                n_constraints=getattr(mod, "n_constraints", 0))
+                n_outputs=len(mod.output_names) if outputs else 0,
+                n_constraints=mod.n_constraints)
     if outputs and not hasattr(mod, "outputs"):
         raise ValueError(f"model {mod.name!r} has no outputs function")
     parallel = len(client.scheduler_info().get("workers", {})) if client is not None else \
         int(workers) if workers is not None else \
-        (os.cpu_count() or 1) if getattr(mod, "backend", "") == "c" else 1
+        (os.cpu_count() or 1) if mod.backend == "c" else 1
     size = max(1, min(MAX_CHUNK, math.ceil(runs / (4 * max(parallel, 1)))))
     parts = [Part(a, Y0[a:a + size], P[a:a + size],
                   U[a:a + size] if plan.batch else run_inputs[a:a + size])
@@ -501,7 +501,7 @@ def simulate_many(mod, t_span, y0, params=None, inputs=None, t_eval=None, method
         sink = StoreSink(store)
     else:
         sink = MemorySink(plan, runs)
-    with RunsBar(runs, "auto" if progress is None else progress, getattr(mod, "name", "")) as bar:
+    with RunsBar(runs, "auto" if progress is None else progress, mod.name) as bar:
         if client is not None:
             _on_dask(client, mod, plan, parts, sink, bar)
         else:
@@ -515,13 +515,13 @@ def simulate_many(mod, t_span, y0, params=None, inputs=None, t_eval=None, method
 def ensemble_meta(mod, plan, P):
     """What labels the results: names, units, parameters per run, times."""
     coordinates = tuple(mod.coordinates)
-    return {"model": getattr(mod, "name", ""), "coordinates": coordinates,
+    return {"model": mod.name, "coordinates": coordinates,
             "states": coordinates + tuple(f"{c}_dot" for c in coordinates),
             "parameters": tuple(mod.parameters), "params": P, "t": plan.t_eval,
             "output_names": tuple(mod.output_names) if plan.outputs else (),
-            "constraint_names": tuple(getattr(mod, "constraint_names", ()))
+            "constraint_names": tuple(mod.constraint_names)
             if plan.n_constraints else (),
-            "units": dict(getattr(mod, "units", {}) or {}),
+            "units": dict(mod.units),
             "method": getattr(plan.method, "__name__", str(plan.method)),
             "rtol": float(np.max(plan.rtol)), "atol": float(np.max(plan.atol))}
 
@@ -656,7 +656,7 @@ _UPLOAD_LOCK = threading.Lock()
 def _worker_target(client, mod):
     """What a Dask task needs to find the model: a compiled model's module (its file uploaded to
     the workers once per client and module file), or the model object itself."""
-    if getattr(mod, "backend", "") != "c":
+    if mod.backend != "c":
         return ("object", mod)
     key = (id(client), client.scheduler.address, mod.__file__)
     with _UPLOAD_LOCK:

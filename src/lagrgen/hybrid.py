@@ -56,7 +56,7 @@ class HybridSystem:
     def __init__(self, mod, p, u_at):
         self.mod, self.p, self.u_at = mod, p, u_at
         self.n = n = mod.n_coordinates
-        self.m = getattr(mod, "n_constraints", 0)
+        self.m = mod.n_constraints
         defs = mod.nonsmooth_definitions
         self.names = [d[0] for d in defs]
         self.impacts = [d for d in defs if d[1] == "impact"]

@@ -68,10 +68,11 @@ def simulate(mod, t_span, y0, method="RK45", params=None, inputs=None, rtol=1e-6
     redundant at the initial state or become dependent during the run.
     """
     check_run_options(method, engine, max_steps, max_wall_time, options)
+    t_span = time_span(t_span)
     y0 = state_vector(y0, tuple(mod.coordinates))
     p = parameters_from(mod, params)
     u_at = input_function(mod, inputs)
-    if getattr(mod, "nonsmooth_definitions", ()):
+    if mod.nonsmooth_definitions:
         from .hybrid import simulate_nonsmooth
         sol = simulate_nonsmooth(mod, t_span, y0, method, p, inputs, u_at, rtol, atol, t_eval,
                                  dense_output, events, engine, progress, options, max_steps,
@@ -83,8 +84,7 @@ def simulate(mod, t_span, y0, method="RK45", params=None, inputs=None, rtol=1e-6
         raise ValueError(f"the native engine cannot run this solve: {why_not}")
     if mod.n_constraints:
         from .constraints import check_state
-        t0 = float(t_span[0])
-        check_state(mod, t0, y0, p, u_at(t0))
+        check_state(mod, t_span[0], y0, p, u_at(t_span[0]))
     bar = ProgressBar(*t_span, show=progress) if progress else None
     run = dict(t_eval=t_eval, dense_output=dense_output, max_steps=max_steps,
                max_wall_time=max_wall_time, progress=bar, **options)
@@ -117,6 +117,17 @@ def check_run_options(method, engine, max_steps, max_wall_time, options):
     if max_wall_time is not None and not max_wall_time > 0:
         raise ValueError(f"max_wall_time must be a positive number of seconds, got "
                          f"{max_wall_time!r}")
+
+
+def time_span(t_span):
+    """(t0, t1) as two finite floats; ValueError saying what a time span is otherwise."""
+    try:
+        t0, t1 = (float(t) for t in t_span)
+    except (TypeError, ValueError):
+        raise ValueError(f"t_span must be two numbers (t0, t1), got {t_span!r}") from None
+    if not (np.isfinite(t0) and np.isfinite(t1)):
+        raise ValueError(f"t_span must be finite, got ({t0}, {t1})")
+    return t0, t1
 
 
 def finished_result(mod, sol, p, u_at, method=None):
