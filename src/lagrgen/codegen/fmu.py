@@ -149,35 +149,8 @@ def write_fmu(info, equations, out_dir=".", params=None, start_time=0.0, stop_ti
               tolerance=None, cflags=(), *, kind="me", fmi_version=2, method="DOP853", rtol=None,
               atol=None):
     """Write `<out_dir>/<name>.fmu`, an FMU of the model `info` with `equations` for this
-    platform: FMI 2.0 or 3.0, Model Exchange or Co-Simulation (`lagrgen.export_fmu`).
-
-    Its states are x = [q, q̇] (variables named like the coordinates and `<coordinate>_dot`), with
-    ẋ = [q̇, M⁻¹·F]; parameters are tunable parameters, inputs continuous inputs, the coordinates
-    outputs; directional derivatives come from the analytic Jacobian; the FMU state can be got,
-    set and serialized. A Model Exchange FMU's event indicators are the model's compiled events
-    (a terminal event's last counted crossing terminates the simulation). A co-simulation FMU
-    advances each communication step with lagrgen's native engine (the inputs held over the
-    step, the compiled events located and terminal ones ending the run); its method and
-    tolerances are the tunable parameters `solver.method`, `solver.rtol` and `solver.atol`.
-
-    Parameters
-    ----------
-    info, equations : the model's `ModelInfo` and derived equations
-    out_dir : str or pathlib.Path
-    params : dict, optional
-        Parameter start values (name -> value) replacing the defaults; required for parameters
-        without a default.
-    start_time, stop_time, tolerance : the DefaultExperiment
-    cflags : extra compiler flags (a list)
-    kind : "me" (Model Exchange) or "cs" (Co-Simulation)
-    fmi_version : 2 or 3
-    method, rtol, atol : the co-simulation solver's start values (one of RK23, RK45, DOP853,
-        Radau, BDF; rtol defaults to `tolerance` or 1e-6, atol to rtol/1000)
-
-    Returns
-    -------
-    pathlib.Path of the FMU.
-    """
+    platform (FMI 2.0 or 3.0, Model Exchange or Co-Simulation); the arguments are those of
+    `lagrgen.export_fmu`, which describes the FMU. Returns the path of the FMU."""
     name = info.name
     files = fmu_sources(info, equations, params, start_time, stop_time, tolerance, kind,
                         fmi_version, method, rtol, atol)

@@ -104,6 +104,37 @@ cdef int poll_callback(void *ctx, double t) noexcept nogil:
         return (<Poll>ctx).check(t)
 
 
+cdef void set_options(lg_options_t *op, str method, double t0, double tf, double rtol,
+                      const double *atol, double max_step, double first_step,
+                      const double *t_eval, int n_eval, bint dense, bint stop_on_nonfinite,
+                      long max_steps, double max_wall_time):
+    """The solver options every native solve fills the same way (op zeroed first; rtol clipped
+    to 100 EPS as SciPy's validate_tol, the Newton tolerance keeping the rtol given)."""
+    memset(op, 0, sizeof(lg_options_t))
+    op.method = METHOD_CODES[method]
+    op.t0 = t0
+    op.tf = tf
+    op.rtol = max(rtol, 100 * 2.220446049250313e-16)
+    op.rtol_given = rtol
+    op.atol = atol
+    op.max_step = max_step
+    op.first_step = first_step
+    op.t_eval = t_eval
+    op.n_eval = n_eval
+    op.dense = dense
+    op.stop_on_nonfinite = stop_on_nonfinite
+    op.max_steps = max_steps
+    op.max_wall_time = max_wall_time
+
+
+cdef void set_poll(lg_options_t *op, Poll poll):
+    """Let `poll` (None: nothing) run about every poll.interval seconds of the solve."""
+    if poll is not None:
+        op.poll = poll_callback
+        op.poll_ctx = <void *>poll
+        op.poll_interval = poll.interval
+
+
 def solve(str method, uintptr_t rhs, uintptr_t jacobian, int dim, p, list inputs, double t0,
           double tf, y0, double rtol, atol, double max_step, double first_step, t_eval,
           bint dense, uintptr_t events=0, event_max=None, event_direction=None,
@@ -185,25 +216,13 @@ def solve(str method, uintptr_t rhs, uintptr_t jacobian, int dim, p, list inputs
         pb.n_events = n_events
         pb.event_max = <const double *>cnp.PyArray_DATA(emax)
         pb.event_direction = <const double *>cnp.PyArray_DATA(edir)
-        op.method = METHOD_CODES[method]
-        op.t0 = t0
-        op.tf = tf
+        set_options(&op, method, t0, tf, rtol, <const double *>cnp.PyArray_DATA(atola),
+                    max_step, first_step,
+                    NULL if te is None else <const double *>cnp.PyArray_DATA(te),
+                    0 if te is None else te.shape[0], dense, stop_on_nonfinite, max_steps,
+                    max_wall_time)
         op.y0 = <const double *>cnp.PyArray_DATA(y0a)
-        op.rtol = max(rtol, 100 * 2.220446049250313e-16)
-        op.rtol_given = rtol
-        op.atol = <const double *>cnp.PyArray_DATA(atola)
-        op.max_step = max_step
-        op.first_step = first_step
-        op.t_eval = NULL if te is None else <const double *>cnp.PyArray_DATA(te)
-        op.n_eval = 0 if te is None else te.shape[0]
-        op.dense = dense
-        op.stop_on_nonfinite = stop_on_nonfinite
-        op.max_steps = max_steps
-        op.max_wall_time = max_wall_time
-        if poll is not None:
-            op.poll = poll_callback
-            op.poll_ctx = <void *>poll
-            op.poll_interval = poll.interval
+        set_poll(&op, poll)
         with nogil:
             rc = lg_solve(&pb, &op, &res)
         try:
@@ -347,20 +366,8 @@ def solve_batch(str method, uintptr_t rhs, uintptr_t jacobian, int dim, const do
         pb.n_events = n_events
         pb.event_max = <const double *>cnp.PyArray_DATA(emax)
         pb.event_direction = <const double *>cnp.PyArray_DATA(edir)
-        op.method = METHOD_CODES[method]
-        op.t0 = t0
-        op.tf = tf
-        op.rtol = max(rtol, 100 * 2.220446049250313e-16)
-        op.rtol_given = rtol
-        op.atol = &atol[0]
-        op.max_step = max_step
-        op.first_step = first_step
-        op.t_eval = &t_eval[0]
-        op.n_eval = <int>k
-        op.dense = 0
-        op.stop_on_nonfinite = stop_on_nonfinite
-        op.max_steps = max_steps
-        op.max_wall_time = max_wall_time
+        set_options(&op, method, t0, tf, rtol, &atol[0], max_step, first_step, &t_eval[0],
+                    <int>k, False, stop_on_nonfinite, max_steps, max_wall_time)
         op.poll = stop_flag_set
         op.poll_ctx = <void *>stop_flag
         op.poll_interval = 0.05
@@ -492,25 +499,12 @@ def solve_hybrid(str method, uintptr_t terms, int n, int m, int ni, int nf, norm
         hy.max_transitions = max_transitions
         hy.contact = <int *>cnp.PyArray_DATA(contact)
         hy.slip = <int *>cnp.PyArray_DATA(slip)
-        op.method = METHOD_CODES[method]
-        op.t0 = t0
-        op.tf = tf
+        set_options(&op, method, t0, tf, rtol, <const double *>cnp.PyArray_DATA(atola),
+                    max_step, first_step,
+                    NULL if te is None else <const double *>cnp.PyArray_DATA(te),
+                    0 if te is None else te.shape[0], False, True, max_steps, max_wall_time)
         op.y0 = <const double *>cnp.PyArray_DATA(y0a)
-        op.rtol = max(rtol, 100 * 2.220446049250313e-16)
-        op.rtol_given = rtol
-        op.atol = <const double *>cnp.PyArray_DATA(atola)
-        op.max_step = max_step
-        op.first_step = first_step
-        op.t_eval = NULL if te is None else <const double *>cnp.PyArray_DATA(te)
-        op.n_eval = 0 if te is None else te.shape[0]
-        op.dense = 0
-        op.stop_on_nonfinite = 1
-        op.max_steps = max_steps
-        op.max_wall_time = max_wall_time
-        if poll is not None:
-            op.poll = poll_callback
-            op.poll_ctx = <void *>poll
-            op.poll_interval = poll.interval
+        set_poll(&op, poll)
         with nogil:
             rc = lg_hybrid_solve(&hy, &op, &res)
         try:

@@ -39,23 +39,6 @@ typedef struct {
 } hy_ctx;
 
 /* -- buffers -------------------------------------------------------------------------------- */
-static int hy_push(lg_buf_t *b, const double *x, size_t k)
-{
-    if (b->len + k > b->cap) {
-        size_t cap = b->cap ? b->cap : 64;
-        while (cap < b->len + k)
-            cap *= 2;
-        double *d = (double *)realloc(b->data, cap * sizeof(double));
-        if (!d)
-            return -1;
-        b->data = d;
-        b->cap = cap;
-    }
-    memcpy(b->data + b->len, x, k * sizeof(double));
-    b->len += k;
-    return 0;
-}
-
 void lg_hybrid_result_free(lg_hybrid_result_t *r)
 {
     free(r->t.data);
@@ -387,7 +370,7 @@ static int hy_impact(hy_ctx *c, double t, double *y, const double *u, const int 
 static int hy_record(hy_ctx *c, double t, int element, int kind)
 {
     double row[3] = {t, (double)element, (double)kind};
-    return hy_push(&c->result->transitions, row, 3);
+    return lg_buf_push(&c->result->transitions, row, 3);
 }
 
 static void hy_inputs(hy_ctx *c, double t)
@@ -674,13 +657,13 @@ int lg_hybrid_solve(lg_hybrid_t *h, const lg_options_t *options, lg_hybrid_resul
         rc = err < 0 ? -1 : 0;
         goto done;
     }
-    if (!options->t_eval && (hy_push(&res->t, &t, 1) || hy_push(&res->y, y, dim))) {
+    if (!options->t_eval && (lg_buf_push(&res->t, &t, 1) || lg_buf_push(&res->y, y, dim))) {
         rc = -1;
         goto done;
     }
     int eval_i = 0;
     while (options->t_eval && eval_i < options->n_eval && options->t_eval[eval_i] <= t) {
-        if (hy_push(&res->t, &options->t_eval[eval_i], 1) || hy_push(&res->y, y, dim)) {
+        if (lg_buf_push(&res->t, &options->t_eval[eval_i], 1) || lg_buf_push(&res->y, y, dim)) {
             rc = -1;
             goto done;
         }
@@ -761,8 +744,8 @@ int lg_hybrid_solve(lg_hybrid_t *h, const lg_options_t *options, lg_hybrid_resul
             res->t_reached = seg.t_reached;
             snprintf(res->message, sizeof res->message, "stopped at t = %.9g", seg.t_reached);
             if (options->t_eval == NULL && seg.t.len > 1
-                && (hy_push(&res->t, seg.t.data + 1, seg.t.len - 1)
-                    || hy_push(&res->y, seg.y.data + dim, (seg.t.len - 1) * dim))) {
+                && (lg_buf_push(&res->t, seg.t.data + 1, seg.t.len - 1)
+                    || lg_buf_push(&res->y, seg.y.data + dim, (seg.t.len - 1) * dim))) {
                 lg_result_free(&seg);
                 rc = -1;
                 goto done;
@@ -782,14 +765,14 @@ int lg_hybrid_solve(lg_hybrid_t *h, const lg_options_t *options, lg_hybrid_resul
             size_t keep = rows;
             if (extra && seg.status == 0)
                 --keep;                                   /* t_end, not asked for */
-            if (hy_push(&res->t, seg.t.data, keep) || hy_push(&res->y, seg.y.data, keep * dim)) {
+            if (lg_buf_push(&res->t, seg.t.data, keep) || lg_buf_push(&res->y, seg.y.data, keep * dim)) {
                 lg_result_free(&seg);
                 rc = -1;
                 goto done;
             }
             eval_i = first + (int)keep;
-        } else if (rows > 1 && (hy_push(&res->t, seg.t.data + 1, rows - 1)
-                                || hy_push(&res->y, seg.y.data + dim, (rows - 1) * dim))) {
+        } else if (rows > 1 && (lg_buf_push(&res->t, seg.t.data + 1, rows - 1)
+                                || lg_buf_push(&res->y, seg.y.data + dim, (rows - 1) * dim))) {
             lg_result_free(&seg);
             rc = -1;
             goto done;
@@ -829,7 +812,7 @@ int lg_hybrid_solve(lg_hybrid_t *h, const lg_options_t *options, lg_hybrid_resul
                      "(raise max_transitions, or check the model)", h->max_transitions, t);
             break;
         }
-        if (!options->t_eval && (hy_push(&res->t, &t, 1) || hy_push(&res->y, y, dim))) {
+        if (!options->t_eval && (lg_buf_push(&res->t, &t, 1) || lg_buf_push(&res->y, y, dim))) {
             rc = -1;
             goto done;
         }

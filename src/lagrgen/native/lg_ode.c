@@ -46,7 +46,7 @@ static int buf_reserve(lg_buf_t *b, size_t extra)
     return 0;
 }
 
-static int buf_push(lg_buf_t *b, const double *x, size_t k)
+int lg_buf_push(lg_buf_t *b, const double *x, size_t k)
 {
     if (buf_reserve(b, k))
         return -1;
@@ -55,7 +55,7 @@ static int buf_push(lg_buf_t *b, const double *x, size_t k)
     return 0;
 }
 
-static int buf_push1(lg_buf_t *b, double x) { return buf_push(b, &x, 1); }
+static int buf_push1(lg_buf_t *b, double x) { return lg_buf_push(b, &x, 1); }
 
 void lg_result_free(lg_result_t *r)
 {
@@ -1207,29 +1207,29 @@ static int store_dense(solver_t *s, lg_result_t *r)
     double row[5] = {s->t_old, s->t, (double)r->coef.len, 0.0, 0.0};
     if (s->t == s->t_old) {
         row[3] = -1; /* ConstantDenseOutput */
-        return buf_push(&r->seg, row, 5) || buf_push(&r->coef, s->y, n);
+        return lg_buf_push(&r->seg, row, 5) || lg_buf_push(&r->coef, s->y, n);
     }
     int err = 0;
     switch (s->method) {
     case LG_BDF:
         row[3] = s->dense_order;
         row[4] = s->dense_h;
-        err = buf_push(&r->coef, s->dense_D, (size_t)(s->dense_order + 1) * n);
+        err = lg_buf_push(&r->coef, s->dense_D, (size_t)(s->dense_order + 1) * n);
         break;
     case LG_DOP853:
         row[3] = 7;
-        err = buf_push(&r->coef, s->y_old, n) || buf_push(&r->coef, s->Q, (size_t)7 * n);
+        err = lg_buf_push(&r->coef, s->y_old, n) || lg_buf_push(&r->coef, s->Q, (size_t)7 * n);
         break;
     case LG_RADAU:
         row[3] = 3;
-        err = buf_push(&r->coef, s->y_old, n) || buf_push(&r->coef, s->Q, (size_t)3 * n);
+        err = lg_buf_push(&r->coef, s->y_old, n) || lg_buf_push(&r->coef, s->Q, (size_t)3 * n);
         break;
     default:
         row[3] = s->n_interp;
-        err = buf_push(&r->coef, s->y_old, n)
-              || buf_push(&r->coef, s->Q, (size_t)s->n_interp * n);
+        err = lg_buf_push(&r->coef, s->y_old, n)
+              || lg_buf_push(&r->coef, s->Q, (size_t)s->n_interp * n);
     }
-    return err || buf_push(&r->seg, row, 5);
+    return err || lg_buf_push(&r->seg, row, 5);
 }
 
 /* ------------------------------------------------------------------------------------------ */
@@ -1487,7 +1487,7 @@ static int emit_t_eval(solver_t *s, lg_result_t *r, int *i_eval, double t_end)
         return 2;
     for (int k = start; k < stop; ++k) {
         dense_eval(s, op->t_eval[k], s->ev_y);
-        if (buf_push1(&r->t, op->t_eval[k]) || buf_push(&r->y, s->ev_y, s->dim))
+        if (buf_push1(&r->t, op->t_eval[k]) || lg_buf_push(&r->y, s->ev_y, s->dim))
             return -1;
     }
     *i_eval = stop;
@@ -1544,7 +1544,7 @@ static int handle_step_events(solver_t *s, lg_result_t *r, double *g, double *g_
         for (int a = 0; a < n_active; ++a) {
             dense_eval(s, roots[a], s->ev_y);
             double row[2] = {(double)active[a], roots[a]};
-            if (buf_push(&r->ev, row, 2) || buf_push(&r->ev_y, s->ev_y, s->dim))
+            if (lg_buf_push(&r->ev, row, 2) || lg_buf_push(&r->ev_y, s->ev_y, s->dim))
                 return -1;
         }
     }
@@ -1628,7 +1628,7 @@ int lg_solve(const lg_problem_t *pb, const lg_options_t *op, lg_result_t *r)
     rc = solver_init(&s);
     if (rc == 2)
         goto model_failed;
-    if (!op->t_eval && (buf_push1(&r->t, op->t0) || buf_push(&r->y, op->y0, n)))
+    if (!op->t_eval && (buf_push1(&r->t, op->t0) || lg_buf_push(&r->y, op->y0, n)))
         goto nomem;
     if (pb->n_events && eval_events(&s, op->t0, op->y0, g))
         goto model_failed;
@@ -1672,7 +1672,7 @@ int lg_solve(const lg_problem_t *pb, const lg_options_t *op, lg_result_t *r)
             /* solve_ivp's donot_append case (a repeated time with dense output) */
             int repeat = op->dense && r->t.len > 1 && r->t.data[r->t.len - 1] == t_out;
             if (!repeat) {
-                if (buf_push1(&r->t, t_out) || buf_push(&r->y, y_out, n))
+                if (buf_push1(&r->t, t_out) || lg_buf_push(&r->y, y_out, n))
                     goto nomem;
             } else if (r->seg.len >= 5) {
                 r->coef.len = (size_t)r->seg.data[r->seg.len - 3];
@@ -1714,7 +1714,7 @@ model_failed:
     model_failure_message(&s, r);
     r->model_failure = s.model_error;
     r->fail_t = s.error_t;
-    if (buf_push(&r->fail_y, s.error_y, n))
+    if (lg_buf_push(&r->fail_y, s.error_y, n))
         goto nomem;
     goto done;
 nomem:

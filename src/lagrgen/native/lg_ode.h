@@ -122,6 +122,9 @@ typedef struct {
 int lg_solve(const lg_problem_t *problem, const lg_options_t *options, lg_result_t *result);
 void lg_result_free(lg_result_t *result);
 
+/* Append k doubles to a growable buffer (0, or -1 when out of memory). */
+int lg_buf_push(lg_buf_t *b, const double *x, size_t k);
+
 /* u_i(t) of one signal (also used by the tests through the Python wrapper). */
 double lg_signal_eval(const lg_signal_t *s, double t);
 
