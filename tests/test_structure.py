@@ -175,10 +175,10 @@ STAGES = [
     ("runtime", ["runtime"]),
     ("build", ["build"]),
     ("display", ["outputs"]),
-    ("running", ["progress", "results", "solvers", "scipy_engine", "native",
+    ("running", ["progress", "results", "solvers", "scipy_engine", "native", "sensitivity",
                  "simulate", "constraints", "ensemble", "ensemble_store",
                  "hybrid"]),
-    ("analysis", ["vibration", "sweep", "bench"]),
+    ("analysis", ["vibration", "sweep", "bench", "fit"]),
     ("face", ["model", "sympy_interop", "expressions", "cli", "__main__", ""]),
 ]
 #: The package's sources in this checkout (the installed package has no .pyx files).

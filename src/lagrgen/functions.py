@@ -60,6 +60,9 @@ FUNCTIONS = (
                   "ẏ = [q̇, M⁻¹·F] for y = [q, q̇]"),
     ModelFunction("jacobian", "state", (Output("J", ("2n", "2n")),),
                   "∂ẏ/∂y = [[0, I], [M⁻¹·(∂F/∂q − ∂(M·q̈)/∂q), M⁻¹·∂F/∂q̇]]"),
+    ModelFunction("parameter_jacobian", "state", (Output("dydp", ("2n", "n_params")),),
+                  "∂ẏ/∂p = [0; M⁻¹·(∂F/∂p − ∂(M·q̈)/∂p)] (with constraints: through the same "
+                  "saddle-point solve as the Jacobian)"),
     ModelFunction("linear_terms", "q_qd",
                   (Output("M", ("n", "n")), Output("dF_dq", ("n", "n")),
                    Output("dF_dqd", ("n", "n")), Output("dF_du", ("n", "n_inputs"))),

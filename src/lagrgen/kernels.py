@@ -13,6 +13,8 @@ assembled from these by the backends:
     constraints  A (m×n) and γ (m) of A·q̈ = γ                       } only for a model with
     constraint_residuals  Φ, then A·q̇ + b                            } constraints (m > 0);
     constraint_jacobian   ∂(Aᵀλ)/∂q and [∂γ/∂q − ∂(A·a)/∂q | ∂γ/∂q̇]  } a = [q̈, λ] there
+    parameter_b  P = ∂F/∂p − ∂(M·a)/∂p for a given a (= q̈); ∂ẏ/∂p's bottom half is M⁻¹·P
+    constraint_parameter_jacobian  ∂(Aᵀλ)/∂p and ∂γ/∂p − ∂(A·a)/∂p (m > 0; a = [q̈, λ])
 """
 from dataclasses import dataclass
 
@@ -53,6 +55,11 @@ def flatten(matrix):
     return [e for row in matrix for e in row]
 
 
+def _parameter_b(eq):
+    return {"P": [eq.dF_dp[i][j] - eq.dMa_dp[i][j] for i in range(eq.n)
+                  for j in range(len(eq.p))]}
+
+
 def _jacobian_b(eq):
     B = []
     for i in range(eq.n):
@@ -82,6 +89,12 @@ KERNELS = (
                "H = ∂(Aᵀλ)/∂q (n×n) and G = [∂γ/∂q − ∂(A·a)/∂q | ∂γ/∂q̇] (m×2n), a = [q̈, λ]",
                (Output("H", ("n", "n")), Output("G", ("n_constraints", "2n"))),
                lambda eq: {"H": flatten(eq.dAl_dq), "G": flatten(eq.G)}, lambda eq: eq.m > 0),
+    KernelSpec("parameter_b", "P = ∂F/∂p − ∂(M·a)/∂p, n×n_params, for a given a = q̈",
+               (Output("P", ("n", "n_params")),), _parameter_b),
+    KernelSpec("constraint_parameter_jacobian",
+               "Hp = ∂(Aᵀλ)/∂p (n×n_params) and Gp = ∂γ/∂p − ∂(A·a)/∂p (m×n_params), a = [q̈, λ]",
+               (Output("Hp", ("n", "n_params")), Output("Gp", ("n_constraints", "n_params"))),
+               lambda eq: {"Hp": flatten(eq.dAl_dp), "Gp": flatten(eq.G_p)}, lambda eq: eq.m > 0),
     KernelSpec("events", "the event functions g_k(t, q, q̇, u), whose roots the solvers locate",
                (Output("g", ("n_events",)),), lambda eq: {"g": list(eq.events)},
                when=lambda eq: bool(eq.events)),

@@ -71,27 +71,45 @@ class Equations:
     @cached_property
     def dAl_dq(self):
         """∂(Aᵀλ)_i/∂q_j = Σ_k ∂A_ki/∂q_j·λ_k (n×n), λ held fixed."""
-        n = self.n
-        out = [[se.Integer(0)] * n for _ in range(n)]
+        return self._dAl(self.q)
+
+    @cached_property
+    def dAl_dp(self):
+        """∂(Aᵀλ)_i/∂p_j (n×n_params), λ held fixed."""
+        return self._dAl(self.p)
+
+    def _dAl(self, variables):
+        """∂(Aᵀλ)_i/∂v_j = Σ_k ∂A_ki/∂v_j·λ_k for v in `variables`, λ held fixed."""
+        out = [[se.Integer(0)] * len(variables) for _ in range(self.n)]
         for k, row in enumerate(self.A):
             for i, Aki in enumerate(row):
                 if Aki == 0:
                     continue
-                for j, qj in enumerate(self.q):
-                    d = diff(Aki, qj)
+                for j, v in enumerate(variables):
+                    d = diff(Aki, v)
                     if d != 0:
                         out[i][j] += d * self.lam[k]
         return out
+
+    def _Aa(self, k):
+        """(A·a)_k with a = q̈ held fixed."""
+        return sum((Akj * aj for Akj, aj in zip(self.A[k], self.a) if Akj != 0), se.Integer(0))
 
     @cached_property
     def G(self):
         """[∂γ/∂q − ∂(A·a)/∂q | ∂γ/∂q̇] (m×2n), a = q̈ held fixed."""
         out = []
         for k, g in enumerate(self.gamma):
-            Aa = sum((Akj * aj for Akj, aj in zip(self.A[k], self.a) if Akj != 0), se.Integer(0))
+            Aa = self._Aa(k)
             out.append([diff(g, qj) - diff(Aa, qj) for qj in self.q]
                        + [diff(g, qdj) for qdj in self.qd])
         return out
+
+    @cached_property
+    def G_p(self):
+        """∂γ/∂p − ∂(A·a)/∂p (m×n_params), a = q̈ held fixed."""
+        return [[diff(g, pj) - diff(self._Aa(k), pj) for pj in self.p]
+                for k, g in enumerate(self.gamma)]
 
     @cached_property
     def _free(self):
@@ -131,10 +149,24 @@ class Equations:
         return [self._gradient(f, free, self.u) for f, free in zip(self.F, self._free[0])]
 
     @cached_property
+    def dF_dp(self):
+        """∂F_i/∂p_j."""
+        return [self._gradient(f, free, self.p) for f, free in zip(self.F, self._free[0])]
+
+    @cached_property
     def dMa_dq(self):
         """∂(M·a)_i/∂q_j = Σ_k ∂M_ik/∂q_j · a_k, with a = q̈ held fixed (each M_ik = M_ki once)."""
+        return self._dMa(self.q)
+
+    @cached_property
+    def dMa_dp(self):
+        """∂(M·a)_i/∂p_j = Σ_k ∂M_ik/∂p_j · a_k, with a = q̈ held fixed."""
+        return self._dMa(self.p)
+
+    def _dMa(self, variables):
+        """∂(M·a)_i/∂v_j for v in `variables`, a held fixed (each M_ik = M_ki differentiated once)."""
         n = self.n
-        out = [[se.Integer(0)] * n for _ in range(n)]
+        out = [[se.Integer(0)] * len(variables) for _ in range(n)]
         dM = {}
         for i in range(n):
             for k in range(n):
@@ -142,7 +174,7 @@ class Equations:
                     continue
                 key = (max(i, k), min(i, k))
                 if key not in dM:
-                    dM[key] = self._gradient(self.M[i][k], self._free[1][key], self.q)
+                    dM[key] = self._gradient(self.M[i][k], self._free[1][key], variables)
                 for j, d in enumerate(dM[key]):
                     if d != 0:
                         out[i][j] += d * self.a[k]
@@ -169,9 +201,9 @@ class Equations:
 
     def differentiate(self):
         """Evaluate (and cache) every Jacobian piece now; return self."""
-        _ = self.dF_dq, self.dF_dqd, self.dMa_dq, self.dF_du
+        _ = self.dF_dq, self.dF_dqd, self.dMa_dq, self.dF_du, self.dF_dp, self.dMa_dp
         if self.m:
-            _ = self.gamma, self.dAl_dq, self.G
+            _ = self.gamma, self.dAl_dq, self.G, self.dAl_dp, self.G_p
         return self
 
     @cached_property

@@ -19,7 +19,7 @@ ENGINES = (None, "native", "scipy")
 
 def simulate(mod, t_span, y0, method="RK45", params=None, inputs=None, rtol=1e-6, atol=1e-9,
              t_eval=None, dense_output=False, events=None, engine=None, max_steps=None,
-             max_wall_time=None, progress=False, **options):
+             max_wall_time=None, progress=False, sensitivities=None, **options):
     """Integrate ẏ = mod.rhs(t, y) over `t_span` from `y0` = [q0, q̇0], natively in C or with
     SciPy's `solve_ivp` (the same steps either way).
 
@@ -45,6 +45,9 @@ def simulate(mod, t_span, y0, method="RK45", params=None, inputs=None, rtol=1e-6
         was hit. Ctrl-C ends a native solve within a fraction of a second (KeyboardInterrupt).
     progress : False, True, or "auto" (on a terminal, once the run takes longer than a second):
         a progress bar of the simulated time on stderr
+    sensitivities : parameter names (and `y0:<state>` names) whose forward sensitivities
+        ∂y(t)/∂p_j are integrated with the state (`lagrgen.sensitivity`, on the SciPy engine);
+        the result then has `sensitivities`, (k, 2n, len(t))
     A model with impacts or frictions (`model.impact`, `model.friction`) runs as a hybrid solve
     (`lagrgen.hybrid`, API.md §13): its result also has `transitions` [(t, name, kind)], `mode`
     and `n_segments`; options `rest_velocity`, `gap_tol`, `max_transitions`; no dense_output.
@@ -72,6 +75,12 @@ def simulate(mod, t_span, y0, method="RK45", params=None, inputs=None, rtol=1e-6
     y0 = state_vector(y0, tuple(mod.coordinates))
     p = parameters_from(mod, params)
     u_at = input_function(mod, inputs)
+    if sensitivities is not None:
+        return finished_result(mod, run_sensitivities(mod, t_span, y0, method, p, u_at, rtol,
+                                                      atol, sensitivities, events, max_steps,
+                                                      max_wall_time, t_eval=t_eval,
+                                                      dense_output=dense_output, **options),
+                               p, u_at, method)
     if mod.nonsmooth_definitions:
         from .hybrid import simulate_nonsmooth
         sol = simulate_nonsmooth(mod, t_span, y0, method, p, inputs, u_at, rtol, atol, t_eval,
@@ -117,6 +126,21 @@ def check_run_options(method, engine, max_steps, max_wall_time, options):
     if max_wall_time is not None and not max_wall_time > 0:
         raise ValueError(f"max_wall_time must be a positive number of seconds, got "
                          f"{max_wall_time!r}")
+
+
+def run_sensitivities(mod, t_span, y0, method, p, u_at, rtol, atol, names, events, max_steps,
+                      max_wall_time, **options):
+    """`simulate` with forward sensitivities (see `lagrgen.sensitivity`)."""
+    from .sensitivity import solve_sensitivities
+    if mod.nonsmooth_definitions or events is not None or mod.event_definitions:
+        raise ValueError("sensitivities are computed for smooth models without events: this "
+                         "model has impacts, friction or events")
+    if max_steps is not None or max_wall_time is not None:
+        raise ValueError("max_steps and max_wall_time are not available with sensitivities")
+    if mod.n_constraints:
+        from .constraints import check_state
+        check_state(mod, t_span[0], y0, p, u_at(t_span[0]))
+    return solve_sensitivities(mod, t_span, y0, method, p, u_at, rtol, atol, names, **options)
 
 
 def time_span(t_span):

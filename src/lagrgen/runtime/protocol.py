@@ -50,6 +50,9 @@ class BuiltModel(Protocol):
     def jacobian(self, t, y, p=None, u=None) -> np.ndarray:
         """∂ẏ/∂y, (2n, 2n), analytic."""
 
+    def parameter_jacobian(self, t, y, p=None, u=None) -> np.ndarray:
+        """∂ẏ/∂p, (2n, n_params), analytic."""
+
     def linear_terms(self, q, qd, t=0.0, p=None, u=None) -> tuple:
         """(M, ∂F/∂q, ∂F/∂q̇, ∂F/∂u) at one point."""
 

@@ -164,6 +164,25 @@ class PythonModel:
         J[n:] = X + W @ dlam
         return J
 
+    def _parameter_jacobian(self, t, q, qd, p, u):
+        n, k = self.n_coordinates, len(self.parameters)
+        M, a = self._solved(t, q, qd, p, u)
+        out = np.zeros((2 * n, k))
+        if not k:
+            return out
+        if not self.n_constraints:
+            P = self._kernel("parameter_b", t, q, qd, a.tolist(), p, u)[0].reshape(n, k)
+            out[n:] = np.linalg.solve(M, P)
+            return out
+        # [M −Aᵀ; A 0]·[δa; δλ] = [P + Hp; Gp]: δλ = S⁻¹(Gp − A·M⁻¹R1), δa = M⁻¹R1 + W·δλ
+        a, lam, A, W, S = self._constrained(t, q, qd, p, u, M, a)
+        al = a.tolist() + lam.tolist()
+        R1 = self._kernel("parameter_b", t, q, qd, al, p, u)[0].reshape(n, k)
+        Hp, Gp = self._kernel("constraint_parameter_jacobian", t, q, qd, al, p, u)
+        X = np.linalg.solve(M, R1 + Hp.reshape(n, k))
+        out[n:] = X + W @ np.linalg.solve(S, Gp.reshape(-1, k) - A @ X)
+        return out
+
     def _events(self, t, q, qd, p, u):
         if not self.event_definitions:
             return np.zeros(0)

@@ -1,0 +1,40 @@
+    /* out = [0; M⁻¹·P] (2n×n_params) with P = ∂F/∂p − ∂(M·q̈)/∂p, q̈ from the same factor of M
+     * as the rhs; the bottom half is written and solved in place. */
+#if N_PARAMS
+    double M[N * N], a[N + N_CONSTRAINTS], *P = out + N * N_PARAMS;
+    lg_mf(t, y, y + N, lg_zeros, p, u, M, a);
+    if (lg_cholesky(M))
+        return 1;
+    lg_cholesky_solve(M, a, 1);
+#if N_CONSTRAINTS
+    /* [M −Aᵀ; A 0]·[δa; δλ] = [P + Hp; Gp]: δλ = S⁻¹(Gp − A·M⁻¹R1), δa = M⁻¹R1 + W·δλ. */
+    double A[NC * N], W[N * NC], S[NC * NC], Hp[N * N_PARAMS], Gp[NC * N_PARAMS];
+    if (lg_constrained(t, y, p, u, M, a, a + N, A, W, S))
+        return 1;
+    lg_parameter_b(t, y, y + N, a, p, u, P);
+    lg_constraint_parameter_jacobian(t, y, y + N, a, p, u, Hp, Gp);
+    for (int i = 0; i < N * N_PARAMS; ++i)
+        P[i] += Hp[i];
+    lg_cholesky_solve(M, P, N_PARAMS);
+    for (int i = 0; i < NC; ++i)
+        for (int k = 0; k < N; ++k) {
+            const double aik = A[i * N + k];
+            for (int c = 0; c < N_PARAMS; ++c)
+                Gp[i * N_PARAMS + c] -= aik * P[k * N_PARAMS + c];
+        }
+    lg_cholesky_solve_k(S, NC, Gp, N_PARAMS);
+    for (int i = 0; i < N; ++i)
+        for (int j = 0; j < NC; ++j) {
+            const double wij = W[i * NC + j];
+            for (int c = 0; c < N_PARAMS; ++c)
+                P[i * N_PARAMS + c] += wij * Gp[j * N_PARAMS + c];
+        }
+#else
+    lg_parameter_b(t, y, y + N, a, p, u, P);
+    lg_cholesky_solve(M, P, N_PARAMS);
+#endif
+    memset(out, 0, (size_t)N * N_PARAMS * sizeof(double));
+#else
+    (void)t, (void)y, (void)p, (void)u, (void)out;
+#endif
+    return 0;

@@ -1,0 +1,121 @@
+"""Issue 21: the parameter Jacobian ∂ẏ/∂p on both backends (constrained models included), forward
+sensitivities against central differences and a closed form, and least-squares identification."""
+import numpy as np
+import pytest
+import sympy as sp
+from numpy.testing import assert_allclose
+
+import lagrgen
+from lagrgen import Model, UnknownNameError
+
+from conftest import example_model
+
+
+def damped_oscillator():
+    model = Model("damped_osc")
+    x, = model.coordinates("x", units="m")
+    m, c, k = model.parameters(m=1.0, c=0.4, k=4.0)
+    model.particle(m, sp.Matrix([x]))
+    model.spring(k, x)
+    model.damper(c, x)
+    return model
+
+
+@pytest.fixture(scope="module")
+def built(tmp_path_factory):
+    out = tmp_path_factory.mktemp("sensitivity")
+    models = {"osc": damped_oscillator(), "pendulum": example_model("double_pendulum"),
+              "crank": example_model("slider_crank"),
+              "chain": example_model("two_mass_chain", "absolute")}
+    return {(name, backend): lagrgen.build(model, out_dir=out, backend=backend)
+            for name, model in models.items() for backend in ("python", "c")}
+
+
+def central_parameter_jacobian(mod, t, y, p, u, h=1e-6):
+    out = np.zeros((len(y), len(p)))
+    for j in range(len(p)):
+        step = h * max(1.0, abs(p[j]))
+        e = np.zeros(len(p))
+        e[j] = step
+        out[:, j] = (mod.rhs(t, y, p + e, u) - mod.rhs(t, y, p - e, u)) / (2 * step)
+    return out
+
+
+@pytest.mark.parametrize("name", ["pendulum", "crank", "chain"])
+@pytest.mark.parametrize("backend", ["python", "c"])
+def test_parameter_jacobian_matches_central_differences(built, name, backend):
+    mod = built[name, backend]
+    rng = np.random.default_rng(7)
+    n = mod.n_coordinates
+    for _ in range(3):
+        p = np.asarray(mod.defaults) * rng.uniform(0.8, 1.2, len(mod.defaults))
+        u = rng.uniform(-1, 1, len(mod.inputs))
+        y = np.concatenate([rng.uniform(-0.5, 0.5, n), rng.uniform(-1, 1, n)])
+        if mod.n_constraints:
+            y = lagrgen.consistent_state(mod, y, 0.3, p)
+        J = mod.parameter_jacobian(0.3, y, p, u)
+        assert J.shape == (2 * n, len(mod.parameters))
+        assert np.all(J[:n] == 0.0)
+        reference = central_parameter_jacobian(mod, 0.3, y, p, u)
+        assert_allclose(J, reference, rtol=1e-6, atol=1e-6 * np.abs(reference).max())
+
+
+@pytest.mark.parametrize("name", ["pendulum", "crank"])
+def test_parameter_jacobian_in_c_equals_python(built, name):
+    c, py = built[name, "c"], built[name, "python"]
+    y = np.concatenate([np.full(c.n_coordinates, 0.3), np.full(c.n_coordinates, -0.2)])
+    if c.n_constraints:
+        y = lagrgen.consistent_state(c, y)
+    assert_allclose(c.parameter_jacobian(0.1, y), py.parameter_jacobian(0.1, y), rtol=1e-12,
+                    atol=1e-12)
+
+
+def closed_form_x(t, k, c, m=1.0):
+    """x(t) of m·ẍ + c·ẋ + k·x = 0 from x = 1, ẋ = 0 (underdamped)."""
+    wn = np.sqrt(k / m)
+    zeta = c / (2 * np.sqrt(k * m))
+    wd = wn * np.sqrt(1 - zeta ** 2)
+    return np.exp(-zeta * wn * t) * (np.cos(wd * t) + zeta * wn / wd * np.sin(wd * t))
+
+
+@pytest.mark.parametrize("method", ["RK45", "DOP853", "Radau", "BDF"])
+@pytest.mark.parametrize("backend", ["python", "c"])
+def test_sensitivities_match_the_closed_form_and_central_differences(built, method, backend):
+    mod = built["osc", backend]
+    t = np.linspace(0, 5, 11)
+    sol = lagrgen.simulate(mod, (0, 5), [1.0, 0.0], method=method, t_eval=t, rtol=1e-10,
+                           atol=1e-12, sensitivities=["k", "c", "y0:x"])
+    assert sol.sensitivities.shape == (3, 2, 11) and sol.y.shape == (2, 11)
+    assert_allclose(sol.y[0], closed_form_x(t, 4.0, 0.4), atol=1e-7)
+    h = 1e-6
+    dx_dk = (closed_form_x(t, 4.0 + h, 0.4) - closed_form_x(t, 4.0 - h, 0.4)) / (2 * h)
+    dx_dc = (closed_form_x(t, 4.0, 0.4 + h) - closed_form_x(t, 4.0, 0.4 - h)) / (2 * h)
+    tol = 2e-5 if method == "BDF" else 1e-6
+    assert_allclose(sol.sensitivities[0, 0], dx_dk, atol=tol)
+    assert_allclose(sol.sensitivities[1, 0], dx_dc, atol=tol)
+    assert_allclose(sol.sensitivities[2, 0], closed_form_x(t, 4.0, 0.4), atol=tol)  # ∂x/∂x0
+
+
+def test_sensitivities_of_a_constrained_model_match_central_differences(built):
+    mod = built["crank", "c"]
+    y0 = lagrgen.consistent_state(mod, np.r_[np.full(mod.n_coordinates, 0.2),
+                                             np.zeros(mod.n_coordinates)])
+    t = np.linspace(0, 1, 6)
+    name = mod.parameters[0]
+    sol = lagrgen.simulate(mod, (0, 1), y0, method="DOP853", t_eval=t, rtol=1e-10, atol=1e-12,
+                           sensitivities=[name])
+    h = 1e-5 * max(1.0, abs(mod.defaults[0]))
+    runs = [lagrgen.simulate(mod, (0, 1), y0, method="DOP853", t_eval=t, rtol=1e-12,
+                             atol=1e-14, params={name: mod.defaults[0] + s}).y for s in (h, -h)]
+    reference = (runs[0] - runs[1]) / (2 * h)
+    assert_allclose(sol.sensitivities[0], reference, atol=1e-5 * max(1, np.abs(reference).max()))
+
+
+def test_sensitivity_names_are_checked(built):
+    mod = built["osc", "c"]
+    with pytest.raises(UnknownNameError, match="unknown parameter name 'kk'"):
+        lagrgen.simulate(mod, (0, 1), [1.0, 0.0], sensitivities=["kk"])
+    with pytest.raises(UnknownNameError, match="unknown state name 'q'"):
+        lagrgen.simulate(mod, (0, 1), [1.0, 0.0], sensitivities=["y0:q"])
+    with pytest.raises(ValueError, match="at least one"):
+        lagrgen.simulate(mod, (0, 1), [1.0, 0.0], sensitivities=[])
