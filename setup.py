@@ -17,7 +17,7 @@ runtime = Extension(
 native = Extension(
     "lagrgen.native._ode",
     ["src/lagrgen/native/_ode.pyx", "src/lagrgen/native/lg_ode.c",
-     "src/lagrgen/native/lg_hybrid.c"],
+     "src/lagrgen/native/lg_hybrid.c", "src/lagrgen/native/lg_sensitivity.c"],
     include_dirs=[numpy.get_include(), "src/lagrgen/native", TEMPLATES],
     define_macros=[("NPY_NO_DEPRECATED_API", "NPY_1_7_API_VERSION")],
     extra_compile_args=["-O3", "-std=c99", "-fno-math-errno", "-fno-fast-math"],

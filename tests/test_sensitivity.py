@@ -119,3 +119,79 @@ def test_sensitivity_names_are_checked(built):
         lagrgen.simulate(mod, (0, 1), [1.0, 0.0], sensitivities=["y0:q"])
     with pytest.raises(ValueError, match="at least one"):
         lagrgen.simulate(mod, (0, 1), [1.0, 0.0], sensitivities=[])
+
+
+@pytest.mark.parametrize("method", ["DOP853", "Radau", "BDF"])
+def test_native_sensitivities_equal_the_scipy_engines(built, method):
+    mod = built["pendulum", "c"]
+    t = np.linspace(0, 2, 9)
+    runs = [lagrgen.simulate(mod, (0, 2), [0.4, -0.2, 0.0, 0.3], method=method, t_eval=t,
+                             rtol=1e-9, atol=1e-11, sensitivities=["m1", "L2", "y0:theta1"],
+                             engine=engine, inputs={"F": 0.2}) for engine in ("native", "scipy")]
+    assert [r.engine for r in runs] == ["native", "scipy"]
+    scale = np.abs(runs[1].sensitivities).max()
+    assert_allclose(runs[0].sensitivities, runs[1].sensitivities, atol=1e-6 * scale)
+    assert_allclose(runs[0].y, runs[1].y, atol=1e-8)
+
+
+# -- identification ---------------------------------------------------------------------------
+@pytest.fixture(scope="module")
+def chain_data(built):
+    mod = built["chain", "c"]
+    t = np.linspace(0, 10, 201)
+    y0 = [0.1, -0.05, 0.0, 0.0]
+    truth = lagrgen.simulate(mod, (0, 10), y0, method="DOP853", t_eval=t, rtol=1e-10,
+                             atol=1e-12)
+    rng = np.random.default_rng(3)
+    return mod, t, y0, truth.y[:2] + 1e-3 * rng.standard_normal((2, t.size))
+
+
+def test_fit_recovers_stiffness_and_damping_within_their_standard_errors(chain_data):
+    mod, t, y0, data = chain_data
+    names = ["k1", "k2", "c1", "c2"]
+    true = {n: mod.defaults[list(mod.parameters).index(n)] for n in names}
+    fit = lagrgen.fit(mod, t, data, names, y0, initial={n: 1.3 * v for n, v in true.items()},
+                      method="DOP853", rtol=1e-9, atol=1e-11)
+    assert fit.success and fit.cov.shape == (4, 4) and fit.residuals.shape == data.shape
+    for n in names:
+        assert abs(fit.params[n] - true[n]) < 4 * fit.stderr[n], n
+        assert 0 < fit.stderr[n] < 0.05 * true[n]
+    assert np.sqrt(2 * fit.cost / data.size) == pytest.approx(1e-3, rel=0.2)
+
+
+def test_fit_an_initial_state_and_a_velocity_record(chain_data):
+    mod, t, y0, data = chain_data
+    velocity = lagrgen.simulate(mod, (0, 10), y0, method="DOP853", t_eval=t, rtol=1e-10,
+                                atol=1e-12).y[2]
+    fit = lagrgen.fit(mod, t, velocity, ["k1", "y0:x1"], y0, measured=["x1_dot"],
+                      initial={"k1": 35.0, "y0:x1": 0.08}, bounds={"k1": (1.0, 100.0)},
+                      method="DOP853", rtol=1e-10, atol=1e-12)
+    assert fit.params["k1"] == pytest.approx(40.0, rel=1e-5)
+    assert fit.params["y0:x1"] == pytest.approx(0.1, rel=1e-5)
+
+
+def test_fit_explains_bad_input(chain_data):
+    mod, t, y0, data = chain_data
+    with pytest.raises(UnknownNameError, match="unknown parameter name 'k9'"):
+        lagrgen.fit(mod, t, data, ["k9"], y0)
+    with pytest.raises(UnknownNameError, match="unknown measured name 'x3'"):
+        lagrgen.fit(mod, t, data, ["k1"], y0, measured=["x1", "x3"])
+    with pytest.raises(ValueError, match=r"data must have shape \(len\(measured\), len\(t\)\)"):
+        lagrgen.fit(mod, t, data[:, :-1], ["k1"], y0)
+    with pytest.raises(ValueError, match="increasing sample times"):
+        lagrgen.fit(mod, t[::-1], data, ["k1"], y0)
+
+
+def test_fit_modes_recovers_two_stiffnesses_from_measured_frequencies(built):
+    mod = built["chain", "c"]
+    true = lagrgen.modes(mod, [0.0, 0.0])
+    update = lagrgen.fit_modes(mod, [0.0, 0.0], true.frequencies_hz, ["k1", "k2"],
+                               initial={"k1": 25.0, "k2": 40.0})
+    assert update.success
+    assert update.params["k1"] == pytest.approx(40.0, rel=1e-6)
+    assert update.params["k2"] == pytest.approx(25.0, rel=1e-6)
+    assert_allclose(update.frequencies_hz, true.frequencies_hz, rtol=1e-8)
+    swapped = lagrgen.fit_modes(mod, [0.0, 0.0], true.frequencies_hz[::-1], ["k1", "k2"],
+                                shapes=true.shapes[:, ::-1], initial={"k1": 35.0, "k2": 30.0})
+    assert swapped.pairing == (1, 0)
+    assert swapped.params["k1"] == pytest.approx(40.0, rel=1e-6)

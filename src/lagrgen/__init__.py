@@ -20,6 +20,7 @@ _LAZY = {
     "simulate_many": "ensemble", "EnsembleResult": "ensemble",
     "open_ensemble": "ensemble_store",
     "sweep": "sweep",
+    "fit": "fit", "fit_modes": "fit",
     "equilibrium": "vibration", "linearize": "vibration", "modes": "vibration",
     "frequency_response": "vibration", "FrozenTimeWarning": "vibration",
     "consistent_state": "constraints",

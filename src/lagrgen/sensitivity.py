@@ -5,7 +5,9 @@ vector for an initial state y0:<state>), J = ∂f/∂y the model's analytic Jaco
 analytic `parameter_jacobian`. The error control covers the sensitivities as well as the state
 (CVODES' default, errconS). For Radau and BDF the augmented Jacobian is taken block-diagonal,
 diag(J, …, J): the term ∂(J·S)/∂y only enters the Newton iteration matrix, which needs to be
-approximate. The augmented system runs through SciPy's solve_ivp (the SciPy engine).
+approximate. On a compiled model the augmented system runs in C (the native engine with the
+hooks of native/lg_sensitivity.c, no Python per step) whenever the native engine can run the
+solve; otherwise through SciPy's solve_ivp (the SciPy engine). `result.engine` says which.
 """
 import numpy as np
 from scipy.integrate import solve_ivp
@@ -73,20 +75,35 @@ def initial_sensitivities(columns, dim):
     return S0
 
 
-def solve_sensitivities(mod, t_span, y0, method, p, u_at, rtol, atol, names, t_eval=None,
-                        dense_output=False, **options):
-    """solve_ivp on the augmented system; returns SciPy's OdeResult with `y` the states and
-    `sensitivities` (k, 2n, len(t)), `engine` "scipy"."""
+def solve_sensitivities(mod, t_span, y0, method, p, u_at, rtol, atol, names, inputs=None,
+                        engine=None, t_eval=None, dense_output=False, **options):
+    """The augmented system, natively in C when the engine can run it (`engine` as simulate's),
+    else by solve_ivp; returns SciPy's OdeResult with `y` the states, `sensitivities`
+    (k, 2n, len(t)) and `engine`."""
+    from .native.engine import native_reason, raise_native_failure, solve_native
+    from .runtime.arguments import input_specs
     dim = 2 * mod.n_coordinates
     columns = sensitivity_columns(mod, names)
-    fun, jac = augmented_functions(mod, p, u_at, columns)
     z0 = np.concatenate([y0, initial_sensitivities(columns, dim).ravel()])
-    if getattr(method, "__name__", method) in STIFF_METHODS:
-        options.setdefault("jac", jac)
-    sol = solve_ivp(fun, t_span, z0, method=SOLVERS.get(method, method), rtol=rtol, atol=atol,
-                    t_eval=t_eval, dense_output=dense_output, **options)
+    why_not = None if engine == "scipy" else native_reason(mod, method, inputs, None, options,
+                                                            rtol)
+    if engine == "native" and why_not:
+        raise ValueError(f"the native engine cannot run this solve: {why_not}")
+    if engine != "scipy" and why_not is None:
+        index = [j if kind == "p" else -1 for kind, j in columns]
+        sol = solve_native(mod, t_span, z0, method, p, input_specs(mod, inputs), rtol, atol,
+                           t_eval, dense_output, stop_on_nonfinite=True, sensitivity_index=index,
+                           **options)
+        raise_native_failure(mod, sol, p, u_at)
+    else:
+        fun, jac = augmented_functions(mod, p, u_at, columns)
+        if getattr(method, "__name__", method) in STIFF_METHODS:
+            options.setdefault("jac", jac)
+        sol = solve_ivp(fun, t_span, z0, method=SOLVERS.get(method, method), rtol=rtol,
+                        atol=atol, t_eval=t_eval, dense_output=dense_output, **options)
+        sol.engine = "scipy"
     sol.sensitivities = sol.y[dim:].reshape(len(columns), dim, -1)
     sol.y = sol.y[:dim]
     sol.sensitivity_names = tuple(names if not isinstance(names, str) else [names])
-    sol.engine, sol.guard = "scipy", None
+    sol.guard = None
     return sol

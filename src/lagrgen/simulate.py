@@ -46,8 +46,8 @@ def simulate(mod, t_span, y0, method="RK45", params=None, inputs=None, rtol=1e-6
     progress : False, True, or "auto" (on a terminal, once the run takes longer than a second):
         a progress bar of the simulated time on stderr
     sensitivities : parameter names (and `y0:<state>` names) whose forward sensitivities
-        ∂y(t)/∂p_j are integrated with the state (`lagrgen.sensitivity`, on the SciPy engine);
-        the result then has `sensitivities`, (k, 2n, len(t))
+        ∂y(t)/∂p_j are integrated with the state (`lagrgen.sensitivity`; in C on the native
+        engine); the result then has `sensitivities`, (k, 2n, len(t))
     A model with impacts or frictions (`model.impact`, `model.friction`) runs as a hybrid solve
     (`lagrgen.hybrid`, API.md §13): its result also has `transitions` [(t, name, kind)], `mode`
     and `n_segments`; options `rest_velocity`, `gap_tol`, `max_transitions`; no dense_output.
@@ -78,8 +78,9 @@ def simulate(mod, t_span, y0, method="RK45", params=None, inputs=None, rtol=1e-6
     if sensitivities is not None:
         return finished_result(mod, run_sensitivities(mod, t_span, y0, method, p, u_at, rtol,
                                                       atol, sensitivities, events, max_steps,
-                                                      max_wall_time, t_eval=t_eval,
-                                                      dense_output=dense_output, **options),
+                                                      max_wall_time, inputs=inputs, engine=engine,
+                                                      t_eval=t_eval, dense_output=dense_output,
+                                                      **options),
                                p, u_at, method)
     if mod.nonsmooth_definitions:
         from .hybrid import simulate_nonsmooth

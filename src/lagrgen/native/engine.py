@@ -179,7 +179,7 @@ def _interpolant(dense, row, coef, dim):
 def solve_native(mod, t_span, y0, method="RK45", p=None, u_spec=None, rtol=1e-3, atol=1e-6,
                  t_eval=None, dense_output=False, events=None, max_step=np.inf,
                  first_step=None, stop_on_nonfinite=False, max_steps=None, max_wall_time=None,
-                 poll=None):
+                 poll=None, sensitivity_index=None):
     """Integrate a compiled model entirely in C, step for step as `solve_ivp`.
 
     Parameters
@@ -213,6 +213,10 @@ def solve_native(mod, t_span, y0, method="RK45", p=None, u_spec=None, rtol=1e-3,
         Stop after this many accepted steps or seconds of wall time (None: no limit): the result
         then holds the solution up to there, with status -1 and `stopped` naming the limit
         ("max_steps" or "max_wall_time"; None otherwise) and `t_reached` the time reached.
+    sensitivity_index : sequence of int, optional
+        Integrate the forward sensitivities with the state (native/lg_sensitivity.h): one entry
+        per column, a parameter index or −1 for an initial state; y0 (and atol, the results)
+        are then of the augmented state [y, S_1, …, S_k].
     poll : lagrgen.native._ode.Poll, optional
         Run about every 0.05 s of wall time (signals, progress, a stop flag); its exception
         (KeyboardInterrupt on Ctrl-C) ends the solve and is raised.
@@ -222,7 +226,7 @@ def solve_native(mod, t_span, y0, method="RK45", p=None, u_spec=None, rtol=1e-3,
         raise ValueError(f"method {method!r} has no native implementation: use one of "
                          f"{', '.join(NATIVE_METHODS)} (LSODA runs on the SciPy engine)")
     cm = mod.compiled_model
-    dim = 2 * mod.n_coordinates
+    dim = 2 * mod.n_coordinates * (1 + (0 if sensitivity_index is None else len(sensitivity_index)))
     t0, tf = map(float, t_span)
     if not (np.isfinite(t0) and np.isfinite(tf)):
         raise ValueError("t_span must be finite")
@@ -254,11 +258,13 @@ def solve_native(mod, t_span, y0, method="RK45", p=None, u_spec=None, rtol=1e-3,
             raise ValueError("`first_step` exceeds bounds.")
     te = _t_eval(t_eval, t0, tf)
     ev_addr, ev_max, ev_dir = _event_arrays(events)
-    jac = cm.function_address("jacobian") if BY_NAME[method].stiff else 0
+    sensitive = sensitivity_index is not None
+    jac = cm.function_address("jacobian") if BY_NAME[method].stiff or sensitive else 0
+    dfdp = cm.function_address("parameter_jacobian") if sensitive else 0
     out = _ode.solve(method, cm.function_address("rhs"), jac, dim, p, list(u_spec), t0, tf,
                      y0, rtol, atol, max_step, first, te, bool(dense_output), ev_addr,
                      ev_max, ev_dir, bool(stop_on_nonfinite), _limit(max_steps, "max_steps"),
-                     _limit(max_wall_time, "max_wall_time"), poll)
+                     _limit(max_wall_time, "max_wall_time"), poll, dfdp, sensitivity_index)
     ts, ys = out["t"], out["y"].T.copy()
     sol = None
     if dense_output:

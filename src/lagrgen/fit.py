@@ -1,0 +1,311 @@
+"""Identification: parameters (and initial states) from measured responses, and model updating
+from measured natural frequencies.
+
+`fit` minimizes Σ (w·(y_model(t_i; θ) − data_i))² with `scipy.optimize.least_squares`, its
+Jacobian the forward sensitivities ∂y/∂θ (`lagrgen.sensitivity`) — one simulation per iteration
+instead of 2k for finite differences; the covariance of the estimates is s²·(JᵀJ)⁻¹ with
+s² = Σr²/(m − k). `fit_modes` matches natural frequencies with the eigenvalue sensitivities
+∂λ/∂p = φᵀ(∂K/∂p − λ·∂M/∂p)φ of mass-normalized modes φ (λ = ω²).
+"""
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.optimize import least_squares
+
+from .errors import LagrgenError
+from .runtime.arguments import parameters_from, state_vector, unknown_name
+from .sensitivity import sensitivity_columns
+from .simulate import simulate
+from .vibration import linearize, modes
+
+
+@dataclass
+class FitResult:
+    """Estimates of a least-squares fit.
+
+    Attributes
+    ----------
+    params, stderr : dict name -> value, and its standard error
+    cov : (k, k) covariance of the estimates, in the order of `names`
+    names : the fitted names (parameters, `y0:<state>`)
+    success, cost, nfev, message : as scipy.optimize.least_squares reports them (cost = ½Σr²)
+    residuals : the weighted residuals at the estimates, shaped like the data
+    """
+    params: dict
+    stderr: dict
+    cov: np.ndarray
+    names: tuple
+    success: bool
+    cost: float
+    nfev: int
+    message: str
+    residuals: np.ndarray = field(repr=False)
+
+
+def measured_rows(mod, measured):
+    """[(kind, index)] of the measured names: ("y", i) for a coordinate or `<coordinate>_dot`,
+    ("output", k) for an output."""
+    states = list(mod.coordinates) + [f"{c}_dot" for c in mod.coordinates]
+    names = list(mod.coordinates) if measured is None else (
+        [measured] if isinstance(measured, str) else list(measured))
+    rows = []
+    for name in names:
+        if name in states:
+            rows.append(("y", states.index(name)))
+        elif name in mod.output_names:
+            rows.append(("output", list(mod.output_names).index(name)))
+        else:
+            raise unknown_name("measured", name, tuple(states) + tuple(mod.output_names))
+    return names, rows
+
+
+def _as_data(data, n_rows, n_times):
+    data = np.asarray(data, dtype=float)
+    if data.ndim == 1 and n_rows == 1:
+        data = data[None, :]
+    if data.shape != (n_rows, n_times):
+        raise ValueError(f"data must have shape (len(measured), len(t)) = ({n_rows}, {n_times}), "
+                         f"got {data.shape}")
+    if not np.all(np.isfinite(data)):
+        raise ValueError("data must be finite (drop or interpolate missing samples)")
+    return data
+
+
+def _weights(weights, shape):
+    if weights is None:
+        return np.ones(shape)
+    w = np.asarray(weights, dtype=float)
+    if w.ndim == 1 and w.size == shape[0]:
+        w = w[:, None]
+    try:
+        return np.broadcast_to(w, shape).copy()
+    except ValueError:
+        raise ValueError(f"weights must be a number, one per measured name, or of the data's "
+                         f"shape {shape}, got shape {w.shape}") from None
+
+
+def _output_derivatives(mod, t, y, p, u, k, columns, h=1e-7):
+    """(∂o_k/∂y, [∂o_k/∂θ_c]) of the output k at one point, by central differences."""
+    def out(yy, pp):
+        return mod.outputs(t, yy, pp, u)[k]
+    dy = np.zeros(len(y))
+    for i in range(len(y)):
+        e = np.zeros(len(y))
+        e[i] = h * max(1.0, abs(y[i]))
+        dy[i] = (out(y + e, p) - out(y - e, p)) / (2 * e[i])
+    dp = []
+    for kind, j in columns:
+        if kind != "p":
+            dp.append(0.0)
+            continue
+        e = np.zeros(len(p))
+        e[j] = h * max(1.0, abs(p[j]))
+        dp.append((out(y, p + e) - out(y, p - e)) / (2 * e[j]))
+    return dy, np.array(dp)
+
+
+def fit(mod, t, data, params, y0, measured=None, initial=None, bounds=None, weights=None,
+        method="Radau", **simulate_options):
+    """Least-squares estimates of the parameters `params` (and initial states `y0:<state>`)
+    from samples `data` of the measured coordinates, velocities or outputs at times `t`.
+
+    Parameters
+    ----------
+    mod : a built model (either backend)
+    t : (m,) increasing sample times; the simulation starts at t[0] from `y0`
+    data : (len(measured), m) samples
+    params : names to fit: parameters, or `y0:<state>` for an initial state
+    y0 : the initial state (array of 2n or dict); fitted entries start from it
+    measured : the measured names (coordinates, `<coordinate>_dot`, outputs); None: all
+        coordinates
+    initial : dict name -> start value (default: the model's defaults, y0)
+    bounds : dict name -> (low, high)
+    weights : a number, one per measured name, or an array of the data's shape
+    method, **simulate_options : passed to `lagrgen.simulate` (rtol, atol, params for the
+        parameters that are not fitted, inputs, ...)
+
+    Returns
+    -------
+    FitResult (params, stderr, cov, success, cost, nfev, residuals)
+    """
+    names = [params] if isinstance(params, str) else list(params)
+    columns = sensitivity_columns(mod, names)
+    t = np.asarray(t, dtype=float)
+    if t.ndim != 1 or t.size < 2 or np.any(np.diff(t) <= 0):
+        raise ValueError("t must be a 1-D array of at least two increasing sample times")
+    measured_names, rows = measured_rows(mod, measured)
+    data = _as_data(data, len(rows), t.size)
+    w = _weights(weights, data.shape)
+    base_p = parameters_from(mod, simulate_options.pop("params", None))
+    base_y0 = state_vector(y0, tuple(mod.coordinates))
+    theta0, low, high = _start_and_bounds(mod, names, columns, base_p, base_y0, initial, bounds)
+    cache = {}
+
+    def evaluate(theta):
+        key = theta.tobytes()
+        if key not in cache:
+            cache.clear()
+            p, y_start = _apply(theta, columns, base_p, base_y0)
+            sol = simulate(mod, (t[0], t[-1]), y_start, method=method, params=p, t_eval=t,
+                           sensitivities=names, **simulate_options)
+            if not sol.success:
+                raise LagrgenError(f"the simulation failed at θ = {dict(zip(names, theta))}: "
+                                   f"{sol.message}")
+            cache[key] = _model_rows(mod, sol, rows, p, columns)
+        return cache[key]
+
+    def residuals(theta):
+        return (w * (evaluate(theta)[0] - data)).ravel()
+
+    def jacobian(theta):
+        return (w[:, :, None] * evaluate(theta)[1]).reshape(-1, len(names))
+
+    result = least_squares(residuals, theta0, jac=jacobian, bounds=(low, high), x_scale="jac")
+    J = result.jac
+    dof = max(result.fun.size - len(names), 1)
+    s2 = 2 * result.cost / dof
+    cov = np.linalg.pinv(J.T @ J) * s2
+    stderr = np.sqrt(np.clip(np.diag(cov), 0, None))
+    return FitResult(params=dict(zip(names, map(float, result.x))),
+                     stderr=dict(zip(names, map(float, stderr))), cov=cov, names=tuple(names),
+                     success=bool(result.success), cost=float(result.cost),
+                     nfev=int(result.nfev), message=str(result.message),
+                     residuals=result.fun.reshape(data.shape))
+
+
+def _start_and_bounds(mod, names, columns, p, y0, initial, bounds):
+    initial, bounds = dict(initial or {}), dict(bounds or {})
+    for given, what in ((initial, "initial"), (bounds, "bounds")):
+        unknown = [k for k in given if k not in names]
+        if unknown:
+            raise unknown_name(f"{what} (fitted)", unknown[0], tuple(names))
+    theta0 = np.array([initial.get(name, p[j] if kind == "p" else y0[j])
+                       for name, (kind, j) in zip(names, columns)], dtype=float)
+    low = np.array([bounds.get(name, (-np.inf, np.inf))[0] for name in names], dtype=float)
+    high = np.array([bounds.get(name, (-np.inf, np.inf))[1] for name in names], dtype=float)
+    if np.any(~np.isfinite(theta0)):
+        raise ValueError("every fitted name needs a finite start value (give initial={...})")
+    if np.any(low >= high) or np.any(theta0 < low) or np.any(theta0 > high):
+        raise ValueError("bounds must satisfy low < high and hold the start values")
+    return theta0, low, high
+
+
+def _apply(theta, columns, p, y0):
+    p, y0 = p.copy(), y0.copy()
+    for value, (kind, j) in zip(theta, columns):
+        (p if kind == "p" else y0)[j] = value
+    return p, y0
+
+
+def _model_rows(mod, sol, rows, p, columns):
+    """(values (rows, m), derivatives (rows, m, k)) of the measured rows along a solution."""
+    values = np.empty((len(rows), sol.t.size))
+    derivs = np.empty((len(rows), sol.t.size, len(columns)))
+    for r, (kind, i) in enumerate(rows):
+        if kind == "y":
+            values[r] = sol.y[i]
+            derivs[r] = sol.sensitivities[:, i, :].T
+            continue
+        for m, ti in enumerate(sol.t):
+            y = np.ascontiguousarray(sol.y[:, m])
+            u = sol.inputs(ti)
+            values[r, m] = mod.outputs(ti, y, p, u)[i]
+            dy, dp = _output_derivatives(mod, ti, y, p, u, i, columns)
+            derivs[r, m] = sol.sensitivities[:, :, m] @ dy + dp
+    return values, derivs
+
+
+@dataclass
+class ModalUpdate:
+    """Parameters updated to match measured natural frequencies.
+
+    Attributes
+    ----------
+    params : dict name -> value
+    frequencies_hz : the model's natural frequencies at the estimates, paired with the measured
+    pairing : the model mode index paired with each measured frequency
+    success, cost, nfev : as scipy.optimize.least_squares reports them
+    """
+    params: dict
+    frequencies_hz: np.ndarray
+    pairing: tuple
+    success: bool
+    cost: float
+    nfev: int
+
+
+def fit_modes(mod, q0, measured_hz, params, initial=None, bounds=None, shapes=None, p=None,
+              h=1e-6):
+    """Update `params` so that the natural frequencies of the linearization about `q0` match
+    `measured_hz` (relative residuals), with the analytic eigenvalue sensitivities
+    ∂λ/∂p = φᵀ(∂K/∂p − λ·∂M/∂p)φ (∂K/∂p and ∂M/∂p by central differences of the linearization).
+    Measured mode k is paired with the model mode of largest MAC with `shapes[:, k]` when given,
+    else with the k-th lowest.
+
+    Returns
+    -------
+    ModalUpdate (params, frequencies_hz, pairing, success, cost, nfev)
+    """
+    names = [params] if isinstance(params, str) else list(params)
+    for name in names:
+        if name not in mod.parameters:
+            raise unknown_name("parameter", name, tuple(mod.parameters))
+    target = np.atleast_1d(np.asarray(measured_hz, dtype=float))
+    n = mod.n_coordinates
+    if target.ndim != 1 or not 0 < target.size <= n or np.any(target <= 0):
+        raise ValueError(f"measured_hz must be 1 to {n} positive frequencies")
+    if shapes is not None:
+        shapes = np.asarray(shapes, dtype=float).reshape(n, -1)
+        if shapes.shape[1] != target.size:
+            raise ValueError("shapes must have one column (of n entries) per measured frequency")
+    base = parameters_from(mod, p)
+    index = [list(mod.parameters).index(name) for name in names]
+    theta0, low, high = _start_and_bounds(mod, names, [("p", j) for j in index], base,
+                                          np.zeros(2 * n), initial, bounds)
+
+    def with_theta(theta):
+        out = base.copy()
+        out[index] = theta
+        return out
+
+    def eigen(theta):
+        res = modes(linearize(mod, q0, p=with_theta(theta)))
+        order = _pairing(res.shapes, shapes, target.size)
+        return res, order
+
+    def residuals(theta):
+        res, order = eigen(theta)
+        return res.frequencies_hz[list(order)] / target - 1.0
+
+    def jacobian(theta):
+        res, order = eigen(theta)
+        lam = res.omega ** 2
+        J = np.empty((target.size, len(names)))
+        for c, j in enumerate(index):
+            step = h * max(1.0, abs(theta[c]))
+            plus, minus = with_theta(theta), with_theta(theta)
+            plus[j] += step
+            minus[j] -= step
+            up, down = linearize(mod, q0, p=plus), linearize(mod, q0, p=minus)
+            dK, dM = (up.K - down.K) / (2 * step), (up.M - down.M) / (2 * step)
+            for r, mode in enumerate(order):
+                phi = res.shapes[:, mode]
+                dlam = phi @ (dK - lam[mode] * dM) @ phi
+                J[r, c] = dlam / (4 * np.pi * res.omega[mode]) / target[r]
+        return J
+
+    result = least_squares(residuals, theta0, jac=jacobian, bounds=(low, high), x_scale="jac")
+    res, order = eigen(result.x)
+    return ModalUpdate(params=dict(zip(names, map(float, result.x))),
+                       frequencies_hz=res.frequencies_hz[list(order)], pairing=tuple(order),
+                       success=bool(result.success), cost=float(result.cost),
+                       nfev=int(result.nfev))
+
+
+def _pairing(model_shapes, measured_shapes, k):
+    """The model mode paired with each measured mode: largest MAC, or the k lowest in order."""
+    if measured_shapes is None:
+        return tuple(range(k))
+    num = (measured_shapes.T @ model_shapes) ** 2
+    den = np.outer((measured_shapes ** 2).sum(0), (model_shapes ** 2).sum(0))
+    return tuple(int(i) for i in np.argmax(num / den, axis=1))
