@@ -8,7 +8,9 @@ from numpy.testing import assert_allclose
 import lagrgen
 from lagrgen import Model, UnknownNameError
 
-from conftest import example_model
+from conftest import EXAMPLES, example_model
+
+EXAMPLE_CHAIN = EXAMPLES / "two_mass_chain.py"
 
 
 def damped_oscillator():
@@ -195,3 +197,25 @@ def test_fit_modes_recovers_two_stiffnesses_from_measured_frequencies(built):
                                 shapes=true.shapes[:, ::-1], initial={"k1": 35.0, "k2": 30.0})
     assert swapped.pairing == (1, 0)
     assert swapped.params["k1"] == pytest.approx(40.0, rel=1e-6)
+
+
+def test_fit_command_prints_estimates_and_plots(chain_data, tmp_path, capsys):
+    import csv
+    from lagrgen.cli import main
+    mod, t, y0, data = chain_data
+    record = tmp_path / "run.csv"
+    with open(record, "w", newline="") as stream:
+        writer = csv.writer(stream)
+        writer.writerow(["t [s]", "x1 [m]", "x2 [m]"])
+        writer.writerows(zip(t, *data))
+    status = main(["fit", str(EXAMPLE_CHAIN), "--model", "two_mass_absolute", "--data",
+                   str(record), "--params", "k1,k2,y0:x1,y0:x2", "--initial", "k1=30,k2=30",
+                   "--plot", str(tmp_path / "fit.png"), "--out", str(tmp_path)])
+    out = capsys.readouterr().out
+    assert status == 0 and "fit of k1, k2, y0:x1, y0:x2 to x1, x2 (402 samples" in out
+    estimates = dict(line.split("=") for line in out.splitlines()[1:])
+    k1, k1_err = (float(v) for v in estimates["  k1    "].split("±"))
+    assert abs(k1 - 40.0) < 4 * k1_err and (tmp_path / "fit.png").stat().st_size > 10_000
+    assert main(["fit", str(EXAMPLE_CHAIN), "--model", "two_mass_absolute", "--data",
+                 str(record), "--params", "k9", "--out", str(tmp_path)]) == 1
+    assert "unknown parameter name 'k9'" in capsys.readouterr().err

@@ -14,6 +14,7 @@ import numpy as np
 
 from .errors import LagrgenError
 from .functions import POWER_TERMS
+from .methods import METHODS as METHOD_CHOICES
 
 
 def models_in(path, names=None):
@@ -747,8 +748,99 @@ def add_sweep(sub):
     s.set_defaults(run=command_sweep)
 
 
+# -- fit --------------------------------------------------------------------------------------
+def read_record(path):
+    """(column names without their units, values (rows, columns)) of a CSV with a header row,
+    as `simulate --csv` writes it (t first)."""
+    with open(path, newline="") as stream:
+        rows = list(csv.reader(stream))
+    if len(rows) < 3:
+        raise LagrgenError(f"{path}: a header row and at least two rows of samples are needed")
+    names = [cell.split(" [")[0].strip() for cell in rows[0]]
+    try:
+        values = np.array([[float(v) for v in row] for row in rows[1:] if row], dtype=float)
+    except ValueError as exc:
+        raise LagrgenError(f"{path}: every sample must be a number ({exc})") from None
+    if values.ndim != 2 or values.shape[1] != len(names):
+        raise LagrgenError(f"{path}: every row must have {len(names)} values like the header")
+    return names, values
+
+
+def command_fit(args):
+    from .fit import fit
+    model = single_model(args)
+    names, values = read_record(args.data)
+    if names[0] != "t":
+        raise LagrgenError(f"{args.data}: the first column must be the time t, not {names[0]!r}")
+    fitted = [n.strip() for n in args.params.split(",") if n.strip()]
+    states = list(model.coordinate_names) + [f"{c}_dot" for c in model.coordinate_names]
+    measured = ([m.strip() for m in args.measured.split(",") if m.strip()] if args.measured
+                else [n for n in names[1:] if n in model.coordinate_names])
+    missing = [m for m in measured if m not in names]
+    if missing or not measured:
+        raise LagrgenError(f"{args.data} has no column {missing[0] if missing else 'of a coordinate'}"
+                           f" (its columns are {', '.join(names)})")
+    t = values[:, 0]
+    y0 = {n: values[0, names.index(n)] for n in states if n in names}
+    mod = build_for(model, args)
+    data = np.array([values[:, names.index(m)] for m in measured])
+    initial = {k: number(v, f"--initial {k}") for k, v in assignments(args.initial, "--initial").items()}
+    result = fit(mod, t, data, fitted, y0, measured=measured, initial=initial or None,
+                 method=args.method, rtol=args.rtol, atol=args.atol)
+    print(f"{model.name}: fit of {', '.join(fitted)} to {', '.join(measured)} "
+          f"({data.size} samples, {result.nfev} iterations, rms residual "
+          f"{np.sqrt(2 * result.cost / data.size):.3g}{'' if result.success else ', NOT converged'})")
+    width = max(len(n) for n in fitted)
+    for n in fitted:
+        print(f"  {n:<{width}} = {result.params[n]:.6g} ± {result.stderr[n]:.2g}")
+    if args.plot:
+        from .outputs.plotting import plot_fit
+        fitted_run = fitted_response(mod, model, t, y0, result, measured, args)
+        plot_fit(t, data, fitted_run, measured, args.plot, title=f"{model.name}: fit",
+                 units=model.units)
+        print(f"plot -> {args.plot}", file=sys.stderr)
+    return 0 if result.success else 1
+
+
+def fitted_response(mod, model, t, y0, result, measured, args):
+    """The measured names' histories of the model at the estimates."""
+    from .simulate import simulate
+    states = list(model.coordinate_names) + [f"{c}_dot" for c in model.coordinate_names]
+    params = {k: v for k, v in result.params.items() if not k.startswith("y0:")}
+    start = dict(y0, **{k[3:]: v for k, v in result.params.items() if k.startswith("y0:")})
+    sol = simulate(mod, (t[0], t[-1]), start, method=args.method, params=params, t_eval=t,
+                   rtol=args.rtol, atol=args.atol)
+    return np.array([sol.y[states.index(m)] for m in measured])
+
+
+def add_fit(sub):
+    f = sub.add_parser("fit", help="estimate parameters from a measured response",
+                       description="Least-squares estimates of the named parameters (and "
+                       "initial states y0:<state>) from a CSV record with columns t, then "
+                       "coordinates and <coordinate>_dot (as `simulate --csv` writes it), with "
+                       "the exact gradient from forward sensitivities; prints the estimates "
+                       "with their standard errors. The initial state is the record's first row "
+                       "(velocities 0 unless given): with noisy data, fit it too with y0:<state>.")
+    add_common(f)
+    f.add_argument("--backend", choices=("c", "python"), default="c",
+                   help="compiled C (default, cached in --out) or pure Python")
+    f.add_argument("--data", required=True, metavar="RUN.csv", help="the measured record")
+    f.add_argument("--params", required=True, metavar="NAME,...",
+                   help="the names to estimate: parameters, or y0:<state>")
+    f.add_argument("--measured", metavar="NAME,...",
+                   help="the measured columns to fit (default: every coordinate in the record)")
+    f.add_argument("--initial", action="append", metavar="NAME=VALUE,...",
+                   help="start values (default: the model's defaults)")
+    f.add_argument("--method", choices=METHOD_CHOICES, default="DOP853",
+                   help="integration method (default DOP853)")
+    f.add_argument("--rtol", type=float, default=1e-8, help="relative tolerance (default 1e-8)")
+    f.add_argument("--atol", type=float, default=1e-10, help="absolute tolerance (default 1e-10)")
+    f.add_argument("--plot", metavar="OUT.png", help="plot the measured and fitted responses")
+    f.set_defaults(run=command_fit)
+
+
 COMMANDS = [add_build, add_export_c, add_export_fmu, add_show, add_modes, add_simulate, add_bench,
-            add_sweep]
+            add_sweep, add_fit]
 
 
 def parser():

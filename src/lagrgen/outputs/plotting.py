@@ -86,6 +86,33 @@ def mark_transitions(axes, transitions, limit=200):
     axes[0].legend(loc="upper right", fontsize="small")
 
 
+def plot_fit(t, measured, fitted, names, path=None, title=None, units=None):
+    """Measured samples (dots) and the fitted model's response (lines), one panel per name.
+
+    Parameters
+    ----------
+    t : (m,) times; measured, fitted : (k, m) values; names : k names; units : {name: unit}
+    path : save the figure here if given; title : the figure title
+
+    Returns
+    -------
+    The matplotlib Figure.
+    """
+    measured, fitted = np.atleast_2d(measured), np.atleast_2d(fitted)
+    fig = new_figure(7, max(2.0 * len(names) + 0.8, 3.5))
+    axes = fig.subplots(len(names), 1, sharex=True, squeeze=False)[:, 0]
+    for ax, name, data, model in zip(axes, names, measured, fitted):
+        ax.plot(t, data, ".", ms=3, color="0.45", label=f"{name} measured")
+        ax.plot(t, model, "-", color="tab:blue", lw=1.4, label=f"{name} fitted")
+        ax.set_ylabel(label(name, units))
+        ax.grid(True, alpha=0.3)
+        ax.legend(loc="upper right", fontsize="small")
+    axes[-1].set_xlabel("t [s]" if units else "t")
+    if title:
+        axes[0].set_title(title)
+    return finished(fig, path)
+
+
 def plot_time_history(sol, coordinates, path=None, velocities=True, title=None, units=None):
     """q_i(t) (and q̇_i(t)); with `units` ({name: unit}) one panel per unit group, each axis
     labelled with its unit; saved to `path` if given."""
