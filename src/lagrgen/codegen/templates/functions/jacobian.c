@@ -16,20 +16,7 @@
     for (int i = 0; i < N; ++i)
         for (int j = 0; j < N; ++j)
             B[i * 2 * N + j] += H[i * N + j];
-    lg_cholesky_solve(M, B, 2 * N);
-    for (int i = 0; i < NC; ++i)
-        for (int k = 0; k < N; ++k) {
-            const double aik = A[i * N + k];
-            for (int c = 0; c < 2 * N; ++c)
-                G[i * 2 * N + c] -= aik * B[k * 2 * N + c];
-        }
-    lg_cholesky_solve_k(S, NC, G, 2 * N);
-    for (int i = 0; i < N; ++i)
-        for (int j = 0; j < NC; ++j) {
-            const double wij = W[i * NC + j];
-            for (int c = 0; c < 2 * N; ++c)
-                B[i * 2 * N + c] += wij * G[j * 2 * N + c];
-        }
+    lg_saddle_columns(M, A, W, S, B, G, 2 * N);
 #else
     lg_jacobian_b(t, y, y + N, a, p, u, B);
     lg_cholesky_solve(M, B, 2 * N);
