@@ -3,7 +3,7 @@
 The augmented system is y' = f(t, y, p, u), S_j' = J·S_j + ∂f/∂p_j with S_j(0) = 0 (or a unit
 vector for an initial state y0:<state>), J = ∂f/∂y the model's analytic Jacobian and ∂f/∂p its
 analytic `parameter_jacobian`. The error control covers the sensitivities as well as the state
-(CVODES' default, errconS). For Radau and BDF the augmented Jacobian is taken block-diagonal,
+(as CVODES with errconS set). For Radau and BDF the augmented Jacobian is taken block-diagonal,
 diag(J, …, J): the term ∂(J·S)/∂y only enters the Newton iteration matrix, which needs to be
 approximate. On a compiled model the augmented system runs in C (the native engine with the
 hooks of native/lg_sensitivity.c, no Python per step) whenever the native engine can run the
