@@ -169,7 +169,7 @@ STAGES = [
     ("base", ["_version", "errors", "numbers", "names", "caching", "functions", "methods",
               "signals", "toolchain"]),
     ("description", ["rotation", "bodies3d", "records", "checks", "description"]),
-    ("derivation", ["calculus", "terms", "contributions", "lagrange", "nonsmooth"]),
+    ("derivation", ["calculus", "terms", "contributions", "lagrange", "nonsmooth", "tree"]),
     ("kernels", ["kernels"]),
     ("code", ["codegen"]),
     ("runtime", ["runtime"]),

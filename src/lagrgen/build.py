@@ -42,7 +42,7 @@ BACKENDS = ("c", "python")
 PACKAGE = Path(__file__).resolve().parent
 #: The sources that determine generated code: a change to any of them changes every key.
 GENERATOR_SOURCES = ("_version.py", "functions.py", "calculus.py", "terms.py", "contributions.py",
-                     "lagrange.py", "nonsmooth.py", "kernels.py", "runtime/info.py",
+                     "lagrange.py", "nonsmooth.py", "tree.py", "kernels.py", "runtime/info.py",
                      "codegen/*.py", "codegen/templates/*", "codegen/templates/functions/*")
 _loaded = {}
 
@@ -57,8 +57,11 @@ def build(model, out_dir="generated", backend="c", **options):
         Where the C backend writes and caches; the Python backend ignores it.
     backend : "c" or "python"
     **options
-        C backend: verbose, quiet, force (rebuild and republish), opt_level ("-O2"), cflags (a
-        list of extra compiler flags).
+        Both backends: formulation — "dense" (q̈ through the Cholesky factor of M), "recursive"
+        (the articulated-body recursion over a kinematic tree, `lagrgen.tree`; ModelError if the
+        model is not one) or None (default: recursive for a tree of at least
+        `lagrgen.tree.RECURSIVE_FROM` coordinates). C backend: verbose, quiet, force (rebuild and
+        republish), opt_level ("-O2"), cflags (a list of extra compiler flags).
 
     Returns
     -------
@@ -71,20 +74,29 @@ def build(model, out_dir="generated", backend="c", **options):
         raise ModelError(f"unknown backend {backend!r}: use one of {', '.join(map(repr, BACKENDS))}")
     start = time.perf_counter()
     spec = model.spec()
+    formulation = options.pop("formulation", None)
+    if formulation not in (None, "dense", "recursive"):
+        raise ModelError(f"unknown formulation {formulation!r}: use 'dense', 'recursive' or None")
     if backend == "python":
         from .codegen.python_module import python_source
         from .runtime.pymodel import PythonModel
+        from .runtime.tree import RecursivePythonModel
         equations = derived(spec)
-        built = PythonModel(model_info(spec, equations), python_source(equations))
+        info = model_info(spec, equations, formulation)
+        kind = RecursivePythonModel if info.formulation == "recursive" else PythonModel
+        built = kind(info, python_source(equations, info.formulation))
         built.build_info = {"cache_hit": False, "seconds": time.perf_counter() - start}
         built._source_model = model
         return built
     unknown = set(options) - {"verbose", "quiet", "force", "opt_level", "cflags"}
     if unknown:
         raise TypeError(f"build() got unknown option(s) {', '.join(sorted(unknown))}")
-    built = build_c(spec.name, content_digest(spec, lambda: derived(spec)),
-                    lambda: (model_info(spec, derived(spec)), derived(spec)), Path(out_dir),
-                    **options)
+    digest = content_digest(spec, lambda: derived(spec))
+    if formulation is not None:
+        digest = hashlib.sha256(f"{digest} {formulation}".encode()).hexdigest()
+    built = build_c(spec.name, digest,
+                    lambda: (model_info(spec, derived(spec), formulation), derived(spec)),
+                    Path(out_dir), **options)
     built._source_model = model      # the description it was built from: what animations draw
     return built
 
@@ -268,8 +280,15 @@ def equations_digest(equations):
     return h.hexdigest()
 
 
-def model_info(spec, equations):
-    """The `ModelInfo` of a built model: names, defaults, units, sizes, flags, hash, version."""
+def model_info(spec, equations, formulation=None):
+    """The `ModelInfo` of a built model: names, defaults, units, sizes, flags, hash, version, and
+    the formulation `formulation` resolves to (`lagrgen.tree.choose`)."""
+    from .tree import choose, explicit_time, analysed
+    formulation = choose(equations, formulation)
+    if formulation == "recursive":
+        time_dependent = explicit_time(analysed(equations)[0], equations)
+    else:
+        time_dependent = equations.explicit_time
     return ModelInfo(
         name=spec.name, coordinates=spec.coordinate_names, parameters=spec.parameter_names,
         inputs=spec.input_names, defaults=spec.defaults, units=dict(spec.units),
@@ -277,7 +296,7 @@ def model_info(spec, equations):
         n_holonomic=equations.n_holonomic,
         event_definitions=[(name, terminal, direction)
                            for name, _, terminal, direction in spec.events],
-        explicit_time=bool(equations.explicit_time),
+        explicit_time=bool(time_dependent), formulation=formulation,
         content_hash=content_digest(spec, lambda: equations), lagrgen_version=__version__,
         nonsmooth_definitions=[(e["name"], e["kind"], e["normal"])
                                for e in _nonsmooth().describe(spec)])
@@ -440,7 +459,8 @@ def _compile_entry(info, equations, entry, flags, progress):
                                   unit_sources)
     name = info.name
     progress.note("deriving the equations of motion ...")
-    equations.differentiate()
+    if info.formulation == "dense":
+        equations.differentiate()
     progress.step("derive", f"{equations.n} coordinates")
     files = standalone_files(info, equations)
     units = translation_units(files[f"{name}_model.c"])

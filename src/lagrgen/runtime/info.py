@@ -19,7 +19,9 @@ class ModelInfo:
     `defaults` are floats, None where a value must be given at run time; `event_definitions` are
     (name, terminal, direction) triples; `n_holonomic` counts the holonomic constraints, which come
     first in `constraint_names`; `nonsmooth_definitions` are (name, "impact" | "friction", normal)
-    triples of the impacts and frictions (`lagrgen.nonsmooth`), normal None or (kind, index).
+    triples of the impacts and frictions (`lagrgen.nonsmooth`), normal None or (kind, index);
+    `formulation` how q̈ and the Jacobian are computed: "dense" (Cholesky of M) or "recursive"
+    (over the kinematic tree, `lagrgen.tree`).
     """
 
     name: str
@@ -36,6 +38,7 @@ class ModelInfo:
     content_hash: str = ""
     lagrgen_version: str = ""
     nonsmooth_definitions: tuple = ()
+    formulation: str = "dense"
 
     def __post_init__(self):
         for name in ("coordinates", "parameters", "inputs", "defaults", "output_names",
@@ -90,4 +93,4 @@ class ModelInfo:
 INFO_ATTRIBUTES = ("name", "coordinates", "parameters", "inputs", "units", "output_names",
                    "constraint_names", "event_definitions", "explicit_time", "content_hash",
                    "lagrgen_version", "n_coordinates", "n_constraints", "dimensions",
-                   "nonsmooth_definitions")
+                   "nonsmooth_definitions", "formulation")

@@ -1,0 +1,426 @@
+"""Kinematic trees: the recursive (articulated-body) formulation of a model whose bodies form a
+chain or a tree.
+
+The kinetic energy of a model made of constant masses at positions r_b(q) (its particles, and
+each planar rigid body as a mass at its centre and its inertia at its 1-component 'position', the
+angle) is T = Σ ½·m_b·|ṙ_b|². The model is a *kinematic tree* when its coordinates can be ordered
+as the nodes of a rooted forest such that
+
+  * every particle b depends on exactly the coordinates of the path from a root to its leaf ℓ_b
+    (∂r_b/∂q_j ≠ 0 exactly for j on that path), and
+  * for every coordinate j, all particles strictly below j (of one dimension d) share one column
+    ∂r_b/∂q_j = Σ_j, which depends on q_j alone (p_b − p_parent depends on the own coordinate
+    only: absolute angles, relative translations, a cart carrying a pendulum, ...).
+
+Then the velocity of the subtree's attachment point follows the recursion V_k = V_parent + Σ_k·q̇_k,
+a particle at node k moves with ṙ_b = V_parent + s_b·q̇_k (s_b = ∂r_b/∂q_k), and Lagrange's
+equations τ_j = Σ_b m_b·(∂r_b/∂q_j)ᵀ·r̈_b = Q_j (Q: every other term, −∂V/∂q − ∂R/∂q̇ + forces)
+are solved for q̈ in O(n) by the articulated-body recursion (Featherstone's ABA in this velocity
+space), their Jacobian formed in O(n²) from the derivatives of each node's terms by its own q_j,
+q̇_j (see `lagrgen/codegen/templates/tree.c.in` and `lagrgen.runtime.tree`).
+
+Every property the recursion relies on is checked on the expressions themselves (a column equal
+to Σ_j is an identity of the expanded difference, the sets of particles each coordinate moves are
+nested or disjoint, Σ_j and s_b depend on their own coordinate only); anything not proven — a
+3-D body's rotation, a mass that varies, a position that depends on t, constraints, impacts,
+kinetic energy given as an expression, a column that differs — leaves the model to the dense
+formulation, with the reason (`analyse`).
+
+The velocity vector V of a node stacks one block per particle dimension present (e.g. the plane's
+x, y and the planar bodies' angles: D = 3); particles of dimension d read their block.
+"""
+from dataclasses import dataclass, field
+
+import symengine as se
+
+from .calculus import diff
+from .caching import once_per
+from .errors import ModelError
+from .records import Body3D
+
+#: The formulations a build can use: Cholesky of the dense M(q) (`lagrgen.kernels`), or the
+#: articulated-body recursion over a kinematic tree.
+FORMULATIONS = ("dense", "recursive")
+
+#: The recursive formulation is chosen automatically from this many coordinates on (measured:
+#: `benchmarks/pinocchio.py` runs both; below it the dense path's closed forms are faster).
+RECURSIVE_FROM = 12
+
+
+@dataclass(eq=False)
+class Tree:
+    """A model's kinematic tree and the symbolic terms of its nodes (internal symbols).
+
+    Nodes are numbered in preorder (a parent before its children, every subtree contiguous):
+    `coordinate[k]` is node k's coordinate, `parent[k]` its parent node (−1 for a root),
+    `end[k]` one past the last node of its subtree. `dims` are the particle dimensions present,
+    one block of the D-vector each (`offsets`). Per node (lists of D or of 1 entries, see
+    `NODE_FIELDS`): S the column the node passes to its subtree, kappa = (∂S/∂q_k)·q̇_k², mass
+    the node's own particles' mass per channel, u = Σ m_b·s_b, d = Σ m_b·s_b·s_b,
+    e = Σ m_b·κ_b, h = Σ m_b·s_b·κ_b (κ_b = (∂s_b/∂q_k)·q̇_k²), and Q the generalized force of
+    everything else (coordinate order).
+    """
+    coordinate: tuple
+    parent: tuple
+    end: tuple
+    dims: tuple
+    S: list
+    kappa: list
+    mass: list
+    u: list
+    d: list
+    e: list
+    h: list
+    Q: list
+    notes: list = field(default_factory=list)
+
+    @property
+    def n(self):
+        return len(self.coordinate)
+
+    @property
+    def D(self):
+        return sum(self.dims)
+
+    @property
+    def offsets(self):
+        """{dimension: first channel of its block}."""
+        out, k = {}, 0
+        for d in self.dims:
+            out[d] = k
+            k += d
+        return out
+
+    @property
+    def depth(self):
+        """The number of nodes on the longest root-to-leaf path."""
+        level = []
+        for k, p in enumerate(self.parent):
+            level.append(1 if p < 0 else level[p] + 1)
+        return max(level)
+
+
+#: Layout of one node's record in the `tree_nodes` kernel: (name, width in units of D or 1).
+NODE_FIELDS = (("S", "D"), ("kappa", "D"), ("mass", "D"), ("u", "D"), ("d", 1), ("e", "D"),
+               ("h", 1), ("Q", 1))
+#: Layout of one node's record in the `tree_slopes` kernel: the node terms' derivatives by the own
+#: coordinate q_k and rate q̇_k at a given q̈ (`a`): dS = ∂S/∂q_k, alpha = ∂(S·a_k + kappa)/∂q_k,
+#: alpha_qd = ∂kappa/∂q̇_k, du = ∂u/∂q_k, c = ∂(d·a_k + h)/∂q_k, c_qd = ∂h/∂q̇_k,
+#: g = ∂(u·a_k + e)/∂q_k, g_qd = ∂e/∂q̇_k.
+SLOPE_FIELDS = (("dS", "D"), ("alpha", "D"), ("alpha_qd", "D"), ("du", "D"), ("c", 1),
+                ("c_qd", 1), ("g", "D"), ("g_qd", "D"))
+
+
+def record_width(fields, D):
+    """The number of doubles in one node's record of `fields`."""
+    return sum(D if w == "D" else w for _, w in fields)
+
+
+def field_offsets(fields, D):
+    """{name: offset of the field in a node's record}."""
+    out, k = {}, 0
+    for name, w in fields:
+        out[name] = k
+        k += D if w == "D" else w
+    return out
+
+
+class NotATree(Exception):
+    """Why a model is not (provably) a kinematic tree."""
+
+
+@once_per
+def analysed(eq):
+    """(`Tree`, None) for the `Equations` `eq` of a kinematic tree, else (None, the reason)."""
+    try:
+        return _tree(eq), None
+    except NotATree as exc:
+        return None, str(exc)
+
+
+def analyse(eq):
+    """The `Tree` of `eq`; ModelError saying why when the model is not a kinematic tree."""
+    tree, reason = analysed(eq)
+    if tree is None:
+        raise ModelError(f"model {eq.spec.name!r} cannot use formulation='recursive': {reason} "
+                         "(use formulation='dense', or None to choose automatically)")
+    return tree
+
+
+def choose(eq, formulation):
+    """The formulation a build of `eq` uses: `formulation` when given ("dense", or "recursive",
+    checked), else "recursive" for a kinematic tree of at least RECURSIVE_FROM coordinates."""
+    if formulation not in (None,) + FORMULATIONS:
+        raise ModelError(f"unknown formulation {formulation!r}: use 'dense', 'recursive' or None")
+    if formulation == "recursive":
+        analyse(eq)
+        return "recursive"
+    if formulation == "dense" or eq.n < RECURSIVE_FROM:
+        return "dense"
+    return "recursive" if analysed(eq)[0] is not None else "dense"
+
+
+# -- detection -----------------------------------------------------------------------------------
+def _tree(eq):
+    spec = eq.spec
+    if spec.external is not None:
+        raise NotATree("its M and F come from outside (from_sympy)")
+    if eq.m:
+        raise NotATree("it has constraints")
+    if spec.nonsmooth:
+        raise NotATree("it has impacts or friction")
+    if any(isinstance(r, Body3D) for r in spec.physics):
+        raise NotATree("it has 3-D rigid bodies (their rotations are not handled recursively)")
+    collected = eq.collected
+    if collected.sums.general_T:
+        raise NotATree("part of its kinetic energy is given as an expression or has a mass "
+                       "that varies")
+    q, qd, t = eq.q, eq.qd, eq.t
+    n = len(q)
+    names = spec.coordinate_names
+    index = {qj: j for j, qj in enumerate(q)}
+    particles = []     # (mass, position, {coordinate: column})
+    for mass, position in collected.particles:
+        free = set().union(*(rc.free_symbols for rc in position))
+        if t in free:
+            raise NotATree("a body's position depends on t")
+        columns = {}
+        for qj in sorted(free & set(q), key=index.get):
+            column = [diff(rc, qj) for rc in position]
+            if any(c != 0 for c in column):
+                columns[index[qj]] = column
+        if columns:
+            particles.append((mass, list(position), columns))
+    moved = [frozenset(b for b, (_, _, cols) in enumerate(particles) if j in cols)
+             for j in range(n)]
+    for j in range(n):
+        if not moved[j]:
+            raise NotATree(f"coordinate {names[j]!r} moves no body")
+    parent_coordinate = _forest(moved, names)
+    leaf = [max(cols, key=lambda j: _depth_key(j, moved)) for _, _, cols in particles]
+    dims = tuple(sorted({len(pos) for _, pos, _ in particles}))
+    S = _shared_columns(particles, leaf, dims, q, names)
+    for b, (_, _, cols) in enumerate(particles):
+        own = leaf[b]
+        if any(s.free_symbols & (set(q) - {q[own]}) for s in cols[own]):
+            raise NotATree(f"a body's own column depends on other coordinates than "
+                           f"{names[own]!r}")
+    coordinate, parent, end = _preorder(parent_coordinate)
+    return _node_terms(eq, particles, leaf, dims, S, coordinate, parent, end)
+
+
+def _depth_key(j, moved):
+    """Sort key placing a coordinate after (deeper than) every coordinate that moves a superset
+    of its bodies: fewer bodies first reversed, ties by index."""
+    return (-len(moved[j]), j)
+
+
+def _forest(moved, names):
+    """{coordinate: parent coordinate or −1} from the sets of bodies each coordinate moves, which
+    must be nested or disjoint (a laminar family); equal sets form a chain in index order."""
+    order = sorted(range(len(moved)), key=lambda j: _depth_key(j, moved))
+    parent = {}
+    placed = []
+    for j in order:
+        parent[j] = -1
+        for i in placed:
+            common = moved[i] & moved[j]
+            if not common:
+                continue
+            if common != moved[j]:
+                raise NotATree(f"coordinates {names[i]!r} and {names[j]!r} move overlapping but "
+                               "different sets of bodies")
+            parent[j] = i          # the last (deepest) coordinate whose bodies contain j's
+        placed.append(j)
+    return parent
+
+
+def _shared_columns(particles, leaf, dims, q, names):
+    """Σ_j per dimension: the column every particle strictly below coordinate j has for q_j
+    (zeros where none), checked equal (expanded difference 0) and a function of q_j alone."""
+    n = len(q)
+    S = [{d: None for d in dims} for _ in range(n)]
+    for b, (_, position, cols) in enumerate(particles):
+        d = len(position)
+        for j, column in cols.items():
+            if j == leaf[b]:
+                continue
+            known = S[j][d]
+            if known is None:
+                if any(c.free_symbols & (set(q) - {q[j]}) for c in column):
+                    raise NotATree(f"the column of {names[j]!r} in a body below it depends on "
+                                   "other coordinates (relative angles or a rotating frame)")
+                S[j][d] = column
+            elif any(se.expand(a - c) != 0 for a, c in zip(known, column)):
+                raise NotATree(f"bodies below {names[j]!r} move differently with it "
+                               "(relative angles or a rotating frame)")
+    return [{d: (col if col is not None else [se.Integer(0)] * d) for d, col in Sj.items()}
+            for Sj in S]
+
+
+def _preorder(parent_coordinate):
+    """(coordinate, parent, end) of the nodes in preorder: roots and children by index."""
+    n = len(parent_coordinate)
+    children = {j: [] for j in range(-1, n)}
+    for j in range(n):
+        children[parent_coordinate[j]].append(j)
+    coordinate, parent, end = [], [], [0] * n
+    node_of = {}
+
+    def visit(j, p):
+        k = len(coordinate)
+        node_of[j] = k
+        coordinate.append(j)
+        parent.append(p)
+        for c in children[j]:
+            visit(c, k)
+        end[k] = len(coordinate)
+
+    import sys
+    limit = sys.getrecursionlimit()
+    sys.setrecursionlimit(max(limit, 4 * n + 100))
+    try:
+        for root in children[-1]:
+            visit(root, -1)
+    finally:
+        sys.setrecursionlimit(limit)
+    return tuple(coordinate), tuple(parent), tuple(end)
+
+
+# -- the nodes' terms ----------------------------------------------------------------------------
+def _node_terms(eq, particles, leaf, dims, S_by_coordinate, coordinate, parent, end):
+    q, qd = eq.q, eq.qd
+    n = len(q)
+    D = sum(dims)
+    offsets, k0 = {}, 0
+    for d in dims:
+        offsets[d] = k0
+        k0 += d
+    zero = se.Integer(0)
+    own = {j: [] for j in range(n)}
+    for b, (mass, position, cols) in enumerate(particles):
+        own[leaf[b]].append((mass, len(position), cols[leaf[b]]))
+    Q = _generalized_forces(eq)
+    tree = Tree(coordinate, parent, end, dims, [], [], [], [], [], [], [], [])
+    names = eq.spec.coordinate_names
+    for k, j in enumerate(coordinate):
+        qj, qdj = q[j], qd[j]
+        S = [zero] * D
+        for d, col in S_by_coordinate[j].items():
+            S[offsets[d]:offsets[d] + d] = col
+        kappa = [se.expand(diff(s, qj) * qdj ** 2) for s in S]
+        mass, u, e = [zero] * D, [zero] * D, [zero] * D
+        dd = h = zero
+        for m, dim, s in own[j]:
+            o = offsets[dim]
+            kap = [diff(c, qj) * qdj ** 2 for c in s]
+            for i in range(dim):
+                mass[o + i] += m
+                u[o + i] += m * s[i]
+                e[o + i] += m * kap[i]
+            dd += m * sum(c * c for c in s)
+            h += m * sum(c * x for c, x in zip(s, kap))
+        tree.S.append(S)
+        tree.kappa.append(kappa)
+        tree.mass.append(mass)
+        tree.u.append([se.expand(x) for x in u])
+        tree.d.append(se.expand(dd))
+        tree.e.append([se.expand(x) for x in e])
+        tree.h.append(se.expand(h))
+        above = f", below {names[coordinate[parent[k]]]}" if parent[k] >= 0 else ", a root"
+        count = len(own[j])
+        tree.notes.append(f"node {k}: coordinate {names[j]}{above}; "
+                          f"{count} bod{'y' if count == 1 else 'ies'} of its own")
+    tree.Q = Q
+    return tree
+
+
+def _generalized_forces(eq):
+    """Q_j = (applied forces)_j − ∂V/∂q_j − ∂R/∂q̇_j: F without the particles' inertia terms."""
+    sums = eq.collected.sums
+    return [sums.Q[j] - diff(sums.V, eq.q[j]) - diff(sums.R, eq.qd[j]) for j in range(eq.n)]
+
+
+# -- kernel expressions --------------------------------------------------------------------------
+def node_records(tree):
+    """The `tree_nodes` kernel's output: each node's NODE_FIELDS record, in node order."""
+    out = []
+    for k, j in enumerate(tree.coordinate):
+        values = {"S": tree.S[k], "kappa": tree.kappa[k], "mass": tree.mass[k], "u": tree.u[k],
+                  "d": [tree.d[k]], "e": tree.e[k], "h": [tree.h[k]], "Q": [tree.Q[j]]}
+        for name, _ in NODE_FIELDS:
+            out.extend(values[name])
+    return out
+
+
+def slope_records(tree, eq):
+    """The `tree_slopes` kernel's output: each node's SLOPE_FIELDS record at a = q̈ (symbols)."""
+    out = []
+    for k, j in enumerate(tree.coordinate):
+        qj, qdj, aj = eq.q[j], eq.qd[j], eq.a[j]
+        S, kappa, u, e = tree.S[k], tree.kappa[k], tree.u[k], tree.e[k]
+        dS = [diff(s, qj) for s in S]
+        values = {
+            "dS": dS,
+            "alpha": [se.expand(ds * aj + diff(x, qj)) for ds, x in zip(dS, kappa)],
+            "alpha_qd": [diff(x, qdj) for x in kappa],
+            "du": [diff(x, qj) for x in u],
+            "c": [se.expand(diff(tree.d[k], qj) * aj + diff(tree.h[k], qj))],
+            "c_qd": [diff(tree.h[k], qdj)],
+            "g": [se.expand(diff(x, qj) * aj + diff(y, qj)) for x, y in zip(u, e)],
+            "g_qd": [diff(y, qdj) for y in e],
+        }
+        for name, _ in SLOPE_FIELDS:
+            out.extend(values[name])
+    return out
+
+
+def gradients(tree, eq):
+    """(([(i, j)], [∂Q_i/∂q_j]), ([(i, j)], [∂Q_i/∂q̇_j]), ∂Q/∂u as n×n_inputs lists): the
+    derivatives of the generalized forces, the first two sparse (nonzero entries only)."""
+    def sparse(variables):
+        index, values = [], []
+        for i, Qi in enumerate(tree.Q):
+            free = Qi.free_symbols
+            for j, v in enumerate(variables):
+                if v in free:
+                    d = diff(Qi, v)
+                    if d != 0:
+                        index.append((i, j))
+                        values.append(d)
+        return index, values
+    dQ_du = [[diff(Qi, uk) if uk in Qi.free_symbols else se.Integer(0) for uk in eq.u]
+             for Qi in tree.Q]
+    return sparse(eq.q), sparse(eq.qd), dQ_du
+
+
+def parameter_gradients(tree, eq):
+    """(([(node, offset, parameter)], [∂record/∂p]), ([(coordinate, parameter)], [∂Q/∂p])): the
+    nonzero derivatives of the node records (offset within a record) and of Q by the parameters,
+    the first sorted by parameter."""
+    width = record_width(NODE_FIELDS, tree.D)
+    records = node_records(tree)
+    entries = []
+    for pos, expr in enumerate(records):
+        free = expr.free_symbols
+        for j, pj in enumerate(eq.p):
+            if pj in free:
+                d = diff(expr, pj)
+                if d != 0:
+                    entries.append(((j, pos // width, pos % width), d))
+    entries.sort(key=lambda item: item[0])
+    forces = []
+    for i, Qi in enumerate(tree.Q):
+        free = Qi.free_symbols
+        for j, pj in enumerate(eq.p):
+            if pj in free:
+                d = diff(Qi, pj)
+                if d != 0:
+                    forces.append(((i, j), d))
+    return (([(k, o, j) for (j, k, o), _ in entries], [d for _, d in entries]),
+            ([ij for ij, _ in forces], [d for _, d in forces]))
+
+
+def explicit_time(tree, eq):
+    """True if the equations depend on t explicitly (for a tree: through Q alone)."""
+    return any(eq.t in Qi.free_symbols for Qi in tree.Q)
