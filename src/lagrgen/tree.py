@@ -35,8 +35,10 @@ import symengine as se
 
 from .calculus import diff
 from .caching import once_per
+from .contributions import CONTRIBUTIONS, Sums
 from .errors import ModelError
-from .records import Body3D
+from .records import (Body3D, Damper, Dissipation, Force, GeneralizedForce, PotentialEnergy,
+                      Spring, Torque)
 
 #: The formulations a build can use: Cholesky of the dense M(q) (`lagrgen.kernels`), or the
 #: articulated-body recursion over a kinematic tree.
@@ -57,7 +59,8 @@ class Tree:
     one block of the D-vector each (`offsets`). Per node (lists of D or of 1 entries, see
     `NODE_FIELDS`): S the column the node passes to its subtree, kappa = (∂S/∂q_k)·q̇_k², mass
     the node's own particles' mass per channel, u = Σ m_b·s_b, d = Σ m_b·s_b·s_b,
-    e = Σ m_b·κ_b, h = Σ m_b·s_b·κ_b (κ_b = (∂s_b/∂q_k)·q̇_k²), and Q the generalized force of
+    e = Σ (m_b·κ_b − f_b), h = Σ s_b·(m_b·κ_b − f_b) (κ_b = (∂s_b/∂q_k)·q̇_k², f_b the constant
+    load of a potential m·g·y on the particle, see `_loads`), and Q the generalized force of
     everything else (coordinate order).
     """
     coordinate: tuple
@@ -181,14 +184,14 @@ def _tree(eq):
     index = {qj: j for j, qj in enumerate(q)}
     particles = []     # (mass, position, {coordinate: column})
     for mass, position in collected.particles:
-        free = set().union(*(rc.free_symbols for rc in position))
-        if t in free:
+        if any(t in rc.free_symbols for rc in position):
             raise NotATree("a body's position depends on t")
+        gradients = [_gradient(rc, index) for rc in position]
         columns = {}
-        for qj in sorted(free & set(q), key=index.get):
-            column = [diff(rc, qj) for rc in position]
+        for j in sorted(set().union(*gradients)):
+            column = [g.get(j, se.Integer(0)) for g in gradients]
             if any(c != 0 for c in column):
-                columns[index[qj]] = column
+                columns[j] = column
         if columns:
             particles.append((mass, list(position), columns))
     moved = [frozenset(b for b, (_, _, cols) in enumerate(particles) if j in cols)
@@ -206,7 +209,21 @@ def _tree(eq):
             raise NotATree(f"a body's own column depends on other coordinates than "
                            f"{names[own]!r}")
     coordinate, parent, end = _preorder(parent_coordinate)
-    return _node_terms(eq, particles, leaf, dims, S, coordinate, parent, end)
+    loads, Q = _loads(eq, particles, leaf, coordinate)
+    return _node_terms(eq, particles, leaf, dims, S, coordinate, parent, end, loads, Q)
+
+
+def _gradient(expr, index):
+    """{j: ∂expr/∂q_j} for the coordinates q_j (`index`: symbol -> j) in expr; a sum is
+    differentiated by q_j in its terms holding q_j only (a chain's positions are long sums)."""
+    terms = expr.args if isinstance(expr, se.Add) else (expr,)
+    by_coordinate = {}
+    for term in terms:
+        for v in term.free_symbols:
+            if v in index:
+                by_coordinate.setdefault(index[v], []).append(term)
+    q = {j: v for v, j in index.items()}
+    return {j: diff(se.Add(*parts), q[j]) for j, parts in by_coordinate.items()}
 
 
 def _depth_key(j, moved):
@@ -288,7 +305,61 @@ def _preorder(parent_coordinate):
 
 
 # -- the nodes' terms ----------------------------------------------------------------------------
-def _node_terms(eq, particles, leaf, dims, S_by_coordinate, coordinate, parent, end):
+def _loads(eq, particles, leaf, coordinate):
+    """({particle: load vector}, Q): the potential energies that are c·r_b,i + c₀ for one particle b
+    (c, c₀ free of q, q̇, t, u: gravity on a mass) as constant loads −c·e_i on their particles,
+    proven by the expanded difference; and Q_j = (applied forces)_j − ∂V/∂q_j − ∂R/∂q̇_j of all the
+    other records of V, R and Q."""
+    spec, q = eq.spec, eq.q
+    convert = eq.collected.convert
+    depth = {j: k for k, j in enumerate(coordinate)}
+    by_leaf = {}
+    for b, j in enumerate(leaf):
+        by_leaf.setdefault(j, []).append(b)
+    moving = set(eq.qd) | set(eq.u) | {eq.t}
+    loads, rest = {}, Sums(convert, q, eq.qd, eq.t, kinematic=set())
+    for record in spec.physics:
+        if isinstance(record, PotentialEnergy):
+            found = _particle_potential(convert(record.expr), particles, by_leaf, depth, q, moving)
+            if found is not None:
+                b, i, c = found
+                load = loads.setdefault(b, [se.Integer(0)] * len(particles[b][1]))
+                load[i] -= c
+                continue
+        if isinstance(record, (PotentialEnergy, Spring, Damper, Dissipation, Force, Torque,
+                               GeneralizedForce)):
+            CONTRIBUTIONS[type(record)](record, rest)
+    Q = [rest.Q[j] - diff(rest.V, q[j]) - diff(rest.R, eq.qd[j]) for j in range(eq.n)]
+    return loads, Q
+
+
+def _particle_potential(V, particles, by_leaf, depth, q, moving):
+    """(particle b, component i, c) with V = c·r_b,i + c₀ (c, c₀ free of q and of `moving`), or
+    None. Candidates are the particles of V's deepest coordinate; c = (∂V/∂q_ℓ)/(∂r_b,i/∂q_ℓ)."""
+    free = V.free_symbols
+    if free & moving:
+        return None
+    used = [j for j, qj in enumerate(q) if qj in free]
+    if not used:
+        return None
+    own = max(used, key=depth.get)
+    for b in by_leaf.get(own, ()):
+        _, position, cols = particles[b]
+        if any(j not in cols for j in used):
+            continue
+        dV = diff(V, q[own])
+        for i, s in enumerate(cols[own]):
+            if s == 0:
+                continue
+            c = dV / s
+            if c.free_symbols & (set(q) | moving):
+                continue
+            if not (se.expand(V - c * position[i]).free_symbols & set(q)):
+                return b, i, c
+    return None
+
+
+def _node_terms(eq, particles, leaf, dims, S_by_coordinate, coordinate, parent, end, loads, Q):
     q, qd = eq.q, eq.qd
     n = len(q)
     D = sum(dims)
@@ -299,8 +370,8 @@ def _node_terms(eq, particles, leaf, dims, S_by_coordinate, coordinate, parent, 
     zero = se.Integer(0)
     own = {j: [] for j in range(n)}
     for b, (mass, position, cols) in enumerate(particles):
-        own[leaf[b]].append((mass, len(position), cols[leaf[b]]))
-    Q = _generalized_forces(eq)
+        load = loads.get(b, [zero] * len(position))
+        own[leaf[b]].append((mass, len(position), cols[leaf[b]], load))
     tree = Tree(coordinate, parent, end, dims, [], [], [], [], [], [], [], [])
     names = eq.spec.coordinate_names
     for k, j in enumerate(coordinate):
@@ -311,15 +382,15 @@ def _node_terms(eq, particles, leaf, dims, S_by_coordinate, coordinate, parent, 
         kappa = [se.expand(diff(s, qj) * qdj ** 2) for s in S]
         mass, u, e = [zero] * D, [zero] * D, [zero] * D
         dd = h = zero
-        for m, dim, s in own[j]:
+        for m, dim, s, load in own[j]:
             o = offsets[dim]
-            kap = [diff(c, qj) * qdj ** 2 for c in s]
+            bias = [m * diff(c, qj) * qdj ** 2 - f for c, f in zip(s, load)]   # m·κ_b − f_b
             for i in range(dim):
                 mass[o + i] += m
                 u[o + i] += m * s[i]
-                e[o + i] += m * kap[i]
+                e[o + i] += bias[i]
             dd += m * sum(c * c for c in s)
-            h += m * sum(c * x for c, x in zip(s, kap))
+            h += sum(c * x for c, x in zip(s, bias))
         tree.S.append(S)
         tree.kappa.append(kappa)
         tree.mass.append(mass)
@@ -333,12 +404,6 @@ def _node_terms(eq, particles, leaf, dims, S_by_coordinate, coordinate, parent, 
                           f"{count} bod{'y' if count == 1 else 'ies'} of its own")
     tree.Q = Q
     return tree
-
-
-def _generalized_forces(eq):
-    """Q_j = (applied forces)_j − ∂V/∂q_j − ∂R/∂q̇_j: F without the particles' inertia terms."""
-    sums = eq.collected.sums
-    return [sums.Q[j] - diff(sums.V, eq.q[j]) - diff(sums.R, eq.qd[j]) for j in range(eq.n)]
 
 
 # -- kernel expressions --------------------------------------------------------------------------

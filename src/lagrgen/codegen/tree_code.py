@@ -23,11 +23,17 @@ def layout(equations):
             "node_width": trees.record_width(trees.NODE_FIELDS, tree.D),
             "slope_width": trees.record_width(trees.SLOPE_FIELDS, tree.D),
             "coordinate": list(tree.coordinate), "parent": list(tree.parent),
-            "end": list(tree.end), "dq": [list(ij) for ij in dq], "dqd": [list(ij) for ij in dqd],
+            "end": list(tree.end), "dq": _nodes(dq, tree), "dqd": _nodes(dqd, tree),
             "dnode": [[k, o] for k, o, _ in dnode], "dnode_start": start,
             "dQp": [list(ij) for ij in dQp],
             "node_fields": trees.field_offsets(trees.NODE_FIELDS, tree.D),
             "slope_fields": trees.field_offsets(trees.SLOPE_FIELDS, tree.D)}
+
+
+def _nodes(pairs, tree):
+    """(row, column) pairs of coordinates as pairs of nodes."""
+    node = {j: k for k, j in enumerate(tree.coordinate)}
+    return [[node[i], node[j]] for i, j in pairs]
 
 
 def _ints(values):
@@ -37,6 +43,7 @@ def _ints(values):
 def tree_c(equations, template):
     """`template` (the text of tree.c.in) for the equations' tree."""
     tables = layout(equations)
+    n = len(tables["coordinate"])
     names = {"d": "DD"}
     offsets = [f"#define TREE_{names.get(name, name.upper())} {offset}"
                for name, offset in tables["node_fields"].items()]
@@ -48,6 +55,7 @@ def tree_c(equations, template):
         coordinates=_ints(tables["coordinate"]), parents=_ints(tables["parent"]),
         ends=_ints(tables["end"]), dq_index=_ints([i for ij in tables["dq"] for i in ij]),
         dqd_index=_ints([i for ij in tables["dqd"] for i in ij]),
+        columns=_ints(tables["coordinate"] + [n + j for j in tables["coordinate"]]),
         nnz_p=len(tables["dnode"]), nnz_qp=len(tables["dQp"]),
         dnode_index=_ints([i for ko in tables["dnode"] for i in ko]),
         dnode_start=_ints(tables["dnode_start"]),

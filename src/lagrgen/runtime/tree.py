@@ -131,35 +131,36 @@ class Recursion:
         return M
 
     def b(self, nodes, slopes, dQ, dQd, a, A):
-        """B = [∂F/∂q − ∂(M·a)/∂q | ∂F/∂q̇] (n×2n) at a (see lg_tree_b in tree.c.in)."""
+        """B = [∂F/∂q − ∂(M·a)/∂q | ∂F/∂q̇] (n×2n, coordinate order) at a (see lg_tree_b in
+        tree.c.in, which forms it in node order)."""
         n = self.n
         S, uu = self.fields(nodes, self.node_fields, ("S", "u"))
         dS, al, ald, du, c, cd, g, gd = self.fields(slopes, self.slope_fields, _SLOPE_NAMES)
         G, _, Mc = self.forces(nodes, a, A)
         W = uu + Mc * S
-        B = np.zeros((n, 2 * n))
+        B = np.zeros((n, 2 * n))             # node order
         if len(dQ):
             B[self.dq[:, 0], self.dq[:, 1]] = dQ
         if len(dQd):
             B[self.dqd[:, 0], n + self.dqd[:, 1]] = dQd
         zero = np.zeros(self.D)
         for j in range(n):
-            cj, parent = self.coordinate[j], self.parent[j]
+            parent = self.parent[j]
             Ap = A[parent] if parent >= 0 else zero
             Mal, Mald = Mc[j] * al[j], Mc[j] * ald[j]
-            B[cj, cj] -= np.dot(du[j], Ap) + c[j] + np.dot(dS[j], G[j]) + np.dot(S[j], Mal)
-            B[cj, n + cj] -= cd[j] + np.dot(S[j], Mald)
+            B[j, j] -= np.dot(du[j], Ap) + c[j] + np.dot(dS[j], G[j]) + np.dot(S[j], Mal)
+            B[j, n + j] -= cd[j] + np.dot(S[j], Mald)
             up = self.ancestors[j]
             if up.size:
-                rows = self.coordinate[up]
-                B[rows, cj] -= S[up] @ (g[j] + Mal)
-                B[rows, n + cj] -= S[up] @ (gd[j] + Mald)
+                B[up, j] -= S[up] @ (g[j] + Mal)
+                B[up, n + j] -= S[up] @ (gd[j] + Mald)
             below = slice(j + 1, self.end[j])
-            if j + 1 < self.end[j]:
-                rows = self.coordinate[below]
-                B[rows, cj] -= W[below] @ al[j]
-                B[rows, n + cj] -= W[below] @ ald[j]
-        return B
+            B[below, j] -= W[below] @ al[j]
+            B[below, n + j] -= W[below] @ ald[j]
+        out = np.empty_like(B)
+        columns = np.concatenate([self.coordinate, n + self.coordinate])
+        out[np.ix_(self.coordinate, columns)] = B
+        return out
 
     def parameter_b(self, nodes, dv, dQ, a, A, n_params):
         """P = ∂Q/∂p − ∂τ/∂p (n×n_params) at a, by tangent sweeps of the recursion, all

@@ -1,12 +1,7 @@
     /* The bottom half of out is B = [∂F/∂q − ∂(M·q̈)/∂q | ∂F/∂q̇] (n×2n, rows of length 2n like
      * out's), overwritten in place by M⁻¹·B with the factor of M the rhs's q̈ came from. */
 #if LG_RECURSIVE
-    lg_tree w;
-    double a[N], *B = out + 2 * N * N;
-    if (lg_tree_rhs(t, y, y + N, p, u, &w, a))
-        return 1;
-    lg_tree_b(t, y, y + N, a, p, u, w.node, w.A, B);
-    lg_tree_solve(&w, B, 2 * N);
+    return lg_tree_jacobian(t, y, p, u, out);
 #else
     double M[N * N], a[N + N_CONSTRAINTS], *B = out + 2 * N * N;
     lg_mf(t, y, y + N, lg_zeros, p, u, M, a);
@@ -29,8 +24,8 @@
     lg_jacobian_b(t, y, y + N, a, p, u, B);
     lg_cholesky_solve(M, B, 2 * N);
 #endif
-#endif
     memset(out, 0, (size_t)2 * N * N * sizeof(double));
     for (int i = 0; i < N; ++i)
         out[i * 2 * N + N + i] = 1.0;
     return 0;
+#endif

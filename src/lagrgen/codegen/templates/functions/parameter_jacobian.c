@@ -6,7 +6,7 @@
     if (lg_tree_rhs(t, y, y + N, p, u, &w, a))
         return 1;
     lg_parameter_b(t, y, y + N, a, p, u, P);
-    lg_tree_solve(&w, P, N_PARAMS);
+    lg_tree_solve(&w, P, N_PARAMS, lg_tree_coordinate, P, N_PARAMS, 0);
     memset(out, 0, (size_t)N * N_PARAMS * sizeof(double));
 #elif N_PARAMS
     double M[N * N], a[N + N_CONSTRAINTS], *P = out + N * N_PARAMS;
