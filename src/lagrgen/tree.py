@@ -194,21 +194,46 @@ def _tree(eq):
                 columns[j] = column
         if columns:
             particles.append((mass, list(position), columns))
-    moved = [frozenset(b for b, (_, _, cols) in enumerate(particles) if j in cols)
-             for j in range(n)]
     for j in range(n):
-        if not moved[j]:
+        if not any(j in cols for _, _, cols in particles):
             raise NotATree(f"coordinate {names[j]!r} moves no body")
-    parent_coordinate = _forest(moved, names)
-    leaf = [max(cols, key=lambda j: _depth_key(j, moved)) for _, _, cols in particles]
     dims = tuple(sorted({len(pos) for _, pos, _ in particles}))
-    S = _shared_columns(particles, leaf, dims, q, names)
+    # The tree comes from the sets of bodies each coordinate moves (all bodies, else those of one
+    # dimension: planar bodies' angles are moved by their own coordinate only); every body is then
+    # placed on it and checked.
+    first = None
+    for d in (None,) + tuple(reversed(dims)) if len(dims) > 1 else (None,):
+        chosen = [b for b, (_, pos, _) in enumerate(particles) if d is None or len(pos) == d]
+        try:
+            return _placed(eq, particles, chosen, dims)
+        except NotATree as exc:
+            first = first or exc
+    raise first
+
+
+def _placed(eq, particles, chosen, dims):
+    """The `Tree` whose shape comes from the bodies `chosen`, with every body placed on it: its
+    leaf the deepest coordinate it depends on, all of which must lie on the leaf's path; the
+    columns shared (`_shared_columns`); NotATree otherwise."""
+    q, names, n = eq.q, eq.spec.coordinate_names, eq.n
+    moved = [frozenset(b for b in chosen if j in particles[b][2]) for j in range(n)]
+    parent_coordinate = _forest(moved, names)
+    coordinate, parent, end = _preorder(parent_coordinate)
+    node_of = {j: k for k, j in enumerate(coordinate)}
+    leaf = []
+    for _, _, cols in particles:
+        own = max(cols, key=node_of.get)
+        k = node_of[own]
+        if any(not (node_of[j] <= k < end[node_of[j]]) for j in cols):
+            raise NotATree(f"a body depends on coordinates that are not on one path of the tree "
+                           f"(through {names[own]!r})")
+        leaf.append(own)
+    S = _shared_columns(particles, leaf, dims, q, names, parent_coordinate)
     for b, (_, _, cols) in enumerate(particles):
         own = leaf[b]
         if any(s.free_symbols & (set(q) - {q[own]}) for s in cols[own]):
             raise NotATree(f"a body's own column depends on other coordinates than "
                            f"{names[own]!r}")
-    coordinate, parent, end = _preorder(parent_coordinate)
     loads, Q = _loads(eq, particles, leaf, coordinate)
     return _node_terms(eq, particles, leaf, dims, S, coordinate, parent, end, loads, Q)
 
@@ -226,16 +251,11 @@ def _gradient(expr, index):
     return {j: diff(se.Add(*parts), q[j]) for j, parts in by_coordinate.items()}
 
 
-def _depth_key(j, moved):
-    """Sort key placing a coordinate after (deeper than) every coordinate that moves a superset
-    of its bodies: fewer bodies first reversed, ties by index."""
-    return (-len(moved[j]), j)
-
-
 def _forest(moved, names):
     """{coordinate: parent coordinate or −1} from the sets of bodies each coordinate moves, which
-    must be nested or disjoint (a laminar family); equal sets form a chain in index order."""
-    order = sorted(range(len(moved)), key=lambda j: _depth_key(j, moved))
+    must be nested or disjoint (a laminar family); equal sets form a chain in index order, a
+    coordinate that moves none of them is a root."""
+    order = sorted(range(len(moved)), key=lambda j: (-len(moved[j]), j))   # supersets first
     parent = {}
     placed = []
     for j in order:
@@ -252,16 +272,17 @@ def _forest(moved, names):
     return parent
 
 
-def _shared_columns(particles, leaf, dims, q, names):
-    """Σ_j per dimension: the column every particle strictly below coordinate j has for q_j
-    (zeros where none), checked equal (expanded difference 0) and a function of q_j alone."""
+def _shared_columns(particles, leaf, dims, q, names, parent_coordinate):
+    """Σ_j per dimension: the column every particle strictly below coordinate j has for q_j (zero
+    where it does not depend on q_j, and where no particle is below), checked equal (expanded
+    difference 0) and a function of q_j alone."""
     n = len(q)
     S = [{d: None for d in dims} for _ in range(n)]
     for b, (_, position, cols) in enumerate(particles):
         d = len(position)
-        for j, column in cols.items():
-            if j == leaf[b]:
-                continue
+        j = parent_coordinate[leaf[b]]
+        while j >= 0:
+            column = cols.get(j, [se.Integer(0)] * d)
             known = S[j][d]
             if known is None:
                 if any(c.free_symbols & (set(q) - {q[j]}) for c in column):
@@ -271,6 +292,7 @@ def _shared_columns(particles, leaf, dims, q, names):
             elif any(se.expand(a - c) != 0 for a, c in zip(known, column)):
                 raise NotATree(f"bodies below {names[j]!r} move differently with it "
                                "(relative angles or a rotating frame)")
+            j = parent_coordinate[j]
     return [{d: (col if col is not None else [se.Integer(0)] * d) for d, col in Sj.items()}
             for Sj in S]
 
