@@ -10,7 +10,8 @@ import sympy as sp
 from numpy.testing import assert_allclose
 
 import lagrgen
-from lagrgen.build import compiler_command, model_info
+from lagrgen.build import model_info
+from lagrgen.toolchain import compiler_command
 from lagrgen.codegen.c_model import standalone_files, translation_units
 from conftest import ROOT, load_example
 
@@ -173,7 +174,7 @@ STAGES = [
     ("kernels", ["kernels"]),
     ("code", ["codegen"]),
     ("runtime", ["runtime"]),
-    ("build", ["build"]),
+    ("build", ["cache", "build"]),
     ("display", ["outputs"]),
     ("running", ["progress", "results", "solvers", "scipy_engine", "native", "sensitivity",
                  "simulate", "constraints", "ensemble", "ensemble_store",
