@@ -216,8 +216,9 @@ def export_fmu(model, out_dir=".", params=None, start_time=0.0, stop_time=10.0, 
     cflags : extra compiler flags (a list)
     kind : "me" (Model Exchange) or "cs" (Co-Simulation)
     fmi_version : 2 or 3
-    method, rtol, atol : the co-simulation solver's start values (one of RK23, RK45, DOP853,
-        Radau, BDF; rtol defaults to `tolerance` or 1e-6, atol to rtol/1000)
+    method, rtol, atol : the co-simulation solver's start values (a method of the native engine,
+        `lagrgen.methods.NATIVE_METHODS`; rtol defaults to `tolerance` or 1e-6, atol to
+        rtol/1000)
 
     Returns
     -------

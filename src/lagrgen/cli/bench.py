@@ -2,6 +2,7 @@
 from pathlib import Path
 
 from ..errors import LagrgenError
+from ..methods import BENCH_METHODS
 from .arguments import add_model_file, command_parser, initial_state, models_in
 
 
@@ -18,7 +19,7 @@ def add(sub):
     b.add_argument("--y0", metavar="VALUES", help="initial state (default: every q = 0.1, q' = 0)")
     b.add_argument("--t-end", type=float, default=10.0, help="end time of the solve (default 10)")
     b.add_argument("--methods", nargs="+", metavar="METHOD",
-                   help="solve_ivp methods (default: RK45 DOP853 Radau BDF LSODA)")
+                   help=f"solve_ivp methods (default: {' '.join(BENCH_METHODS)})")
     b.add_argument("--rtol", type=float, default=1e-8, help="relative tolerance (default 1e-8)")
     b.add_argument("--atol", type=float, default=1e-8, help="absolute tolerance (default 1e-8)")
     b.add_argument("--repeats", type=int, default=3, help="repeats per figure (default 3)")
@@ -27,11 +28,11 @@ def add(sub):
 
 
 def run(args):
-    from ..bench import METHODS, bench_model, markdown
-    methods = args.methods or METHODS
-    unknown = [m for m in methods if m not in METHODS]
+    from ..bench import bench_model, markdown
+    methods = args.methods or BENCH_METHODS
+    unknown = [m for m in methods if m not in BENCH_METHODS]
     if unknown:
-        raise LagrgenError(f"--methods: unknown method {unknown[0]!r} (use {', '.join(METHODS)})")
+        raise LagrgenError(f"--methods: unknown method {unknown[0]!r} (use {', '.join(BENCH_METHODS)})")
     reports = []
     for model in models_in(args.model_file, args.model):
         def fresh(name=model.name):
