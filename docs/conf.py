@@ -107,18 +107,15 @@ API = [
 
 
 def resolve(entry):
-    """The object `lagrgen.<entry>` (a public name, or a dotted path into a module), or None."""
-    parts = entry.split(".")
-    obj = lagrgen
-    for k, part in enumerate(parts):
-        try:
-            obj = getattr(obj, part)
-        except AttributeError:
-            try:
-                obj = importlib.import_module(".".join(["lagrgen", *parts[:k + 1]]))
-            except ImportError:
-                return None
-    return obj
+    """The object `lagrgen.<entry>`, or None: a public name of the package's face, or a module of
+    the package and a name in it (`"sweep.SweepResult"`: the module lagrgen.sweep, not the
+    function lagrgen.sweep)."""
+    module, _, name = entry.rpartition(".")
+    try:
+        owner = importlib.import_module(f"lagrgen.{module}") if module else lagrgen
+    except ImportError:
+        return None
+    return getattr(owner, name, None)
 
 
 def existing(entries):
@@ -165,5 +162,11 @@ def generated_parts(app, docname, source):
         source[0] += "\n\n" + api_reference() + "\n"
 
 
+def always_read(app, env, added, changed, removed):
+    """The documents with generated parts are read again on every build (new pages, new names)."""
+    return ["index", "api"]
+
+
 def setup(app):
     app.connect("source-read", generated_parts)
+    app.connect("env-get-outdated", always_read)

@@ -69,6 +69,14 @@ def test_every_python_block_of_the_page_runs(page, repository_root, monkeypatch)
             exec(compile(code, f"{page_id(page)}, block at line {line}", "exec"), namespace)
     finally:
         plt.close("all")
+        for name in [n for n, m in sys.modules.items() if _loaded_from(repository_root, m)]:
+            del sys.modules[name]           # the copies of examples/ the blocks imported
+
+
+def _loaded_from(root, module):
+    """Whether `module` (or a namespace package) was imported from a file under `root`."""
+    places = [getattr(module, "__file__", None), *(getattr(module, "__path__", None) or [])]
+    return any(str(place or "").startswith(str(root)) for place in places)
 
 
 def test_the_manual_builds_without_a_warning(tmp_path):
