@@ -21,7 +21,7 @@ _LAZY = {
     "open_ensemble": "ensemble_store",
     "sweep": "sweep",
     "fit": "fit", "fit_modes": "fit",
-    "equilibrium": "vibration", "linearize": "vibration", "modes": "vibration",
+    "equilibrium": "vibration", "linearize": "linearization", "modes": "vibration",
     "frequency_response": "vibration", "FrozenTimeWarning": "vibration",
     "consistent_state": "constraints",
     "from_sympy": "sympy_interop",
