@@ -307,3 +307,25 @@ def test_kane_models_that_cannot_be_taken_say_why():
     km.kanes_equations([me.Particle("p", P, sp.Symbol("m"))], [])
     with pytest.raises(lagrgen.ModelError, match="1 speeds for 2 coordinates"):
         lagrgen.from_sympy(km, "too_few_speeds")
+
+
+def test_stability_command(tmp_path, capsys):
+    from lagrgen.cli import main
+    from conftest import EXAMPLES
+    png, table = tmp_path / "locus.png", tmp_path / "locus.csv"
+    status = main(["stability", str(EXAMPLES / "rolling_disk.py"), "--sweep", "v=0.5:2:16",
+                   "--qd0", "int_spin=v/r", "--params", "r=0.3", "--plot", str(png),
+                   "--csv", str(table), "--out", str(tmp_path / "gen")])
+    out = capsys.readouterr().out
+    assert status == 0 and png.stat().st_size > 10_000
+    value = float(out.split("v = ")[1].split(":")[0])
+    assert abs(value - CRITICAL) < 1e-8 and "unstable->stable" in out
+    rows = np.loadtxt(table, delimiter=",", skiprows=1)
+    assert rows.shape == (16, 2 + 2 * 6) and rows[0, 1] == 0 and rows[-1, 1] == 1
+    # at rest: the model's equilibrium near --at, swept over a parameter
+    assert main(["stability", str(EXAMPLES / "double_pendulum.py"), "--sweep", "g=1:10:4",
+                 "--backend", "python"]) == 0
+    assert "no eigenvalue crosses" in capsys.readouterr().out
+    assert main(["stability", str(EXAMPLES / "rolling_disk.py"), "--sweep", "speed=0:1:3",
+                 "--backend", "python"]) == 1
+    assert "not a parameter" in capsys.readouterr().err

@@ -110,12 +110,20 @@ class EigenvalueSweep:
         for b in range(self.eigenvalues.shape[1]):
             line, = ax_re.plot(v, self.eigenvalues[:, b].real, lw=1.4)
             ax_im.plot(v, self.eigenvalues[:, b].imag, lw=1.4, color=line.get_color())
+        crossings = self.crossings()
+
+        def boundary(i, j):
+            """Where stability changes between values i and j: a located crossing, else the
+            midpoint."""
+            lo, hi = sorted((v[i], v[j]))
+            inside = [c[0] for c in crossings if lo <= c[0] <= hi]
+            return inside[0] if inside else (v[i] + v[j]) / 2
         for start, stop in _runs(self.stable):
-            lo = v[start] if start == 0 else (v[start - 1] + v[start]) / 2
-            hi = v[stop] if stop == len(v) - 1 else (v[stop] + v[stop + 1]) / 2
+            lo = v[start] if start == 0 else boundary(start - 1, start)
+            hi = v[stop] if stop == len(v) - 1 else boundary(stop, stop + 1)
             for a in (ax_re, ax_im):
                 a.axvspan(lo, hi, color=stable_color, alpha=0.12, lw=0)
-        for value, _, kind in self.crossings():
+        for value, _, kind in crossings:
             for a in (ax_re, ax_im):
                 a.axvline(value, color="k", ls="--", lw=0.8)
             ax_re.annotate(f"{value:.6g}", (value, 0), xytext=(4, 4),
