@@ -329,3 +329,23 @@ def test_stability_command(tmp_path, capsys):
     assert main(["stability", str(EXAMPLES / "rolling_disk.py"), "--sweep", "speed=0:1:3",
                  "--backend", "python"]) == 1
     assert "not a parameter" in capsys.readouterr().err
+
+
+def test_whipple_bicycle_benchmark(tmp_path):
+    """The benchmark bicycle (Meijaard et al. 2007), from SymPy's KanesMethod with its wheel
+    spins as speeds without coordinates: the eigenvalues at 5 m/s and the weave and capsize
+    speeds of the benchmark (4.29238253634111 and 6.02426201538837 m/s, Basu-Mandal, Chatterjee
+    and Papadopoulos 2007, to 14 digits)."""
+    example = load_example("bicycle")
+    mod = lagrgen.build(example.model, out_dir=tmp_path)
+    assert mod.coordinates[-2:] == ("int_rear_spin", "int_front_spin")
+    lin = lagrgen.linearize(mod, *example.upright(5.0)[:2])
+    s = lin.eigenvalues
+    for published in (-0.775341882195845 + 4.46486771378823j, -0.322866429004087,
+                      -14.0783896927982):          # weave, capsize, castering (table 2)
+        assert np.abs(s - published).min() < 1e-10
+    sweep = lagrgen.eigenvalue_sweep(mod, np.linspace(0.0, 10.0, 21), example.upright)
+    values = sorted({round(value, 12) for value, _, _ in sweep.crossings()})
+    assert abs(values[0] - 4.29238253634111) < 1e-9
+    assert abs(values[1] - 6.02426201538837) < 1e-9
+    assert [k for _, _, k in sweep.crossings()] == ["unstable->stable"] * 2 + ["stable->unstable"]

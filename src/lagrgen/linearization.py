@@ -129,9 +129,9 @@ class Linearization:
     @property
     def eigenvalues(self):
         """The eigenvalues of A (complex), ascending by real part (then imaginary part)."""
-        s = np.linalg.eigvals(self.A) if self.A.size else np.zeros(0, dtype=complex)
+        s, _ = spectrum(self.A)
         scale = 1e-9 * max(np.abs(s).max(initial=0.0), np.finfo(float).tiny)
-        return s[np.lexsort((s.imag, np.round(s.real / scale)))].astype(complex)
+        return s[np.lexsort((s.imag, np.round(s.real / scale)))]
 
     @property
     def n(self):
@@ -172,6 +172,27 @@ class Linearization:
         if B.shape[1] == 0:
             B, D = np.zeros((A.shape[0], 1)), np.zeros((A.shape[0], 1))
         return StateSpace(A, B, C, D)
+
+
+def spectrum(A):
+    """(eigenvalues, unit columns) of A with its structural zeros split off exactly: a state
+    whose column of A is zero (an ignorable coordinate: no rate depends on it) gives the
+    factor λ of det(λI − A) and is removed with its row, repeatedly; the rest is LAPACK's
+    eigen-decomposition of what remains, its vectors padded with zeros (the split-off states
+    get their unit vectors). A root passing through zero then keeps a vector of its own."""
+    k = A.shape[0]
+    keep, zero = list(range(k)), []
+    while True:
+        idle = [j for j in keep if not np.any(A[keep, j])]
+        if not idle:
+            break
+        keep = [j for j in keep if j not in idle]
+        zero += idle
+    s, V = np.linalg.eig(A[np.ix_(keep, keep)]) if keep else (np.zeros(0), np.zeros((0, 0)))
+    vectors = np.zeros((k, k), dtype=complex)
+    vectors[np.ix_(keep, range(len(keep)))] = V / np.maximum(np.linalg.norm(V, axis=0), 1e-300)
+    vectors[zero, range(len(keep), k)] = 1.0
+    return np.concatenate([s.astype(complex), np.zeros(len(zero), dtype=complex)]), vectors
 
 
 def linearize(mod, q0, qd0=None, t=0.0, p=None, u=None, dependent=None):

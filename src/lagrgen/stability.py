@@ -3,11 +3,13 @@ where a branch's real part changes sign, and the root locus.
 
 At each value v the model is linearized about `operating_point(v)` (exactly to first order, on
 the constraint manifold: `lagrgen.linearize`) and the eigenvalues of A are paired with those at
-the previous value by continuity: the assignment minimizing Σ|s_new − s_predicted| with s
-predicted by linear extrapolation of the last two values (Hungarian algorithm), never by sorting,
-so a branch keeps its identity through crossings and collisions. A stability boundary — a
-branch's real part changing sign between neighbouring values — is located by Brent's method on
-that branch's real part, evaluated on the compiled Jacobian.
+the previous value by continuity, never by sorting: the assignment (Hungarian algorithm)
+minimizing Σ |s − s_predicted|/|s|_max + (1 − MAC(φ, φ_previous)), s predicted by linear
+extrapolation of the last two values and MAC = |φᴴφ'|² the alignment of unit eigenvectors — so a
+branch keeps its identity through crossings, and a root passing through a cluster (the zero
+roots of ignorable coordinates) keeps its own mode. A stability boundary — a branch's real part
+changing sign between neighbouring values — is located by Brent's method on that branch's real
+part, evaluated on the compiled Jacobian.
 """
 from dataclasses import dataclass, field
 
@@ -15,13 +17,15 @@ import numpy as np
 from scipy.optimize import brentq, linear_sum_assignment
 
 from .errors import LagrgenError
-from .linearization import linearize
+from .linearization import linearize, spectrum
 
 #: Relative size (of the largest |s|) below which a real part counts as zero: marginal, not
 #: growing (undamped oscillations, rigid-body and ignorable-coordinate motions).
 ZERO_TOL = 1e-9
 #: Absolute tolerance (relative to the swept range) of a located crossing.
 CROSSING_XTOL = 1e-12
+#: Steps by which a branch is followed from a sampled value to a trial value of a crossing.
+CONTINUATION_STEPS = 6
 
 
 @dataclass(eq=False)
@@ -32,6 +36,7 @@ class EigenvalueSweep:
     values: np.ndarray
     eigenvalues: np.ndarray
     states: tuple
+    vectors: np.ndarray = field(repr=False, default=None)   # unit eigenvectors, per value
     model: object = field(repr=False, default=None)
     operating_point: object = field(repr=False, default=None)
     options: dict = field(repr=False, default_factory=dict)
@@ -68,27 +73,37 @@ class EigenvalueSweep:
 
     def _locate(self, i, b):
         """The value between values[i] and values[i + 1] where branch b's real part crosses 0
-        (or the marginal threshold ZERO_TOL when one end is marginal)."""
+        (or the marginal threshold ZERO_TOL when one end is marginal). The branch is followed
+        to each trial value by continuation in CONTINUATION_STEPS steps from the end where its
+        sign is definite (from the marginal side a collision of two roots is ambiguous)."""
         v0, v1 = self.values[i], self.values[i + 1]
-        s0, s1 = self.eigenvalues[i], self.eigenvalues[i + 1]
-        marginal = 0 in self._signs()[[i, i + 1], b]
-        offset = self._tolerance() if marginal else 0.0
+        signs = self._signs()[[i, i + 1], b]
+        offset = self._tolerance() if 0 in signs else 0.0
+        start = i if signs[0] != 0 else i + 1
 
         def real_part(v):
-            if v == v0 or v == v1:
-                return (s0 if v == v0 else s1)[b].real - offset
-            w = (v - v0) / (v1 - v0)
-            predicted = (1 - w) * s0 + w * s1
-            s = self._eigenvalues_at(v)
-            _, cols = linear_sum_assignment(np.abs(predicted[:, None] - s[None, :]))
-            return s[cols[b]].real - offset
+            if v in (v0, v1):
+                return self.eigenvalues[i if v == v0 else i + 1, b].real - offset
+            s, V = self._continued(start, v)
+            return s[b].real - offset
         xtol = CROSSING_XTOL * max(1.0, abs(self.values[-1] - self.values[0]))
         return float(brentq(real_part, min(v0, v1), max(v0, v1), xtol=xtol,
                             rtol=4 * np.finfo(float).eps))
 
-    def _eigenvalues_at(self, value):
-        return eigenvalues_at(self.model, self.operating_point, value, self.options,
-                              self.states)
+    def _continued(self, start, value):
+        """The spectrum at `value` in the branch order of values[start], followed there in
+        CONTINUATION_STEPS steps."""
+        rows, vectors = [self.eigenvalues[start]], [self.vectors[start]]
+        for x in np.linspace(self.values[start], value, CONTINUATION_STEPS + 1)[1:]:
+            s, V = self._spectrum_at(x)
+            s, V = paired(rows, vectors, s, V)
+            rows.append(s)
+            vectors.append(V)
+        return rows[-1], vectors[-1]
+
+    def _spectrum_at(self, value):
+        return spectrum_at(self.model, self.operating_point, value, self.options, self.states)
+
 
     def plot(self, ax=None, stable_color="tab:green"):
         """The root locus: real parts (top) and imaginary parts (bottom) of every branch against
@@ -150,14 +165,22 @@ def _runs(mask):
     return runs
 
 
-def eigenvalues_at(mod, operating_point, value, options, states=None):
-    """The eigenvalues of the linearization about operating_point(value) (in `states`' split)."""
+def spectrum_at(mod, operating_point, value, options, states=None):
+    """(eigenvalues, unit eigenvectors as columns) of the linearization about
+    operating_point(value), in `states`' split."""
     q0, qd0, p = _point(operating_point, value)
     lin = linearize(mod, q0, qd0, p=p, **options.get("linearize", {}),
                     dependent=options.get("dependent"))
     if states is not None and tuple(lin.states) != tuple(states):
         raise LagrgenError(f"the independent states changed along the sweep at {value!r}")
-    return lin.eigenvalues
+    return spectrum(lin.A)
+
+
+def branch_cost(predicted, previous, s, V, scale):
+    """Cost of giving eigenvalue j (s_j, unit vector V[:, j]) to branch i predicted at
+    predicted[i] with unit vector previous[:, i]: |Δs|/scale + 1 − MAC."""
+    mac = np.abs(previous.conj().T @ V) ** 2
+    return np.abs(predicted[:, None] - s[None, :]) / scale + (1.0 - mac)
 
 
 def _point(operating_point, value):
@@ -204,11 +227,22 @@ def eigenvalue_sweep(mod, values, operating_point, t=0.0, u=None, dependent=None
         options["dependent"] = [name for name in
                                 list(mod.coordinates) + [f"{c}_dot" for c in mod.coordinates]
                                 if name not in first.states]
-    rows = [first.eigenvalues]
+    s, V = spectrum_at(mod, operating_point, values[0], options, first.states)
+    rows, vectors = [s], [V]
     for value in values[1:]:
-        s = eigenvalues_at(mod, operating_point, value, options, first.states)
-        predicted = rows[-1] if len(rows) < 2 else 2 * rows[-1] - rows[-2]
-        _, cols = linear_sum_assignment(np.abs(predicted[:, None] - s[None, :]))
-        rows.append(s[cols])
+        s, V = paired(rows, vectors, *spectrum_at(mod, operating_point, value, options,
+                                                   first.states))
+        rows.append(s)
+        vectors.append(V)
     return EigenvalueSweep(values=values, eigenvalues=np.array(rows), states=first.states,
-                           model=mod, operating_point=operating_point, options=options)
+                           vectors=np.array(vectors), model=mod,
+                           operating_point=operating_point, options=options)
+
+
+def paired(rows, vectors, s, V):
+    """(s, V) reordered to continue the branches whose eigenvalues so far are `rows` (the last
+    one or two used to predict) and whose last unit vectors are vectors[-1]."""
+    predicted = rows[-1] if len(rows) < 2 else 2 * rows[-1] - rows[-2]
+    scale = max(1.0, np.abs(s).max(initial=0.0), np.abs(rows[-1]).max(initial=0.0))
+    _, cols = linear_sum_assignment(branch_cost(predicted, vectors[-1], s, V, scale))
+    return s[cols], V[:, cols]
