@@ -138,7 +138,7 @@ class EigenvalueSweep:
             hi = v[stop] if stop == len(v) - 1 else boundary(stop, stop + 1)
             for a in (ax_re, ax_im):
                 a.axvspan(lo, hi, color=stable_color, alpha=0.12, lw=0)
-        for value, _, kind in crossings:
+        for value in sorted({c[0] for c in crossings}):
             for a in (ax_re, ax_im):
                 a.axvline(value, color="k", ls="--", lw=0.8)
             ax_re.annotate(f"{value:.6g}", (value, 0), xytext=(4, 4),
