@@ -222,19 +222,19 @@ def initial_state(text, model):
 
 
 # -- sweep ranges ------------------------------------------------------------------------------
-def sweep_range(text):
-    """(name, values) from NAME=START:STOP:N."""
+def sweep_range(text, option="--param"):
+    """(name, values) from NAME=START:STOP:N (the value of `option`)."""
     name, sep, spec = text.partition("=")
     parts = spec.split(":")
     if not sep or len(parts) != 3 or not name.strip().isidentifier():
-        raise LagrgenError(f"--param: expected NAME=START:STOP:N, got {text!r}")
-    start, stop = number(parts[0], "--param START"), number(parts[1], "--param STOP")
+        raise LagrgenError(f"{option}: expected NAME=START:STOP:N, got {text!r}")
+    start, stop = number(parts[0], f"{option} START"), number(parts[1], f"{option} STOP")
     try:
         count = int(parts[2])
     except ValueError:
         count = 0
     if count < 1:
-        raise LagrgenError(f"--param: N must be a positive whole number, got {parts[2]!r}")
+        raise LagrgenError(f"{option}: N must be a positive whole number, got {parts[2]!r}")
     return name.strip(), np.linspace(start, stop, count)
 
 
