@@ -447,8 +447,8 @@ class Description:
 
     def friction(self, name, slip_velocity, normal_force, mu, mu_static=None):
         """Coulomb friction with sticking on the slip velocity v = w(q, t)·q̇ + b(q, t) (API.md
-        §13): a force −mu·|N|·sign(v) along ∂v/∂q̇ while slipping; v = 0 held while the force that
-        takes is at most mu_static·|N| (mu_static defaults to mu). `normal_force` is an expression
+        §13): a force −mu·abs(N)·sign(v) along ∂v/∂q̇ while slipping; v = 0 held while the force
+        that takes is at most mu_static·abs(N) (mu_static defaults to mu). `normal_force` is an expression
         or the name of a constraint or impact whose multiplier is N: write that constraint or gap
         as a signed distance (a gradient of unit length, e.g. x·sin α + y·cos α for a slope), so
         that its multiplier is a force; likewise v should be the sliding speed itself."""

@@ -19,11 +19,19 @@ class SweepResult:
 
     Attributes
     ----------
-    name : the swept name;  values : (k,) its values
-    measure : "amplitude" (half the peak-to-peak over the steady window), "max" (largest |q|
-        there) or "final" (q at the end)
-    table : (k, n) the measure, one column per coordinate;  coordinates : their names
-    success : (k,) whether each run finished
+    name : str
+        The swept name.
+    values : ndarray, shape (k,)
+        Its values.
+    measure : str
+        "amplitude" (half the peak-to-peak over the steady window), "max" (the largest abs(q)
+        there) or "final" (q at the end).
+    table : ndarray, shape (k, n)
+        The measure, one column per coordinate.
+    coordinates : tuple of str
+        The coordinates' names.
+    success : ndarray of bool, shape (k,)
+        Whether each run finished.
     """
 
     name: str

@@ -43,7 +43,8 @@ class Modes:
     λ < 0: an unstable equilibrium), φ_iᵀ·M·φ_i = 1 (and φᵀ·M·φ = I when K is symmetric; for a
     constrained model the independent modes drawn in all coordinates, T_q·φ).
     State-space modes (`kind == "state"`): one per conjugate pair or real eigenvalue s of A, with
-    ω = |s|, ζ = −Re s/|s| (ζ = −1 for a real s > 0), complex shapes scaled to a largest entry of 1.
+    ω = abs(s), ζ = −Re(s)/abs(s) (ζ = −1 for a real s > 0), complex shapes scaled to a largest
+    entry of 1.
     """
 
     omega: np.ndarray
@@ -64,7 +65,7 @@ class Modes:
     @property
     def stable(self):
         """Whether no eigenvalue of the state matrix has a positive real part (beyond round-off:
-        ZERO_TOL of the largest |s|)."""
+        ZERO_TOL of the largest abs(s))."""
         s = self.eigenvalues
         return np.bool_(not (s.size and s.real.max() > ZERO_TOL * max(1.0, np.abs(s).max())))
 
@@ -355,7 +356,7 @@ def classical_modes(lin, model=None):
 
 def state_modes(lin, model=None):
     """Modes of δẋ = A·δx: one per conjugate pair (the s with Im s > 0) or real eigenvalue s,
-    ω = |s|, ζ = −Re s/|s|, ascending by ω; shapes are the coordinate part of basis·v."""
+    ω = abs(s), ζ = −Re(s)/abs(s), ascending by ω; shapes are the coordinate part of basis·v."""
     s, vectors = np.linalg.eig(lin.A) if lin.A.size else (np.zeros(0), np.zeros((0, 0)))
     scale = max(1.0, np.abs(s).max(initial=0.0))
     keep = [i for i in range(len(s)) if s[i].imag > ZERO_TOL * scale
