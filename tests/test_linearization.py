@@ -69,6 +69,10 @@ def test_rolling_disk_matches_sympys_linearizer(disk):
         res = lagrgen.modes(mod, [0, 0, 0], qd0=[0, 0, v / R])
         assert res.kind == "state" and bool(res.stable) == (v > CRITICAL)
         assert np.all(np.isfinite(res.omega)) and np.all(np.isfinite(res.damping_ratios))
+    k = int(np.argmax(res.omega))               # lean and heading wobbling: a complex shape
+    assert np.iscomplexobj(res.shapes) and res.damping_ratios[k] == 0.0
+    motion = res.animate(k, frames_per_period=4)          # drawn from the example's lines
+    assert motion.q.shape == (3, 4) and np.isrealobj(motion.q) and np.ptp(motion.q[1]) > 0
     # the speeds are outputs by their own names
     y = [0.0, 0.2, 0.0, 0.3, -0.1, 4.0]
     out = dict(zip(mod.output_names, mod.outputs(0.0, y)))
