@@ -284,6 +284,14 @@ def test_sweep_follows_branches_through_a_crossing():
     fixed = [b for b in range(4) if np.allclose(np.abs(imag[:, b]), 2.0)]
     assert len(follows) == 2 and len(fixed) == 2
     assert sweep.crossings() == [] and sweep.stable.all()
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    re_ax, im_ax = sweep.plot()
+    assert len(re_ax.lines) >= 4 and len(im_ax.lines) == 4
+    _, one = plt.subplots()
+    assert sweep.plot(ax=one) is one and len(one.lines) >= 4
+    plt.close("all")
     with pytest.raises(ValueError, match="increasing or strictly decreasing"):
         lagrgen.eigenvalue_sweep(mod, [1.0, 3.0, 2.0], lambda k: ([0, 0], None, {"k2": k}))
     with pytest.raises(lagrgen.LagrgenError, match=r"\(q0, qd0, p\)"):
