@@ -69,6 +69,10 @@ def test_rolling_disk_matches_sympys_linearizer(disk):
         res = lagrgen.modes(mod, [0, 0, 0], qd0=[0, 0, v / R])
         assert res.kind == "state" and bool(res.stable) == (v > CRITICAL)
         assert np.all(np.isfinite(res.omega)) and np.all(np.isfinite(res.damping_ratios))
+    k = int(np.argmax(res.omega))               # lean and heading wobbling: a complex shape
+    assert np.iscomplexobj(res.shapes) and res.damping_ratios[k] == 0.0
+    motion = res.animate(k, frames_per_period=4)          # drawn from the example's lines
+    assert motion.q.shape == (3, 4) and np.isrealobj(motion.q) and np.ptp(motion.q[1]) > 0
     # the speeds are outputs by their own names
     y = [0.0, 0.2, 0.0, 0.3, -0.1, 4.0]
     out = dict(zip(mod.output_names, mod.outputs(0.0, y)))
@@ -280,6 +284,14 @@ def test_sweep_follows_branches_through_a_crossing():
     fixed = [b for b in range(4) if np.allclose(np.abs(imag[:, b]), 2.0)]
     assert len(follows) == 2 and len(fixed) == 2
     assert sweep.crossings() == [] and sweep.stable.all()
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    re_ax, im_ax = sweep.plot()
+    assert len(re_ax.lines) >= 4 and len(im_ax.lines) == 4
+    _, one = plt.subplots()
+    assert sweep.plot(ax=one) is one and len(one.lines) >= 4
+    plt.close("all")
     with pytest.raises(ValueError, match="increasing or strictly decreasing"):
         lagrgen.eigenvalue_sweep(mod, [1.0, 3.0, 2.0], lambda k: ([0, 0], None, {"k2": k}))
     with pytest.raises(lagrgen.LagrgenError, match=r"\(q0, qd0, p\)"):

@@ -368,7 +368,7 @@ def state_modes(lin, model=None):
     order = np.lexsort((s.real, omega))
     s, vectors, omega = s[order], vectors[:, order], omega[order]
     with np.errstate(invalid="ignore", divide="ignore"):
-        zeta = np.where(omega > ZERO_TOL * scale, -s.real / omega, 0.0)
+        zeta = np.where(omega > ZERO_TOL * scale, -s.real / omega, 0.0) + 0.0   # no −0
     shapes = (lin.basis @ vectors)[:len(lin.q0)]
     for i in range(shapes.shape[1]):
         big = shapes[np.argmax(np.abs(shapes[:, i])), i]
