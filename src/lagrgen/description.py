@@ -22,6 +22,8 @@ from .records import (AUTOMATIC_OUTPUTS, BAUMGARTE_DEFAULTS, ENERGY_OUTPUTS, Bod
 
 #: Drawing shapes of rigid bodies (see `Description.rigid_body`).
 SHAPES = ("disk", "bar", "box")
+#: The largest count an event's `terminal` may take (a C int in the compiled code).
+MAX_EVENT_COUNT = 2**31 - 1
 
 
 class Description:
@@ -62,6 +64,16 @@ class Description:
             raise ModelError(
                 f"{what} name {name!r} is already used for the {self._names[name]} of model "
                 f"{self.name!r}: names must be unique within a model")
+        velocity_of = name[:-4] if name.endswith("_dot") else None
+        if self._names.get(velocity_of) == "coordinate" or (
+                what == "coordinate" and f"{name}_dot" in self._names):
+            coordinate = velocity_of if self._names.get(velocity_of) == "coordinate" else name
+            other = name if velocity_of == coordinate else f"{name}_dot"
+            raise ModelError(
+                f"{what} name {name!r} clashes with the velocity name {coordinate + '_dot'!r} of "
+                f"coordinate {coordinate!r} (model {self.name!r}): states are named "
+                f"<coordinate> and <coordinate>_dot in y0, results, fits and FMUs, so "
+                f"{other!r} would name two things; rename the {self._names.get(other, what)}")
         self._names[name] = what
 
     def coordinates(self, names, units=None):
@@ -421,8 +433,9 @@ class Description:
             raise ModelError(f"event {name!r}: direction must be -1, 0 or +1, got {direction!r}")
         if isinstance(terminal, bool):
             terminal = int(terminal)
-        if not isinstance(terminal, int) or terminal < 0:
-            raise ModelError(f"event {name!r}: terminal must be True, False or a count >= 0")
+        if not isinstance(terminal, int) or not 0 <= terminal <= MAX_EVENT_COUNT:
+            raise ModelError(f"event {name!r}: terminal must be True, False or a count from 0 to "
+                             f"{MAX_EVENT_COUNT}, got {terminal!r}")
         expr = self._check(expr, f"event {name}")
         self._events.append(Event(name, expr, terminal, int(direction)))
         self._changed()

@@ -15,6 +15,8 @@ from .runtime.arguments import input_function, parameters_from, state_vector, un
 from .scipy_engine import solve_scipy
 
 ENGINES = (None, "native", "scipy")
+#: The largest max_steps: a 32-bit C long (Windows).
+MAX_STEPS = 2**31 - 1
 
 
 def simulate(mod, t_span, y0, method="RK45", params=None, inputs=None, rtol=1e-6, atol=1e-9,
@@ -122,8 +124,10 @@ def check_run_options(method, engine, max_steps, max_wall_time, options):
         raise ValueError(f"unknown method {method!r}: use one of {', '.join(METHODS)}")
     if engine not in ENGINES:
         raise ValueError(f"engine must be None, 'native' or 'scipy', not {engine!r}")
-    if max_steps is not None and not (int(max_steps) == max_steps and max_steps > 0):
-        raise ValueError(f"max_steps must be a positive integer, got {max_steps!r}")
+    if max_steps is not None and not (isinstance(max_steps, (int, np.integer, float)) and
+                                      0 < max_steps <= MAX_STEPS and int(max_steps) == max_steps):
+        raise ValueError(f"max_steps must be a positive integer up to {MAX_STEPS} (the C "
+                         f"engine counts in a long), got {max_steps!r}")
     if max_wall_time is not None and not max_wall_time > 0:
         raise ValueError(f"max_wall_time must be a positive number of seconds, got "
                          f"{max_wall_time!r}")

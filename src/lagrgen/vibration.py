@@ -27,7 +27,7 @@ import scipy.linalg
 from scipy.optimize import linear_sum_assignment, root
 
 from .runtime.arguments import as_vector, input_vector
-from .errors import LagrgenError, MassMatrixError, UnknownNameError
+from .errors import LagrgenError, MassMatrixError, NonFiniteError, UnknownNameError
 from .runtime.arguments import parameters_from
 
 #: Relative size below which an eigenvalue ω² (or an imaginary part, an asymmetry) counts as zero.
@@ -292,7 +292,10 @@ def _reduce(mod, lin):
 
 
 def check_mass_matrix(lin):
-    """Raise MassMatrixError unless lin.M is symmetric positive definite."""
+    """Raise MassMatrixError unless lin.M is symmetric positive definite (NonFiniteError when
+    an entry overflowed)."""
+    if not np.isfinite(lin.M).all() and np.isfinite(lin.q0).all():
+        raise NonFiniteError.in_mass_matrix(lin.name, lin.t, lin.q0)
     try:
         np.linalg.cholesky(lin.M)
     except np.linalg.LinAlgError:
