@@ -119,7 +119,8 @@ def model_info(spec, equations):
         explicit_time=bool(equations.explicit_time),
         content_hash=cache.content_digest(spec, lambda: equations), lagrgen_version=__version__,
         nonsmooth_definitions=[(e["name"], e["kind"], e["normal"])
-                               for e in _nonsmooth().describe(spec)])
+                               for e in _nonsmooth().describe(spec)],
+        initial_state=spec.initial_state)
 
 
 def _nonsmooth():

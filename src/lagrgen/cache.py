@@ -20,11 +20,11 @@ when it was made, and (the model's own unit) `content.sha256`, the content diges
 was compiled from, which the module also carries in its metadata (`content_hash`): a unit is
 sound when its module matches its digest and carries the content digest expected of it, so a
 module copied from another model (with its digest) is never imported, and an imported module
-whose `content_hash` differs is refused. The model's own module is the entry's main unit: the entry directory itself,
-module `<name>`. Further units (say an analysis compiled on first use) live inside the entry,
-each in its own directory `<entry>/<label>-<key of its own digest>/` with module
-`<name>_<label>` (`Entry.unit(label, digest)`), so one entry may hold any number of them, each
-looked up, made, checked and repaired like the main unit, and discarded with its entry.
+whose `content_hash` differs is refused. The model's own module is the entry's main unit: the
+entry directory itself, module `<name>`. Further units (say an analysis compiled on first use)
+live inside the entry, each in its own directory `<entry>/<label>-<key of its own digest>/` with
+module `<name>_<label>` (`Entry.unit(label, digest)`), so one entry may hold any number of them,
+each looked up, made, checked and repaired like the main unit, and discarded with its entry.
 
 Every unit is made in a private directory beside its final place and renamed into place after an
 fsync (`store`), so a build that dies halfway leaves nothing a later lookup would pick up; a unit
@@ -171,7 +171,7 @@ def equations_digest(equations):
              spec.stabilization, spec.constraint_names, [str(g) for g in equations.events],
              [(name, terminal, direction) for name, _, terminal, direction in spec.events],
              spec.output_names, [str(e) for e in equations.outputs], spec.units,
-             hybrid_description(spec, equations)]
+             hybrid_description(spec, equations), spec.initial_state]
     for part in parts:
         h.update(repr(part).encode() + b"\0")
     return h.hexdigest()

@@ -4,9 +4,10 @@ from measured natural frequencies.
 `fit` minimizes Σ (w·(y_model(t_i; θ) − data_i))² with `scipy.optimize.least_squares`, its
 Jacobian the forward sensitivities ∂y/∂θ (`lagrgen.sensitivity`) — one simulation per iteration
 instead of 2k for finite differences; the covariance of the estimates is s²·(JᵀJ)⁻¹ with
-s² = Σr²/(m − k). A direction of the parameters that the Jacobian does not see (its singular value,
-columns scaled to unit norm, below the Jacobian's own accuracy) gets an infinite variance and a
-`FitWarning` naming it, never the zero variance of a pseudo-inverse. `fit_modes` matches natural frequencies with the eigenvalue sensitivities
+s² = Σr²/(m − rank J). A direction of the parameters that the Jacobian does not see (its singular
+value, columns scaled to unit norm, below the Jacobian's own accuracy) gets an infinite variance
+and a `FitWarning` naming it, never the zero variance of a pseudo-inverse; an estimate on its bound
+is flagged. `fit_modes` matches natural frequencies with the eigenvalue sensitivities
 ∂λ/∂p = φᵀ(∂K/∂p − λ·∂M/∂p)φ of mass-normalized modes φ (λ = ω²).
 """
 import warnings

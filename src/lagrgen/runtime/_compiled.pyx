@@ -22,8 +22,8 @@ from lagrgen.errors import BuildError, ConstraintError, MassMatrixError, NonFini
 from lagrgen.functions import FUNCTIONS
 from lagrgen.runtime.describe import BuiltModule
 from lagrgen.runtime.info import INFO_ATTRIBUTES, ModelInfo
-from lagrgen.runtime.arguments import (defaults_array, input_vector, parameter_vector,
-                                       require_finite)
+from lagrgen.runtime.arguments import (defaults_array, initial_state_array, input_vector,
+                                       parameter_vector, require_finite)
 
 cnp.import_array()
 
@@ -278,6 +278,7 @@ def bind_module(module, capsule):
     for attr in INFO_ATTRIBUTES:
         setattr(module, attr, getattr(model.info, attr))
     module.defaults = model.defaults
+    module.initial_state = initial_state_array(model.info)
     module.time_in_c = model.time_in_c
     module.function_address = model.function_address
     module.backend = "c"

@@ -11,7 +11,8 @@ import numpy as np
 
 from ..errors import ConstraintError, MassMatrixError, NonFiniteError
 from ..functions import FUNCTIONS
-from .arguments import as_vector, defaults_array, input_vector, parameter_vector
+from .arguments import (as_vector, defaults_array, initial_state_array, input_vector,
+                        parameter_vector)
 from .describe import describe
 from .info import INFO_ATTRIBUTES
 
@@ -51,6 +52,7 @@ class PythonModel:
         for name in INFO_ATTRIBUTES:
             setattr(self, name, getattr(info, name))
         self.defaults = defaults_array(info.defaults)
+        self.initial_state = initial_state_array(info)
         self.build_info = {}
         self.source = source
         code = compile(source, f"<lagrgen python backend: {self.name}>", "exec")
