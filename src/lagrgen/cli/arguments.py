@@ -196,19 +196,18 @@ def inputs_option(args, model, constant=False):
 
 
 def initial_state(text, model):
-    """y0 = [q0, q̇0] from "v1,v2,..." (n or 2n numbers) or "name=v,name'=v,..." (the others
-    from the model's initial state, `model.initial_state`, else 0)."""
+    """y0 = [q0, q̇0] from "v1,v2,..." (n or 2n numbers) or "name=v,name'=v,..." (others 0);
+    without text, the model's initial state (`model.initial_state`, else zeros)."""
     names = model.coordinate_names
     n = len(names)
-    y0 = np.array(model.initial_values or [0.0] * (2 * n), dtype=float)
     if not text:
-        return y0
+        return np.array(model.initial_values or [0.0] * (2 * n), dtype=float)
+    y0 = np.zeros(2 * n)
     if "=" not in text:
         values = [number(v, "--y0") for v in text.split(",") if v.strip()]
         if len(values) not in (n, 2 * n):
             raise LagrgenError(f"--y0: expected {n} positions or {2 * n} values [q, q'] for the "
                                f"coordinates {', '.join(names)}, got {len(values)}")
-        y0[:] = 0.0
         y0[:len(values)] = values
         return y0
     slots = {c: i for i, c in enumerate(names)}
