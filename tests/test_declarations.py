@@ -69,4 +69,6 @@ def test_an_overflowing_mass_matrix_is_reported_as_an_overflow(backend, tmp_path
         lagrgen.simulate(mod, (0, 1), [1.0, 0.0])
     with pytest.raises(NonFiniteError, match="overflows"):
         lagrgen.modes(mod, [0.0])
+    with pytest.raises(NonFiniteError, match="overflows"):
+        lagrgen.linearize(mod, [0.0]).state_space()
     assert np.isfinite(mod.rhs(0.0, [1.0, 0.0], p=[1.0, 4.0])).all()

@@ -21,6 +21,7 @@ COMMANDS = (
     "export_fmu",
     "show",
     "modes",
+    "stability",
     "simulate",
     "bench",
     "sweep",

@@ -223,18 +223,19 @@ def initial_state(text, model):
 
 
 # -- sweep ranges ------------------------------------------------------------------------------
-def sweep_range(text):
-    """(name, values) from NAME=START:STOP:N, N at most `lagrgen.sweep.MAX_SWEEP_VALUES`."""
+def sweep_range(text, option="--param"):
+    """(name, values) from NAME=START:STOP:N (the value of `option`), N at most
+    `lagrgen.sweep.MAX_SWEEP_VALUES`."""
     from ..sweep import MAX_SWEEP_VALUES
     name, sep, spec = text.partition("=")
     parts = spec.split(":")
     if not sep or len(parts) != 3 or not name.strip().isidentifier():
-        raise LagrgenError(f"--param: expected NAME=START:STOP:N, got {text[:80]!r}")
-    start, stop = number(parts[0], "--param START"), number(parts[1], "--param STOP")
+        raise LagrgenError(f"{option}: expected NAME=START:STOP:N, got {text[:80]!r}")
+    start, stop = number(parts[0], f"{option} START"), number(parts[1], f"{option} STOP")
     count = parts[2].strip()
     if not (count.isdigit() and len(count) <= 9 and 1 <= int(count) <= MAX_SWEEP_VALUES):
-        raise LagrgenError(f"--param: N must be a whole number from 1 to {MAX_SWEEP_VALUES}, got "
-                           f"{count[:20]!r}{'...' if len(count) > 20 else ''}")
+        raise LagrgenError(f"{option}: N must be a whole number from 1 to {MAX_SWEEP_VALUES}, "
+                           f"got {count[:20]!r}{'...' if len(count) > 20 else ''}")
     return name.strip(), np.linspace(start, stop, int(count))
 
 
