@@ -10,7 +10,6 @@ import struct
 import sys
 
 import fmpy
-import numpy as np
 from fmpy.fmi2 import FMU2Model, FMU2Slave
 from fmpy.fmi3 import FMU3Model, FMU3Slave
 
@@ -69,7 +68,6 @@ def main(path, kind, version, unzipped):
                "signed_refused": 0, "nan_accepted": [], "int_accepted": [],
                "accepted_then_ok": 0,
                "accepted_then_error": 0, "random": 0, "random_refused": 0}
-    time = [0.05 if kind == "cs" else 0.0]
 
     def try_state(blob):
         """True when the FMU refused the state; else the state is set and used."""
@@ -153,5 +151,4 @@ def bad_steps(fmu, state, t):
 
 
 if __name__ == "__main__":
-    np.seterr(all="ignore")
     main(*sys.argv[1:])
