@@ -11,7 +11,7 @@ from xml.etree import ElementTree as ET
 
 from .._version import __version__
 from ..errors import ModelError
-from ..methods import NATIVE_CODES, NATIVE_METHODS
+from ..methods import BY_NAME, NATIVE_CODES, NATIVE_METHODS
 
 def variable_names(info, reserved=()):
     """The names of the model's FMU variables in value-reference order: q, q̇ (`<q>_dot`),
@@ -56,6 +56,11 @@ def parameter_start_values(info, params=None):
     return out
 
 
+def state_start_values(info):
+    """Start values of the states [q, q̇]: the model's initial state, else zeros."""
+    return [float(v) for v in info.initial_state] or [0.0] * (2 * len(info.coordinates))
+
+
 def fmu_guid(info, start_values, start_time, stop_time, settings=()):
     """A GUID determined by the model's content hash and what the description adds to it
     (`settings`: the kind, FMI version and solver start values)."""
@@ -85,11 +90,7 @@ def source_file_names(name, kind):
 def method_items():
     """(name, value, description) of the enumeration solver.method: the native engine's methods
     with their codes in lg_ode.h."""
-    what = {"RK23": "explicit Runge-Kutta 3(2)",
-            "RK45": "explicit Runge-Kutta 5(4) (Dormand-Prince)",
-            "DOP853": "explicit Runge-Kutta 8(5,3)", "Radau": "implicit Radau IIA order 5 (stiff)",
-            "BDF": "implicit BDF orders 1-5 (stiff)"}
-    return [(m, NATIVE_CODES[m], what.get(m, m)) for m in NATIVE_METHODS]
+    return [(m, NATIVE_CODES[m], BY_NAME[m].description) for m in NATIVE_METHODS]
 
 
 def model_description(info, guid, start_values, start_time=0.0, stop_time=10.0, tolerance=None,
@@ -142,12 +143,13 @@ def model_description(info, guid, start_values, start_time=0.0, stop_time=10.0, 
             **attributes})
         ET.SubElement(sv, type_, real)
 
+    start = state_start_values(info)
     for i, c in enumerate(q):
         variable(i, {"causality": "output", "variability": "continuous", "initial": "exact"},
-                 {"start": "0.0"}, f"coordinate {c} (a state)")
+                 {"start": number_text(start[i])}, f"coordinate {c} (a state)")
     for i, c in enumerate(q):
         variable(n + i, {"causality": "local", "variability": "continuous", "initial": "exact"},
-                 {"start": "0.0"}, f"rate of {c} (a state)")
+                 {"start": number_text(start[n + i])}, f"rate of {c} (a state)")
     for i in range(2 * n):
         variable(2 * n + i, {"causality": "local", "variability": "continuous",
                              "initial": "calculated"},

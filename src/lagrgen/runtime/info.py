@@ -20,6 +20,7 @@ class ModelInfo:
     (name, terminal, direction) triples; `n_holonomic` counts the holonomic constraints, which come
     first in `constraint_names`; `nonsmooth_definitions` are (name, "impact" | "friction", normal)
     triples of the impacts and frictions (`lagrgen.nonsmooth`), normal None or (kind, index);
+    `initial_state` the declared [q0, q̇0] (2n floats), or () when none was declared;
     `formulation` how q̈ and the Jacobian are computed: "dense" (Cholesky of M) or "recursive"
     (over the kinematic tree, `lagrgen.tree`).
     """
@@ -38,11 +39,12 @@ class ModelInfo:
     content_hash: str = ""
     lagrgen_version: str = ""
     nonsmooth_definitions: tuple = ()
+    initial_state: tuple = ()
     formulation: str = "dense"
 
     def __post_init__(self):
         for name in ("coordinates", "parameters", "inputs", "defaults", "output_names",
-                     "constraint_names"):
+                     "constraint_names", "initial_state"):
             object.__setattr__(self, name, tuple(getattr(self, name)))
         object.__setattr__(self, "event_definitions",
                            tuple(tuple(e) for e in self.event_definitions))
