@@ -64,10 +64,7 @@ def build(model, out_dir="generated", backend="c", **options):
     unknown = set(options) - {"verbose", "quiet", "force", "opt_level", "cflags"}
     if unknown:
         raise TypeError(f"build() got unknown option(s) {', '.join(sorted(unknown))}")
-    digest = cache.content_digest(spec, lambda: derived(spec))
-    if formulation is not None:      # the choice is part of what is compiled
-        digest = hashlib.sha256(f"{digest} formulation={formulation}".encode()).hexdigest()
-    built = build_c(spec.name, digest,
+    built = build_c(spec.name, content_digest(spec, formulation, lambda: derived(spec)),
                     lambda: (model_info(spec, derived(spec), formulation), derived(spec)),
                     Path(out_dir), **options)
     built._source_model = model      # the description it was built from: what animations draw
@@ -121,11 +118,20 @@ def derived(spec):
     return derived_once(spec)
 
 
+def content_digest(spec, formulation, equations):
+    """`cache.content_digest` of what a build compiles, with the formulation asked for (None:
+    lagrgen's choice, which follows from the description)."""
+    digest = cache.content_digest(spec, equations)
+    if formulation is None:
+        return digest
+    return hashlib.sha256(f"{digest} formulation={formulation}".encode()).hexdigest()
+
+
 def model_info(spec, equations, formulation=None):
     """The `ModelInfo` of a built model: names, defaults, units, sizes, flags, hash, version, and
     the formulation `formulation` resolves to (`lagrgen.tree.choose`)."""
     from .tree import analysed, choose, explicit_time
-    formulation = choose(equations, formulation)
+    asked, formulation = formulation, choose(equations, formulation)
     if formulation == "recursive":
         time_dependent = explicit_time(analysed(equations)[0], equations)
     else:
@@ -138,7 +144,7 @@ def model_info(spec, equations, formulation=None):
         event_definitions=[(name, terminal, direction)
                            for name, _, terminal, direction in spec.events],
         explicit_time=bool(time_dependent), formulation=formulation,
-        content_hash=cache.content_digest(spec, lambda: equations), lagrgen_version=__version__,
+        content_hash=content_digest(spec, asked, lambda: equations), lagrgen_version=__version__,
         nonsmooth_definitions=[(e["name"], e["kind"], e["normal"])
                                for e in _nonsmooth().describe(spec)],
         initial_state=spec.initial_state)
