@@ -4,6 +4,7 @@ telescopic joints, planar rigid bodies, 3-D particles, gravity as constant loads
 dampers, forces with inputs, torques), on both backends; the choice between the formulations; the
 generated C."""
 import re
+import subprocess
 
 import numpy as np
 import pytest
@@ -12,6 +13,7 @@ from numpy.testing import assert_allclose
 
 import lagrgen
 from lagrgen.build import model_info
+from lagrgen.toolchain import compiler_command
 from lagrgen.codegen.c_model import standalone_files
 from lagrgen.errors import MassMatrixError, ModelError
 from lagrgen.lagrange import derived
@@ -285,11 +287,20 @@ def recursive_c(model):
     return standalone_files(info, eq)[f"{model.name}_model.c"]
 
 
-def test_recursive_c_is_readable_and_grows_like_n():
+def test_recursive_c_is_readable_plain_c_and_grows_like_n(tmp_path):
     nlink = load_example("nlink_pendulum")
     sizes = {n: len(recursive_c(nlink.make(n))) for n in (10, 20, 40)}
     assert sizes[40] / sizes[20] < 2.3 and sizes[20] / sizes[10] < 2.3, sizes
-    text = recursive_c(nlink.make(4))
-    assert "#define LG_RECURSIVE 1" in text
-    assert "/* node 2: coordinate q2, below q1; 1 body of its own */" in text
-    assert "const double x0 = " in text and "lg_tree_factor" in text
+    model = random_tree(5)
+    eq = derived(model.spec())
+    for name, text in standalone_files(model_info(model.spec(), eq, "recursive"), eq).items():
+        (tmp_path / name).write_text(text)
+    text = (tmp_path / f"{model.name}_model.c").read_text()
+    assert "#define LG_RECURSIVE 1" in text and "lg_tree_factor" in text
+    assert re.search(r"/\* node 1: coordinate q\d, (below q\d|a root); \d bod(y|ies) of its own \*/",
+                     text)
+    assert "const double x0 = " in text
+    result = subprocess.run([*compiler_command(), "-std=c99", "-pedantic", "-Wall", "-Wextra",
+                             "-Werror", "-c", str(tmp_path / f"{model.name}_model.c"), "-o",
+                             str(tmp_path / "m.o")], capture_output=True, text=True)
+    assert result.returncode == 0, result.stderr[-2000:]

@@ -45,7 +45,7 @@ from .records import (Body3D, Damper, Dissipation, Force, GeneralizedForce, Pote
 FORMULATIONS = ("dense", "recursive")
 
 #: The recursive formulation is chosen automatically from this many coordinates on (measured:
-#: `benchmarks/pinocchio.py` runs both; below it the dense path's closed forms are faster).
+#: `benchmarks/vs_pinocchio.py` runs both; below it the dense path's closed forms are faster).
 RECURSIVE_FROM = 12
 
 
