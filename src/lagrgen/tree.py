@@ -60,8 +60,10 @@ class Tree:
     `NODE_FIELDS`): S the column the node passes to its subtree, kappa = (∂S/∂q_k)·q̇_k², mass
     the node's own particles' mass per channel, u = Σ m_b·s_b, d = Σ m_b·s_b·s_b,
     e = Σ (m_b·κ_b − f_b), h = Σ s_b·(m_b·κ_b − f_b) (κ_b = (∂s_b/∂q_k)·q̇_k², f_b the constant
-    load of a potential m·g·y on the particle, see `_loads`), and Q the generalized force of
-    everything else (coordinate order).
+    load of a potential m·g·y on the particle, see `_loads`), Q the generalized force of
+    everything else (coordinate order), and base the acceleration of the support a root's subtree
+    hangs from (a prescribed motion β(t): every body of the subtree has ∂r_b/∂t = β(t); zero
+    elsewhere).
     """
     coordinate: tuple
     parent: tuple
@@ -75,6 +77,7 @@ class Tree:
     e: list
     h: list
     Q: list
+    base: list = field(default_factory=list)
     notes: list = field(default_factory=list)
 
     @property
@@ -105,7 +108,7 @@ class Tree:
 
 #: Layout of one node's record in the `tree_nodes` kernel: (name, width in units of D or 1).
 NODE_FIELDS = (("S", "D"), ("kappa", "D"), ("mass", "D"), ("u", "D"), ("d", 1), ("e", "D"),
-               ("h", 1), ("Q", 1))
+               ("h", 1), ("Q", 1), ("base", "D"))
 #: Layout of one node's record in the `tree_slopes` kernel: the node terms' derivatives by the own
 #: coordinate q_k and rate q̇_k at a given q̈ (`a`): dS = ∂S/∂q_k, alpha = ∂(S·a_k + kappa)/∂q_k,
 #: alpha_qd = ∂kappa/∂q̇_k, du = ∂u/∂q_k, c = ∂(d·a_k + h)/∂q_k, c_qd = ∂h/∂q̇_k,
@@ -184,8 +187,6 @@ def _tree(eq):
     index = {qj: j for j, qj in enumerate(q)}
     particles = []     # (mass, position, {coordinate: column})
     for mass, position in collected.particles:
-        if any(t in rc.free_symbols for rc in position):
-            raise NotATree("a body's position depends on t")
         gradients = [_gradient(rc, index) for rc in position]
         columns = {}
         for j in sorted(set().union(*gradients)):
@@ -228,14 +229,40 @@ def _placed(eq, particles, chosen, dims):
             raise NotATree(f"a body depends on coordinates that are not on one path of the tree "
                            f"(through {names[own]!r})")
         leaf.append(own)
-    S = _shared_columns(particles, leaf, dims, q, names, parent_coordinate)
+    S = _shared_columns(particles, leaf, dims, q, names, parent_coordinate, eq.t)
     for b, (_, _, cols) in enumerate(particles):
         own = leaf[b]
-        if any(s.free_symbols & (set(q) - {q[own]}) for s in cols[own]):
+        if any(s.free_symbols & ((set(q) | {eq.t}) - {q[own]}) for s in cols[own]):
             raise NotATree(f"a body's own column depends on other coordinates than "
-                           f"{names[own]!r}")
+                           f"{names[own]!r} (or on t)")
+    base = _base_motion(eq, particles, leaf, parent_coordinate, dims)
     loads, Q = _loads(eq, particles, leaf, coordinate)
-    return _node_terms(eq, particles, leaf, dims, S, coordinate, parent, end, loads, Q)
+    return _node_terms(eq, particles, leaf, dims, S, coordinate, parent, end, loads, Q, base)
+
+
+def _base_motion(eq, particles, leaf, parent_coordinate, dims):
+    """{root coordinate: {dimension: β̇(t)}}: a prescribed motion of the support each tree hangs
+    from. Every body of a root's subtree must have the same ∂r_b/∂t = β(t) (a function of t
+    alone, per dimension: zero included); then r̈_b holds β̇ and the root's acceleration is β̇
+    instead of 0. NotATree otherwise (a driven joint inside the tree)."""
+    t, names = eq.t, eq.spec.coordinate_names
+    beta = {}
+    for b, (_, position, _) in enumerate(particles):
+        root = leaf[b]
+        while parent_coordinate[root] >= 0:
+            root = parent_coordinate[root]
+        rate = [diff(rc, t) if t in rc.free_symbols else se.Integer(0) for rc in position]
+        if any(r.free_symbols & (set(eq.q) | {t}) - {t} for r in rate):
+            raise NotATree("a body's position depends on t together with the coordinates (a "
+                           "driven joint or a moving frame)")
+        known = beta.setdefault(root, {}).get(len(position))
+        if known is None:
+            beta[root][len(position)] = rate
+        elif any(se.expand(x - y) != 0 for x, y in zip(known, rate)):
+            raise NotATree(f"the bodies of the tree of {names[root]!r} move with t differently "
+                           "(a driven joint inside the tree)")
+    return {root: {d: [diff(r, t) for r in rates] for d, rates in by_dim.items()}
+            for root, by_dim in beta.items()}
 
 
 def _gradient(expr, index):
@@ -272,7 +299,7 @@ def _forest(moved, names):
     return parent
 
 
-def _shared_columns(particles, leaf, dims, q, names, parent_coordinate):
+def _shared_columns(particles, leaf, dims, q, names, parent_coordinate, t):
     """Σ_j per dimension: the column every particle strictly below coordinate j has for q_j (zero
     where it does not depend on q_j, and where no particle is below), checked equal (expanded
     difference 0) and a function of q_j alone."""
@@ -285,9 +312,10 @@ def _shared_columns(particles, leaf, dims, q, names, parent_coordinate):
             column = cols.get(j, [se.Integer(0)] * d)
             known = S[j][d]
             if known is None:
-                if any(c.free_symbols & (set(q) - {q[j]}) for c in column):
+                if any(c.free_symbols & ((set(q) | {t}) - {q[j]}) for c in column):
                     raise NotATree(f"the column of {names[j]!r} in a body below it depends on "
-                                   "other coordinates (relative angles or a rotating frame)")
+                                   "other coordinates or t (relative angles or a rotating "
+                                   "frame)")
                 S[j][d] = column
             elif any(se.expand(a - c) != 0 for a, c in zip(known, column)):
                 raise NotATree(f"bodies below {names[j]!r} move differently with it "
@@ -381,7 +409,8 @@ def _particle_potential(V, particles, by_leaf, depth, q, moving):
     return None
 
 
-def _node_terms(eq, particles, leaf, dims, S_by_coordinate, coordinate, parent, end, loads, Q):
+def _node_terms(eq, particles, leaf, dims, S_by_coordinate, coordinate, parent, end, loads, Q,
+                base):
     q, qd = eq.q, eq.qd
     n = len(q)
     D = sum(dims)
@@ -420,6 +449,10 @@ def _node_terms(eq, particles, leaf, dims, S_by_coordinate, coordinate, parent, 
         tree.d.append(se.expand(dd))
         tree.e.append([se.expand(x) for x in e])
         tree.h.append(se.expand(h))
+        motion = [zero] * D
+        for d, acc in base.get(j, {}).items() if parent[k] < 0 else ():
+            motion[offsets[d]:offsets[d] + d] = acc
+        tree.base.append(motion)
         above = f", below {names[coordinate[parent[k]]]}" if parent[k] >= 0 else ", a root"
         count = len(own[j])
         tree.notes.append(f"node {k}: coordinate {names[j]}{above}; "
@@ -434,7 +467,8 @@ def node_records(tree):
     out = []
     for k, j in enumerate(tree.coordinate):
         values = {"S": tree.S[k], "kappa": tree.kappa[k], "mass": tree.mass[k], "u": tree.u[k],
-                  "d": [tree.d[k]], "e": tree.e[k], "h": [tree.h[k]], "Q": [tree.Q[j]]}
+                  "d": [tree.d[k]], "e": tree.e[k], "h": [tree.h[k]], "Q": [tree.Q[j]],
+                  "base": tree.base[k]}
         for name, _ in NODE_FIELDS:
             out.extend(values[name])
     return out
@@ -509,5 +543,6 @@ def parameter_gradients(tree, eq):
 
 
 def explicit_time(tree, eq):
-    """True if the equations depend on t explicitly (for a tree: through Q alone)."""
-    return any(eq.t in Qi.free_symbols for Qi in tree.Q)
+    """True if the equations depend on t explicitly (for a tree: through Q and the supports'
+    motion)."""
+    return any(eq.t in e.free_symbols for e in list(tree.Q) + [x for b in tree.base for x in b])

@@ -47,7 +47,7 @@ class Recursion:
         """(U, 1/D, ν, Mc) of the articulated-body recursion, leaves to root; None when M is not
         positive definite (a pivot D_k ≤ PIVOT_TOL·M_kk, or NaN)."""
         n, D = self.n, self.D
-        S, kap, m, uu, d, e, h, Q = self.fields(nodes, self.node_fields, _NODE_NAMES)
+        S, kap, m, uu, d, e, h, Q, _ = self.fields(nodes, self.node_fields, _NODE_NAMES)
         I = np.zeros((n, D, D))
         pb = np.zeros((n, D))
         Mc = np.zeros((n, D))
@@ -74,13 +74,12 @@ class Recursion:
     def accelerate(self, nodes, factor):
         """(q̈ in coordinate order, the subtree accelerations A), root to leaves."""
         U, Dinv, nu, _ = factor
-        S, kap = self.fields(nodes, self.node_fields, ("S", "kappa"))
+        S, kap, base = self.fields(nodes, self.node_fields, ("S", "kappa", "base"))
         A = np.zeros((self.n, self.D))
         qdd = np.empty(self.n)
-        zero = np.zeros(self.D)
         for k in range(self.n):
             parent = self.parent[k]
-            Ap = A[parent] if parent >= 0 else zero
+            Ap = A[parent] if parent >= 0 else base[k]
             a = (nu[k] - np.dot(U[k], Ap)) * Dinv[k]
             qdd[self.coordinate[k]] = a
             A[k] = Ap + S[k] * a + kap[k]
@@ -88,26 +87,25 @@ class Recursion:
 
     def accelerations(self, nodes, a):
         """A_k = A_parent + S_k·a_k + kappa_k for a given a (coordinate order)."""
-        S, kap = self.fields(nodes, self.node_fields, ("S", "kappa"))
+        S, kap, base = self.fields(nodes, self.node_fields, ("S", "kappa", "base"))
         A = np.zeros((self.n, self.D))
-        zero = np.zeros(self.D)
         for k in range(self.n):
             parent = self.parent[k]
-            A[k] = (A[parent] if parent >= 0 else zero) + S[k] * a[self.coordinate[k]] + kap[k]
+            A[k] = (A[parent] if parent >= 0 else base[k]) + S[k] * a[self.coordinate[k]] + kap[k]
         return A
 
     def forces(self, nodes, a, A):
         """(G, τ in coordinate order, Mc): the children's forces, the generalized inertia forces
         and the strict subtrees' composite masses, leaves to root."""
-        S, m, uu, d, e, h = self.fields(nodes, self.node_fields, ("S", "mass", "u", "d", "e", "h"))
+        S, m, uu, d, e, h, base = self.fields(nodes, self.node_fields,
+                                              ("S", "mass", "u", "d", "e", "h", "base"))
         n, D = self.n, self.D
         G = np.zeros((n, D))
         Mc = np.zeros((n, D))
         tau = np.empty(n)
-        zero = np.zeros(D)
         for k in range(n - 1, -1, -1):
             parent = self.parent[k]
-            Ap = A[parent] if parent >= 0 else zero
+            Ap = A[parent] if parent >= 0 else base[k]
             ak = a[self.coordinate[k]]
             tau[self.coordinate[k]] = np.dot(uu[k], Ap) + d[k] * ak + h[k] + np.dot(S[k], G[k])
             if parent >= 0:
@@ -134,7 +132,7 @@ class Recursion:
         """B = [∂F/∂q − ∂(M·a)/∂q | ∂F/∂q̇] (n×2n, coordinate order) at a (see lg_tree_b in
         tree.c.in, which forms it in node order)."""
         n = self.n
-        S, uu = self.fields(nodes, self.node_fields, ("S", "u"))
+        S, uu, base = self.fields(nodes, self.node_fields, ("S", "u", "base"))
         dS, al, ald, du, c, cd, g, gd = self.fields(slopes, self.slope_fields, _SLOPE_NAMES)
         G, _, Mc = self.forces(nodes, a, A)
         W = uu + Mc * S
@@ -143,10 +141,9 @@ class Recursion:
             B[self.dq[:, 0], self.dq[:, 1]] = dQ
         if len(dQd):
             B[self.dqd[:, 0], n + self.dqd[:, 1]] = dQd
-        zero = np.zeros(self.D)
         for j in range(n):
             parent = self.parent[j]
-            Ap = A[parent] if parent >= 0 else zero
+            Ap = A[parent] if parent >= 0 else base[j]
             Mal, Mald = Mc[j] * al[j], Mc[j] * ald[j]
             B[j, j] -= np.dot(du[j], Ap) + c[j] + np.dot(dS[j], G[j]) + np.dot(S[j], Mal)
             B[j, n + j] -= cd[j] + np.dot(S[j], Mald)
@@ -181,19 +178,19 @@ class Recursion:
             if _WIDTHS[name] == "D":
                 return dnodes[:, :, o:o + D].transpose(1, 0, 2)
             return dnodes[:, :, o].T
-        dS, dkap, dm, du, dd, de, dh = (field(name) for name in
-                                        ("S", "kappa", "mass", "u", "d", "e", "h"))
+        dS, dkap, dm, du, dd, de, dh, dbase = (field(name) for name in
+                                               ("S", "kappa", "mass", "u", "d", "e", "h", "base"))
+        base, = self.fields(nodes, self.node_fields, ("base",))
         dA = np.zeros((n, n_params, D))
-        zero = np.zeros((n_params, D))
-        zeroD = np.zeros(D)
         for k in range(n):
             parent = self.parent[k]
-            dA[k] = (dA[parent] if parent >= 0 else zero) + dS[k] * a[self.coordinate[k]] + dkap[k]
+            dA[k] = (dA[parent] if parent >= 0 else dbase[k]) + dS[k] * a[self.coordinate[k]] \
+                + dkap[k]
         dG = np.zeros((n, n_params, D))
         for k in range(n - 1, -1, -1):
             parent, ck = self.parent[k], self.coordinate[k]
-            Ap = A[parent] if parent >= 0 else zeroD
-            dAp = dA[parent] if parent >= 0 else zero
+            Ap = A[parent] if parent >= 0 else base[k]
+            dAp = dA[parent] if parent >= 0 else dbase[k]
             P[ck] -= (du[k] @ Ap + dAp @ uu[k] + dd[k] * a[ck] + dh[k] + dS[k] @ G[k]
                       + dG[k] @ S[k])
             if parent >= 0:
@@ -223,11 +220,12 @@ class Recursion:
         return out
 
 
-_NODE_NAMES = ("S", "kappa", "mass", "u", "d", "e", "h", "Q")
+_NODE_NAMES = ("S", "kappa", "mass", "u", "d", "e", "h", "Q", "base")
 _SLOPE_NAMES = ("dS", "alpha", "alpha_qd", "du", "c", "c_qd", "g", "g_qd")
 #: Width of each field: "D" or 1 (lagrgen.tree.NODE_FIELDS and SLOPE_FIELDS; the runtime does
 #: not import the derivation).
 _WIDTHS = {"S": "D", "kappa": "D", "mass": "D", "u": "D", "d": 1, "e": "D", "h": 1, "Q": 1,
+           "base": "D",
            "dS": "D", "alpha": "D", "alpha_qd": "D", "du": "D", "c": 1, "c_qd": 1, "g": "D",
            "g_qd": "D"}
 
