@@ -44,9 +44,10 @@ from .records import (Body3D, Damper, Dissipation, Force, GeneralizedForce, Pote
 #: articulated-body recursion over a kinematic tree.
 FORMULATIONS = ("dense", "recursive")
 
-#: The recursive formulation is chosen automatically from this many coordinates on (measured:
-#: `benchmarks/vs_pinocchio.py` runs both; below it the dense path's closed forms are faster).
-RECURSIVE_FROM = 12
+#: The recursive formulation is chosen automatically from this many coordinates on: measured by
+#: `benchmarks/vs_pinocchio.py` on the n-link chain (2 cores, load 4–5), the recursive rhs is the
+#: faster from n ≈ 10, its Jacobian from n ≈ 13, its build from n ≈ 8.
+RECURSIVE_FROM = 13
 
 
 @dataclass(eq=False)
