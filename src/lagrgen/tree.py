@@ -455,11 +455,16 @@ def _node_terms(eq, particles, leaf, dims, S_by_coordinate, coordinate, parent, 
             motion[offsets[d]:offsets[d] + d] = acc
         tree.base.append(motion)
         above = f", below {names[coordinate[parent[k]]]}" if parent[k] >= 0 else ", a root"
-        count = len(own[j])
-        tree.notes.append(f"node {k}: coordinate {names[j]}{above}; "
-                          f"{count} bod{'y' if count == 1 else 'ies'} of its own")
+        carried = ", ".join(_body_name(eq, m, dim) for m, dim, _, _ in own[j]) or "no body"
+        tree.notes.append(f"node {k}: coordinate {names[j]}{above}; carries {carried}")
     tree.Q = Q
     return tree
+
+
+def _body_name(eq, mass, dim):
+    """How a comment of the generated code names a body: its kind and mass in the user's names."""
+    kind = {1: "a 1-D mass or inertia", 2: "a planar mass", 3: "a mass"}[dim]
+    return f"{kind} of {str(eq.to_user(mass)).replace('*/', '* /')}"
 
 
 # -- kernel expressions --------------------------------------------------------------------------
