@@ -318,7 +318,7 @@ def test_recursive_c_is_readable_plain_c_and_grows_like_n(tmp_path):
     text = (tmp_path / f"{model.name}_model.c").read_text()
     assert "#define LG_RECURSIVE 1" in text and "lg_tree_factor" in text
     assert re.search(r"/\* node 1: coordinate q\d, (below q\d|a root); carries (a planar mass|a 1-D "
-                     r"angle) of m\d", text)
+                     r"mass or inertia) of m\d", text)
     assert "const double x0 = " in text
     result = subprocess.run([*compiler_command(), "-std=c99", "-pedantic", "-Wall", "-Wextra",
                              "-Werror", "-c", str(tmp_path / f"{model.name}_model.c"), "-o",
