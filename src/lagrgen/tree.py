@@ -19,12 +19,16 @@ are solved for q̈ in O(n) by the articulated-body recursion (Featherstone's ABA
 space), their Jacobian formed in O(n²) from the derivatives of each node's terms by its own q_j,
 q̇_j (see `lagrgen/codegen/templates/tree.c.in` and `lagrgen.runtime.tree`).
 
+A tree may hang from a support that moves with t (every body of the tree with the same
+∂r_b/∂t = β(t)): its root's acceleration is then β̇(t) instead of 0. A potential m·g·r_b,i of one
+particle becomes a constant load on it instead of a term of Q.
+
 Every property the recursion relies on is checked on the expressions themselves (a column equal
 to Σ_j is an identity of the expanded difference, the sets of particles each coordinate moves are
-nested or disjoint, Σ_j and s_b depend on their own coordinate only); anything not proven — a
-3-D body's rotation, a mass that varies, a position that depends on t, constraints, impacts,
-kinetic energy given as an expression, a column that differs — leaves the model to the dense
-formulation, with the reason (`analyse`).
+nested or disjoint, Σ_j and s_b depend on their own coordinate only, β on t only); anything not
+proven — a 3-D body's rotation, a mass that varies, a driven joint inside the tree, constraints,
+impacts, kinetic energy given as an expression, a column that differs — leaves the model to the
+dense formulation, with the reason (`analyse`).
 
 The velocity vector V of a node stacks one block per particle dimension present (e.g. the plane's
 x, y and the planar bodies' angles: D = 3); particles of dimension d read their block.
