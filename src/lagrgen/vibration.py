@@ -15,7 +15,7 @@ import numpy as np
 import scipy.linalg
 from scipy.optimize import linear_sum_assignment, root
 
-from .errors import LagrgenError, MassMatrixError, UnknownNameError
+from .errors import LagrgenError, MassMatrixError, NonFiniteError, UnknownNameError
 from .linearization import (FrozenTimeWarning, Linearization, linearize,  # noqa: F401
                             warn_frozen_time)
 from .runtime.arguments import as_vector, input_vector, parameters_from
@@ -381,7 +381,10 @@ def state_modes(lin, model=None):
 
 
 def check_mass_matrix(lin):
-    """Raise MassMatrixError unless lin.M is symmetric positive definite."""
+    """Raise MassMatrixError unless lin.M is symmetric positive definite (NonFiniteError when
+    an entry overflowed)."""
+    if not np.isfinite(lin.M).all() and np.isfinite(lin.q0).all():
+        raise NonFiniteError.in_mass_matrix(lin.name, lin.t, lin.q0)
     try:
         np.linalg.cholesky(lin.M)
     except np.linalg.LinAlgError:
