@@ -55,6 +55,7 @@ class Layout:
     scheme: str
     unknown: tuple
     free: bool
+    T_scale: float = 1.0     # a free duration's variable is T/T_scale
 
     @property
     def points(self):
@@ -87,6 +88,15 @@ class Layout:
     @property
     def T_index(self):
         return self.p_start + len(self.unknown) if self.free else None
+
+    @property
+    def dh_dx(self):
+        """∂h/∂x_T of the node interval h = T/(nodes − 1) by the duration's variable."""
+        return self.T_scale / (self.nodes - 1)
+
+    def duration(self, x):
+        """T at the decision vector x (a free duration's variable is T/T_scale)."""
+        return self.T_scale * x[self.T_index]
 
     @property
     def size(self):

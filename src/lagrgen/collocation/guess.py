@@ -76,7 +76,7 @@ def default_guess(problem, tr):
             value = _start_value(tr.lo[L.p_start + k], tr.hi[L.p_start + k]) or 1.0
         x[L.p_start + k] = value
     if L.free:
-        x[L.T_index] = T
+        x[L.T_index] = T / L.T_scale
     return np.clip(x, tr.lo, tr.hi)
 
 
@@ -93,7 +93,7 @@ def from_result(problem, tr, result):
         Zold = old.point_block(result.x)
         T = result.duration
         if L.free:
-            x[L.T_index] = T
+            x[L.T_index] = T / L.T_scale
         times = L.fractions * T          # the same fractions of the earlier duration
         Z = L.point_block(x)
         for kind in KINDS:
@@ -120,7 +120,7 @@ def from_simulation(problem, tr, sol):
         raise LagrgenError(f"guess: a simulation of this model has y of shape (2n, len(t)) = "
                            f"({2 * L.n}, {t_sim.size}), got {y.shape}")
     Z = L.point_block(x)
-    times = tr.point_times(x[L.T_index] if L.free else problem.duration_bounds[0])
+    times = tr.point_times(L.duration(x) if L.free else problem.duration_bounds[0])
     states = np.array([np.interp(times, t_sim, row) for row in y])
     Z[:, :2 * L.n] = states.T
     p = np.array(problem.params)
@@ -146,13 +146,13 @@ def from_values(problem, tr, values):
     if "duration" in values:
         T = float(values.pop("duration"))
         if L.free:
-            x[L.T_index] = T
+            x[L.T_index] = T / L.T_scale
     for name, value in dict(values.pop("params", {})).items():
         kind, k = problem.variable(key_name(name))
         if kind != "p":
             raise LagrgenError(f"guess['params']: {name!r} is not an unknown parameter")
         x[L.p_start + k] = float(value)
-    times = tr.point_times(x[L.T_index] if L.free else problem.duration_bounds[0])
+    times = tr.point_times(L.duration(x) if L.free else problem.duration_bounds[0])
     for name, value in values.items():
         kind, i = problem._point_variable(name, "guess")
         col = L.offset(kind) + i

@@ -46,6 +46,7 @@ class Transcription:
         if self.exact:
             self._hessian_structure()
         self._x = None
+        self.defect_scale = 1.0
         self.evaluations = {"constraints": 0, "jacobian": 0, "hessian": 0, "objective": 0}
 
     # -- structure ---------------------------------------------------------------------------
@@ -198,7 +199,7 @@ class Transcription:
                                    f"{point} lies outside its bounds [{lo[j]}, {hi[j]}]")
             lo[j] = hi[j] = value
         if L.free:
-            lo[L.T_index], hi[L.T_index] = problem.duration_bounds
+            lo[L.T_index], hi[L.T_index] = np.array(problem.duration_bounds) / L.T_scale
         self.lo, self.hi = lo, hi
         self.g_lo = np.concatenate([np.zeros(L.points * L.ni),
                                     np.tile([lo_ for _, _, lo_, _ in problem._path], L.points),
@@ -280,7 +281,7 @@ class Transcription:
         p = np.array(self.problem.params)
         if L.unknown:
             p[list(L.unknown)] = x[L.p_start:L.p_start + len(L.unknown)]
-        T = x[L.T_index] if L.free else self.problem.duration_bounds[0]
+        T = L.duration(x) if L.free else self.problem.duration_bounds[0]
         return Z, p, T, self.point_times(T), T / (L.nodes - 1)
 
     def _at(self, x):
@@ -348,9 +349,9 @@ class Transcription:
             g += np.bincount(cols.ravel(), (state["h"] * self.quad[:, None] * dL).ravel(),
                              minlength=L.size)
             if L.free:
-                g[L.T_index] += float(self.quad @ self._integrand(state)) / (L.nodes - 1)
+                g[L.T_index] += float(self.quad @ self._integrand(state)) * L.dh_dx
         if self.problem._minimize_time:
-            g[L.T_index] += 1.0
+            g[L.T_index] += L.T_scale
         if self.n_data:
             g += 2.0 * (self.C.T @ (self.omega * (self.C @ x - self.d)))
         return g
@@ -361,7 +362,7 @@ class Transcription:
         parts = [state["r"].ravel()]
         if self.n_path:
             parts.append(self._path_values(state).ravel())
-        parts.append(self.D0 @ x + state["h"] * (self.D1 @ x))
+        parts.append(self.defect_scale * (self.D0 @ x + state["h"] * (self.D1 @ x)))
         parts.append(self.E @ x)
         return np.concatenate(parts)
 
@@ -377,9 +378,9 @@ class Transcription:
             if "path_jac" not in state:
                 state["path_jac"] = self._kernel("path_jacobian", state, len(self.path_jac))
             parts.append(state["path_jac"].ravel())
-        parts.append(self.def_c0 + state["h"] * self.def_c1)
+        parts.append(self.defect_scale * (self.def_c0 + state["h"] * self.def_c1))
         if L.free:
-            parts.append((self.D1 @ x)[self.def_T_rows] / (L.nodes - 1))
+            parts.append(self.defect_scale * L.dh_dx * (self.D1 @ x)[self.def_T_rows])
         parts.append(self.E.tocoo().data)
         return np.concatenate(parts)
 
@@ -406,12 +407,12 @@ class Transcription:
             W = (obj_factor * state["h"] * self.quad)[:, None]
             parts.append(self._kernel("objective_hessian", state, len(self.obj_hess), W).ravel())
             if L.free:
-                parts.append((obj_factor / (L.nodes - 1) * self.quad[:, None]
+                parts.append((obj_factor * L.dh_dx * self.quad[:, None]
                               * self._integrand_gradient(state)).ravel())
         if L.free:
             base = P * (ni + self.n_path)
             mu_def = mu[base:base + self.n_defects]
-            parts.append((self.D1.T @ mu_def)[self.D1_cols] / (L.nodes - 1))
+            parts.append(self.defect_scale * L.dh_dx * (self.D1.T @ mu_def)[self.D1_cols])
         if self.n_data:
             parts.append(obj_factor * self.data_hess[2])
         values = np.concatenate(parts)

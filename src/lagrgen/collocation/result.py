@@ -58,7 +58,7 @@ class CollocationResult:
         L, mod = problem.layout, problem.mod
         Z = L.point_block(x)
         nodes = L.node_points
-        T = float(x[L.T_index]) if L.free else problem.duration_bounds[0]
+        T = float(L.duration(x)) if L.free else problem.duration_bounds[0]
         t_points = tr.point_times(T)
         status = int(info["status"])
         params = {mod.parameters[j]: float(x[L.p_start + k]) for k, j in enumerate(L.unknown)}
