@@ -26,6 +26,7 @@ COMMANDS = (
     "bench",
     "sweep",
     "fit",
+    "optimize",
 )
 
 

@@ -15,10 +15,10 @@ def initial_guess(problem, tr, guess):
         return default_guess(problem, tr)
     if isinstance(guess, CollocationResult):
         return from_result(problem, tr, guess)
+    if hasattr(guess, "t") and hasattr(guess, "y"):    # a simulation (an OdeResult is a dict)
+        return from_simulation(problem, tr, guess)
     if isinstance(guess, dict):
         return from_values(problem, tr, guess)
-    if hasattr(guess, "t") and hasattr(guess, "y"):
-        return from_simulation(problem, tr, guess)
     x = np.asarray(guess, dtype=float)
     if x.shape != (L.size,):
         raise LagrgenError(f"guess: a decision vector has {L.size} entries, got shape {x.shape}; "
@@ -45,8 +45,8 @@ def _duration_guess(problem):
 
 def default_guess(problem, tr):
     """Each variable linear between its initial and final instance values (constant when one is
-    given, the middle of its bounds or 0 when none); rates of coordinates without instance values
-    follow their coordinates' lines; parameters at their current values."""
+    given, the middle of its bounds or 0 when none), except that a coordinate's rate follows its
+    coordinate's line between the ends; parameters at their current values."""
     L = problem.layout
     x = np.zeros(L.size)
     Z = L.point_block(x)
@@ -59,17 +59,16 @@ def default_guess(problem, tr):
         for i in range(count):
             col = L.offset(kind) + i
             a, b = problem._fixed.get((0, kind, i)), problem._fixed.get((last, kind, i))
-            if a is None and b is None:
-                if kind == "qd" and i in slopes:
-                    Z[:, col] = slopes[i]
-                    continue
+            if kind == "qd" and i in slopes:
+                Z[:, col] = slopes[i]
+            elif a is None and b is None:
                 Z[:, col] = _start_value(tr.lo[col], tr.hi[col])
-                continue
-            a = b if a is None else a
-            b = a if b is None else b
-            Z[:, col] = a + (b - a) * tau
-            if kind == "q":
-                slopes[i] = (b - a) / T
+            else:
+                a = b if a is None else a
+                b = a if b is None else b
+                Z[:, col] = a + (b - a) * tau
+                if kind == "q":
+                    slopes[i] = (b - a) / T
     for k, j in enumerate(L.unknown):
         value = problem.params[j]
         if not np.isfinite(value):

@@ -15,7 +15,7 @@ import numpy as np
 import scipy.sparse as sps
 
 from ..errors import LagrgenError
-from . import _points
+from ._points import kernel_rows, residual_rows
 from .grid import defects, interpolation, quadrature
 from ..calculus import internal_symbols
 from .symbolic import (path_derivatives, point_variables_of,
@@ -33,11 +33,11 @@ class Transcription:
         self.mod = problem.mod
         self.quad = quadrature(L)
         self.n_path = len(problem._path)
-        self._residual_structure()
-        self._problem_unit()
         self.exact = hessian_kind == "exact"
         if self.exact:
             self._hessian_units()
+        self._residual_structure()
+        self._problem_unit()
         self._defect_structure()
         self._linear_rows()
         self._data_term()
@@ -53,8 +53,8 @@ class Transcription:
     def _residual_structure(self):
         L, mod = self.layout, self.mod
         n, m, nu, ni, nz = L.n, L.m, L.nu, L.ni, L.nz
-        unit = compiled_unit(mod, "structure", "", lambda: _structure_unit(self.problem.model))
-        s = unit.structure
+        s = self.hessian_unit.structure["jacobian"] if self.exact else \
+            residual_jacobian_structure(_equations(self.problem.model))
         n_params = len(mod.parameters)
         size1 = ni + ni * 2 * n + ni * ni + ni * nu
         rows, cols, pick = [], [], []
@@ -103,7 +103,7 @@ class Transcription:
                                  dtype=np.int64).reshape(-1, 2)
         self.parameter_unit = None
         if L.unknown:
-            self.parameter_unit = compiled_unit(self.mod, "parameter-hessian", "",
+            self.parameter_unit = compiled_unit(self.mod, "parameter_hessian", "",
                                                 lambda: _parameter_hessian_unit(model))
             entries = np.array(self.parameter_unit.structure["entries"],
                                dtype=np.int64).reshape(-1, 2)
@@ -293,7 +293,7 @@ class Transcription:
         Z = np.ascontiguousarray(Z)
         r = np.empty((L.points, L.ni))
         jac = np.empty((L.points, self.dyn_pick.size))
-        failed = _points.residual_rows(self.terms, self.parameter_terms, t, Z, p, L.n, L.m, L.nu,
+        failed = residual_rows(self.terms, self.parameter_terms, t, Z, p, L.n, L.m, L.nu,
                                        len(p), self.dyn_pick, r, jac)
         if failed:
             raise LagrgenError("the model's residual failed at a collocation point")
@@ -305,7 +305,7 @@ class Transcription:
         L = self.layout
         out = np.empty((L.points, width))
         W = np.zeros((L.points, 0)) if W is None else np.ascontiguousarray(W)
-        _points.kernel_rows(self.unit.address(name) if not isinstance(name, tuple)
+        kernel_rows(self.unit.address(name) if not isinstance(name, tuple)
                             else name[0].address(name[1]), state["t"], state["Z"], state["p"],
                             L.n, L.m, L.nu, W, out)
         return out
@@ -425,18 +425,16 @@ def _equations(model):
     return derived(model.spec())
 
 
-def _structure_unit(model):
-    eq = _equations(model)
-    return ("residual Jacobian structure", [], residual_jacobian_structure(eq))
-
-
 def _hessian_unit(model):
+    """The residual's weighted Hessian in z (and, in the structure, which entries of the
+    residual's Jacobian are not identically zero)."""
     eq = _equations(model)
     entries = residual_hessian(eq)
     return (f"{model.name}: ∇²_z(Σ w_i·r_i), z = [q, q̇, q̈, λ, u], lower triangle",
             [("residual_hessian", "the residual's weighted Hessian, nonzero lower entries",
               [e for _, _, e in entries])],
-            {"entries": [[r, c] for r, c, _ in entries]})
+            {"entries": [[r, c] for r, c, _ in entries],
+             "jacobian": residual_jacobian_structure(eq)})
 
 
 def _parameter_hessian_unit(model):

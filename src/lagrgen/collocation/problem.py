@@ -330,6 +330,9 @@ class Collocation:
             raise LagrgenError("no objective: call minimize(integral=..., time=...) or track(...)")
         transcription = self.transcription(hessian)
         x0 = initial_guess(self, transcription, guess)
+        L = self.layout
+        T0 = L.duration(x0) if L.free else self.duration_bounds[0]
+        transcription.defect_scale = (L.nodes - 1) / max(T0, 1e-12)   # rows (Δx/h − f)
         return solve_nlp(self, transcription, x0, hessian, tol, max_iter, progress, options or {})
 
     def transcription(self, hessian="exact"):
@@ -360,6 +363,12 @@ def _source_model(mod):
             f"Collocation needs the lagrgen.Model that {mod.name!r} was built from (its "
             "expressions and second derivatives are compiled from it): build it in this session "
             "with lagrgen.build(model) rather than loading the module")
+    from ..cache import content_digest
+    from ..lagrange import derived
+    spec = model.spec()
+    if content_digest(spec, lambda: derived(spec)) != mod.content_hash:
+        raise LagrgenError(f"model {mod.name!r} was changed after it was built: build it again "
+                           "(lagrgen.build(model)) before setting up a Collocation")
     return model
 
 

@@ -14,12 +14,12 @@ import warnings
 
 import numpy as np
 import scipy.sparse as sps
-from scipy.sparse.linalg import splu
 
 
 def parameter_errors(tr, x):
     """{name: standard error} of the unknown parameters and their covariance (k, k), or ({}, None)
     when the problem has no data term or no unknown parameter."""
+    from scipy.sparse.linalg import splu
     L = tr.layout
     names = [tr.mod.parameters[j] for j in L.unknown]
     if not names or not tr.n_data:

@@ -1,170 +1,169 @@
-"""Compiled units of a collocation problem: kernels printed as C, compiled once, cached on disk.
+"""Compiled units of a collocation problem: kernels printed as C, compiled once, kept in the model's
+cache entry (ARCHITECTURE.md's recipe for a separately compiled unit).
 
-A unit is a small shared library of point kernels, each
+A unit is an extension module `<model>_<label>` whose attribute `kernels` maps each kernel's name
+to the address of its C function
 
     void lgc_<kernel>(double t, const double *q, const double *qd, const double *a,
                       const double *p, const double *u, const double *w, double *out)
 
 (a = [q̈, λ]; w the weights of a weighted sum, e.g. the NLP's multipliers of a point's rows),
-writing the nonzero entries of a value, gradient, Jacobian or Hessian in the order of the
-unit's `structure` (a JSON record kept beside the library). Two kinds are made:
+which writes the nonzero entries of a value, gradient, Jacobian or Hessian in the order of the
+unit's `structure` (`structure.json` beside the module). Two kinds are made:
 
-    model units    of the model alone (the residual's Hessian, its parameter rows, the residual
-                   Jacobian's structure), keyed by the model's content hash: reused by every
-                   problem on that model;
-    problem units  of one problem's expressions (path constraints, the integrand of the
-                   objective), keyed by those expressions too.
+    model units    of the model alone (the residual's Hessian, its parameter rows), identified by
+                   the model's content: reused by every problem on that model;
+    problem units  of one problem's expressions (path constraints, the objective's integrand),
+                   identified by those expressions too.
 
-A unit lives in the model's cache entry (`<entry>/<label>-<key>/`: library, C source, structure,
-digest), made in a private directory and renamed into place, so a unit a process sees is whole;
-a unit whose library does not match its digest is made again. The key hashes the model's content
-hash, the unit's own inputs, the sources of this package that print it, the compiler and flags.
+The digest of a unit hashes the model's content hash, lagrgen's generator digest, the sources of
+this package that print it and the unit's own inputs; the cache keys it with the compiler and
+flags and keeps it with the model's entry (`cache.Entry.unit`, `cache.store`,
+`cache.import_or_repair`).
 """
-import ctypes
 import functools
 import hashlib
 import json
-import os
-import shutil
-import sysconfig
-import tempfile
 from pathlib import Path
 
+from .. import cache
 from .._version import __version__
 from ..codegen.printer import c_function, kernel_statements
 from ..errors import BuildError
 from ..kernels import KernelSpec, cse_kernel
-from ..toolchain import _fsync_dir, compile_flags, compile_units, compiler_command, write_atomic
+from ..toolchain import compile_flags, compile_units
 
 SIGNATURE = ("double t, const double *q, const double *qd, const double *a, const double *p, "
              "const double *u, const double *w, double *out")
 ARGUMENTS = "t, q, qd, a, p, u, w, out"
 PROLOGUE = "    (void)t; (void)q; (void)qd; (void)a; (void)p; (void)u; (void)w;\n"
-SUFFIX = sysconfig.get_config_var("SHLIB_SUFFIX") or ".so"
 PACKAGE = Path(__file__).resolve().parent.parent
-#: What determines a unit's C: a change to any of these sources changes every key.
-SOURCES = ("collocation/symbolic.py", "collocation/units.py", "codegen/printer.py", "kernels.py",
-           "calculus.py", "lagrange.py", "_version.py")
+#: What determines a unit's C besides lagrgen's generator: a change to any of these changes every
+#: unit's digest.
+SOURCES = ("collocation/symbolic.py", "collocation/units.py")
 #: Optimization level of the units: their kernels are long straight-line code, where -O1 keeps
-#: the speed of -O2 at a fraction of its compile time.
+#: most of the speed of -O2 at a fraction of its compile time.
 OPT_LEVEL = "-O1"
-_loaded = {}
 
 
 @functools.lru_cache(maxsize=None)
 def sources_digest():
-    h = hashlib.sha256(__version__.encode())
+    """sha256 of lagrgen's generator and of the sources that print a unit."""
+    h = hashlib.sha256(cache.generator_digest().encode())
     for name in SOURCES:
-        path = PACKAGE / name
-        h.update(name.encode() + b"\0" + path.read_bytes())
+        h.update(name.encode() + b"\0" + (PACKAGE / name).read_bytes())
     return h.hexdigest()
 
 
-def unit_key(content_hash, label, inputs):
-    """The key of the unit `label` of the model `content_hash` made from `inputs` (a text)."""
-    h = hashlib.sha256(f"{content_hash}\0{label}\0{sources_digest()}\0".encode())
-    h.update(inputs.encode())
-    h.update(repr((compile_flags(OPT_LEVEL), compiler_command())).encode())
-    return h.hexdigest()[:20]
-
-
-def unit_source(title, kernels):
-    """The C text of a unit: `kernels` is a list of (name, comment, expressions)."""
-    chunks = [f"/* {title}\n * Generated by lagrgen {__version__}. Every function is "
-              f"(t, q, qd, a, p, u, w, out) with a = [q̈, λ]\n * and w the weights of a weighted "
-              "sum; out receives the entries listed in the unit's structure. */",
-              "#include <math.h>", "#define LG_FN",
+def unit_source(module, title, kernels):
+    """The C text of the unit module `module`: `kernels` is a list of (name, comment, exprs)."""
+    chunks = [f"/* {title}\n * Generated by lagrgen {__version__}: the unit module {module}. "
+              "Every kernel is (t, q, qd, a, p, u, w, out)\n * with a = [q̈, λ] and w the "
+              "weights of a weighted sum; out receives the entries listed in\n * the unit's "
+              "structure.json. */",
+              "#define PY_SSIZE_T_CLEAN", "#include <Python.h>", "#include <math.h>",
+              "#define LG_FN",
               "static inline double lg_sq(double x) { return x * x; }",
               "static inline double lg_cube(double x) { return x * x * x; }",
               "static inline double lg_sign(double x) { return (double)((x > 0.0) - (x < 0.0)); }",
               ""]
     for name, comment, exprs in kernels:
         kernel = cse_kernel(KernelSpec(name, comment, (), None), {"out": list(exprs)})
-        chunks.append(c_function(f"lgc_{name}_body", SIGNATURE, ARGUMENTS,
-                                 kernel_statements(kernel), comment, 400, PROLOGUE))
-        chunks.append(f"void lgc_{name}({SIGNATURE})\n{{\n    lgc_{name}_body({ARGUMENTS});\n}}\n")
+        chunks.append(c_function(f"lgc_{name}", SIGNATURE, ARGUMENTS, kernel_statements(kernel),
+                                 comment, 400, PROLOGUE))
+    entries = "\n".join(f'    {{"{name}", (void *)lgc_{name}}},' for name, _, _ in kernels)
+    chunks.append(f"""static const struct {{ const char *name; void *fn; }} lgc_table[] = {{
+{entries}
+    {{NULL, NULL}}
+}};
+
+static struct PyModuleDef lgc_module = {{PyModuleDef_HEAD_INIT, "{module}",
+    "Collocation kernels (lagrgen): `kernels` maps each name to its C function's address.", -1,
+    NULL}};
+
+PyMODINIT_FUNC PyInit_{module}(void)
+{{
+    PyObject *m = PyModule_Create(&lgc_module), *table = PyDict_New();
+    if (m == NULL || table == NULL)
+        goto fail;
+    for (int i = 0; lgc_table[i].name; ++i) {{
+        PyObject *address = PyLong_FromVoidPtr(lgc_table[i].fn);
+        if (address == NULL || PyDict_SetItemString(table, lgc_table[i].name, address)) {{
+            Py_XDECREF(address);
+            goto fail;
+        }}
+        Py_DECREF(address);
+    }}
+    if (PyModule_AddObject(m, "kernels", table) == 0)
+        return m;
+fail:
+    Py_XDECREF(table);
+    Py_XDECREF(m);
+    return NULL;
+}}
+""")
     return "\n".join(chunks)
 
 
-class Unit:
-    """A loaded unit: the addresses of its kernels (`address(name)`) and its `structure`."""
+class LoadedUnit:
+    """A unit's kernels (`address(name)`) and `structure`, with its module kept alive."""
 
-    def __init__(self, library, structure, directory):
-        self.library, self.structure, self.directory = library, structure, directory
+    def __init__(self, module, structure, directory):
+        self.module, self.structure, self.directory = module, structure, directory
 
     def address(self, name):
-        return ctypes.cast(getattr(self.library, f"lgc_{name}"), ctypes.c_void_p).value
+        return self.module.kernels[name]
 
 
-def cache_root(mod):
-    """The directory holding `mod`'s units: its cache entry (where its module was imported from)
-    when writable, else a per-user temporary directory."""
-    entry = Path(getattr(mod, "__file__", "") or ".").resolve().parent
-    if os.access(entry, os.W_OK):
-        return entry
-    root = Path(tempfile.gettempdir()) / f"lagrgen-units-{os.getuid() if hasattr(os, 'getuid') else 0}"
-    root.mkdir(parents=True, exist_ok=True)
-    return root
+def entry_of(mod):
+    """The cache entry `mod` (a model built by `lagrgen.build`) was imported from."""
+    directory = Path(getattr(mod, "__file__", "") or "").resolve().parent
+    prefix = f"{mod.name}-"
+    if directory.parent.name != cache.CACHE_DIR or not directory.name.startswith(prefix):
+        raise BuildError(f"model {mod.name!r} was not imported from a lagrgen cache entry "
+                         f"({directory}): build it with lagrgen.build(model)")
+    return cache.Entry(directory.parent.parent, mod.name, directory.name[len(prefix):])
+
+
+_loaded = {}
 
 
 def compiled_unit(mod, label, inputs, make):
     """The unit `label` of the built model `mod` for `inputs` (a text identifying what it is made
-    from), made by `make()` → (title, kernels, structure) when not cached (no kernels: a structure
-    alone, nothing compiled); loaded once per process."""
-    key = unit_key(mod.content_hash, label, inputs)
-    directory = cache_root(mod) / f"{mod.name}-{label}-{key}"
-    if directory in _loaded:
-        return _loaded[directory]
-    if not _valid(directory):
-        from filelock import FileLock
-        with FileLock(str(directory.parent / f".{mod.name}-{label}.lock")):
-            if not _valid(directory):
-                _make(directory, *make())
-    structure = json.loads((directory / "structure.json").read_text())
-    library = None
-    if (directory / f"unit{SUFFIX}").exists():
-        try:
-            library = ctypes.CDLL(str(directory / f"unit{SUFFIX}"))
-        except OSError as exc:
-            raise BuildError(f"cannot load the collocation unit {directory}: {exc}") from None
-    unit = _loaded[directory] = Unit(library, structure, directory)
-    return unit
+    from besides the model), made by `make()` → (title, kernels, structure) when not cached;
+    loaded once per process."""
+    digest = hashlib.sha256(f"{mod.content_hash}\0{label}\0{sources_digest()}\0{inputs}\0"
+                            f"{compile_flags(OPT_LEVEL)}".encode()).hexdigest()
+    entry = entry_of(mod)
+    unit = entry.unit(label, digest)
+    if unit.directory in _loaded:
+        return _loaded[unit.directory]
 
+    def build(work):
+        title, kernels, structure = make()
+        source = work / f"{unit.module}.c"
+        source.write_text(unit_source(unit.module, title, kernels))
+        (work / "structure.json").write_text(json.dumps(structure))
+        compile_units([source], cache.Unit(work, unit.module).module_file,
+                      compile_flags(OPT_LEVEL))
 
-def _digest(path):
-    return hashlib.sha256(path.read_bytes()).hexdigest()
-
-
-def _artifact(directory):
-    """The file whose digest vouches for the unit: its library, or its structure alone."""
-    library = directory / f"unit{SUFFIX}"
-    return library if library.exists() else directory / "structure.json"
-
-
-def _valid(directory):
     try:
-        return ((directory / "unit.sha256").read_text().strip() == _digest(_artifact(directory))
-                and (directory / "structure.json").is_file())
-    except OSError:
+        with cache.writing(entry):
+            if not cache.lookup(unit) or not _readable(unit):
+                cache.store(unit, build)
+            module = cache.import_or_repair(unit, build)
+    except cache.ReadOnlyCache:
+        if not (cache.lookup(unit) and _readable(unit)):
+            raise
+        module = cache.import_extension(unit.module, unit.module_file)
+    structure = json.loads((unit.directory / "structure.json").read_text())
+    loaded = _loaded[unit.directory] = LoadedUnit(module, structure, unit.directory)
+    return loaded
+
+
+def _readable(unit):
+    try:
+        json.loads((unit.directory / "structure.json").read_text())
+        return True
+    except (OSError, ValueError):
         return False
-
-
-def _make(directory, title, kernels, structure):
-    work = Path(tempfile.mkdtemp(dir=directory.parent, prefix=f".{directory.name}-"))
-    try:
-        if kernels:
-            source = work / "unit.c"
-            source.write_text(unit_source(title, kernels))
-            compile_units([source], work / f"unit{SUFFIX}", compile_flags(OPT_LEVEL))
-            for obj in work.glob("*.o"):
-                obj.unlink()
-        write_atomic(work / "structure.json", json.dumps(structure).encode())
-        write_atomic(work / "unit.sha256", (_digest(_artifact(work)) + "\n").encode())
-        if directory.exists():
-            trash = directory.with_name(f".trash-{directory.name}-{os.getpid()}")
-            os.replace(directory, trash)
-            shutil.rmtree(trash, ignore_errors=True)
-        os.replace(work, directory)
-        _fsync_dir(directory.parent)
-    finally:
-        shutil.rmtree(work, ignore_errors=True)
