@@ -16,7 +16,7 @@ from lagrgen.runtime.abi cimport lg_function
 cnp.import_array()
 
 ctypedef void (*lgc_kernel)(double t, const double *q, const double *qd, const double *a,
-                            const double *p, const double *u, const double *w,
+                            const double *p, const double *u, const double *mu,
                             double *out) noexcept nogil
 
 cdef double ZERO[1]

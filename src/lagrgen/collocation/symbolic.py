@@ -3,7 +3,7 @@ symbols, the structure of the residual's Jacobian, and the second derivatives th
 the Lagrangian needs.
 
 A point's variables are z = [q, q̇, a, u] with a = [q̈, λ] (internal symbols q[i], qd[i], a[i],
-u[k]); p[j] are the parameters, t the time, w[i] the weights of a weighted sum (the NLP's
+u[k]); p[j] are the parameters, t the time, mu[i] the weights of a weighted sum (the NLP's
 multipliers of a point's rows). The residual of the implicit form is
 
     r = [M(q)·q̈ − F(q, q̇, u) − A(q)ᵀλ;  A(q)·q̈ − γ(q, q̇)]
@@ -25,8 +25,9 @@ ZERO = se.Integer(0)
 
 
 def weights(count):
-    """The weight symbols w[0] … w[count−1]."""
-    return internal_symbols("w", count)
+    """The weight symbols mu[0] … mu[count−1] (the kernels' argument `mu`; `w` is the printer's
+    workspace of a kernel split into parts)."""
+    return internal_symbols("mu", count)
 
 
 def point_variables_of(n, m, nu):
