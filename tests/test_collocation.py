@@ -265,6 +265,26 @@ def test_a_constrained_model_gives_the_optimum_of_its_unconstrained_twin(pendulu
     assert c.check() < 1e-2
 
 
+def test_the_first_node_of_a_constrained_model_is_consistent(pendulums):
+    """Initial values of independent coordinates only: the rod's position and velocity levels
+    hold at the first node (the acceleration level at every point); a full initial state off
+    the constraint is refused."""
+    (_, _), (cartesian, mod) = pendulums
+    F, = cartesian.input_functions
+    prob = lagrgen.Collocation(mod, nodes=21, duration=1.0)
+    prob.initial(q={"x": 0.6}, qd={"x": 0.3}).final(q={"x": 0.0})
+    res = prob.minimize(integral=F ** 2).solve(guess={"y": -0.8}, progress=False)
+    assert res.success
+    x0, y0, xd0, yd0 = res.y[:, 0]
+    assert (x0, y0) == (pytest.approx(0.6), pytest.approx(-0.8))
+    assert x0 * xd0 + y0 * yd0 == pytest.approx(0.0, abs=1e-9)
+    assert np.abs(res.y[0] ** 2 + res.y[1] ** 2 - 1).max() < 1e-5
+    bad = lagrgen.Collocation(mod, nodes=11, duration=1.0)
+    bad.initial(q=[0.6, -0.6], qd=[0.0, 0.0]).minimize(integral=F ** 2)
+    with pytest.raises(LagrgenError, match="position level of constraint 'rod'"):
+        bad.solve(progress=False)
+
+
 # -- identification ----------------------------------------------------------------------------
 def test_identification_recovers_the_truth_within_its_standard_errors(oscillator):
     """k and c of a damped oscillator from a noisy record with a gap (samples at arbitrary times),

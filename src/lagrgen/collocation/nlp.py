@@ -18,7 +18,7 @@ from ..errors import LagrgenError
 from ._points import kernel_rows, residual_rows
 from .grid import defects, interpolation, quadrature
 from ..calculus import internal_symbols
-from .symbolic import (path_derivatives, point_variables_of,
+from .symbolic import (consistency_derivatives, path_derivatives, point_variables_of,
                        residual_hessian, residual_jacobian_structure, residual_parameter_hessian,
                        scalar_derivatives, weights)
 from .units import compiled_unit
@@ -38,6 +38,7 @@ class Transcription:
             self._hessian_units()
         self._residual_structure()
         self._problem_unit()
+        self._consistency()
         self._defect_structure()
         self._linear_rows()
         self._data_term()
@@ -94,6 +95,65 @@ class Transcription:
         self.path_hess = np.array(s["path_hessian"], dtype=np.int64).reshape(-1, 2)
         self.obj_grad = np.array(s["objective_gradient"], dtype=np.int64)
         self.obj_hess = np.array(s["objective_hessian"], dtype=np.int64).reshape(-1, 2)
+
+    def _consistency(self):
+        """The constraints' position and velocity levels at the first node (the acceleration
+        level holds at every point), except rows the initial instance values already satisfy:
+        those are checked, not imposed twice."""
+        L, problem, mod = self.layout, self.problem, self.mod
+        self.n_cons = 0
+        if not L.m:
+            return
+        self.cons_unit = compiled_unit(mod, "consistency", "",
+                                       lambda: _consistency_unit(problem.model))
+        s = self.cons_unit.structure
+        rows_total, nh = s["rows"], mod.dimensions["n_holonomic"]
+        jac = np.array(s["jacobian"], dtype=np.int64).reshape(-1, 2)
+        hess = np.array(s["hessian"], dtype=np.int64).reshape(-1, 2)
+        position = {j: k for k, j in enumerate(L.unknown)}
+
+        def local(c):      # z column, an unknown parameter's column, or None (a known one)
+            return c if c < L.nz else (L.nz + position[c - L.nz] if c - L.nz in position
+                                       else None)
+        unknown_rows = {r for r, c in jac if c >= L.nz and c - L.nz in position}
+        fixed_q = all((0, "q", i) in problem._fixed for i in range(L.n))
+        fixed_qd = all((0, "qd", i) in problem._fixed for i in range(L.n))
+        z = np.zeros((1, L.nz))
+        for (point, kind, i), value in problem._fixed.items():
+            if point == 0:
+                z[0, L.offset(kind) + i] = value
+        values = np.empty((1, rows_total))
+        kernel_rows(self.cons_unit.address("consistency"), np.array([problem.t0]), z,
+                    np.nan_to_num(np.array(problem.params, dtype=float), nan=1.0), L.n, L.m,
+                    L.nu, np.zeros((1, 0)), values)
+        keep = []
+        for r in range(rows_total):
+            settled = fixed_q if r < nh else (fixed_q and fixed_qd)
+            if settled and r not in unknown_rows:
+                if abs(values[0, r]) > 1e-8:
+                    name = mod.constraint_names[r if r < nh else r - nh]
+                    level = "position" if r < nh else "velocity"
+                    raise LagrgenError(
+                        f"the initial state violates the {level} level of constraint {name!r} "
+                        f"by {values[0, r]:.3g}: give a consistent one (lagrgen.consistent_state) "
+                        "or leave some coordinates free")
+                continue
+            keep.append(r)
+        self.cons_keep = np.array(keep, dtype=np.int64)
+        self.n_cons = len(keep)
+        row_of = {r: k for k, r in enumerate(keep)}
+        entries = [(e, row_of[r], local(c)) for e, (r, c) in enumerate(jac)
+                   if r in row_of and local(c) is not None]
+        self.cons_jac_pick = np.array([e for e, _, _ in entries], dtype=np.int64)
+        self.cons_jac = np.array([(r, c) for _, r, c in entries], dtype=np.int64).reshape(-1, 2)
+        pairs = [(e, local(r), local(c)) for e, (r, c) in enumerate(hess)]
+        pairs = [(e, r, c) for e, r, c in pairs if r is not None and c is not None]
+        self.cons_hess_pick = np.array([e for e, _, _ in pairs], dtype=np.int64)
+        self.cons_hess = np.array([(r, c) for _, r, c in pairs], dtype=np.int64).reshape(-1, 2)
+        self.cons_sizes = (rows_total, len(jac), len(hess))
+
+    def _first_point(self, state):
+        return {"t": state["t"][:1], "Z": state["Z"][:1], "p": state["p"]}
 
     def _hessian_units(self):
         L, model = self.layout, self.problem.model
@@ -203,10 +263,10 @@ class Transcription:
         self.lo, self.hi = lo, hi
         self.g_lo = np.concatenate([np.zeros(L.points * L.ni),
                                     np.tile([lo_ for _, _, lo_, _ in problem._path], L.points),
-                                    np.zeros(self.n_defects), self.e])
+                                    np.zeros(self.n_cons + self.n_defects), self.e])
         self.g_hi = np.concatenate([np.zeros(L.points * L.ni),
                                     np.tile([hi_ for _, _, _, hi_ in problem._path], L.points),
-                                    np.zeros(self.n_defects), self.e])
+                                    np.zeros(self.n_cons + self.n_defects), self.e])
 
     def _columns(self, local):
         """Global columns of per-point local columns (local < nz: the point's own variables,
@@ -215,6 +275,12 @@ class Transcription:
         j = np.arange(L.points)[:, None] * L.nz
         local = np.asarray(local, dtype=np.int64)[None, :]
         return np.where(local < L.nz, j + local, L.p_start + local - L.nz)
+
+    @property
+    def defect_row(self):
+        """The first defect row."""
+        L = self.layout
+        return L.points * (L.ni + self.n_path) + self.n_cons
 
     def _jacobian_structure(self):
         L = self.layout
@@ -225,7 +291,11 @@ class Transcription:
             rows.append((P * ni + np.arange(P)[:, None] * self.n_path
                          + self.path_jac[None, :, 0]).ravel())
             cols.append(self._columns(self.path_jac[:, 1]).ravel())
-        base = P * (ni + self.n_path)
+        if self.n_cons:
+            rows.append(P * (ni + self.n_path) + self.cons_jac[:, 0])
+            cols.append(np.where(self.cons_jac[:, 1] < L.nz, self.cons_jac[:, 1],
+                                 L.p_start + self.cons_jac[:, 1] - L.nz))
+        base = self.defect_row
         rows.append(base + self.def_rows), cols.append(self.def_cols)
         if L.free:
             rows.append(base + self.def_T_rows)
@@ -260,6 +330,10 @@ class Transcription:
                 parts.append((np.full(c.size, L.T_index), c))
         if L.free:
             parts.append((np.full(self.D1_cols.size, L.T_index), self.D1_cols))
+        if self.n_cons:
+            first = np.where(self.cons_hess < L.nz, self.cons_hess,
+                             L.p_start + self.cons_hess - L.nz)
+            parts.append((first[:, 0], first[:, 1]))
         if self.n_data:
             parts.append(self.data_hess[:2])
         rows = np.concatenate([np.maximum(r, c) for r, c in parts]).astype(np.int64)
@@ -309,6 +383,17 @@ class Transcription:
                             else name[0].address(name[1]), state["t"], state["Z"], state["p"],
                             L.n, L.m, L.nu, W, out)
         return out
+
+    def _consistency_kernel(self, name, state, which, weights=None):
+        """A kernel of the consistency unit at the first point (which: 0 values, 1 Jacobian, 2
+        Hessian entries)."""
+        L = self.layout
+        out = np.empty((1, self.cons_sizes[which]))
+        W = np.zeros((1, 0)) if weights is None else np.ascontiguousarray(weights[None, :])
+        first = self._first_point(state)
+        kernel_rows(self.cons_unit.address(name), first["t"], np.ascontiguousarray(first["Z"]),
+                    first["p"], L.n, L.m, L.nu, W, out)
+        return out[0]
 
     def _path_values(self, state):
         if "path" not in state:
@@ -362,6 +447,8 @@ class Transcription:
         parts = [state["r"].ravel()]
         if self.n_path:
             parts.append(self._path_values(state).ravel())
+        if self.n_cons:
+            parts.append(self._consistency_kernel("consistency", state, 0)[self.cons_keep])
         parts.append(self.defect_scale * (self.D0 @ x + state["h"] * (self.D1 @ x)))
         parts.append(self.E @ x)
         return np.concatenate(parts)
@@ -378,6 +465,9 @@ class Transcription:
             if "path_jac" not in state:
                 state["path_jac"] = self._kernel("path_jacobian", state, len(self.path_jac))
             parts.append(state["path_jac"].ravel())
+        if self.n_cons:
+            parts.append(self._consistency_kernel("consistency_jacobian", state,
+                                                  1)[self.cons_jac_pick])
         parts.append(self.defect_scale * (self.def_c0 + state["h"] * self.def_c1))
         if L.free:
             parts.append(self.defect_scale * L.dh_dx * (self.D1 @ x)[self.def_T_rows])
@@ -410,9 +500,15 @@ class Transcription:
                 parts.append((obj_factor * L.dh_dx * self.quad[:, None]
                               * self._integrand_gradient(state)).ravel())
         if L.free:
-            base = P * (ni + self.n_path)
+            base = self.defect_row
             mu_def = mu[base:base + self.n_defects]
             parts.append(self.defect_scale * L.dh_dx * (self.D1.T @ mu_def)[self.D1_cols])
+        if self.n_cons:
+            weights_ = np.zeros(self.cons_sizes[0])
+            start = P * (ni + self.n_path)
+            weights_[self.cons_keep] = mu[start:start + self.n_cons]
+            parts.append(self._consistency_kernel("consistency_hessian", state, 2,
+                                                  weights_)[self.cons_hess_pick])
         if self.n_data:
             parts.append(obj_factor * self.data_hess[2])
         values = np.concatenate(parts)
@@ -435,6 +531,18 @@ def _hessian_unit(model):
               [e for _, _, e in entries])],
             {"entries": [[r, c] for r, c, _ in entries],
              "jacobian": residual_jacobian_structure(eq)})
+
+
+def _consistency_unit(model):
+    """[Φ; A·q̇ + b], its Jacobian and weighted Hessian in z and every parameter."""
+    eq = _equations(model)
+    rows, jac, hess = consistency_derivatives(eq)
+    return (f"{model.name}: the constraints' position and velocity levels",
+            [("consistency", "[Φ; A·q̇ + b]", rows),
+             ("consistency_jacobian", "their Jacobian's nonzero entries", [e for _, _, e in jac]),
+             ("consistency_hessian", "Σ mu_k·∇²row_k, lower entries", [e for _, _, e in hess])],
+            {"rows": len(rows), "jacobian": [[r, c] for r, c, _ in jac],
+             "hessian": [[r, c] for r, c, _ in hess]})
 
 
 def _parameter_hessian_unit(model):

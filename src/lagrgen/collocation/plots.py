@@ -3,18 +3,22 @@ unit; the samples of the data terms as dots on their curves' panels."""
 import numpy as np
 
 from ..outputs.figures import finished, new_figure
-from ..outputs.plotting import label
+from ..outputs.plotting import label, rate_unit
 
 
 def plot_result(result, path=None, title=None):
     """Panels q(t), q̇(t) and u(t) (when the model has inputs) of `result`; the Figure."""
     mod = result._problem.mod
     units = dict(getattr(mod, "units", {}) or {})
+    units.update({f"{c}_dot": rate_unit(units.get(c)) for c in result.coordinates
+                  if units.get(c)})
     panels = [("coordinates", list(result.coordinates), result.y[:len(result.coordinates)]),
               ("rates", [f"{c}_dot" for c in result.coordinates],
                result.y[len(result.coordinates):])]
     if result.inputs:
-        panels.append(("inputs", list(result.inputs), result.u))
+        L = result._layout
+        points = L.point_block(result.x)[:, L.offset("u"):L.offset("u") + L.nu].T
+        panels.append(("inputs", list(result.inputs), points))
     fig = new_figure(7, 2.3 * len(panels) + 0.8)
     axes = fig.subplots(len(panels), 1, sharex=True, squeeze=False)[:, 0]
     dense = np.linspace(result.t[0], result.t[-1], max(400, 4 * result.t.size))
@@ -23,7 +27,7 @@ def plot_result(result, path=None, title=None):
     for ax, (what, names, rows) in zip(axes, panels):
         for i, (name, row) in enumerate(zip(names, rows)):
             if what == "inputs":
-                line, = ax.plot(result.t, row, label=label(name, units), drawstyle="default")
+                line, = ax.plot(result.t_points, row, label=label(name, units))
             else:
                 offset = 0 if what == "coordinates" else len(result.coordinates)
                 line, = ax.plot(dense, states[offset + i], label=label(name, units))
@@ -40,7 +44,7 @@ def plot_result(result, path=None, title=None):
             ax.plot(times[keep] + result.t[0], data[r, keep], ".", ms=3, alpha=0.6,
                     color=colours.get(name, "k"), label=f"{name} (data)")
             ax.legend(loc="upper right", fontsize="small")
-    axes[-1].set_xlabel("t")
+    axes[-1].set_xlabel("t [s]" if units else "t")
     axes[0].set_title(title or f"{mod.name}: {result.scheme}, objective {result.objective:.6g}")
     return finished(fig, path)
 

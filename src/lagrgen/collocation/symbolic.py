@@ -210,3 +210,13 @@ def path_derivatives(exprs, variables, w):
                     jacobian.append((k, c, d))
                     gradient[c] = gradient[c] + w[k] * d
     return jacobian, lower_hessian(gradient, variables)
+
+
+def consistency_derivatives(eq):
+    """The constraints' position and velocity levels [Φ; A·q̇ + b] (imposed at the first node):
+    (values, Jacobian entries [(row, col, expr)], lower Hessian entries of Σ_k mu_k·row_k), in the
+    variables z = [q, q̇, q̈, λ, u] and then every parameter (col = nz + j for p_j)."""
+    variables = point_variables(eq) + list(eq.p)
+    rows = list(eq.residuals)
+    jacobian, hessian = path_derivatives(rows, variables, weights(len(rows)))
+    return rows, jacobian, hessian
