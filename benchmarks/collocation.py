@@ -85,7 +85,9 @@ def cart_lagrgen(lagrgen, sp, np, out_dir, nodes=300):
     prob.final(q={"q2": np.pi / 2, "q3": np.pi / 2}, qd=[0, 0, 0], qdd=[0, 0, 0])
     prob.minimize(time=True)
     line = np.linspace(-np.pi / 2, np.pi / 2, nodes)
-    return prob, {"q2": line, "q3": line, "F": 50.0, "duration": 0.01 * (nodes - 1)}, built
+    guess = {"q2": line, "q3": line, "F": 50.0, "duration": 0.01 * (nodes - 1),
+             "q1_dot": 0.0, "q2_dot": 0.0, "q3_dot": 0.0}       # opty's start: speeds 0
+    return prob, guess, built
 
 
 def chain_lagrgen(lagrgen, sp, np, out_dir, links, nodes=51):

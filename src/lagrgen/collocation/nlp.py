@@ -375,13 +375,14 @@ class Transcription:
         self._cache = {"Z": Z, "p": p, "T": T, "t": t, "h": h, "r": r, "jac": jac}
         return self._cache
 
-    def _kernel(self, name, state, width, W=None):
+    def _kernel(self, name, state, width, W=None, unit=None):
+        """(points, width) outputs of kernel `name` of `unit` (default: the problem's unit) at
+        every point, with the per-point weights W."""
         L = self.layout
         out = np.empty((L.points, width))
         W = np.zeros((L.points, 0)) if W is None else np.ascontiguousarray(W)
-        kernel_rows(self.unit.address(name) if not isinstance(name, tuple)
-                            else name[0].address(name[1]), state["t"], state["Z"], state["p"],
-                            L.n, L.m, L.nu, W, out)
+        kernel_rows((unit or self.unit).address(name), state["t"], state["Z"], state["p"],
+                    L.n, L.m, L.nu, W, out)
         return out
 
     def _consistency_kernel(self, name, state, which, weights=None):
@@ -483,12 +484,12 @@ class Transcription:
         L = self.layout
         P, ni = L.points, L.ni
         mu = np.asarray(lagrange)
-        parts = [self._kernel((self.hessian_unit, "residual_hessian"), state, len(self.res_hess),
-                              mu[:P * ni].reshape(P, ni)).ravel()]
+        parts = [self._kernel("residual_hessian", state, len(self.res_hess),
+                              mu[:P * ni].reshape(P, ni), self.hessian_unit).ravel()]
         if self.parameter_unit is not None:
-            full = self._kernel((self.parameter_unit, "residual_parameter_hessian"), state,
+            full = self._kernel("residual_parameter_hessian", state,
                                 len(self.parameter_unit.structure["entries"]),
-                                mu[:P * ni].reshape(P, ni))
+                                mu[:P * ni].reshape(P, ni), self.parameter_unit)
             parts.append(full[:, self.par_keep].ravel())
         if self.unit is not None and self.n_path:
             W = mu[P * ni:P * (ni + self.n_path)].reshape(P, self.n_path)

@@ -18,7 +18,7 @@ IPOPT_STATUS = {
 
 
 class Deviation(float):
-    """The largest deviation |y_simulated − y_collocated| over the nodes and states (a float),
+    """The largest deviation abs(y_simulated − y_collocated) over the nodes and states (a float),
     with `by_state` (name -> its largest deviation) and the `simulation` it came from."""
 
     def __new__(cls, value, by_state, simulation):
