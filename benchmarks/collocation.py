@@ -326,8 +326,8 @@ def report(rows, nodes, sizes, load):
     lines = ["# Direct collocation: lagrgen against opty 1.5.0", "",
              f"Same machine, same run, each figure a fresh process; load average {load}. "
              "Objective of the cart problem: the node interval h (lagrgen: T/299).", "",
-             "| problem | tool | objective | rel. to opty | iterations | imports s | build / set-up s "
-             "| solve s | in-process s | process s | status |",
+             "| problem | tool | objective | rel. to opty | iterations | imports s "
+             "| build / set-up s | solve s | in-process s | process s | status |",
              "| --- | --- | --: | --: | --: | --: | --: | --: | --: | --: | --: |"]
     opty = {task: r for task, tool, r in rows if tool.startswith("opty") and "error" not in r}
     for task, tool, r in rows:

@@ -11,7 +11,7 @@ about 10⁻⁴ s.
 
 `python -m lagrgen optimize examples/cart_double_pendulum_upright.py --animate upright.gif`
 solves it; `python examples/cart_double_pendulum_upright.py` also draws
-docs/collocation_cart_upright.png and docs/collocation_cart_upright.gif.
+docs/_static/collocation_cart_upright.png and docs/_static/collocation_cart_upright.gif.
 """
 import numpy as np
 import sympy as sp
@@ -46,6 +46,7 @@ if __name__ == "__main__":
     from pathlib import Path
     result = problem.solve(guess=guess)
     docs = Path(__file__).resolve().parent.parent / "docs"
-    result.plot(docs / "collocation_cart_upright.png",
+    result.plot(docs / "_static" / "collocation_cart_upright.png",
                 title=f"Upright in the least time: T = {result.duration:.4f} s")
-    result.animate(docs / "collocation_cart_upright.gif", fps=15, max_frames=60, dpi=60)
+    result.animate(docs / "_static" / "collocation_cart_upright.gif", fps=15, max_frames=60,
+                   dpi=60)

@@ -7,8 +7,9 @@ initial state is unknown too: collocation estimates it with the parameters, the 
 are simply times without samples, and the standard errors come with the estimates.
 
 `python -m lagrgen optimize examples/chain_identification.py` solves it;
-`python examples/chain_identification.py` also draws docs/collocation_identification.png: the
-record and the identified motion, and each estimate's error in units of its standard error.
+`python examples/chain_identification.py` also draws
+docs/_static/collocation_identification.png: the record and the identified motion, and each
+estimate's error in units of its standard error.
 """
 import numpy as np
 import sympy as sp
@@ -82,4 +83,5 @@ if __name__ == "__main__":
                       fontsize="x-small")
     bottom.set_ylabel("(estimate − truth)\n/ standard error")
     fig.tight_layout()
-    fig.savefig(Path(__file__).resolve().parent.parent / "docs" / "collocation_identification.png")
+    static = Path(__file__).resolve().parent.parent / "docs" / "_static"
+    fig.savefig(static / "collocation_identification.png")

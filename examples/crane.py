@@ -8,7 +8,8 @@ offset from the trolley squared, integrated over the move, plus a small effort t
     ∫ ((L·sin phi)² + 10⁻³·F²) dt
 
 `python -m lagrgen optimize examples/crane.py --plot crane.png` solves it;
-`python examples/crane.py` also draws docs/collocation_crane.png and docs/collocation_crane.gif.
+`python examples/crane.py` also draws docs/_static/collocation_crane.png and
+docs/_static/collocation_crane.gif.
 """
 import sympy as sp
 
@@ -45,7 +46,7 @@ if __name__ == "__main__":
     print(f"largest sway of the load: {1000 * sway:.0f} mm (least-effort move: "
           f"{1000 * plain:.0f} mm)")
     docs = Path(__file__).resolve().parent.parent / "docs"
-    result.plot(docs / "collocation_crane.png",
+    result.plot(docs / "_static" / "collocation_crane.png",
                 title=f"Crane, 4 m in 5 s: largest sway {1000 * sway:.0f} mm "
                       f"(least-effort move {1000 * plain:.0f} mm)")
-    result.animate(docs / "collocation_crane.gif", fps=12, max_frames=60, dpi=60)
+    result.animate(docs / "_static" / "collocation_crane.gif", fps=12, max_frames=60, dpi=60)

@@ -9,7 +9,8 @@ driven by a torque T at the pivot:
     minimizing ∫ T² dt
 
 `python -m lagrgen optimize examples/pendulum_swing_up.py --plot swing.png --animate swing.gif`
-solves it; `python examples/pendulum_swing_up.py` also draws docs/collocation_swing_up.png.
+solves it; `python examples/pendulum_swing_up.py` also draws
+docs/_static/collocation_swing_up.png.
 """
 import numpy as np
 import sympy as sp
@@ -38,5 +39,5 @@ if __name__ == "__main__":
     result = problem.solve(guess=guess)
     print("re-simulated from the found torque: largest deviation", float(result.check()))
     docs = Path(__file__).resolve().parent.parent / "docs"
-    result.plot(docs / "collocation_swing_up.png",
+    result.plot(docs / "_static" / "collocation_swing_up.png",
                 title=f"Swing-up with |T| ≤ 2 N·m: ∫T² dt = {result.objective:.4g}")

@@ -364,7 +364,7 @@ def test_the_command_line_solves_a_problem_file(integrator, tmp_path, capsys):
     assert (tmp_path / "p.png").exists()
 
 
-# -- bad input --------------------------------------------------------------------------------------
+# -- bad input ------------------------------------------------------------------------------
 def test_bad_input_gets_clear_errors(integrator, out_dir):
     model, mod = integrator
     F, = model.input_functions

@@ -20,7 +20,7 @@ _LAZY = {
     "simulate_many": "ensemble", "EnsembleResult": "ensemble",
     "open_ensemble": "ensemble_store",
     "sweep": "sweep",
-    "fit": "fit", "fit_modes": "fit",
+    "fit": "fit", "fit_modes": "fit", "FitWarning": "fit",
     "equilibrium": "vibration", "linearize": "linearization", "modes": "vibration",
     "frequency_response": "vibration", "FrozenTimeWarning": "vibration",
     "eigenvalue_sweep": "stability",
@@ -34,7 +34,7 @@ _LAZY = {
 __all__ = ["Model", "build", "load", "simulate", "evaluate_outputs", "output_event", "Signal",
            "simulate_many", "EnsembleResult", "open_ensemble", "sweep", "equilibrium", "linearize",
            "modes", "eigenvalue_sweep",
-           "frequency_response", "FrozenTimeWarning", "consistent_state",
+           "frequency_response", "FrozenTimeWarning", "FitWarning", "consistent_state",
            "from_sympy", "export_fmu", "rotation", "Collocation", "CollocationResult",
            "LagrgenError", "ConstraintError", "ModelError", "UnknownNameError", "MassMatrixError",
            "BuildError", "CompileError", "NonFiniteError", "__version__"]

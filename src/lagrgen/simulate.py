@@ -15,9 +15,11 @@ from .runtime.arguments import input_function, parameters_from, state_vector, un
 from .scipy_engine import solve_scipy
 
 ENGINES = (None, "native", "scipy")
+#: The largest max_steps: a 32-bit C long (Windows).
+MAX_STEPS = 2**31 - 1
 
 
-def simulate(mod, t_span, y0, method="RK45", params=None, inputs=None, rtol=1e-6, atol=1e-9,
+def simulate(mod, t_span, y0=None, method="RK45", params=None, inputs=None, rtol=1e-6, atol=1e-9,
              t_eval=None, dense_output=False, events=None, engine=None, max_steps=None,
              max_wall_time=None, progress=False, sensitivities=None, **options):
     """Integrate ẏ = mod.rhs(t, y) over `t_span` from `y0` = [q0, q̇0], natively in C or with
@@ -27,7 +29,8 @@ def simulate(mod, t_span, y0, method="RK45", params=None, inputs=None, rtol=1e-6
     ----------
     mod : a built model (either backend)
     t_span : (t0, t1)
-    y0 : array of 2n numbers, or a dict of coordinate and `<coordinate>_dot` names (missing: 0)
+    y0 : array of 2n numbers, or a dict of coordinate and `<coordinate>_dot` names (missing: 0);
+        None: the model's `initial_state` (declared with `model.initial_state`, else zeros)
     method : one of METHODS or a solver class; the stiff ones get the analytic `mod.jacobian`
         (Radau and BDF run as `lagrgen.solvers` classes: SciPy's, with direct LAPACK LU)
     params : dict of parameter names (or the model's Symbols) -> value, or a full array
@@ -72,7 +75,7 @@ def simulate(mod, t_span, y0, method="RK45", params=None, inputs=None, rtol=1e-6
     """
     check_run_options(method, engine, max_steps, max_wall_time, options)
     t_span = time_span(t_span)
-    y0 = state_vector(y0, tuple(mod.coordinates))
+    y0 = state_vector(mod.initial_state if y0 is None else y0, tuple(mod.coordinates))
     p = parameters_from(mod, params)
     u_at = input_function(mod, inputs)
     if sensitivities is not None:
@@ -122,8 +125,10 @@ def check_run_options(method, engine, max_steps, max_wall_time, options):
         raise ValueError(f"unknown method {method!r}: use one of {', '.join(METHODS)}")
     if engine not in ENGINES:
         raise ValueError(f"engine must be None, 'native' or 'scipy', not {engine!r}")
-    if max_steps is not None and not (int(max_steps) == max_steps and max_steps > 0):
-        raise ValueError(f"max_steps must be a positive integer, got {max_steps!r}")
+    if max_steps is not None and not (isinstance(max_steps, (int, np.integer, float)) and
+                                      0 < max_steps <= MAX_STEPS and int(max_steps) == max_steps):
+        raise ValueError(f"max_steps must be a positive integer up to {MAX_STEPS} (the C "
+                         f"engine counts in a long), got {max_steps!r}")
     if max_wall_time is not None and not max_wall_time > 0:
         raise ValueError(f"max_wall_time must be a positive number of seconds, got "
                          f"{max_wall_time!r}")

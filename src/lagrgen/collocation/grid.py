@@ -9,7 +9,7 @@ h = T/(nodes − 1) and x = (q, q̇), f = ẋ = (q̇, q̈) on the interval k:
     trapezoidal      x_{k+1} − x_k − h/2·(f_k + f_{k+1}) = 0                  points = nodes
     backward-euler   x_{k+1} − x_k − h·f_{k+1} = 0                              points = nodes
     hermite-simpson  x_e − x_s − h/6·(f_s + 4·f_m + f_e) = 0,                  points = nodes and
-                     x_m − (x_s + x_e)/2 − h/8·(f_s − f_e) = 0                  midpoints (2·nodes − 1)
+                     x_m − (x_s + x_e)/2 − h/8·(f_s − f_e) = 0                  midpoints
 
 Each defect row is Σ c0·x_col + h·Σ c1·x_col: linear for a fixed duration, bilinear in (T, x) for
 a free one. Integrals are h·Σ_j w_j·L(z_j) with the scheme's weights (trapezoid; right endpoint;
@@ -133,7 +133,7 @@ def defects(layout):
         for block, (xk, fk) in enumerate((("q", "qd"), ("qd", "qdd"))):
             ox, of = layout.offset(xk), layout.offset(fk)
             simpson = base + block * n + comp                   # x_e − x_s − h/6 (f_s + 4f_m + f_e)
-            hermite = base + 2 * n + block * n + comp           # x_m − (x_s + x_e)/2 − h/8 (f_s − f_e)
+            hermite = base + 2 * n + block * n + comp   # x_m − (x_s + x_e)/2 − h/8 (f_s − f_e)
             s, mid, e = start * nz, (start + 1) * nz, (start + 2) * nz
             for row, col, a, b in (
                     (simpson, e + ox + comp, 1.0, 0.0), (simpson, s + ox + comp, -1.0, 0.0),

@@ -65,7 +65,8 @@ class Transcription:
                     rows.append(i), cols.append(c), pick.append(ni + i * 2 * n + c)
             for c in range(ni):
                 if s["dr_da"][i][c]:
-                    rows.append(i), cols.append(2 * n + c), pick.append(ni + ni * 2 * n + i * ni + c)
+                    rows.append(i), cols.append(2 * n + c)
+                    pick.append(ni + ni * 2 * n + i * ni + c)
             for c in range(nu):
                 if s["dr_du"][i][c]:
                     rows.append(i), cols.append(3 * n + m + c)
@@ -73,7 +74,8 @@ class Transcription:
             for k, j in enumerate(L.unknown):
                 if s["dr_dp"][i][j]:
                     rows.append(i), cols.append(nz + k), pick.append(size1 + i * n_params + j)
-        self.dyn_rows, self.dyn_cols = np.array(rows, dtype=np.int64), np.array(cols, dtype=np.int64)
+        self.dyn_rows = np.array(rows, dtype=np.int64)
+        self.dyn_cols = np.array(cols, dtype=np.int64)
         self.dyn_pick = np.array(pick, dtype=np.int64)
         self.terms = mod.function_address("residual_terms")
         self.parameter_terms = mod.function_address("residual_parameter_jacobian") \

@@ -88,9 +88,9 @@ class Collocation:
         self._transcription = None
 
     def __repr__(self):
+        duration = self.duration_bounds if self.free_duration else self.duration_bounds[0]
         return (f"Collocation({self.mod.name!r}, nodes={self.nodes}, scheme={self.scheme!r}, "
-                f"duration={self.duration_bounds if self.free_duration else self.duration_bounds[0]!r}"
-                f", unknown_params={list(self.unknown)})")
+                f"duration={duration!r}, unknown_params={list(self.unknown)})")
 
     # -- names -----------------------------------------------------------------------------
     def variable(self, name):
@@ -122,8 +122,9 @@ class Collocation:
     def _point_variable(self, name, what):
         kind, i = self.variable(name)
         if kind in ("p", "T"):
+            what_it_is = "an unknown parameter" if kind == "p" else "the duration"
             raise LagrgenError(f"{what} takes states, accelerations, multipliers and inputs; "
-                               f"{name!r} is {'an unknown parameter' if kind == 'p' else 'the duration'}")
+                               f"{name!r} is {what_it_is}")
         return kind, i
 
     # -- declarations ----------------------------------------------------------------------
