@@ -331,6 +331,20 @@ def test_result_views(integrator, tmp_path):
     assert (tmp_path / "effort.png").stat().st_size > 1000 and len(fig.axes) == 3
     signals = res.input_signals()
     assert signals["F"](0.5) == pytest.approx(0.0, abs=1e-8)
+    anim = res.animate(max_frames=12)
+    assert len(anim) == 12 and anim.q.shape == (1, 12)
+
+
+def test_an_instance_constraint_between_nodes_holds_on_the_interpolant(integrator):
+    model, mod = integrator
+    F, = model.input_functions
+    prob = effort_problem(mod, F, 11, "hermite-simpson")
+    prob.at(0.37, "x", 0.8).at(0.5, "x_dot", 1.0)          # between nodes, and on a node
+    res = prob.solve(progress=False)
+    assert res.success
+    assert res.state_at(0.37)[0] == pytest.approx(0.8, abs=1e-9)
+    assert res.y[1, 5] == pytest.approx(1.0, abs=1e-9)
+    assert res.objective > 12.0
 
 
 def test_guess_from_a_simulation(oscillator):

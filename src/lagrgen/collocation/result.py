@@ -47,6 +47,7 @@ class CollocationResult:
     coordinates, inputs : names
     constraint_violation : the largest violation of any constraint (bounds included)
     seconds : wall time of the solve (after the problem's units were made)
+    callback_seconds : the part of it spent evaluating the NLP (the rest is IPOPT's own)
     x : the decision vector (a warm start for another solve)
     """
 
@@ -107,15 +108,19 @@ class CollocationResult:
         return L.point_block(self.x)[:, L.offset(kind) + i]
 
     def state_at(self, times):
-        """[q; q̇] at `times` (relative to t0 added back), on the collocation's interpolant."""
+        """[q; q̇] at `times` (a number or an array), on the collocation's interpolant: (2n,) or
+        (2n, len(times))."""
         L = self._layout
-        s = np.clip(np.asarray(times, dtype=float) - self.t_points[0], 0.0, self.duration)
+        scalar = np.ndim(times) == 0
+        s = np.clip(np.atleast_1d(np.asarray(times, dtype=float)) - self.t_points[0], 0.0,
+                    self.duration)
         rows = []
         for kind, rate in (("q", "qd"), ("qd", "qdd")):
             for i in range(L.n):
                 rows.append(interpolate_rows(self._point_values(kind, i), L, kind, s,
                                              self.duration, self._point_values(rate, i)))
-        return np.array(rows)
+        out = np.array(rows)
+        return out[:, 0] if scalar else out
 
     def input_signals(self):
         """{input name: lagrgen.Signal} of the found inputs, as the scheme implies them: linear
