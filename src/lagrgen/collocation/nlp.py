@@ -9,6 +9,7 @@ time) + Σ ω·(C·x − d)² (data). The Hessian of σ·f + Σ μ·g is assembl
 (∇²(μᵀr) of the model, ∇²(μᵀg) of the path, σ·h·w_j·∇²L), the cross terms with T and the data
 term's constant 2σ·CᵀΩC; contributions to one entry are summed (`np.bincount`).
 """
+import copy
 import time
 
 import numpy as np
@@ -46,9 +47,19 @@ class Transcription:
         self._jacobian_structure()
         if self.exact:
             self._hessian_structure()
-        self._x = None
+        self._entry = None          # (x, the values at x): one tuple, read and replaced whole
         self.defect_scale = 1.0
         self.evaluations = {"constraints": 0, "jacobian": 0, "hessian": 0, "objective": 0}
+
+    def bound(self, defect_scale):
+        """A copy of this NLP for one solve, its defect rows scaled by `defect_scale` (1/h of the
+        starting point: rows Δx/h − f), with its own evaluation cache and counts; the structure
+        is shared (nothing of it is written after construction)."""
+        other = copy.copy(self)
+        other.defect_scale = float(defect_scale)
+        other._entry = None
+        other.evaluations = dict.fromkeys(self.evaluations, 0)
+        return other
 
     # -- structure ---------------------------------------------------------------------------
     def _residual_structure(self):
@@ -362,8 +373,9 @@ class Transcription:
 
     def _at(self, x):
         """The residuals and their Jacobian entries at x (computed once per x)."""
-        if self._x is not None and np.array_equal(x, self._x):
-            return self._cache
+        entry = self._entry
+        if entry is not None and np.array_equal(x, entry[0]):
+            return entry[1]
         L = self.layout
         Z, p, T, t, h = self._state(x)
         Z = np.ascontiguousarray(Z)
@@ -373,9 +385,9 @@ class Transcription:
                                        len(p), self.dyn_pick, r, jac)
         if failed:
             raise LagrgenError("the model's residual failed at a collocation point")
-        self._x = np.array(x)
-        self._cache = {"Z": Z, "p": p, "T": T, "t": t, "h": h, "r": r, "jac": jac}
-        return self._cache
+        state = {"Z": Z, "p": p, "T": T, "t": t, "h": h, "r": r, "jac": jac}
+        self._entry = (np.array(x), state)
+        return state
 
     def _kernel(self, name, state, width, W=None, unit=None):
         """(points, width) outputs of kernel `name` of `unit` (default: the problem's unit) at

@@ -333,8 +333,8 @@ class Collocation:
         x0 = initial_guess(self, transcription, guess)
         L = self.layout
         T0 = L.duration(x0) if L.free else self.duration_bounds[0]
-        transcription.defect_scale = (L.nodes - 1) / max(T0, 1e-12)   # rows (Δx/h − f)
-        return solve_nlp(self, transcription, x0, hessian, tol, max_iter, progress, options or {})
+        nlp = transcription.bound(defect_scale=(L.nodes - 1) / max(T0, 1e-12))
+        return solve_nlp(self, nlp, x0, hessian, tol, max_iter, progress, options or {})
 
     def transcription(self, hessian="exact"):
         """The NLP of this problem (made once per declaration state and Hessian kind)."""
