@@ -3,8 +3,9 @@ and the exact Hessian of the Lagrangian, for IPOPT (through `cyipopt`).
 
 Constraints, in order: the residual r(z_j) = 0 at every point (`residual_terms` of the model's
 function table, called from C for all points at once); the path constraints at every point (a
-compiled unit); the defects (linear, or bilinear in T for a free duration); the linear instance
-constraints (periodicity, values between nodes). The objective is h·Σ_j w_j·L(z_j) + T (minimum
+compiled unit); a constrained model's position and velocity levels at the first node; the
+defects (linear, or bilinear in T for a free duration; rows scaled as Δx/h − f); the linear
+instance constraints (periodicity, values between nodes). The objective is h·Σ_j w_j·L(z_j) + T (minimum
 time) + Σ ω·(C·x − d)² (data). The Hessian of σ·f + Σ μ·g is assembled from per-point kernels
 (∇²(μᵀr) of the model, ∇²(μᵀg) of the path, σ·h·w_j·∇²L), the cross terms with T and the data
 term's constant 2σ·CᵀΩC; contributions to one entry are summed (`np.bincount`).
@@ -15,10 +16,10 @@ import time
 import numpy as np
 import scipy.sparse as sps
 
+from ..calculus import internal_symbols
 from ..errors import LagrgenError
 from ._points import kernel_rows, residual_rows
 from .grid import defects, interpolation, quadrature
-from ..calculus import internal_symbols
 from .symbolic import (consistency_derivatives, path_derivatives, point_variables_of,
                        residual_hessian, residual_jacobian_structure, residual_parameter_hessian,
                        scalar_derivatives, weights)
@@ -314,6 +315,7 @@ class Transcription:
             rows.append(base + self.def_T_rows)
             cols.append(np.full(self.def_T_rows.size, L.T_index))
         E = self.E.tocoo()
+        self.E_values = E.data
         rows.append(base + self.n_defects + E.row), cols.append(E.col)
         self.jac_rows = np.concatenate(rows).astype(np.int64)
         self.jac_cols = np.concatenate(cols).astype(np.int64)
@@ -323,7 +325,6 @@ class Transcription:
         """The union of every contribution's (row, col) in the lower triangle, and each
         contribution's place in it."""
         L = self.layout
-        P = L.points
         parts = []
 
         def per_point(local_pairs):
@@ -355,7 +356,6 @@ class Transcription:
         unique, where = np.unique(key, return_inverse=True)
         self.hess_rows, self.hess_cols = unique // L.size, unique % L.size
         self.hess_map = where.astype(np.int64)
-        del P
 
     # -- evaluation --------------------------------------------------------------------------
     def point_times(self, T):
@@ -486,7 +486,7 @@ class Transcription:
         parts.append(self.defect_scale * (self.def_c0 + state["h"] * self.def_c1))
         if L.free:
             parts.append(self.defect_scale * L.dh_dx * (self.D1 @ x)[self.def_T_rows])
-        parts.append(self.E.tocoo().data)
+        parts.append(self.E_values)
         return np.concatenate(parts)
 
     def hessianstructure(self):

@@ -9,7 +9,7 @@ import numpy as np
 
 from ..errors import LagrgenError
 from ..runtime.arguments import key_name, parameter_vector, unknown_name
-from .grid import KINDS, Layout, scheme_name
+from .grid import Layout, scheme_name
 from .symbolic import internal_expression
 
 
@@ -407,6 +407,3 @@ def _duration(duration):
         raise LagrgenError(f"duration must be positive, got {T}")
     return False, (T, T)
 
-
-#: The point-variable kinds, re-exported for the guess and the result.
-POINT_KINDS = KINDS
