@@ -22,11 +22,12 @@ import numpy as np
 
 from .errors import LagrgenError
 from .methods import BY_NAME
-from .native.engine import (_event_arrays, _t_eval, _tolerances, native_events,
-                             native_reason)
-from .runtime.arguments import as_vector, input_specs, parameters_from, state_vector
+from .native.engine import _event_arrays, _tolerances, native_events, native_reason
+from .options import check_run_options as checked_options
+from .runtime.arguments import input_specs, parameters_from, state_vector
 from .signals import Signal, constant_spec
-from .simulate import check_run_options, evaluate_outputs, simulate
+from .simulate import (check_run_options, evaluate_outputs, refuse_switching_options, simulate,
+                       time_span)
 
 #: The messages of the native engine for status 0 and 1 (those of solve_ivp).
 MESSAGES = {0: "The solver successfully reached the end of the integration interval.",
@@ -454,20 +455,29 @@ def simulate_many(mod, t_span, y0, params=None, inputs=None, t_eval=None, method
     """
     if t_eval is None:
         raise ValueError("simulate_many needs t_eval: every run is sampled at the same times")
-    check_run_options(method, options.get("engine"), options.get("max_steps"),
-                      options.get("max_wall_time"), options)
+    check_run_options(method, options.get("engine"), options)
     if workers is not None and (int(workers) != workers or workers < 1):
         raise ValueError(f"workers must be a positive integer, got {workers!r}")
     if client is not None and workers is not None:
         raise ValueError("give either workers (threads here) or client (Dask workers), not both")
-    t0, tf = map(float, t_span)
-    t_eval = _t_eval(as_vector(t_eval, np.size(t_eval), "t_eval"), t0, tf)
+    t0, tf = time_span(t_span)
+    rest = {k: v for k, v in options.items() if k not in ("engine", "max_steps", "max_wall_time")}
+    rtol, atol, t_eval, max_steps, max_wall_time, rest = checked_options(
+        rtol, atol, (t0, tf), t_eval, options.get("max_steps"), options.get("max_wall_time"),
+        rest)
+    refuse_switching_options(mod, rest)
+    options = dict(rest, **{k: v for k, v in (("engine", options.get("engine")),
+                                              ("max_steps", max_steps),
+                                              ("max_wall_time", max_wall_time))
+                            if k in options})
     if len(t_eval) == 0:
         raise ValueError("t_eval must hold at least one time")
     Y0, P, run_inputs = ensemble_arguments(mod, y0, params, inputs)
     runs = len(Y0)
     if runs == 0:
         raise ValueError("simulate_many needs at least one run")
+    if mod.nonsmooth_definitions:
+        check_starts(mod, t0, Y0, P, run_inputs, options.get("gap_tol"))
     why_not = batch_reason(mod, method, options) if mod.backend == "c" else \
         "the model is not compiled"
     packed = None if why_not else batch_inputs(mod, inputs, run_inputs)
@@ -510,6 +520,16 @@ def simulate_many(mod, t_span, y0, params=None, inputs=None, t_eval=None, method
         finish_store(store, sink.messages)
         return open_ensemble(store)
     return sink.result(mod, plan, meta)
+
+
+def check_starts(mod, t0, Y0, P, run_inputs, gap_tol=None):
+    """ContactError naming the first run of a model with impacts or frictions that starts
+    inside a surface or whose restitution or friction coefficients are out of range."""
+    from .hybrid import GAP_TOL, check_start
+    from .runtime.arguments import input_function
+    for i in range(len(Y0)):
+        u = input_function(mod, run_inputs[i])(t0)
+        check_start(mod, t0, Y0[i], P[i], u, GAP_TOL if gap_tol is None else gap_tol, run=i)
 
 
 def ensemble_meta(mod, plan, P):

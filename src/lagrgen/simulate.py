@@ -9,6 +9,7 @@ import numpy as np
 from .functions import POWER_TERMS
 from .methods import METHODS
 from .native.engine import native_reason, simulate_native
+from .options import SWITCHING_OPTIONS, check_run_options as checked_options
 from .progress import ProgressBar
 from .results import Outputs, with_coordinates
 from .runtime.arguments import input_function, parameters_from, state_vector, unknown_name
@@ -70,8 +71,11 @@ def simulate(mod, t_span, y0, method="RK45", params=None, inputs=None, rtol=1e-6
     MassMatrixError when M is not positive definite, ConstraintError when the constraints are
     redundant at the initial state or become dependent during the run.
     """
-    check_run_options(method, engine, max_steps, max_wall_time, options)
+    check_run_options(method, engine, options)
     t_span = time_span(t_span)
+    rtol, atol, t_eval, max_steps, max_wall_time, options = checked_options(
+        rtol, atol, t_span, t_eval, max_steps, max_wall_time, options)
+    refuse_switching_options(mod, options)
     y0 = state_vector(y0, tuple(mod.coordinates))
     p = parameters_from(mod, params)
     u_at = input_function(mod, inputs)
@@ -113,8 +117,9 @@ def simulate(mod, t_span, y0, method="RK45", params=None, inputs=None, rtol=1e-6
     return finished_result(mod, sol, p, u_at, method)
 
 
-def check_run_options(method, engine, max_steps, max_wall_time, options):
-    """TypeError/ValueError for arguments no engine takes, before any work is done."""
+def check_run_options(method, engine, options):
+    """TypeError/ValueError for arguments no engine takes, before any work is done (the numeric
+    options: `lagrgen.options.check_run_options`)."""
     if "args" in options:
         raise TypeError("simulate() takes no 'args': pass parameters as params={name: value} "
                         "(or a full parameter array) and inputs as inputs={name: value or f(t)}")
@@ -122,11 +127,14 @@ def check_run_options(method, engine, max_steps, max_wall_time, options):
         raise ValueError(f"unknown method {method!r}: use one of {', '.join(METHODS)}")
     if engine not in ENGINES:
         raise ValueError(f"engine must be None, 'native' or 'scipy', not {engine!r}")
-    if max_steps is not None and not (int(max_steps) == max_steps and max_steps > 0):
-        raise ValueError(f"max_steps must be a positive integer, got {max_steps!r}")
-    if max_wall_time is not None and not max_wall_time > 0:
-        raise ValueError(f"max_wall_time must be a positive number of seconds, got "
-                         f"{max_wall_time!r}")
+
+
+def refuse_switching_options(mod, options):
+    """ValueError for rest_velocity, gap_tol or max_transitions given for a smooth model."""
+    given = [k for k in SWITCHING_OPTIONS if k in options]
+    if given and not mod.nonsmooth_definitions:
+        raise ValueError(f"{given[0]} applies to a model with impacts or frictions "
+                         "(model.impact, model.friction); this model has none")
 
 
 def run_sensitivities(mod, t_span, y0, method, p, u_at, rtol, atol, names, events, max_steps,
@@ -136,12 +144,11 @@ def run_sensitivities(mod, t_span, y0, method, p, u_at, rtol, atol, names, event
     if mod.nonsmooth_definitions or events is not None or mod.event_definitions:
         raise ValueError("sensitivities are computed for smooth models without events: this "
                          "model has impacts, friction or events")
-    if max_steps is not None or max_wall_time is not None:
-        raise ValueError("max_steps and max_wall_time are not available with sensitivities")
     if mod.n_constraints:
         from .constraints import check_state
         check_state(mod, t_span[0], y0, p, u_at(t_span[0]))
-    return solve_sensitivities(mod, t_span, y0, method, p, u_at, rtol, atol, names, **options)
+    return solve_sensitivities(mod, t_span, y0, method, p, u_at, rtol, atol, names,
+                               max_steps=max_steps, max_wall_time=max_wall_time, **options)
 
 
 def time_span(t_span):

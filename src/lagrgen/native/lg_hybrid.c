@@ -418,19 +418,65 @@ static int hy_settle(hy_ctx *c, double t, const double *y, int record)
     return 0;
 }
 
-static int hy_start(hy_ctx *c, double t, const double *y)
+/* 2 (result->failure set) when a restitution is outside [0, 1] or a friction coefficient out
+ * of range in the terms at hand (NaN is out of every range), else 0. */
+static int hy_check_coefficients(hy_ctx *c)
+{
+    lg_hybrid_result_t *r = c->result;
+    for (int i = 0; i < c->ni; ++i)
+        if (!(IMP(c, i)[3] >= 0.0 && IMP(c, i)[3] <= 1.0)) {
+            r->failure = LG_HY_RESTITUTION;
+            r->failed_element = i;
+            r->failed_value = IMP(c, i)[3];
+            return 2;
+        }
+    for (int j = 0; j < c->nf; ++j) {
+        double mu = FR(c, j)[2], mu_s = FR(c, j)[3];
+        if (!(mu >= 0.0) || !(mu_s >= mu)) {
+            r->failure = mu >= 0.0 ? LG_HY_MU_STATIC : LG_HY_MU;
+            r->failed_element = j;
+            r->failed_value = mu >= 0.0 ? mu_s : mu;
+            r->failed_other = mu;
+            return 2;
+        }
+    }
+    return 0;
+}
+
+static int hy_impacts(hy_ctx *c, double t, double *y, int nc);
+
+/* The initial mode, classified as at any switch: a closed gap (g <= gap_tol) closing
+ * (ġ < -1000·gap_tol) is struck, one at rest held, one opening free; a gap below -gap_tol is a
+ * start inside the surface (2, failure LG_HY_INSIDE). y changes when struck. */
+static int hy_start(hy_ctx *c, double t, double *y)
 {
     lg_hybrid_t *h = c->h;
+    double still = 1e3 * h->gap_tol;
+    int nc = 0, err;
     hy_inputs(c, t);
     if (hy_solve_mode(c, t, y))
         return 1;
-    for (int i = 0; i < c->ni; ++i)
-        if (IMP(c, i)[0] <= h->gap_tol && IMP(c, i)[1] <= 0)
+    if (hy_check_coefficients(c))
+        return 2;
+    for (int i = 0; i < c->ni; ++i) {
+        double g = IMP(c, i)[0], gd = IMP(c, i)[1];
+        if (!(g >= -h->gap_tol)) {
+            c->result->failure = LG_HY_INSIDE;
+            c->result->failed_element = i;
+            c->result->failed_value = g;
+            return 2;
+        }
+        if (g <= h->gap_tol && gd < -still)
+            c->closing[nc++] = i;
+        else if (g <= h->gap_tol && gd <= still)
             h->contact[i] = 1;
+    }
     for (int j = 0; j < c->nf; ++j) {
         double v = FR(c, j)[0];
-        h->slip[j] = fabs(v) <= 1e3 * h->gap_tol ? 0 : (v > 0 ? 1 : -1);
+        h->slip[j] = fabs(v) <= still ? 0 : (v > 0 ? 1 : -1);
     }
+    if (nc && (err = hy_impacts(c, t, y, nc)))
+        return err;
     return hy_settle(c, t, y, 0);
 }
 
@@ -489,6 +535,8 @@ static int hy_switch(hy_ctx *c, double t, double *y, int *fired, int nfired)
     hy_inputs(c, t);
     if (hy_terms(c, t, y, c->u))
         return 1;
+    if (hy_check_coefficients(c))
+        return 2;
     for (int i = 0; i < c->ni; ++i) {
         int hit = 0;
         for (int a = 0; a < nfired; ++a)
@@ -652,9 +700,17 @@ int lg_hybrid_solve(lg_hybrid_t *h, const lg_options_t *options, lg_hybrid_resul
     int err = hy_start(&c, t, y);
     if (err) {
         res->status = -1;
-        snprintf(res->message, sizeof res->message, err < 0 ? "out of memory" :
+        if (err == 1)
+            res->failure = LG_HY_MODEL;
+        snprintf(res->message, sizeof res->message, err < 0 ? "out of memory" : err == 2 ?
+                 "the initial state or coefficients are invalid" :
                  "the model failed at the initial state (mass matrix or mode equations singular)");
         rc = err < 0 ? -1 : 0;
+        goto done;
+    }
+    if (!options->t_eval && res->transitions.len       /* struck at the start: before, after */
+        && (lg_buf_push(&res->t, &t, 1) || lg_buf_push(&res->y, options->y0, dim))) {
+        rc = -1;
         goto done;
     }
     if (!options->t_eval && (lg_buf_push(&res->t, &t, 1) || lg_buf_push(&res->y, y, dim))) {
@@ -672,15 +728,32 @@ int lg_hybrid_solve(lg_hybrid_t *h, const lg_options_t *options, lg_hybrid_resul
     snprintf(res->message, sizeof res->message, "The solver successfully reached the end.");
     double interval = options->poll_interval > 0 ? options->poll_interval : 0.05;
     double started = hy_wall_seconds(), next_poll = started + interval;
+    double far = fmax(fabs(options->t0), fabs(tf));
+    double least = 10 * fabs(nextafter(far, INFINITY) - far);   /* as lg_solve's stall test */
+    double budget = options->max_steps > 0 || options->t_eval || options->save_budget < 0 ? 0
+                    : (options->save_budget > 0 ? options->save_budget : (double)LG_SAVE_BUDGET);
+    long no_progress = 0;
     while (t < tf) {
-        if (options->poll && hy_wall_seconds() >= next_poll) {   /* between segments too */
+        double t_start = t;
+        int stop = 0;                                   /* the guards hold between segments too */
+        if (options->max_steps > 0 && res->n_steps >= options->max_steps)
+            stop = LG_STOP_STEPS;
+        else if (options->max_wall_time > 0
+                 && hy_wall_seconds() - started > options->max_wall_time)
+            stop = LG_STOP_WALL;
+        else if (budget > 0 && (double)(res->t.len + res->y.len) > budget)
+            stop = LG_STOP_SAVED;
+        else if (options->poll && hy_wall_seconds() >= next_poll) {
             next_poll = hy_wall_seconds() + interval;
-            if (options->poll(options->poll_ctx, t)) {
-                res->status = -1;
-                res->stopped = LG_STOP_POLL;
-                snprintf(res->message, sizeof res->message, "stopped at t = %.9g", t);
-                break;
-            }
+            if (options->poll(options->poll_ctx, t))
+                stop = LG_STOP_POLL;
+        }
+        if (stop) {
+            res->status = -1;
+            res->stopped = stop;
+            res->t_reached = t;
+            snprintf(res->message, sizeof res->message, "stopped at t = %.9g", t);
+            break;
         }
         memcpy(mode_c, h->contact, (h->ni + 1) * sizeof(int));
         memcpy(mode_s, h->slip, (h->nf + 1) * sizeof(int));
@@ -710,6 +783,8 @@ int lg_hybrid_solve(lg_hybrid_t *h, const lg_options_t *options, lg_hybrid_resul
         if (options->max_wall_time > 0)
             op.max_wall_time = fmax(options->max_wall_time - (hy_wall_seconds() - started),
                                     1e-9);
+        if (budget > 0)
+            op.save_budget = fmax(budget - (double)(res->t.len + res->y.len), 1.0);
         op.t0 = t;
         op.tf = t_end;
         op.y0 = y;
@@ -781,6 +856,14 @@ int lg_hybrid_solve(lg_hybrid_t *h, const lg_options_t *options, lg_hybrid_resul
             memcpy(y, seg.y.data + (rows - 1) * dim, dim * D);
             t = t_end;
             lg_result_free(&seg);
+            no_progress = t - t_start < least ? no_progress + 1 : 0;
+            if (no_progress >= LG_HY_STALL_SEGMENTS) {
+                res->status = -1;
+                res->failure = LG_HY_STALLED;
+                res->t_reached = t;
+                snprintf(res->message, sizeof res->message, "no progress at t = %.9g", t);
+                break;
+            }
             continue;
         }
         /* terminal event(s): the earliest time, every event found there */
@@ -800,6 +883,9 @@ int lg_hybrid_solve(lg_hybrid_t *h, const lg_options_t *options, lg_hybrid_resul
         err = hy_switch(&c, t, y, fired, nfired);
         if (err) {
             res->status = -1;
+            res->t_reached = t;
+            if (err == 1)
+                res->failure = LG_HY_MODEL;
             snprintf(res->message, sizeof res->message, err < 0 ? "out of memory" :
                      "at t = %.9g the model failed while switching modes", t);
             rc = err < 0 ? -1 : 0;
@@ -815,6 +901,14 @@ int lg_hybrid_solve(lg_hybrid_t *h, const lg_options_t *options, lg_hybrid_resul
         if (!options->t_eval && (lg_buf_push(&res->t, &t, 1) || lg_buf_push(&res->y, y, dim))) {
             rc = -1;
             goto done;
+        }
+        no_progress = t - t_start < least ? no_progress + 1 : 0;
+        if (no_progress >= LG_HY_STALL_SEGMENTS) {
+            res->status = -1;
+            res->failure = LG_HY_STALLED;
+            res->t_reached = t;
+            snprintf(res->message, sizeof res->message, "no progress at t = %.9g", t);
+            break;
         }
     }
 done:
