@@ -470,6 +470,14 @@ def duplicate_contacts(system, t, y, gap_tol):
     return None
 
 
+def singular_modes(system, t, y, gap_tol):
+    """The ContactError for mode equations found singular at (t, y): duplicate contacts when two
+    closed impacts have parallel gradients, else dependent contacts or constraints."""
+    return duplicate_contacts(system, t, y, gap_tol) or ContactError(
+        f"at t = {t:.9g} the mode equations of the impacts and frictions are singular: the "
+        "held contacts, sticking frictions and constraints are dependent there")
+
+
 class ChatteringError(RuntimeError):
     """More mode switches than `max_transitions`: the system chatters."""
 
@@ -495,7 +503,10 @@ def simulate_hybrid(mod, t_span, y0, method, p, u_at, rtol, atol, t_eval=None,
                    max_transitions=max_transitions)
     t0, tf = map(float, t_span)
     y0 = np.asarray(y0, dtype=float)
-    t, y = t0, sw.start(t0, y0)
+    try:
+        t, y = t0, sw.start(t0, y0)
+    except np.linalg.LinAlgError:
+        raise singular_modes(system, t0, y0, gap_tol) from None
     ts, ys = [np.array([t0])], [y[:, None]]
     if sw.transitions:                      # struck at the start: saved before and after
         ts, ys = [np.array([t0, t0])], [np.column_stack([y0, y])]
@@ -554,9 +565,7 @@ def simulate_hybrid(mod, t_span, y0, method, p, u_at, rtol, atol, t_eval=None,
                 status, message = -1, str(exc)
                 break
             except np.linalg.LinAlgError:
-                raise duplicate_contacts(system, t_hit, y_hit, gap_tol) or ContactError(
-                    f"at t = {t_hit:.9g} the mode equations of the impacts and frictions are "
-                    "singular (dependent contacts or constraints)") from None
+                raise singular_modes(system, t_hit, y_hit, gap_tol) from None
             t = t_hit
             if te_all is None:
                 ts.append(np.array([t]))
@@ -646,7 +655,8 @@ def solve_hybrid_native(mod, t_span, y0, method, p, u_spec, rtol, atol, t_eval=N
         int(max_transitions), poll, int(max_steps or 0), float(max_wall_time or 0.0))
     transitions = [(float(t), system.names[int(k)], KIND_NAMES[int(kind)])
                    for t, k, kind in out["transitions"]]
-    message = native_failure_message(mod, system, out, transitions, float(gap_tol), t0, tf)
+    message = native_failure_message(mod, system, out, transitions, float(gap_tol), t0, tf,
+                                     np.asarray(y0, dtype=float))
     mode = {d[0]: CONTACT if c else OPEN for d, c in zip(system.impacts, out["contact"])}
     mode.update({d[0]: STICK if s == 0 else SLIP for d, s in zip(system.frictions, out["slip"])})
     return dict(t=out["t"], y=out["y"].T.copy(), transitions=transitions, mode=mode,
@@ -656,7 +666,7 @@ def solve_hybrid_native(mod, t_span, y0, method, p, u_spec, rtol, atol, t_eval=N
                 n_steps=out["n_steps"])
 
 
-def native_failure_message(mod, system, out, transitions, gap_tol, t0, tf):
+def native_failure_message(mod, system, out, transitions, gap_tol, t0, tf, y0):
     """The message of a native hybrid solve, named as the SciPy engine names it; ContactError
     for what the SciPy engine raises (coefficients out of range, a start inside a surface,
     duplicate contacts)."""
@@ -670,8 +680,9 @@ def native_failure_message(mod, system, out, transitions, gap_tol, t0, tf):
         raise ContactError(start_inside_message(system, k, value, gap_tol))
     if failure == "stalled":
         return stall_message(t, stall_step(t0, tf), transitions)
-    if failure == "model" and len(out["t"]):
-        found = duplicate_contacts(system, out["t"][-1], out["y"][-1], gap_tol)
+    if failure == "model":
+        at = (out["t"][-1], out["y"][-1]) if len(out["t"]) else (t0, y0)
+        found = duplicate_contacts(system, *at, gap_tol)
         if found is not None:
             raise found
     return out["message"]
