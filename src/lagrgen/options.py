@@ -19,14 +19,19 @@ MAX_COUNT = 2 ** 63 - 1
 SWITCHING_OPTIONS = ("rest_velocity", "gap_tol", "max_transitions")
 
 
+def _shown(value):
+    """A value as a message shows it: NumPy scalars as plain numbers."""
+    return repr(value.item() if isinstance(value, np.generic) else value)
+
+
 def _number(value, name, what):
     """`value` as a float; ValueError naming the option when it is no real number."""
     if isinstance(value, (bool, np.bool_)) or not isinstance(value, (numbers.Real, np.ndarray)):
-        raise ValueError(f"{name} must be {what}, got {value!r}")
+        raise ValueError(f"{name} must be {what}, got {_shown(value)}")
     try:
         return float(value)
     except (TypeError, ValueError, OverflowError):
-        raise ValueError(f"{name} must be {what}, got {value!r}") from None
+        raise ValueError(f"{name} must be {what}, got {_shown(value)}") from None
 
 
 def relative_tolerance(rtol, name="rtol"):
@@ -36,16 +41,16 @@ def relative_tolerance(rtol, name="rtol"):
         values = np.asarray(rtol)
         if values.dtype.kind not in "fiu" or values.ndim != 1:
             raise ValueError(f"{name} must be a number or a 1-D array of numbers {what}, got "
-                             f"{rtol!r}")
+                             f"{_shown(rtol)}")
         values = values.astype(float)
         bad = ~((values > 0) & (values < 1))
         if bad.any():
             raise ValueError(f"{name} must be {what}: entry {int(np.argmax(bad))} is "
-                             f"{values[bad][0]!r}")
+                             f"{_shown(values[bad][0])}")
         return values
     value = _number(rtol, name, what)
     if not 0 < value < 1:
-        raise ValueError(f"{name} must be {what}, got {value!r}")
+        raise ValueError(f"{name} must be {what}, got {_shown(value)}")
     return value
 
 
@@ -56,16 +61,16 @@ def absolute_tolerance(atol, name="atol"):
         values = np.asarray(atol)
         if values.dtype.kind not in "fiu" or values.ndim != 1:
             raise ValueError(f"{name} must be {what} or a 1-D array of them (one per state), "
-                             f"got {atol!r}")
+                             f"got {_shown(atol)}")
         values = values.astype(float)
         bad = ~(np.isfinite(values) & (values >= 0))
         if bad.any():
             raise ValueError(f"{name} must be {what}: entry {int(np.argmax(bad))} is "
-                             f"{values[bad][0]!r}")
+                             f"{_shown(values[bad][0])}")
         return values
     value = _number(atol, name, what)
     if not (math.isfinite(value) and value >= 0):
-        raise ValueError(f"{name} must be {what}, got {value!r}")
+        raise ValueError(f"{name} must be {what}, got {_shown(value)}")
     return value
 
 
@@ -75,16 +80,16 @@ def count(value, name, none="no limit"):
         return None
     what = f"a positive integer no larger than 2**63 - 1 (None for {none})"
     if isinstance(value, (bool, np.bool_)) or not isinstance(value, numbers.Real):
-        raise ValueError(f"{name} must be {what}, got {value!r}")
+        raise ValueError(f"{name} must be {what}, got {_shown(value)}")
     if isinstance(value, numbers.Integral):
         whole = int(value)
     else:
         number = float(value)
         if not (math.isfinite(number) and number == int(number)):
-            raise ValueError(f"{name} must be {what}, got {value!r}")
+            raise ValueError(f"{name} must be {what}, got {_shown(value)}")
         whole = int(number)
     if not 1 <= whole <= MAX_COUNT:
-        raise ValueError(f"{name} must be {what}, got {value!r}")
+        raise ValueError(f"{name} must be {what}, got {_shown(value)}")
     return whole
 
 
@@ -95,7 +100,7 @@ def seconds(value, name="max_wall_time"):
     what = "a positive number of seconds (None for no limit)"
     number = _number(value, name, what)
     if not (math.isfinite(number) and number > 0):
-        raise ValueError(f"{name} must be {what}, got {value!r}")
+        raise ValueError(f"{name} must be {what}, got {_shown(value)}")
     return number
 
 
@@ -106,7 +111,7 @@ def nonnegative(value, name, default=None):
     what = "a finite number ≥ 0"
     number = _number(value, name, what)
     if not (math.isfinite(number) and number >= 0):
-        raise ValueError(f"{name} must be {what}, got {value!r}")
+        raise ValueError(f"{name} must be {what}, got {_shown(value)}")
     return number
 
 
@@ -114,7 +119,7 @@ def max_step(value):
     """solve_ivp's max_step: a number > 0 (inf, the default: no limit)."""
     number = _number(value, "max_step", "a positive number (inf for no limit)")
     if not number > 0:
-        raise ValueError(f"max_step must be a positive number (inf for no limit), got {value!r}")
+        raise ValueError(f"max_step must be a positive number (inf for no limit), got {_shown(value)}")
     return number
 
 
@@ -125,7 +130,7 @@ def first_step(value, t_span):
     what = "a positive number no larger than the time span (None: chosen by the solver)"
     number = _number(value, "first_step", what)
     if not (math.isfinite(number) and 0 < number <= abs(t_span[1] - t_span[0])):
-        raise ValueError(f"first_step must be {what}, got {value!r}")
+        raise ValueError(f"first_step must be {what}, got {_shown(value)}")
     return number
 
 
@@ -137,14 +142,14 @@ def output_times(t_eval, t0, tf):
     try:
         times = np.asarray(t_eval, dtype=float)
     except (TypeError, ValueError):
-        raise ValueError(f"t_eval must be a 1-D array of times, got {t_eval!r}") from None
+        raise ValueError(f"t_eval must be a 1-D array of times, got {_shown(t_eval)}") from None
     if times.ndim != 1:
         raise ValueError(f"t_eval must be a 1-D array of times, got shape {times.shape}")
     if not np.all(np.isfinite(times)):
         k = int(np.argmax(~np.isfinite(times)))
-        raise ValueError(f"t_eval must hold finite times: entry {k} is {times[k]!r}")
+        raise ValueError(f"t_eval must hold finite times: entry {k} is {_shown(times[k])}")
     if np.any(times < min(t0, tf)) or np.any(times > max(t0, tf)):
-        raise ValueError(f"t_eval has times not within `t_span` ({t0!r}, {tf!r})")
+        raise ValueError(f"t_eval has times not within `t_span` ({_shown(t0)}, {_shown(tf)})")
     d = np.diff(times)
     if (tf > t0 and np.any(d <= 0)) or (tf < t0 and np.any(d >= 0)):
         raise ValueError("t_eval must be sorted strictly in the direction of integration "
