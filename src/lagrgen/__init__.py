@@ -9,7 +9,8 @@ import types
 
 from ._version import __version__
 from .errors import (BuildError, CompileError, ConstraintError, ContactError, LagrgenError,
-                     MassMatrixError, ModelError, NonFiniteError, UnknownNameError)
+                     MassMatrixError, ModelError, NonFiniteError, StoreError, StoreWarning,
+                     UnknownNameError)
 
 #: Public name -> the module that defines it.
 _LAZY = {
@@ -35,7 +36,8 @@ __all__ = ["Model", "build", "load", "simulate", "evaluate_outputs", "output_eve
            "frequency_response", "FrozenTimeWarning", "consistent_state",
            "from_sympy", "export_fmu", "rotation",
            "LagrgenError", "ConstraintError", "ModelError", "UnknownNameError", "MassMatrixError",
-           "BuildError", "CompileError", "NonFiniteError", "ContactError", "__version__"]
+           "BuildError", "CompileError", "NonFiniteError", "ContactError", "StoreError", "StoreWarning",
+           "__version__"]
 
 
 class _Package(types.ModuleType):

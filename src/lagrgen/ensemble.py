@@ -146,6 +146,9 @@ def _rows(values, runs, width, what, convert):
                              f"{bad[1]})")
         return out
     shared = _count(values, 1) == 1
+    if shared and isinstance(values, (list, tuple)) and values and \
+            isinstance(values[0], (dict, list, tuple, np.ndarray)):
+        values = values[0]                       # one run given as a list of one entry
     if shared:
         return np.tile(convert(values), (runs, 1)) if runs else np.empty((0, width))
     return np.array([convert(v) for v in _per_run(values, runs, 1, what)], dtype=float)

@@ -54,6 +54,15 @@ class ContactError(LagrgenError, ValueError):
     contacts on one surface."""
 
 
+class StoreError(LagrgenError, ValueError):
+    """An ensemble store cannot be read: its metadata or chunk records are damaged."""
+
+
+class StoreWarning(UserWarning):
+    """Some runs of an ensemble store are damaged (missing or corrupt chunks): they read as
+    failed."""
+
+
 class BuildError(LagrgenError, RuntimeError):
     """Generating, compiling or loading a compiled model failed."""
 
