@@ -10,6 +10,7 @@ each. A run that fails (a singular mass matrix, a non-finite derivative, a step-
 reported in its row (`success`, `status`, `message`) and does not lose the others; its row is
 recomputed on the per-run path so that it reads exactly as a single `simulate` would.
 """
+import hashlib
 import math
 import os
 import sys
@@ -672,21 +673,26 @@ def _on_threads(mod, plan, parts, workers, sink, bar):
         pool.shutdown(wait=True)
 
 
-_UPLOADED = {}
-_UPLOAD_LOCK = threading.Lock()
+_SCATTERED = {}
+_SCATTER_LOCK = threading.Lock()
 
 
 def _worker_target(client, mod):
-    """What a Dask task needs to find the model: a compiled model's module (its file uploaded to
-    the workers once per client and module file), or the model object itself."""
+    """What a Dask task needs to find the model: a compiled model's module by content — its
+    name, the SHA-256 of its file and the file's bytes (scattered to the workers once per client
+    and content) — or the model object itself. A model rebuilt under the same name is another
+    content, so another file on the workers: never the module a worker loaded before."""
     if mod.backend != "c":
         return ("object", mod)
-    key = (id(client), client.scheduler.address, mod.__file__)
-    with _UPLOAD_LOCK:
-        if not _UPLOADED.get(key):
-            client.upload_file(mod.__file__, load=False)
-            _UPLOADED[key] = True
-    return ("module", (mod.__name__, os.path.basename(mod.__file__)))
+    with open(mod.__file__, "rb") as f:
+        data = f.read()
+    digest = hashlib.sha256(data).hexdigest()
+    key = (id(client), client.scheduler.address, digest)
+    with _SCATTER_LOCK:
+        if key not in _SCATTERED:
+            _SCATTERED[key] = client.scatter(data, broadcast=True, hash=False)
+        shipped = _SCATTERED[key]
+    return ("module", (mod.__name__, os.path.basename(mod.__file__), digest, shipped))
 
 
 def _on_dask(client, mod, plan, parts, sink, bar):
@@ -720,20 +726,40 @@ def _dask_part(part, target, plan, store):
 
 
 _WORKER_MODULES = {}
+_WORKER_LOCK = threading.Lock()
 
 
-def _uploaded_module(name, filename):
-    """The compiled model uploaded into this Dask worker's directory, imported by its path once
-    per worker process (not by name: a module of the same name elsewhere on sys.path, such as the
-    model's description, must not shadow it)."""
+def _uploaded_module(name, filename, digest, data):
+    """The compiled model of content `digest` in this Dask worker's process: its bytes written
+    once under a content-addressed name in the worker's directory (atomically, never over a
+    file a process may have loaded), checked against the digest, and imported by that path
+    once per process (not by name: a module of the same name elsewhere on sys.path, such as the
+    model's description or an earlier build of it, must not shadow it)."""
     from distributed import get_worker
-    path = os.path.join(get_worker().local_directory, filename)
-    if path not in _WORKER_MODULES:
+    with _WORKER_LOCK:
+        if digest in _WORKER_MODULES:
+            return _WORKER_MODULES[digest]
+        if hashlib.sha256(data).hexdigest() != digest:
+            raise LagrgenError(f"the compiled module of model {name!r} arrived damaged on this "
+                               "Dask worker (its SHA-256 differs from the client's)")
+        path = os.path.join(get_worker().local_directory, f"lagrgen-{digest[:32]}-{filename}")
+        if not (os.path.isfile(path) and _file_digest(path) == digest):
+            temporary = f"{path}.{os.getpid()}.{threading.get_ident()}.part"
+            with open(temporary, "wb") as f:
+                f.write(data)
+                f.flush()
+                os.fsync(f.fileno())
+            os.replace(temporary, path)
         import importlib.machinery
         import importlib.util
         loader = importlib.machinery.ExtensionFileLoader(name, path)
         spec = importlib.util.spec_from_file_location(name, path, loader=loader)
         module = importlib.util.module_from_spec(spec)
         loader.exec_module(module)
-        _WORKER_MODULES[path] = module
-    return _WORKER_MODULES[path]
+        _WORKER_MODULES[digest] = module
+        return module
+
+
+def _file_digest(path):
+    with open(path, "rb") as f:
+        return hashlib.sha256(f.read()).hexdigest()

@@ -116,3 +116,41 @@ def test_damaged_metadata_is_a_clear_error(store):
     (path / ".zmetadata").write_bytes(b"\xff\xfe binary junk")
     with pytest.raises(StoreError, match="cannot be read as an ensemble store"):
         lagrgen.open_ensemble(path)
+
+
+# -- 28.3: a model rebuilt under the same name on one Dask client --------------------------------
+def spring(law):
+    """The model "rebuilt": one name, its force law changed between builds."""
+    model = Model("rebuilt_on_dask")
+    x, = model.coordinates("x")
+    k, = model.parameters(k=4.0)
+    model.particle(1, sp.Matrix([x, 0]))
+    model.potential_energy(k * x ** 2 / 2 if law == "linear" else k * x ** 4 / 4)
+    return model
+
+
+@pytest.fixture(scope="module")
+def threads_client():
+    distributed = pytest.importorskip("distributed")
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=False,
+                                  dashboard_address=":0", silence_logs=40) as cluster, \
+            distributed.Client(cluster) as c:
+        yield c
+
+
+@pytest.mark.parametrize("cluster", ["processes", "threads"])
+def test_a_model_rebuilt_under_the_same_name_runs_its_own_equations(cluster, dask_client,
+                                                                    threads_client, tmp_path):
+    """Edit a model and re-run with one long-lived client: each build's numbers, never the
+    previous module's (process workers) and no crash (workers in this process)."""
+    client = dask_client if cluster == "processes" else threads_client
+    P = np.linspace(1.0, 3.0, 8)[:, None]
+    for law in ("linear", "quartic", "linear"):
+        mod = lagrgen.build(spring(law), out_dir=tmp_path)
+        local = lagrgen.simulate_many(mod, (0, 1), [1.0, 0.0], params=P, t_eval=T, workers=1)
+        remote = lagrgen.simulate_many(mod, (0, 1), [1.0, 0.0], params=P, t_eval=T,
+                                       client=client)
+        np.testing.assert_array_equal(remote.y, local.y)
+    quartic = lagrgen.build(spring("quartic"), out_dir=tmp_path)
+    assert not np.allclose(lagrgen.simulate_many(quartic, (0, 1), [1.0, 0.0], params=P,
+                                                 t_eval=T, client=client).y, local.y)
