@@ -15,7 +15,7 @@ from .errors import (BuildError, CompileError, ConstraintError, ContactError, La
 #: Public name -> the module that defines it.
 _LAZY = {
     "Model": "model",
-    "build": "build", "load": "build",
+    "build": "build", "load": "cache",
     "simulate": "simulate", "evaluate_outputs": "simulate", "output_event": "simulate",
     "Signal": "signals",
     "simulate_many": "ensemble", "EnsembleResult": "ensemble",
