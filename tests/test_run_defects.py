@@ -168,3 +168,41 @@ def test_fit_takes_the_guards(osc):
     assert fitted.success and fitted.params["k"] == pytest.approx(6.0, rel=1e-6)
     with pytest.raises(lagrgen.LagrgenError, match="max_steps=3"):
         lagrgen.fit(osc, t, truth.y[:1], ["k"], [1.0, 0.0], max_steps=3)
+
+
+# -- the same rules in the command line and in an FMU's solver settings ---------------------------
+@pytest.mark.parametrize("option, message", [
+    (["--rtol", "1e10"], "--rtol must be positive and less than 1"),
+    (["--rtol", "nan"], "--rtol must be positive and less than 1"),
+    (["--atol", "-1"], "--atol must be a finite number ≥ 0"),
+    (["--max-step", "nan"], "--max-step: max_step must be a positive number"),
+    (["--max-time", "inf"], "--max-time must be a positive number of seconds"),
+])
+def test_the_command_line_checks_the_same_rules(option, message, capsys):
+    from conftest import EXAMPLES
+    from lagrgen.cli import main
+    code = main(["simulate", str(EXAMPLES / "double_pendulum.py"), "--t-end", "1", *option])
+    assert code == 1 and message in capsys.readouterr().err
+
+
+def test_the_fmu_solver_settings_follow_the_same_rules(tmp_path):
+    fmpy = pytest.importorskip("fmpy")
+    from fmpy.fmi2 import FMU2Slave
+    with pytest.raises(ValueError, match="rtol must be positive and less than 1"):
+        lagrgen.export_fmu(oscillator(), tmp_path, kind="cs", rtol=1e10)
+    path = lagrgen.export_fmu(oscillator(), tmp_path, kind="cs", rtol=1e-6)
+    md = fmpy.read_model_description(str(path))
+    vr = {v.name: v.valueReference for v in md.modelVariables}
+    fmu = FMU2Slave(guid=md.guid, unzipDirectory=fmpy.extract(str(path), tmp_path / "unzipped"),
+                    modelIdentifier=md.coSimulation.modelIdentifier, instanceName="rules")
+    fmu.instantiate()
+    try:
+        for bad in (1e10, 1.0, np.inf, np.nan, 0.0):
+            with pytest.raises(Exception):
+                fmu.setReal([vr["solver.rtol"]], [bad])
+        fmu.setReal([vr["solver.rtol"]], [0.5])
+        assert fmu.getReal([vr["solver.rtol"]]) == [0.5]
+        with pytest.raises(Exception):
+            fmu.setReal([vr["solver.atol"]], [np.nan])
+    finally:
+        fmu.freeInstance()
