@@ -178,3 +178,92 @@ def test_duplicate_contacts_found_while_running_are_named(built, engine):
     slot = built(slot_model)
     with pytest.raises(ContactError, match="impacts 'left' and 'right' .*duplicate contacts"):
         lagrgen.simulate(slot, (0, 1), [0.0, 0.0], params={"w": 0.0}, engine=engine)
+
+
+# -- 28.13: what a run with impacts or frictions gives back -----------------------------------------
+@pytest.mark.parametrize("engine", ENGINES)
+def test_contact_and_friction_forces_are_readable(built, engine):
+    ball = built(ball_model)
+    sol = lagrgen.simulate(ball, (0, 6), [1.0, 0.0], engine=engine, t_eval=[0.1, 5.0, 6.0],
+                           **TOL)
+    assert sol.contact_names == ("floor",)
+    np.testing.assert_allclose(sol.multipliers["floor"], [0.0, G, G], rtol=1e-9)   # m·g at rest
+    block = built(block_model)
+    held = lagrgen.simulate(block, (0, 1), [0.1, 0.0], engine=engine, **TOL)
+    assert held.mode == {"floor": "stick"}
+    np.testing.assert_allclose(held.multipliers["floor"], 10 * 0.1, rtol=1e-9)     # = k·x
+    sliding = lagrgen.simulate(block, (0, 0.1), [0.0, 1.0], engine=engine, **TOL)
+    np.testing.assert_allclose(sliding.multipliers["floor"], -0.2 * G, rtol=1e-12)  # −μ·N
+
+
+def test_ensembles_carry_contact_forces_and_transitions(built, tmp_path):
+    pytest.importorskip("zarr")
+    mod = built(ball_model)
+    y0 = [[1.0, 0.0], [0.5, 0.0], [0.0, 0.0]]
+    t = np.linspace(0, 2, 9)
+    ens = lagrgen.simulate_many(mod, (0, 2), y0, t_eval=t, workers=1)
+    assert ens.constraint_names == ("floor",) and ens.multipliers.shape == (3, 1, 9)
+    for run in range(3):
+        one = lagrgen.simulate(mod, (0, 2), y0[run], t_eval=t)
+        np.testing.assert_array_equal(ens.multipliers[run, 0], one.multipliers["floor"])
+        assert ens.transitions[run] == one.transitions
+    ds = ens.to_xarray()
+    table = list(zip(ds.transition_run.values.tolist(), ds.transition_time.values.tolist(),
+                     ds.transition_element.values.tolist(), ds.transition_kind.values.tolist()))
+    assert table == [(run, *tr) for run in range(3) for tr in ens.transitions[run]]
+    stored = lagrgen.simulate_many(mod, (0, 2), y0, t_eval=t, workers=1,
+                                   store=tmp_path / "ball.zarr")
+    for name in ("multipliers", "transition_run", "transition_time", "transition_element",
+                 "transition_kind"):
+        np.testing.assert_array_equal(stored[name].values, ds[name].values)
+
+
+def test_bench_times_a_model_with_impacts_with_its_hybrid_methods(built):
+    from lagrgen.bench import markdown, runnable_methods, solve_seconds
+    mod = built(ball_model)
+    runnable, skipped = runnable_methods(mod, ("RK45", "Radau", "LSODA"))
+    assert runnable == ["RK45", "Radau"] and list(skipped) == ["LSODA"]
+    solves = {m: solve_seconds(mod, [1.0, 0.0], m, (0.0, 1.0), repeats=1) for m in runnable}
+    assert all(s["success"] for s in solves.values())
+    table = markdown({"name": "ball", "n": 1, "t_span": [0, 1], "rtol": 1e-8, "atol": 1e-8,
+                      "build": dict.fromkeys(("cold", "derive", "cse+emit", "compile",
+                                              "cached"), 1.0),
+                      "calls": {p: dict.fromkeys(("rhs", "jacobian", "rhs_in_c",
+                                                  "jacobian_in_c"), 1e-6)
+                                for p in ("c", "python")},
+                      "solves": {"c": solves, "python": solves}, "skipped": skipped})
+    assert "| LSODA | skipped (a model with impacts or frictions runs with" in table
+
+
+def test_show_lists_impacts_and_frictions():
+    from lagrgen.outputs.display import render
+    text = render(block_model())
+    assert "# friction floor: slip velocity x', normal force 9.81, mu = mu, mu_static = mu_s" \
+        in text
+    assert "# impact floor: y >= 0, restitution e" in render(ball_model())
+    assert "impact floor: $y$ >= 0" in render(ball_model(), latex=True)
+
+
+def labelled(masses, lengths, g_unit):
+    model = Model("labelled")
+    y, = model.coordinates("y", units=lengths)
+    m, g = model.parameters(m=(1.0, masses) if masses else 1.0, g=(G, g_unit))
+    model.particle(m, sp.Matrix([0, y]))
+    model.potential_energy(m * g * y)
+    return model
+
+
+@pytest.mark.parametrize("masses, lengths, g_unit, energy", [
+    ("kg", "m", "m/s^2", "J"),
+    ("g", "mm", "mm/s^2", "1e-09 J"),
+    ("kg", "m", "m/s", None),                 # labels that give no energy: no label
+    (None, "m", "m/s^2", None),               # a factor without a label: no label
+])
+def test_energies_carry_the_unit_the_labels_give(masses, lengths, g_unit, energy):
+    model = labelled(masses, lengths, g_unit)
+    mod = lagrgen.build(model, backend="python")
+    for name in ("kinetic_energy", "potential_energy", "total_energy"):
+        assert mod.units.get(name) == energy
+    sol = lagrgen.simulate(mod, (0, 0.1), [1.0, 0.0])
+    table = lagrgen.evaluate_outputs(mod, sol)
+    assert table.units.get("total_energy") == energy

@@ -170,7 +170,7 @@ STAGES = [
     ("base", ["_version", "errors", "numbers", "names", "caching", "functions", "methods",
               "options", "signals", "toolchain"]),
     ("description", ["rotation", "bodies3d", "records", "checks", "description"]),
-    ("derivation", ["calculus", "terms", "contributions", "lagrange", "nonsmooth"]),
+    ("derivation", ["calculus", "terms", "contributions", "lagrange", "nonsmooth", "dimensions"]),
     ("kernels", ["kernels"]),
     ("code", ["codegen"]),
     ("runtime", ["runtime"]),

@@ -49,8 +49,9 @@ class EnsembleResult:
     message : list of str, one per run
     coordinates : the coordinate names
     engines : list of str, the engine each run used ("native" or "scipy")
-    multipliers : (runs, n_constraints, len(t)) constraint forces λ (M·q̈ = F + Aᵀλ) of a
-        constrained model, else None
+    multipliers : (runs, len(constraint_names), len(t)) constraint forces λ (M·q̈ = F + Aᵀλ) of
+        a constrained model, then the contact and friction forces of a model with impacts or
+        frictions (as `simulate`'s `contact_forces`), else None
     outputs : (runs, len(output_names), len(t)) the model's outputs when `outputs=True`, else None
     params : (runs, n_params) the parameters of every run
     parameter_names, output_names, constraint_names : names, in model order
@@ -394,7 +395,7 @@ def _one_run(mod, plan, part, i, out):
     out["message"][i] = str(sol.message)
     out["engines"][i] = getattr(sol, "engine", "scipy")
     if "multipliers" in out:
-        out["multipliers"][i, :, :saved] = sol.constraint_forces[:, :saved]
+        out["multipliers"][i, :, :saved] = run_multipliers(mod, sol)[:, :saved]
     if "outputs" in out:
         out["outputs"][i, :, :saved] = evaluate_outputs(mod, sol)[:plan.n_outputs, :saved]
     transitions = getattr(sol, "transitions", None)
@@ -497,7 +498,7 @@ def simulate_many(mod, t_span, y0, params=None, inputs=None, t_eval=None, method
                 options=dict(options), outputs=bool(outputs), batch=specs is not None,
                 specs=specs, dim=2 * mod.n_coordinates,
                 n_outputs=len(mod.output_names) if outputs else 0,
-                n_constraints=mod.n_constraints)
+                n_constraints=len(multiplier_names(mod)))
     if outputs and not hasattr(mod, "outputs"):
         raise ValueError(f"model {mod.name!r} has no outputs function")
     parallel = len(client.scheduler_info().get("workers", {})) if client is not None else \
@@ -536,6 +537,22 @@ def check_starts(mod, t0, Y0, P, run_inputs, gap_tol=None):
         check_start(mod, t0, Y0[i], P[i], u, GAP_TOL if gap_tol is None else gap_tol, run=i)
 
 
+def multiplier_names(mod):
+    """The rows of an ensemble's `multipliers`: the model's constraints, then (a model with
+    impacts or frictions) each impact's contact force and each friction's force."""
+    return tuple(mod.constraint_names) + tuple(
+        d[0] for kind in ("impact", "friction") for d in mod.nonsmooth_definitions
+        if d[1] == kind)
+
+
+def run_multipliers(mod, sol):
+    """The `multiplier_names(mod)` rows of one run's result."""
+    rows = [sol.constraint_forces] if mod.n_constraints else []
+    if mod.nonsmooth_definitions:
+        rows.append(sol.contact_forces)
+    return np.concatenate(rows)
+
+
 def ensemble_meta(mod, plan, P):
     """What labels the results: names, units, parameters per run, times."""
     coordinates = tuple(mod.coordinates)
@@ -543,8 +560,8 @@ def ensemble_meta(mod, plan, P):
             "states": coordinates + tuple(f"{c}_dot" for c in coordinates),
             "parameters": tuple(mod.parameters), "params": P, "t": plan.t_eval,
             "output_names": tuple(mod.output_names) if plan.outputs else (),
-            "constraint_names": tuple(mod.constraint_names)
-            if plan.n_constraints else (),
+            "constraint_names": multiplier_names(mod),
+            "elements": tuple(d[0] for d in mod.nonsmooth_definitions),
             "units": dict(mod.units),
             "method": getattr(plan.method, "__name__", str(plan.method)),
             "rtol": float(np.max(plan.rtol)), "atol": float(np.max(plan.atol))}

@@ -16,7 +16,9 @@ from .errors import StoreError, StoreWarning
 
 #: Variables and coordinates of the layout (a parameter of one of these names gets a prefix).
 RESERVED = ("y", "success", "status", "nfev", "multipliers", "outputs", "run", "state", "time",
-            "constraint", "output", "chunk_written", "chunk_crc32", "chunk", "chunk_array")
+            "constraint", "output", "chunk_written", "chunk_crc32", "chunk", "chunk_array",
+            "transition", "transition_run", "transition_time", "transition_element",
+            "transition_kind")
 FORMAT = "lagrgen-ensemble-2"
 #: The formats `open_ensemble` reads (1: before the chunk records).
 FORMATS = ("lagrgen-ensemble-1", FORMAT)
@@ -25,6 +27,9 @@ PER_RUN = ("y", "success", "status", "nfev", "multipliers", "outputs")
 #: The chunk records: a flag set once a chunk is written whole, and the CRC-32 of each of its
 #: per-run arrays as stored (0 for one the store lacks).
 CHUNK_WRITTEN, CHUNK_CRC32 = "chunk_written", "chunk_crc32"
+#: The group of a model with impacts or frictions that holds, per chunk of runs, the table of
+#: its runs' transitions: rows (run, t, element index, kind index).
+TRANSITIONS = "transitions"
 
 
 def parameter_variable(name):
@@ -110,7 +115,25 @@ def to_dataset(ens):
     data = {name: (dims, v, a) for name, (dims, v, a) in small.items()}
     for name, (dims, shape, dtype, a) in big.items():
         data[name] = (dims, np.asarray(values[name]).astype(dtype, copy=False), a)
+    if ens.transitions is not None:
+        rows = [(run, t, name, kind) for run, listed in enumerate(ens.transitions)
+                for t, name, kind in listed or ()]
+        data.update(transition_variables(*(list(column) for column in zip(*rows))
+                                         if rows else ([], [], [], [])))
     return xr.Dataset(data, coords=coords, attrs=attrs)
+
+
+def transition_variables(runs, times, elements, kinds):
+    """The transitions of every run as a table over the dimension `transition` (run by run, in
+    time order): `transition_run`, `transition_time`, `transition_element`, `transition_kind`."""
+    dims = ("transition",)
+    return {"transition_run": (dims, np.asarray(runs, dtype="i8"), {"long_name": "run index"}),
+            "transition_time": (dims, np.asarray(times, dtype=float),
+                                {"long_name": "time of the switch", "units": "s"}),
+            "transition_element": (dims, np.asarray(elements, dtype=str),
+                                   {"long_name": "impact or friction"}),
+            "transition_kind": (dims, np.asarray(kinds, dtype=str),
+                                {"long_name": "impact, contact, release, stick or slip"})}
 
 
 def local_store(path, read_only=False):
@@ -145,13 +168,11 @@ def create_store(path, meta, runs, chunk):
         records[name] = (dims, shape, (chunk,) + tuple(shape[1:]), dtype, a)
     for name, (dims, shape, chunks_of, dtype, a) in records.items():
         fill = np.nan if dtype == "f8" else None     # None: integers and flags are not masked
-        attrs = dict(a, _ARRAY_DIMENSIONS=list(dims))
-        if hasattr(group, "create_array"):
-            group.create_array(name, shape=shape, chunks=chunks_of, dtype=dtype,
-                               fill_value=fill, attributes=attrs)
-        else:
-            group.create_dataset(name, shape=shape, chunks=chunks_of, dtype=dtype,
-                                 fill_value=fill, write_empty_chunks=True).attrs.update(attrs)
+        _create(group, name, shape, chunks_of, dtype, fill, dict(a, _ARRAY_DIMENSIONS=list(dims)))
+    if meta.get("elements"):         # a model with impacts or frictions: one table per chunk
+        from .hybrid import KIND_NAMES
+        group.create_group(TRANSITIONS).attrs.update(
+            {"elements": list(meta["elements"]), "kinds": list(KIND_NAMES)})
     zarr.consolidate_metadata(local_store(path))
 
 
@@ -198,10 +219,28 @@ def write_part(path, start, result):
     dtypes = {name: group[name].dtype for name in PER_RUN if name in group}
     for name in dtypes:
         _every_chunk(group[name])[start:start + m] = result[name]
+    k = start // group["status"].chunks[0]
+    if TRANSITIONS in group and result.get("transitions") is not None:
+        table = group[TRANSITIONS]
+        element = {name: j for j, name in enumerate(table.attrs["elements"])}
+        kind = {name: j for j, name in enumerate(table.attrs["kinds"])}
+        rows = np.array([(start + i, t, element[name], kind[what])
+                         for i, listed in enumerate(result["transitions"])
+                         for t, name, what in listed or ()], dtype=float).reshape(-1, 4)
+        _create(table, f"chunk{k}", rows.shape, (max(len(rows), 1), 4), "f8")[:] = rows
     if CHUNK_WRITTEN in group:
-        k = start // group["status"].chunks[0]
         _every_chunk(group[CHUNK_CRC32])[k] = _checksums(result, dtypes)
         _every_chunk(group[CHUNK_WRITTEN])[k] = 1
+
+
+def _create(group, name, shape, chunks, dtype, fill=None, attrs=None):
+    """A new array of `group` (Zarr 3's create_array or Zarr 2's create_dataset)."""
+    if hasattr(group, "create_array"):
+        return group.create_array(name, shape=shape, chunks=chunks, dtype=dtype,
+                                  fill_value=fill, attributes=attrs or {})
+    array = group.create_dataset(name, shape=shape, chunks=chunks, dtype=dtype, fill_value=fill)
+    array.attrs.update(attrs or {})
+    return array
 
 
 def _every_chunk(array):
@@ -274,7 +313,24 @@ def open_ensemble(store, verify=True):
         raise StoreError(f"{path}: its chunk records cannot be read ({type(exc).__name__}: "
                          f"{exc}); the store is damaged") from None
     ds = ds.drop_vars([CHUNK_WRITTEN, CHUNK_CRC32])
+    if TRANSITIONS in group:            # its chunk tables are made as chunks finish: unlisted
+        import zarr                     # in the metadata consolidated when the store was made
+        table = zarr.open_group(local_store(path, read_only=True), mode="r", path=TRANSITIONS)
+        ds = ds.assign(stored_transitions(table, health))
     return marked(ds, health, chunk, path)
+
+
+def stored_transitions(table, health):
+    """`transition_variables` of the chunk tables of a store, but those of chunks in `health`
+    (not written, damaged)."""
+    elements, kinds = table.attrs["elements"], table.attrs["kinds"]
+    names = sorted((name for name in table.array_keys()
+                    if int(name[len("chunk"):]) not in health), key=lambda n: int(n[5:]))
+    rows = np.concatenate([np.asarray(table[name][:]).reshape(-1, 4) for name in names]) \
+        if names else np.zeros((0, 4))
+    return transition_variables(rows[:, 0].astype(int), rows[:, 1],
+                                [elements[int(j)] for j in rows[:, 2]],
+                                [kinds[int(j)] for j in rows[:, 3]])
 
 
 def consolidated_group(path):

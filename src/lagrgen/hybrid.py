@@ -82,14 +82,14 @@ class HybridSystem:
         frictions = terms[k:].reshape(self.nf, self._friction_size)
         return M, F, A, gamma, impacts, frictions
 
-    def solve(self, t, y, contact, slip):
+    def solve(self, t, y, contact, slip, constraint_forces=False):
         """Accelerations and forces in the mode (contact: bool per impact; slip: per friction
         +1/−1 slipping in that direction, 0 sticking).
 
         Returns
         -------
         (q̈, λ of the impacts (0 where open), λ of the frictions (0 where slipping), N of the
-        frictions, the terms)
+        frictions, the terms), and with `constraint_forces` also λ of the model's constraints
         """
         n, m = self.n, self.m
         M, F, A, gamma, imp, fr = self.terms(t, y)
@@ -144,7 +144,22 @@ class HybridSystem:
             row = self._normal_row(j, impact_row)
             normal[j] = abs(lam[row]) if row is not None else (
                 abs(fr[j, 4]) if self.normal[j] is None else 0.0)
+        if constraint_forces:
+            return qdd, lam_impact, lam_friction, normal, (M, A, imp, fr), lam[:m].copy()
         return qdd, lam_impact, lam_friction, normal, (M, A, imp, fr)
+
+    def forces(self, t, y, contact, slip):
+        """The forces of the mode at (t, y): λ of the model's constraints, then each impact's
+        contact force (its multiplier; 0 while open), then each friction's force along its slip
+        direction (the sticking multiplier, or −μ·|N|·s while slipping); NaN where the mode
+        equations are singular."""
+        try:
+            _, lam_i, lam_f, normal, (_, _, _, fr), lam_m = self.solve(t, y, contact, slip, True)
+        except np.linalg.LinAlgError:
+            return np.full(self.m + self.ni + self.nf, np.nan)
+        along = [lam_f[j] if slip[j] == 0 else -fr[j, 2] * slip[j] * normal[j]
+                 for j in range(self.nf)]
+        return np.concatenate([lam_m, lam_i, along])
 
     def _normal_row(self, j, impact_row):
         """The row of R whose multiplier is friction j's normal force, or None."""
@@ -508,15 +523,19 @@ def simulate_hybrid(mod, t_span, y0, method, p, u_at, rtol, atol, t_eval=None,
         t, y = t0, sw.start(t0, y0)
     except np.linalg.LinAlgError:
         raise singular_modes(system, t0, y0, gap_tol) from None
-    ts, ys = [np.array([t0])], [y[:, None]]
+    mode = (tuple(sw.contact), tuple(sw.slip))
+    ts, ys, modes = [np.array([t0])], [y[:, None]], [mode]
     if sw.transitions:                      # struck at the start: saved before and after
-        ts, ys = [np.array([t0, t0])], [np.column_stack([y0, y])]
+        opened = ((False,) * system.ni, mode[1])
+        ts, ys, modes = [np.array([t0]), np.array([t0])], [y0[:, None], y[:, None]], \
+            [opened, mode]
     nfev, segments, status, message = 0, 0, 0, "The solver successfully reached the end."
     steps, started, stopped = 0, time.monotonic(), None
     no_progress, least = 0, stall_step(t0, tf)
     te_all = None if t_eval is None else np.asarray(t_eval, dtype=float)
     if te_all is not None:
         ts, ys = [te_all[te_all <= t0]], [np.repeat(y[:, None], np.sum(te_all <= t0), axis=1)]
+        modes = [mode]
     while t < tf:
         t_start = t
         contact, slip = tuple(sw.contact), tuple(sw.slip)
@@ -542,10 +561,12 @@ def simulate_hybrid(mod, t_span, y0, method, p, u_at, rtol, atol, t_eval=None,
         if te_all is None:
             ts.append(sol.t[1:])
             ys.append(sol.y[:, 1:])
+            modes.append((contact, slip))
         else:
             te = te_all[(te_all > t) & (te_all <= t_stop)]
             ts.append(te)
             ys.append(sol.sol(te) if len(te) else np.zeros((len(y), 0)))
+            modes.append((contact, slip))
         if max_steps is not None and steps >= max_steps:
             stopped = "max_steps"
         elif max_wall_time is not None and time.monotonic() - started > max_wall_time:
@@ -571,11 +592,16 @@ def simulate_hybrid(mod, t_span, y0, method, p, u_at, rtol, atol, t_eval=None,
             if te_all is None:
                 ts.append(np.array([t]))
                 ys.append(y[:, None])
+                modes.append((tuple(sw.contact), tuple(sw.slip)))
         no_progress = no_progress + 1 if t - t_start < least else 0
         if no_progress >= STALL_SEGMENTS:
             status, message = -1, stall_message(t, least, sw.transitions)
             break
+    forces = [system.forces(ti, yi, *m) for times, states, m in zip(ts, ys, modes)
+              for ti, yi in zip(times, states.T)]
+    forces = np.array(forces).reshape(-1, system.m + system.ni + system.nf).T
     return dict(t=np.concatenate(ts), y=np.concatenate(ys, axis=1), transitions=sw.transitions,
+                forces=forces,
                 mode=sw.mode(), nfev=nfev, status=status, message=message, n_segments=segments,
                 success=status >= 0, stopped=stopped, t_reached=t, n_steps=steps)
 
@@ -660,7 +686,8 @@ def solve_hybrid_native(mod, t_span, y0, method, p, u_spec, rtol, atol, t_eval=N
                                      np.asarray(y0, dtype=float))
     mode = {d[0]: CONTACT if c else OPEN for d, c in zip(system.impacts, out["contact"])}
     mode.update({d[0]: STICK if s == 0 else SLIP for d, s in zip(system.frictions, out["slip"])})
-    return dict(t=out["t"], y=out["y"].T.copy(), transitions=transitions, mode=mode,
+    return dict(t=out["t"], y=out["y"].T.copy(), forces=out["forces"].T.copy(),
+                transitions=transitions, mode=mode,
                 nfev=out["nfev"], status=out["status"], message=message,
                 n_segments=out["n_segments"], success=out["status"] >= 0,
                 stopped=GUARDS.get(out["stopped"]), t_reached=out["t_reached"],
@@ -701,7 +728,7 @@ def simulate_nonsmooth(mod, t_span, y0, method, p, inputs, u_at, rtol, atol, t_e
     from .results import stopped_by_guard
     from scipy.integrate._ivp.ivp import OdeResult
 
-    from .native.engine import _t_eval, native_reason
+    from .native.engine import _t_eval, guard_reason, native_reason
     from .runtime.arguments import input_specs
     if events is not None:
         raise ValueError("a model with impacts or frictions takes no Python events: declare them "
@@ -746,10 +773,13 @@ def simulate_nonsmooth(mod, t_span, y0, method, p, inputs, u_at, rtol, atol, t_e
     sol.transitions = out["transitions"]
     sol.mode = out["mode"]
     sol.n_segments = out["n_segments"]
+    m = mod.n_constraints
+    sol.hybrid_constraint_forces = out["forces"][:m]
+    sol.contact_names = tuple(d[0] for d in mod.nonsmooth_definitions if d[1] == "impact") + \
+        tuple(d[0] for d in mod.nonsmooth_definitions if d[1] == "friction")
+    sol.contact_forces = out["forces"][m:]
     sol.guard = None
     if out["stopped"] is not None:
-        limit = max_steps if out["stopped"] == "max_steps" else f"{max_wall_time:g} s"
-        what = "step" if out["stopped"] == "max_steps" else "wall-time"
-        stopped_by_guard(sol, f"the {what} limit {out['stopped']}={limit} was reached",
+        stopped_by_guard(sol, guard_reason(out["stopped"], max_steps, max_wall_time),
                          out["t_reached"], float(t_span[1]), out["n_steps"])
     return sol

@@ -62,7 +62,10 @@ def simulate(mod, t_span, y0, method="RK45", params=None, inputs=None, rtol=1e-6
     A constrained model's result also has `constraint_forces` (λ, n_constraints × len(t), with
     M·q̈ = F + Aᵀλ) and `constraint_residuals` (Φ then A·q̇ + b, (n_holonomic + n_constraints) ×
     len(t)), `constraint_names` and `multipliers` ({name: λ row}, the reaction asked for by
-    the constraint's name). Its initial state should satisfy the constraints (see
+    the constraint's name). A model with impacts or frictions also has `contact_names` and
+    `contact_forces` (each impact's contact force, 0 while open, then each friction's force along
+    its slip velocity: the sticking force, or −μ·|N|·sign(v) while slipping), which
+    `multipliers` holds by name too. Its initial state should satisfy the constraints (see
     `lagrgen.consistent_state`; Baumgarte stabilization pulls a small violation back).
 
     Raises
@@ -175,8 +178,13 @@ def finished_result(mod, sol, p, u_at, method=None):
     if mod.n_constraints:
         from .constraints import along
         sol.constraint_forces, sol.constraint_residuals = along(mod, sol, p, u_at)
+        if mod.nonsmooth_definitions:      # with the contacts held: the hybrid solve's λ
+            sol.constraint_forces = sol.hybrid_constraint_forces
         sol.constraint_names = tuple(mod.constraint_names)
         sol.multipliers = dict(zip(sol.constraint_names, sol.constraint_forces))
+    if mod.nonsmooth_definitions:
+        sol.multipliers = {**(sol.multipliers if mod.n_constraints else {}),
+                           **dict(zip(sol.contact_names, sol.contact_forces))}
     return sol
 
 

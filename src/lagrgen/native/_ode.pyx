@@ -477,7 +477,7 @@ cdef extern from "lg_hybrid.h":
         long nfev, n_steps, n_segments
         int failure, failed_element
         double failed_value, failed_other
-        lg_buf_t t, y, transitions
+        lg_buf_t t, y, forces, transitions
     int lg_hybrid_solve(lg_hybrid_t *, const lg_options_t *, lg_hybrid_result_t *) nogil
     void lg_hybrid_result_free(lg_hybrid_result_t *) nogil
 
@@ -503,7 +503,8 @@ def solve_hybrid(str method, uintptr_t terms, int n, int m, int ni, int nf, norm
     Returns
     -------
     dict
-        t, y (len(t), 2n), transitions (k, 3) of (t, element, kind code), contact (ni),
+        t, y (len(t), 2n), forces (len(t), m + ni + nf) (lg_hybrid_result_t.forces),
+        transitions (k, 3) of (t, element, kind code), contact (ni),
         slip (nf), status, message, nfev, n_segments, failure (an LG_HY_* code of
         lg_hybrid.h) with failed_element, failed_value, failed_other.
     """
@@ -564,6 +565,7 @@ def solve_hybrid(str method, uintptr_t terms, int n, int m, int ni, int nf, norm
                         message=res.message.decode(), nfev=res.nfev, n_steps=res.n_steps,
                         stopped=res.stopped, t_reached=res.t_reached,
                         n_segments=res.n_segments, transitions=buf_array(&res.transitions, 3),
+                        forces=buf_array(&res.forces, m + ni + nf),
                         contact=contact[:ni].copy(), slip=slip[:nf].copy(),
                         failure=res.failure, failed_element=res.failed_element,
                         failed_value=res.failed_value, failed_other=res.failed_other)

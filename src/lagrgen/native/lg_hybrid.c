@@ -33,7 +33,7 @@ typedef struct {
     double *P, *Minv, *work, *D, *WP, *impulse, *after, *target, *before, *e;
     int *row_of_impact, *row_of_friction, *involved, *closing, *resting, *bounced;
     int n_bounced;
-    double *fastest, *fy, *fy2, *yp;
+    double *fastest, *fy, *fy2, *yp, *force_row;
     const int *contact, *slip;     /* the mode of the current evaluation */
     lg_hybrid_result_t *result;
 } hy_ctx;
@@ -44,6 +44,8 @@ void lg_hybrid_result_free(lg_hybrid_result_t *r)
     free(r->t.data);
     free(r->y.data);
     free(r->transitions.data);
+    free(r->forces.data);
+    memset(&r->forces, 0, sizeof r->forces);
     memset(&r->t, 0, sizeof r->t);
     memset(&r->y, 0, sizeof r->y);
     memset(&r->transitions, 0, sizeof r->transitions);
@@ -582,6 +584,34 @@ static int hy_switch(hy_ctx *c, double t, double *y, int *fired, int nfired)
     return hy_settle(c, t, y, 1);
 }
 
+/* The forces (lg_hybrid_result_t.forces) of the output rows saved since the last call, all in
+ * the mode (contact, slip); 0, or -1 when out of memory. */
+static int hy_forces_since(hy_ctx *c, const int *contact, const int *slip)
+{
+    lg_hybrid_result_t *res = c->result;
+    int n = c->n, k = c->m + c->ni + c->nf;
+    double *row = c->force_row;
+    for (size_t r = k ? res->forces.len / k : res->t.len; r < res->t.len; ++r) {
+        double t = res->t.data[r];
+        hy_inputs(c, t);
+        if (hy_solve(c, t, res->y.data + r * 2 * n, c->u, contact, slip)) {
+            for (int a = 0; a < k; ++a)
+                row[a] = NAN;
+        } else {
+            for (int q = 0; q < c->m; ++q)
+                row[q] = c->x[n + q];
+            for (int i = 0; i < c->ni; ++i)
+                row[c->m + i] = c->lam_i[i];
+            for (int j = 0; j < c->nf; ++j)
+                row[c->m + c->ni + j] = slip[j] == 0 ? c->lam_f[j]
+                                        : -FR(c, j)[2] * slip[j] * c->normal[j];
+        }
+        if (k && lg_buf_push(&res->forces, row, k))
+            return -1;
+    }
+    return 0;
+}
+
 /* Half the predicted flight of a contact that just bounced (inf when none). */
 static double hy_lift_off(hy_ctx *c, double t, const double *y)
 {
@@ -673,6 +703,8 @@ int lg_hybrid_solve(lg_hybrid_t *h, const lg_options_t *options, lg_hybrid_resul
     c.closing = hy_alloc(blocks, &nb, (h->ni + 1) * sizeof(int));
     c.resting = hy_alloc(blocks, &nb, (h->ni + 1) * sizeof(int));
     c.bounced = hy_alloc(blocks, &nb, (h->ni + 1) * sizeof(int));
+    c.force_row = hy_alloc(blocks, &nb, (rmax + 1) * D);
+    int *opened = hy_alloc(blocks, &nb, (h->ni + 1) * sizeof(int));
     double *y = hy_alloc(blocks, &nb, dim * D);
     double *emax = hy_alloc(blocks, &nb, (ne + 1) * D);
     double *edir = hy_alloc(blocks, &nb, (ne + 1) * D);
@@ -709,7 +741,8 @@ int lg_hybrid_solve(lg_hybrid_t *h, const lg_options_t *options, lg_hybrid_resul
         goto done;
     }
     if (!options->t_eval && res->transitions.len       /* struck at the start: before, after */
-        && (lg_buf_push(&res->t, &t, 1) || lg_buf_push(&res->y, options->y0, dim))) {
+        && (lg_buf_push(&res->t, &t, 1) || lg_buf_push(&res->y, options->y0, dim)
+            || hy_forces_since(&c, opened, h->slip))) {
         rc = -1;
         goto done;
     }
@@ -724,6 +757,10 @@ int lg_hybrid_solve(lg_hybrid_t *h, const lg_options_t *options, lg_hybrid_resul
             goto done;
         }
         ++eval_i;
+    }
+    if (hy_forces_since(&c, h->contact, h->slip)) {
+        rc = -1;
+        goto done;
     }
     snprintf(res->message, sizeof res->message, "The solver successfully reached the end.");
     double interval = options->poll_interval > 0 ? options->poll_interval : 0.05;
@@ -826,6 +863,8 @@ int lg_hybrid_solve(lg_hybrid_t *h, const lg_options_t *options, lg_hybrid_resul
                 goto done;
             }
             lg_result_free(&seg);
+            if (hy_forces_since(&c, mode_c, mode_s))
+                rc = -1;
             break;
         }
         if (seg.status < 0) {
@@ -848,6 +887,11 @@ int lg_hybrid_solve(lg_hybrid_t *h, const lg_options_t *options, lg_hybrid_resul
             eval_i = first + (int)keep;
         } else if (rows > 1 && (lg_buf_push(&res->t, seg.t.data + 1, rows - 1)
                                 || lg_buf_push(&res->y, seg.y.data + dim, (rows - 1) * dim))) {
+            lg_result_free(&seg);
+            rc = -1;
+            goto done;
+        }
+        if (hy_forces_since(&c, mode_c, mode_s)) {
             lg_result_free(&seg);
             rc = -1;
             goto done;
@@ -898,7 +942,8 @@ int lg_hybrid_solve(lg_hybrid_t *h, const lg_options_t *options, lg_hybrid_resul
                      "(raise max_transitions, or check the model)", h->max_transitions, t);
             break;
         }
-        if (!options->t_eval && (lg_buf_push(&res->t, &t, 1) || lg_buf_push(&res->y, y, dim))) {
+        if (!options->t_eval && (lg_buf_push(&res->t, &t, 1) || lg_buf_push(&res->y, y, dim)
+                                 || hy_forces_since(&c, h->contact, h->slip))) {
             rc = -1;
             goto done;
         }

@@ -52,6 +52,10 @@ typedef struct {
     int failed_element;
     double failed_value, failed_other;
     lg_buf_t t, y;               /* output times and states */
+    lg_buf_t forces;             /* per output time, in the mode of that time: λ of the model's
+                                  * constraints (m), the contact forces (ni, 0 while open), the
+                                  * friction forces along the slip direction (nf: the sticking
+                                  * multiplier, or −μ·|N|·s while slipping); NaN if singular */
     lg_buf_t transitions;        /* (t, element, kind) triples */
 } lg_hybrid_result_t;
 
