@@ -179,7 +179,7 @@ STAGES = [
     ("running", ["progress", "results", "solvers", "scipy_engine", "native", "sensitivity",
                  "simulate", "constraints", "ensemble", "ensemble_store",
                  "hybrid"]),
-    ("analysis", ["vibration", "sweep", "bench", "fit"]),
+    ("analysis", ["linearization", "vibration", "stability", "sweep", "bench", "fit"]),
     ("face", ["model", "sympy_interop", "expressions", "cli", "__main__", ""]),
 ]
 #: The package's sources in this checkout (the installed package has no .pyx files).

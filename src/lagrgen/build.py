@@ -82,15 +82,17 @@ def build_c(name, digest, derive, out_dir, verbose=False, quiet=False, force=Fal
 
     try:
         with cache.writing(entry):
-            hit = not force and cache.lookup(entry.main)
+            hit = not force and cache.lookup(entry.main, digest)
             if not hit:
-                cache.store(entry.main, make)
-            module = cache.import_or_repair(entry.main, make, progress.note)
+                cache.store(entry.main, make, digest)
+            module = cache.import_or_repair(entry.main, make, progress.note, digest)
             cache.publish(entry, force)
     except cache.ReadOnlyCache:
-        if force or not (cache.lookup(entry.main) and cache.is_published(entry)):
+        if force or not (cache.lookup(entry.main, digest) and cache.is_published(entry)):
             raise
-        module, hit = cache.import_extension(name, entry.main.module_file), True
+        module = cache.check_content(cache.import_extension(name, entry.main.module_file),
+                                     digest, str(entry.main.module_file))
+        hit = True
     if hit:
         progress.note(f"cached build {entry.directory.name}")
     module.build_info = {"cache_hit": hit, "seconds": time.perf_counter() - start,
@@ -120,7 +122,8 @@ def model_info(spec, equations):
         explicit_time=bool(equations.explicit_time),
         content_hash=cache.content_digest(spec, lambda: equations), lagrgen_version=__version__,
         nonsmooth_definitions=[(e["name"], e["kind"], e["normal"])
-                               for e in _nonsmooth().describe(spec)])
+                               for e in _nonsmooth().describe(spec)],
+        initial_state=spec.initial_state)
 
 
 def _nonsmooth():

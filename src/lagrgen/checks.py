@@ -125,6 +125,15 @@ def check_expression(scope, expr, where, velocities=True, inputs=True, vector=Fa
             raise ModelError(f"{where}: function {f.func.__name__} is not supported (use {names})")
     if expr.has(sp.zoo, sp.oo, sp.nan, -sp.oo):
         raise ModelError(f"{where}: expression {expr} contains an infinity or NaN")
+    if expr.has(sp.I):
+        raise ModelError(f"{where}: expression {expr} is complex (it contains I): every quantity "
+                         "of a model is a real number")
+    for piecewise in expr.atoms(sp.Piecewise):
+        if piecewise.args[-1].cond is not sp.true:
+            raise ModelError(
+                f"{where}: {piecewise} has no branch for when no condition holds (it would be "
+                "NaN there); end it with an otherwise branch (value, True), e.g. "
+                "Piecewise((f, x > 0), (0, True))")
     for number in expr.atoms(sp.Number):
         if not fits_a_double(number):
             raise ModelError(

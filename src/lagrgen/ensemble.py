@@ -423,7 +423,7 @@ def batch_reason(mod, method, options):
     return None
 
 
-def simulate_many(mod, t_span, y0, params=None, inputs=None, t_eval=None, method="RK45",
+def simulate_many(mod, t_span, y0=None, params=None, inputs=None, t_eval=None, method="RK45",
                   rtol=1e-6, atol=1e-9, workers=None, client=None, progress=None, outputs=False,
                   store=None, **options):
     """Integrate many runs of `mod` that share `t_span` and `t_eval`.
@@ -431,7 +431,8 @@ def simulate_many(mod, t_span, y0, params=None, inputs=None, t_eval=None, method
     Parameters
     ----------
     mod : a built model (either backend)
-    y0 : one state (2n,) or a dict, or one per run: (runs, 2n) or a list
+    y0 : one state (2n,) or a dict, or one per run: (runs, 2n) or a list (None: the model's
+        `initial_state`)
     params : None, one vector or dict, an (runs, n_params) array, or a list of dicts/vectors
     inputs : None or one dict shared by all runs, a list of dicts (one per run), or an
         (runs, n_inputs) array of constant inputs
@@ -477,7 +478,8 @@ def simulate_many(mod, t_span, y0, params=None, inputs=None, t_eval=None, method
                             if k in options})
     if len(t_eval) == 0:
         raise ValueError("t_eval must hold at least one time")
-    Y0, P, run_inputs = ensemble_arguments(mod, y0, params, inputs)
+    Y0, P, run_inputs = ensemble_arguments(mod, mod.initial_state if y0 is None else y0,
+                                           params, inputs)
     runs = len(Y0)
     if runs == 0:
         raise ValueError("simulate_many needs at least one run")

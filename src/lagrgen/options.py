@@ -4,7 +4,7 @@ message per option, the same for every engine. Plain Python and NumPy, so that e
 use it; the FMU's C setters apply the same rules (codegen/templates/fmu_core.c.in).
 
 The rules: rtol in (0, 1); atol ≥ 0; max_step > 0 (inf: none); first_step > 0 and within the
-span; max_wall_time > 0 seconds; max_steps, max_transitions whole numbers from 1 to 2⁶³ − 1;
+span; max_wall_time > 0 seconds; max_steps, max_transitions whole numbers from 1 to 2³¹ − 1 (a C long everywhere);
 gap_tol, rest_velocity ≥ 0; t_eval finite, within t_span, in the direction of integration.
 Every number finite unless said otherwise (NaN never).
 """
@@ -13,8 +13,8 @@ import numbers
 
 import numpy as np
 
-#: The largest count a guard takes: the C engine holds it in a signed 64-bit integer.
-MAX_COUNT = 2 ** 63 - 1
+#: The largest count a guard takes: the C engine holds it in a long (32 bits on Windows).
+MAX_COUNT = 2 ** 31 - 1
 #: The options of a model with impacts or frictions (`lagrgen.hybrid`).
 SWITCHING_OPTIONS = ("rest_velocity", "gap_tol", "max_transitions")
 
@@ -75,10 +75,10 @@ def absolute_tolerance(atol, name="atol"):
 
 
 def count(value, name, none="no limit"):
-    """A guard's count (None: `none`): a whole number from 1 to 2⁶³ − 1, as an int."""
+    """A guard's count (None: `none`): a whole number from 1 to MAX_COUNT, as an int."""
     if value is None:
         return None
-    what = f"a positive integer no larger than 2**63 - 1 (None for {none})"
+    what = f"a positive integer up to {MAX_COUNT} (a C long; None for {none})"
     if isinstance(value, (bool, np.bool_)) or not isinstance(value, numbers.Real):
         raise ValueError(f"{name} must be {what}, got {_shown(value)}")
     if isinstance(value, numbers.Integral):

@@ -18,7 +18,7 @@ from .scipy_engine import solve_scipy
 ENGINES = (None, "native", "scipy")
 
 
-def simulate(mod, t_span, y0, method="RK45", params=None, inputs=None, rtol=1e-6, atol=1e-9,
+def simulate(mod, t_span, y0=None, method="RK45", params=None, inputs=None, rtol=1e-6, atol=1e-9,
              t_eval=None, dense_output=False, events=None, engine=None, max_steps=None,
              max_wall_time=None, progress=False, sensitivities=None, **options):
     """Integrate ẏ = mod.rhs(t, y) over `t_span` from `y0` = [q0, q̇0], natively in C or with
@@ -28,7 +28,8 @@ def simulate(mod, t_span, y0, method="RK45", params=None, inputs=None, rtol=1e-6
     ----------
     mod : a built model (either backend)
     t_span : (t0, t1)
-    y0 : array of 2n numbers, or a dict of coordinate and `<coordinate>_dot` names (missing: 0)
+    y0 : array of 2n numbers, or a dict of coordinate and `<coordinate>_dot` names (missing: 0);
+        None: the model's `initial_state` (declared with `model.initial_state`, else zeros)
     method : one of METHODS or a solver class; the stiff ones get the analytic `mod.jacobian`
         (Radau and BDF run as `lagrgen.solvers` classes: SciPy's, with direct LAPACK LU)
     params : dict of parameter names (or the model's Symbols) -> value, or a full array
@@ -79,7 +80,7 @@ def simulate(mod, t_span, y0, method="RK45", params=None, inputs=None, rtol=1e-6
     rtol, atol, t_eval, max_steps, max_wall_time, options = checked_options(
         rtol, atol, t_span, t_eval, max_steps, max_wall_time, options)
     refuse_switching_options(mod, options)
-    y0 = state_vector(y0, tuple(mod.coordinates))
+    y0 = state_vector(mod.initial_state if y0 is None else y0, tuple(mod.coordinates))
     p = parameters_from(mod, params)
     u_at = input_function(mod, inputs)
     if sensitivities is not None:

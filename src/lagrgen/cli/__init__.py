@@ -22,6 +22,7 @@ COMMANDS = (
     "export_fmu",
     "show",
     "modes",
+    "stability",
     "simulate",
     "bench",
     "sweep",

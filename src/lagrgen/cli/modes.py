@@ -69,7 +69,8 @@ def run(args):
 
 
 def modes_table(model, q0, result):
-    """The equilibrium, then one row per mode: ω (rad/s), f (Hz), ζ; then the mode shapes."""
+    """The operating point, then one row per mode: ω (rad/s), f (Hz), ζ; whether it is stable;
+    then the mode shapes."""
     names = model.coordinate_names
     units = model.units
 
@@ -82,11 +83,18 @@ def modes_table(model, q0, result):
         if np.isfinite(w):
             lines.append(f"{i + 1:>4}  {w:>14.6g}  {w / (2 * np.pi):>12.6g}  {zeta:>13.6g}")
         else:
-            lam = np.real(result.eigenvalues[i])
+            lam = np.real(result.omega_squared[i])
             lines.append(f"{i + 1:>4}  {'unstable':>14}  {'':>12}  {'':>13}  (omega^2 = {lam:.6g})")
+    lines.append("stable" if result.stable else
+                 f"unstable: an eigenvalue has real part {result.eigenvalues.real.max():.6g} > 0")
     rows = [column(c, units) for c in names]
     width = max(len(r) for r in rows)
-    lines.append("mode shapes (mass-normalized, one column per mode):")
+    complex_shapes = np.iscomplexobj(result.shapes)
+    lines.append("mode shapes (" + ("largest entry 1, magnitude@phase in degrees"
+                                    if complex_shapes else "mass-normalized")
+                 + ", one column per mode):")
     for j, r in enumerate(rows):
-        lines.append(f"{r:>{width}}  " + "  ".join(f"{np.real(v):>10.5g}" for v in result.shapes[j]))
+        cells = [f"{abs(v):>7.4g}@{np.degrees(np.angle(v)):>5.0f}" if complex_shapes
+                 else f"{np.real(v):>10.5g}" for v in result.shapes[j]]
+        lines.append(f"{r:>{width}}  " + "  ".join(cells))
     return "\n".join(lines)

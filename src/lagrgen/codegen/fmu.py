@@ -23,7 +23,7 @@ from ..options import absolute_tolerance, relative_tolerance
 from ..toolchain import compiler_command, run_compiler, write_atomic
 from .c_model import TEMPLATES, read_template, standalone_files, substitutions
 from .fmi2 import (fmu_guid, model_description, number_text, numbers_text,
-                   parameter_start_values, source_file_names)
+                   parameter_start_values, source_file_names, state_start_values)
 from .fmi3 import build_description, model_description_fmi3
 
 FMI_HEADERS = {2: TEMPLATES / "fmi2", 3: TEMPLATES / "fmi3"}
@@ -79,6 +79,7 @@ def fmu_core(info, guid, start_values, solver):
     method, rtol, atol = solver
     return Template(read_template("fmu_core.c.in")).substitute(
         substitutions(info), guid=guid, start_parameters=numbers_text(start_values),
+        start_states=numbers_text(state_start_values(info)),
         n_events_or_1=max(len(events), 1), n_outputs_or_1=max(len(info.output_names), 1),
         event_terminal=numbers_text(terminal for _, terminal, _ in events),
         event_direction=numbers_text(direction for _, _, direction in events),

@@ -322,6 +322,7 @@ def c_function(name, params, args, statements, comment, max_statements=400, prol
         lines += [f"    w[{slot[s.name]}] = {s.name};" for s in chunk
                   if isinstance(s, Declare) and s.name in slot]
         text = (f"LG_FN {linkage} void {name}_part{k}({params}, double *w)\n{{\n{prologue}"
+                "    (void)w;\n"
                 + "\n".join(lines) + "\n}\n")
         if tu_of_part:
             text = f"#if LG_IN_TU({tu_of_part(k)})\n{text}#endif\n"

@@ -109,13 +109,16 @@ def native_events(mod):
 
 def raise_native_failure(mod, sol, p, u_at):
     """Raise, for a native solve, the error the SciPy engine raises at the same point: the
-    model's own error at the state where it failed, or NonFiniteError."""
+    model's own error at the state where it failed, or NonFiniteError. The state is the model's
+    own (2n) part of an augmented one (sensitivities)."""
+    dim = 2 * mod.n_coordinates
     if sol.mass_matrix_failure is not None:
         t, y = sol.mass_matrix_failure
-        mod.rhs(t, y, p, u_at(t))
+        mod.rhs(t, y[:dim], p, u_at(t))
         raise MassMatrixError.at(mod.name, t, y[:mod.n_coordinates])
     if sol.nonfinite_failure is not None:
-        raise NonFiniteError.at(mod.name, *sol.nonfinite_failure)
+        t, y = sol.nonfinite_failure
+        raise NonFiniteError.at(mod.name, t, y[:dim])
 
 
 def _tolerances(rtol, atol, dim):

@@ -24,6 +24,7 @@ class BuiltModel(Protocol):
     parameters: Tuple[str, ...]
     inputs: Tuple[str, ...]
     defaults: np.ndarray          # float64, read-only, NaN where a value must be given at run time
+    initial_state: np.ndarray     # float64 (2n,), read-only: the declared [q0, q̇0], or zeros
     units: Dict[str, str]         # name -> unit label, for the names that have one
     output_names: Tuple[str, ...]  # the user's outputs, then the three energies
     constraint_names: Tuple[str, ...]  # one per multiplier λ: holonomic, then velocity constraints
@@ -67,6 +68,9 @@ class BuiltModel(Protocol):
 
     def constraint_residuals(self, t, y, p=None, u=None) -> np.ndarray:
         """Φ, then A·q̇ + b, (n_residuals,)."""
+
+    def constraint_residual_jacobian(self, t, y, p=None, u=None) -> np.ndarray:
+        """∂[Φ; A·q̇ + b]/∂[q, q̇], (n_residuals, 2n)."""
 
     def constraint_terms(self, q, qd, t=0.0, p=None, u=None) -> tuple:
         """(A, λ, ∂(Aᵀλ)/∂q) at one point."""

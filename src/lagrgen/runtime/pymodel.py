@@ -9,9 +9,10 @@ import math
 
 import numpy as np
 
-from ..errors import ConstraintError, MassMatrixError
+from ..errors import ConstraintError, MassMatrixError, NonFiniteError
 from ..functions import FUNCTIONS
-from .arguments import as_vector, defaults_array, input_vector, parameter_vector
+from .arguments import (as_vector, defaults_array, initial_state_array, input_vector,
+                        parameter_vector)
 from .describe import describe
 from .info import INFO_ATTRIBUTES
 
@@ -51,6 +52,7 @@ class PythonModel:
         for name in INFO_ATTRIBUTES:
             setattr(self, name, getattr(info, name))
         self.defaults = defaults_array(info.defaults)
+        self.initial_state = initial_state_array(info)
         self.build_info = {}
         self.source = source
         code = compile(source, f"<lagrgen python backend: {self.name}>", "exec")
@@ -78,9 +80,11 @@ class PythonModel:
         """Cholesky factor of the n×n matrix M, or MassMatrixError naming the state: also when M
         is not finite, or a pivot is below PIVOT_TOL times its diagonal entry (numerically
         singular, e.g. a 3-D body at gimbal lock), as in C."""
+        if not np.isfinite(M).all():
+            if np.isfinite(q).all() and np.isfinite(t):
+                raise NonFiniteError.in_mass_matrix(self.name, t, q)
+            raise MassMatrixError.at(self.name, t, q)
         try:
-            if not np.isfinite(M).all():
-                raise np.linalg.LinAlgError
             L = np.linalg.cholesky(M)
         except np.linalg.LinAlgError:
             raise MassMatrixError.at(self.name, t, q) from None
@@ -207,6 +211,13 @@ class PythonModel:
         if not self.n_constraints:
             return np.zeros(0)
         return self._kernel("constraint_residuals", t, q, qd, None, p, u)[0]
+
+    def _constraint_residual_jacobian(self, t, q, qd, p, u):
+        n_res = self.dimensions["n_residuals"]
+        if not self.n_constraints:
+            return np.zeros((0, 2 * self.n_coordinates))
+        return self._kernel("constraint_residual_jacobian", t, q, qd, None, p, u)[0].reshape(
+            n_res, 2 * self.n_coordinates)
 
     def _constraint_terms(self, t, q, qd, p, u):
         n, m = self.n_coordinates, self.n_constraints
