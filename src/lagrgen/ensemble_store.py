@@ -404,11 +404,15 @@ def marked(ds, health, chunk, path):
                if reason != "not written"}
     if damaged:
         out.attrs["damaged"] = damaged
-        listing = "; ".join(f"runs {int(first)}–{min(int(first) + chunk, runs) - 1}: {why}"
+        listing = "; ".join(f"{_runs(int(first), min(int(first) + chunk, runs) - 1)}: {why}"
                             for first, why in damaged.items())
         warnings.warn(f"ensemble store {path}: {listing}. These runs read as failed "
                       "(success False, status -3, states NaN).", StoreWarning, stacklevel=3)
     return out
+
+
+def _runs(first, last):
+    return f"run {first}" if first == last else f"runs {first}–{last}"
 
 
 def _without(data, bad, chunk):

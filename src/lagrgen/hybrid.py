@@ -27,6 +27,15 @@ limit (μ_s·|N| − |λ| ↓ 0). Then:
 * Tolerances. A gap counts as closed within `gap_tol` (default 1e-9); a slip velocity counts as
   zero within 1000·gap_tol (at the start, and for frictions stopping together with the one whose
   event fired).
+* The start is classified as any switch: a closed gap closing faster than 1000·gap_tol is struck
+  at t0, one at rest is held, one opening is free; a gap below −gap_tol, a restitution outside
+  [0, 1], μ < 0 or μ_s < μ (at the start and at every switch) and two closed impacts with
+  parallel gradients (duplicate contacts) are `ContactError`s. A solve whose segments stop
+  advancing (STALL_SEGMENTS in a row shorter than ten spacings of doubles at the far end of the
+  span) ends with a message saying so; max_steps and max_wall_time hold between segments too.
+* Forces. Every saved state carries the forces of its mode (`HybridSystem.forces`): the model's
+  constraint multipliers, each impact's contact force, each friction's force along its slip
+  velocity.
 
 `HybridSystem` holds that logic; `simulate_hybrid` runs it with `solve_ivp` (engine "scipy") or in
 C (`lagrgen.native._ode.solve_hybrid`, `native/lg_hybrid.c`, the same rules).
