@@ -65,7 +65,7 @@ def simulate(mod, t_span, y0=None, method="RK45", params=None, inputs=None, rtol
     len(t)), `constraint_names` and `multipliers` ({name: λ row}, the reaction asked for by
     the constraint's name). A model with impacts or frictions also has `contact_names` and
     `contact_forces` (each impact's contact force, 0 while open, then each friction's force along
-    its slip velocity: the sticking force, or −μ·|N|·sign(v) while slipping), which
+    its slip velocity: the sticking force, or −μ·N·sign(v) while slipping), which
     `multipliers` holds by name too. Its initial state should satisfy the constraints (see
     `lagrgen.consistent_state`; Baumgarte stabilization pulls a small violation back).
 
