@@ -361,3 +361,16 @@ def test_whipple_bicycle_benchmark(tmp_path):
     assert abs(values[0] - 4.29238253634111) < 1e-9
     assert abs(values[1] - 6.02426201538837) < 1e-9
     assert [k for _, _, k in sweep.crossings()] == ["unstable->stable"] * 2 + ["stable->unstable"]
+
+
+def test_fit_modes_of_a_holonomic_model():
+    """Modal updating of a constrained model: the eigenvalue sensitivities in the independent
+    coordinate, the equilibrium followed as the rod length changes."""
+    mod = lagrgen.build(load_example("cartesian_pendulum").model, backend="python")
+    q0 = lagrgen.equilibrium(mod, [0.1, -0.9])
+    update = lagrgen.fit_modes(mod, q0, [0.6], params=["L"])
+    assert update.success
+    assert update.params["L"] == pytest.approx(9.81 / (2 * np.pi * 0.6) ** 2, rel=1e-7)
+    sleigh = lagrgen.build(load_example("chaplygin_sleigh").model, backend="python")
+    with pytest.raises(lagrgen.LagrgenError, match="second-order form"):
+        lagrgen.fit_modes(sleigh, [0, 0, 0], [0.5], params=["I"])

@@ -20,7 +20,7 @@ from .errors import LagrgenError
 from .runtime.arguments import parameters_from, state_vector, unknown_name
 from .sensitivity import sensitivity_columns
 from .simulate import simulate
-from .vibration import linearize, modes
+from .vibration import equilibrium, linearize, modes
 
 
 #: Singular values of the column-normalized Jacobian below UNSEEN_FACTOR times the Jacobian's own
@@ -397,9 +397,26 @@ def fit_modes(mod, q0, measured_hz, params, initial=None, bounds=None, shapes=No
         out = base.copy()
         out[index] = theta
         return out
+    dependent = None
+    if mod.n_constraints:
+        first = linearize(mod, equilibrium(mod, q0, p=with_theta(theta0)), p=with_theta(theta0))
+        dependent = [name for name in first.model_coordinates
+                     + tuple(f"{c}_dot" for c in first.model_coordinates)
+                     if name not in first.states]
+
+    def linearized(p_vector):
+        """The linearization at these parameters, about q0 (a constrained model: about its
+        equilibrium near q0, which moves with them), in the same independent coordinates."""
+        q = equilibrium(mod, q0, p=p_vector) if mod.n_constraints else q0
+        return linearize(mod, q, p=p_vector, dependent=dependent)
 
     def eigen(theta):
-        res = modes(linearize(mod, q0, p=with_theta(theta)))
+        res = modes(linearized(with_theta(theta)))
+        if res.kind != "classical":
+            raise LagrgenError(
+                f"fit_modes needs the classical modes of a second-order form with symmetric C; "
+                f"the linearization of model {mod.name!r} here has none (velocity constraints "
+                "or gyroscopic terms): fit its eigenvalues with lagrgen.fit on responses instead")
         order = _pairing(res.shapes, shapes, target.size)
         return res, order
 
@@ -416,10 +433,10 @@ def fit_modes(mod, q0, measured_hz, params, initial=None, bounds=None, shapes=No
             plus, minus = with_theta(theta), with_theta(theta)
             plus[j] += step
             minus[j] -= step
-            up, down = linearize(mod, q0, p=plus), linearize(mod, q0, p=minus)
+            up, down = linearized(plus), linearized(minus)
             dK, dM = (up.K - down.K) / (2 * step), (up.M - down.M) / (2 * step)
             for r, mode in enumerate(order):
-                phi = res.shapes[:, mode]
+                phi = res.independent_shapes[:, mode]
                 dlam = phi @ (dK - lam[mode] * dM) @ phi
                 J[r, c] = dlam / (4 * np.pi * res.omega[mode]) / target[r]
         return J

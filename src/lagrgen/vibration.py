@@ -56,6 +56,7 @@ class Modes:
     model: object = field(repr=False, default=None)   # the built model analysed (None: from a lin)
     omega_squared: np.ndarray = None
     kind: str = "classical"
+    independent_shapes: np.ndarray = field(repr=False, default=None)  # classical: in lin.coordinates
 
     @property
     def frequencies_hz(self):
@@ -351,7 +352,7 @@ def classical_modes(lin, model=None):
     zeta, omega_d = damping(lin.M, lin.C, lin.K, shapes, np.nan_to_num(omega))
     return Modes(omega=omega, shapes=lin.to_coordinates(shapes), damping_ratios=zeta,
                  omega_damped=omega_d, eigenvalues=lin.eigenvalues, linearization=lin,
-                 model=model, omega_squared=lam, kind="classical")
+                 model=model, omega_squared=lam, kind="classical", independent_shapes=shapes)
 
 
 def state_modes(lin, model=None):
