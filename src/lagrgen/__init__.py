@@ -8,8 +8,9 @@ import sys
 import types
 
 from ._version import __version__
-from .errors import (BuildError, CompileError, ConstraintError, LagrgenError, MassMatrixError,
-                     ModelError, NonFiniteError, UnknownNameError)
+from .errors import (BuildError, CompileError, ConstraintError, ContactError, LagrgenError,
+                     MassMatrixError, ModelError, NonFiniteError, StoreError, StoreWarning,
+                     UnknownNameError)
 
 #: Public name -> the module that defines it.
 _LAZY = {
@@ -37,7 +38,8 @@ __all__ = ["Model", "build", "load", "simulate", "evaluate_outputs", "output_eve
            "frequency_response", "FrozenTimeWarning", "FitWarning", "consistent_state",
            "from_sympy", "export_fmu", "rotation", "Collocation", "CollocationResult",
            "LagrgenError", "ConstraintError", "ModelError", "UnknownNameError", "MassMatrixError",
-           "BuildError", "CompileError", "NonFiniteError", "__version__"]
+           "BuildError", "CompileError", "NonFiniteError", "ContactError", "StoreError", "StoreWarning",
+           "__version__"]
 
 
 class _Package(types.ModuleType):

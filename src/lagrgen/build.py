@@ -108,10 +108,13 @@ def derived(spec):
 
 
 def model_info(spec, equations):
-    """The `ModelInfo` of a built model: names, defaults, units, sizes, flags, hash, version."""
+    """The `ModelInfo` of a built model: names, defaults, units (the energies' read from the
+    labels, `lagrgen.dimensions`), sizes, flags, hash, version."""
+    from .dimensions import energy_units
     return ModelInfo(
         name=spec.name, coordinates=spec.coordinate_names, parameters=spec.parameter_names,
-        inputs=spec.input_names, defaults=spec.defaults, units=dict(spec.units),
+        inputs=spec.input_names, defaults=spec.defaults,
+        units={**energy_units(equations), **dict(spec.units)},
         output_names=spec.output_names, constraint_names=spec.constraint_names,
         n_holonomic=equations.n_holonomic,
         event_definitions=[(name, terminal, direction)
