@@ -84,5 +84,8 @@ def test_steps_no_engine_can_take_are_fmi_errors_that_say_why(fuzzed, version):
     assert summary["steps"] == {"nan_point": True, "huge_step": True, "nan_step": True}
     log = run.stdout
     assert f"fmi{version}DoStep: the communication point must be finite, got nan" in log
-    assert "to 1.0000000000000001e+300 took more than 1000000 steps" in log
+    # stopped by the engine's step cap, or earlier by its stall test (steps that can never
+    # reach t = 1e300: native/lg_ode.h, LG_STALL_STEPS)
+    assert "to 1.0000000000000001e+300 took more than 1000000 steps" in log or \
+        "the step size collapsed" in log and "it cannot reach t = 1e+300" in log
     assert "the communication step size must be finite and positive, got nan" in log

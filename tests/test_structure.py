@@ -168,9 +168,10 @@ def test_split_standalone_file_is_one_plain_c_unit(split_model, tmp_path):
 #: its own stage or an earlier one, never a later one. An entry names a module or a whole package.
 STAGES = [
     ("base", ["_version", "errors", "numbers", "names", "caching", "functions", "methods",
-              "signals", "toolchain"]),
+              "options", "signals", "toolchain"]),
     ("description", ["rotation", "bodies3d", "records", "checks", "description"]),
-    ("derivation", ["calculus", "terms", "contributions", "lagrange", "nonsmooth", "tree"]),
+    ("derivation", ["calculus", "terms", "contributions", "lagrange", "nonsmooth", "tree",
+                    "dimensions"]),
     ("kernels", ["kernels"]),
     ("code", ["codegen"]),
     ("runtime", ["runtime"]),
@@ -179,7 +180,8 @@ STAGES = [
     ("running", ["progress", "results", "solvers", "scipy_engine", "native", "sensitivity",
                  "simulate", "constraints", "ensemble", "ensemble_store",
                  "hybrid"]),
-    ("analysis", ["linearization", "vibration", "stability", "sweep", "bench", "fit"]),
+    ("analysis", ["linearization", "vibration", "stability", "sweep", "bench", "fit",
+                  "collocation"]),
     ("face", ["model", "sympy_interop", "expressions", "cli", "__main__", ""]),
 ]
 #: The package's sources in this checkout (the installed package has no .pyx files).

@@ -8,8 +8,9 @@ import sys
 import types
 
 from ._version import __version__
-from .errors import (BuildError, CompileError, ConstraintError, LagrgenError, MassMatrixError,
-                     ModelError, NonFiniteError, UnknownNameError)
+from .errors import (BuildError, CompileError, ConstraintError, ContactError, LagrgenError,
+                     MassMatrixError, ModelError, NonFiniteError, StoreError, StoreWarning,
+                     UnknownNameError)
 
 #: Public name -> the module that defines it.
 _LAZY = {
@@ -27,6 +28,7 @@ _LAZY = {
     "consistent_state": "constraints",
     "from_sympy": "sympy_interop",
     "export_fmu": "build",
+    "Collocation": "collocation", "CollocationResult": "collocation",
     "rotation": None,
 }
 
@@ -34,9 +36,10 @@ __all__ = ["Model", "build", "load", "simulate", "evaluate_outputs", "output_eve
            "simulate_many", "EnsembleResult", "open_ensemble", "sweep", "equilibrium", "linearize",
            "modes", "eigenvalue_sweep",
            "frequency_response", "FrozenTimeWarning", "FitWarning", "consistent_state",
-           "from_sympy", "export_fmu", "rotation",
+           "from_sympy", "export_fmu", "rotation", "Collocation", "CollocationResult",
            "LagrgenError", "ConstraintError", "ModelError", "UnknownNameError", "MassMatrixError",
-           "BuildError", "CompileError", "NonFiniteError", "__version__"]
+           "BuildError", "CompileError", "NonFiniteError", "ContactError", "StoreError", "StoreWarning",
+           "__version__"]
 
 
 class _Package(types.ModuleType):

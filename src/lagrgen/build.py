@@ -128,8 +128,10 @@ def content_digest(spec, formulation, equations):
 
 
 def model_info(spec, equations, formulation=None):
-    """The `ModelInfo` of a built model: names, defaults, units, sizes, flags, hash, version, and
-    the formulation `formulation` resolves to (`lagrgen.tree.choose`)."""
+    """The `ModelInfo` of a built model: names, defaults, units (the energies' read from the
+    labels, `lagrgen.dimensions`), sizes, flags, hash, version, and the formulation `formulation`
+    resolves to (`lagrgen.tree.choose`)."""
+    from .dimensions import energy_units
     from .tree import analysed, choose, explicit_time
     asked, formulation = formulation, choose(equations, formulation)
     if formulation == "recursive":
@@ -138,7 +140,8 @@ def model_info(spec, equations, formulation=None):
         time_dependent = equations.explicit_time
     return ModelInfo(
         name=spec.name, coordinates=spec.coordinate_names, parameters=spec.parameter_names,
-        inputs=spec.input_names, defaults=spec.defaults, units=dict(spec.units),
+        inputs=spec.input_names, defaults=spec.defaults,
+        units={**energy_units(equations), **dict(spec.units)},
         output_names=spec.output_names, constraint_names=spec.constraint_names,
         n_holonomic=equations.n_holonomic,
         event_definitions=[(name, terminal, direction)

@@ -10,8 +10,9 @@ import math
 import sympy as sp
 
 from .caching import once_per
-from .checks import (as_vector, check_affine_in_velocities, check_coefficient, check_expression,
-                     check_restitution, check_unit, split_names, split_units)
+from .checks import (as_vector, check_affine_in_velocities, check_coefficient,
+                     check_distinct_gap, check_expression, check_restitution,
+                     check_static_coefficient, check_unit, split_names, split_units)
 from .errors import ModelError
 from .names import check_model_name, check_name
 from .numbers import is_zero
@@ -518,6 +519,8 @@ class Description:
             raise ModelError(f"{where}: restitution must not depend on the coordinates")
         if not any(gap.has(c) for c in self._coordinates):
             raise ModelError(f"{where}: the gap {gap} involves no coordinate")
+        check_distinct_gap(name, gap, [r for r in self._nonsmooth if isinstance(r, Impact)],
+                           self._coordinates, self.t)
         self._declare(name, "impact")
         self._nonsmooth.append(Impact(name, gap, e))
         self._changed()
@@ -540,9 +543,9 @@ class Description:
             normal = self._check(normal_force, where + " normal_force")
         mu = check_coefficient(self._check(mu, where + " mu", velocities=False, inputs=False),
                                where, "mu")
-        mu_s = mu if mu_static is None else check_coefficient(
+        mu_s = mu if mu_static is None else check_static_coefficient(mu, check_coefficient(
             self._check(mu_static, where + " mu_static", velocities=False, inputs=False), where,
-            "mu_static")
+            "mu_static"), where)
         self._declare(name, "friction")
         self._nonsmooth.append(Friction(name, v, normal, mu, mu_s))
         self._changed()

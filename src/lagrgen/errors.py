@@ -48,6 +48,21 @@ class ConstraintError(LagrgenError, np.linalg.LinAlgError):
                    f"(A·M⁻¹·Aᵀ is singular): {hint}")
 
 
+class ContactError(LagrgenError, ValueError):
+    """An impact or friction cannot be run as given: a start inside a contact surface, a
+    restitution outside [0, 1] or a friction coefficient out of range at a run's values, two
+    contacts on one surface."""
+
+
+class StoreError(LagrgenError, ValueError):
+    """An ensemble store cannot be read: its metadata or chunk records are damaged."""
+
+
+class StoreWarning(UserWarning):
+    """Some runs of an ensemble store are damaged (missing or corrupt chunks): they read as
+    failed."""
+
+
 class BuildError(LagrgenError, RuntimeError):
     """Generating, compiling or loading a compiled model failed."""
 

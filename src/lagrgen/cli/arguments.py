@@ -63,6 +63,33 @@ def add_run_options(parser):
                         "separate items with ';' or ','")
 
 
+# -- numeric options ---------------------------------------------------------------------------
+#: The run options a command may take (its attribute, its flag, the rule of lagrgen.options).
+NUMERIC_OPTIONS = (("rtol", "--rtol", "relative_tolerance"),
+                   ("atol", "--atol", "absolute_tolerance"),
+                   ("max_step", "--max-step", "max_step"),
+                   ("max_steps", "--max-steps", "count"),
+                   ("max_time", "--max-time", "seconds"))
+
+
+def check_numeric_options(args):
+    """LagrgenError naming the flag when a numeric run option is out of its range: the rules of
+    `lagrgen.options`, which `simulate`, ensembles and the FMU's settings apply too."""
+    from .. import options
+    for attribute, flag, rule in NUMERIC_OPTIONS:
+        value = getattr(args, attribute, None)
+        if value is None:
+            continue
+        try:
+            if rule == "max_step":
+                options.max_step(value)
+            else:
+                getattr(options, rule)(value, flag)
+        except ValueError as exc:
+            text = str(exc)
+            raise LagrgenError(text if text.startswith(flag) else f"{flag}: {text}") from None
+
+
 # -- model files -------------------------------------------------------------------------------
 def models_in(path, names=None):
     """The Model objects defined at top level of the model file `path` (optionally by name)."""

@@ -143,7 +143,7 @@ def write_outputs(args, model, sol, params, mod=None, plot_outputs=()):
     from ..simulate import evaluate_outputs
     written = []
     names = model.coordinate_names
-    units = model.units
+    units = model.units if mod is None else mod.units      # the built model's: energies too
     outputs = evaluate_outputs(mod, sol) if mod is not None and len(sol.t) else None
     if args.csv == "-":
         write_csv(sys.stdout, sol, names, outputs, units)

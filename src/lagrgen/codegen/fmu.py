@@ -9,7 +9,6 @@ communication step is one solve of the native engine (a C port of SciPy's solve_
 inputs held, its method and tolerances the parameters solver.method, solver.rtol, solver.atol.
 """
 import io
-import math
 import platform
 import shutil
 import sys
@@ -20,6 +19,7 @@ from string import Template
 
 from ..errors import BuildError, ModelError
 from ..methods import NATIVE_CODES, NATIVE_METHODS
+from ..options import absolute_tolerance, relative_tolerance
 from ..toolchain import compiler_command, run_compiler, write_atomic
 from .c_model import TEMPLATES, read_template, standalone_files, substitutions
 from .fmi2 import (fmu_guid, model_description, number_text, numbers_text,
@@ -66,16 +66,11 @@ def check_kind(kind, fmi_version):
 
 def solver_start_values(method, rtol, atol):
     """(method index, rtol, atol) of a co-simulation FMU's solver parameters; ValueError for an
-    unknown method or a tolerance that is not positive (rtol) or not >= 0 (atol)."""
+    unknown method or a tolerance out of range (`lagrgen.options`: rtol in (0, 1), atol ≥ 0)."""
     if method not in NATIVE_METHODS:
         raise ValueError(f"method {method!r} has no native implementation: use one of "
                          f"{', '.join(NATIVE_METHODS)}")
-    rtol, atol = float(rtol), float(atol)
-    if not (math.isfinite(rtol) and rtol > 0):
-        raise ValueError(f"rtol must be positive, got {rtol}")
-    if not (math.isfinite(atol) and atol >= 0):
-        raise ValueError(f"atol must be zero or positive, got {atol}")
-    return NATIVE_CODES[method], rtol, atol
+    return NATIVE_CODES[method], relative_tolerance(rtol), absolute_tolerance(atol)
 
 
 def fmu_core(info, guid, start_values, solver):
