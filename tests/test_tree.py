@@ -167,6 +167,54 @@ def test_what_is_not_a_tree_keeps_the_dense_formulation(make, reason):
     assert lagrgen.build(model, backend="python").formulation == "dense"
 
 
+def perturbed_tree(seed):
+    """A random chain or tree in which some offsets also depend on another coordinate, some
+    planar bodies turn with a sum of coordinates, and one body may ride on a point driven by t:
+    a tree or not, by chance (see test_detection_never_gives_a_wrong_number)."""
+    rng = np.random.default_rng(seed)
+    n = int(rng.integers(3, 6))
+    model = lagrgen.Model(f"perturbed{seed}")
+    q = model.coordinates([f"q{i}" for i in range(n)])
+    m, g = model.parameters(m=1.3, g=9.81)
+    points = [sp.zeros(2, 1)]
+    for i in range(n):
+        parent = points[int(rng.integers(0, len(points)))]
+        kind, j = int(rng.integers(0, 5)), int(rng.integers(0, n))
+        offset = [sp.Matrix([sp.sin(q[i]), -sp.cos(q[i])]), sp.Matrix([q[i], q[i] / 2]),
+                  sp.Matrix([sp.sin(q[i] + q[j] / 3), -sp.cos(q[i])]),
+                  sp.Matrix([q[i] * (1 + q[j] ** 2 / 5), sp.cos(q[i])]),
+                  sp.Matrix([sp.cos(q[i]) ** 2, sp.sin(q[i]) * sp.cos(q[i])])][kind]
+        r = parent + offset
+        model.particle(m * (1 + sp.Rational(i, 3)), r)
+        model.potential_energy(m * g * r[1])
+        if rng.uniform() < 0.3:
+            model.rigid_body(m / 3, m / 7, parent + offset / 2,
+                             q[i] if rng.uniform() < 0.7 else q[i] + q[0])
+        points.append(r)
+    for i in range(n):
+        model.particle(m / 5, sp.Matrix([q[i]]))
+    if rng.uniform() < 0.3:
+        model.particle(m, points[-1] + sp.Matrix([sp.sin(2 * t), 0]))
+    return model
+
+
+def test_detection_never_gives_a_wrong_number():
+    """Whatever the detection accepts as a tree computes what the dense formulation does."""
+    accepted = 0
+    for seed in range(40):
+        model = perturbed_tree(seed)
+        if analysed(derived(model.spec()))[0] is None:
+            continue
+        accepted += 1
+        dense = lagrgen.build(model, backend="python", formulation="dense")
+        recursive = lagrgen.build(model, backend="python", formulation="recursive")
+        rng = np.random.default_rng(seed)
+        point = random_state(dense, rng)
+        for a, b in zip(functions_at(recursive, point), functions_at(dense, point)):
+            assert_allclose(a, b, rtol=1e-10, atol=1e-10 * max(1.0, np.abs(b).max(initial=0)))
+    assert accepted >= 4
+
+
 def test_the_formulation_is_chosen_by_size_and_can_be_forced():
     nlink = load_example("nlink_pendulum")
     assert lagrgen.build(nlink.make(3), backend="python").formulation == "dense"
