@@ -319,7 +319,10 @@ def derive(spec):
     collected = collect(spec, symbols)
     convert = collected.convert
     events = [convert(g) for _, g, _, _ in spec.events]
-    return Equations(spec, collected, symbols, _constraints(spec, convert, q, qd, t), events)
+    equations = Equations(spec, collected, symbols, _constraints(spec, convert, q, qd, t), events)
+    if spec.external is not None:
+        _ = equations.M   # M and F given from outside are checked (symmetric) as they are read
+    return equations
 
 
 def dense_equations(spec, collected):
