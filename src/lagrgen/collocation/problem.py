@@ -324,7 +324,7 @@ class Collocation:
         CollocationResult
         """
         from .guess import initial_guess
-        from .nlp import solve_nlp
+        from .solver import solve_nlp
         if hessian not in ("exact", "quasi-newton"):
             raise LagrgenError(f"hessian must be 'exact' or 'quasi-newton', got {hessian!r}")
         if self._integrand is None and not self._minimize_time and not self._tracks:
