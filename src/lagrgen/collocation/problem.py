@@ -317,7 +317,9 @@ class Collocation:
             IPOPT's limited-memory quasi-Newton approximation.
         tol, max_iter : IPOPT's convergence tolerance and iteration limit
         progress : print one line per iteration (throttled) and a summary
-        options : dict of further IPOPT options (name -> value)
+        options : dict of further IPOPT options (name -> value), replacing lagrgen's defaults
+            (`lagrgen.collocation.solver`: with the exact Hessian mu_strategy="adaptive",
+            mu_oracle="loqo", min_refinement_steps=0)
 
         Returns
         -------
