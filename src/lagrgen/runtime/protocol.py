@@ -31,6 +31,7 @@ class BuiltModel(Protocol):
     event_definitions: Tuple[Tuple[str, int, int], ...]  # (name, terminal, direction)
     nonsmooth_definitions: Tuple[tuple, ...]  # (name, "impact" | "friction", normal), §13
     explicit_time: bool           # M or F depends on t explicitly
+    formulation: str              # "dense" (Cholesky of M) or "recursive" (over the kinematic tree)
     content_hash: str             # of the derived equations and lagrgen's generator
     lagrgen_version: str
     n_coordinates: int
