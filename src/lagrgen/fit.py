@@ -443,7 +443,7 @@ def fit_modes(mod, q0, measured_hz, params, initial=None, bounds=None, shapes=No
 
     result = least_squares(residuals, theta0, jac=jacobian, bounds=(low, high), x_scale="jac")
     res, order = eigen(result.x)
-    rank, directions = unseen_directions(jacobian(result.x), names, h)[:2]
+    rank, directions = unseen_directions(result.jac, names, h)[:2]
     if directions:
         _warn_unseen(directions, rank, len(names), "their estimates are one point of a family "
                      "that matches the frequencies as well")
