@@ -181,14 +181,14 @@ def _warn_unseen(directions, rank, k, consequence="their standard errors are rep
 def on_bounds(x, low, high, names, stacklevel=3):
     """The names whose estimate is on a finite bound, with a FitWarning naming them."""
     tol = 1e-10 * np.maximum(1.0, np.abs(x))
-    hit = [f"{n} = {v:.6g} ({'lower' if v - lo <= tl else 'upper'} bound)"
+    hit = {n: f"{n} = {v:.6g} ({'lower' if v - lo <= tl else 'upper'} bound)"
            for n, v, lo, hi, tl in zip(names, x, low, high, tol)
-           if v - lo <= tl or hi - v <= tl]
+           if v - lo <= tl or hi - v <= tl}
     if hit:
-        warnings.warn(f"estimates on their bounds: {', '.join(hit)}; the data pull them past "
-                      "the bound, and their standard errors assume they are free", FitWarning,
-                      stacklevel=stacklevel)
-    return tuple(h.split(" = ")[0] for h in hit)
+        warnings.warn(f"estimates on their bounds: {', '.join(hit.values())}; the data pull "
+                      "them past the bound, and their standard errors assume they are free",
+                      FitWarning, stacklevel=stacklevel)
+    return tuple(hit)
 
 
 def _output_derivatives(mod, t, y, p, u, k, columns, h=1e-7):
