@@ -17,7 +17,7 @@ from typing import Callable, Optional
 
 import numpy as np
 
-PEER_PACKAGES = {"PyDy": ("pydy", "Cython"), "CasADi": ("casadi",)}
+PEER_PACKAGES = {"PyDy": ("pydy", "Cython"), "CasADi": ("casadi",), "Pinocchio": ("pin",)}
 
 
 @dataclass
@@ -309,4 +309,10 @@ def build_casadi(n, work, deadline, opt_level="-O2"):
     return built
 
 
-BUILDERS = {"PyDy": build_pydy, "CasADi": build_casadi}
+def build_pinocchio(n, work, deadline):
+    """Pinocchio (pip `pin`): see _pinocchio.py."""
+    import _pinocchio
+    return _pinocchio.build(n, work, deadline)
+
+
+BUILDERS = {"PyDy": build_pydy, "CasADi": build_casadi, "Pinocchio": build_pinocchio}

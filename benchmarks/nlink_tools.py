@@ -1,6 +1,6 @@
 """The tools the n-link benchmark compares, as builders `(n, work, cfg, make) -> _peers.Built`:
 lagrgen's C and Python paths (their build times measured here) and the peers of `_peers.py`
-(PyDy, CasADi) under a build time cap.
+(PyDy, CasADi, Pinocchio) under a build time cap.
 """
 import json
 import subprocess
@@ -13,7 +13,7 @@ import numpy as np
 import _peers
 from nlink_measure import median, timed
 
-TOOLS = ("lagrgen-C", "lagrgen-Python", "PyDy", "CasADi")
+TOOLS = ("lagrgen-C", "lagrgen-Python", "PyDy", "CasADi", "Pinocchio")
 
 
 def cached_in_fresh_process(model_file, n, out_dir):
@@ -109,4 +109,5 @@ def build_peer(tool):
 
 
 BUILDERS = {"lagrgen-C": build_lagrgen_c, "lagrgen-Python": build_lagrgen_python,
-            "PyDy": build_peer("PyDy"), "CasADi": build_peer("CasADi")}
+            "PyDy": build_peer("PyDy"), "CasADi": build_peer("CasADi"),
+            "Pinocchio": build_peer("Pinocchio")}

@@ -71,17 +71,42 @@ def backend(request):
     return request.param
 
 
+@pytest.fixture(scope="module", params=[None])
+def formulation(request):
+    """The `formulation` option of `build` (None: lagrgen's own choice). A module runs its tests on
+    both formulations by overriding this fixture with `FORMULATIONS` as its params."""
+    return request.param
+
+
+#: Both formulations, for the modules that check every model on each (`formulation` fixture).
+FORMULATIONS = ["dense", "recursive"]
+
+
 @pytest.fixture(scope="module")
-def build(backend, tmp_path_factory):
-    """A function Model -> built model that builds each Model at most once in the test module."""
+def build(backend, formulation, tmp_path_factory):
+    """A function Model -> built model that builds each Model at most once in the test module, in
+    the module's `formulation`; with "recursive", a model that is not a kinematic tree is skipped
+    (saying why: lagrgen.tree.analysed)."""
     out_dir = tmp_path_factory.mktemp(f"gen_{backend}")
     cache = {}
 
     def build_once(model):
         if id(model) not in cache:
-            cache[id(model)] = (model, lagrgen.build(model, backend=backend, out_dir=out_dir))
+            if formulation == "recursive":
+                skip_unless_tree(model)
+            cache[id(model)] = (model, lagrgen.build(model, backend=backend, out_dir=out_dir,
+                                                     formulation=formulation))
         return cache[id(model)][1]
     return build_once
+
+
+def skip_unless_tree(model):
+    """pytest.skip unless `model` is a kinematic tree (the recursive formulation applies)."""
+    from lagrgen.lagrange import derived
+    from lagrgen.tree import analysed
+    tree, reason = analysed(derived(model.spec()))
+    if tree is None:
+        pytest.skip(f"{model.name} is not a kinematic tree: {reason}")
 
 
 @pytest.fixture(scope="session")

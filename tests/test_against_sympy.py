@@ -12,7 +12,13 @@ from numpy.testing import assert_allclose
 from sympy.physics.mechanics import (LagrangesMethod, Lagrangian, Particle, Point, ReferenceFrame,
                                      RigidBody, dynamicsymbols, inertia)
 
-from conftest import example_model, random_point, state_function
+from conftest import example_model, random_point, state_function, FORMULATIONS
+
+
+@pytest.fixture(scope="module", params=FORMULATIONS)
+def formulation(request):
+    """Every test here runs on both formulations (the recursive one for kinematic trees)."""
+    return request.param
 
 t = dynamicsymbols._t
 

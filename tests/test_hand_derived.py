@@ -10,7 +10,13 @@ import pytest
 import sympy as sp
 from numpy.testing import assert_allclose
 
-from conftest import example_model, random_point, state_function
+from conftest import example_model, random_point, state_function, FORMULATIONS
+
+
+@pytest.fixture(scope="module", params=FORMULATIONS)
+def formulation(request):
+    """Every test here runs on both formulations (the recursive one for kinematic trees)."""
+    return request.param
 
 t = sp.Symbol("t")
 

@@ -12,7 +12,13 @@ import pytest
 from numpy.testing import assert_allclose
 
 import lagrgen
-from conftest import EXAMPLE_MODELS, example_id, example_model, random_point
+from conftest import EXAMPLE_MODELS, example_id, example_model, random_point, FORMULATIONS
+
+
+@pytest.fixture(scope="module", params=FORMULATIONS)
+def formulation(request):
+    """Every test here runs on both formulations (the recursive one for kinematic trees)."""
+    return request.param
 
 
 @pytest.fixture(scope="module", params=EXAMPLE_MODELS, ids=example_id)

@@ -74,7 +74,9 @@ def test_every_registered_function_exists_on_both_backends_with_its_shapes(both)
     q, qd, y = np.full(n, 0.3), np.full(n, -0.2), np.full(2 * n, 0.1)
     for f in FUNCTIONS:
         fn = getattr(both, f.name)
-        args = {"state": (0.0, y), "q": (q, 0.0), "q_qd": (q, qd, 0.0)}[f.call]
+        a = np.full(n + both.n_constraints, 0.7)
+        args = {"state": (0.0, y), "q": (q, 0.0), "q_qd": (q, qd, 0.0),
+                "implicit": (q, qd, a, 0.0)}[f.call]
         out = fn(*args)
         outs = out if isinstance(out, tuple) else (out,)
         assert [o.shape for o in outs] == f.shapes(dims), f.name
@@ -89,7 +91,8 @@ def test_backends_agree_on_every_registered_function(compile_once):
         p = np.array(c.defaults) * rng.uniform(0.5, 1.5, 5)
         u = rng.uniform(-1, 1, 1)
         for f in FUNCTIONS:
-            args = {"state": (0.4, y), "q": (y[:2], 0.4), "q_qd": (y[:2], y[2:], 0.4)}[f.call]
+            args = {"state": (0.4, y), "q": (y[:2], 0.4), "q_qd": (y[:2], y[2:], 0.4),
+                    "implicit": (y[:2], y[2:], y[::-1][:2], 0.4)}[f.call]
             a, b = getattr(c, f.name)(*args, p, u), getattr(py, f.name)(*args, p, u)
             for x, z in zip(a if isinstance(a, tuple) else (a,), b if isinstance(b, tuple) else (b,)):
                 assert_allclose(x, z, rtol=1e-12, atol=1e-12)

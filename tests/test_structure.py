@@ -170,7 +170,8 @@ STAGES = [
     ("base", ["_version", "errors", "numbers", "names", "caching", "functions", "methods",
               "options", "signals", "toolchain"]),
     ("description", ["rotation", "bodies3d", "records", "checks", "description"]),
-    ("derivation", ["calculus", "terms", "contributions", "lagrange", "nonsmooth", "dimensions"]),
+    ("derivation", ["calculus", "terms", "contributions", "lagrange", "nonsmooth", "tree",
+                    "dimensions"]),
     ("kernels", ["kernels"]),
     ("code", ["codegen"]),
     ("runtime", ["runtime"]),
@@ -179,7 +180,8 @@ STAGES = [
     ("running", ["progress", "results", "solvers", "scipy_engine", "native", "sensitivity",
                  "simulate", "constraints", "ensemble", "ensemble_store",
                  "hybrid"]),
-    ("analysis", ["linearization", "vibration", "stability", "sweep", "bench", "fit"]),
+    ("analysis", ["linearization", "vibration", "stability", "sweep", "bench", "fit",
+                  "collocation"]),
     ("face", ["model", "sympy_interop", "expressions", "cli", "__main__", ""]),
 ]
 #: The package's sources in this checkout (the installed package has no .pyx files).

@@ -6,6 +6,7 @@ A C build is a cache lookup first: `lagrgen.cache` keys the build by what it com
 hit nothing is derived. On a miss the equations are derived, printed as C, compiled into a new
 cache entry and published into out_dir (see `lagrgen.cache` for the layout and the guarantees).
 """
+import hashlib
 import sys
 import time
 from pathlib import Path
@@ -29,8 +30,11 @@ def build(model, out_dir="generated", backend="c", **options):
         Where the C backend writes and caches; the Python backend ignores it.
     backend : "c" or "python"
     **options
-        C backend: verbose, quiet, force (rebuild and republish), opt_level ("-O2"), cflags (a
-        list of extra compiler flags).
+        Both backends: formulation — "dense" (q̈ through the Cholesky factor of M), "recursive"
+        (the articulated-body recursion over a kinematic tree, `lagrgen.tree`; ModelError if the
+        model is not one) or None (default: recursive for a tree of at least
+        `lagrgen.tree.RECURSIVE_FROM` coordinates). C backend: verbose, quiet, force (rebuild and
+        republish), opt_level ("-O2"), cflags (a list of extra compiler flags).
 
     Returns
     -------
@@ -43,20 +47,26 @@ def build(model, out_dir="generated", backend="c", **options):
         raise ModelError(f"unknown backend {backend!r}: use one of {', '.join(map(repr, BACKENDS))}")
     start = time.perf_counter()
     spec = model.spec()
+    formulation = options.pop("formulation", None)
+    if formulation not in (None, "dense", "recursive"):
+        raise ModelError(f"unknown formulation {formulation!r}: use 'dense', 'recursive' or None")
     if backend == "python":
         from .codegen.python_module import python_source
         from .runtime.pymodel import PythonModel
+        from .runtime.tree import RecursivePythonModel
         equations = derived(spec)
-        built = PythonModel(model_info(spec, equations), python_source(equations))
+        info = model_info(spec, equations, formulation)
+        kind = RecursivePythonModel if info.formulation == "recursive" else PythonModel
+        built = kind(info, python_source(equations, info.formulation))
         built.build_info = {"cache_hit": False, "seconds": time.perf_counter() - start}
         built._source_model = model
         return built
     unknown = set(options) - {"verbose", "quiet", "force", "opt_level", "cflags"}
     if unknown:
         raise TypeError(f"build() got unknown option(s) {', '.join(sorted(unknown))}")
-    built = build_c(spec.name, cache.content_digest(spec, lambda: derived(spec)),
-                    lambda: (model_info(spec, derived(spec)), derived(spec)), Path(out_dir),
-                    **options)
+    built = build_c(spec.name, content_digest(spec, formulation, lambda: derived(spec)),
+                    lambda: (model_info(spec, derived(spec), formulation), derived(spec)),
+                    Path(out_dir), **options)
     built._source_model = model      # the description it was built from: what animations draw
     return built
 
@@ -76,7 +86,8 @@ def build_c(name, digest, derive, out_dir, verbose=False, quiet=False, force=Fal
         """derive → generate → compile, into the private directory `work` of a new entry."""
         info, equations = derive()
         progress.note("deriving the equations of motion ...")
-        equations.differentiate()
+        if info.formulation == "dense":
+            equations.differentiate()
         progress.step("derive", f"{equations.n} coordinates")
         compile_model(generate(info, equations, progress), work, name, flags, progress)
 
@@ -107,10 +118,26 @@ def derived(spec):
     return derived_once(spec)
 
 
-def model_info(spec, equations):
+def content_digest(spec, formulation, equations):
+    """`cache.content_digest` of what a build compiles, with the formulation asked for (None:
+    lagrgen's choice, which follows from the description)."""
+    digest = cache.content_digest(spec, equations)
+    if formulation is None:
+        return digest
+    return hashlib.sha256(f"{digest} formulation={formulation}".encode()).hexdigest()
+
+
+def model_info(spec, equations, formulation=None):
     """The `ModelInfo` of a built model: names, defaults, units (the energies' read from the
-    labels, `lagrgen.dimensions`), sizes, flags, hash, version."""
+    labels, `lagrgen.dimensions`), sizes, flags, hash, version, and the formulation `formulation`
+    resolves to (`lagrgen.tree.choose`)."""
     from .dimensions import energy_units
+    from .tree import analysed, choose, explicit_time
+    asked, formulation = formulation, choose(equations, formulation)
+    if formulation == "recursive":
+        time_dependent = explicit_time(analysed(equations)[0], equations)
+    else:
+        time_dependent = equations.explicit_time
     return ModelInfo(
         name=spec.name, coordinates=spec.coordinate_names, parameters=spec.parameter_names,
         inputs=spec.input_names, defaults=spec.defaults,
@@ -119,8 +146,8 @@ def model_info(spec, equations):
         n_holonomic=equations.n_holonomic,
         event_definitions=[(name, terminal, direction)
                            for name, _, terminal, direction in spec.events],
-        explicit_time=bool(equations.explicit_time),
-        content_hash=cache.content_digest(spec, lambda: equations), lagrgen_version=__version__,
+        explicit_time=bool(time_dependent), formulation=formulation,
+        content_hash=content_digest(spec, asked, lambda: equations), lagrgen_version=__version__,
         nonsmooth_definitions=[(e["name"], e["kind"], e["normal"])
                                for e in _nonsmooth().describe(spec)],
         initial_state=spec.initial_state)

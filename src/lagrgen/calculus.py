@@ -37,7 +37,18 @@ def diff(expr, var):
 
 
 def rate(expr, q, qd, t):
-    """d expr/dt = Σ ∂expr/∂q_j·q̇_j + ∂expr/∂t for an expression of q and t (internal symbols)."""
+    """d expr/dt = Σ ∂expr/∂q_j·q̇_j + ∂expr/∂t for an expression of q and t (internal symbols);
+    a sum is differentiated by each variable in its terms holding it only (a chain's positions are
+    long sums, each term of one coordinate)."""
     free = expr.free_symbols
-    return sum((diff(expr, qj) * qdj for qj, qdj in zip(q, qd) if qj in free),
-               diff(expr, t) if t in free else se.Integer(0))
+    rates = {qj: qdj for qj, qdj in zip(q, qd) if qj in free}
+    if t in free:
+        rates[t] = se.Integer(1)
+    if not rates:
+        return se.Integer(0)
+    terms = expr.args if isinstance(expr, se.Add) and len(rates) > 1 else (expr,)
+    holding = {v: [] for v in rates}
+    for term in terms:
+        for v in term.free_symbols & rates.keys():
+            holding[v].append(term)
+    return sum((diff(se.Add(*holding[v]), v) * r for v, r in rates.items()), se.Integer(0))

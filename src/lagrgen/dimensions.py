@@ -60,9 +60,10 @@ def _dimension(expr, units):
     return sp.Integer(1)
 
 
-@functools.lru_cache(maxsize=256)
+@functools.lru_cache(maxsize=None)
 def _si(unit):
-    """(dimension dependencies, scale to SI) of a unit expression (a model's terms share a few)."""
+    """(dimension dependencies, scale to SI) of a unit expression (once per expression: the terms
+    of T and V share a few)."""
     import sympy.physics.units as u
     from sympy.physics.units.systems.si import SI, dimsys_SI
     dims = dimsys_SI.get_dimensional_dependencies(SI.get_dimensional_expr(unit))
@@ -87,7 +88,7 @@ def energy_unit(equations):
     labels = dict(spec.units)
     names = spec.coordinate_names + spec.parameter_names + spec.input_names
     if all(unit_quantity(labels.get(name)) in (None, 1) for name in names):
-        return None        # no label with a dimension: no term is an energy, only powers of s
+        return None     # no label with a dimension (or none at all): no term is an energy
     units = {sp.Symbol(str(equations.t)): u.second}
     for q, qd, name in zip(equations.q, equations.qd, spec.coordinate_names):
         unit = unit_quantity(labels.get(name))

@@ -7,7 +7,8 @@ methods. Every C model function has the one signature
 
     int <model>_<function>(double t, const double *y, const double *p, const double *u, double *out)
 
-with y = [q, q̇] (q̇ ignored by the functions of q alone), the outputs concatenated row-major in
+with y = [q, q̇] (q̇ ignored by the functions of q alone; y = [q, q̇, q̈, λ] for the functions of the
+implicit form), the outputs concatenated row-major in
 `out`, and the result 0 on success or 1 when the mass matrix is not positive definite.
 This module imports nothing: the compiled runtime reads it at import time.
 """
@@ -18,6 +19,7 @@ CALL_STYLES = {
     "q": ("q", "t"),            # f(q, t=0.0, p=None, u=None)
     "q_qd": ("q", "qd", "t"),   # f(q, qd, t=0.0, p=None, u=None)
     "state": ("t", "y"),        # f(t, y, p=None, u=None)
+    "implicit": ("q", "qd", "a", "t"),   # f(q, qd, a, t=0.0, p=None, u=None), a = [q̈, λ]
 }
 
 
@@ -91,6 +93,15 @@ FUNCTIONS = (
                    Output("terms", ("n_hybrid",))),
                   "M, F, the constraints' A and γ, and the impacts' and frictions' terms "
                   "(lagrgen.nonsmooth) that the hybrid drivers assemble each mode from"),
+    ModelFunction("residual_terms", "implicit",
+                  (Output("r", ("n_implicit",)), Output("dr_dy", ("n_implicit", "2n")),
+                   Output("dr_da", ("n_implicit", "n_implicit")),
+                   Output("dr_du", ("n_implicit", "n_inputs"))),
+                  "r = [M·q̈ − F − Aᵀλ; A·q̈ − γ] of the implicit form at a given a = [q̈, λ], "
+                  "and its derivatives ∂r/∂[q, q̇], ∂r/∂a, ∂r/∂u"),
+    ModelFunction("residual_parameter_jacobian", "implicit",
+                  (Output("dr_dp", ("n_implicit", "n_params")),),
+                  "∂r/∂p of r = [M·q̈ − F − Aᵀλ; A·q̈ − γ] at a given a = [q̈, λ]"),
 )
 
 BY_NAME = {f.name: f for f in FUNCTIONS}

@@ -16,12 +16,20 @@ assembled from these by the backends:
     constraint_jacobian   ∂(Aᵀλ)/∂q and [∂γ/∂q − ∂(A·a)/∂q | ∂γ/∂q̇]  } a = [q̈, λ] there
     parameter_b  P = ∂F/∂p − ∂(M·a)/∂p for a given a (= q̈); ∂ẏ/∂p's bottom half is M⁻¹·P
     constraint_parameter_jacobian  ∂(Aᵀλ)/∂p and ∂γ/∂p − ∂(A·a)/∂p (m > 0; a = [q̈, λ])
+
+The recursive formulation of a kinematic tree (`lagrgen.tree`) replaces mf and jacobian_b by the
+terms of each node, which generic recursions over the tree combine (`model_kernels`):
+
+    tree_nodes   each node's record (lagrgen.tree.NODE_FIELDS), in node order
+    tree_slopes  their derivatives by the node's own q_j, q̇_j at a given a (SLOPE_FIELDS), and
+                 the nonzero entries of ∂Q/∂q and ∂Q/∂q̇
+    dF_du        ∂Q/∂u (the particles' terms do not depend on u)
 """
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import symengine as se
 
-from . import nonsmooth
+from . import nonsmooth, tree
 from .caching import once_per
 from .functions import Output
 
@@ -37,6 +45,7 @@ class KernelSpec:
     outputs: tuple       # of functions.Output
     expressions: object  # Equations -> {output name: [expression, row-major]}
     when: object = None  # Equations -> bool: whether the model has this kernel (None: always)
+    notes: object = None  # Equations -> {(output name, index): comment} for the generated code
 
 
 @dataclass
@@ -45,6 +54,7 @@ class Kernel:
     spec: KernelSpec
     temporaries: list    # [(symbol, expression)]
     outputs: dict        # name -> [expression], row-major
+    notes: dict = field(default_factory=dict)   # (output name, index) -> a comment before it
 
     @property
     def name(self):
@@ -142,9 +152,9 @@ def _strip_number(term):
     return term
 
 
-def cse_kernel(spec, outputs):
+def cse_kernel(spec, outputs, notes=None):
     """The kernel `spec` computing `outputs` ({name: [expr]}) after one CSE over all of them (sums
-    first brought to one sign, see `_signed`)."""
+    first brought to one sign, see `_signed`); `notes` label output entries for the reader."""
     memo = {}
     outputs = {key: [_signed(e, memo) for e in exprs] for key, exprs in outputs.items()}
     everything = [e for exprs in outputs.values() for e in exprs]
@@ -153,10 +163,75 @@ def cse_kernel(spec, outputs):
     for key, exprs in outputs.items():
         result[key] = list(reduced[pos:pos + len(exprs)])
         pos += len(exprs)
-    return Kernel(spec, list(replacements), result)
+    return Kernel(spec, list(replacements), result, dict(notes or {}))
 
 
 @once_per
 def all_kernels(eq):
     """The kernels of KERNELS for the equations `eq`, in order (computed once per Equations)."""
     return [cse_kernel(k, k.expressions(eq)) for k in KERNELS if k.when is None or k.when(eq)]
+
+
+def _tree_nodes(eq):
+    return {"nodes": tree.node_records(tree.analyse(eq))}
+
+
+def _tree_slopes(eq):
+    t = tree.analyse(eq)
+    (_, dq), (_, dqd), _ = tree_gradients(eq)
+    return {"slopes": tree.slope_records(t, eq), "dQ": dq, "dQd": dqd}
+
+
+def _node_notes(output, fields):
+    def notes(eq):
+        t = tree.analyse(eq)
+        width = tree.record_width(fields, t.D)
+        return {(output, k * width): note for k, note in enumerate(t.notes)}
+    return notes
+
+
+@once_per
+def tree_gradients(eq):
+    """`lagrgen.tree.gradients` of the equations' tree, once per Equations."""
+    return tree.gradients(tree.analyse(eq), eq)
+
+
+TREE_KERNELS = (
+    KernelSpec("tree_nodes", "each node's terms of the recursion over the kinematic tree "
+               "(lagrgen.tree.NODE_FIELDS), in node order",
+               (Output("nodes", ("n", "node_width")),), _tree_nodes,
+               notes=_node_notes("nodes", tree.NODE_FIELDS)),
+    KernelSpec("tree_slopes", "the node terms' derivatives by their own q_k, q̇_k at a given "
+               "a = q̈ (lagrgen.tree.SLOPE_FIELDS), and the nonzero entries of ∂Q/∂q, ∂Q/∂q̇",
+               (Output("slopes", ("n", "slope_width")), Output("dQ", ("nnz_q",)),
+                Output("dQd", ("nnz_qd",))), _tree_slopes,
+               notes=_node_notes("slopes", tree.SLOPE_FIELDS)),
+    KernelSpec("dF_du", "∂F/∂u = ∂Q/∂u, n×n_inputs", (Output("dF_du", ("n", "n_inputs")),),
+               lambda eq: {"dF_du": flatten(tree_gradients(eq)[2])}),
+    KernelSpec("tree_parameters", "the nonzero derivatives of the node records and of Q by the "
+               "parameters (lagrgen.tree.parameter_gradients)",
+               (Output("dnode", ("nnz_p",)), Output("dQp", ("nnz_qp",))),
+               lambda eq: {"dnode": tree_parameter_gradients(eq)[0][1],
+                           "dQp": tree_parameter_gradients(eq)[1][1]}),
+)
+#: The dense kernels the recursive formulation keeps (none of them needs M or F).
+_KEPT = ("outputs", "events")
+
+
+@once_per
+def tree_parameter_gradients(eq):
+    """`lagrgen.tree.parameter_gradients` of the equations' tree, once per Equations."""
+    return tree.parameter_gradients(tree.analyse(eq), eq)
+
+
+@once_per
+def recursive_kernels(eq):
+    """The kernels of the recursive formulation: TREE_KERNELS, then the kept dense ones."""
+    specs = TREE_KERNELS + tuple(k for k in KERNELS if k.name in _KEPT)
+    return [cse_kernel(k, k.expressions(eq), k.notes(eq) if k.notes else None)
+            for k in specs if k.when is None or k.when(eq)]
+
+
+def model_kernels(eq, formulation="dense"):
+    """The kernels a build of `eq` in `formulation` ("dense" or "recursive") generates."""
+    return recursive_kernels(eq) if formulation == "recursive" else all_kernels(eq)

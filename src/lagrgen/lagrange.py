@@ -29,13 +29,12 @@ class Equations:
     i.e. ċ + 2α·c + β²·Φ = 0. λ lives in the kernel argument `a` after q̈: λ_k = a[n + k].
     """
 
-    def __init__(self, spec, M, F, symbols, constraints=None, events=(), energies=None):
+    def __init__(self, spec, collected, symbols, constraints=None, events=()):
         self.spec = spec
-        self.energies = energies
+        self.collected = collected
+        self.energies = collected.energies
         self.events = list(events)
-        self.n = len(F)
-        self.M = M
-        self.F = F
+        self.n = len(symbols[0])
         self.q, self.qd, self.a, self.p, self.u, self.t = symbols
         phi, c = constraints or ([], [])
         self.n_holonomic = len(phi)
@@ -43,6 +42,21 @@ class Equations:
         self.Phi = phi
         self.c = c
         self.lam = internal_symbols("a", self.n + self.m)[self.n:]
+
+    @cached_property
+    def _dense(self):
+        """(M, F), formed on first use from the collected physics (`dense_equations`)."""
+        return dense_equations(self.spec, self.collected)
+
+    @property
+    def M(self):
+        """M(q, t) (n×n lists of SymEngine expressions, symmetric)."""
+        return self._dense[0]
+
+    @property
+    def F(self):
+        """F(q, q̇, t, u) (n SymEngine expressions), so that M·q̈ = F."""
+        return self._dense[1]
 
     @cached_property
     def A(self):
@@ -263,9 +277,36 @@ def derived(spec):
     return derive(spec)
 
 
+class Collected:
+    """A model's physics after every record added its share (`contributions.Sums`), before the
+    kinetic terms of its particles are formed into M and F: what both formulations start from.
+
+    `sums` holds the particles (constant masses at positions, internal symbols), the general
+    kinetic energies, V, R and Q; `convert` turns the model's SymPy expressions into internal
+    symbols; `energies` are (T, V, Σ Q_j·q̇_j, R) for the outputs.
+    """
+
+    def __init__(self, sums, convert):
+        self.sums = sums
+        self.convert = convert
+        self.particles = tuple(sums.particles)
+        self.energies = (sums.T, sums.V, sums.power, sums.R)
+
+
+def collect(spec, symbols):
+    """The `Collected` physics of the frozen description `spec` in the internal `symbols`."""
+    q, qd, _, _, u, t = symbols
+    convert = _Converter(spec)
+    sums = Sums(convert, q, qd, t, kinematic=set(q) | set(qd) | set(u) | {t})
+    for record in spec.physics:
+        if not isinstance(record, ExternalEquations):
+            CONTRIBUTIONS[type(record)](record, sums)
+    return Collected(sums, convert)
+
+
 def derive(spec):
     """Return the `Equations` of the frozen description `spec` (a `ModelSpec`): Lagrange's
-    equations arranged as M(q,t)·q̈ = F(q,q̇,t,u)."""
+    equations arranged as M(q,t)·q̈ = F(q,q̇,t,u) (M and F formed on first use)."""
     n = len(spec.coordinates)
     if n == 0:
         raise ModelError(
@@ -275,11 +316,22 @@ def derive(spec):
                internal_symbols("p", len(spec.parameters)),
                internal_symbols("u", len(spec.inputs)), se.Symbol("t"))
     q, qd, _, _, _, t = symbols
-    convert = _Converter(spec)
-    sums = Sums(convert, q, qd, t, kinematic=set(q) | set(qd) | set(symbols[4]) | {t})
-    for record in spec.physics:
-        if not isinstance(record, ExternalEquations):
-            CONTRIBUTIONS[type(record)](record, sums)
+    collected = collect(spec, symbols)
+    convert = collected.convert
+    events = [convert(g) for _, g, _, _ in spec.events]
+    equations = Equations(spec, collected, symbols, _constraints(spec, convert, q, qd, t), events)
+    if spec.external is not None:
+        _ = equations.M   # M and F given from outside are checked (symmetric) as they are read
+    return equations
+
+
+def dense_equations(spec, collected):
+    """(M, F) of Lagrange's equations from the `Collected` physics: the particles' kinetic terms
+    summed as composite bodies, the general kinetic energies differentiated, V, R and Q added."""
+    sums, convert = collected.sums, collected.convert
+    q, qd, t = sums.q, sums.qd, sums.t
+    n = len(q)
+    sums.particles = list(collected.particles)
     sums.add_particles()
     M, F = sums.M, sums.F
     if sums.general_T:
@@ -299,9 +351,7 @@ def derive(spec):
         for j in range(i + 1, n):
             M[i][j] = M[j][i]
     _check_mass_matrix(spec, M, qd)
-    events = [convert(g) for _, g, _, _ in spec.events]
-    energies = (sums.T, sums.V, sums.power, sums.R)
-    return Equations(spec, M, F, symbols, _constraints(spec, convert, q, qd, t), events, energies)
+    return M, F
 
 
 def _constraints(spec, convert, q, qd, t):

@@ -4,8 +4,9 @@ from pathlib import Path
 from string import Template
 
 from ..functions import FUNCTIONS
-from ..kernels import KERNEL_ARGUMENTS, all_kernels
+from ..kernels import KERNEL_ARGUMENTS, model_kernels
 from .printer import c_function, kernel_statements
+from .tree_code import tree_c
 
 TEMPLATES = Path(__file__).resolve().parent / "templates"
 SIGNATURE = "double t, const double *y, const double *p, const double *u, double *out"
@@ -70,7 +71,7 @@ TU_SETUP = """
 """
 
 
-def kernel_functions(equations, max_statements=400, units=None):
+def kernel_functions(equations, max_statements=400, units=None, formulation="dense"):
     """The C functions lg_<kernel> of every registered kernel (split into parts when long).
 
     When the kernels have more than one part, the parts are assigned to translation units 1, 2, ...
@@ -79,7 +80,7 @@ def kernel_functions(equations, max_statements=400, units=None):
     chunks = []
     arguments = ", ".join(KERNEL_ARGUMENTS)
     prologue = "    " + " ".join(f"(void){a};" for a in KERNEL_ARGUMENTS) + "\n"
-    kernels = [(k, kernel_statements(k)) for k in all_kernels(equations)]
+    kernels = [(k, kernel_statements(k)) for k in model_kernels(equations, formulation)]
     split = any(len(stmts) > max_statements for _, stmts in kernels)
     per_tu = max(1, STATEMENTS_PER_TU // max_statements)
     counter = [0]
@@ -155,10 +156,14 @@ def model_source(info, equations, max_statements=400):
     """`<name>_model.c`: kernels, linear algebra, model functions and metadata in plain C."""
     defaults = info.defaults or [0.0]
     units = []
-    kernels = kernel_functions(equations, max_statements, units)
+    formulation = info.formulation
+    kernels = kernel_functions(equations, max_statements, units, formulation)
     split = units[0] > 0
+    recursive = formulation == "recursive"
     return Template(read_template("model.c.in")).substitute(
         substitutions(info), linalg=read_template("linalg.c.in"),
+        recursive=int(recursive),
+        tree=tree_c(equations, read_template("tree.c.in")) if recursive else "",
         kernels=kernels, tu_setup=TU_SETUP if split else "",
         tu0_begin="#if LG_IN_TU(0)\n" if split else "", tu0_end="\n#endif" if split else "",
         constraint_solver=read_template("constraints.c.in"),

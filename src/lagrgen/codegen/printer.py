@@ -35,6 +35,13 @@ class Declare:
 
 
 @dataclass
+class Comment:
+    """A line for the reader of the generated code (no effect)."""
+    text: str
+    expr: object = se.Integer(0)
+
+
+@dataclass
 class Store:
     """An output entry: `array[index] = expr;`."""
     array: str
@@ -71,8 +78,11 @@ def kernel_statements(kernel):
                          if d not in done)
 
     require([name for name in temps if name not in done] if not kernel.outputs else [])
+    notes = getattr(kernel, "notes", {})
     for name, exprs in kernel.outputs.items():
         for i, e in enumerate(exprs):
+            if (name, i) in notes:
+                stmts.append(Comment(notes[name, i]))
             require(sorted(needs(e), key=_index, reverse=True)[::-1])
             stmts.append(Store(name, i, e))
     unused = [Declare(name, expr) for name, expr in temps.items() if name not in done]
@@ -249,6 +259,8 @@ class CPrinter(ExpressionPrinter):
         return f"pow({self.doprint(base)}, {self.doprint(exp)})", ATOM
 
     def statement(self, stmt):
+        if isinstance(stmt, Comment):
+            return "/* " + stmt.text.replace("*/", "* /") + " */"
         if isinstance(stmt, Declare):
             return f"const double {stmt.name} = {self.doprint(stmt.expr)};"
         return f"{stmt.array}[{stmt.index}] = {self.doprint(stmt.expr)};"
@@ -275,6 +287,8 @@ class PythonPrinter(ExpressionPrinter):
         return f"{self.paren(base, ATOM)}**{self.paren(exp, ATOM)}", ATOM
 
     def statement(self, stmt):
+        if isinstance(stmt, Comment):
+            return "# " + stmt.text.replace("\n", " ")
         if isinstance(stmt, Declare):
             return f"{stmt.name} = {self.doprint(stmt.expr)}"
         return f"{stmt.array}[{stmt.index}] = {self.doprint(stmt.expr)}"

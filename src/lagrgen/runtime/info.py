@@ -20,7 +20,9 @@ class ModelInfo:
     (name, terminal, direction) triples; `n_holonomic` counts the holonomic constraints, which come
     first in `constraint_names`; `nonsmooth_definitions` are (name, "impact" | "friction", normal)
     triples of the impacts and frictions (`lagrgen.nonsmooth`), normal None or (kind, index);
-    `initial_state` the declared [q0, q̇0] (2n floats), or () when none was declared.
+    `initial_state` the declared [q0, q̇0] (2n floats), or () when none was declared;
+    `formulation` how q̈ and the Jacobian are computed: "dense" (Cholesky of M) or "recursive"
+    (over the kinematic tree, `lagrgen.tree`).
     """
 
     name: str
@@ -38,6 +40,7 @@ class ModelInfo:
     lagrgen_version: str = ""
     nonsmooth_definitions: tuple = ()
     initial_state: tuple = ()
+    formulation: str = "dense"
 
     def __post_init__(self):
         for name in ("coordinates", "parameters", "inputs", "defaults", "output_names",
@@ -66,6 +69,7 @@ class ModelInfo:
         return {"n": n, "2n": 2 * n, "n_params": len(self.parameters),
                 "n_inputs": len(self.inputs), "n_constraints": m,
                 "n_holonomic": self.n_holonomic, "n_residuals": self.n_holonomic + m,
+                "n_implicit": n + m,
                 "n_events": len(self.event_definitions), "n_power": len(POWER_TERMS),
                 "n_outputs": len(self.output_names),
                 "n_hybrid": sum(HYBRID_FIELDS[kind] + n for _, kind, _ in
@@ -92,4 +96,4 @@ class ModelInfo:
 INFO_ATTRIBUTES = ("name", "coordinates", "parameters", "inputs", "units", "output_names",
                    "constraint_names", "event_definitions", "explicit_time", "content_hash",
                    "lagrgen_version", "n_coordinates", "n_constraints", "dimensions",
-                   "nonsmooth_definitions")
+                   "nonsmooth_definitions", "formulation")

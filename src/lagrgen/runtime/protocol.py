@@ -31,6 +31,7 @@ class BuiltModel(Protocol):
     event_definitions: Tuple[Tuple[str, int, int], ...]  # (name, terminal, direction)
     nonsmooth_definitions: Tuple[tuple, ...]  # (name, "impact" | "friction", normal), §13
     explicit_time: bool           # M or F depends on t explicitly
+    formulation: str              # "dense" (Cholesky of M) or "recursive" (over the kinematic tree)
     content_hash: str             # of the derived equations and lagrgen's generator
     lagrgen_version: str
     n_coordinates: int
@@ -81,6 +82,12 @@ class BuiltModel(Protocol):
     def hybrid_terms(self, t, y, p=None, u=None) -> tuple:
         """(M, F, A, γ, terms): what the hybrid drivers assemble each mode from (n_hybrid terms
         of the impacts and frictions, layout in lagrgen.nonsmooth)."""
+
+    def residual_terms(self, q, qd, a, t=0.0, p=None, u=None) -> tuple:
+        """(r, ∂r/∂[q, q̇], ∂r/∂a, ∂r/∂u) of r = [M·q̈ − F − Aᵀλ; A·q̈ − γ], a = [q̈, λ]."""
+
+    def residual_parameter_jacobian(self, q, qd, a, t=0.0, p=None, u=None) -> np.ndarray:
+        """∂r/∂p, (n + n_constraints, n_params), of the same r."""
 
 
 class CompiledBuiltModel(BuiltModel, Protocol):

@@ -1,5 +1,8 @@
     /* The bottom half of out is B = [∂F/∂q − ∂(M·q̈)/∂q | ∂F/∂q̇] (n×2n, rows of length 2n like
      * out's), overwritten in place by M⁻¹·B with the factor of M the rhs's q̈ came from. */
+#if LG_RECURSIVE
+    return lg_tree_jacobian(t, y, p, u, out);
+#else
     double M[N * N], a[N + N_CONSTRAINTS], *B = out + 2 * N * N;
     lg_mf(t, y, y + N, lg_zeros, p, u, M, a);
     if (lg_cholesky(M))
@@ -25,3 +28,4 @@
     for (int i = 0; i < N; ++i)
         out[i * 2 * N + N + i] = 1.0;
     return 0;
+#endif

@@ -1,3 +1,8 @@
+#if LG_RECURSIVE
+    lg_tree w;
+    if (lg_tree_rhs(t, y, y + N, p, u, &w, out + N))
+        return 1;
+#else
     double M[N * N];
     lg_mf(t, y, y + N, lg_zeros, p, u, M, out + N);
     if (lg_cholesky(M))
@@ -7,6 +12,7 @@
     double lam[NC], A[NC * N], W[N * NC], S[NC * NC];
     if (lg_constrained(t, y, p, u, M, out + N, lam, A, W, S))
         return 1;
+#endif
 #endif
     memcpy(out, y + N, N * sizeof(double));
     return 0;

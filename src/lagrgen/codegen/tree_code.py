@@ -1,0 +1,62 @@
+"""The recursive formulation's code: the generic recursions of `templates/tree.c.in` filled with
+one model's kinematic tree (its node tables, record layout and sparsity of ∂Q/∂y), and the same
+tables for the Python backend (`lagrgen.runtime.tree`)."""
+from string import Template
+
+from .. import tree as trees
+from ..kernels import tree_gradients, tree_parameter_gradients
+
+
+def layout(equations):
+    """The tables of the equations' tree: {"D", "node_width", "slope_width", "coordinate",
+    "parent", "end", "dq", "dqd", "node_fields", "slope_fields"} (plain Python values)."""
+    tree = trees.analyse(equations)
+    (dq, _), (dqd, _), _ = tree_gradients(equations)
+    (dnode, _), (dQp, _) = tree_parameter_gradients(equations)
+    n_params = len(equations.p)
+    start = [0] * (n_params + 1)
+    for _, _, j in dnode:
+        start[j + 1] += 1
+    for j in range(n_params):
+        start[j + 1] += start[j]
+    return {"D": tree.D,
+            "node_width": trees.record_width(trees.NODE_FIELDS, tree.D),
+            "slope_width": trees.record_width(trees.SLOPE_FIELDS, tree.D),
+            "coordinate": list(tree.coordinate), "parent": list(tree.parent),
+            "end": list(tree.end), "dq": _nodes(dq, tree), "dqd": _nodes(dqd, tree),
+            "dnode": [[k, o] for k, o, _ in dnode], "dnode_start": start,
+            "dQp": [list(ij) for ij in dQp],
+            "node_fields": trees.field_offsets(trees.NODE_FIELDS, tree.D),
+            "slope_fields": trees.field_offsets(trees.SLOPE_FIELDS, tree.D)}
+
+
+def _nodes(pairs, tree):
+    """(row, column) pairs of coordinates as pairs of nodes."""
+    node = {j: k for k, j in enumerate(tree.coordinate)}
+    return [[node[i], node[j]] for i, j in pairs]
+
+
+def _ints(values):
+    return ", ".join(str(int(v)) for v in values) if values else "0"
+
+
+def tree_c(equations, template):
+    """`template` (the text of tree.c.in) for the equations' tree."""
+    tables = layout(equations)
+    n = len(tables["coordinate"])
+    names = {"d": "DD"}
+    offsets = [f"#define TREE_{names.get(name, name.upper())} {offset}"
+               for name, offset in tables["node_fields"].items()]
+    offsets += [f"#define TREE_{name.upper()} {offset}"
+                for name, offset in tables["slope_fields"].items()]
+    return Template(template).substitute(
+        tree_d=tables["D"], node_width=tables["node_width"], slope_width=tables["slope_width"],
+        nnz_q=len(tables["dq"]), nnz_qd=len(tables["dqd"]), field_offsets="\n".join(offsets),
+        coordinates=_ints(tables["coordinate"]), parents=_ints(tables["parent"]),
+        ends=_ints(tables["end"]), dq_index=_ints([i for ij in tables["dq"] for i in ij]),
+        dqd_index=_ints([i for ij in tables["dqd"] for i in ij]),
+        columns=_ints(tables["coordinate"] + [n + j for j in tables["coordinate"]]),
+        nnz_p=len(tables["dnode"]), nnz_qp=len(tables["dQp"]),
+        dnode_index=_ints([i for ko in tables["dnode"] for i in ko]),
+        dnode_start=_ints(tables["dnode_start"]),
+        dqp_index=_ints([i for ij in tables["dQp"] for i in ij]))
