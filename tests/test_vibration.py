@@ -139,6 +139,10 @@ def test_inverted_pendulum_is_unstable(built):
                                       damping_ratios=np.array([-1.0]), omega_damped=np.zeros(1),
                                       eigenvalues=np.array([2.0 + 0j]), kind="state")
     assert mode_label(growing, 0).endswith("ζ = -1, unstable")   # a real root s > 0
+    from lagrgen.cli.modes import modes_table
+    model = lagrgen.Model("real_state_mode")
+    model.coordinates("x")
+    assert "mode shapes (largest entry 1, one column" in modes_table(model, [0.0], growing)
 
 
 def test_linearize_is_the_derivative_of_the_residual(built):
