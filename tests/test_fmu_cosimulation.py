@@ -197,7 +197,7 @@ def test_fmi3_directional_derivatives_equal_the_jacobian(pendulum, tmp_path):
     fmu.freeInstance()
 
 
-def cs_instance(path, tmp_path, version):
+def cs_instance(path, tmp_path, version, callbacks=None):
     """An initialized co-simulation instance (FMPy's FMU2Slave / FMU3Slave) and its value
     references by name."""
     from fmpy.fmi2 import FMU2Slave
@@ -208,7 +208,7 @@ def cs_instance(path, tmp_path, version):
     if version == 2:
         fmu = FMU2Slave(guid=md.guid, unzipDirectory=unzipped, modelIdentifier=md.coSimulation.
                         modelIdentifier, instanceName="state")
-        fmu.instantiate()
+        fmu.instantiate(callbacks=callbacks)
         fmu.setupExperiment(startTime=0.0)
         fmu.enterInitializationMode()
         fmu.exitInitializationMode()
@@ -457,11 +457,12 @@ def test_a_failing_step_is_an_error_that_says_why(pendulum, version):
 
 @pytest.mark.parametrize("version", [2, 3])
 def test_solver_settings_out_of_range_are_refused_in_both_fmi_versions(pendulum, tmp_path,
-                                                                       version):
+                                                                       version, fmi2_callbacks):
     """The setters of solver.rtol, solver.atol and solver.method apply the rules of
     lagrgen.options (issue 28, item 6): a bad value is an FMI error and the setting is kept."""
     model, mod, fmus = pendulum
-    fmu, vr, set_real, get_real = cs_instance(fmus["cs", version], tmp_path, version)
+    fmu, vr, set_real, get_real = cs_instance(fmus["cs", version], tmp_path, version,
+                                              fmi2_callbacks if version == 2 else None)
     set_int = fmu.setInteger if version == 2 else fmu.setInt64
     get_int = fmu.getInteger if version == 2 else fmu.getInt64
     try:
