@@ -81,7 +81,6 @@ def energy_units(equations):
 
 def energy_unit(equations):
     """The label of the energies of `equations` (`lagrgen.lagrange.Equations`), or None."""
-    import sympy.physics.units as u
     spec = equations.spec
     if equations.energies is None or spec.external is not None:
         return None
@@ -89,6 +88,7 @@ def energy_unit(equations):
     names = spec.coordinate_names + spec.parameter_names + spec.input_names
     if all(unit_quantity(labels.get(name)) in (None, 1) for name in names):
         return None     # no label with a dimension (or none at all): no term is an energy
+    import sympy.physics.units as u
     units = {sp.Symbol(str(equations.t)): u.second}
     for q, qd, name in zip(equations.q, equations.qd, spec.coordinate_names):
         unit = unit_quantity(labels.get(name))
