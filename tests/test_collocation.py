@@ -460,3 +460,21 @@ def test_bad_input_gets_clear_errors(integrator, out_dir):
         bounded.solve(progress=False)
     with pytest.raises(LagrgenError, match="decision vector"):
         effort_problem(mod, F, 11, "trapezoidal").solve(guess=np.zeros(3), progress=False)
+
+
+def test_given_inputs_and_per_sample_weights_are_checked(integrator):
+    """A known input outside the bounds given to it is a contradiction (it was solved as if the
+    bound were absent, with a constraint violation of 0); one name's weights may be per sample."""
+    model, mod = integrator
+    F, = model.input_functions
+    given = lagrgen.Collocation(mod, 11, 1.0)
+    given.bound("F", 1.0, 2.0).input("F", 0.0)
+    given.initial(q=[0.0], qd=[0.0]).minimize(integral=model.q[0] ** 2)
+    with pytest.raises(LagrgenError, match="given values of input 'F'.*outside its bounds"):
+        given.solve(progress=False)
+    prob = lagrgen.Collocation(mod, 11, 1.0)
+    t = np.linspace(0.0, 1.0, 5)
+    prob.track(t, t ** 2, "x", weights=np.arange(1.0, 6.0))
+    assert_allclose(prob._tracks[0][3], [np.arange(1.0, 6.0)])
+    with pytest.raises(LagrgenError, match="weights"):
+        prob.track(t, t ** 2, "x", weights=np.ones(3))
