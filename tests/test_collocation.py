@@ -478,3 +478,21 @@ def test_given_inputs_and_per_sample_weights_are_checked(integrator):
     assert_allclose(prob._tracks[0][3], [np.arange(1.0, 6.0)])
     with pytest.raises(LagrgenError, match="weights"):
         prob.track(t, t ** 2, "x", weights=np.ones(3))
+
+
+def test_check_converges_at_the_order_of_hermite_simpson(pendulums):
+    """Hermite–Simpson takes the input quadratic on each interval (node, midpoint, node): the
+    re-simulation of check() with that input deviates by the scheme's own O(h⁴) error (a cubic
+    spline through all points made it O(h²), 10–200× too large on these grids)."""
+    (model, mod), _ = pendulums
+    F, = model.input_functions
+    deviations = []
+    for nodes in (11, 21):
+        prob = lagrgen.Collocation(mod, nodes=nodes, duration=2.0)
+        prob.initial(q=[0.0], qd=[0.0]).final(q=[0.8], qd=[0.0]).minimize(integral=F ** 2)
+        res = prob.solve(progress=False)
+        assert res.success
+        deviations.append(float(res.check()))
+        u = res.input_signals()["F"]
+        assert_allclose(u(res.t_points), res._point_values("u", 0), atol=1e-12)
+    assert deviations[1] < deviations[0] / 10 and deviations[1] < 2e-4
