@@ -346,6 +346,17 @@ def test_clear_errors():
     assert isinstance(lagrgen.linearize(py, [0, 0]), Linearization)
 
 
+def test_a_point_that_is_not_finite_is_refused():
+    """NaN in q0 gave a NaN state matrix, inf in qd0 a linearization as if it were finite."""
+    mod = lagrgen.build(oscillator_model(), backend="python")
+    with pytest.raises(ValueError, match=r"q0: x is nan"):
+        lagrgen.linearize(mod, [np.nan])
+    with pytest.raises(ValueError, match=r"qd0: x_dot is inf"):
+        lagrgen.linearize(mod, [0.0], [np.inf])
+    with pytest.raises(ValueError, match=r"q_guess: x is nan"):
+        lagrgen.equilibrium(mod, [np.nan])
+
+
 def test_modes_default_to_the_equilibrium_near_zero():
     py = lagrgen.build(DOUBLE, backend="python")
     u = [2.0]
