@@ -460,3 +460,39 @@ def test_bad_input_gets_clear_errors(integrator, out_dir):
         bounded.solve(progress=False)
     with pytest.raises(LagrgenError, match="decision vector"):
         effort_problem(mod, F, 11, "trapezoidal").solve(guess=np.zeros(3), progress=False)
+
+
+def test_given_inputs_and_per_sample_weights_are_checked(integrator):
+    """A known input outside the bounds given to it is a contradiction (it was solved as if the
+    bound were absent, with a constraint violation of 0); one name's weights may be per sample."""
+    model, mod = integrator
+    F, = model.input_functions
+    given = lagrgen.Collocation(mod, 11, 1.0)
+    given.bound("F", 1.0, 2.0).input("F", 0.0)
+    given.initial(q=[0.0], qd=[0.0]).minimize(integral=model.q[0] ** 2)
+    with pytest.raises(LagrgenError, match="given values of input 'F'.*outside its bounds"):
+        given.solve(progress=False)
+    prob = lagrgen.Collocation(mod, 11, 1.0)
+    t = np.linspace(0.0, 1.0, 5)
+    prob.track(t, t ** 2, "x", weights=np.arange(1.0, 6.0))
+    assert_allclose(prob._tracks[0][3], [np.arange(1.0, 6.0)])
+    with pytest.raises(LagrgenError, match="weights"):
+        prob.track(t, t ** 2, "x", weights=np.ones(3))
+
+
+def test_check_converges_at_the_order_of_hermite_simpson(pendulums):
+    """Hermite–Simpson takes the input quadratic on each interval (node, midpoint, node): the
+    re-simulation of check() with that input deviates by the scheme's own O(h⁴) error (a cubic
+    spline through all points made it O(h²), 10–200× too large on these grids)."""
+    (model, mod), _ = pendulums
+    F, = model.input_functions
+    deviations = []
+    for nodes in (11, 21):
+        prob = lagrgen.Collocation(mod, nodes=nodes, duration=2.0)
+        prob.initial(q=[0.0], qd=[0.0]).final(q=[0.8], qd=[0.0]).minimize(integral=F ** 2)
+        res = prob.solve(progress=False)
+        assert res.success
+        deviations.append(float(res.check()))
+        u = res.input_signals()["F"]
+        assert_allclose(u(res.t_points), res._point_values("u", 0), atol=1e-12)
+    assert deviations[1] < deviations[0] / 10 and deviations[1] < 2e-4

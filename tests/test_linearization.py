@@ -312,6 +312,26 @@ def test_sweep_follows_branches_through_a_crossing():
     assert not isinstance(info.value, lagrgen.LagrgenError)
 
 
+def test_crossing_on_a_grid_value_is_that_value():
+    """ẍ + c·ẋ + x = 0, Re s = −c/2 with c = ε·v: a crossing at v = 0 lands on a grid value (a
+    marginal real part there). It is located at 0 to 1e-8 whatever the slope ε, in either sweep
+    direction, and kinds read in the direction of increasing value."""
+    model = lagrgen.Model("marginal_oscillator")
+    x, = model.coordinates("x")
+    c, = model.parameters(c=0.0)
+    model.particle(1, sp.Matrix([x]))
+    model.spring(1, x)
+    model.damper(c, x)
+    mod = lagrgen.build(model, backend="python")
+    for eps in (1.0, 1e-4):
+        for values in (np.linspace(-1, 1, 5), np.linspace(1, -1, 5), [-1.0, 0.0]):
+            sweep = lagrgen.eigenvalue_sweep(mod, values, lambda v: ([0.0], None, {"c": eps * v}))
+            found = sweep.crossings()
+            assert [(b, kind) for _, b, kind in found] == [(0, "unstable->stable"),
+                                                          (1, "unstable->stable")]
+            assert_allclose([value for value, _, _ in found], 0.0, atol=1e-8)
+
+
 def test_clear_errors(build):
     mod = build(load_example("chaplygin_sleigh").model)
     with pytest.raises(lagrgen.ConstraintError, match="violates its constraints.*consistent_state"):

@@ -278,6 +278,25 @@ def test_rigid_body_mode():
     assert np.all(np.isinf(H[0])) and np.all(np.isfinite(H[1]))
 
 
+def test_repeated_frequency_shapes_follow_the_damping():
+    """Three equal masses on a ring of equal springs: ω² = 0, 3, 3 (a repeated pair, any basis of
+    shapes ⊥ [1, 1, 1]). A damper on a−b alone damps the shape [1, −1, 0] only (s = −0.1 ±
+    i√(3 − 0.01)), so the damped mode must be reported with that shape, not an arbitrary one."""
+    model = lagrgen.Model("vib_ring")
+    a, b, c = model.coordinates("a b c")
+    model.particle(1, sp.Matrix([a, b, c]))
+    for x, y in ((a, b), (b, c), (c, a)):
+        model.spring(1, x - y)
+    model.damper(sp.Rational(1, 10), a - b)
+    res = lagrgen.modes(lagrgen.build(model, backend="python"), [0.0, 0.0, 0.0])
+    assert_allclose(res.omega, [0.0, np.sqrt(3), np.sqrt(3)], atol=1e-12)
+    damped = int(np.argmax(res.damping_ratios))
+    assert res.damping_ratios[damped] == pytest.approx(0.1 / np.sqrt(3), rel=1e-10)
+    assert_allclose(np.abs(res.shapes[:, damped]), [np.sqrt(0.5), np.sqrt(0.5), 0], atol=1e-10)
+    assert_allclose(np.delete(res.damping_ratios, damped), 0.0, atol=1e-12)
+    assert_allclose(res.shapes.T @ res.shapes, np.eye(3), atol=1e-12)
+
+
 def test_equilibrium_keeps_a_rigid_body_direction():
     mod = lagrgen.build(example_model("cart_pendulum"), backend="python")
     q0 = lagrgen.equilibrium(mod, [1.5, 0.4])
@@ -331,6 +350,17 @@ def test_clear_errors():
     with pytest.raises(lagrgen.MassMatrixError, match="not positive definite"):
         lagrgen.linearize(py, [0.0, 0.0], p={"m1": -3.0})
     assert isinstance(lagrgen.linearize(py, [0, 0]), Linearization)
+
+
+def test_a_point_that_is_not_finite_is_refused():
+    """NaN in q0 gave a NaN state matrix, inf in qd0 a linearization as if it were finite."""
+    mod = lagrgen.build(oscillator_model(), backend="python")
+    with pytest.raises(ValueError, match=r"q0: x is nan"):
+        lagrgen.linearize(mod, [np.nan])
+    with pytest.raises(ValueError, match=r"qd0: x_dot is inf"):
+        lagrgen.linearize(mod, [0.0], [np.inf])
+    with pytest.raises(ValueError, match=r"q_guess: x is nan"):
+        lagrgen.equilibrium(mod, [np.nan])
 
 
 def test_modes_default_to_the_equilibrium_near_zero():

@@ -225,7 +225,8 @@ def linearize(mod, q0, qd0=None, t=0.0, p=None, u=None, dependent=None):
     """
     n = mod.n_coordinates
     q0, p, u = operating_point(mod, q0, "q0", p, u)
-    qd0 = np.zeros(n) if qd0 is None else as_vector(qd0, n, "qd0")
+    qd0 = np.zeros(n) if qd0 is None else finite_point(
+        as_vector(qd0, n, "qd0"), [f"{c}_dot" for c in mod.coordinates], "qd0")
     t = float(t)
     warn_frozen_time(mod, t, "linearization")
     y0 = np.concatenate([q0, qd0])
@@ -395,7 +396,17 @@ def operating_point(mod, q, name, p, u):
     which argument in an error), parameters and inputs as the model takes them."""
     n = mod.n_coordinates
     q = as_vector(q, n, f"{name} (one value per coordinate {', '.join(mod.coordinates)})")
-    return q, parameters_from(mod, p), input_vector(u, tuple(mod.inputs))
+    return finite_point(q, mod.coordinates, name), parameters_from(mod, p), \
+        input_vector(u, tuple(mod.inputs))
+
+
+def finite_point(values, names, what):
+    """`values` unchanged, or a ValueError naming the first entry that is NaN or infinite."""
+    bad = np.flatnonzero(~np.isfinite(values))
+    if bad.size:
+        raise ValueError(f"{what}: {names[bad[0]]} is {values[bad[0]]}; an operating point must "
+                         "be finite numbers")
+    return values
 
 
 def check_positive_definite(name, M, t, q0):

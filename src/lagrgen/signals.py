@@ -52,6 +52,23 @@ class Signal:
             coef = np.ascontiguousarray(self._spline.c.T)   # (m - 1, 4): piece k, powers 3..0
         self._coef = coef.ravel()
 
+    @classmethod
+    def piecewise(cls, t_breaks, coefficients):
+        """A "cubic" Signal given by its pieces: on [t_k, t_k+1] the polynomial
+        c_k0·x³ + c_k1·x² + c_k2·x + c_k3 of x = t − t_k (SciPy's PPoly; the end pieces
+        extrapolate), `coefficients` of shape (len(t_breaks) − 1, 4)."""
+        from scipy.interpolate import PPoly
+        t = np.asarray(t_breaks, dtype=float)
+        c = np.asarray(coefficients, dtype=float)
+        if t.ndim != 1 or c.shape != (t.size - 1, 4) or not np.all(np.isfinite(c)):
+            raise ValueError(f"Signal.piecewise needs finite coefficients of shape "
+                             f"({t.size - 1}, 4) for {t.size} breakpoints, got {c.shape}")
+        ends = np.append(c[:, 3], np.polyval(c[-1], t[-1] - t[-2]))
+        signal = cls(t, ends, kind="cubic")
+        signal._spline = PPoly(np.ascontiguousarray(c.T), signal.t)
+        signal._coef = np.ascontiguousarray(c).ravel()
+        return signal
+
     def __call__(self, t):
         """The interpolated value(s) at t (a float for a scalar t)."""
         tt = np.asarray(t, dtype=float)

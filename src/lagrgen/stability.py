@@ -21,6 +21,9 @@ from .linearization import ZERO_TOL, linearize, spectrum
 
 #: Absolute tolerance (relative to the swept range) of a located crossing.
 CROSSING_XTOL = 1e-12
+#: Size (relative to the largest eigenvalue) to which a real part on the imaginary axis is
+#: round-off: a crossing into a marginal value is where the real part comes this close to 0.
+MARGINAL_ROUND_OFF = 1e3 * np.finfo(float).eps
 #: Steps by which a branch is followed from a sampled value to a trial value of a crossing.
 CONTINUATION_STEPS = 6
 
@@ -57,7 +60,7 @@ class EigenvalueSweep:
         """Where a branch's real part changes sign between neighbouring values, located by root
         finding (to ~1e-12 of the range): a list of (value, branch, "stable->unstable" |
         "unstable->stable") ordered by value. A real part within ZERO_TOL of zero is marginal
-        (stable); the boundary with it is where the real part passes that threshold."""
+        (stable); the boundary with it is where the real part itself is zero."""
         growing = self._signs() > 0
         found = []
         for b in range(self.eigenvalues.shape[1]):
@@ -69,14 +72,22 @@ class EigenvalueSweep:
         return sorted(found, key=lambda c: (c[0], c[1]))
 
     def _locate(self, i, b):
-        """The value between values[i] and values[i + 1] where branch b's real part crosses 0
-        (or the marginal threshold ZERO_TOL when one end is marginal). The branch is followed
-        to each trial value by continuation in CONTINUATION_STEPS steps from the end where its
-        sign is definite (from the marginal side a collision of two roots is ambiguous)."""
+        """The value between values[i] and values[i + 1] where branch b's real part crosses 0.
+        The branch is followed to each trial value by continuation in CONTINUATION_STEPS steps
+        from the end where its sign is definite (from the marginal side a collision of two roots
+        is ambiguous). Towards a marginal end (real part within ZERO_TOL of 0) the crossing is
+        where the real part comes within round-off (MARGINAL_ROUND_OFF) of 0 — on the imaginary
+        axis a pair's real part is round-off noise, whose sign means nothing — or that end
+        itself when it stays further away."""
         v0, v1 = self.values[i], self.values[i + 1]
         signs = self._signs()[[i, i + 1], b]
-        offset = self._tolerance() if 0 in signs else 0.0
         start = i if signs[0] != 0 else i + 1
+        offset = 0.0
+        if 0 in signs:
+            offset = signs[start - i] * MARGINAL_ROUND_OFF * max(1.0, np.abs(self.eigenvalues).max())
+            marginal = self.eigenvalues[2 * i + 1 - start, b].real
+            if np.sign(marginal - offset) == signs[start - i]:
+                return float(self.values[2 * i + 1 - start])
 
         def real_part(v):
             if v in (v0, v1):

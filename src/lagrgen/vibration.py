@@ -242,6 +242,28 @@ def undamped_modes(M, K):
     return lam, _mass_normalize(shapes, M)
 
 
+def decoupled_in_damping(lam, shapes, M, C):
+    """M-orthonormal `shapes` with each group of a repeated λ (equal to ZERO_TOL of the largest)
+    rotated to diagonalize its block Φ_gᵀ·C·Φ_g: a repeated frequency leaves any basis of its
+    shapes, the damping picks the one whose modes it damps separately (to first order in C)."""
+    if not np.any(C):
+        return shapes
+    out = np.array(shapes)
+    tol = ZERO_TOL * max(np.abs(lam).max(initial=0.0), np.finfo(float).tiny)
+    start = 0
+    while start < len(lam):
+        stop = start + 1
+        while stop < len(lam) and abs(lam[stop] - lam[start]) <= tol:
+            stop += 1
+        if stop - start > 1:
+            group = out[:, start:stop]
+            block = group.T @ C @ group
+            _, rotation = np.linalg.eigh((block + block.T) / 2)
+            out[:, start:stop] = _mass_normalize(group @ rotation, M)
+        start = stop
+    return out
+
+
 def state_matrix(M, C, K):
     """A = [[0, I], [−M⁻¹K, −M⁻¹C]], so that ẋ = A·x for x = [δq, δq̇]."""
     n = M.shape[0]
@@ -270,21 +292,24 @@ def _assign(shapes, M, vectors):
     return mode_of
 
 
-def _ratio(pair, omega_n):
+def _ratio(pair, omega_n, scale):
     """(ζ, ω_d) of one mode from its two state-space eigenvalues s1, s2.
 
     A pair s = −ζω_n ± iω_d gives ζ = −Re s/|s|; two real ones (overdamped) give ω_n² = s1·s2 and
-    ζ = −(s1 + s2)/(2√(s1·s2)). A rigid-body mode (ω_n = 0) has ζ = 0 when both s vanish and is
-    undefined (NaN) otherwise.
+    ζ = −(s1 + s2)/(2√(s1·s2)). A rigid-body mode (ω_n = 0) has ζ = 0 when both s vanish — to
+    √ε of the state matrix's eigenvalues `scale`, the accuracy of a defective double root — and
+    is undefined (NaN) otherwise.
     """
     s1, s2 = pair
-    scale = max(abs(s1), abs(s2), np.finfo(float).tiny)
-    if abs(s1.imag) > ZERO_TOL * scale:
+    size = max(abs(s1), abs(s2), np.finfo(float).tiny)
+    if omega_n == 0 and size <= np.sqrt(np.finfo(float).eps) * scale:
+        return 0.0, 0.0
+    if abs(s1.imag) > ZERO_TOL * size:
         s = s1 if s1.imag > 0 else s2
         return -s.real / abs(s), abs(s.imag)
     a, b = s1.real, s2.real
     if omega_n == 0 or a * b <= 0:
-        return (0.0 if scale <= ZERO_TOL * max(1.0, omega_n) else np.nan), 0.0
+        return np.nan, 0.0
     return -(a + b) / (2 * np.sqrt(a * b)), 0.0
 
 
@@ -295,9 +320,10 @@ def damping(M, C, K, shapes, omega):
         return np.zeros(n), np.array(omega)
     s, vectors = np.linalg.eig(state_matrix(M, C, K))
     mode_of = _assign(shapes, M, vectors)
+    scale = max(1.0, np.abs(s).max())
     zeta, omega_d = np.zeros(n), np.zeros(n)
     for i in range(n):
-        zeta[i], omega_d[i] = _ratio(s[mode_of == i], omega[i])
+        zeta[i], omega_d[i] = _ratio(s[mode_of == i], omega[i], scale)
     return zeta, omega_d
 
 
@@ -348,6 +374,8 @@ def classical_modes(lin, model=None):
     damping ratios from the state matrix's eigenvalues assigned to them."""
     check_positive_definite(lin.name, lin.M, lin.t, lin.q0)
     lam, shapes = undamped_modes(lin.M, lin.K)
+    if _is_symmetric(lin.K):
+        shapes = decoupled_in_damping(lam, shapes, lin.M, lin.C)
     lam_real = np.real(lam)
     omega = np.full(lin.n, np.nan)
     omega[lam_real >= 0] = np.sqrt(lam_real[lam_real >= 0])

@@ -258,6 +258,11 @@ class Transcription:
         for k, values in problem._given.items():
             col = L.offset("u") + k
             v = _given_values(values, times, L, mod.inputs[k])
+            if np.any(v < blo[:, col] - 1e-12) or np.any(v > bhi[:, col] + 1e-12):
+                raise LagrgenError(
+                    f"the given values of input {mod.inputs[k]!r} (from {np.min(v):g} to "
+                    f"{np.max(v):g}) lie outside its bounds [{blo[0, col]}, {bhi[0, col]}]: drop "
+                    "the bound or the given values")
             blo[:, col], bhi[:, col] = v, v
         names = _variable_names(L, mod)
         for (point, kind, i), value in problem._fixed.items():

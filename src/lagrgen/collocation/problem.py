@@ -273,9 +273,7 @@ class Collocation:
         s = t - self.t0
         if np.any(s < -1e-12 * T) or np.any(s > T * (1 + 1e-12)):
             raise LagrgenError(f"track: sample times must lie in [{self.t0}, {self.t0 + T}]")
-        w = np.ones_like(data) if weights is None else np.broadcast_to(
-            np.asarray(weights, dtype=float).reshape(-1, 1) if np.ndim(weights) == 1
-            else np.asarray(weights, dtype=float), data.shape).copy()
+        w = np.ones_like(data) if weights is None else _track_weights(weights, data.shape)
         if not np.all(np.isfinite(w)) or np.any(w < 0):
             raise LagrgenError("track: weights must be finite and not negative")
         present = np.isfinite(data) & (w > 0)
@@ -373,6 +371,21 @@ def _source_model(mod):
         raise LagrgenError(f"model {mod.name!r} was changed after it was built: build it again "
                            "(lagrgen.build(model)) before setting up a Collocation")
     return model
+
+
+def _track_weights(weights, shape):
+    """`weights` of track() as an array of the data's `shape` (names, samples): a scalar, one
+    per name, one per sample of a single name, or that shape."""
+    w = np.asarray(weights, dtype=float)
+    if w.ndim == 1 and w.size == shape[0]:
+        w = w.reshape(-1, 1)
+    elif w.ndim == 1 and shape[0] == 1:
+        w = w.reshape(1, -1)
+    try:
+        return np.broadcast_to(w, shape).copy()
+    except ValueError:
+        raise LagrgenError(f"track: weights must be a scalar, one per name ({shape[0]}), or of "
+                           f"the data's shape {shape}, got shape {w.shape}") from None
 
 
 def _finite(value, what):

@@ -126,15 +126,16 @@ class CollocationResult:
 
     def input_signals(self):
         """{input name: lagrgen.Signal} of the found inputs, as the scheme implies them: linear
-        between nodes (trapezoidal), a cubic through nodes and midpoints (Hermite–Simpson), the
-        next node's value held over each interval (backward Euler)."""
+        between nodes (trapezoidal), the quadratic through node, midpoint and node on each
+        interval (Hermite–Simpson), the next node's value held over each interval (backward
+        Euler)."""
         from ..signals import Signal
         L = self._layout
         out = {}
         for k, name in enumerate(self.inputs):
             values = self._point_values("u", k)
             if L.scheme == "hermite-simpson":
-                out[name] = Signal(self.t_points, values, kind="cubic")
+                out[name] = Signal.piecewise(self.t, simpson_quadratics(self.t, values))
             elif L.scheme == "trapezoidal":
                 out[name] = Signal(self.t, values, kind="linear")
             else:
@@ -203,3 +204,14 @@ class CollocationResult:
             attrs[f"param_{name}"] = value
             attrs[f"stderr_{name}"] = self.stderr[name]
         return xr.Dataset(data, coords=coords, attrs=attrs)
+
+
+def simpson_quadratics(t_nodes, values):
+    """(intervals, 4) piecewise coefficients (powers 3..0 of t − t_k) of the quadratic through
+    (t_k, u_k), (t_k + h/2, u_k+½), (t_k+1, u_k+1) on each interval, `values` at the points
+    node, midpoint, node, ...: u_k + a1·x + a2·x² with a1 = (−3u_k + 4u_k+½ − u_k+1)/h,
+    a2 = 2(u_k − 2u_k+½ + u_k+1)/h²."""
+    u0, um, u1 = values[0:-1:2], values[1::2], values[2::2]
+    h = np.diff(t_nodes)
+    return np.column_stack([np.zeros_like(h), 2 * (u0 - 2 * um + u1) / h**2,
+                            (-3 * u0 + 4 * um - u1) / h, u0])
