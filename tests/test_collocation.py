@@ -478,6 +478,8 @@ def test_given_inputs_and_per_sample_weights_are_checked(integrator):
     assert_allclose(prob._tracks[0][3], [np.arange(1.0, 6.0)])
     with pytest.raises(LagrgenError, match="weights"):
         prob.track(t, t ** 2, "x", weights=np.ones(3))
+    with pytest.raises(LagrgenError, match="infinite; give a missing sample as NaN"):
+        prob.track(t, np.r_[0.0, np.inf, 0.0, 1.0, np.nan], "x")
 
 
 def test_check_converges_at_the_order_of_hermite_simpson(pendulums):

@@ -96,6 +96,8 @@ def test_parameter_without_default_must_be_given(no_default):
         no_default.rhs(0.0, [1.0, 0.0])
     with pytest.raises(ValueError, match="default"):
         lagrgen.simulate(no_default, (0.0, 1.0), [1.0, 0.0])
+    with pytest.raises(ValueError, match="parameter 'k' is nan: .* must be finite"):
+        lagrgen.simulate(no_default, (0.0, 1.0), [1.0, 0.0], params={"k": float("nan")})
 
 
 def test_parameter_without_default_given_at_run_time(no_default):

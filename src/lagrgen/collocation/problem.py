@@ -269,6 +269,8 @@ class Collocation:
                                f"({len(names)}, {t.size}), got {data.shape}")
         if not np.all(np.isfinite(t)):
             raise LagrgenError("track: the sample times must be finite")
+        if np.isinf(data).any():
+            raise LagrgenError("track: a sample is infinite; give a missing sample as NaN")
         T = self.duration_bounds[0]
         s = t - self.t0
         if np.any(s < -1e-12 * T) or np.any(s > T * (1 + 1e-12)):

@@ -70,8 +70,9 @@ def named_vector(values, names, base, what):
 def parameter_vector(p, names, defaults):
     """p as a float64 array in parameter order: None -> defaults; a dict overrides defaults."""
     if p is None or isinstance(p, dict):
+        given = set() if p is None else {key_name(key) for key in p}
         p = defaults if p is None else named_vector(p, names, defaults, "parameter")
-        missing = [name for name, value in zip(names, p) if np.isnan(value)]
+        missing = [name for name, value in zip(names, p) if np.isnan(value) and name not in given]
         if missing:
             raise ValueError(
                 f"parameter(s) {', '.join(missing)} have no default value: give them at run time, "
