@@ -170,7 +170,7 @@ STAGES = [
               "signals", "toolchain"]),
     ("description", ["rotation", "bodies3d", "records", "checks", "description"]),
     ("derivation", ["calculus", "terms", "contributions", "lagrange", "nonsmooth"]),
-    ("kernels", ["kernels"]),
+    ("kernels", ["tangents", "kernels"]),
     ("code", ["codegen"]),
     ("runtime", ["runtime"]),
     ("build", ["build"]),

@@ -8,7 +8,8 @@ methods. Every C model function has the one signature
     int <model>_<function>(double t, const double *y, const double *p, const double *u, double *out)
 
 with y = [q, q̇] (q̇ ignored by the functions of q alone), the outputs concatenated row-major in
-`out`, and the result 0 on success or 1 when the mass matrix is not positive definite.
+`out`, and the result 0 on success or 1 when the mass matrix is not positive definite; a function
+of the call style "directions" also takes k directions (`DIRECTIONS_SIGNATURE`).
 This module imports nothing: the compiled runtime reads it at import time.
 """
 from dataclasses import dataclass
@@ -18,6 +19,7 @@ CALL_STYLES = {
     "q": ("q", "t"),            # f(q, t=0.0, p=None, u=None)
     "q_qd": ("q", "qd", "t"),   # f(q, qd, t=0.0, p=None, u=None)
     "state": ("t", "y"),        # f(t, y, p=None, u=None)
+    "directions": ("t", "y", "dy", "dp"),   # f(t, y, dy, dp=None, p=None, u=None)
 }
 
 
@@ -51,6 +53,11 @@ class ModelFunction:
         return total
 
 
+#: The C signature of the functions of call style "directions": k directions (dy_s, dp_s), each
+#: dy_s of 2n and dp_s of n_params doubles, stored one after the other (dp never NULL).
+DIRECTIONS_SIGNATURE = ("double t, const double *y, const double *p, const double *u, int k, "
+                        "const double *dy, const double *dp, double *out")
+
 FUNCTIONS = (
     ModelFunction("mass_matrix", "q", (Output("M", ("n", "n")),),
                   "M(q, t) = ∂²T/∂q̇∂q̇ᵀ"),
@@ -63,6 +70,10 @@ FUNCTIONS = (
     ModelFunction("parameter_jacobian", "state", (Output("dydp", ("2n", "n_params")),),
                   "∂ẏ/∂p = [0; M⁻¹·(∂F/∂p − ∂(M·q̈)/∂p)] (with constraints: through the same "
                   "saddle-point solve as the Jacobian)"),
+    ModelFunction("directional_derivatives", "directions",
+                  (Output("ydot", ("2n",)), Output("dydot", ("k", "2n"))),
+                  "ẏ, and for each direction s: J·dy_s + ∂ẏ/∂p·dp_s (forward mode on the "
+                  "kernels, J never formed)"),
     ModelFunction("linear_terms", "q_qd",
                   (Output("M", ("n", "n")), Output("dF_dq", ("n", "n")),
                    Output("dF_dqd", ("n", "n")), Output("dF_du", ("n", "n_inputs"))),

@@ -15,6 +15,10 @@ assembled from these by the backends:
     constraint_jacobian   ∂(Aᵀλ)/∂q and [∂γ/∂q − ∂(A·a)/∂q | ∂γ/∂q̇]  } a = [q̈, λ] there
     parameter_b  P = ∂F/∂p − ∂(M·a)/∂p for a given a (= q̈); ∂ẏ/∂p's bottom half is M⁻¹·P
     constraint_parameter_jacobian  ∂(Aᵀλ)/∂p and ∂γ/∂p − ∂(A·a)/∂p (m > 0; a = [q̈, λ])
+    motion_tape  M, F (and A, γ) by the programs of mf (and constraints), with the tape c of
+                 their forward-mode coefficients (lagrgen.tangents)
+    motion_tangent  along one direction (δq, δq̇, δp), from the tape: δR = δF − δM·a + δAᵀ·λ and
+                 δG = δγ − δA·a with a = [q̈, λ] held fixed; [M −Aᵀ; A 0]·[δq̈; δλ] = [δR; δG]
 """
 from dataclasses import dataclass
 
@@ -23,6 +27,7 @@ import symengine as se
 from . import nonsmooth
 from .caching import once_per
 from .functions import Output
+from .tangents import linearize
 
 #: The arguments of every kernel, in order (C: `double t, const double *q, ...`).
 KERNEL_ARGUMENTS = ("t", "q", "qd", "a", "p", "u")
@@ -36,6 +41,8 @@ class KernelSpec:
     outputs: tuple       # of functions.Output
     expressions: object  # Equations -> {output name: [expression, row-major]}
     when: object = None  # Equations -> bool: whether the model has this kernel (None: always)
+    build: object = None  # Equations -> Kernel, for a kernel not CSE'd from `expressions`
+    arguments: tuple = KERNEL_ARGUMENTS   # its arguments: `t` a double, the others arrays
 
 
 @dataclass
@@ -66,6 +73,59 @@ def _jacobian_b(eq):
         B.extend(eq.dF_dq[i][j] - eq.dMa_dq[i][j] for j in range(eq.n))
         B.extend(eq.dF_dqd[i])
     return {"B": B}
+
+
+#: The seeds of the directional derivatives: each input's direction (an array argument).
+def _seeds(eq):
+    return {**{q: se.Symbol(f"dq[{i}]") for i, q in enumerate(eq.q)},
+            **{v: se.Symbol(f"dqd[{i}]") for i, v in enumerate(eq.qd)},
+            **{p: se.Symbol(f"dp[{j}]") for j, p in enumerate(eq.p)}}
+
+
+@once_per
+def motion_program(eq):
+    """(temporaries, {name: [expression]}) of M and F (and A, γ for a constrained model): the very
+    programs of the kernels mf (and constraints, its temporaries renumbered after mf's), so that
+    the values equal those of the rhs to the last bit."""
+    mf = kernel(eq, "mf")
+    temporaries, outputs = list(mf.temporaries), dict(mf.outputs)
+    if eq.m:
+        con = kernel(eq, "constraints")
+        start = 1 + max((int(str(x)[1:]) for x, _ in temporaries), default=-1)
+        rename = {x: se.Symbol(f"x{start + i}") for i, (x, _) in enumerate(con.temporaries)}
+        temporaries += [(rename[x], e.xreplace(rename)) for x, e in con.temporaries]
+        outputs.update({key: [e.xreplace(rename) for e in exprs]
+                        for key, exprs in con.outputs.items()})
+    return temporaries, outputs
+
+
+@once_per
+def motion_linearized(eq):
+    """The forward-mode program (`lagrgen.tangents.Linearized`) of `motion_program`."""
+    return linearize(*motion_program(eq), _seeds(eq))
+
+
+def _motion_tape(eq):
+    lin, values = motion_linearized(eq), motion_program(eq)[1]
+    outputs = {key: values.get(key, []) for key in ("M", "F", "A", "gamma")}
+    outputs["c"] = list(lin.tape)
+    return Kernel(KERNELS_BY_NAME["motion_tape"], lin.tape_temporaries, outputs)
+
+
+def _motion_tangent(eq):
+    lin = motion_linearized(eq)
+    n, m = eq.n, eq.m
+    d = lin.tangents
+    a = [se.Symbol(f"a[{i}]") for i in range(n + m)]
+    dR = []
+    for i in range(n):
+        r = d["F"][i] - sum((a[j] * d["M"][i * n + j] for j in range(n)), se.Integer(0))
+        r += sum((a[n + k] * d["A"][k * n + i] for k in range(m)), se.Integer(0))
+        dR.append(r)
+    dG = [d["gamma"][k] - sum((a[j] * d["A"][k * n + j] for j in range(n)), se.Integer(0))
+          for k in range(m)]
+    return Kernel(KERNELS_BY_NAME["motion_tangent"], list(lin.temporaries),
+                  {"dR": dR, "dG": dG})
 
 
 KERNELS = (
@@ -101,7 +161,17 @@ KERNELS = (
     KernelSpec("nonsmooth", "the impacts' and frictions' terms (layout in lagrgen.nonsmooth)",
                (Output("terms", ("n_hybrid",)),), lambda eq: {"terms": nonsmooth.terms(eq)},
                when=lambda eq: bool(eq.spec.nonsmooth)),
+    KernelSpec("motion_tape", "M, F (and A, γ) as mf (and constraints) compute them, and the tape c "
+               "of their forward-mode coefficients (lagrgen.tangents)",
+               (Output("M", ("n", "n")), Output("F", ("n",)),
+                Output("A", ("n_constraints", "n")), Output("gamma", ("n_constraints",)),
+                Output("c", ("n_tape",))), None, build=_motion_tape),
+    KernelSpec("motion_tangent", "along one direction (dq, dqd, dp), from the tape c: "
+               "dR = δF − δM·a + δAᵀ·λ and dG = δγ − δA·a, a = [q̈, λ] held fixed",
+               (Output("dR", ("n",)), Output("dG", ("n_constraints",))), None,
+               build=_motion_tangent, arguments=("c", "a", "dq", "dqd", "dp")),
 )
+KERNELS_BY_NAME = {k.name: k for k in KERNELS}
 
 def _signed(expr, memo):
     """`expr` with every sum inside it written as ±S where S is the one of S, −S whose term with the
@@ -153,6 +223,19 @@ def cse_kernel(spec, outputs):
 
 
 @once_per
+def _kernels_of(eq):
+    return {}
+
+
+def kernel(eq, name):
+    """The kernel `name` of KERNELS for the equations `eq` (computed once per Equations)."""
+    done = _kernels_of(eq)
+    if name not in done:
+        spec = KERNELS_BY_NAME[name]
+        done[name] = spec.build(eq) if spec.build else cse_kernel(spec, spec.expressions(eq))
+    return done[name]
+
+
 def all_kernels(eq):
-    """The kernels of KERNELS for the equations `eq`, in order (computed once per Equations)."""
-    return [cse_kernel(k, k.expressions(eq)) for k in KERNELS if k.when is None or k.when(eq)]
+    """The kernels of KERNELS that the equations `eq` have, in order."""
+    return [kernel(eq, k.name) for k in KERNELS if k.when is None or k.when(eq)]

@@ -3,8 +3,8 @@ Python) and the thin Python module glue (`<name>_module.c`) that includes it."""
 from pathlib import Path
 from string import Template
 
-from ..functions import FUNCTIONS
-from ..kernels import KERNEL_ARGUMENTS, all_kernels
+from ..functions import DIRECTIONS_SIGNATURE, FUNCTIONS
+from ..kernels import all_kernels
 from .printer import c_function, kernel_statements
 
 TEMPLATES = Path(__file__).resolve().parent / "templates"
@@ -54,8 +54,6 @@ def kernel_functions(equations, max_statements=400, units=None):
     of about STATEMENTS_PER_TU statements each (see TU_SETUP); `units`, a list, receives the number
     of those units (0 when nothing was split)."""
     chunks = []
-    arguments = ", ".join(KERNEL_ARGUMENTS)
-    prologue = "    " + " ".join(f"(void){a};" for a in KERNEL_ARGUMENTS) + "\n"
     kernels = [(k, kernel_statements(k)) for k in all_kernels(equations)]
     split = any(len(stmts) > max_statements for _, stmts in kernels)
     per_tu = max(1, STATEMENTS_PER_TU // max_statements)
@@ -67,23 +65,48 @@ def kernel_functions(equations, max_statements=400, units=None):
 
     for kernel, stmts in kernels:
         outputs = [o.name for o in kernel.spec.outputs]
-        params = ("double t, " + ", ".join(f"const double *{a}" for a in KERNEL_ARGUMENTS[1:])
-                  + "".join(f", double *{o}" for o in outputs))
-        args = arguments + "".join(f", {o}" for o in outputs)
+        inputs = kernel.spec.arguments
+        params = ", ".join("double t" if a == "t" else f"const double *{a}" for a in inputs)
+        params += "".join(f", double *{o}" for o in outputs)
+        args = ", ".join(inputs) + "".join(f", {o}" for o in outputs)
+        unused = [o for o in outputs if not kernel.outputs.get(o)]
+        prologue = "    " + " ".join(f"(void){a};" for a in (*inputs, *unused)) + "\n"
         text = c_function(f"lg_{kernel.name}", params, args, stmts, kernel.spec.formula + ".",
                           max_statements, prologue, tu_of_part if split else None)
         if split and len(stmts) <= max_statements:
             text = f"#if LG_IN_TU(0)\n{text}#endif\n"
-        chunks.append(text)
+        chunks.append(tape_sizes(kernel) + text)
     if units is not None:
         units.append(1 + (counter[0] - 1) // per_tu if counter[0] else 0)
     return "\n".join(chunks)
+
+
+#: A tape longer than this (LG_TAPE_ON_STACK in model.c.in) is allocated on the heap.
+TAPE_ON_STACK = 32768
+
+
+def tape_sizes(kernel):
+    """`#define LG_<KERNEL>_<OUTPUT> <length>` for each tape output of `kernel` (and <stdlib.h>
+    for a tape too long for the stack)."""
+    lines = []
+    for o in kernel.spec.outputs:
+        if o.shape == ("n_tape",):
+            size = max(len(kernel.outputs[o.name]), 1)
+            lines.append(f"#define LG_{kernel.name.upper()}_{o.name.upper()} {size}\n")
+            if size > TAPE_ON_STACK:
+                lines.append("#include <stdlib.h>\n")
+    return "".join(lines)
 
 
 def translation_units(model_c):
     """The number of separately compilable part units in a `<name>_model.c` text (0: none)."""
     import re
     return max((int(k) for k in re.findall(r"^#if LG_IN_TU\((\d+)\)$", model_c, re.M)), default=0)
+
+
+def signature(function):
+    """The C parameter list of a registered function."""
+    return DIRECTIONS_SIGNATURE if function.call == "directions" else SIGNATURE
 
 
 def model_functions(name):
@@ -93,12 +116,12 @@ def model_functions(name):
         outputs = ", ".join(o.name for o in f.outputs)
         body = read_template(f"functions/{f.name}.c").rstrip()
         chunks.append(f"/* {f.formula}; out = [{outputs}]. */\n"
-                      f"LG_FN int {name}_{f.name}({SIGNATURE})\n{{\n{body}\n}}\n")
+                      f"LG_FN int {name}_{f.name}({signature(f)})\n{{\n{body}\n}}\n")
     return "\n".join(chunks)
 
 
 def prototypes(name):
-    return "\n".join(f"/* {f.formula} */\nLG_FN int {name}_{f.name}({SIGNATURE});"
+    return "\n".join(f"/* {f.formula} */\nLG_FN int {name}_{f.name}({signature(f)});"
                      for f in FUNCTIONS)
 
 
@@ -148,7 +171,8 @@ def model_source(info, equations, max_statements=400):
 def module_source(info, units=0):
     """`<name>_module.c`: the Python extension glue that includes `<name>_model.c` (as unit 0 of
     a model whose kernel parts are compiled as `units` separate units, see `unit_sources`)."""
-    table = ",\n".join(f'    {{"{f.name}", {info.name}_{f.name}}}' for f in FUNCTIONS)
+    table = ",\n".join(f'    {{"{f.name}", (lg_function){info.name}_{f.name}}}'
+                       for f in FUNCTIONS)
     text = Template(read_template("module.c.in")).substitute(substitutions(info), table=table)
     if units:
         include = f'#include "{info.name}_model.c"'

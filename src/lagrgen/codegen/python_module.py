@@ -1,6 +1,6 @@
 """Python source of a model's kernels: one function per registered kernel, run by the Python
 backend (`lagrgen.runtime.pymodel`)."""
-from ..kernels import KERNEL_ARGUMENTS, all_kernels
+from ..kernels import all_kernels
 from .printer import PythonPrinter, kernel_statements, print_statements
 
 
@@ -9,7 +9,7 @@ def python_source(equations):
     printer = PythonPrinter()
     chunks = []
     for kernel in all_kernels(equations):
-        lines = [f"def {kernel.name}({', '.join(KERNEL_ARGUMENTS)}):"]
+        lines = [f"def {kernel.name}({', '.join(kernel.spec.arguments)}):"]
         lines += [f"    {name} = [0.0] * {len(exprs)}" for name, exprs in kernel.outputs.items()]
         body = print_statements(printer, kernel_statements(kernel))
         if body:

@@ -17,7 +17,8 @@ cimport numpy as cnp
 from cpython.pycapsule cimport PyCapsule_GetPointer, PyCapsule_IsValid
 from libc.math cimport isfinite
 
-from lagrgen.runtime.abi cimport LG_ABI_VERSION, LG_CAPSULE_NAME, lg_function, lg_model_t
+from lagrgen.runtime.abi cimport (LG_ABI_VERSION, LG_CAPSULE_NAME, lg_directions_fn,
+                                  lg_function, lg_model_t)
 from lagrgen.errors import BuildError, ConstraintError, MassMatrixError
 from lagrgen.functions import FUNCTIONS
 from lagrgen.runtime.describe import BuiltModule
@@ -136,14 +137,20 @@ cdef class CompiledModel:
         return values if self.n_inputs else self._zeros
 
     cdef lg_function pointer(self, str name) except NULL:
-        if name not in self._addresses:
-            raise ValueError(f"model {self.name!r} has no function {name!r}: it has "
-                             f"{', '.join(self._addresses)}")
+        """The C function `name` of the one signature lg_function."""
+        if name not in self._addresses or name in DIRECTION_FUNCTIONS:
+            raise ValueError(f"model {self.name!r} has no function {name!r} of signature (t, y, "
+                             f"p, u, out): it has {', '.join(self.plain_functions())}")
         return <lg_function><size_t>self._addresses[name]
 
+    def plain_functions(self):
+        return [name for name in self._addresses if name not in DIRECTION_FUNCTIONS]
+
     def function_address(self, str name):
-        """The address of the C function `name` (for native solvers that call it without Python)."""
-        self.pointer(name)
+        """The address of the C function `name` (for native solvers that call it without Python;
+        a function of call style "directions" has the signature lg_directions_fn)."""
+        if name not in self._addresses:
+            self.pointer(name)
         return self._addresses[name]
 
     cdef not_positive_definite(self, double t, const double *y, const double *p, const double *u):
@@ -169,7 +176,8 @@ cdef class CompiledModel:
         cdef cnp.ndarray ya = as_f64(y, 2 * n, "y")
         cdef cnp.ndarray pa = self.params(p)
         cdef cnp.ndarray ua = self.input_values(u)
-        cdef cnp.ndarray out = np.empty(max(f.size(self.dimensions) for f in FUNCTIONS) + 1)
+        cdef cnp.ndarray out = np.empty(max(f.size(self.dimensions) for f in FUNCTIONS
+                                            if f.name not in DIRECTION_FUNCTIONS) + 1)
         cdef double *o = <double *>cnp.PyArray_DATA(out)
         cdef const double *yp = data(ya)
         cdef const double *pp = data(pa)
@@ -264,7 +272,57 @@ cdef class StateArgumentsFunction(BoundFunction):
         return self.evaluate(t, data(ya), p, u)
 
 
-CALLABLES = {"state": StateFunction, "q": CoordinateFunction, "q_qd": StateArgumentsFunction}
+cdef class DirectionsFunction:
+    """f(t, y, dy, dp=None, p=None, u=None) -> (ẏ, the derivatives of ẏ along the directions):
+    dy is one direction (2n,) or k of them (k, 2n), dp the matching parameter directions (n_params,)
+    or (k, n_params) (None: zeros); the derivatives have dy's shape."""
+
+    cdef CompiledModel model
+    cdef lg_directions_fn fn
+    cdef readonly str name, formula
+
+    def __init__(self, CompiledModel model, spec):
+        self.model = model
+        self.name = spec.name
+        self.formula = spec.formula
+        self.fn = <lg_directions_fn><size_t>model._addresses[spec.name]
+
+    def __repr__(self):
+        return f"<{self.name} of compiled model {self.model.name!r}: {self.formula}>"
+
+    def __call__(self, double t, y, dy, dp=None, p=None, u=None):
+        cdef int dim = 2 * self.model.n_coordinates, n_params = self.model.n_params
+        cdef cnp.ndarray ya = as_f64(y, dim, "y")
+        cdef cnp.ndarray pa = self.model.params(p)
+        cdef cnp.ndarray ua = self.model.input_values(u)
+        directions = np.asarray(dy, dtype=np.float64)
+        single = directions.ndim == 1
+        if directions.ndim not in (1, 2) or directions.shape[directions.ndim - 1] != dim:
+            raise ValueError(f"dy must have shape ({dim},) or (k, {dim}), got {directions.shape}")
+        cdef cnp.ndarray dya = np.ascontiguousarray(directions.reshape(-1, dim))
+        cdef int k = dya.shape[0]
+        cdef cnp.ndarray dpa
+        if dp is None or not n_params:
+            dpa = np.zeros((k, max(n_params, 1)))
+        else:
+            dpa = np.ascontiguousarray(dp, dtype=np.float64)
+            if np.shape(dpa) != (tuple([n_params]) if single else tuple([k, n_params])):
+                raise ValueError(f"dp must have shape ({n_params},) or ({k}, {n_params}) to match "
+                                 f"dy, got {np.shape(dp)}")
+        if not (np.isfinite(dya).all() and np.isfinite(dpa).all()):
+            raise ValueError("dy and dp must be finite")
+        cdef cnp.ndarray out = np.empty((k + 1) * dim)
+        if self.fn(t, data(ya), data(pa), data(ua), k, data(dya), data(dpa),
+                   <double *>cnp.PyArray_DATA(out)):
+            self.model.not_positive_definite(t, data(ya), data(pa), data(ua))
+        derivatives = out[dim:].reshape(k, dim)
+        return out[:dim], (derivatives[0] if single else derivatives)
+
+
+CALLABLES = {"state": StateFunction, "q": CoordinateFunction, "q_qd": StateArgumentsFunction,
+             "directions": DirectionsFunction}
+#: The functions not of the one signature lg_function.
+DIRECTION_FUNCTIONS = frozenset(f.name for f in FUNCTIONS if f.call == "directions")
 
 
 def bind_module(module, capsule):
