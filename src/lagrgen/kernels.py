@@ -43,6 +43,8 @@ class KernelSpec:
     when: object = None  # Equations -> bool: whether the model has this kernel (None: always)
     build: object = None  # Equations -> Kernel, for a kernel not CSE'd from `expressions`
     arguments: tuple = KERNEL_ARGUMENTS   # its arguments: `t` a double, the others arrays
+    lanes: tuple = ()    # arrays holding one entry per direction: in C the kernel runs several
+                         # directions at once, entry i of lane b at [i·LG_LANES + b]
 
 
 @dataclass
@@ -169,7 +171,8 @@ KERNELS = (
     KernelSpec("motion_tangent", "along one direction (dq, dqd, dp), from the tape c: "
                "dR = δF − δM·a + δAᵀ·λ and dG = δγ − δA·a, a = [q̈, λ] held fixed",
                (Output("dR", ("n",)), Output("dG", ("n_constraints",))), None,
-               build=_motion_tangent, arguments=("c", "a", "dq", "dqd", "dp")),
+               build=_motion_tangent, arguments=("c", "a", "dq", "dqd", "dp"),
+               lanes=("dq", "dqd", "dp", "dR", "dG")),
 )
 KERNELS_BY_NAME = {k.name: k for k in KERNELS}
 

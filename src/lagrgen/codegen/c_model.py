@@ -5,7 +5,7 @@ from string import Template
 
 from ..functions import DIRECTIONS_SIGNATURE, FUNCTIONS
 from ..kernels import all_kernels
-from .printer import c_function, kernel_statements
+from .printer import c_function, in_lanes, kernel_statements
 
 TEMPLATES = Path(__file__).resolve().parent / "templates"
 SIGNATURE = "double t, const double *y, const double *p, const double *u, double *out"
@@ -66,13 +66,18 @@ def kernel_functions(equations, max_statements=400, units=None):
     for kernel, stmts in kernels:
         outputs = [o.name for o in kernel.spec.outputs]
         inputs = kernel.spec.arguments
-        params = ", ".join("double t" if a == "t" else f"const double *{a}" for a in inputs)
-        params += "".join(f", double *{o}" for o in outputs)
+        lanes = LANES if kernel.spec.lanes else None
+        pointer = "*LG_RESTRICT " if lanes else "*"
+        params = ", ".join("double t" if a == "t" else f"const double {pointer}{a}"
+                           for a in inputs)
+        params += "".join(f", double {pointer}{o}" for o in outputs)
         args = ", ".join(inputs) + "".join(f", {o}" for o in outputs)
         unused = [o for o in outputs if not kernel.outputs.get(o)]
         prologue = "    " + " ".join(f"(void){a};" for a in (*inputs, *unused)) + "\n"
+        if lanes:
+            stmts = in_lanes(stmts, kernel.spec.lanes, lanes)
         text = c_function(f"lg_{kernel.name}", params, args, stmts, kernel.spec.formula + ".",
-                          max_statements, prologue, tu_of_part if split else None)
+                          max_statements, prologue, tu_of_part if split else None, lanes)
         if split and len(stmts) <= max_statements:
             text = f"#if LG_IN_TU(0)\n{text}#endif\n"
         chunks.append(tape_sizes(kernel) + text)
@@ -80,6 +85,9 @@ def kernel_functions(equations, max_statements=400, units=None):
         units.append(1 + (counter[0] - 1) // per_tu if counter[0] else 0)
     return "\n".join(chunks)
 
+
+#: Directions a kernel with lanes (kernels.KernelSpec.lanes) evaluates at once (LG_LANES in C).
+LANES = 4
 
 #: A tape longer than this (LG_TAPE_ON_STACK in model.c.in) is allocated on the heap.
 TAPE_ON_STACK = 32768
@@ -160,7 +168,7 @@ def model_source(info, equations, max_statements=400):
         substitutions(info), linalg=read_template("linalg.c.in"),
         kernels=kernels, tu_setup=TU_SETUP if split else "",
         tu0_begin="#if LG_IN_TU(0)\n" if split else "", tu0_end="\n#endif" if split else "",
-        constraint_solver=read_template("constraints.c.in"),
+        constraint_solver=read_template("constraints.c.in"), lanes=LANES,
         functions=model_functions(info.name),
         coordinate_names=_names(info.coordinates),
         parameter_names=_names(info.parameters), input_names=_names(info.inputs),

@@ -9,7 +9,7 @@
 #else
     double c[LG_MOTION_TAPE_C];
 #endif
-    double M[N * N], a[N + N_CONSTRAINTS], dG[N_CONSTRAINTS + 1];
+    double M[N * N], a[N + N_CONSTRAINTS];
     int failed = 0;
 #if N_CONSTRAINTS
     double A[NC * N], W[N * NC], S[NC * NC];
@@ -20,7 +20,8 @@
         failed = lg_constrained_solve(M, a, a + N, A, W, S);
     }
 #else
-    lg_motion_tape(t, y, y + N, lg_zeros, p, u, M, a, dG, dG, c);
+    double none[1];   /* A and γ: empty without constraints */
+    lg_motion_tape(t, y, y + N, lg_zeros, p, u, M, a, none, none, c);
     failed = lg_cholesky(M);
     if (!failed)
         lg_cholesky_solve(M, a, 1);
@@ -28,16 +29,32 @@
     if (!failed) {
         memcpy(out, y + N, N * sizeof(double));
         memcpy(out + N, a, N * sizeof(double));
-        for (int s = 0; s < k; ++s) {
-            const double *ds = dy + (size_t)2 * N * s;
-            double *o = out + (size_t)2 * N * (s + 1);
-            memcpy(o, ds + N, N * sizeof(double));
-            lg_motion_tangent(c, a, ds, ds + N, dp + (size_t)N_PARAMS * s, o + N, dG);
+        /* LG_LANES directions at a time: their tangents in lanes (entry i of direction b at
+         * [i·LG_LANES + b]), then one solve with the LG_LANES columns R (missing ones zero) */
+        double D[2 * N * LG_LANES], P[N_PARAMS * LG_LANES + 1], R[N * LG_LANES],
+            G[N_CONSTRAINTS * LG_LANES + 1];
+        for (int s0 = 0; s0 < k; s0 += LG_LANES) {
+            const int width = k - s0 < LG_LANES ? k - s0 : LG_LANES;
+            for (int b = 0; b < LG_LANES; ++b) {
+                const double *ds = dy + (size_t)2 * N * (s0 + b);
+                const double *ps = dp + (size_t)N_PARAMS * (s0 + b);
+                for (int i = 0; i < 2 * N; ++i)
+                    D[i * LG_LANES + b] = b < width ? ds[i] : 0.0;
+                for (int j = 0; j < N_PARAMS; ++j)
+                    P[j * LG_LANES + b] = b < width ? ps[j] : 0.0;
+            }
+            lg_motion_tangent(c, a, D, D + N * LG_LANES, P, R, G);
 #if N_CONSTRAINTS
-            lg_saddle_columns(M, A, W, S, o + N, dG, 1);
+            lg_saddle_columns(M, A, W, S, R, G, LG_LANES);
 #else
-            lg_cholesky_solve(M, o + N, 1);
+            lg_cholesky_solve(M, R, LG_LANES);
 #endif
+            for (int b = 0; b < width; ++b) {
+                double *o = out + (size_t)2 * N * (s0 + b + 1);
+                memcpy(o, dy + (size_t)2 * N * (s0 + b) + N, N * sizeof(double));
+                for (int i = 0; i < N; ++i)
+                    o[N + i] = R[i * LG_LANES + b];
+            }
         }
     }
 #if LG_MOTION_TAPE_C > LG_TAPE_ON_STACK
