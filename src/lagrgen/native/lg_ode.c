@@ -316,6 +316,9 @@ static int lu_real(double *a, int *piv, int n)
     return info;
 }
 
+static void lower_solve(const double *restrict a, int n, double *restrict b);
+static void upper_solve(const double *restrict a, int n, double *restrict b);
+
 /* Solve A x = b in place from the factors: row interchanges, then L (unit) and U column by
  * column. */
 static void lu_solve_real(const double *a, const int *piv, int n, double *b)
@@ -326,14 +329,8 @@ static void lu_solve_real(const double *a, const int *piv, int n, double *b)
             b[k] = b[piv[k]];
             b[piv[k]] = t;
         }
-    for (int j = 0; j < n; ++j)
-        if (b[j] != 0.0)
-            axpy_sub(b + j + 1, a + (size_t)j * n + j + 1, b[j], n - j - 1);
-    for (int j = n - 1; j >= 0; --j)
-        if (b[j] != 0.0) {
-            b[j] /= a[j + (size_t)j * n];
-            axpy_sub(b, a + (size_t)j * n, b[j], j);
-        }
+    lower_solve(a, n, b);
+    upper_solve(a, n, b);
 }
 
 /* Complex numbers with the textbook product (as Fortran's complex multiply) and Smith's
@@ -407,6 +404,190 @@ static int lu_complex(double *a, int *piv, int n)
         }
     }
     return info;
+}
+
+/* The triangular solves of getrs (trsv's column order: b[i] −= b[j]·L_ij for j = 0, 1, …, each
+ * column skipped where b[j] = 0; backward b[j] /= U_jj then b[i] −= b[j]·U_ij for j = n−1, …, 0),
+ * four columns at a time: within a block the four b[j] are finished first, then every other b[i]
+ * is held in a register through its four updates, taken in the same order. Each b[i] thus sees
+ * the very same operations as column by column; a block with a zero b[j] goes column by column
+ * (to skip exactly what trsv skips).                                                          */
+
+/* b := L⁻¹·b, L the unit lower triangle of the column-major n × n a. */
+static void lower_solve(const double *restrict a, int n, double *restrict b)
+{
+    int j = 0;
+    for (; j + 4 <= n; j += 4) {
+        const double *c0 = a + (size_t)j * n, *c1 = c0 + n, *c2 = c1 + n, *c3 = c2 + n;
+        const double x0 = b[j];
+        if (x0 != 0.0) {
+            b[j + 1] -= x0 * c0[j + 1];
+            b[j + 2] -= x0 * c0[j + 2];
+            b[j + 3] -= x0 * c0[j + 3];
+        }
+        const double x1 = b[j + 1];
+        if (x1 != 0.0) {
+            b[j + 2] -= x1 * c1[j + 2];
+            b[j + 3] -= x1 * c1[j + 3];
+        }
+        const double x2 = b[j + 2];
+        if (x2 != 0.0)
+            b[j + 3] -= x2 * c2[j + 3];
+        const double x3 = b[j + 3];
+        if (x0 != 0.0 && x1 != 0.0 && x2 != 0.0 && x3 != 0.0) {
+            for (int i = j + 4; i < n; ++i) {
+                double t = b[i];
+                t -= x0 * c0[i];
+                t -= x1 * c1[i];
+                t -= x2 * c2[i];
+                t -= x3 * c3[i];
+                b[i] = t;
+            }
+        } else {
+            const double x[4] = {x0, x1, x2, x3};
+            for (int c = 0; c < 4; ++c)
+                if (x[c] != 0.0)
+                    axpy_sub(b + j + 4, c0 + (size_t)c * n + j + 4, x[c], n - j - 4);
+        }
+    }
+    for (; j < n; ++j)
+        if (b[j] != 0.0)
+            axpy_sub(b + j + 1, a + (size_t)j * n + j + 1, b[j], n - j - 1);
+}
+
+/* b := U⁻¹·b, U the upper triangle (with its diagonal) of the column-major n × n a. */
+static void upper_solve(const double *restrict a, int n, double *restrict b)
+{
+    int j = n - 1;
+    for (; j >= 3; j -= 4) {
+        const double *c0 = a + (size_t)j * n, *c1 = c0 - n, *c2 = c1 - n, *c3 = c2 - n;
+        const int z0 = b[j] != 0.0;
+        if (z0) {
+            b[j] /= c0[j];
+            b[j - 1] -= b[j] * c0[j - 1];
+            b[j - 2] -= b[j] * c0[j - 2];
+            b[j - 3] -= b[j] * c0[j - 3];
+        }
+        const int z1 = b[j - 1] != 0.0;
+        if (z1) {
+            b[j - 1] /= c1[j - 1];
+            b[j - 2] -= b[j - 1] * c1[j - 2];
+            b[j - 3] -= b[j - 1] * c1[j - 3];
+        }
+        const int z2 = b[j - 2] != 0.0;
+        if (z2) {
+            b[j - 2] /= c2[j - 2];
+            b[j - 3] -= b[j - 2] * c2[j - 3];
+        }
+        const int z3 = b[j - 3] != 0.0;
+        if (z3)
+            b[j - 3] /= c3[j - 3];
+        const double x0 = b[j], x1 = b[j - 1], x2 = b[j - 2], x3 = b[j - 3];
+        if (z0 && z1 && z2 && z3) {
+            for (int i = 0; i < j - 3; ++i) {
+                double t = b[i];
+                t -= x0 * c0[i];
+                t -= x1 * c1[i];
+                t -= x2 * c2[i];
+                t -= x3 * c3[i];
+                b[i] = t;
+            }
+        } else {
+            const double x[4] = {x0, x1, x2, x3};
+            const int z[4] = {z0, z1, z2, z3};
+            for (int c = 0; c < 4; ++c)
+                if (z[c])
+                    axpy_sub(b, c0 - (size_t)c * n, x[c], j - 3);
+        }
+    }
+    for (; j >= 0; --j)
+        if (b[j] != 0.0) {
+            b[j] /= a[j + (size_t)j * n];
+            axpy_sub(b, a + (size_t)j * n, b[j], j);
+        }
+}
+
+/* (br, bi) := L⁻¹·(br, bi) for the complex unit lower triangle of (re, im), as lower_solve. */
+static void lower_solve_complex(const double *restrict re, const double *restrict im, int n,
+                                double *restrict br, double *restrict bi)
+{
+    int j = 0;
+    for (; j + 2 <= n; j += 2) {
+        const double *r0 = re + (size_t)j * n, *i0 = im + (size_t)j * n, *r1 = r0 + n,
+                     *i1 = i0 + n;
+        const double xr0 = br[j], xi0 = bi[j];
+        const int z0 = xr0 != 0.0 || xi0 != 0.0;
+        if (z0) {
+            br[j + 1] -= xr0 * r0[j + 1] - xi0 * i0[j + 1];
+            bi[j + 1] -= xr0 * i0[j + 1] + xi0 * r0[j + 1];
+        }
+        const double xr1 = br[j + 1], xi1 = bi[j + 1];
+        const int z1 = xr1 != 0.0 || xi1 != 0.0;
+        if (z0 && z1) {
+            for (int i = j + 2; i < n; ++i) {
+                double tr = br[i], ti = bi[i];
+                tr -= xr0 * r0[i] - xi0 * i0[i];
+                ti -= xr0 * i0[i] + xi0 * r0[i];
+                tr -= xr1 * r1[i] - xi1 * i1[i];
+                ti -= xr1 * i1[i] + xi1 * r1[i];
+                br[i] = tr;
+                bi[i] = ti;
+            }
+        } else {
+            if (z0)
+                caxpy_sub(br + j + 2, bi + j + 2, r0 + j + 2, i0 + j + 2, xr0, xi0, n - j - 2);
+            if (z1)
+                caxpy_sub(br + j + 2, bi + j + 2, r1 + j + 2, i1 + j + 2, xr1, xi1, n - j - 2);
+        }
+    }
+    for (; j < n; ++j)
+        if (br[j] != 0.0 || bi[j] != 0.0) {
+            size_t c = (size_t)j * n + j + 1;
+            caxpy_sub(br + j + 1, bi + j + 1, re + c, im + c, br[j], bi[j], n - j - 1);
+        }
+}
+
+/* (br, bi) := U⁻¹·(br, bi) for the complex upper triangle of (re, im), as upper_solve. */
+static void upper_solve_complex(const double *restrict re, const double *restrict im, int n,
+                                double *restrict br, double *restrict bi)
+{
+    int j = n - 1;
+    for (; j >= 1; j -= 2) {
+        const double *r0 = re + (size_t)j * n, *i0 = im + (size_t)j * n, *r1 = r0 - n,
+                     *i1 = i0 - n;
+        const int z0 = br[j] != 0.0 || bi[j] != 0.0;
+        if (z0) {
+            cdiv(br[j], bi[j], r0[j], i0[j], br + j, bi + j);
+            br[j - 1] -= br[j] * r0[j - 1] - bi[j] * i0[j - 1];
+            bi[j - 1] -= br[j] * i0[j - 1] + bi[j] * r0[j - 1];
+        }
+        const int z1 = br[j - 1] != 0.0 || bi[j - 1] != 0.0;
+        if (z1)
+            cdiv(br[j - 1], bi[j - 1], r1[j - 1], i1[j - 1], br + j - 1, bi + j - 1);
+        const double xr0 = br[j], xi0 = bi[j], xr1 = br[j - 1], xi1 = bi[j - 1];
+        if (z0 && z1) {
+            for (int i = 0; i < j - 1; ++i) {
+                double tr = br[i], ti = bi[i];
+                tr -= xr0 * r0[i] - xi0 * i0[i];
+                ti -= xr0 * i0[i] + xi0 * r0[i];
+                tr -= xr1 * r1[i] - xi1 * i1[i];
+                ti -= xr1 * i1[i] + xi1 * r1[i];
+                br[i] = tr;
+                bi[i] = ti;
+            }
+        } else {
+            if (z0)
+                caxpy_sub(br, bi, r0, i0, xr0, xi0, j - 1);
+            if (z1)
+                caxpy_sub(br, bi, r1, i1, xr1, xi1, j - 1);
+        }
+    }
+    for (; j >= 0; --j)
+        if (br[j] != 0.0 || bi[j] != 0.0) {
+            size_t c = (size_t)j * n;
+            cdiv(br[j], bi[j], re[c + j], im[c + j], br + j, bi + j);
+            caxpy_sub(br, bi, re + c, im + c, br[j], bi[j], j);
+        }
 }
 
 /* ------------------------------------------------------------------------------------------ */
@@ -627,9 +808,7 @@ static int radau_factor(solver_t *s, double h)
 }
 
 /* The real and the complex system of one Newton iteration (b: the real right-hand side, then
- * the complex one's real and imaginary parts), each solved like lu_solve_real (same arithmetic),
- * with the two systems' sweeps interleaved column by column so that their chains of dependent
- * updates (each column waits for the previous one's division) overlap in the processor. */
+ * the complex one's real and imaginary parts), each solved like lu_solve_real (same arithmetic). */
 static void radau_solve(const solver_t *s, double *b)
 {
     int n = s->dim;
@@ -652,24 +831,10 @@ static void radau_solve(const solver_t *s, double *b)
             bi[q] = ti;
         }
     }
-    for (int j = 0; j < n; ++j) {
-        size_t c = (size_t)j * n + j + 1;
-        if (x[j] != 0.0)
-            axpy_sub(x + j + 1, a + c, x[j], n - j - 1);
-        if (br[j] != 0.0 || bi[j] != 0.0)
-            caxpy_sub(br + j + 1, bi + j + 1, re + c, im + c, br[j], bi[j], n - j - 1);
-    }
-    for (int j = n - 1; j >= 0; --j) {
-        size_t c = (size_t)j * n;
-        if (x[j] != 0.0) {
-            x[j] /= a[c + j];
-            axpy_sub(x, a + c, x[j], j);
-        }
-        if (br[j] != 0.0 || bi[j] != 0.0) {
-            cdiv(br[j], bi[j], re[c + j], im[c + j], br + j, bi + j);
-            caxpy_sub(br, bi, re + c, im + c, br[j], bi[j], j);
-        }
-    }
+    lower_solve(a, n, x);
+    lower_solve_complex(re, im, n, br, bi);
+    upper_solve(a, n, x);
+    upper_solve_complex(re, im, n, br, bi);
 }
 
 /* radau.solve_collocation_system: simplified Newton iterations in the transformed variables W.
@@ -936,17 +1101,14 @@ static void bdf_change_D(solver_t *s, int order, double factor)
                 acc += R[i * m + k] * U[k * m + j];
             RU[i * m + j] = acc;
         }
-    double *Dn = s->tmp2, *D = s->D;
-    for (int i = 0; i < n; ++i) {
-        for (int r = 0; r < m; ++r) {
-            double acc = 0.0;
-            for (int k = 0; k < m; ++k)
-                acc += RU[k * m + r] * D[k * n + i];
-            Dn[r] = acc;
-        }
-        for (int r = 0; r < m; ++r)
-            D[r * n + i] = Dn[r];
-    }
+    /* D'[r][i] = sum_k RU[k][r] D[k][i], row by row into K (free in BDF beyond y_predict, psi) */
+    double RUt[36], *Dn = s->K + 2 * n, *D = s->D;
+    for (int r = 0; r < m; ++r)
+        for (int k = 0; k < m; ++k)
+            RUt[r * m + k] = RU[k * m + r];
+    for (int r = 0; r < m; ++r)
+        combine(D, RUt + r * m, m, n, Dn + (size_t)r * n);
+    memcpy(D, Dn, (size_t)m * n * sizeof(double));
 }
 
 /* bdf.solve_bdf_system: Newton iterations for y = y_predict + d. Returns converged, -1 on a
@@ -1040,15 +1202,12 @@ static int bdf_step_impl(solver_t *s)
         }
         h = t_new - t;
         h_abs = fabs(h);
+        static const double ones[BDF_MAX_ORDER + 1] = {1, 1, 1, 1, 1, 1};
+        combine(D, ones, order + 1, n, y_predict);       /* sum_k D[k], as x·1 = x */
+        combine(D + n, s->gamma + 1, order, n, psi);
         for (int i = 0; i < n; ++i) {
-            double acc = 0.0, ps = 0.0;
-            for (int k = 0; k <= order; ++k)
-                acc += D[k * n + i];
-            y_predict[i] = acc;
-            s->scale[i] = s->atol[i] + s->rtol * fabs(acc);
-            for (int k = 1; k <= order; ++k)
-                ps += D[k * n + i] * s->gamma[k];
-            psi[i] = ps / s->alpha[order];
+            s->scale[i] = s->atol[i] + s->rtol * fabs(y_predict[i]);
+            psi[i] /= s->alpha[order];
         }
         int converged = 0;
         double c = h / s->alpha[order];
