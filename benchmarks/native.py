@@ -26,10 +26,12 @@ from pathlib import Path
 
 import numpy as np
 
+from lagrgen.methods import NATIVE_METHODS
+
 HERE = Path(__file__).resolve().parent
 ROOT = HERE.parent
 OUT_DIR = HERE / "results" / "native_models"
-METHODS = ("RK23", "RK45", "DOP853", "Radau", "BDF")
+METHODS = NATIVE_METHODS
 T_SPAN = (0.0, 10.0)
 TOL = 1e-8
 TARGETS = {("DOP853", 10): 2.5, ("DOP853", 20): 12.0, ("Radau", 10): 20.0, ("BDF", 10): 6.0}

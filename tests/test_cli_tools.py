@@ -11,6 +11,7 @@ import csv
 import io
 import os
 import re
+import shlex
 import subprocess
 import sys
 from pathlib import Path
@@ -21,7 +22,7 @@ from numpy.testing import assert_allclose
 from PIL import Image, ImageChops
 
 import lagrgen
-from conftest import EXAMPLES, example_model
+from conftest import EXAMPLES, ROOT, example_model
 
 SOURCE = str(Path(lagrgen.__file__).resolve().parent.parent)
 DOUBLE = str(EXAMPLES / "double_pendulum.py")
@@ -64,6 +65,24 @@ def test_help_describes_every_command(capsys):
         assert status == 0
         for option in options:
             assert option in out
+
+
+def test_every_command_shows_an_example_that_parses(capsys):
+    """Each command module's `--help` ends with an example: a command line of that command, on a
+    model file of the repository, that the parser accepts."""
+    from lagrgen.cli import COMMANDS, parser
+    top = parser()
+    for name in COMMANDS:
+        command = name.replace("_", "-")
+        status, out, _ = in_process(capsys, command, "--help")
+        assert status == 0 and "\nexample" in out, command
+        lines = out.split("\nexample", 1)[1].split(":\n", 1)[1].replace("\\\n", " ").splitlines()
+        assert lines, command
+        for line in lines:
+            argv = shlex.split(line)
+            assert argv[:4] == ["python", "-m", "lagrgen", command], line
+            assert (ROOT / argv[4]).is_file(), line
+            assert top.parse_args(argv[3:]).run.__module__ == f"lagrgen.cli.{name}"
 
 
 def test_show_prints_one_line_per_coordinate():

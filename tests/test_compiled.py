@@ -11,7 +11,7 @@ import sympy as sp
 
 import lagrgen
 from lagrgen import Model
-from lagrgen.build import CACHE_DIR, EXT_SUFFIX
+from lagrgen.cache import CACHE_DIR, EXT_SUFFIX
 
 from conftest import EXAMPLE_MODELS, example_id, example_model, random_point
 

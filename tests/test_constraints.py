@@ -171,7 +171,8 @@ def test_small_oscillation_frequency_is_sqrt_g_over_l(built):
         assert abs(res.shapes[1, 0]) < 1e-12       # the mode moves the bob sideways
         assert res.shapes[:, 0] @ (3.0 * res.shapes[:, 0]) == pytest.approx(1.0)
         lin = lagrgen.linearize(mod, q0, p=p)
-        assert lin.basis.shape == (2, 1) and lin.M.shape == (1, 1)
+        assert lin.basis.shape == (4, 2) and lin.M.shape == (1, 1)    # δy = basis·[δx, δẋ]
+        assert lin.states == ("x", "x_dot") and lin.coordinates == ("x",)
         assert lin.constraint_forces[0] == pytest.approx(-3.0 * 9.81 / (2 * 0.7))
 
 

@@ -274,7 +274,7 @@ def test_unit_errors():
 
 
 def test_csv_headers_and_plot_panels_carry_units(built):
-    from lagrgen.cli import write_csv
+    from lagrgen.cli.simulate import write_csv
     from lagrgen.outputs.plotting import plot_time_history
     mod = built(oscillator_model, "python")
     model = oscillator_model()
@@ -312,7 +312,7 @@ model.output('tip_x', 2*x, units='m')
 
 
 def test_split_items():
-    from lagrgen.cli import assignments
+    from lagrgen.cli.arguments import assignments
     assert assignments(["F=Max(0,t-0.5);G=1", "H=2,K=Min(1,2)"], "--inputs") == {
         "F": "Max(0,t-0.5)", "G": "1", "H": "2", "K": "Min(1,2)"}
 

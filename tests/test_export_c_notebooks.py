@@ -117,7 +117,7 @@ def test_simulation_result_plots_itself():
 
 
 def test_lock_is_exclusive_and_imported_lazily(tmp_path):
-    from lagrgen.build import locked
+    from lagrgen.cache import locked
     spans = []
 
     def hold():
@@ -133,6 +133,6 @@ def test_lock_is_exclusive_and_imported_lazily(tmp_path):
     spans.sort()
     assert len(spans) == 4
     assert all(a[1] <= b[0] for a, b in zip(spans, spans[1:]))
-    code = ("import sys, lagrgen.build as b; "
+    code = ("import sys, lagrgen.cache as b; "
             "assert 'filelock' not in sys.modules and not hasattr(b, 'fcntl')")
     subprocess.run([sys.executable, "-c", code], check=True)

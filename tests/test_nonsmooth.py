@@ -425,7 +425,7 @@ def test_csv_and_plot_mark_the_transitions(built, tmp_path):
 
     import matplotlib
     matplotlib.use("Agg")
-    from lagrgen.cli import write_csv
+    from lagrgen.cli.simulate import write_csv
     mod = built(ball_model)
     sol = lagrgen.simulate(mod, (0, 2), {"y": 1.0}, t_eval=np.linspace(0, 2, 201), **TOL)
     stream = io.StringIO()

@@ -12,7 +12,7 @@ from numpy.testing import assert_allclose
 
 import lagrgen
 from lagrgen import MassMatrixError, Model, ModelError
-from lagrgen.build import CACHE_DIR, EXT_SUFFIX
+from lagrgen.cache import CACHE_DIR, EXT_SUFFIX
 
 from conftest import example_model
 
@@ -229,7 +229,7 @@ def test_force_republishes_a_damaged_published_module(tmp_path):
 
 def test_a_cached_model_in_a_read_only_directory_loads(tmp_path, monkeypatch):
     import importlib
-    build = importlib.import_module("lagrgen.build")
+    cache = importlib.import_module("lagrgen.cache")
     model = Model("read_only")
     x, = model.coordinates("x")
     model.particle(1, sp.Matrix([x]))
@@ -238,7 +238,7 @@ def test_a_cached_model_in_a_read_only_directory_loads(tmp_path, monkeypatch):
 
     def no_lock(path):
         raise PermissionError(13, "Read-only file system", str(path))
-    monkeypatch.setattr(build, "locked", no_lock)
+    monkeypatch.setattr(cache, "locked", no_lock)
     again = lagrgen.build(model, out_dir=tmp_path)
     assert again.build_info["cache_hit"] and again.rhs(0.0, [1.0, 0.0])[1] == -4.0
     model.spring(1.0, x)

@@ -10,7 +10,8 @@ import sympy as sp
 from numpy.testing import assert_allclose
 
 import lagrgen
-from lagrgen.build import compiler_command, model_info
+from lagrgen.build import model_info
+from lagrgen.toolchain import compiler_command
 from lagrgen.codegen.c_model import standalone_files, translation_units
 from conftest import ROOT, load_example
 
@@ -173,12 +174,12 @@ STAGES = [
     ("kernels", ["tangents", "kernels"]),
     ("code", ["codegen"]),
     ("runtime", ["runtime"]),
-    ("build", ["build"]),
+    ("build", ["cache", "build"]),
     ("display", ["outputs"]),
     ("running", ["progress", "results", "solvers", "scipy_engine", "native", "sensitivity",
                  "simulate", "constraints", "ensemble", "ensemble_store",
                  "hybrid"]),
-    ("analysis", ["vibration", "sweep", "bench", "fit"]),
+    ("analysis", ["linearization", "vibration", "stability", "sweep", "bench", "fit"]),
     ("face", ["model", "sympy_interop", "expressions", "cli", "__main__", ""]),
 ]
 #: The package's sources in this checkout (the installed package has no .pyx files).
@@ -333,3 +334,25 @@ def test_every_physics_record_has_one_contribution_function():
                    records.ExternalEquations, records.Impact, records.Friction}
     assert kinds - not_physics == set(contributions.CONTRIBUTIONS)
     assert len(set(contributions.CONTRIBUTIONS.values())) == len(contributions.CONTRIBUTIONS)
+
+
+def test_the_method_names_are_listed_only_in_the_method_table():
+    """No module but `methods.py` spells a collection of two or more method names: they are read
+    from `methods.TABLE` (with what FMUs say of each and the benchmarks' choice)."""
+    import ast
+    from lagrgen.methods import BENCH_METHODS, METHODS, TABLE
+    names = set(METHODS)
+    listing = []
+    for name, path in package_modules().items():
+        if path.suffix != ".py" or name == "methods":
+            continue
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.Dict) and all(isinstance(v, ast.Name) for v in node.values):
+                continue        # a method's implementation by its name (lagrgen.solvers.SOLVERS)
+            items = node.keys if isinstance(node, ast.Dict) else \
+                getattr(node, "elts", []) if isinstance(node, (ast.Tuple, ast.List, ast.Set)) else []
+            spelled = [i.value for i in items if isinstance(i, ast.Constant) and i.value in names]
+            if len(spelled) >= 2:
+                listing.append(f"lagrgen.{name}, line {node.lineno}: {spelled}")
+    assert listing == []
+    assert all(m.description for m in TABLE) and set(BENCH_METHODS) <= names

@@ -325,8 +325,10 @@ def test_errors():
     P.set_vel(N, u * N.x)
     km = me.KanesMethod(N, q_ind=[q], u_ind=[u], kd_eqs=[2 * u - q.diff()])
     km.kanes_equations([me.Particle("p", P, sp.Symbol("m"))], [(P, -q * N.x)])
-    with pytest.raises(ModelError, match="not u = q̇"):
-        lagrgen.from_sympy(km, "bad")
+    half = lagrgen.build(lagrgen.from_sympy(km, "half_rate", defaults={"m": 2.0}),
+                         backend="python")     # u = q̇/2: m·u̇ = −q is q̈ = −2q/m
+    assert_allclose(half.rhs(0.0, [0.3, 0.8]), [0.8, -0.3], rtol=1e-14)
+    assert half.output_names[0] == "u" and half.outputs(0.0, [0.3, 0.8])[0] == 0.4
     # a System's constraints (LagrangesMethod and KanesMethod ones: test_sympy_constraints.py)
     system = cart_pole()
     system.add_holonomic_constraints(system.q[1])     # q[1] not declared dependent

@@ -186,7 +186,7 @@ def test_a_cache_hit_of_an_equal_description_derives_nothing(tmp_path, monkeypat
 
 
 def test_the_description_key_sees_every_part_of_the_description():
-    from lagrgen.build import description_digest
+    from lagrgen.cache import description_digest
     base = description_digest(oscillator().spec())
     assert description_digest(oscillator().spec()) == base
     for changed in (oscillator(k=5.0), oscillator(unit="m"), oscillator(stiffening=2),

@@ -129,11 +129,12 @@ def test_inverted_pendulum_is_unstable(built):
     q0 = lagrgen.equilibrium(mod, [3.0, 3.3])
     assert_allclose(q0, [np.pi, np.pi], atol=1e-9)
     res = lagrgen.modes(mod, q0)
-    assert np.all(np.isnan(res.omega)) and not res.stable.any()
-    assert np.all(np.real(res.eigenvalues) < 0)
+    assert np.all(np.isnan(res.omega)) and not res.stable
+    assert np.all(np.real(res.omega_squared) < 0)
+    assert np.real(res.eigenvalues).max() > 2.0    # s = ±√(−ω²): one real root grows
 
 
-def test_linearize_is_the_derivative_of_the_forcing(built):
+def test_linearize_is_the_derivative_of_the_residual(built):
     mod = built(DOUBLE)
     q0, qd0, u0 = np.array([0.4, -0.3]), np.array([0.7, -1.1]), np.array([0.5])
     lin = lagrgen.linearize(mod, q0, qd0, t=0.0, u=u0)
@@ -143,8 +144,11 @@ def test_linearize_is_the_derivative_of_the_forcing(built):
         e = np.zeros(len(x))
         e[j] = h
         return (f(x + e) - f(x - e)) / (2 * h)
-    dq = np.column_stack([column(lambda q: mod.forcing(q, qd0, 0.0, None, u0), q0, j)
-                          for j in range(2)])
+    qdd0 = np.linalg.solve(mod.mass_matrix(q0), mod.forcing(q0, qd0, 0.0, None, u0))
+
+    def residual(q):          # M(q)·q̈0 − F(q, q̇0): K is its derivative, q̈0 held fixed
+        return mod.mass_matrix(q) @ qdd0 - mod.forcing(q, qd0, 0.0, None, u0)
+    dq = -np.column_stack([column(residual, q0, j) for j in range(2)])
     dqd = np.column_stack([column(lambda v: mod.forcing(q0, v, 0.0, None, u0), qd0, j)
                            for j in range(2)])
     assert_allclose(lin.K, -dq, rtol=1e-6, atol=1e-8)
@@ -281,9 +285,14 @@ def test_gyroscopic_coupling_is_not_damping():
     mod = lagrgen.build(rotating_frame_model(), backend="python")
     res = lagrgen.modes(mod, [0.0, 0.0])
     w0, Omega = 5.0, 1.5
-    assert_allclose(res.omega, [np.sqrt(w0**2 - Omega**2)] * 2, rtol=1e-12)
+    # skew C: the modes are the state matrix's, backward and forward whirl at ω0 ∓ Ω, undamped
+    assert res.kind == "state" and res.stable
+    assert_allclose(res.omega, [w0 - Omega, w0 + Omega], rtol=1e-10)
     assert_allclose(res.damping_ratios, 0.0, atol=1e-12)
-    assert_allclose(np.sort(res.omega_damped), [w0 - Omega, w0 + Omega], rtol=1e-10)
+    assert_allclose(res.omega_damped, [w0 - Omega, w0 + Omega], rtol=1e-10)
+    lin = lagrgen.linearize(mod, [0.0, 0.0])
+    assert_allclose(lin.K, (w0**2 - Omega**2) * np.eye(2), rtol=1e-12)   # centrifugal softening
+    assert_allclose(lin.C, [[0, -2 * Omega], [2 * Omega, 0]], atol=1e-12)
 
 
 def test_clear_errors():

@@ -14,15 +14,16 @@ from .errors import (BuildError, CompileError, ConstraintError, LagrgenError, Ma
 #: Public name -> the module that defines it.
 _LAZY = {
     "Model": "model",
-    "build": "build", "load": "build",
+    "build": "build", "load": "cache",
     "simulate": "simulate", "evaluate_outputs": "simulate", "output_event": "simulate",
     "Signal": "signals",
     "simulate_many": "ensemble", "EnsembleResult": "ensemble",
     "open_ensemble": "ensemble_store",
     "sweep": "sweep",
     "fit": "fit", "fit_modes": "fit",
-    "equilibrium": "vibration", "linearize": "vibration", "modes": "vibration",
+    "equilibrium": "vibration", "linearize": "linearization", "modes": "vibration",
     "frequency_response": "vibration", "FrozenTimeWarning": "vibration",
+    "eigenvalue_sweep": "stability",
     "consistent_state": "constraints",
     "from_sympy": "sympy_interop",
     "export_fmu": "build",
@@ -31,7 +32,7 @@ _LAZY = {
 
 __all__ = ["Model", "build", "load", "simulate", "evaluate_outputs", "output_event", "Signal",
            "simulate_many", "EnsembleResult", "open_ensemble", "sweep", "equilibrium", "linearize",
-           "modes",
+           "modes", "eigenvalue_sweep",
            "frequency_response", "FrozenTimeWarning", "consistent_state",
            "from_sympy", "export_fmu", "rotation",
            "LagrgenError", "ConstraintError", "ModelError", "UnknownNameError", "MassMatrixError",

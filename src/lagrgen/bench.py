@@ -12,9 +12,8 @@ import timeit
 import numpy as np
 
 from .build import build
+from .methods import BENCH_METHODS
 from .simulate import simulate
-
-METHODS = ("RK45", "DOP853", "Radau", "BDF", "LSODA")
 
 
 def per_call_seconds(fn, *args, budget=0.2):
@@ -106,7 +105,7 @@ def default_state(mod):
     return consistent_state(mod, np.concatenate([0.1 * np.arange(1, n + 1), np.zeros(n)]))
 
 
-def bench_model(make_model, y0=None, methods=METHODS, t_span=(0.0, 10.0), rtol=1e-8, atol=1e-8,
+def bench_model(make_model, y0=None, methods=BENCH_METHODS, t_span=(0.0, 10.0), rtol=1e-8, atol=1e-8,
                 repeats=3, python_solve_limit=60.0, out_dir=None):
     """All figures for one model on both paths, as a dict (see `markdown`)."""
     builds = build_seconds(make_model, out_dir=out_dir, repeats=repeats)

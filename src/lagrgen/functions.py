@@ -86,6 +86,10 @@ FUNCTIONS = (
                   "λ of M·q̈ = F + Aᵀ·λ, A·q̈ = γ (Aᵀλ: the generalized forces of constraint)"),
     ModelFunction("constraint_residuals", "state", (Output("residuals", ("n_residuals",)),),
                   "Φ(q, t) of the holonomic constraints, then A·q̇ + b of all constraints"),
+    ModelFunction("constraint_residual_jacobian", "state",
+                  (Output("dr_dy", ("n_residuals", "2n")),),
+                  "∂[Φ; A·q̇ + b]/∂[q, q̇]: the tangent space of the constraint manifold is its "
+                  "null space"),
     ModelFunction("constraint_terms", "q_qd",
                   (Output("A", ("n_constraints", "n")), Output("lam", ("n_constraints",)),
                    Output("H", ("n", "n"))),

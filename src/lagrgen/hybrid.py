@@ -35,6 +35,8 @@ import time
 
 import numpy as np
 
+from .methods import NATIVE_METHODS
+
 OPEN, CONTACT, STICK, SLIP = "open", "contact", "stick", "slip"
 #: Defaults of the switching tolerances (see `simulate_hybrid`).
 GAP_TOL = 1e-9
@@ -538,9 +540,10 @@ def simulate_nonsmooth(mod, t_span, y0, method, p, inputs, u_at, rtol, atol, t_e
     if events is not None:
         raise ValueError("a model with impacts or frictions takes no Python events: declare them "
                          "with model.event")
-    if not isinstance(method, str) or method not in ("RK23", "RK45", "DOP853", "Radau", "BDF"):
-        raise ValueError(f"a model with impacts or frictions runs with RK23, RK45, DOP853, Radau "
-                         f"or BDF, not {getattr(method, '__name__', method)!r}")
+    if not isinstance(method, str) or method not in NATIVE_METHODS:
+        raise ValueError(f"a model with impacts or frictions runs with "
+                         f"{', '.join(NATIVE_METHODS[:-1])} or {NATIVE_METHODS[-1]}, not "
+                         f"{getattr(method, '__name__', method)!r}")
     if dense_output:
         raise ValueError("dense_output is not available for a model with impacts or frictions: "
                          "give t_eval")

@@ -12,6 +12,7 @@ assembled from these by the backends:
     outputs      the model's outputs: the user's, then T, V, T + V, input power, R
     constraints  A (m×n) and γ (m) of A·q̈ = γ                       } only for a model with
     constraint_residuals  Φ, then A·q̇ + b                            } constraints (m > 0);
+    constraint_residual_jacobian  ∂[Φ; A·q̇ + b]/∂[q, q̇]              }
     constraint_jacobian   ∂(Aᵀλ)/∂q and [∂γ/∂q − ∂(A·a)/∂q | ∂γ/∂q̇]  } a = [q̈, λ] there
     parameter_b  P = ∂F/∂p − ∂(M·a)/∂p for a given a (= q̈); ∂ẏ/∂p's bottom half is M⁻¹·P
     constraint_parameter_jacobian  ∂(Aᵀλ)/∂p and ∂γ/∂p − ∂(A·a)/∂p (m > 0; a = [q̈, λ])
@@ -147,6 +148,9 @@ KERNELS = (
     KernelSpec("constraint_residuals", "Φ (n_holonomic), then A·q̇ + b (m)",
                (Output("residuals", ("n_residuals",)),),
                lambda eq: {"residuals": list(eq.residuals)}, lambda eq: eq.m > 0),
+    KernelSpec("constraint_residual_jacobian", "∂[Φ; c]/∂[q, q̇] (n_residuals×2n)",
+               (Output("dr_dy", ("n_residuals", "2n")),),
+               lambda eq: {"dr_dy": flatten(eq.residual_jacobian)}, lambda eq: eq.m > 0),
     KernelSpec("constraint_jacobian",
                "H = ∂(Aᵀλ)/∂q (n×n) and G = [∂γ/∂q − ∂(A·a)/∂q | ∂γ/∂q̇] (m×2n), a = [q̈, λ]",
                (Output("H", ("n", "n")), Output("G", ("n_constraints", "2n"))),

@@ -69,6 +69,11 @@ class Equations:
         return list(self.Phi) + list(self.c)
 
     @cached_property
+    def residual_jacobian(self):
+        """∂r_k/∂[q, q̇] (n_holonomic + m rows, 2n columns) of the residuals r = [Φ; c]."""
+        return [[diff(r, v) for v in list(self.q) + list(self.qd)] for r in self.residuals]
+
+    @cached_property
     def dAl_dq(self):
         """∂(Aᵀλ)_i/∂q_j = Σ_k ∂A_ki/∂q_j·λ_k (n×n), λ held fixed."""
         return self._dAl(self.q)

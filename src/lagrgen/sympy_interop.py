@@ -24,6 +24,7 @@ Constraints become lagrgen's (API.md §9: M·q̈ = F + Aᵀλ):
 import random
 
 import numpy as np
+import scipy.linalg
 import sympy as sp
 from sympy.core.function import AppliedUndef
 
@@ -63,7 +64,7 @@ def from_sympy(method_or_system, name, defaults=None, inputs=None):
     """
     from sympy.physics.mechanics import dynamicsymbols
     t = dynamicsymbols._t
-    q, M, F, holonomic, velocity = _equations(method_or_system, t)
+    q, M, F, holonomic, velocity, speeds = _equations(method_or_system, t)
     coordinates = list(q)
     for c in coordinates:
         if not (isinstance(c, AppliedUndef) and c.args == (t,)):
@@ -113,6 +114,8 @@ def from_sympy(method_or_system, name, defaults=None, inputs=None):
         model.constraint(expr.xreplace(rules))
     for expr in velocity:
         model.velocity_constraint(expr.xreplace(rules))
+    for speed, expr in speeds:
+        model.output(_name(speed.func.__name__, "speed", speed), expr.xreplace(rules))
     return model
 
 
@@ -169,8 +172,9 @@ def _inputs(found, inputs, t):
 
 
 def _equations(obj, t):
-    """(q, M, F, holonomic, velocity) of `obj`: M·q̈ = F, the holonomic constraints Φ(q, t) and
-    the velocity constraints c(q, q̇, t), in SymPy's own symbols."""
+    """(q, M, F, holonomic, velocity, speeds) of `obj`: M·q̈ = F, the holonomic constraints
+    Φ(q, t), the velocity constraints c(q, q̇, t), and [(speed, its expression in q, q̇)] of a
+    KanesMethod, in SymPy's own symbols."""
     from sympy.physics.mechanics import KanesMethod, LagrangesMethod, System
     if isinstance(obj, System):
         if len(obj.u_aux):
@@ -187,9 +191,9 @@ def _equations(obj, t):
             # the bodies' velocities may be written in the System's speeds: u = q̇ puts them back
             q, M, F, holonomic, velocity = _lagrange(obj)
             rates = _rates_of_speeds(list(system.q), list(system.u), list(system.kdes), t)
-            return q, M.xreplace(rates), F.xreplace(rates), holonomic, velocity
+            return q, M.xreplace(rates), F.xreplace(rates), holonomic, velocity, []
     if isinstance(obj, LagrangesMethod):
-        return _lagrange(obj)
+        return (*_lagrange(obj), [])
     if isinstance(obj, KanesMethod):
         return _kane(obj, t)
     raise TypeError(f"from_sympy() takes a sympy.physics.mechanics LagrangesMethod, KanesMethod "
@@ -233,39 +237,142 @@ def _lagrange(lm):
 
 
 def _kane(km, t):
-    """(q, M, F, Φ, c) of a KanesMethod (see the module docstring for dependent q and u)."""
+    """(q, M, F, Φ, c, speeds) of a KanesMethod with any kinematic differential equations that
+    can be solved for q̇ (see the module docstring)."""
     if len(getattr(km, "_uaux", ())):
         raise ModelError("this KanesMethod has auxiliary speeds, which from_sympy does not "
                          "support: form the equations without u_auxiliary")
-    if len(getattr(km, "_qdep", ())) or len(getattr(km, "_udep", ())):
-        return _kane_constrained(km, t)
-    q, M, F = _kane_free(km, t)
-    return q, M, F, [], []
-
-
-def _kane_constrained(km, t):
-    """Kane's equations with every coordinate and speed independent, and the constraints."""
-    from sympy.physics.mechanics import KanesMethod
-    if getattr(km, "_bodylist", None) is None:
+    if getattr(km, "_bodylist", None) is None or getattr(km, "_fr", None) is None:
         raise ModelError("the KanesMethod has no equations yet: call kanes_equations(bodies, "
                          "loads) first")
-    kd_eqs = [rate - value for rate, value in km.kindiffdict().items()]
-    free = KanesMethod(km._inertial, q_ind=list(km.q), u_ind=list(km.u), kd_eqs=kd_eqs)
-    free.kanes_equations(km._bodylist, km._forcelist or [])
-    q, M, F = _kane_free(free, t)
-    to_rates = {u: r for r, u in _speed_of_rate(free, t).items()}
+    constrained = bool(len(getattr(km, "_qdep", ())) or len(getattr(km, "_udep", ())))
+    full = _all_speeds_independent(km) if constrained else km
+    M_u, F_u = sp.Matrix(full.mass_matrix), sp.Matrix(full.forcing)
+    u = list(km.u)
+    for e in list(M_u) + list(F_u):
+        left = {d for d in e.atoms(sp.Derivative) if d.expr in u}
+        if left:
+            raise ModelError(f"the equations contain the speed derivatives {left}")
+    kinematics = speed_map(km, t)
+    q = kinematics.coordinates
+    W = kinematics.W
+    to_speeds = dict(zip(u, kinematics.speeds))
+    M = W.T * M_u * W
+    F = W.T * (F_u.xreplace(to_speeds) - M_u * kinematics.convective)
     holonomic = [sp.sympify(e) for e in km._f_h]
     velocity = []
     if len(km._k_nh):
-        rows = km._k_nh * sp.Matrix(km.u) + km._f_nh
-        velocity = [sp.sympify(e).xreplace(to_rates) for e in rows]
-    return q, M, F, holonomic, _nonholonomic(q, holonomic, velocity, t)
+        rows = km._k_nh * sp.Matrix(u) + km._f_nh
+        velocity = [sp.sympify(e).xreplace(to_speeds) for e in rows]
+    return (q, M, F, holonomic, _nonholonomic(q, holonomic, velocity, t),
+            list(zip(u, kinematics.speeds)))
 
 
-def _speed_of_rate(km, t):
-    """{q̇_i: u_j} of kinematic equations u = q̇."""
-    kinematics = km.kindiffdict()
-    return {qi.diff(t): kinematics[qi.diff(t)] for qi in km.q}
+def _all_speeds_independent(km):
+    """Kane's equations of `km` formed again with every coordinate and speed independent."""
+    from sympy.physics.mechanics import KanesMethod
+    kd_eqs = [rate - value for rate, value in km.kindiffdict().items()]
+    free = KanesMethod(km._inertial, q_ind=list(km.q), u_ind=list(km.u), kd_eqs=kd_eqs)
+    free.kanes_equations(km._bodylist, km._forcelist or [])
+    return free
+
+
+class SpeedMap:
+    """The speeds u in the coordinates' rates: u = W(q, t)·q̇ + w(q, t), for the coordinates
+    `coordinates` (the KanesMethod's, then one ignorable `int_<u>` per speed that is no
+    coordinate's rate), and `convective` = u̇ − W·q̈ = Σ_j ∂(W·q̇ + w)/∂q_j·q̇_j + ∂(W·q̇ + w)/∂t."""
+
+    def __init__(self, coordinates, W, w, t):
+        self.coordinates = coordinates
+        self.W = W
+        rates = sp.Matrix([qi.diff(t) for qi in coordinates])
+        self.speeds = list(W * rates + w)
+        Q = [sp.Dummy(f"Q{i}") for i in range(len(coordinates))]
+        V = [sp.Dummy(f"V{i}") for i in range(len(coordinates))]
+        to_dummies = {**dict(zip(rates, V))}
+        plain = [e.xreplace(to_dummies).xreplace(dict(zip(coordinates, Q))) for e in self.speeds]
+        back = {**dict(zip(Q, coordinates)), **dict(zip(V, rates))}
+        self.convective = sp.Matrix([
+            (sum((sp.diff(e, Qj) * Vj for Qj, Vj in zip(Q, V)), sp.Integer(0))
+             + sp.diff(e, t)).xreplace(back) for e in plain])
+
+
+def speed_map(km, t):
+    """The SpeedMap of a KanesMethod, from its kinematic differential equations
+    k_q̇·q̇ + k_u·u + f = 0 (n rows for n coordinates and p ≥ n speeds): the p − n speeds that
+    no equation needs get ignorable coordinates int_<u> with int_u̇ = u, and the p×p system is
+    solved for u."""
+    from sympy.physics.mechanics import dynamicsymbols
+    q, u = list(km.q), list(km.u)
+    n, p = len(q), len(u)
+    k_qd, k_u, f = _kinematic_matrices(km, t)
+    if p < n:
+        raise ModelError(
+            f"the KanesMethod has {p} speeds for {n} coordinates: each coordinate's rate must "
+            "follow from the speeds and each speed from the rates; add speeds, or make the "
+            "coordinates whose rates are prescribed functions of time")
+    extra = [u[j] for j in _speeds_without_coordinates(k_u, n, p)]
+    names = {str(c.func) for c in q}
+    ignorable = []
+    for speed in extra:
+        name = f"int_{speed.func.__name__}"
+        if name in names:
+            raise ModelError(f"the speed {speed} has no coordinate and the name {name!r} of the "
+                             "ignorable coordinate lagrgen would give it is taken: rename it")
+        ignorable.append(dynamicsymbols(name))
+    rows_u = k_u.col_join(sp.Matrix(len(extra), p, lambda i, j: int(u[j] == extra[i])))
+    rows_qd = sp.diag(k_qd, -sp.eye(len(extra))) if extra else k_qd
+    rhs = -(rows_qd.row_join(f.col_join(sp.zeros(len(extra), 1))))
+    try:
+        solved = rows_u.LUsolve(rhs)
+    except (ValueError, ZeroDivisionError, NotImplementedError) as exc:
+        raise ModelError(f"the kinematic differential equations cannot be solved for the "
+                         f"speeds ({exc}): each speed must follow from the coordinates' rates "
+                         "(q̇ = N(q, t)·u + n(q, t) with N of full rank)") from None
+    return SpeedMap(q + ignorable, solved[:, :p], solved[:, p], t)
+
+
+def _kinematic_matrices(km, t):
+    """(k_q̇, k_u, f) of the kinematic differential equations k_q̇·q̇ + k_u·u + f = 0 as the user
+    wrote them (SymPy keeps them; otherwise from q̇ = kindiffdict: k_q̇ = I)."""
+    implicit = [getattr(km, name, None) for name in
+                ("_k_kqdot_implicit", "_k_ku_implicit", "_f_k_implicit")]
+    if all(m is not None and len(m) for m in implicit):
+        return tuple(sp.Matrix(m) for m in implicit)
+    q, u = list(km.q), list(km.u)
+    solved = km.kindiffdict()
+    rates = sp.Matrix([solved[qi.diff(t)] for qi in q])
+    k_u = -rates.jacobian(u)
+    return sp.eye(len(q)), k_u, -rates.xreplace(dict.fromkeys(u, 0))
+
+
+def _speeds_without_coordinates(k_u, n, p, seed=0):
+    """Indices of the p − n speeds to give ignorable coordinates: those the kinematic equations
+    can spare, i.e. outside n columns of k_u that are independent (pivoted QR at a random point;
+    a speed in no equation is spared first)."""
+    if p == n:
+        return []
+    numeric = _at_random_point(k_u, seed)
+    _, r, order = scipy.linalg.qr(numeric, pivoting=True)
+    diag = np.abs(np.diag(r))
+    if diag.size < n or not diag[n - 1] > 1e-9 * max(diag[0], 1e-300):
+        raise ModelError(
+            "the kinematic differential equations do not determine the speeds: their "
+            "coefficients of the speeds have rank below the number of coordinates (a "
+            "coordinate whose rate no speed sets?)")
+    return sorted(int(j) for j in order[n:])
+
+
+def _at_random_point(matrix, seed=0):
+    """`matrix` as floats at a random point of its symbols and functions of time."""
+    rng = random.Random(seed)
+    atoms = set()
+    for e in matrix:
+        atoms |= set(e.atoms(sp.Derivative)) | set(e.atoms(AppliedUndef)) | e.free_symbols
+    point = {a: sp.Float(rng.uniform(0.3, 1.3)) for a in atoms}
+    values = [[complex(sp.sympify(matrix[i, j]).xreplace(point).doit().evalf()).real
+               for j in range(matrix.shape[1])] for i in range(matrix.shape[0])]
+    return np.array(values, dtype=float).reshape(matrix.shape)
 
 
 def _nonholonomic(q, holonomic, velocity, t, seed=0):
@@ -292,37 +399,3 @@ def _nonholonomic(q, holonomic, velocity, t, seed=0):
                 == len(trial):
             basis, chosen = trial, chosen + [e]
     return chosen
-
-
-def _kane_free(km, t):
-    """(q, M, F) of a KanesMethod whose coordinates and speeds are all independent."""
-    try:
-        M, F = sp.Matrix(km.mass_matrix), sp.Matrix(km.forcing)
-    except ValueError as exc:
-        raise ModelError(f"the KanesMethod has no equations yet ({exc}): call "
-                         "kanes_equations(bodies, loads) first") from None
-    q, u = list(km.q), list(km.u)
-    kinematics = km.kindiffdict()
-    where = {}  # index of q_i -> index j of the speed u_j = q̇_i
-    for i, qi in enumerate(q):
-        rate = kinematics.get(qi.diff(t))
-        if rate not in u or u.index(rate) in where.values():
-            raise ModelError(
-                f"the kinematic differential equations are not u = q̇: {qi.diff(t)} = {rate}. "
-                "from_sympy needs every generalized speed to be a coordinate's rate (as with "
-                "SymPy's default joints); define the speeds with kd_eqs [u_i - q_i']")
-        where[i] = u.index(rate)
-    if len(u) != len(q):
-        raise ModelError(f"the KanesMethod has {len(u)} speeds for {len(q)} coordinates; "
-                         "from_sympy needs u = q̇")
-    n = len(q)
-    order = [where[i] for i in range(n)]   # row/column of Kane's M for coordinate i
-    M = sp.Matrix(n, n, lambda i, k: M[order[i], order[k]])
-    F = sp.Matrix(n, 1, lambda i, _: F[order[i], 0])
-    to_rates = {u[where[i]]: q[i].diff(t) for i in range(n)}
-    M, F = M.xreplace(to_rates), F.xreplace(to_rates)
-    for e in list(M) + list(F):
-        left = {d for d in e.atoms(sp.Derivative) if d.expr in u}
-        if left:
-            raise ModelError(f"the equations contain the speed derivatives {left}")
-    return q, M, F

@@ -1,23 +1,12 @@
-"""Small oscillations about an operating point: equilibrium, linearization, modes, frequency response.
+"""Small oscillations about an operating point: equilibrium, modes, frequency response.
 
-About an operating point (q0, q̇0, u0) the equations M(q, t)·q̈ = F(q, q̇, t, u) become
-
-    M·δq̈ + C·δq̇ + K·δq = B·δu,   M = M(q0),  K = −∂F/∂q,  C = −∂F/∂q̇,  B = ∂F/∂u,
-
-with the derivatives taken analytically by the built model's `linear_terms` (either backend).
-The term (∂M/∂q·q̈0)·δq is absent, so the linearization is exact to first order at an equilibrium
-(q̈0 = 0), which is where modes and frequency responses are meant to be computed.
-
-A constrained model (M·q̈ = F + Aᵀλ, A·q̈ = γ) is linearized in its independent directions:
-δq = N·ξ with N an orthonormal basis of the null space of A(q0), and
-
-    M_r = NᵀMN,  C_r = NᵀCN,  K_r = Nᵀ(K − ∂(Aᵀλ0)/∂q)N,  B_r = NᵀB,
-
-λ0 the multipliers at the operating point (the term ∂(Aᵀλ0)/∂q is the stiffness the constraint
-forces add, e.g. the tension of a pendulum's rod). This is exact to first order for holonomic
-constraints; velocity constraints are imposed on δq the same way (motions that satisfy them to
-first order). The linearization's `basis` is N; mode shapes are returned in the full
-coordinates, N·φ.
+The linearization itself (`lagrgen.linearization`) is exact to first order about any point, on
+the constraint manifold, in independent states x: δẋ = A·δx + B·δu. Where it has a second-order
+form M·δq̈ + C·δq̇ + K·δq = B·δu with a symmetric C (dissipation, no gyroscopic coupling), the
+modes are the classical ones: ω² the eigenvalues of K·φ = ω²·M·φ, mass-normalized shapes, and
+damping ratios from the state matrix's eigenvalues matched to them. Otherwise — nonholonomic
+models (a rolling wheel, a sleigh), steady motions with gyroscopic terms — the modes are those of
+A: each conjugate pair s = −ζω ± iω√(1−ζ²), or real s, is one mode with ω = |s| and ζ = −Re s/|s|.
 """
 import warnings
 from dataclasses import dataclass, field
@@ -26,9 +15,10 @@ import numpy as np
 import scipy.linalg
 from scipy.optimize import linear_sum_assignment, root
 
-from .runtime.arguments import as_vector, input_vector
 from .errors import LagrgenError, MassMatrixError, UnknownNameError
-from .runtime.arguments import parameters_from
+from .linearization import (FrozenTimeWarning, Linearization, linearize,  # noqa: F401
+                            warn_frozen_time)
+from .runtime.arguments import as_vector, input_vector, parameters_from
 
 #: Relative size below which an eigenvalue ω² (or an imaginary part, an asymmetry) counts as zero.
 ZERO_TOL = 1e-9
@@ -38,88 +28,22 @@ class EquilibriumError(LagrgenError, RuntimeError):
     """No equilibrium F(q, 0) = 0 was found near the guess."""
 
 
-class FrozenTimeWarning(UserWarning):
-    """The model depends explicitly on t: a result holds only at the one frozen time t given."""
-
-
-def warn_frozen_time(mod, t, what):
-    """Warn (FrozenTimeWarning) that `what` of a rheonomic model `mod` holds only at time t."""
-    if mod.explicit_time:
-        warnings.warn(
-            f"model {mod.name!r} depends explicitly on t: this {what} is for the frozen time "
-            f"t = {float(t):g} only (the system has no static equilibrium in general; pass t= to "
-            "choose the instant)", FrozenTimeWarning, stacklevel=3)
-
-
-@dataclass
-class Linearization:
-    """M·δq̈ + C·δq̇ + K·δq = B·δu about (q0, qd0, t, p, u); arrays (n,n),(n,n),(n,n),(n,n_inputs)."""
-
-    M: np.ndarray
-    C: np.ndarray
-    K: np.ndarray
-    B: np.ndarray
-    q0: np.ndarray
-    qd0: np.ndarray
-    t: float = 0.0
-    p: np.ndarray = None
-    u: np.ndarray = None
-    coordinates: tuple = ()
-    inputs: tuple = ()
-    name: str = ""
-    basis: np.ndarray = None   # constrained models: N (n×k), δq = N·ξ; M, C, K, B are in ξ
-    constraint_forces: np.ndarray = None  # constrained models: λ0 at the operating point
-
-    @property
-    def n(self):
-        """The number of independent coordinates (rows of M)."""
-        return self.M.shape[0]
-
-    def to_coordinates(self, xi):
-        """Vectors or columns in the reduced coordinates ξ as δq = N·ξ (unchanged without
-        constraints)."""
-        return xi if self.basis is None else self.basis @ xi
-
-    @property
-    def names(self):
-        """The coordinate names, in the order of the rows and columns of M, C, K."""
-        return self.coordinates
-
-    def state_matrices(self):
-        """(A, B, C, D) of ẋ = A·x + B·δu, y = C·x + D·δu with x = [δq, δq̇], y = x:
-        A = [[0, I], [−M⁻¹K, −M⁻¹C]], B = [[0], [M⁻¹B]], C = I (2n), D = 0."""
-        n, k = self.n, self.B.shape[1]
-        A = state_matrix(self.M, self.C, self.K)
-        B = np.zeros((2 * n, k))
-        if k:
-            B[n:] = np.linalg.solve(self.M, self.B)
-        return A, B, np.eye(2 * n), np.zeros((2 * n, k))
-
-    def state_space(self):
-        """This linearization as `scipy.signal.StateSpace` (x = [δq, δq̇], u = δu, y = x); a model
-        without inputs gets one zero input column (SciPy needs at least one)."""
-        from scipy.signal import StateSpace
-        A, B, C, D = self.state_matrices()
-        if B.shape[1] == 0:
-            B, D = np.zeros((A.shape[0], 1)), np.zeros((A.shape[0], 1))
-        return StateSpace(A, B, C, D)
-
-    @property
-    def state_names(self):
-        """Names of the states x = [δq, δq̇]: the coordinates, then `<coordinate>_dot`."""
-        return tuple(self.coordinates) + tuple(f"{c}_dot" for c in self.coordinates)
-
-
 @dataclass
 class Modes:
-    """Natural frequencies, mass-normalized mode shapes and damping ratios of a Linearization.
+    """The modes of a linearization.
 
-    `omega[i]` = √λ_i for the eigenvalues λ_i of K·φ = λ·M·φ in ascending order (rad/s; 0 for a
-    rigid-body mode, NaN where λ < 0: an unstable equilibrium); `shapes[:, i]` = φ_i with
-    φ_iᵀ·M·φ_i = 1 (and φᵀ·M·φ = I when K is symmetric; for a constrained model the k
-    independent modes in the full coordinates, n×k, N·φ with (Nφ)ᵀ·M·(Nφ) = I);
-    `damping_ratios[i]` = ζ_i of the
-    eigenvalues s = −ζω_n ± iω_n√(1−ζ²) of the state-space matrix matched to mode i.
+    `omega[i]` (rad/s, ascending) and `shapes[:, i]` (in all coordinates) of mode i;
+    `damping_ratios[i]` = ζ_i and `omega_damped[i]` = ω_i·√(1 − ζ_i²) from the eigenvalues s of the
+    state matrix, `eigenvalues` all of them (complex, ascending by real part), and `stable` whether
+    none has a positive real part (Re s = 0 — undamped oscillation, rigid-body or
+    ignorable-coordinate motion — counts as stable).
+
+    Classical modes (`kind == "classical"`: a second-order form with symmetric C): ω_i = √λ_i for
+    the eigenvalues λ = `omega_squared` of K·φ = λ·M·φ (0 for a rigid-body mode, NaN where
+    λ < 0: an unstable equilibrium), φ_iᵀ·M·φ_i = 1 (and φᵀ·M·φ = I when K is symmetric; for a
+    constrained model the independent modes drawn in all coordinates, T_q·φ).
+    State-space modes (`kind == "state"`): one per conjugate pair or real eigenvalue s of A, with
+    ω = |s|, ζ = −Re s/|s| (ζ = −1 for a real s > 0), complex shapes scaled to a largest entry of 1.
     """
 
     omega: np.ndarray
@@ -129,6 +53,8 @@ class Modes:
     eigenvalues: np.ndarray
     linearization: Linearization = field(repr=False, default=None)
     model: object = field(repr=False, default=None)   # the built model analysed (None: from a lin)
+    omega_squared: np.ndarray = None
+    kind: str = "classical"
 
     @property
     def frequencies_hz(self):
@@ -137,8 +63,10 @@ class Modes:
 
     @property
     def stable(self):
-        """True for each mode whose ω² is not negative."""
-        return ~np.isnan(self.omega)
+        """Whether no eigenvalue of the state matrix has a positive real part (beyond round-off:
+        ZERO_TOL of the largest |s|)."""
+        s = self.eigenvalues
+        return np.bool_(not (s.size and s.real.max() > ZERO_TOL * max(1.0, np.abs(s).max())))
 
     def __len__(self):
         return len(self.omega)
@@ -273,69 +201,16 @@ def _constrained_equilibrium(mod, q_guess, p, u, t, tol):
         "starting guess")
 
 
-def _reduce(mod, lin):
-    """`lin` of a constrained model restricted to δq = N·ξ, N = null space of A(q0) (see the
-    module docstring)."""
-    from .constraints import check_independent
-    A, lam, H = mod.constraint_terms(lin.q0, lin.qd0, lin.t, lin.p, lin.u)
-    check_independent(mod, lin.t, np.concatenate([lin.q0, lin.qd0]), A, "operating point")
-    N = scipy.linalg.null_space(A)
-    if N.shape[1] == 0:
-        raise LagrgenError(
-            f"model {mod.name!r} has no independent directions at q0: its {A.shape[0]} "
-            f"constraints fix all {A.shape[1]} coordinates, so it has no modes")
-    K = lin.K - H
-    lin.M, lin.C, lin.K, lin.B = N.T @ lin.M @ N, N.T @ lin.C @ N, N.T @ K @ N, N.T @ lin.B
-    lin.basis, lin.constraint_forces = N, lam
-    lin.coordinates = tuple(f"xi{i + 1}" for i in range(N.shape[1]))
-    return lin
-
-
-def check_mass_matrix(lin):
-    """Raise MassMatrixError unless lin.M is symmetric positive definite."""
-    try:
-        np.linalg.cholesky(lin.M)
-    except np.linalg.LinAlgError:
-        raise MassMatrixError.at(lin.name, lin.t, lin.q0) from None
-
-
-def linearize(mod, q0, qd0=None, t=0.0, p=None, u=None):
-    """M·δq̈ + C·δq̇ + K·δq = B·δu about (q0, qd0): M(q0), K = −∂F/∂q, C = −∂F/∂q̇, B = ∂F/∂u.
-
-    Parameters
-    ----------
-    mod : a built model; q0, qd0 : the operating point (qd0 None: at rest)
-    t : the time at which a model that depends explicitly on t is frozen (FrozenTimeWarning)
-    p, u : parameters and constant inputs at the operating point
-
-    Returns
-    -------
-    A `Linearization` (see also `Linearization.state_space`).
-    """
-    q0, p, u = _operating_point(mod, q0, "q0", p, u)
-    warn_frozen_time(mod, t, "linearization")
-    n = mod.n_coordinates
-    qd0 = np.zeros(n) if qd0 is None else as_vector(qd0, n, "qd0")
-    M, dF_dq, dF_dqd, dF_du = mod.linear_terms(q0, qd0, float(t), p, u)
-    lin = Linearization(M=M, C=-dF_dqd, K=-dF_dq, B=dF_du, q0=q0, qd0=qd0, t=float(t), p=p, u=u,
-                        coordinates=tuple(mod.coordinates), inputs=tuple(mod.inputs),
-                        name=mod.name)
-    if mod.n_constraints:
-        lin = _reduce(mod, lin)
-    check_mass_matrix(lin)
-    return lin
-
-
-def as_linearization(mod_or_lin, q0=None, p=None, u=None, t=0.0):
-    """A Linearization as given, or the built model linearized at q0 (None: the equilibrium near 0)
-    at time t."""
+def as_linearization(mod_or_lin, q0=None, qd0=None, p=None, u=None, t=0.0):
+    """A Linearization as given, or the built model linearized at (q0, qd0) (q0 None: the
+    equilibrium near 0) at time t."""
     if isinstance(mod_or_lin, Linearization):
         return mod_or_lin
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", FrozenTimeWarning)   # modes warns once, below
         if q0 is None:
             q0 = equilibrium(mod_or_lin, np.zeros(mod_or_lin.n_coordinates), p=p, u=u, t=t)
-        return linearize(mod_or_lin, q0, t=t, p=p, u=u)
+        return linearize(mod_or_lin, q0, qd0, t=t, p=p, u=u)
 
 
 def _is_symmetric(A):
@@ -367,11 +242,18 @@ def undamped_modes(M, K):
         lam, shapes = scipy.linalg.eig(K, M)
         if np.abs(lam.imag).max() <= ZERO_TOL * max(np.abs(lam).max(), 1e-300):
             lam, shapes = lam.real, shapes.real
-        order = np.argsort(lam.real, kind="stable")
+        order = ascending(lam)
         lam, shapes = lam[order], shapes[:, order]
     scale = max(np.abs(lam).max(), np.finfo(float).tiny)
     lam = np.where(np.abs(lam) <= ZERO_TOL * scale, 0.0, lam)
     return lam, _mass_normalize(shapes, M)
+
+
+def ascending(values):
+    """The order of complex `values` by real part (equal within ZERO_TOL of the largest: a
+    conjugate pair), then imaginary part."""
+    scale = ZERO_TOL * max(np.abs(values).max(initial=0.0), np.finfo(float).tiny)
+    return np.lexsort((values.imag, np.round(values.real / scale)))
 
 
 def state_matrix(M, C, K):
@@ -433,26 +315,76 @@ def damping(M, C, K, shapes, omega):
     return zeta, omega_d
 
 
-def modes(mod_or_lin, q0=None, p=None, u=None, t=0.0):
-    """Natural frequencies, mass-normalized mode shapes and damping ratios (see `Modes`).
+def modes(mod_or_lin, q0=None, qd0=None, p=None, u=None, t=0.0):
+    """The modes of a linearization (see `Modes`): classical where there is a second-order form
+    with symmetric C, else those of the state matrix A.
 
-    `mod_or_lin` is a built model, linearized at q0 (None: the equilibrium found near q = 0) at
-    time t (for a model that depends explicitly on t: the frozen time, with a FrozenTimeWarning),
-    or a `Linearization`.
+    Parameters
+    ----------
+    mod_or_lin : a built model, or a `Linearization`
+    q0, qd0 : the operating point (q0 None: the equilibrium found near q = 0; qd0 None: at rest)
+    p, u : parameters and constant inputs
+    t : for a model that depends explicitly on t, the frozen time (FrozenTimeWarning)
+
+    Returns
+    -------
+    Modes: omega, frequencies_hz, shapes, damping_ratios, omega_damped, eigenvalues, stable.
     """
     if not isinstance(mod_or_lin, Linearization):
         warn_frozen_time(mod_or_lin, t, "modal analysis")
-    lin = as_linearization(mod_or_lin, q0, p, u, t)
+    lin = as_linearization(mod_or_lin, q0, qd0, p, u, t)
+    model = None if isinstance(mod_or_lin, Linearization) else mod_or_lin
+    if lin.has_second_order_form and _is_symmetric(lin.C):
+        return classical_modes(lin, model)
+    return state_modes(lin, model)
+
+
+def classical_modes(lin, model=None):
+    """Modes of M·δq̈ + C·δq̇ + K·δq = 0 with symmetric C: undamped ω and shapes of (K, M),
+    damping ratios from the state matrix's eigenvalues assigned to them."""
     check_mass_matrix(lin)
     lam, shapes = undamped_modes(lin.M, lin.K)
     lam_real = np.real(lam)
     omega = np.full(lin.n, np.nan)
     omega[lam_real >= 0] = np.sqrt(lam_real[lam_real >= 0])
     zeta, omega_d = damping(lin.M, lin.C, lin.K, shapes, np.nan_to_num(omega))
-    shapes = lin.to_coordinates(shapes)
-    return Modes(omega=omega, shapes=shapes, damping_ratios=zeta, omega_damped=omega_d,
-                 eigenvalues=lam, linearization=lin,
-                 model=None if isinstance(mod_or_lin, Linearization) else mod_or_lin)
+    return Modes(omega=omega, shapes=lin.to_coordinates(shapes), damping_ratios=zeta,
+                 omega_damped=omega_d, eigenvalues=lin.eigenvalues, linearization=lin,
+                 model=model, omega_squared=lam, kind="classical")
+
+
+def state_modes(lin, model=None):
+    """Modes of δẋ = A·δx: one per conjugate pair (the s with Im s > 0) or real eigenvalue s,
+    ω = |s|, ζ = −Re s/|s|, ascending by ω; shapes are the coordinate part of basis·v."""
+    s, vectors = np.linalg.eig(lin.A) if lin.A.size else (np.zeros(0), np.zeros((0, 0)))
+    scale = max(1.0, np.abs(s).max(initial=0.0))
+    keep = [i for i in range(len(s)) if s[i].imag > ZERO_TOL * scale
+            or abs(s[i].imag) <= ZERO_TOL * scale]
+    s, vectors = s[keep], vectors[:, keep]
+    real = np.abs(s.imag) <= ZERO_TOL * scale
+    s = np.where(real, s.real + 0j, s)
+    omega = np.abs(s)
+    order = np.lexsort((s.real, omega))
+    s, vectors, omega = s[order], vectors[:, order], omega[order]
+    with np.errstate(invalid="ignore", divide="ignore"):
+        zeta = np.where(omega > ZERO_TOL * scale, -s.real / omega, 0.0)
+    shapes = (lin.basis @ vectors)[:len(lin.q0)]
+    for i in range(shapes.shape[1]):
+        big = shapes[np.argmax(np.abs(shapes[:, i])), i]
+        if big != 0:
+            shapes[:, i] /= big
+    if shapes.size and np.abs(shapes.imag).max() == 0:
+        shapes = shapes.real
+    return Modes(omega=omega, shapes=shapes, damping_ratios=zeta, omega_damped=np.abs(s.imag),
+                 eigenvalues=lin.eigenvalues, linearization=lin, model=model, kind="state")
+
+
+def check_mass_matrix(lin):
+    """Raise MassMatrixError unless lin.M is symmetric positive definite."""
+    try:
+        np.linalg.cholesky(lin.M)
+    except np.linalg.LinAlgError:
+        raise MassMatrixError.at(lin.name, lin.t, lin.q0) from None
 
 
 def input_index(names, input, model_name=""):
@@ -468,27 +400,38 @@ def input_index(names, input, model_name=""):
     return names.index(input)
 
 
-def frequency_response(mod, q0, freqs_hz, input="F", p=None, u=None):
-    """H(f) = (K − ω²M + iωC)⁻¹·B[:, input] for ω = 2πf: δq/δu, shape (len(freqs_hz), n), complex.
+def frequency_response(mod, q0, freqs_hz, input="F", p=None, u=None, qd0=None):
+    """δq/δu at the frequencies `freqs_hz`, shape (len(freqs_hz), n), complex: with a
+    second-order form H(f) = T_q·(K − ω²M + iωC)⁻¹·B[:, input] for ω = 2πf, else the coordinate
+    rows of basis·(iωI − A)⁻¹·B[:, input].
 
-    `mod` is a built model (linearized at q0) or a Linearization (q0 ignored). Where the dynamic
-    stiffness is singular (ω = 0 with a rigid-body mode, an undamped resonance) H is infinite.
+    `mod` is a built model (linearized at (q0, qd0)) or a Linearization (q0 ignored). Where the
+    dynamic stiffness is singular (ω = 0 with a rigid-body mode, an undamped resonance) H is
+    infinite.
     """
     lin = mod if isinstance(mod, Linearization) else None
     names = lin.inputs if lin is not None else mod.inputs
     name = lin.name if lin is not None else mod.name
     j = input_index(names, input, name)
     if lin is None:
-        lin = linearize(mod, q0, p=p, u=u)
+        lin = linearize(mod, q0, qd0, p=p, u=u)
     freqs = np.atleast_1d(np.asarray(freqs_hz, dtype=float))
     if freqs.ndim != 1:
         raise ValueError(f"freqs_hz must be a 1-D array of frequencies, got shape {freqs.shape}")
-    b = lin.B[:, j]
-    H = np.empty((len(freqs), lin.n), dtype=complex)  # in ξ for a constrained model
+    second = lin.has_second_order_form
+    b = lin.B[:, j] if second else lin.B_state[:, j]
+    size = lin.n if second else len(lin.states)
+    H = np.empty((len(freqs), size), dtype=complex)
     for k, w in enumerate(2 * np.pi * freqs):
-        Z = lin.K - w * w * lin.M + 1j * w * lin.C
+        Z = (lin.K - w * w * lin.M + 1j * w * lin.C) if second else 1j * w * np.eye(size) - lin.A
         try:
             H[k] = np.linalg.solve(Z, b)
         except np.linalg.LinAlgError:
             H[k] = np.inf
-    return H if lin.basis is None else H @ lin.basis.T
+    basis = lin.coordinate_basis if second else lin.basis[:len(lin.q0)]
+    if basis.shape[0] == basis.shape[1] and np.array_equal(basis, np.eye(len(basis))):
+        return H
+    singular = ~np.all(np.isfinite(H), axis=1)
+    with np.errstate(invalid="ignore"):
+        out = np.where(singular[:, None], np.inf, np.nan_to_num(H) @ basis.T)
+    return out

@@ -11,7 +11,7 @@ from xml.etree import ElementTree as ET
 
 from .._version import __version__
 from ..errors import ModelError
-from ..methods import NATIVE_CODES, NATIVE_METHODS
+from ..methods import BY_NAME, NATIVE_CODES, NATIVE_METHODS
 
 def variable_names(info, reserved=()):
     """The names of the model's FMU variables in value-reference order: q, q̇ (`<q>_dot`),
@@ -85,11 +85,7 @@ def source_file_names(name, kind):
 def method_items():
     """(name, value, description) of the enumeration solver.method: the native engine's methods
     with their codes in lg_ode.h."""
-    what = {"RK23": "explicit Runge-Kutta 3(2)",
-            "RK45": "explicit Runge-Kutta 5(4) (Dormand-Prince)",
-            "DOP853": "explicit Runge-Kutta 8(5,3)", "Radau": "implicit Radau IIA order 5 (stiff)",
-            "BDF": "implicit BDF orders 1-5 (stiff)"}
-    return [(m, NATIVE_CODES[m], what.get(m, m)) for m in NATIVE_METHODS]
+    return [(m, NATIVE_CODES[m], BY_NAME[m].description) for m in NATIVE_METHODS]
 
 
 def model_description(info, guid, start_values, start_time=0.0, stop_time=10.0, tolerance=None,

@@ -71,6 +71,9 @@ class BuiltModel(Protocol):
     def constraint_residuals(self, t, y, p=None, u=None) -> np.ndarray:
         """Φ, then A·q̇ + b, (n_residuals,)."""
 
+    def constraint_residual_jacobian(self, t, y, p=None, u=None) -> np.ndarray:
+        """∂[Φ; A·q̇ + b]/∂[q, q̇], (n_residuals, 2n)."""
+
     def constraint_terms(self, q, qd, t=0.0, p=None, u=None) -> tuple:
         """(A, λ, ∂(Aᵀλ)/∂q) at one point."""
 

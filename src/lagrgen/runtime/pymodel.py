@@ -229,6 +229,13 @@ class PythonModel:
             return np.zeros(0)
         return self._kernel("constraint_residuals", t, q, qd, None, p, u)[0]
 
+    def _constraint_residual_jacobian(self, t, q, qd, p, u):
+        n_res = self.dimensions["n_residuals"]
+        if not self.n_constraints:
+            return np.zeros((0, 2 * self.n_coordinates))
+        return self._kernel("constraint_residual_jacobian", t, q, qd, None, p, u)[0].reshape(
+            n_res, 2 * self.n_coordinates)
+
     def _constraint_terms(self, t, q, qd, p, u):
         n, m = self.n_coordinates, self.n_constraints
         if not m:

@@ -1,0 +1,401 @@
+"""The build cache of an output directory: what identifies a build (digests and the key), its
+immutable entries, their lock, how an entry is stored, checked, repaired, published and imported.
+
+Layout of an output directory:
+    <name>_model.h, <name>_model.c  the standalone C model (plain C, no Python)
+    <name><EXT_SUFFIX>              the model's module, importable with the directory on sys.path
+    __lagrgen__/<name>-<key>/       the cache: one immutable entry per key
+    __lagrgen__/<name>.current      the key of the entry last published into the directory
+    __lagrgen__/<name>.lock         held while an entry of <name> is made or published
+
+The key is a hash of what is compiled: the frozen model description (every symbol with its
+assumptions; or the equations themselves when M and F come from outside, as from `from_sympy`),
+lagrgen's generator sources and version, the versions of SymPy and SymEngine, the compiler and
+flags. So no change to a model, and no change to lagrgen, can be served stale, and a cache hit
+derives nothing.
+
+An entry holds compiled *units*. A unit is a directory with the sources it was compiled from,
+its extension module `<module><EXT_SUFFIX>` and `module.sha256`, the digest of that module taken
+when it was made. The model's own module is the entry's main unit: the entry directory itself,
+module `<name>`. Further units (say an analysis compiled on first use) live inside the entry,
+each in its own directory `<entry>/<label>-<key of its own digest>/` with module
+`<name>_<label>` (`Entry.unit(label, digest)`), so one entry may hold any number of them, each
+looked up, made, checked and repaired like the main unit, and discarded with its entry.
+
+Every unit is made in a private directory beside its final place and renamed into place after an
+fsync (`store`), so a build that dies halfway leaves nothing a later lookup would pick up; a unit
+whose module does not match its recorded digest, or does not import, is discarded and made again
+(`import_or_repair`). Publishing copies the main unit's module and standalone C into the output
+directory by atomic writes and then records the key (`publish`).
+
+The interface: `key` (the cache key of a build), `Entry` (where an entry and its units live),
+`writing` (the entry's lock), `lookup` (is a unit there and sound), `store`, `import_or_repair`,
+`publish`, and `load` (the module last published into a directory).
+"""
+import dataclasses
+import functools
+import hashlib
+import importlib.machinery
+import importlib.util
+import os
+import shutil
+import sys
+import sysconfig
+import tempfile
+import time
+from contextlib import contextmanager
+from pathlib import Path
+
+from ._version import __version__
+from .caching import once_per
+from .errors import BuildError
+from .names import check_model_name
+from .toolchain import _fsync_dir, compiler_command, write_atomic
+
+EXT_SUFFIX = sysconfig.get_config_var("EXT_SUFFIX") or ".so"
+CACHE_DIR = "__lagrgen__"
+PACKAGE = Path(__file__).resolve().parent
+#: The sources that determine generated code: a change to any of them changes every key.
+GENERATOR_SOURCES = ("_version.py", "functions.py", "calculus.py", "terms.py", "contributions.py",
+                     "lagrange.py", "nonsmooth.py", "kernels.py", "runtime/info.py",
+                     "codegen/*.py", "codegen/templates/*", "codegen/templates/functions/*")
+#: Imported extension modules by resolved path: a file is imported once per process.
+_loaded = {}
+
+
+# -- what identifies a build -----------------------------------------------------------------
+@functools.lru_cache(maxsize=None)
+def generator_digest():
+    """sha256 of lagrgen's generator sources (derivation, kernels, printers, templates) and of
+    the versions of the symbolic libraries that derive the equations."""
+    from importlib.metadata import PackageNotFoundError, version
+    h = hashlib.sha256(__version__.encode())
+    for library in ("sympy", "symengine"):
+        try:
+            h.update(f"{library} {version(library)}\0".encode())
+        except PackageNotFoundError:
+            pass
+    for pattern in GENERATOR_SOURCES:
+        for path in sorted(PACKAGE.glob(pattern)):
+            if path.is_file():
+                h.update(path.relative_to(PACKAGE).as_posix().encode() + b"\0")
+                h.update(path.read_bytes())
+    return h.hexdigest()
+
+
+def content_digest(spec, equations):
+    """sha256 identifying what a build compiles: of the frozen description `spec` and the
+    generator, or — when M and F come from outside (`spec.external`) — of the derived equations
+    (`equations()` is then called)."""
+    if spec.external is not None:
+        return equations_digest(equations())
+    return description_digest(spec)
+
+
+@once_per
+def description_digest(spec):
+    """sha256 of the generator and every field of the frozen description `spec`, SymPy objects by
+    `srepr` (which keeps the assumptions of symbols, unlike `str`)."""
+    h = hashlib.sha256(generator_digest().encode())
+    h.update(_canonical(spec).encode())
+    return h.hexdigest()
+
+
+def _canonical(obj, memo=None):
+    """A text that identifies `obj`: SymPy objects by their tree (class names, symbol names with
+    their assumptions, exact numbers), dataclasses, tuples, lists and dicts by their parts,
+    anything else by repr. Shared subexpressions are spelled once per call (`memo`)."""
+    import sympy as sp
+    memo = {} if memo is None else memo
+    if isinstance(obj, (sp.Basic, sp.MatrixBase)):
+        return _expression_text(obj, memo)
+    if dataclasses.is_dataclass(obj) and not isinstance(obj, type):
+        parts = (f"{f.name}={_canonical(getattr(obj, f.name), memo)}"
+                 for f in dataclasses.fields(obj))
+        return f"{type(obj).__name__}({', '.join(parts)})"
+    if isinstance(obj, (tuple, list)):
+        return f"{type(obj).__name__}[{', '.join(_canonical(x, memo) for x in obj)}]"
+    if isinstance(obj, dict):
+        items = sorted(obj.items(), key=lambda kv: repr(kv[0]))
+        return "{" + ", ".join(f"{_canonical(k, memo)}: {_canonical(v, memo)}"
+                               for k, v in items) + "}"
+    return repr(obj)
+
+
+def _expression_text(expr, memo):
+    """The tree of a SymPy expression or matrix as text (see `_canonical`)."""
+    import sympy as sp
+    if isinstance(expr, sp.MatrixBase):
+        rows = (",".join(_expression_text(e, memo) for e in expr.row(i))
+                for i in range(expr.rows))
+        return f"Matrix[{';'.join(rows)}]"
+    try:
+        return memo[expr]
+    except KeyError:
+        pass
+    if expr.is_Symbol:
+        text = f"Symbol({expr.name!r}, {sorted(expr.assumptions0.items())})"
+    elif expr.is_Number or not expr.args:
+        text = sp.srepr(expr)
+    else:
+        head = type(expr).__name__
+        if isinstance(expr, sp.core.function.AppliedUndef):
+            head = f"Function({expr.func.__name__!r})"
+        text = f"{head}({','.join(_expression_text(a, memo) for a in expr.args)})"
+    memo[expr] = text
+    return text
+
+
+@once_per
+def equations_digest(equations):
+    """sha256 of what is compiled: names, defaults, the derived equations and the generator."""
+    spec = equations.spec
+    h = hashlib.sha256(generator_digest().encode())
+    parts = [spec.name, spec.coordinate_names, spec.parameter_names, spec.defaults,
+             spec.input_names, [[str(e) for e in row] for row in equations.M],
+             [str(f) for f in equations.F], [str(e) for e in equations.residuals],
+             spec.stabilization, spec.constraint_names, [str(g) for g in equations.events],
+             [(name, terminal, direction) for name, _, terminal, direction in spec.events],
+             spec.output_names, [str(e) for e in equations.outputs], spec.units,
+             hybrid_description(spec, equations)]
+    for part in parts:
+        h.update(repr(part).encode() + b"\0")
+    return h.hexdigest()
+
+
+def hybrid_description(spec, equations):
+    """The impacts' and frictions' records and terms, for the content hash."""
+    if not spec.nonsmooth:
+        return []
+    from . import nonsmooth
+    return [nonsmooth.describe(spec), [str(e) for e in nonsmooth.terms(equations)]]
+
+
+def key(digest, flags):
+    """The cache key: the content digest, the compiler, its flags and the module suffix."""
+    h = hashlib.sha256(digest.encode())
+    h.update(repr((flags, compiler_command(), EXT_SUFFIX)).encode())
+    return h.hexdigest()[:20]
+
+
+def file_digest(path):
+    """sha256 of a file's bytes."""
+    return hashlib.sha256(Path(path).read_bytes()).hexdigest()
+
+
+# -- entries and units -----------------------------------------------------------------------
+@dataclasses.dataclass(frozen=True)
+class Unit:
+    """One compiled module in the cache: the directory holding it and the module's name."""
+    directory: Path
+    module: str
+
+    @property
+    def module_file(self):
+        """The extension module's file: `<directory>/<module><EXT_SUFFIX>`."""
+        return self.directory / f"{self.module}{EXT_SUFFIX}"
+
+
+@dataclasses.dataclass(frozen=True)
+class Entry:
+    """The cache entry of the model `name` with the key `key` in `out_dir`."""
+    out_dir: Path
+    name: str
+    key: str
+
+    @property
+    def cache(self):
+        """The cache directory `<out_dir>/__lagrgen__`."""
+        return Path(self.out_dir) / CACHE_DIR
+
+    @property
+    def directory(self):
+        return self.cache / f"{self.name}-{self.key}"
+
+    @property
+    def main(self):
+        """The model's own module: the entry directory itself."""
+        return Unit(self.directory, self.name)
+
+    def unit(self, label, digest):
+        """A further compiled unit of this entry, identified by its own content `digest`:
+        `<entry>/<label>-<key>/`, module `<name>_<label>`. Make it with `store` under `writing`."""
+        check_model_name(f"{self.name}_{label}")
+        return Unit(self.directory / f"{label}-{hashlib.sha256(digest.encode()).hexdigest()[:20]}",
+                    f"{self.name}_{label}")
+
+    @property
+    def marker(self):
+        """The file naming the key last published into out_dir."""
+        return self.cache / f"{self.name}.current"
+
+    @property
+    def lock_file(self):
+        return self.cache / f"{self.name}.lock"
+
+
+def lookup(unit):
+    """True if the unit's module exists and matches the digest recorded when it was made."""
+    digest = unit.directory / "module.sha256"
+    try:
+        return unit.module_file.is_file() and \
+            digest.read_text().strip() == file_digest(unit.module_file)
+    except OSError:
+        return False
+
+
+def discard(directory):
+    """Remove a unit's directory (renamed away first, so no reader sees it half-deleted)."""
+    if directory.exists():
+        trash = directory.with_name(
+            f".trash-{directory.name}-{os.getpid()}-{time.monotonic_ns()}")
+        os.replace(directory, trash)
+        shutil.rmtree(trash, ignore_errors=True)
+
+
+def store(unit, make):
+    """Make `unit`: `make(work)` writes the sources into the private directory `work` and
+    compiles `work/<module><EXT_SUFFIX>`; then its digest is recorded, the module fsynced and the
+    directory renamed into place (replacing any earlier one). Call it under `writing`."""
+    unit.directory.parent.mkdir(parents=True, exist_ok=True)
+    work = Path(tempfile.mkdtemp(dir=unit.directory.parent, prefix=f".build-{unit.module}-"))
+    try:
+        made = Unit(work, unit.module)
+        make(work)
+        lib = made.module_file
+        for obj in work.glob("*.o"):
+            obj.unlink()
+        write_atomic(work / "module.sha256", (file_digest(lib) + "\n").encode())
+        for path in work.iterdir():
+            os.chmod(path, 0o755 if path == lib else 0o644)
+        with open(lib, "rb") as fh:
+            os.fsync(fh.fileno())
+        discard(unit.directory)
+        os.replace(work, unit.directory)
+        _fsync_dir(unit.directory.parent)
+    finally:
+        shutil.rmtree(work, ignore_errors=True)
+
+
+def import_or_repair(unit, make, note=lambda text: None):
+    """Import the unit's module; if that fails, make it again with `make` (see `store`) and
+    import that. Call it under `writing`."""
+    try:
+        return import_extension(unit.module, unit.module_file)
+    except BuildError as first:
+        note(f"cached module did not import ({first}); compiling again")
+        store(unit, make)
+        return import_extension(unit.module, unit.module_file)
+
+
+@contextmanager
+def locked(path):
+    """Hold an exclusive lock on the file `path` (created if missing) against other processes and
+    threads, on any platform (`filelock`: flock on POSIX, msvcrt on Windows; imported here, so
+    importing lagrgen needs neither)."""
+    from filelock import FileLock
+    with FileLock(str(path)):
+        yield
+
+
+class ReadOnlyCache(BuildError):
+    """The cache of an output directory cannot be written (no lock can be taken there)."""
+
+
+@contextmanager
+def writing(entry):
+    """Hold the lock of `entry`'s model in its out_dir while entries are made and published;
+    ReadOnlyCache when the cache cannot be written (then only what is published can be read)."""
+    try:
+        entry.cache.mkdir(parents=True, exist_ok=True)
+        lock = locked(entry.lock_file)
+        lock.__enter__()
+    except OSError as exc:
+        raise ReadOnlyCache(f"cannot write the build of {entry.name!r} into {entry.out_dir}: "
+                            f"{exc}") from None
+    try:
+        yield
+    finally:
+        lock.__exit__(None, None, None)
+
+
+def is_published(entry):
+    """True if `entry` is what out_dir's module and marker are, as far as the marker says."""
+    try:
+        return (Path(entry.out_dir) / f"{entry.name}{EXT_SUFFIX}").exists() and \
+            entry.marker.read_text().strip() == entry.key
+    except OSError:
+        return False
+
+
+def publish(entry, force=False):
+    """Make `<name><EXT>`, `<name>_model.h` and `<name>_model.c` in out_dir the files of `entry`
+    (unless they already are), then record its key. Call it under `writing`."""
+    out_dir, name = Path(entry.out_dir), entry.name
+    if not force and is_published(entry) and \
+            file_digest(out_dir / f"{name}{EXT_SUFFIX}") == file_digest(entry.main.module_file):
+        return
+    for file_name in (f"{name}_model.h", f"{name}_model.c"):
+        write_atomic(out_dir / file_name, (entry.directory / file_name).read_bytes())
+    write_atomic(out_dir / f"{name}{EXT_SUFFIX}", entry.main.module_file.read_bytes(), 0o755)
+    write_atomic(entry.marker, (entry.key + "\n").encode())
+
+
+def load(name, out_dir="generated"):
+    """Import the compiled model `name` built earlier into `out_dir`.
+
+    Parameters
+    ----------
+    name : str
+        The model's name.
+    out_dir : str or pathlib.Path
+        The directory it was built into.
+
+    Returns
+    -------
+    module
+        The built model (API.md §3), from the cache entry last published into `out_dir`, or else
+        from `<out_dir>/<name><EXT_SUFFIX>`.
+
+    Raises
+    ------
+    BuildError
+        If no such model was built into `out_dir`, or it does not import.
+    """
+    check_model_name(name)
+    out_dir = Path(out_dir)
+    marker = out_dir / CACHE_DIR / f"{name}.current"
+    if marker.exists():
+        entry = Entry(out_dir, name, marker.read_text().strip())
+        if lookup(entry.main):
+            return import_extension(name, entry.main.module_file)
+    module_file = out_dir / f"{name}{EXT_SUFFIX}"
+    if not module_file.exists():
+        raise BuildError(
+            f"no compiled model {name!r} in {out_dir}: build it first with lagrgen.build(model, "
+            f"out_dir={str(out_dir)!r}) or `python -m lagrgen build MODEL.py --out {out_dir}`")
+    return import_extension(name, module_file)
+
+
+def import_extension(name, path):
+    """Import the extension module `name` from the file `path` (once per path and process),
+    leaving any entry `name` of sys.modules as it was."""
+    path = Path(path).resolve()
+    if path in _loaded:
+        return _loaded[path]
+    loader = importlib.machinery.ExtensionFileLoader(name, str(path))
+    spec = importlib.util.spec_from_file_location(name, str(path), loader=loader)
+    missing = object()
+    previous = sys.modules.get(name, missing)
+    try:
+        module = importlib.util.module_from_spec(spec)
+        loader.exec_module(module)
+    except ImportError as exc:
+        raise BuildError(f"cannot import compiled model {name!r} from {path}: {exc}") from None
+    finally:
+        if previous is missing:
+            sys.modules.pop(name, None)
+        else:
+            sys.modules[name] = previous
+    _loaded[path] = module
+    return module

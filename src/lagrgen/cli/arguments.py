@@ -1,0 +1,262 @@
+"""What the commands share: declaring a command and its common options, and reading the
+arguments (model files, NAME=VALUE items, numbers, parameters, inputs, initial states, sweep
+ranges, CSV records).
+
+A command is a module of this package with `add(subparsers)`, which declares its parser
+through `command_parser` (so its `--help` ends with an example), and `run(args)`, which returns
+the exit status; `lagrgen.cli.COMMANDS` lists the modules. A reader raises LagrgenError with a message
+that names the option, which `main` prints as one line.
+"""
+import argparse
+import csv
+import runpy
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import LagrgenError
+
+
+# -- declaring a command -----------------------------------------------------------------------
+class ExampleFormatter(argparse.HelpFormatter):
+    """argparse's formatter, except that an epilog starting with "example" keeps its lines."""
+
+    def _fill_text(self, text, width, indent):
+        if text.startswith("example"):
+            return "".join(indent + line for line in text.splitlines(keepends=True))
+        return super()._fill_text(text, width, indent)
+
+
+def command_parser(subparsers, name, help, description, example):
+    """The parser of the command `name`, whose `--help` ends with `example`: a command line (a
+    long one continued by " \\" and a newline), or a tuple of them, shown as written."""
+    examples = (example,) if isinstance(example, str) else tuple(example)
+    lines = [line for text in examples for line in text.strip().splitlines()]
+    epilog = ("examples:\n" if len(examples) > 1 else "example:\n") + \
+        "\n".join(f"  {line}" for line in lines)
+    return subparsers.add_parser(name, help=help, description=description, epilog=epilog,
+                                 formatter_class=ExampleFormatter)
+
+
+def add_model_file(parser):
+    parser.add_argument("model_file", help="a Python file that defines lagrgen.Model objects")
+    parser.add_argument("--model", action="append",
+                        help="only the model of this name (may be repeated; default: all)")
+
+
+def add_common(parser):
+    add_model_file(parser)
+    parser.add_argument("--out", default="generated", help="output directory (default: generated)")
+    parser.add_argument("--quiet", action="store_true", help="print nothing but errors")
+    parser.add_argument("--verbose", action="store_true",
+                        help="report each build step's time, code size and compiler flags")
+
+
+def add_run_options(parser):
+    """Options shared by the commands that run a model: backend, parameters, inputs."""
+    add_common(parser)
+    parser.add_argument("--backend", choices=("c", "python"), default="c",
+                        help="compiled C (default, cached in --out) or pure Python")
+    parser.add_argument("--params", action="append", metavar="NAME=VALUE,...",
+                        help="parameter values (others keep their defaults); repeat the flag or "
+                        "separate items with ';' or ','")
+
+
+# -- model files -------------------------------------------------------------------------------
+def models_in(path, names=None):
+    """The Model objects defined at top level of the model file `path` (optionally by name)."""
+    from ..model import Model
+    path = Path(path)
+    if not path.is_file():
+        raise LagrgenError(f"no model file {str(path)!r}")
+    sys.path.insert(0, str(path.resolve().parent))
+    try:
+        namespace = runpy.run_path(str(path), run_name=f"lagrgen_model_file_{path.stem}")
+    except SyntaxError as exc:
+        raise LagrgenError(f"{exc.filename}, line {exc.lineno}: {exc.msg}") from None
+    finally:
+        sys.path.pop(0)
+    found, seen = [], set()
+    for value in namespace.values():
+        if isinstance(value, Model) and id(value) not in seen:
+            seen.add(id(value))
+            found.append(value)
+    if not found:
+        raise LagrgenError(
+            f"{path} defines no lagrgen.Model at top level: a model file must create one, "
+            "e.g. `model = Model('my_system')`")
+    all_names = [m.name for m in found]
+    twice = sorted({n for n in all_names if all_names.count(n) > 1})
+    if twice:
+        raise LagrgenError(f"{path} defines more than one model named {', '.join(twice)}: "
+                           "model names name compiled modules, so each must be unique")
+    if names:
+        missing = sorted(set(names) - set(all_names))
+        if missing:
+            raise LagrgenError(f"{path} defines no model named {', '.join(missing)}; "
+                               f"it defines {', '.join(all_names)}")
+        found = [m for m in found if m.name in names]
+    return found
+
+
+def single_model(args):
+    models = models_in(args.model_file, args.model)
+    if len(models) > 1:
+        raise LagrgenError(f"{args.model_file} defines several models "
+                           f"({', '.join(m.name for m in models)}): choose one with --model NAME")
+    return models[0]
+
+
+def build_for(model, args):
+    """The built model for the chosen --backend (C builds are cached in --out)."""
+    from ..build import build
+    if args.backend == "python":
+        return build(model, backend="python")
+    return build(model, out_dir=args.out, verbose=args.verbose, quiet=args.quiet)
+
+
+# -- NAME=VALUE items and numbers --------------------------------------------------------------
+def split_items(text):
+    """The NAME=VALUE items of one option value: separated by ';', or by ',' outside brackets, so
+    `F=Max(0,t-0.5);G=1` and `a=1,b=2` both work."""
+    items, depth, current = [], 0, []
+    for ch in text:
+        if ch in "([{":
+            depth += 1
+        elif ch in ")]}":
+            depth = max(depth - 1, 0)
+        if ch == ";" or (ch == "," and depth == 0):
+            items.append("".join(current))
+            current = []
+        else:
+            current.append(ch)
+    items.append("".join(current))
+    return items
+
+
+def assignments(texts, what):
+    """{name: text} from ["a=1,b=2", "c=Max(0,t);d=3"] (the values of a repeatable NAME=VALUE
+    option: items separated by ';' or by commas outside brackets)."""
+    out = {}
+    for text in texts or ():
+        for item in split_items(text):
+            if not item.strip():
+                continue
+            name, sep, value = item.partition("=")
+            if not sep or not name.strip() or not value.strip():
+                raise LagrgenError(f"{what}: expected NAME=VALUE, got {item.strip()!r}")
+            out[name.strip()] = value.strip()
+    return out
+
+
+def number(text, what):
+    """The value of a number or a constant expression such as `2*pi` (restricted reader)."""
+    from ..expressions import ExpressionError, parse_number
+    try:
+        return parse_number(text)
+    except ExpressionError as exc:
+        raise LagrgenError(f"{what}: {exc}") from None
+
+
+def known_names(values, option, model, what, names):
+    """`values` (a dict), after checking each key is one of the model's `names` (its `what`s)."""
+    from ..runtime.arguments import unknown_name
+    unknown = sorted(set(values) - set(names))
+    if unknown:
+        raise LagrgenError(f"{option}: {unknown_name(what, unknown[0], names)}")
+    return values
+
+
+# -- parameters, inputs, initial states --------------------------------------------------------
+def parameters_option(args, model):
+    """The --params values as a dict name -> float, checked against the model's parameters."""
+    values = {k: number(v, f"--params {k}") for k, v in assignments(args.params, "--params").items()}
+    return known_names(values, "--params", model, "parameter", model.parameter_names)
+
+
+def input_value(name, text):
+    """A constant, or a function of t, from an expression such as `0.5*sin(2*t)`."""
+    from ..expressions import ExpressionError, parse_time_function
+    try:
+        return parse_time_function(text)
+    except ExpressionError as exc:
+        raise LagrgenError(f"--inputs {name}: {exc}") from None
+
+
+def inputs_option(args, model, constant=False):
+    """The --inputs values: name -> constant or function of t (constants only if `constant`)."""
+    values = known_names(assignments(args.inputs, "--inputs"), "--inputs", model, "input",
+                         model.input_names)
+    out = {name: input_value(name, text) for name, text in values.items()}
+    varying = [name for name, v in out.items() if callable(v)]
+    if constant and varying:
+        raise LagrgenError(f"--inputs {varying[0]}: the operating point needs a constant value")
+    return out
+
+
+def initial_state(text, model):
+    """y0 = [q0, q̇0] from "v1,v2,..." (n or 2n numbers) or "name=v,name'=v,..." (others 0)."""
+    names = model.coordinate_names
+    n = len(names)
+    y0 = np.zeros(2 * n)
+    if not text:
+        return y0
+    if "=" not in text:
+        values = [number(v, "--y0") for v in text.split(",") if v.strip()]
+        if len(values) not in (n, 2 * n):
+            raise LagrgenError(f"--y0: expected {n} positions or {2 * n} values [q, q'] for the "
+                               f"coordinates {', '.join(names)}, got {len(values)}")
+        y0[:len(values)] = values
+        return y0
+    slots = {c: i for i, c in enumerate(names)}
+    for i, c in enumerate(names):
+        slots.setdefault(f"{c}'", n + i)
+        slots.setdefault(f"{c}_dot", n + i)
+    for name, value in assignments([text], "--y0").items():
+        if name not in slots:
+            raise LagrgenError(f"--y0: {name!r} is not a coordinate or a velocity (use "
+                               f"{names[0]}=... and {names[0]}'=... or {names[0]}_dot=...)")
+        y0[slots[name]] = number(value, f"--y0 {name}")
+    return y0
+
+
+# -- sweep ranges ------------------------------------------------------------------------------
+def sweep_range(text, option="--param"):
+    """(name, values) from NAME=START:STOP:N (the value of `option`)."""
+    name, sep, spec = text.partition("=")
+    parts = spec.split(":")
+    if not sep or len(parts) != 3 or not name.strip().isidentifier():
+        raise LagrgenError(f"{option}: expected NAME=START:STOP:N, got {text!r}")
+    start, stop = number(parts[0], f"{option} START"), number(parts[1], f"{option} STOP")
+    try:
+        count = int(parts[2])
+    except ValueError:
+        count = 0
+    if count < 1:
+        raise LagrgenError(f"{option}: N must be a positive whole number, got {parts[2]!r}")
+    return name.strip(), np.linspace(start, stop, count)
+
+
+# -- CSV records -------------------------------------------------------------------------------
+def read_record(path):
+    """(column names without their units, values (rows, columns)) of a CSV with a header row,
+    as `simulate --csv` writes it (t first)."""
+    with open(path, newline="") as stream:
+        rows = list(csv.reader(stream))
+    if len(rows) < 3:
+        raise LagrgenError(f"{path}: a header row and at least two rows of samples are needed")
+    names = [cell.split(" [")[0].strip() for cell in rows[0]]
+    try:
+        values = np.array([[float(v) for v in row] for row in rows[1:] if row], dtype=float)
+    except ValueError as exc:
+        raise LagrgenError(f"{path}: every sample must be a number ({exc})") from None
+    if values.ndim != 2 or values.shape[1] != len(names):
+        raise LagrgenError(f"{path}: every row must have {len(names)} values like the header")
+    return names, values
+
+
+def column(name, units):
+    """A CSV header: 'x [m]' when the name has a unit, else the name."""
+    unit = (units or {}).get(name)
+    return f"{name} [{unit}]" if unit else name

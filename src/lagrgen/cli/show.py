@@ -1,0 +1,23 @@
+"""`python -m lagrgen show MODEL.py`: the equations of motion as text or LaTeX."""
+from .arguments import add_model_file, command_parser, models_in
+
+
+def add(sub):
+    s = command_parser(sub, "show", help="print the equations of motion (plain text or LaTeX)",
+                       description="Print each model's equations of motion, one line per "
+                       "coordinate: sum_j M_ij q_j'' = F_i, with q' and q'' for the velocities and "
+                       "accelerations (LaTeX: \\dot{q}, \\ddot{q}).",
+                       example="python -m lagrgen show examples/double_pendulum.py --latex")
+    add_model_file(s)
+    s.add_argument("--latex", action="store_true", help="print LaTeX (an aligned environment)")
+    s.add_argument("--matrices", action="store_true", help="also print M and F entry by entry")
+    s.add_argument("--raw", action="store_true", help="skip the (cheap) trigonometric simplification")
+    s.set_defaults(run=run)
+
+
+def run(args):
+    from ..outputs.display import render
+    texts = [render(model, latex=args.latex, matrices=args.matrices, simplify=not args.raw)
+             for model in models_in(args.model_file, args.model)]
+    print("\n\n".join(texts))
+    return 0

@@ -1,0 +1,248 @@
+"""Stability across a parameter: the eigenvalues of the linearization followed branch by branch,
+where a branch's real part changes sign, and the root locus.
+
+At each value v the model is linearized about `operating_point(v)` (exactly to first order, on
+the constraint manifold: `lagrgen.linearize`) and the eigenvalues of A are paired with those at
+the previous value by continuity, never by sorting: the assignment (Hungarian algorithm)
+minimizing Σ |s − s_predicted|/|s|_max + (1 − MAC(φ, φ_previous)), s predicted by linear
+extrapolation of the last two values and MAC = |φᴴφ'|² the alignment of unit eigenvectors — so a
+branch keeps its identity through crossings, and a root passing through a cluster (the zero
+roots of ignorable coordinates) keeps its own mode. A stability boundary — a branch's real part
+changing sign between neighbouring values — is located by Brent's method on that branch's real
+part, evaluated on the compiled Jacobian.
+"""
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.optimize import brentq, linear_sum_assignment
+
+from .errors import LagrgenError
+from .linearization import linearize, spectrum
+
+#: Relative size (of the largest |s|) below which a real part counts as zero: marginal, not
+#: growing (undamped oscillations, rigid-body and ignorable-coordinate motions).
+ZERO_TOL = 1e-9
+#: Absolute tolerance (relative to the swept range) of a located crossing.
+CROSSING_XTOL = 1e-12
+#: Steps by which a branch is followed from a sampled value to a trial value of a crossing.
+CONTINUATION_STEPS = 6
+
+
+@dataclass(eq=False)
+class EigenvalueSweep:
+    """The eigenvalues of a model's linearization across `values`: `eigenvalues[i, b]` is branch
+    b at `values[i]` (branches followed by continuity), in the independent states `states`."""
+
+    values: np.ndarray
+    eigenvalues: np.ndarray
+    states: tuple
+    vectors: np.ndarray = field(repr=False, default=None)   # unit eigenvectors, per value
+    model: object = field(repr=False, default=None)
+    operating_point: object = field(repr=False, default=None)
+    options: dict = field(repr=False, default_factory=dict)
+
+    @property
+    def stable(self):
+        """(len(values),) bool: no eigenvalue with a positive real part at each value."""
+        return ~np.any(self._signs() > 0, axis=1)
+
+    def _tolerance(self):
+        scale = np.abs(self.eigenvalues).max(initial=0.0)
+        return ZERO_TOL * max(1.0, scale)
+
+    def _signs(self):
+        """−1, 0, +1 per value and branch: the sign of the real part beyond the tolerance."""
+        re = self.eigenvalues.real
+        tol = self._tolerance()
+        return np.where(re > tol, 1, np.where(re < -tol, -1, 0))
+
+    def crossings(self):
+        """Where a branch's real part changes sign between neighbouring values, located by root
+        finding (to ~1e-12 of the range): a list of (value, branch, "stable->unstable" |
+        "unstable->stable") ordered by value. A real part within ZERO_TOL of zero is marginal
+        (stable); the boundary with it is where the real part passes that threshold."""
+        growing = self._signs() > 0
+        found = []
+        for b in range(self.eigenvalues.shape[1]):
+            for i in np.flatnonzero(growing[1:, b] != growing[:-1, b]):
+                kind = "stable->unstable" if growing[i + 1, b] else "unstable->stable"
+                if self.values[-1] < self.values[0]:
+                    kind = "unstable->stable" if growing[i + 1, b] else "stable->unstable"
+                found.append((self._locate(i, b), b, kind))
+        return sorted(found, key=lambda c: (c[0], c[1]))
+
+    def _locate(self, i, b):
+        """The value between values[i] and values[i + 1] where branch b's real part crosses 0
+        (or the marginal threshold ZERO_TOL when one end is marginal). The branch is followed
+        to each trial value by continuation in CONTINUATION_STEPS steps from the end where its
+        sign is definite (from the marginal side a collision of two roots is ambiguous)."""
+        v0, v1 = self.values[i], self.values[i + 1]
+        signs = self._signs()[[i, i + 1], b]
+        offset = self._tolerance() if 0 in signs else 0.0
+        start = i if signs[0] != 0 else i + 1
+
+        def real_part(v):
+            if v in (v0, v1):
+                return self.eigenvalues[i if v == v0 else i + 1, b].real - offset
+            s, V = self._continued(start, v)
+            return s[b].real - offset
+        xtol = CROSSING_XTOL * max(1.0, abs(self.values[-1] - self.values[0]))
+        return float(brentq(real_part, min(v0, v1), max(v0, v1), xtol=xtol,
+                            rtol=4 * np.finfo(float).eps))
+
+    def _continued(self, start, value):
+        """The spectrum at `value` in the branch order of values[start], followed there in
+        CONTINUATION_STEPS steps."""
+        rows, vectors = [self.eigenvalues[start]], [self.vectors[start]]
+        for x in np.linspace(self.values[start], value, CONTINUATION_STEPS + 1)[1:]:
+            s, V = self._spectrum_at(x)
+            s, V = paired(rows, vectors, s, V)
+            rows.append(s)
+            vectors.append(V)
+        return rows[-1], vectors[-1]
+
+    def _spectrum_at(self, value):
+        return spectrum_at(self.model, self.operating_point, value, self.options, self.states)
+
+
+    def plot(self, ax=None, stable_color="tab:green"):
+        """The root locus: real parts (top) and imaginary parts (bottom) of every branch against
+        the value, the stable ranges shaded and the crossings marked.
+
+        Parameters
+        ----------
+        ax : None (a new figure) or a pair of matplotlib Axes (real, imaginary)
+
+        Returns
+        -------
+        The pair of Axes.
+        """
+        import matplotlib.pyplot as plt
+        if ax is None:
+            _, ax = plt.subplots(2, 1, sharex=True, figsize=(7, 6))
+        ax_re, ax_im = ax
+        v = self.values
+        for b in range(self.eigenvalues.shape[1]):
+            line, = ax_re.plot(v, self.eigenvalues[:, b].real, lw=1.4)
+            ax_im.plot(v, self.eigenvalues[:, b].imag, lw=1.4, color=line.get_color())
+        crossings = self.crossings()
+
+        def boundary(i, j):
+            """Where stability changes between values i and j: a located crossing, else the
+            midpoint."""
+            lo, hi = sorted((v[i], v[j]))
+            inside = [c[0] for c in crossings if lo <= c[0] <= hi]
+            return inside[0] if inside else (v[i] + v[j]) / 2
+        for start, stop in _runs(self.stable):
+            lo = v[start] if start == 0 else boundary(start - 1, start)
+            hi = v[stop] if stop == len(v) - 1 else boundary(stop, stop + 1)
+            for a in (ax_re, ax_im):
+                a.axvspan(lo, hi, color=stable_color, alpha=0.12, lw=0)
+        for value in sorted({c[0] for c in crossings}):
+            for a in (ax_re, ax_im):
+                a.axvline(value, color="k", ls="--", lw=0.8)
+            ax_re.annotate(f"{value:.6g}", (value, 0), xytext=(4, 4),
+                           textcoords="offset points", fontsize=8)
+        ax_re.axhline(0.0, color="k", lw=0.6)
+        ax_re.set_ylabel("Re s [1/s]")
+        ax_im.set_ylabel("Im s [rad/s]")
+        ax_im.set_xlabel(self.options.get("label", "value"))
+        ax_re.set_title("eigenvalues (shaded: stable)")
+        return ax
+
+
+def _runs(mask):
+    """(start, stop) index pairs of the runs of True in `mask`."""
+    runs, start = [], None
+    for i, m in enumerate(mask):
+        if m and start is None:
+            start = i
+        if not m and start is not None:
+            runs.append((start, i - 1))
+            start = None
+    if start is not None:
+        runs.append((start, len(mask) - 1))
+    return runs
+
+
+def spectrum_at(mod, operating_point, value, options, states=None):
+    """(eigenvalues, unit eigenvectors as columns) of the linearization about
+    operating_point(value), in `states`' split."""
+    q0, qd0, p = _point(operating_point, value)
+    lin = linearize(mod, q0, qd0, p=p, **options.get("linearize", {}),
+                    dependent=options.get("dependent"))
+    if states is not None and tuple(lin.states) != tuple(states):
+        raise LagrgenError(f"the independent states changed along the sweep at {value!r}")
+    return spectrum(lin.A)
+
+
+def branch_cost(predicted, previous, s, V, scale):
+    """Cost of giving eigenvalue j (s_j, unit vector V[:, j]) to branch i predicted at
+    predicted[i] with unit vector previous[:, i]: |Δs|/scale + 1 − MAC."""
+    mac = np.abs(previous.conj().T @ V) ** 2
+    return np.abs(predicted[:, None] - s[None, :]) / scale + (1.0 - mac)
+
+
+def _point(operating_point, value):
+    try:
+        q0, qd0, p = operating_point(value)
+    except (TypeError, ValueError) as exc:
+        if "unpack" not in str(exc):
+            raise
+        raise LagrgenError("operating_point(value) must return (q0, qd0, p): the coordinates, "
+                           "their rates (None: at rest) and the parameters (a dict or None)") \
+            from None
+    return q0, qd0, p
+
+
+def eigenvalue_sweep(mod, values, operating_point, t=0.0, u=None, dependent=None, label=None):
+    """Follow the eigenvalues of the linearization of `mod` across `values`.
+
+    Parameters
+    ----------
+    mod : a built model (either backend)
+    values : 1-D array of at least two distinct values, increasing or decreasing
+    operating_point : callable value -> (q0, qd0, p), p a dict of parameter values or None
+    t, u : the frozen time and the constant inputs of every linearization
+    dependent : the dependent coordinates and rates of a constrained model (default: those
+        chosen at the first value, kept along the sweep)
+    label : the value's name, for the plot
+
+    Returns
+    -------
+    EigenvalueSweep: `values`, `eigenvalues` (len(values), len(states)), `crossings()`, `plot()`.
+    """
+    values = np.asarray(values, dtype=float)
+    if values.ndim != 1 or len(values) < 2 or not np.all(np.isfinite(values)):
+        raise ValueError("values must be a 1-D array of at least two finite numbers")
+    steps = np.diff(values)
+    if not (np.all(steps > 0) or np.all(steps < 0)):
+        raise ValueError("values must be strictly increasing or strictly decreasing")
+    if not callable(operating_point):
+        raise TypeError("operating_point must be a callable value -> (q0, qd0, p)")
+    options = {"linearize": {"t": t, "u": u}, "label": label or "value"}
+    q0, qd0, p = _point(operating_point, values[0])
+    first = linearize(mod, q0, qd0, p=p, t=t, u=u, dependent=dependent)
+    if mod.n_constraints:
+        options["dependent"] = [name for name in
+                                list(mod.coordinates) + [f"{c}_dot" for c in mod.coordinates]
+                                if name not in first.states]
+    s, V = spectrum_at(mod, operating_point, values[0], options, first.states)
+    rows, vectors = [s], [V]
+    for value in values[1:]:
+        s, V = paired(rows, vectors, *spectrum_at(mod, operating_point, value, options,
+                                                   first.states))
+        rows.append(s)
+        vectors.append(V)
+    return EigenvalueSweep(values=values, eigenvalues=np.array(rows), states=first.states,
+                           vectors=np.array(vectors), model=mod,
+                           operating_point=operating_point, options=options)
+
+
+def paired(rows, vectors, s, V):
+    """(s, V) reordered to continue the branches whose eigenvalues so far are `rows` (the last
+    one or two used to predict) and whose last unit vectors are vectors[-1]."""
+    predicted = rows[-1] if len(rows) < 2 else 2 * rows[-1] - rows[-2]
+    scale = max(1.0, np.abs(s).max(initial=0.0), np.abs(rows[-1]).max(initial=0.0))
+    _, cols = linear_sum_assignment(branch_cost(predicted, vectors[-1], s, V, scale))
+    return s[cols], V[:, cols]
