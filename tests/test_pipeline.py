@@ -11,7 +11,7 @@ from numpy.testing import assert_allclose
 
 import lagrgen
 from lagrgen import Model
-from lagrgen.functions import DIRECTIONS_SIGNATURE, FUNCTIONS
+from lagrgen.functions import DIRECTIONS_SIGNATURE, FUNCTIONS, MODEL_UNIT
 
 from conftest import EXAMPLES, ROOT, example_model
 
@@ -64,7 +64,8 @@ def test_a_build_writes_the_standalone_model_beside_the_module(double, tmp_path)
     for f in FUNCTIONS:
         signature = (DIRECTIONS_SIGNATURE if f.call == "directions" else
                      "double t, const double *y, const double *p, const double *u, double *out")
-        assert f"int double_pendulum_{f.name}({signature});" in header
+        prototype = f"int double_pendulum_{f.name}({signature});"
+        assert (prototype in header) == (f.unit == MODEL_UNIT), f.name   # the others: export_c
     assert mod.content_hash in header
 
 

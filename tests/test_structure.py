@@ -174,7 +174,7 @@ STAGES = [
     ("kernels", ["tangents", "kernels"]),
     ("code", ["codegen"]),
     ("runtime", ["runtime"]),
-    ("build", ["cache", "build"]),
+    ("build", ["cache", "build", "units"]),
     ("display", ["outputs"]),
     ("running", ["progress", "results", "solvers", "scipy_engine", "native", "sensitivity",
                  "simulate", "constraints", "ensemble", "ensemble_store",

@@ -13,6 +13,7 @@ from pathlib import Path
 from . import cache
 from ._version import __version__
 from .errors import ModelError
+from .functions import MODEL_UNIT, functions_of
 from .runtime.info import ModelInfo
 from .toolchain import compile_flags, compile_module, compile_units, write_atomic
 
@@ -54,7 +55,9 @@ def build(model, out_dir="generated", backend="c", **options):
     unknown = set(options) - {"verbose", "quiet", "force", "opt_level", "cflags"}
     if unknown:
         raise TypeError(f"build() got unknown option(s) {', '.join(sorted(unknown))}")
-    built = build_c(spec.name, cache.content_digest(spec, lambda: derived(spec)),
+    digest = cache.content_digest(spec, lambda: derived(spec))
+    cache.remember_description(digest, spec)
+    built = build_c(spec.name, digest,
                     lambda: (model_info(spec, derived(spec)), derived(spec)), Path(out_dir),
                     **options)
     built._source_model = model      # the description it was built from: what animations draw
@@ -70,15 +73,17 @@ def build_c(name, digest, derive, out_dir, verbose=False, quiet=False, force=Fal
     start = time.perf_counter()
     flags = compile_flags(opt_level, cflags)
     entry = cache.Entry(Path(out_dir), name, cache.key(digest, flags))
-    progress = _Progress(name, verbose or (not quiet and sys.stderr.isatty()))
+    progress = Progress(name, verbose or (not quiet and sys.stderr.isatty()))
 
     def make(work):
-        """derive → generate → compile, into the private directory `work` of a new entry."""
+        """derive → generate → compile, into the private directory `work` of a new entry, with
+        the description its units compiled on first use derive their code from (lagrgen.units)."""
         info, equations = derive()
         progress.note("deriving the equations of motion ...")
-        equations.differentiate()
+        equations.differentiate(parameters=False)
         progress.step("derive", f"{equations.n} coordinates")
         compile_model(generate(info, equations, progress), work, name, flags, progress)
+        cache.keep_description(work, equations.spec, flags)
 
     try:
         with cache.writing(entry):
@@ -126,16 +131,18 @@ def _nonsmooth():
 
 
 # -- generate and compile ---------------------------------------------------------------------
-def generate(info, equations, progress):
-    """The C files of the model's module: {file name: text} (the standalone model, the module
-    glue, and the kernels' translation units when the model is long enough to be split)."""
+def generate(info, equations, progress, functions=functions_of(MODEL_UNIT),
+             glue="module.c.in"):
+    """The C files of a module with the registered `functions` (the model's own by default):
+    {file name: text} (the standalone model, the module glue `glue`, and the kernels'
+    translation units when the model is long enough to be split)."""
     from .codegen.c_model import (module_source, standalone_files, translation_units,
                                   unit_sources)
     name = info.name
-    files = standalone_files(info, equations)
-    units = translation_units(files[f"{name}_model.c"])
-    files[f"{name}_module.c"] = module_source(info, units)
-    files.update(unit_sources(name, units))
+    files = standalone_files(info, equations, functions)
+    parts = translation_units(files[f"{name}_model.c"])
+    files[f"{name}_module.c"] = module_source(info, parts, functions, glue)
+    files.update(unit_sources(name, parts))
     progress.step("cse+emit", f"{sum(len(text) for text in files.values()) / 1024:.0f} KiB of C")
     return files
 
@@ -156,7 +163,7 @@ def compile_model(files, work, name, flags, progress):
     progress.step("compile", f"{' '.join(flags)}, {lib.stat().st_size / 1024:.0f} KiB module")
 
 
-class _Progress:
+class Progress:
     """Times the build steps; reports them on stderr when `verbose`."""
 
     def __init__(self, name, verbose):
@@ -179,8 +186,9 @@ class _Progress:
 
 # -- export: generated files without the cache -----------------------------------------------
 def export_c(model, out_dir):
-    """Write just the standalone C model `<name>_model.h` and `<name>_model.c` into `out_dir`;
-    return their paths."""
+    """Write just the standalone C model `<name>_model.h` and `<name>_model.c` into `out_dir`,
+    with every registered function (a build's own `<name>_model.c` holds those of the model's
+    module); return their paths."""
     from .codegen.c_model import standalone_files
     equations = derived(model.spec())
     info = model_info(model.spec(), equations)

@@ -243,6 +243,8 @@ def kernel(eq, name):
     return done[name]
 
 
-def all_kernels(eq):
-    """The kernels of KERNELS that the equations `eq` have, in order."""
-    return [kernel(eq, k.name) for k in KERNELS if k.when is None or k.when(eq)]
+def all_kernels(eq, names=None):
+    """The kernels of KERNELS that the equations `eq` have, in order; only those in `names` when
+    given (the others are not formed)."""
+    return [kernel(eq, k.name) for k in KERNELS
+            if (names is None or k.name in names) and (k.when is None or k.when(eq))]

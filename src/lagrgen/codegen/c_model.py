@@ -4,7 +4,7 @@ from pathlib import Path
 from string import Template
 
 from ..functions import DIRECTIONS_SIGNATURE, FUNCTIONS
-from ..kernels import all_kernels
+from ..kernels import KERNELS, all_kernels
 from .printer import c_function, in_lanes, kernel_statements
 
 TEMPLATES = Path(__file__).resolve().parent / "templates"
@@ -47,14 +47,22 @@ TU_SETUP = """
 """
 
 
-def kernel_functions(equations, max_statements=400, units=None):
-    """The C functions lg_<kernel> of every registered kernel (split into parts when long).
+def kernels_of(functions):
+    """The names of the kernels the C bodies of `functions` call, in the order of KERNELS (with
+    `constraints`, which the constraint solver of every unit calls)."""
+    wanted = {"constraints"} | {k for f in functions for k in f.kernels}
+    return [k.name for k in KERNELS if k.name in wanted]
+
+
+def kernel_functions(equations, max_statements=400, units=None, names=None):
+    """The C functions lg_<kernel> of the kernels `names` (None: every registered kernel) that
+    the model has, split into parts when long.
 
     When the kernels have more than one part, the parts are assigned to translation units 1, 2, ...
     of about STATEMENTS_PER_TU statements each (see TU_SETUP); `units`, a list, receives the number
     of those units (0 when nothing was split)."""
     chunks = []
-    kernels = [(k, kernel_statements(k)) for k in all_kernels(equations)]
+    kernels = [(k, kernel_statements(k)) for k in all_kernels(equations, names)]
     split = any(len(stmts) > max_statements for _, stmts in kernels)
     per_tu = max(1, STATEMENTS_PER_TU // max_statements)
     counter = [0]
@@ -117,10 +125,10 @@ def signature(function):
     return DIRECTIONS_SIGNATURE if function.call == "directions" else SIGNATURE
 
 
-def model_functions(name):
-    """The C definitions of every function of the registry, `<name>_<function>`."""
+def model_functions(name, functions=FUNCTIONS):
+    """The C definitions of the registered `functions`, `<name>_<function>`."""
     chunks = []
-    for f in FUNCTIONS:
+    for f in functions:
         outputs = ", ".join(o.name for o in f.outputs)
         body = read_template(f"functions/{f.name}.c").rstrip()
         chunks.append(f"/* {f.formula}; out = [{outputs}]. */\n"
@@ -128,9 +136,9 @@ def model_functions(name):
     return "\n".join(chunks)
 
 
-def prototypes(name):
+def prototypes(name, functions=FUNCTIONS):
     return "\n".join(f"/* {f.formula} */\nLG_FN int {name}_{f.name}({signature(f)});"
-                     for f in FUNCTIONS)
+                     for f in functions)
 
 
 def _names(names):
@@ -151,37 +159,40 @@ def substitutions(info):
                 **{f"{key}_or_1": max(value, 1) for key, value in sizes.items()})
 
 
-def model_header(info):
-    """`<name>_model.h`: the standalone model's interface."""
+def model_header(info, functions=FUNCTIONS):
+    """`<name>_model.h`: the standalone model's interface (its `functions`)."""
     return Template(read_template("model.h.in")).substitute(
         substitutions(info), guard=f"LAGRGEN_{info.name.upper()}_MODEL_H",
-        prototypes=prototypes(info.name))
+        prototypes=prototypes(info.name, functions))
 
 
-def model_source(info, equations, max_statements=400):
-    """`<name>_model.c`: kernels, linear algebra, model functions and metadata in plain C."""
+def model_source(info, equations, max_statements=400, functions=FUNCTIONS):
+    """`<name>_model.c`: the kernels the registered `functions` call, linear algebra, the
+    functions and metadata in plain C."""
     defaults = info.defaults or [0.0]
     units = []
-    kernels = kernel_functions(equations, max_statements, units)
+    kernels = kernel_functions(equations, max_statements, units, kernels_of(functions))
     split = units[0] > 0
     return Template(read_template("model.c.in")).substitute(
         substitutions(info), linalg=read_template("linalg.c.in"),
         kernels=kernels, tu_setup=TU_SETUP if split else "",
         tu0_begin="#if LG_IN_TU(0)\n" if split else "", tu0_end="\n#endif" if split else "",
         constraint_solver=read_template("constraints.c.in"), lanes=LANES,
-        functions=model_functions(info.name),
+        functions=model_functions(info.name, functions),
         coordinate_names=_names(info.coordinates),
         parameter_names=_names(info.parameters), input_names=_names(info.inputs),
         defaults=", ".join(_double(d) for d in defaults),
         metadata=c_string(info.to_json()))
 
 
-def module_source(info, units=0):
+def module_source(info, units=0, functions=FUNCTIONS, template="module.c.in"):
     """`<name>_module.c`: the Python extension glue that includes `<name>_model.c` (as unit 0 of
-    a model whose kernel parts are compiled as `units` separate units, see `unit_sources`)."""
+    a model whose kernel parts are compiled as `units` separate units, see `unit_sources`) and
+    lists its `functions`. The glue of a unit compiled on first use is `unit_module.c.in`: its
+    table for the runtime to add to the model's, no model of its own."""
     table = ",\n".join(f'    {{"{f.name}", (lg_function){info.name}_{f.name}}}'
-                       for f in FUNCTIONS)
-    text = Template(read_template("module.c.in")).substitute(substitutions(info), table=table)
+                       for f in functions)
+    text = Template(read_template(template)).substitute(substitutions(info), table=table)
     if units:
         include = f'#include "{info.name}_model.c"'
         text = text.replace(include, "#define LG_TU 0\n" + include, 1)
@@ -195,10 +206,11 @@ def unit_sources(name, units):
             f'#define LG_TU {k}\n#include "{name}_model.c"\n' for k in range(1, units + 1)}
 
 
-def standalone_files(info, equations):
-    """{file name: text} of the standalone C model."""
+def standalone_files(info, equations, functions=FUNCTIONS):
+    """{file name: text} of the standalone C model with the registered `functions` (all of
+    them: `export_c`; the model unit's: what `build` compiles and publishes)."""
     name = info.name
-    return {f"{name}_model.h": model_header(info),
-            f"{name}_model.c": model_source(info, equations)}
+    return {f"{name}_model.h": model_header(info, functions),
+            f"{name}_model.c": model_source(info, equations, functions=functions)}
 
 

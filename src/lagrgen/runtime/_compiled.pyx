@@ -11,6 +11,7 @@ Thread safety: nothing a call depends on is stored in a shared object. Converted
 locals of the call, which keeps them alive for as long as C (or a nogil loop) reads them.
 """
 import time
+import weakref
 
 import numpy as np
 cimport numpy as cnp
@@ -20,9 +21,10 @@ from libc.math cimport isfinite
 from lagrgen.runtime.abi cimport (LG_ABI_VERSION, LG_CAPSULE_NAME, lg_directions_fn,
                                   lg_function, lg_model_t)
 from lagrgen.errors import BuildError, ConstraintError, MassMatrixError
-from lagrgen.functions import FUNCTIONS
+from lagrgen.functions import BY_NAME, FUNCTIONS, MODEL_UNIT
 from lagrgen.runtime.describe import BuiltModule
 from lagrgen.runtime.info import INFO_ATTRIBUTES, ModelInfo
+from lagrgen.runtime import units
 from lagrgen.runtime.arguments import (defaults_array, input_vector, parameter_vector,
                                        require_finite)
 
@@ -81,7 +83,8 @@ cdef class CompiledModel:
     cdef readonly dict dimensions
     cdef cnp.ndarray _zeros
     cdef bint _defaults_complete
-    cdef dict _addresses
+    cdef dict _addresses, _units
+    cdef object _module
 
     def __cinit__(self, capsule):
         if not PyCapsule_IsValid(capsule, LG_CAPSULE_NAME):
@@ -105,12 +108,10 @@ cdef class CompiledModel:
         self._defaults_complete = bool(np.isfinite(self.defaults).all())
         self._zeros = np.zeros(max(self.n_inputs, 1))
         self._zeros.setflags(write=False)
-        self._addresses = {}
-        cdef int i
-        for i in range(self.model.n_functions):
-            self._addresses[self.model.functions[i].name.decode("ascii")] = \
-                <size_t>self.model.functions[i].fn
-        missing = [f.name for f in FUNCTIONS if f.name not in self._addresses]
+        self._addresses = table(self.model)
+        self._units = {}
+        self._module = None
+        missing = [f.name for f in FUNCTIONS if f.unit == MODEL_UNIT and f.name not in self._addresses]
         if missing:
             raise BuildError(f"compiled model {self.name!r} lacks {', '.join(missing)}: it was "
                              "built by another lagrgen version; rebuild it")
@@ -136,22 +137,50 @@ cdef class CompiledModel:
                                     self.inputs, "input")
         return values if self.n_inputs else self._zeros
 
+    def address(self, str name):
+        """The address of the registered function `name`, compiling its unit on first use."""
+        if name not in self._addresses:
+            if name not in BY_NAME:
+                raise ValueError(f"model {self.name!r} has no function {name!r}: it has "
+                                 f"{', '.join(f.name for f in FUNCTIONS)}")
+            self.attach(BY_NAME[name].unit)
+        return self._addresses[name]
+
+    def attach(self, str label):
+        """Add the functions of the unit `label` (compiled on first use, `runtime.units`)."""
+        with units.LOCK:
+            if label in self._units:
+                return
+            module = self._module() if self._module is not None else None
+            path = getattr(module, "__file__", None)
+            if path is None:
+                raise BuildError(f"the module of compiled model {self.name!r} has no file: its "
+                                 f"{label} functions cannot be compiled")
+            unit = units.unit_module(path, self.info, label)
+            capsule = getattr(unit, "_lagrgen_unit", None)
+            if capsule is None or not PyCapsule_IsValid(capsule, LG_CAPSULE_NAME):
+                raise BuildError(f"{unit.__name__} is not a unit of a lagrgen model")
+            found = <const lg_model_t *>PyCapsule_GetPointer(capsule, LG_CAPSULE_NAME)
+            other = ModelInfo.from_json(found.metadata.decode("utf-8"))
+            if found.abi_version != LG_ABI_VERSION or other.content_hash != self.info.content_hash:
+                raise BuildError(f"the {label} unit {unit.__file__} does not belong to compiled "
+                                 f"model {self.name!r} (another build or lagrgen version): "
+                                 "rebuild the model")
+            self._addresses.update(table(found))
+            self._units[label] = unit
+
     cdef lg_function pointer(self, str name) except NULL:
         """The C function `name` of the one signature lg_function."""
-        if name not in self._addresses or name in DIRECTION_FUNCTIONS:
-            raise ValueError(f"model {self.name!r} has no function {name!r} of signature (t, y, "
-                             f"p, u, out): it has {', '.join(self.plain_functions())}")
-        return <lg_function><size_t>self._addresses[name]
-
-    def plain_functions(self):
-        return [name for name in self._addresses if name not in DIRECTION_FUNCTIONS]
+        if name in DIRECTION_FUNCTIONS:
+            raise ValueError(f"{name} of model {self.name!r} does not have the signature (t, y, "
+                             "p, u, out)")
+        return <lg_function><size_t>self.address(name)
 
     def function_address(self, str name):
         """The address of the C function `name` (for native solvers that call it without Python;
-        a function of call style "directions" has the signature lg_directions_fn)."""
-        if name not in self._addresses:
-            self.pointer(name)
-        return self._addresses[name]
+        a function of call style "directions" has the signature lg_directions_fn), compiling its
+        unit on first use."""
+        return self.address(name)
 
     cdef not_positive_definite(self, double t, const double *y, const double *p, const double *u):
         """Raise the error of a failed call at (t, y): M not positive definite, or (when M is)
@@ -194,6 +223,13 @@ cdef class CompiledModel:
         return elapsed / repeat
 
 
+cdef dict table(const lg_model_t *model):
+    """{name: address} of a module's function table."""
+    cdef int i
+    return {model.functions[i].name.decode("ascii"): <size_t>model.functions[i].fn
+            for i in range(model.n_functions)}
+
+
 cdef class BoundFunction:
     """One model function of a compiled model, called with the arguments of its call style."""
 
@@ -209,7 +245,7 @@ cdef class BoundFunction:
         self.model = model
         self.name = spec.name
         self.formula = spec.formula
-        self.fn = model.pointer(spec.name)
+        self.fn = model.pointer(spec.name) if spec.unit == MODEL_UNIT else NULL
         self.shapes = tuple(spec.shapes(model.dimensions))
         self.size = spec.size(model.dimensions)
         self.nd = len(self.shapes[0])
@@ -220,6 +256,8 @@ cdef class BoundFunction:
         return f"<{self.name} of compiled model {self.model.name!r}: {self.formula}>"
 
     cdef object evaluate(self, double t, const double *y, object p, object u):
+        if self.fn == NULL:
+            self.fn = self.model.pointer(self.name)
         cdef cnp.ndarray pa = self.model.params(p)
         cdef cnp.ndarray ua = self.model.input_values(u)
         cdef cnp.ndarray out
@@ -285,12 +323,14 @@ cdef class DirectionsFunction:
         self.model = model
         self.name = spec.name
         self.formula = spec.formula
-        self.fn = <lg_directions_fn><size_t>model._addresses[spec.name]
+        self.fn = NULL
 
     def __repr__(self):
         return f"<{self.name} of compiled model {self.model.name!r}: {self.formula}>"
 
     def __call__(self, double t, y, dy, dp=None, p=None, u=None):
+        if self.fn == NULL:
+            self.fn = <lg_directions_fn><size_t>self.model.address(self.name)
         cdef int dim = 2 * self.model.n_coordinates, n_params = self.model.n_params
         cdef cnp.ndarray ya = as_f64(y, dim, "y")
         cdef cnp.ndarray pa = self.model.params(p)
@@ -327,7 +367,8 @@ DIRECTION_FUNCTIONS = frozenset(f.name for f in FUNCTIONS if f.call == "directio
 
 def bind_module(module, capsule):
     """Make `module` (a freshly imported model module) a built model: called by its PyInit."""
-    model = CompiledModel(capsule)
+    cdef CompiledModel model = CompiledModel(capsule)
+    model._module = weakref.ref(module)
     module.info = model.info
     for attr in INFO_ATTRIBUTES:
         setattr(module, attr, getattr(model.info, attr))
