@@ -31,7 +31,9 @@ class Output:
 
 
 #: The compiled units of a built model. "model" is its module, what running it needs; any other
-#: label is a unit compiled on first use into its own module, `<model>_<label>` (lagrgen.units).
+#: label is a unit compiled on first use into its own module, `<model>_<label>` (lagrgen.units):
+#: "parameters" (the parameter Jacobian), "directions" (the directional derivatives of the
+#: sensitivities), "manifold" (the constraint residuals' Jacobian of the linearization).
 MODEL_UNIT = "model"
 
 
@@ -81,12 +83,12 @@ FUNCTIONS = (
                   "∂ẏ/∂p = [0; M⁻¹·(∂F/∂p − ∂(M·q̈)/∂p)] (with constraints: through the same "
                   "saddle-point solve as the Jacobian)",
                   ("mf", "constraints", "parameter_b", "constraint_parameter_jacobian"),
-                  "analysis"),
+                  "parameters"),
     ModelFunction("directional_derivatives", "directions",
                   (Output("ydot", ("2n",)), Output("dydot", ("k", "2n"))),
                   "ẏ, and for each direction s: J·dy_s + ∂ẏ/∂p·dp_s (forward mode on the "
                   "kernels, J never formed)", ("motion_tape", "motion_tangent", "constraints"),
-                  "analysis"),
+                  "directions"),
     ModelFunction("linear_terms", "q_qd",
                   (Output("M", ("n", "n")), Output("dF_dq", ("n", "n")),
                    Output("dF_dqd", ("n", "n")), Output("dF_du", ("n", "n_inputs"))),
@@ -105,7 +107,7 @@ FUNCTIONS = (
     ModelFunction("constraint_residual_jacobian", "state",
                   (Output("dr_dy", ("n_residuals", "2n")),),
                   "∂[Φ; A·q̇ + b]/∂[q, q̇]: the tangent space of the constraint manifold is its "
-                  "null space", ("constraint_residual_jacobian",), "analysis"),
+                  "null space", ("constraint_residual_jacobian",), "manifold"),
     ModelFunction("constraint_terms", "q_qd",
                   (Output("A", ("n_constraints", "n")), Output("lam", ("n_constraints",)),
                    Output("H", ("n", "n"))),

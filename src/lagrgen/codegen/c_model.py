@@ -47,6 +47,18 @@ TU_SETUP = """
 """
 
 
+#: A kernel with lanes is split into parts of at most this fraction of `max_statements`: each of
+#: its statements holds LANES values, and the compiler's register allocation grows faster than
+#: linearly with the values live in one function.
+LANE_PART_FRACTION = float(__import__("os").environ.get("LG_LANE_FRACTION", "0.25"))
+
+
+def part_limit(kernel, max_statements):
+    """Statements per part of `kernel` (see c_function)."""
+    return max(1, int(max_statements * LANE_PART_FRACTION)) if kernel.spec.lanes \
+        else max_statements
+
+
 def kernels_of(functions):
     """The names of the kernels the C bodies of `functions` call, in the order of KERNELS (with
     `constraints`, which the constraint solver of every unit calls)."""
@@ -63,7 +75,7 @@ def kernel_functions(equations, max_statements=400, units=None, names=None):
     of those units (0 when nothing was split)."""
     chunks = []
     kernels = [(k, kernel_statements(k)) for k in all_kernels(equations, names)]
-    split = any(len(stmts) > max_statements for _, stmts in kernels)
+    split = any(len(stmts) > part_limit(k, max_statements) for k, stmts in kernels)
     per_tu = max(1, STATEMENTS_PER_TU // max_statements)
     counter = [0]
 
@@ -84,9 +96,10 @@ def kernel_functions(equations, max_statements=400, units=None, names=None):
         prologue = "    " + " ".join(f"(void){a};" for a in (*inputs, *unused)) + "\n"
         if lanes:
             stmts = in_lanes(stmts, kernel.spec.lanes, lanes)
+        limit = part_limit(kernel, max_statements)
         text = c_function(f"lg_{kernel.name}", params, args, stmts, kernel.spec.formula + ".",
-                          max_statements, prologue, tu_of_part if split else None, lanes)
-        if split and len(stmts) <= max_statements:
+                          limit, prologue, tu_of_part if split else None, lanes)
+        if split and len(stmts) <= limit:
             text = f"#if LG_IN_TU(0)\n{text}#endif\n"
         chunks.append(tape_sizes(kernel) + text)
     if units is not None:
