@@ -406,9 +406,9 @@ static int lu_complex(double *a, int *piv, int n)
     return info;
 }
 
-/* The triangular solves of getrs (trsv's column order: b[i] −= b[j]·L_ij for j = 0, 1, …, each
- * column skipped where b[j] = 0; backward b[j] /= U_jj then b[i] −= b[j]·U_ij for j = n−1, …, 0),
- * four columns at a time: within a block the four b[j] are finished first, then every other b[i]
+/* The triangular solves of getrs for the real systems (BDF, Radau's error estimate; trsv's
+ * column order: b[i] −= b[j]·L_ij for j = 0, 1, …, each column skipped where b[j] = 0; backward
+ * b[j] /= U_jj then b[i] −= b[j]·U_ij for j = n−1, …, 0), four columns at a time: within a block the four b[j] are finished first, then every other b[i]
  * is held in a register through its four updates, taken in the same order. Each b[i] thus sees
  * the very same operations as column by column; a block with a zero b[j] goes column by column
  * (to skip exactly what trsv skips).                                                          */
@@ -504,89 +504,6 @@ static void upper_solve(const double *restrict a, int n, double *restrict b)
         if (b[j] != 0.0) {
             b[j] /= a[j + (size_t)j * n];
             axpy_sub(b, a + (size_t)j * n, b[j], j);
-        }
-}
-
-/* (br, bi) := L⁻¹·(br, bi) for the complex unit lower triangle of (re, im), as lower_solve. */
-static void lower_solve_complex(const double *restrict re, const double *restrict im, int n,
-                                double *restrict br, double *restrict bi)
-{
-    int j = 0;
-    for (; j + 2 <= n; j += 2) {
-        const double *r0 = re + (size_t)j * n, *i0 = im + (size_t)j * n, *r1 = r0 + n,
-                     *i1 = i0 + n;
-        const double xr0 = br[j], xi0 = bi[j];
-        const int z0 = xr0 != 0.0 || xi0 != 0.0;
-        if (z0) {
-            br[j + 1] -= xr0 * r0[j + 1] - xi0 * i0[j + 1];
-            bi[j + 1] -= xr0 * i0[j + 1] + xi0 * r0[j + 1];
-        }
-        const double xr1 = br[j + 1], xi1 = bi[j + 1];
-        const int z1 = xr1 != 0.0 || xi1 != 0.0;
-        if (z0 && z1) {
-            for (int i = j + 2; i < n; ++i) {
-                double tr = br[i], ti = bi[i];
-                tr -= xr0 * r0[i] - xi0 * i0[i];
-                ti -= xr0 * i0[i] + xi0 * r0[i];
-                tr -= xr1 * r1[i] - xi1 * i1[i];
-                ti -= xr1 * i1[i] + xi1 * r1[i];
-                br[i] = tr;
-                bi[i] = ti;
-            }
-        } else {
-            if (z0)
-                caxpy_sub(br + j + 2, bi + j + 2, r0 + j + 2, i0 + j + 2, xr0, xi0, n - j - 2);
-            if (z1)
-                caxpy_sub(br + j + 2, bi + j + 2, r1 + j + 2, i1 + j + 2, xr1, xi1, n - j - 2);
-        }
-    }
-    for (; j < n; ++j)
-        if (br[j] != 0.0 || bi[j] != 0.0) {
-            size_t c = (size_t)j * n + j + 1;
-            caxpy_sub(br + j + 1, bi + j + 1, re + c, im + c, br[j], bi[j], n - j - 1);
-        }
-}
-
-/* (br, bi) := U⁻¹·(br, bi) for the complex upper triangle of (re, im), as upper_solve. */
-static void upper_solve_complex(const double *restrict re, const double *restrict im, int n,
-                                double *restrict br, double *restrict bi)
-{
-    int j = n - 1;
-    for (; j >= 1; j -= 2) {
-        const double *r0 = re + (size_t)j * n, *i0 = im + (size_t)j * n, *r1 = r0 - n,
-                     *i1 = i0 - n;
-        const int z0 = br[j] != 0.0 || bi[j] != 0.0;
-        if (z0) {
-            cdiv(br[j], bi[j], r0[j], i0[j], br + j, bi + j);
-            br[j - 1] -= br[j] * r0[j - 1] - bi[j] * i0[j - 1];
-            bi[j - 1] -= br[j] * i0[j - 1] + bi[j] * r0[j - 1];
-        }
-        const int z1 = br[j - 1] != 0.0 || bi[j - 1] != 0.0;
-        if (z1)
-            cdiv(br[j - 1], bi[j - 1], r1[j - 1], i1[j - 1], br + j - 1, bi + j - 1);
-        const double xr0 = br[j], xi0 = bi[j], xr1 = br[j - 1], xi1 = bi[j - 1];
-        if (z0 && z1) {
-            for (int i = 0; i < j - 1; ++i) {
-                double tr = br[i], ti = bi[i];
-                tr -= xr0 * r0[i] - xi0 * i0[i];
-                ti -= xr0 * i0[i] + xi0 * r0[i];
-                tr -= xr1 * r1[i] - xi1 * i1[i];
-                ti -= xr1 * i1[i] + xi1 * r1[i];
-                br[i] = tr;
-                bi[i] = ti;
-            }
-        } else {
-            if (z0)
-                caxpy_sub(br, bi, r0, i0, xr0, xi0, j - 1);
-            if (z1)
-                caxpy_sub(br, bi, r1, i1, xr1, xi1, j - 1);
-        }
-    }
-    for (; j >= 0; --j)
-        if (br[j] != 0.0 || bi[j] != 0.0) {
-            size_t c = (size_t)j * n;
-            cdiv(br[j], bi[j], re[c + j], im[c + j], br + j, bi + j);
-            caxpy_sub(br, bi, re + c, im + c, br[j], bi[j], j);
         }
 }
 
@@ -808,7 +725,9 @@ static int radau_factor(solver_t *s, double h)
 }
 
 /* The real and the complex system of one Newton iteration (b: the real right-hand side, then
- * the complex one's real and imaginary parts), each solved like lu_solve_real (same arithmetic). */
+ * the complex one's real and imaginary parts), each solved like lu_solve_real (same arithmetic),
+ * with the two systems' sweeps interleaved column by column so that their chains of dependent
+ * updates (each column waits for the previous one's division) overlap in the processor. */
 static void radau_solve(const solver_t *s, double *b)
 {
     int n = s->dim;
@@ -831,10 +750,24 @@ static void radau_solve(const solver_t *s, double *b)
             bi[q] = ti;
         }
     }
-    lower_solve(a, n, x);
-    lower_solve_complex(re, im, n, br, bi);
-    upper_solve(a, n, x);
-    upper_solve_complex(re, im, n, br, bi);
+    for (int j = 0; j < n; ++j) {
+        size_t c = (size_t)j * n + j + 1;
+        if (x[j] != 0.0)
+            axpy_sub(x + j + 1, a + c, x[j], n - j - 1);
+        if (br[j] != 0.0 || bi[j] != 0.0)
+            caxpy_sub(br + j + 1, bi + j + 1, re + c, im + c, br[j], bi[j], n - j - 1);
+    }
+    for (int j = n - 1; j >= 0; --j) {
+        size_t c = (size_t)j * n;
+        if (x[j] != 0.0) {
+            x[j] /= a[c + j];
+            axpy_sub(x, a + c, x[j], j);
+        }
+        if (br[j] != 0.0 || bi[j] != 0.0) {
+            cdiv(br[j], bi[j], re[c + j], im[c + j], br + j, bi + j);
+            caxpy_sub(br, bi, re + c, im + c, br[j], bi[j], j);
+        }
+    }
 }
 
 /* radau.solve_collocation_system: simplified Newton iterations in the transformed variables W.
