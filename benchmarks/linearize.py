@@ -109,7 +109,7 @@ def table(rows, load):
     for r in rows:
         lines.append(f"| {r['model']} | {r['states']} | {r['sympy_s']:.2f} s | "
                      f"{r['lagrgen_s'] * 1e3:.3f} ms | {r['speedup']:,.0f}× | "
-                     f"{r['from_sympy_s']:.1f} s / {r['build_s']:.1f} s | "
+                     f"{r['from_sympy_s']:.2f} s / {r['build_s']:.1f} s | "
                      f"{r['eigenvalue_gap']:.1e} |")
     return "\n".join(lines)
 

@@ -7,7 +7,7 @@ geometric series, so infinitely many bounces fit before the Zeno time t₁ + 2·
 t₁ = √(2h/g), v₁ = g·t₁. lagrgen switches to resting contact (y = 0 held, its force ≥ 0) when the
 bounces become negligible, and the ball stays on the floor.
 
-Run it: python examples/bouncing_ball.py   (writes docs/bouncing_ball.png)
+Run it: python examples/bouncing_ball.py   (writes docs/_static/bouncing_ball.png)
 """
 import sympy as sp
 
@@ -36,5 +36,5 @@ if __name__ == "__main__":
     t = np.linspace(0, 5, 5001)
     fine = lagrgen.simulate(mod, (0, 5), {"y": h}, t_eval=t, rtol=1e-10, atol=1e-12)
     fig = fine.plot(title="bouncing ball, e = 0.8 (dotted: impacts, then resting contact)")
-    fig.savefig("docs/bouncing_ball.png", dpi=90)
-    print("plot -> docs/bouncing_ball.png")
+    fig.savefig("docs/_static/bouncing_ball.png", dpi=90)
+    print("plot -> docs/_static/bouncing_ball.png")

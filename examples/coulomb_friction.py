@@ -11,7 +11,7 @@
   (any solver, no events) and close to the exact motion while |v| ≫ eps; near a stop it creeps
   instead of sticking (the force vanishes at v = 0), and small eps makes it stiff (use Radau).
 
-Run it: python examples/coulomb_friction.py   (writes docs/coulomb_friction.png)
+Run it: python examples/coulomb_friction.py   (writes docs/_static/coulomb_friction.png)
 """
 import numpy as np
 import sympy as sp
@@ -70,6 +70,6 @@ if __name__ == "__main__":
                 ["x (Coulomb, sticks)", "x (tanh, eps = 1e-3)", "x' (Coulomb)", "x' (tanh)"],
                 {"x (Coulomb, sticks)": "m", "x (tanh, eps = 1e-3)": "m", "x' (Coulomb)": "m/s",
                  "x' (tanh)": "m/s"},
-                "docs/coulomb_friction.png", title="block with dry friction",
+                "docs/_static/coulomb_friction.png", title="block with dry friction",
                 transitions=sol.transitions)
-    print("plot -> docs/coulomb_friction.png")
+    print("plot -> docs/_static/coulomb_friction.png")

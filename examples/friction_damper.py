@@ -8,7 +8,7 @@ The force the damper puts on the structure, k_t·(x − z) + c_t·(ẋ − ż), 
 pad sticks it grows with slope k_t, once it reaches mu·N the pad slips and it stays at ±mu·N. The
 loop's area is the energy dissipated per cycle (≈ 4·mu·N·(X − mu·N/k_t) for amplitude X).
 
-Run it: python examples/friction_damper.py   (writes docs/friction_damper.png)
+Run it: python examples/friction_damper.py   (writes docs/_static/friction_damper.png)
 """
 import sympy as sp
 
@@ -59,5 +59,5 @@ if __name__ == "__main__":
     b.legend(fontsize="small")
     b.grid(True, alpha=0.3)
     fig.tight_layout()
-    fig.savefig("docs/friction_damper.png", dpi=90)
-    print("plot -> docs/friction_damper.png")
+    fig.savefig("docs/_static/friction_damper.png", dpi=90)
+    print("plot -> docs/_static/friction_damper.png")

@@ -7,7 +7,7 @@ At resonance the ball rattles from wall to wall; every impact exchanges momentum
 structure's motion and dissipates (1 − e²) of the relative kinetic energy, cutting the resonant
 amplitude far below that of the structure alone (same total mass, ball locked in).
 
-Run it: python examples/impact_damper.py   (writes docs/impact_damper.png)
+Run it: python examples/impact_damper.py   (writes docs/_static/impact_damper.png)
 """
 import sympy as sp
 
@@ -54,5 +54,6 @@ if __name__ == "__main__":
     plot_series(t, [ref.y[0], sol.y[0], sol.y[1] - sol.y[0]],
                 ["x1, ball locked", "x1, impact damper", "ball in cavity x2 − x1"],
                 {"x1, ball locked": "m", "x1, impact damper": "m", "ball in cavity x2 − x1": "m"},
-                "docs/impact_damper.png", title="impact damper at resonance (clearance ±0.05 m)")
-    print("plot -> docs/impact_damper.png")
+                "docs/_static/impact_damper.png",
+                title="impact damper at resonance (clearance ±0.05 m)")
+    print("plot -> docs/_static/impact_damper.png")

@@ -6,7 +6,7 @@ Every impact reverses the angular rate times e (θ̇⁺ = −e·θ̇⁻); as gra
 wall the bounces shorten geometrically and accumulate (a Zeno point), after which the bob rests
 against the wall, held there by a contact force ≥ 0.
 
-Run it: python examples/impact_pendulum.py   (writes docs/impact_pendulum.png)
+Run it: python examples/impact_pendulum.py   (writes docs/_static/impact_pendulum.png)
 """
 import sympy as sp
 
@@ -31,5 +31,5 @@ if __name__ == "__main__":
     sol = lagrgen.simulate(mod, (0, 8), {"theta": 0.8}, t_eval=t, rtol=1e-10, atol=1e-12)
     print(f"{len(sol.transitions)} switches; last: {sol.transitions[-1]}; mode {sol.mode}")
     fig = sol.plot(title="pendulum against a wall at x = 0.2 m, e = 0.7")
-    fig.savefig("docs/impact_pendulum.png", dpi=90)
-    print("plot -> docs/impact_pendulum.png")
+    fig.savefig("docs/_static/impact_pendulum.png", dpi=90)
+    print("plot -> docs/_static/impact_pendulum.png")

@@ -46,3 +46,14 @@ def rolling_disk_kane():
 
 model = lagrgen.from_sympy(rolling_disk_kane(), "rolling_disk",
                            defaults={"r": 0.3, "m": 2.0, "g": 9.81})
+
+# what animations draw: the rim (the contact point, whose position is ignorable, at the origin)
+# and a spoke turning with the spin angle int_spin
+_yaw, _lean, _spin = model.q
+_r = model.parameter_symbols[0]
+_x = sp.Matrix([sp.cos(_yaw), sp.sin(_yaw), 0])                       # the lean axis L.x
+_z = sp.Matrix([sp.sin(_lean) * sp.sin(_yaw), -sp.sin(_lean) * sp.cos(_yaw), sp.cos(_lean)])
+_centre = _r * _z
+model.line(*[_centre + _r * (sp.cos(a) * _x + sp.sin(a) * _z)
+             for a in [2 * sp.pi * k / 24 for k in range(25)]])
+model.line(_centre, _centre + _r * (sp.cos(_spin) * _x - sp.sin(_spin) * _z))

@@ -8,7 +8,7 @@ x_s = mu_s·m·g/k; it then slips, oscillating about c = mu_k·m·g/k with ampli
 The limit cycle — a straight stick segment and an elliptic slip arc in the phase plane — is the
 squeal of brakes and the creak of doors.
 
-Run it: python examples/stick_slip.py   (writes docs/stick_slip.png)
+Run it: python examples/stick_slip.py   (writes docs/_static/stick_slip.png)
 """
 import sympy as sp
 
@@ -56,5 +56,5 @@ if __name__ == "__main__":
     b.set_title("time history (dotted: stick / slip)")
     b.grid(True, alpha=0.3)
     fig.tight_layout()
-    fig.savefig("docs/stick_slip.png", dpi=90)
-    print("plot -> docs/stick_slip.png")
+    fig.savefig("docs/_static/stick_slip.png", dpi=90)
+    print("plot -> docs/_static/stick_slip.png")

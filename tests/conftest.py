@@ -84,6 +84,16 @@ def build(backend, tmp_path_factory):
     return build_once
 
 
+@pytest.fixture(scope="session")
+def dask_client():
+    """One Dask LocalCluster of two worker processes for the session (its start-up is the cost)."""
+    distributed = pytest.importorskip("distributed")
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
+                                  host="127.0.0.1", dashboard_address=":0",
+                                  silence_logs=40) as cluster, distributed.Client(cluster) as c:
+        yield c
+
+
 @pytest.fixture(scope="module")
 def compile_once(tmp_path_factory):
     """A function Model -> compiled model that compiles each Model at most once in the module."""

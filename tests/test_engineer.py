@@ -259,7 +259,8 @@ def test_state_space(built, backend):
 def test_units_reach_built_models_and_never_change_numbers(built, backend):
     mod = built(oscillator_model, backend)
     assert mod.units == {"x1": "m", "x2": "m", "m1": "kg", "m2": "kg", "k1": "N/m", "k2": "N/m",
-                         "F": "N", "stretch": "m", "spring_force": "N"}
+                         "F": "N", "stretch": "m", "spring_force": "N", "kinetic_energy": "J",
+                         "potential_energy": "J", "total_energy": "J"}   # energies: read off
     np.testing.assert_array_equal(mod.defaults, [1.0, 2.0, 10.0, 5.0, 0.4, 0.2])
 
 

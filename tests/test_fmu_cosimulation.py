@@ -433,9 +433,8 @@ def test_user_outputs_are_variables_and_names_may_not_clash(tmp_path):
     clash = Model("clash_out")
     x, = clash.coordinates("x")
     clash.particle(1, x)
-    clash.output("x_dot", 2 * x)
-    with pytest.raises(ModelError, match="'x_dot' would be used twice"):
-        lagrgen.export_fmu(clash, tmp_path)
+    with pytest.raises(ModelError, match="'x_dot' clashes with the velocity name"):
+        clash.output("x_dot", 2 * x)
     timed = Model("clash_time")
     x, = timed.coordinates("x")
     timed.particle(1, x)

@@ -69,6 +69,10 @@ def test_rolling_disk_matches_sympys_linearizer(disk):
         res = lagrgen.modes(mod, [0, 0, 0], qd0=[0, 0, v / R])
         assert res.kind == "state" and bool(res.stable) == (v > CRITICAL)
         assert np.all(np.isfinite(res.omega)) and np.all(np.isfinite(res.damping_ratios))
+    k = int(np.argmax(res.omega))               # lean and heading wobbling: a complex shape
+    assert np.iscomplexobj(res.shapes) and res.damping_ratios[k] == 0.0
+    motion = res.animate(k, frames_per_period=4)          # drawn from the example's lines
+    assert motion.q.shape == (3, 4) and np.isrealobj(motion.q) and np.ptp(motion.q[1]) > 0
     # the speeds are outputs by their own names
     y = [0.0, 0.2, 0.0, 0.3, -0.1, 4.0]
     out = dict(zip(mod.output_names, mod.outputs(0.0, y)))
@@ -280,6 +284,14 @@ def test_sweep_follows_branches_through_a_crossing():
     fixed = [b for b in range(4) if np.allclose(np.abs(imag[:, b]), 2.0)]
     assert len(follows) == 2 and len(fixed) == 2
     assert sweep.crossings() == [] and sweep.stable.all()
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    re_ax, im_ax = sweep.plot()
+    assert len(re_ax.lines) >= 4 and len(im_ax.lines) == 4
+    _, one = plt.subplots()
+    assert sweep.plot(ax=one) is one and len(one.lines) >= 4
+    plt.close("all")
     with pytest.raises(ValueError, match="increasing or strictly decreasing"):
         lagrgen.eigenvalue_sweep(mod, [1.0, 3.0, 2.0], lambda k: ([0, 0], None, {"k2": k}))
     with pytest.raises(lagrgen.LagrgenError, match=r"\(q0, qd0, p\)"):
@@ -349,3 +361,16 @@ def test_whipple_bicycle_benchmark(tmp_path):
     assert abs(values[0] - 4.29238253634111) < 1e-9
     assert abs(values[1] - 6.02426201538837) < 1e-9
     assert [k for _, _, k in sweep.crossings()] == ["unstable->stable"] * 2 + ["stable->unstable"]
+
+
+def test_fit_modes_of_a_holonomic_model():
+    """Modal updating of a constrained model: the eigenvalue sensitivities in the independent
+    coordinate, the equilibrium followed as the rod length changes."""
+    mod = lagrgen.build(load_example("cartesian_pendulum").model, backend="python")
+    q0 = lagrgen.equilibrium(mod, [0.1, -0.9])
+    update = lagrgen.fit_modes(mod, q0, [0.6], params=["L"])
+    assert update.success
+    assert update.params["L"] == pytest.approx(9.81 / (2 * np.pi * 0.6) ** 2, rel=1e-7)
+    sleigh = lagrgen.build(load_example("chaplygin_sleigh").model, backend="python")
+    with pytest.raises(lagrgen.LagrgenError, match="second-order form"):
+        lagrgen.fit_modes(sleigh, [0, 0, 0], [0.5], params=["I"])

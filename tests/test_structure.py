@@ -168,9 +168,9 @@ def test_split_standalone_file_is_one_plain_c_unit(split_model, tmp_path):
 #: its own stage or an earlier one, never a later one. An entry names a module or a whole package.
 STAGES = [
     ("base", ["_version", "errors", "numbers", "names", "caching", "functions", "methods",
-              "signals", "toolchain"]),
+              "options", "signals", "toolchain"]),
     ("description", ["rotation", "bodies3d", "records", "checks", "description"]),
-    ("derivation", ["calculus", "terms", "contributions", "lagrange", "nonsmooth"]),
+    ("derivation", ["calculus", "terms", "contributions", "lagrange", "nonsmooth", "dimensions"]),
     ("kernels", ["tangents", "kernels"]),
     ("code", ["codegen"]),
     ("runtime", ["runtime"]),

@@ -8,8 +8,9 @@ import sys
 import types
 
 from ._version import __version__
-from .errors import (BuildError, CompileError, ConstraintError, LagrgenError, MassMatrixError,
-                     ModelError, NonFiniteError, UnknownNameError)
+from .errors import (BuildError, CompileError, ConstraintError, ContactError, LagrgenError,
+                     MassMatrixError, ModelError, NonFiniteError, StoreError, StoreWarning,
+                     UnknownNameError)
 
 #: Public name -> the module that defines it.
 _LAZY = {
@@ -20,7 +21,7 @@ _LAZY = {
     "simulate_many": "ensemble", "EnsembleResult": "ensemble",
     "open_ensemble": "ensemble_store",
     "sweep": "sweep",
-    "fit": "fit", "fit_modes": "fit",
+    "fit": "fit", "fit_modes": "fit", "FitWarning": "fit",
     "equilibrium": "vibration", "linearize": "linearization", "modes": "vibration",
     "frequency_response": "vibration", "FrozenTimeWarning": "vibration",
     "eigenvalue_sweep": "stability",
@@ -33,10 +34,11 @@ _LAZY = {
 __all__ = ["Model", "build", "load", "simulate", "evaluate_outputs", "output_event", "Signal",
            "simulate_many", "EnsembleResult", "open_ensemble", "sweep", "equilibrium", "linearize",
            "modes", "eigenvalue_sweep",
-           "frequency_response", "FrozenTimeWarning", "consistent_state",
+           "frequency_response", "FrozenTimeWarning", "FitWarning", "consistent_state",
            "from_sympy", "export_fmu", "rotation",
            "LagrgenError", "ConstraintError", "ModelError", "UnknownNameError", "MassMatrixError",
-           "BuildError", "CompileError", "NonFiniteError", "__version__"]
+           "BuildError", "CompileError", "NonFiniteError", "ContactError", "StoreError", "StoreWarning",
+           "__version__"]
 
 
 class _Package(types.ModuleType):

@@ -12,7 +12,7 @@ import timeit
 import numpy as np
 
 from .build import build
-from .methods import BENCH_METHODS
+from .methods import BENCH_METHODS, NATIVE_METHODS
 from .simulate import simulate
 
 
@@ -115,7 +115,8 @@ def bench_model(make_model, y0=None, methods=BENCH_METHODS, t_span=(0.0, 10.0), 
         y0 = default_state(c) if y0 is None else np.asarray(y0, dtype=float)
         calls = {"c": call_seconds(c, y0, t_span[0]), "python": call_seconds(py, y0, t_span[0])}
         solves = {"c": {}, "python": {}}
-        for method in methods:
+        runnable, skipped = runnable_methods(c, methods)
+        for method in runnable:
             solves["c"][method] = solve_seconds(c, y0, method, t_span, rtol, atol, repeats)
             estimate = solves["c"][method]["nfev"] * calls["python"]["rhs"] * 1.5
             if solves["c"][method].get("stopped"):
@@ -126,7 +127,18 @@ def bench_model(make_model, y0=None, methods=BENCH_METHODS, t_span=(0.0, 10.0), 
                 solves["python"][method] = solve_seconds(py, y0, method, t_span, rtol, atol,
                                                          max(1, repeats - 2))
     return {"name": c.name, "n": c.n_coordinates, "build": builds, "calls": calls,
-            "solves": solves, "t_span": list(t_span), "rtol": rtol, "atol": atol}
+            "solves": solves, "t_span": list(t_span), "rtol": rtol, "atol": atol,
+            "skipped": skipped}
+
+
+def runnable_methods(mod, methods):
+    """(the methods that can solve `mod`, {method: why not} for the others): a model with
+    impacts or frictions runs its hybrid solve with the native methods only (not LSODA)."""
+    if not mod.nonsmooth_definitions:
+        return list(methods), {}
+    runnable = [m for m in methods if m in NATIVE_METHODS]
+    return runnable, {m: "a model with impacts or frictions runs with "
+                         f"{', '.join(NATIVE_METHODS)}" for m in methods if m not in runnable}
 
 
 def _us(seconds):
@@ -164,4 +176,6 @@ def markdown(result):
         else:
             lines.append(f"| {method} | {_s(cs['seconds'])} | {counts} | {_s(ps['seconds'])} | "
                          f"{ps['seconds'] / cs['seconds']:.0f}× |")
+    for method, why in result.get("skipped", {}).items():
+        lines.append(f"| {method} | skipped ({why}) | — | — | — |")
     return "\n".join(lines) + "\n"

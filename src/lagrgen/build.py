@@ -88,15 +88,17 @@ def build_c(name, digest, derive, out_dir, verbose=False, quiet=False, force=Fal
 
     try:
         with cache.writing(entry):
-            hit = not force and cache.lookup(entry.main)
+            hit = not force and cache.lookup(entry.main, digest)
             if not hit:
-                cache.store(entry.main, make)
-            module = cache.import_or_repair(entry.main, make, progress.note)
+                cache.store(entry.main, make, digest)
+            module = cache.import_or_repair(entry.main, make, progress.note, digest)
             cache.publish(entry, force)
     except cache.ReadOnlyCache:
-        if force or not (cache.lookup(entry.main) and cache.is_published(entry)):
+        if force or not (cache.lookup(entry.main, digest) and cache.is_published(entry)):
             raise
-        module, hit = cache.import_extension(name, entry.main.module_file), True
+        module = cache.check_content(cache.import_extension(name, entry.main.module_file),
+                                     digest, str(entry.main.module_file))
+        hit = True
     if hit:
         progress.note(f"cached build {entry.directory.name}")
     times = dict(progress.times)
@@ -114,10 +116,13 @@ def derived(spec):
 
 
 def model_info(spec, equations):
-    """The `ModelInfo` of a built model: names, defaults, units, sizes, flags, hash, version."""
+    """The `ModelInfo` of a built model: names, defaults, units (the energies' read from the
+    labels, `lagrgen.dimensions`), sizes, flags, hash, version."""
+    from .dimensions import energy_units
     return ModelInfo(
         name=spec.name, coordinates=spec.coordinate_names, parameters=spec.parameter_names,
-        inputs=spec.input_names, defaults=spec.defaults, units=dict(spec.units),
+        inputs=spec.input_names, defaults=spec.defaults,
+        units={**energy_units(equations), **dict(spec.units)},
         output_names=spec.output_names, constraint_names=spec.constraint_names,
         n_holonomic=equations.n_holonomic,
         event_definitions=[(name, terminal, direction)
@@ -125,7 +130,8 @@ def model_info(spec, equations):
         explicit_time=bool(equations.explicit_time),
         content_hash=cache.content_digest(spec, lambda: equations), lagrgen_version=__version__,
         nonsmooth_definitions=[(e["name"], e["kind"], e["normal"])
-                               for e in _nonsmooth().describe(spec)])
+                               for e in _nonsmooth().describe(spec)],
+        initial_state=spec.initial_state)
 
 
 def _nonsmooth():

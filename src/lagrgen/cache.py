@@ -15,18 +15,27 @@ flags. So no change to a model, and no change to lagrgen, can be served stale, a
 derives nothing.
 
 An entry holds compiled *units*. A unit is a directory with the sources it was compiled from,
-its extension module `<module><EXT_SUFFIX>` and `module.sha256`, the digest of that module taken
-when it was made. The model's own module is the entry's main unit: the entry directory itself,
-module `<name>`. Further units (say an analysis compiled on first use) live inside the entry,
-each in its own directory `<entry>/<label>-<key of its own digest>/` with module
-`<name>_<label>` (`Entry.unit(label, digest)`), so one entry may hold any number of them, each
-looked up, made, checked and repaired like the main unit, and discarded with its entry.
+its extension module `<module><EXT_SUFFIX>`, `module.sha256`, the digest of that module taken
+when it was made, and (the model's own unit) `content.sha256`, the content digest of the model it
+was compiled from, which the module also carries in its metadata (`content_hash`): a unit is
+sound when its module matches its digest and carries the content digest expected of it, so a
+module copied from another model (with its digest) is never imported, and an imported module
+whose `content_hash` differs is refused. The model's own module is the entry's main unit: the
+entry directory itself, module `<name>`. Further units (say an analysis compiled on first use)
+live inside the entry, each in its own directory `<entry>/<label>-<key of its own digest>/` with
+module `<name>_<label>` (`Entry.unit(label, digest)`), so one entry may hold any number of them,
+each looked up, made, checked and repaired like the main unit, and discarded with its entry.
 
 Every unit is made in a private directory beside its final place and renamed into place after an
 fsync (`store`), so a build that dies halfway leaves nothing a later lookup would pick up; a unit
 whose module does not match its recorded digest, or does not import, is discarded and made again
 (`import_or_repair`). Publishing copies the main unit's module and standalone C into the output
 directory by atomic writes and then records the key (`publish`).
+
+A marker that is not a key (damaged, binary junk) counts as absent; `load` imports only a module
+it has verified so (never a published file it cannot check: a truncated module would crash the
+process at import), and publishing repairs every published file (module and standalone C) that
+differs from its entry's.
 
 The interface: `key` (the cache key of a build), `Entry` (where an entry and its units live),
 `writing` (the entry's lock), `lookup` (is a unit there and sound), `store`, `import_or_repair`,
@@ -38,6 +47,7 @@ import hashlib
 import importlib.machinery
 import importlib.util
 import os
+import re
 import shutil
 import sys
 import sysconfig
@@ -58,10 +68,15 @@ CACHE_DIR = "__lagrgen__"
 PACKAGE = Path(__file__).resolve().parent
 #: The sources that determine generated code: a change to any of them changes every key.
 GENERATOR_SOURCES = ("_version.py", "functions.py", "calculus.py", "terms.py", "contributions.py",
-                     "lagrange.py", "nonsmooth.py", "kernels.py", "runtime/info.py",
+                     "lagrange.py", "nonsmooth.py", "kernels.py", "dimensions.py",
+                     "runtime/info.py",
                      "codegen/*.py", "codegen/templates/*", "codegen/templates/functions/*")
 #: Imported extension modules by resolved path: a file is imported once per process.
 _loaded = {}
+#: What a key looks like (`key`): a marker holding anything else counts as absent.
+KEY_PATTERN = re.compile(r"[0-9a-f]{20}")
+#: The file of a unit recording the content digest of what it was compiled from.
+CONTENT_FILE = "content.sha256"
 
 
 # -- what identifies a build -----------------------------------------------------------------
@@ -158,7 +173,7 @@ def equations_digest(equations):
              spec.stabilization, spec.constraint_names, [str(g) for g in equations.events],
              [(name, terminal, direction) for name, _, terminal, direction in spec.events],
              spec.output_names, [str(e) for e in equations.outputs], spec.units,
-             hybrid_description(spec, equations)]
+             hybrid_description(spec, equations), spec.initial_state]
     for part in parts:
         h.update(repr(part).encode() + b"\0")
     return h.hexdigest()
@@ -285,14 +300,47 @@ def _kept(entry, file_name, read):
                          "this lagrgen") from None
 
 
-def lookup(unit):
-    """True if the unit's module exists and matches the digest recorded when it was made."""
-    digest = unit.directory / "module.sha256"
+def read_text_file(path):
+    """The stripped ASCII text of a small file, or None if it is missing, unreadable or not
+    ASCII text."""
     try:
-        return unit.module_file.is_file() and \
-            digest.read_text().strip() == file_digest(unit.module_file)
+        return Path(path).read_bytes().decode("ascii").strip()
+    except (OSError, UnicodeDecodeError):
+        return None
+
+
+def recorded_content(unit):
+    """The content digest recorded in the unit when it was made (None: none recorded)."""
+    text = read_text_file(unit.directory / CONTENT_FILE)
+    return text if text and re.fullmatch(r"[0-9a-f]{64}", text) else None
+
+
+def lookup(unit, content_hash=None):
+    """True if the unit's module exists and matches the digest recorded when it was made, and,
+    when a content digest is expected (`content_hash`, or the one the unit records), the unit
+    records that digest and its module carries it."""
+    try:
+        data = unit.module_file.read_bytes()
     except OSError:
         return False
+    if read_text_file(unit.directory / "module.sha256") != hashlib.sha256(data).hexdigest():
+        return False
+    recorded = recorded_content(unit)
+    expected = content_hash or recorded
+    if expected is None:
+        return True
+    return recorded == expected and f'"content_hash": "{expected}"'.encode() in data
+
+
+def check_content(module, content_hash, where):
+    """`module` if it carries `content_hash` (its metadata's), else BuildError saying so."""
+    found = getattr(module, "content_hash", None)
+    if content_hash is not None and found != content_hash:
+        raise BuildError(f"the compiled module {where} is not the model it should be (content "
+                         f"hash {found!r}, expected {content_hash!r}): it was copied from "
+                         "another model; rebuild with lagrgen.build(model, out_dir=..., "
+                         "force=True)")
+    return module
 
 
 def discard(directory):
@@ -304,10 +352,11 @@ def discard(directory):
         shutil.rmtree(trash, ignore_errors=True)
 
 
-def store(unit, make):
+def store(unit, make, content_hash=None):
     """Make `unit`: `make(work)` writes the sources into the private directory `work` and
-    compiles `work/<module><EXT_SUFFIX>`; then its digest is recorded, the module fsynced and the
-    directory renamed into place (replacing any earlier one). Call it under `writing`."""
+    compiles `work/<module><EXT_SUFFIX>`; then its digest (and the `content_hash` of what it was
+    compiled from, when given) is recorded, the module fsynced and the directory renamed into
+    place (replacing any earlier one). Call it under `writing`."""
     unit.directory.parent.mkdir(parents=True, exist_ok=True)
     work = Path(tempfile.mkdtemp(dir=unit.directory.parent, prefix=f".build-{unit.module}-"))
     try:
@@ -317,6 +366,8 @@ def store(unit, make):
         for obj in work.glob("*.o"):
             obj.unlink()
         write_atomic(work / "module.sha256", (file_digest(lib) + "\n").encode())
+        if content_hash is not None:
+            write_atomic(work / CONTENT_FILE, (content_hash + "\n").encode())
         for path in work.iterdir():
             os.chmod(path, 0o755 if path == lib else 0o644)
         with open(lib, "rb") as fh:
@@ -328,15 +379,17 @@ def store(unit, make):
         shutil.rmtree(work, ignore_errors=True)
 
 
-def import_or_repair(unit, make, note=lambda text: None):
+def import_or_repair(unit, make, note=lambda text: None, content_hash=None):
     """Import the unit's module; if that fails, make it again with `make` (see `store`) and
-    import that. Call it under `writing`."""
+    import that; BuildError if the imported module does not carry `content_hash`. Call it under
+    `writing`."""
     try:
-        return import_extension(unit.module, unit.module_file)
+        module = import_extension(unit.module, unit.module_file)
     except BuildError as first:
         note(f"cached module did not import ({first}); compiling again")
-        store(unit, make)
-        return import_extension(unit.module, unit.module_file)
+        store(unit, make, content_hash)
+        module = import_extension(unit.module, unit.module_file)
+    return check_content(module, content_hash, str(unit.module_file))
 
 
 @contextmanager
@@ -370,26 +423,46 @@ def writing(entry):
         lock.__exit__(None, None, None)
 
 
+def read_marker(path):
+    """The key a marker file names, or None when it is missing or holds anything but a key."""
+    text = read_text_file(path)
+    return text if text is not None and KEY_PATTERN.fullmatch(text) else None
+
+
 def is_published(entry):
     """True if `entry` is what out_dir's module and marker are, as far as the marker says."""
+    return (Path(entry.out_dir) / f"{entry.name}{EXT_SUFFIX}").exists() and \
+        read_marker(entry.marker) == entry.key
+
+
+def published_files(entry):
+    """{published file in out_dir: its source in the entry}: the module and the standalone C."""
+    out_dir, name = Path(entry.out_dir), entry.name
+    files = {out_dir / f"{name}{EXT_SUFFIX}": entry.main.module_file}
+    files.update({out_dir / f: entry.directory / f for f in (f"{name}_model.h",
+                                                              f"{name}_model.c")})
+    return files
+
+
+def same_file(a, b):
+    """True if the files `a` and `b` hold the same bytes (a missing `a` holds none)."""
     try:
-        return (Path(entry.out_dir) / f"{entry.name}{EXT_SUFFIX}").exists() and \
-            entry.marker.read_text().strip() == entry.key
+        return a.stat().st_size == b.stat().st_size and file_digest(a) == file_digest(b)
     except OSError:
         return False
 
 
 def publish(entry, force=False):
     """Make `<name><EXT>`, `<name>_model.h` and `<name>_model.c` in out_dir the files of `entry`
-    (unless they already are), then record its key. Call it under `writing`."""
-    out_dir, name = Path(entry.out_dir), entry.name
-    if not force and is_published(entry) and \
-            file_digest(out_dir / f"{name}{EXT_SUFFIX}") == file_digest(entry.main.module_file):
-        return
-    for file_name in (f"{name}_model.h", f"{name}_model.c"):
-        write_atomic(out_dir / file_name, (entry.directory / file_name).read_bytes())
-    write_atomic(out_dir / f"{name}{EXT_SUFFIX}", entry.main.module_file.read_bytes(), 0o755)
-    write_atomic(entry.marker, (entry.key + "\n").encode())
+    (each that differs from its entry's: a damaged one is repaired), then record its key. Call
+    it under `writing`."""
+    published = is_published(entry)
+    for target, source in published_files(entry).items():
+        if force or not published or not same_file(target, source):
+            mode = 0o755 if target.name.endswith(EXT_SUFFIX) else 0o644
+            write_atomic(target, source.read_bytes(), mode)
+    if not published:
+        write_atomic(entry.marker, (entry.key + "\n").encode())
 
 
 def load(name, out_dir="generated"):
@@ -405,27 +478,36 @@ def load(name, out_dir="generated"):
     Returns
     -------
     module
-        The built model (API.md §3), from the cache entry last published into `out_dir`, or else
-        from `<out_dir>/<name><EXT_SUFFIX>`.
+        The built model (API.md §3), from the cache entry last published into `out_dir`, after
+        checking its module against the digest and the content hash recorded when it was made.
 
     Raises
     ------
     BuildError
-        If no such model was built into `out_dir`, or it does not import.
+        If no such model was built into `out_dir`, its build cannot be verified (no cache entry,
+        a damaged one, or a module of another model), or it does not import.
     """
     check_model_name(name)
     out_dir = Path(out_dir)
-    marker = out_dir / CACHE_DIR / f"{name}.current"
-    if marker.exists():
-        entry = Entry(out_dir, name, marker.read_text().strip())
-        if lookup(entry.main):
-            return import_extension(name, entry.main.module_file)
-    module_file = out_dir / f"{name}{EXT_SUFFIX}"
-    if not module_file.exists():
-        raise BuildError(
-            f"no compiled model {name!r} in {out_dir}: build it first with lagrgen.build(model, "
-            f"out_dir={str(out_dir)!r}) or `python -m lagrgen build MODEL.py --out {out_dir}`")
-    return import_extension(name, module_file)
+    key = read_marker(out_dir / CACHE_DIR / f"{name}.current")
+    rebuild = (f"rebuild it with lagrgen.build(model, out_dir={str(out_dir)!r}) or `python -m "
+               f"lagrgen build MODEL.py --out {out_dir}`")
+    if key is not None:
+        entry = Entry(out_dir, name, key)
+        content_hash = recorded_content(entry.main)
+        if content_hash is not None and lookup(entry.main, content_hash):
+            return check_content(import_extension(name, entry.main.module_file), content_hash,
+                                 str(entry.main.module_file))
+        raise BuildError(f"the build of {name!r} in {out_dir} cannot be verified: its cache "
+                         f"entry {entry.directory.name} is missing, damaged or holds another "
+                         f"model's module; {rebuild}")
+    if (out_dir / f"{name}{EXT_SUFFIX}").exists():
+        raise BuildError(f"the compiled model {name!r} in {out_dir} has no readable record of "
+                         f"its build ({CACHE_DIR}/{name}.current), so its module cannot be "
+                         f"verified before import; {rebuild}")
+    raise BuildError(
+        f"no compiled model {name!r} in {out_dir}: build it first with lagrgen.build(model, "
+        f"out_dir={str(out_dir)!r}) or `python -m lagrgen build MODEL.py --out {out_dir}`")
 
 
 def import_extension(name, path):

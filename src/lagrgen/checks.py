@@ -125,6 +125,15 @@ def check_expression(scope, expr, where, velocities=True, inputs=True, vector=Fa
             raise ModelError(f"{where}: function {f.func.__name__} is not supported (use {names})")
     if expr.has(sp.zoo, sp.oo, sp.nan, -sp.oo):
         raise ModelError(f"{where}: expression {expr} contains an infinity or NaN")
+    if expr.has(sp.I):
+        raise ModelError(f"{where}: expression {expr} is complex (it contains I): every quantity "
+                         "of a model is a real number")
+    for piecewise in expr.atoms(sp.Piecewise):
+        if piecewise.args[-1].cond is not sp.true:
+            raise ModelError(
+                f"{where}: {piecewise} has no branch for when no condition holds (it would be "
+                "NaN there); end it with an otherwise branch (value, True), e.g. "
+                "Piecewise((f, x > 0), (0, True))")
     for number in expr.atoms(sp.Number):
         if not fits_a_double(number):
             raise ModelError(
@@ -141,6 +150,25 @@ def check_restitution(e, name):
     return e
 
 
+def check_distinct_gap(name, gap, impacts, coordinates, t):
+    """ModelError when `gap` is a constant multiple of another impact's gap: two contacts on one
+    surface (a positive multiple) or on its two sides (a negative one) make the contact
+    equations singular once both are closed."""
+    for other in impacts:
+        try:
+            ratio = sp.cancel(gap / other.gap)
+        except (TypeError, ValueError, ZeroDivisionError):
+            continue
+        if ratio.has(t, sp.zoo, sp.nan) or any(ratio.has(c) for c in coordinates):
+            continue
+        side = "the same surface" if ratio.is_positive else (
+            "the two sides of one surface" if ratio.is_negative else "one surface")
+        raise ModelError(f"impact {name!r}: its gap {gap} is {ratio} times the gap of impact "
+                         f"{other.name!r}, so both contacts lie on {side} (duplicate contacts "
+                         "make the contact equations singular): declare the contact once, or "
+                         "use model.constraint for a body held on both sides")
+
+
 def check_affine_in_velocities(expr, qd, where):
     """`expr`, which must be w(q, t)·q̇ + b(q, t) with w not identically zero."""
     coefficients = [sp.diff(expr, v) for v in qd]
@@ -151,6 +179,15 @@ def check_affine_in_velocities(expr, qd, where):
     if all(c == 0 for c in coefficients):
         raise ModelError(f"{where}: the slip velocity {expr} involves no velocity of a coordinate")
     return expr
+
+
+def check_static_coefficient(mu, mu_s, where):
+    """`mu_s`, which must be at least `mu` when both are numbers."""
+    if mu.is_number and mu_s.is_number and not float(mu_s) >= float(mu):
+        raise ModelError(f"{where}: mu_static ({float(mu_s):g}) must be at least mu "
+                         f"({float(mu):g}): the static friction coefficient is never below the "
+                         "kinetic one")
+    return mu_s
 
 
 def check_coefficient(value, where, what):

@@ -55,7 +55,7 @@ def consistent_state(mod, y_guess, t=0.0, p=None, u=None, tol=1e-12, max_iter=50
     y_guess : 2n numbers, or a dict of coordinate and `<coordinate>_dot` names
     t : float, the time (rheonomic constraints)
     p : parameters (dict or array; None: defaults); u : inputs (None: zeros)
-    tol : |Φ| and |A·q̇ + b| at the result are at most tol·max(1, |q|) (resp. max(1, |q̇|))
+    tol : ‖Φ‖ and ‖A·q̇ + b‖ at the result are at most tol·max(1, ‖q‖) (resp. max(1, ‖q̇‖))
 
     Returns
     -------

@@ -10,8 +10,9 @@ import math
 import sympy as sp
 
 from .caching import once_per
-from .checks import (as_vector, check_affine_in_velocities, check_coefficient, check_expression,
-                     check_restitution, check_unit, split_names, split_units)
+from .checks import (as_vector, check_affine_in_velocities, check_coefficient,
+                     check_distinct_gap, check_expression, check_restitution,
+                     check_static_coefficient, check_unit, split_names, split_units)
 from .errors import ModelError
 from .names import check_model_name, check_name
 from .numbers import is_zero
@@ -22,6 +23,8 @@ from .records import (AUTOMATIC_OUTPUTS, BAUMGARTE_DEFAULTS, ENERGY_OUTPUTS, Bod
 
 #: Drawing shapes of rigid bodies (see `Description.rigid_body`).
 SHAPES = ("disk", "bar", "box")
+#: The largest count an event's `terminal` may take (a C int in the compiled code).
+MAX_EVENT_COUNT = 2**31 - 1
 
 
 class Description:
@@ -48,6 +51,7 @@ class Description:
         self._velocity_constraints = []  # VelocityConstraint records: A(q, t)·q̇ + b(q, t) = 0
         self._events = []          # Event records: roots of g located by the solvers
         self._nonsmooth = []       # Impact / Friction records, in declaration order
+        self._initial = None       # {coordinate name: (q0, q̇0)}: the declared initial state
         self._stabilization = BAUMGARTE_DEFAULTS
         self._kinematics = {}      # orientation → bodies3d.Kinematics, computed once each
 
@@ -62,6 +66,16 @@ class Description:
             raise ModelError(
                 f"{what} name {name!r} is already used for the {self._names[name]} of model "
                 f"{self.name!r}: names must be unique within a model")
+        velocity_of = name[:-4] if name.endswith("_dot") else None
+        if self._names.get(velocity_of) == "coordinate" or (
+                what == "coordinate" and f"{name}_dot" in self._names):
+            coordinate = velocity_of if self._names.get(velocity_of) == "coordinate" else name
+            other = name if velocity_of == coordinate else f"{name}_dot"
+            raise ModelError(
+                f"{what} name {name!r} clashes with the velocity name {coordinate + '_dot'!r} of "
+                f"coordinate {coordinate!r} (model {self.name!r}): states are named "
+                f"<coordinate> and <coordinate>_dot in y0, results, fits and FMUs, so "
+                f"{other!r} would name two things; rename the {self._names.get(other, what)}")
         self._names[name] = what
 
     def coordinates(self, names, units=None):
@@ -403,6 +417,69 @@ class Description:
                              "choose another name")
         self._declare(name, "constraint")
 
+    def initial_state(self, q=None, qd=None):
+        """Declare the model's initial state y0 = [q0, q̇0], which `simulate`, `simulate_many`,
+        `sweep`, the command line and FMU start values use when no initial state is given.
+
+        Parameters
+        ----------
+        q, qd : dict of coordinate names (or the coordinates model.coordinates returned) ->
+            number, or a sequence of one number per coordinate; coordinates not given start
+            at 0 (qd: at rest). Each call replaces the whole initial state.
+        """
+        names = self.coordinate_names
+        if not names:
+            raise ModelError("initial_state: declare the coordinates first")
+        start = {c: [0.0, 0.0] for c in names}
+        for k, (what, given) in enumerate((("q", q), ("qd", qd))):
+            for name, value in self._state_values(what, given, names).items():
+                start[name][k] = value
+        self._initial = {c: tuple(v) for c, v in start.items()}
+        self._changed()
+
+    def _state_values(self, what, given, names):
+        """{coordinate name: float} of one part of `initial_state` (see there)."""
+        if given is None:
+            return {}
+        if isinstance(given, dict):
+            items = {}
+            for key, value in given.items():
+                name = key if isinstance(key, str) else getattr(getattr(key, "func", None),
+                                                                "__name__", None)
+                if name not in names:
+                    raise ModelError(f"initial_state {what}: {key!r} is not a coordinate of "
+                                     f"model {self.name!r} (its coordinates are "
+                                     f"{', '.join(names)})")
+                items[name] = value
+        else:
+            values = list(given) if not isinstance(given, str) else None
+            if values is None or len(values) != len(names):
+                raise ModelError(f"initial_state {what}: give a dict of coordinate names or "
+                                 f"{len(names)} numbers (one per coordinate {', '.join(names)}), "
+                                 f"got {given!r}")
+            items = dict(zip(names, values))
+        out = {}
+        for name, value in items.items():
+            try:
+                number = float(value)
+            except (TypeError, ValueError):
+                raise ModelError(f"initial_state {what}[{name!r}] must be a number, got "
+                                 f"{value!r}") from None
+            if not math.isfinite(number):
+                raise ModelError(f"initial_state {what}[{name!r}] must be finite, got {number}")
+            out[name] = number
+        return out
+
+    @property
+    def initial_values(self):
+        """The declared initial state [q0, q̇0] as 2n floats in coordinate order (coordinates
+        declared after it start at 0), or () when none was declared."""
+        if self._initial is None:
+            return ()
+        names = self.coordinate_names
+        pairs = [self._initial.get(c, (0.0, 0.0)) for c in names]
+        return tuple(q for q, _ in pairs) + tuple(qd for _, qd in pairs)
+
     def event(self, name, expr, terminal=False, direction=0):
         """Declare an event: a root of `expr` (a function of q, q̇, t, parameters, inputs) that
         the solvers locate, as solve_ivp's events; compiled with the model.
@@ -421,8 +498,9 @@ class Description:
             raise ModelError(f"event {name!r}: direction must be -1, 0 or +1, got {direction!r}")
         if isinstance(terminal, bool):
             terminal = int(terminal)
-        if not isinstance(terminal, int) or terminal < 0:
-            raise ModelError(f"event {name!r}: terminal must be True, False or a count >= 0")
+        if not isinstance(terminal, int) or not 0 <= terminal <= MAX_EVENT_COUNT:
+            raise ModelError(f"event {name!r}: terminal must be True, False or a count from 0 to "
+                             f"{MAX_EVENT_COUNT}, got {terminal!r}")
         expr = self._check(expr, f"event {name}")
         self._events.append(Event(name, expr, terminal, int(direction)))
         self._changed()
@@ -441,14 +519,16 @@ class Description:
             raise ModelError(f"{where}: restitution must not depend on the coordinates")
         if not any(gap.has(c) for c in self._coordinates):
             raise ModelError(f"{where}: the gap {gap} involves no coordinate")
+        check_distinct_gap(name, gap, [r for r in self._nonsmooth if isinstance(r, Impact)],
+                           self._coordinates, self.t)
         self._declare(name, "impact")
         self._nonsmooth.append(Impact(name, gap, e))
         self._changed()
 
     def friction(self, name, slip_velocity, normal_force, mu, mu_static=None):
         """Coulomb friction with sticking on the slip velocity v = w(q, t)·q̇ + b(q, t) (API.md
-        §13): a force −mu·|N|·sign(v) along ∂v/∂q̇ while slipping; v = 0 held while the force that
-        takes is at most mu_static·|N| (mu_static defaults to mu). `normal_force` is an expression
+        §13): a force −mu·abs(N)·sign(v) along ∂v/∂q̇ while slipping; v = 0 held while the force
+        that takes is at most mu_static·abs(N) (mu_static defaults to mu). `normal_force` is an expression
         or the name of a constraint or impact whose multiplier is N: write that constraint or gap
         as a signed distance (a gradient of unit length, e.g. x·sin α + y·cos α for a slope), so
         that its multiplier is a force; likewise v should be the sliding speed itself."""
@@ -463,9 +543,9 @@ class Description:
             normal = self._check(normal_force, where + " normal_force")
         mu = check_coefficient(self._check(mu, where + " mu", velocities=False, inputs=False),
                                where, "mu")
-        mu_s = mu if mu_static is None else check_coefficient(
+        mu_s = mu if mu_static is None else check_static_coefficient(mu, check_coefficient(
             self._check(mu_static, where + " mu_static", velocities=False, inputs=False), where,
-            "mu_static")
+            "mu_static"), where)
         self._declare(name, "friction")
         self._nonsmooth.append(Friction(name, v, normal, mu, mu_s))
         self._changed()
@@ -587,4 +667,5 @@ def _frozen_spec(description):
         outputs=tuple(d._outputs), units=tuple(sorted(d._units.items())),
         constraints=d.constraints, velocity_constraints=d.velocity_constraints,
         constraint_names=d.constraint_names, stabilization=d._stabilization,
-        events=tuple(d._events), nonsmooth=tuple(d._nonsmooth))
+        events=tuple(d._events), nonsmooth=tuple(d._nonsmooth),
+        initial_state=d.initial_values)

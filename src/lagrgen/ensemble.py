@@ -10,6 +10,7 @@ each. A run that fails (a singular mass matrix, a non-finite derivative, a step-
 reported in its row (`success`, `status`, `message`) and does not lose the others; its row is
 recomputed on the per-run path so that it reads exactly as a single `simulate` would.
 """
+import hashlib
 import math
 import os
 import sys
@@ -22,11 +23,12 @@ import numpy as np
 
 from .errors import LagrgenError
 from .methods import BY_NAME
-from .native.engine import (_event_arrays, _t_eval, _tolerances, native_events,
-                             native_reason)
-from .runtime.arguments import as_vector, input_specs, parameters_from, state_vector
+from .native.engine import _event_arrays, _tolerances, native_events, native_reason
+from .options import check_run_options as checked_options
+from .runtime.arguments import input_specs, parameters_from, state_vector
 from .signals import Signal, constant_spec
-from .simulate import check_run_options, evaluate_outputs, simulate
+from .simulate import (check_run_options, evaluate_outputs, refuse_switching_options, simulate,
+                       time_span)
 
 #: The messages of the native engine for status 0 and 1 (those of solve_ivp).
 MESSAGES = {0: "The solver successfully reached the end of the integration interval.",
@@ -47,8 +49,9 @@ class EnsembleResult:
     message : list of str, one per run
     coordinates : the coordinate names
     engines : list of str, the engine each run used ("native" or "scipy")
-    multipliers : (runs, n_constraints, len(t)) constraint forces λ (M·q̈ = F + Aᵀλ) of a
-        constrained model, else None
+    multipliers : (runs, len(constraint_names), len(t)) constraint forces λ (M·q̈ = F + Aᵀλ) of
+        a constrained model, then the contact and friction forces of a model with impacts or
+        frictions (as `simulate`'s `contact_forces`), else None
     outputs : (runs, len(output_names), len(t)) the model's outputs when `outputs=True`, else None
     params : (runs, n_params) the parameters of every run
     parameter_names, output_names, constraint_names : names, in model order
@@ -145,6 +148,9 @@ def _rows(values, runs, width, what, convert):
                              f"{bad[1]})")
         return out
     shared = _count(values, 1) == 1
+    if shared and isinstance(values, (list, tuple)) and values and \
+            isinstance(values[0], (dict, list, tuple, np.ndarray)):
+        values = values[0]                       # one run given as a list of one entry
     if shared:
         return np.tile(convert(values), (runs, 1)) if runs else np.empty((0, width))
     return np.array([convert(v) for v in _per_run(values, runs, 1, what)], dtype=float)
@@ -389,7 +395,7 @@ def _one_run(mod, plan, part, i, out):
     out["message"][i] = str(sol.message)
     out["engines"][i] = getattr(sol, "engine", "scipy")
     if "multipliers" in out:
-        out["multipliers"][i, :, :saved] = sol.constraint_forces[:, :saved]
+        out["multipliers"][i, :, :saved] = run_multipliers(mod, sol)[:, :saved]
     if "outputs" in out:
         out["outputs"][i, :, :saved] = evaluate_outputs(mod, sol)[:plan.n_outputs, :saved]
     transitions = getattr(sol, "transitions", None)
@@ -417,7 +423,7 @@ def batch_reason(mod, method, options):
     return None
 
 
-def simulate_many(mod, t_span, y0, params=None, inputs=None, t_eval=None, method="RK45",
+def simulate_many(mod, t_span, y0=None, params=None, inputs=None, t_eval=None, method="RK45",
                   rtol=1e-6, atol=1e-9, workers=None, client=None, progress=None, outputs=False,
                   store=None, **options):
     """Integrate many runs of `mod` that share `t_span` and `t_eval`.
@@ -425,7 +431,8 @@ def simulate_many(mod, t_span, y0, params=None, inputs=None, t_eval=None, method
     Parameters
     ----------
     mod : a built model (either backend)
-    y0 : one state (2n,) or a dict, or one per run: (runs, 2n) or a list
+    y0 : one state (2n,) or a dict, or one per run: (runs, 2n) or a list (None: the model's
+        `initial_state`)
     params : None, one vector or dict, an (runs, n_params) array, or a list of dicts/vectors
     inputs : None or one dict shared by all runs, a list of dicts (one per run), or an
         (runs, n_inputs) array of constant inputs
@@ -454,20 +461,30 @@ def simulate_many(mod, t_span, y0, params=None, inputs=None, t_eval=None, method
     """
     if t_eval is None:
         raise ValueError("simulate_many needs t_eval: every run is sampled at the same times")
-    check_run_options(method, options.get("engine"), options.get("max_steps"),
-                      options.get("max_wall_time"), options)
+    check_run_options(method, options.get("engine"), options)
     if workers is not None and (int(workers) != workers or workers < 1):
         raise ValueError(f"workers must be a positive integer, got {workers!r}")
     if client is not None and workers is not None:
         raise ValueError("give either workers (threads here) or client (Dask workers), not both")
-    t0, tf = map(float, t_span)
-    t_eval = _t_eval(as_vector(t_eval, np.size(t_eval), "t_eval"), t0, tf)
+    t0, tf = time_span(t_span)
+    rest = {k: v for k, v in options.items() if k not in ("engine", "max_steps", "max_wall_time")}
+    rtol, atol, t_eval, max_steps, max_wall_time, rest = checked_options(
+        rtol, atol, (t0, tf), t_eval, options.get("max_steps"), options.get("max_wall_time"),
+        rest)
+    refuse_switching_options(mod, rest)
+    options = dict(rest, **{k: v for k, v in (("engine", options.get("engine")),
+                                              ("max_steps", max_steps),
+                                              ("max_wall_time", max_wall_time))
+                            if k in options})
     if len(t_eval) == 0:
         raise ValueError("t_eval must hold at least one time")
-    Y0, P, run_inputs = ensemble_arguments(mod, y0, params, inputs)
+    Y0, P, run_inputs = ensemble_arguments(mod, mod.initial_state if y0 is None else y0,
+                                           params, inputs)
     runs = len(Y0)
     if runs == 0:
         raise ValueError("simulate_many needs at least one run")
+    if mod.nonsmooth_definitions:
+        check_starts(mod, t0, Y0, P, run_inputs, options.get("gap_tol"))
     why_not = batch_reason(mod, method, options) if mod.backend == "c" else \
         "the model is not compiled"
     packed = None if why_not else batch_inputs(mod, inputs, run_inputs)
@@ -483,7 +500,7 @@ def simulate_many(mod, t_span, y0, params=None, inputs=None, t_eval=None, method
                 options=dict(options), outputs=bool(outputs), batch=specs is not None,
                 specs=specs, dim=2 * mod.n_coordinates,
                 n_outputs=len(mod.output_names) if outputs else 0,
-                n_constraints=mod.n_constraints)
+                n_constraints=len(multiplier_names(mod)))
     if outputs and not hasattr(mod, "outputs"):
         raise ValueError(f"model {mod.name!r} has no outputs function")
     parallel = len(client.scheduler_info().get("workers", {})) if client is not None else \
@@ -512,6 +529,32 @@ def simulate_many(mod, t_span, y0, params=None, inputs=None, t_eval=None, method
     return sink.result(mod, plan, meta)
 
 
+def check_starts(mod, t0, Y0, P, run_inputs, gap_tol=None):
+    """ContactError naming the first run of a model with impacts or frictions that starts
+    inside a surface or whose restitution or friction coefficients are out of range."""
+    from .hybrid import GAP_TOL, check_start
+    from .runtime.arguments import input_function
+    for i in range(len(Y0)):
+        u = input_function(mod, run_inputs[i])(t0)
+        check_start(mod, t0, Y0[i], P[i], u, GAP_TOL if gap_tol is None else gap_tol, run=i)
+
+
+def multiplier_names(mod):
+    """The rows of an ensemble's `multipliers`: the model's constraints, then (a model with
+    impacts or frictions) each impact's contact force and each friction's force."""
+    return tuple(mod.constraint_names) + tuple(
+        d[0] for kind in ("impact", "friction") for d in mod.nonsmooth_definitions
+        if d[1] == kind)
+
+
+def run_multipliers(mod, sol):
+    """The `multiplier_names(mod)` rows of one run's result."""
+    rows = [sol.constraint_forces] if mod.n_constraints else []
+    if mod.nonsmooth_definitions:
+        rows.append(sol.contact_forces)
+    return np.concatenate(rows)
+
+
 def ensemble_meta(mod, plan, P):
     """What labels the results: names, units, parameters per run, times."""
     coordinates = tuple(mod.coordinates)
@@ -519,8 +562,8 @@ def ensemble_meta(mod, plan, P):
             "states": coordinates + tuple(f"{c}_dot" for c in coordinates),
             "parameters": tuple(mod.parameters), "params": P, "t": plan.t_eval,
             "output_names": tuple(mod.output_names) if plan.outputs else (),
-            "constraint_names": tuple(mod.constraint_names)
-            if plan.n_constraints else (),
+            "constraint_names": multiplier_names(mod),
+            "elements": tuple(d[0] for d in mod.nonsmooth_definitions),
             "units": dict(mod.units),
             "method": getattr(plan.method, "__name__", str(plan.method)),
             "rtol": float(np.max(plan.rtol)), "atol": float(np.max(plan.atol))}
@@ -649,21 +692,26 @@ def _on_threads(mod, plan, parts, workers, sink, bar):
         pool.shutdown(wait=True)
 
 
-_UPLOADED = {}
-_UPLOAD_LOCK = threading.Lock()
+_SCATTERED = {}
+_SCATTER_LOCK = threading.Lock()
 
 
 def _worker_target(client, mod):
-    """What a Dask task needs to find the model: a compiled model's module (its file uploaded to
-    the workers once per client and module file), or the model object itself."""
+    """What a Dask task needs to find the model: a compiled model's module by content — its
+    name, the SHA-256 of its file and the file's bytes (scattered to the workers once per client
+    and content) — or the model object itself. A model rebuilt under the same name is another
+    content, so another file on the workers: never the module a worker loaded before."""
     if mod.backend != "c":
         return ("object", mod)
-    key = (id(client), client.scheduler.address, mod.__file__)
-    with _UPLOAD_LOCK:
-        if not _UPLOADED.get(key):
-            client.upload_file(mod.__file__, load=False)
-            _UPLOADED[key] = True
-    return ("module", (mod.__name__, os.path.basename(mod.__file__)))
+    with open(mod.__file__, "rb") as f:
+        data = f.read()
+    digest = hashlib.sha256(data).hexdigest()
+    key = (id(client), client.scheduler.address, digest)
+    with _SCATTER_LOCK:
+        if key not in _SCATTERED:
+            _SCATTERED[key] = client.scatter(data, broadcast=True, hash=False)
+        shipped = _SCATTERED[key]
+    return ("module", (mod.__name__, os.path.basename(mod.__file__), digest, shipped))
 
 
 def _on_dask(client, mod, plan, parts, sink, bar):
@@ -697,20 +745,40 @@ def _dask_part(part, target, plan, store):
 
 
 _WORKER_MODULES = {}
+_WORKER_LOCK = threading.Lock()
 
 
-def _uploaded_module(name, filename):
-    """The compiled model uploaded into this Dask worker's directory, imported by its path once
-    per worker process (not by name: a module of the same name elsewhere on sys.path, such as the
-    model's description, must not shadow it)."""
+def _uploaded_module(name, filename, digest, data):
+    """The compiled model of content `digest` in this Dask worker's process: its bytes written
+    once under a content-addressed name in the worker's directory (atomically, never over a
+    file a process may have loaded), checked against the digest, and imported by that path
+    once per process (not by name: a module of the same name elsewhere on sys.path, such as the
+    model's description or an earlier build of it, must not shadow it)."""
     from distributed import get_worker
-    path = os.path.join(get_worker().local_directory, filename)
-    if path not in _WORKER_MODULES:
+    with _WORKER_LOCK:
+        if digest in _WORKER_MODULES:
+            return _WORKER_MODULES[digest]
+        if hashlib.sha256(data).hexdigest() != digest:
+            raise LagrgenError(f"the compiled module of model {name!r} arrived damaged on this "
+                               "Dask worker (its SHA-256 differs from the client's)")
+        path = os.path.join(get_worker().local_directory, f"lagrgen-{digest[:32]}-{filename}")
+        if not (os.path.isfile(path) and _file_digest(path) == digest):
+            temporary = f"{path}.{os.getpid()}.{threading.get_ident()}.part"
+            with open(temporary, "wb") as f:
+                f.write(data)
+                f.flush()
+                os.fsync(f.fileno())
+            os.replace(temporary, path)
         import importlib.machinery
         import importlib.util
         loader = importlib.machinery.ExtensionFileLoader(name, path)
         spec = importlib.util.spec_from_file_location(name, path, loader=loader)
         module = importlib.util.module_from_spec(spec)
         loader.exec_module(module)
-        _WORKER_MODULES[path] = module
-    return _WORKER_MODULES[path]
+        _WORKER_MODULES[digest] = module
+        return module
+
+
+def _file_digest(path):
+    with open(path, "rb") as f:
+        return hashlib.sha256(f.read()).hexdigest()

@@ -48,6 +48,21 @@ class ConstraintError(LagrgenError, np.linalg.LinAlgError):
                    f"(A·M⁻¹·Aᵀ is singular): {hint}")
 
 
+class ContactError(LagrgenError, ValueError):
+    """An impact or friction cannot be run as given: a start inside a contact surface, a
+    restitution outside [0, 1] or a friction coefficient out of range at a run's values, two
+    contacts on one surface."""
+
+
+class StoreError(LagrgenError, ValueError):
+    """An ensemble store cannot be read: its metadata or chunk records are damaged."""
+
+
+class StoreWarning(UserWarning):
+    """Some runs of an ensemble store are damaged (missing or corrupt chunks): they read as
+    failed."""
+
+
 class BuildError(LagrgenError, RuntimeError):
     """Generating, compiling or loading a compiled model failed."""
 
@@ -66,3 +81,13 @@ class NonFiniteError(LagrgenError, FloatingPointError):
         return cls(f"the derivative of model {name!r} is not finite at t={float(t)!r}, "
                    f"y={np.array2string(y, precision=6)}: the simulation stopped there; check the "
                    "model's domain (sqrt, log, division) and the parameters")
+
+    @classmethod
+    def in_mass_matrix(cls, name, t, q):
+        """The error for model `name` whose mass matrix has an infinite or NaN entry at finite
+        (t, q): an overflow (|x| > 1.8e308) or an undefined operation, not a singular M."""
+        q = np.asarray(q, dtype=float)
+        return cls(f"the mass matrix of model {name!r} has an entry that is not finite at "
+                   f"t={float(t)!r}, q={np.array2string(q, precision=6)}: a product of its "
+                   "parameters or coordinates overflows the range of a double (|x| up to "
+                   "1.8e308) or is undefined there; rescale the model's units or parameters")

@@ -1,10 +1,13 @@
 """A restricted reader of numbers and expressions of t typed by users (the CLI's --inputs, --params).
 
 User text is never evaluated as Python: it is parsed with `ast` and only numbers, the names `t`,
-`pi` and `e`, the operators + − × ÷ ** and the functions of FUNCTIONS are accepted; the tree is
-turned into a closure over NumPy functions. Anything else is a one-line `ExpressionError`.
+`pi` and `e`, the operators + − × ÷ ** and the functions of FUNCTIONS (each with its number of
+arguments, ARITY) are accepted, in a text of at most MAX_LENGTH characters nested at most
+MAX_DEPTH deep, every number a double; the tree is turned into a closure over NumPy functions.
+Anything else is a one-line `ExpressionError`.
 """
 import ast
+import functools
 import math
 import operator
 
@@ -30,16 +33,27 @@ FUNCTIONS = {
 }
 FUNCTIONS.update({"Abs": np.abs, "Heaviside": _heaviside, "Min": np.minimum,
                   "Max": np.maximum})
+#: (fewest, most) arguments of each function (None: any number); the others take one.
+ARITY = {"atan2": (2, 2), "min": (2, None), "max": (2, None), "Min": (2, None),
+         "Max": (2, None)}
+#: The longest text and the deepest nesting (of operators and calls) the reader accepts.
+MAX_LENGTH = 2000
+MAX_DEPTH = 100
 CONSTANTS = {"pi": math.pi, "e": math.e}
 _BINARY = {ast.Add: operator.add, ast.Sub: operator.sub, ast.Mult: operator.mul,
            ast.Div: operator.truediv, ast.Pow: operator.pow, ast.Mod: operator.mod}
 _UNARY = {ast.UAdd: operator.pos, ast.USub: operator.neg}
 
 
+def _shown(text, limit=60):
+    """`text` quoted, cut to `limit` characters (a message stays one readable line)."""
+    return repr(text) if len(text) <= limit else repr(text[:limit]) + f"... ({len(text)} chars)"
+
+
 def _reject(text, what):
     names = ", ".join(sorted(n for n in FUNCTIONS if n.islower()))
-    raise ExpressionError(f"cannot read {text!r}: {what} (allowed: numbers, t, pi, e, + - * / **, "
-                          f"and the functions {names})")
+    raise ExpressionError(f"cannot read {_shown(text)}: {what} (allowed: numbers, t, pi, e, "
+                          f"+ - * / **, and the functions {names})")
 
 
 def _compile(node, text, names):
@@ -47,7 +61,14 @@ def _compile(node, text, names):
     if isinstance(node, ast.Expression):
         return _compile(node.body, text, names)
     if isinstance(node, ast.Constant) and type(node.value) in (int, float):
-        value = np.float64(node.value)
+        try:
+            value = np.float64(float(node.value))
+        except OverflowError:
+            value = np.float64(np.inf)
+        if not np.isfinite(value):
+            digits = ast.get_source_segment(text.strip(), node) or str(node.value)[:30]
+            _reject(text, f"the number {digits[:30]}{'...' if len(digits) > 30 else ''} does "
+                    "not fit a double (|x| up to 1.8e308)")
         return (lambda t: value), False
     if isinstance(node, ast.Name):
         if node.id == "t":
@@ -69,10 +90,21 @@ def _compile(node, text, names):
     if isinstance(node, ast.Call) and not node.keywords:
         if node.func.id not in FUNCTIONS:
             _reject(text, f"unknown function {node.func.id!r}")
-        fn = FUNCTIONS[node.func.id]
+        name = node.func.id
+        fewest, most = ARITY.get(name, (1, 1))
+        if len(node.args) < fewest or (most is not None and len(node.args) > most) \
+                or any(isinstance(a, ast.Starred) for a in node.args):
+            count = (f"{fewest}" if most == fewest else f"{fewest} or more" if most is None
+                     else f"{fewest} to {most}")
+            _reject(text, f"{name}() takes {count} argument{'s' if most != 1 else ''}, "
+                    f"got {len(node.args)}")
+        fn = FUNCTIONS[name]
+        if len(node.args) > 2:
+            fn = functools.partial(functools.reduce, fn)
+            args = [_compile(a, text, names) for a in node.args]
+            funcs = [f for f, _ in args]
+            return (lambda t: fn(f(t) for f in funcs)), any(dep for _, dep in args)
         args = [_compile(a, text, names) for a in node.args]
-        if not args:
-            _reject(text, f"{node.func.id}() needs an argument")
         funcs = [f for f, _ in args]
         return (lambda t: fn(*(f(t) for f in funcs))), any(dep for _, dep in args)
     _reject(text, f"{type(node).__name__.lower()} is not allowed")
@@ -81,13 +113,29 @@ def _compile(node, text, names):
 def _parse(text, names=None):
     if not isinstance(text, str) or not text.strip():
         raise ExpressionError(f"expected a number or an expression of t, got {text!r}")
-    if len(text) > 2000:
-        raise ExpressionError("expression too long (over 2000 characters)")
+    if len(text) > MAX_LENGTH:
+        raise ExpressionError(f"expression too long ({len(text)} characters, over "
+                              f"{MAX_LENGTH})")
     try:
         tree = ast.parse(text.strip(), mode="eval")
     except SyntaxError as exc:
-        raise ExpressionError(f"cannot read {text!r}: {exc.msg}") from None
+        raise ExpressionError(f"cannot read {_shown(text)}: {exc.msg}") from None
+    except (RecursionError, MemoryError):
+        raise ExpressionError(f"expression nested too deeply (over {MAX_DEPTH} levels)") from None
+    _check_depth(tree)
     return _compile(tree, text, dict(names or {}))
+
+
+def _check_depth(tree):
+    """ExpressionError if the syntax tree is nested deeper than MAX_DEPTH (each operand of a
+    chain such as a + b + c + ... is one level deeper than the next)."""
+    stack = [(tree, 0)]
+    while stack:
+        node, depth = stack.pop()
+        if depth > MAX_DEPTH:
+            raise ExpressionError(f"expression nested too deeply (over {MAX_DEPTH} levels: a "
+                                  "sum or product of many terms counts one level per term)")
+        stack.extend((child, depth + 1) for child in ast.iter_child_nodes(node))
 
 
 def parse_time_function(text, names=None):
@@ -126,5 +174,5 @@ def _evaluate(f, t):
 
 def _finite(value, text):
     if not math.isfinite(value):
-        raise ExpressionError(f"{text!r} is not a finite number ({value})")
+        raise ExpressionError(f"{_shown(text)} is not a finite number ({value})")
     return value

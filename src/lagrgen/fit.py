@@ -4,9 +4,13 @@ from measured natural frequencies.
 `fit` minimizes Σ (w·(y_model(t_i; θ) − data_i))² with `scipy.optimize.least_squares`, its
 Jacobian the forward sensitivities ∂y/∂θ (`lagrgen.sensitivity`) — one simulation per iteration
 instead of 2k for finite differences; the covariance of the estimates is s²·(JᵀJ)⁻¹ with
-s² = Σr²/(m − k). `fit_modes` matches natural frequencies with the eigenvalue sensitivities
+s² = Σr²/(m − rank J). A direction of the parameters that the Jacobian does not see (its singular
+value, columns scaled to unit norm, below the Jacobian's own accuracy) gets an infinite variance
+and a `FitWarning` naming it, never the zero variance of a pseudo-inverse; an estimate on its bound
+is flagged. `fit_modes` matches natural frequencies with the eigenvalue sensitivities
 ∂λ/∂p = φᵀ(∂K/∂p − λ·∂M/∂p)φ of mass-normalized modes φ (λ = ω²).
 """
+import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -16,7 +20,18 @@ from .errors import LagrgenError
 from .runtime.arguments import parameters_from, state_vector, unknown_name
 from .sensitivity import sensitivity_columns
 from .simulate import simulate
-from .vibration import linearize, modes
+from .vibration import equilibrium, linearize, modes
+
+
+#: Singular values of the column-normalized Jacobian below UNSEEN_FACTOR times the Jacobian's own
+#: accuracy (the solver's rtol for `fit`, the difference step for `fit_modes`), and never below
+#: UNSEEN_MAX, are taken as zero: the data do not see that direction.
+UNSEEN_FACTOR = 10.0
+UNSEEN_MAX = 1e-3
+
+
+class FitWarning(UserWarning):
+    """The data do not determine every fitted name, or an estimate sits on its bound."""
 
 
 @dataclass
@@ -30,6 +45,10 @@ class FitResult:
     names : the fitted names (parameters, `y0:<state>`)
     success, cost, nfev, message : as scipy.optimize.least_squares reports them (cost = ½Σr²)
     residuals : the weighted residuals at the estimates, shaped like the data
+    unidentified : the names the data do not determine (infinite standard error)
+    unseen : the unseen directions δθ, each a dict name -> component (largest 1)
+    at_bounds : the names whose estimate sits on one of its bounds (its standard error assumes
+        it is free)
     """
     params: dict
     stderr: dict
@@ -40,6 +59,9 @@ class FitResult:
     nfev: int
     message: str
     residuals: np.ndarray = field(repr=False)
+    unidentified: tuple = ()
+    unseen: list = field(default_factory=list, repr=False)
+    at_bounds: tuple = ()
 
 
 def measured_rows(mod, measured):
@@ -78,10 +100,95 @@ def _weights(weights, shape):
     if w.ndim == 1 and w.size == shape[0]:
         w = w[:, None]
     try:
-        return np.broadcast_to(w, shape).copy()
+        w = np.broadcast_to(w, shape).copy()
     except ValueError:
         raise ValueError(f"weights must be a number, one per measured name, or of the data's "
                          f"shape {shape}, got shape {w.shape}") from None
+    if not np.all(np.isfinite(w)) or np.any(w < 0):
+        raise ValueError("weights must be finite and non-negative")
+    if not np.any(w):
+        raise ValueError("every weight is zero: no sample is fitted (give positive weights to "
+                         "the samples that count)")
+    return w
+
+
+def distinct_names(names, what="params"):
+    """`names` as a list of distinct names; ValueError naming a repeated one."""
+    names = [names] if isinstance(names, str) else list(names)
+    seen = set()
+    for name in names:
+        if name in seen:
+            raise ValueError(f"{what} names {name!r} twice: each fitted name once")
+        seen.add(name)
+    return names
+
+
+def _sample_times(t):
+    t = np.asarray(t, dtype=float)
+    if t.ndim != 1 or t.size < 2 or not np.all(np.isfinite(t)) or np.any(np.diff(t) <= 0):
+        raise ValueError("t must be a 1-D array of at least two finite, increasing sample times")
+    return t
+
+
+def unseen_directions(J, names, accuracy):
+    """(rank, directions, Vt, s, scale) of the Jacobian J (m, k): with its columns scaled to
+    unit norm (`scale`), J/scale = U·diag(s)·Vt, singular values below UNSEEN_FACTOR·accuracy
+    taken as zero; `directions` are the null directions δθ = v/scale (dicts name -> component,
+    largest 1), a column of zeros its own direction."""
+    scale = np.linalg.norm(J, axis=0)
+    safe = np.where(scale > 0, scale, 1.0)
+    _, s, Vt = np.linalg.svd(J / safe, full_matrices=True)
+    tol = min(UNSEEN_FACTOR * accuracy, UNSEEN_MAX) * max(1.0, s.max(initial=0.0))
+    rank = int(np.sum(s > tol))
+    directions = []
+    for v in Vt[rank:]:
+        involved = np.abs(v) > 1e-6
+        d = np.where(involved, v / safe, 0.0)
+        d = d / np.abs(d).max()
+        d = d * np.sign(d[np.argmax(involved)])
+        directions.append({n: float(c) for n, c, i in zip(names, d, involved) if i})
+    return rank, directions, Vt, s, scale
+
+
+def covariance(J, s2, names, accuracy):
+    """(cov, unidentified names, unseen directions): s²·(JᵀJ)⁻¹ on the directions J sees; a
+    name with a component along an unseen direction has variance inf (its covariances NaN)."""
+    k = len(names)
+    rank, directions, Vt, s, scale = unseen_directions(J, names, accuracy)
+    Vr, sr = Vt[:rank].T, s[:rank]
+    safe = np.where(scale > 0, scale, 1.0)
+    cov = (Vr / sr ** 2) @ Vr.T * s2 / np.outer(safe, safe)
+    involved = [i for i in range(k) if any(names[i] in d for d in directions)]
+    for i in involved:
+        cov[i, :] = cov[:, i] = np.nan
+        cov[i, i] = np.inf
+    return cov, tuple(names[i] for i in involved), directions
+
+
+def _warn_unseen(directions, rank, k, consequence="their standard errors are reported as inf",
+                 stacklevel=3):
+    combos = "; ".join(f"{next(iter(d))} alone" if len(d) == 1 else
+                       " : ".join(f"δ{n}" for n in d) + " = " +
+                       " : ".join(f"{c:.3g}" for c in d.values()) for d in directions)
+    which = [n for n in dict.fromkeys(n for d in directions for n in d)]
+    warnings.warn(f"the data do not determine {', '.join(which)} (the Jacobian has rank {rank} "
+                  f"of {k}): the fit does not change when the estimates move along {combos}; "
+                  f"{consequence}. Fit fewer names, fix some with params={{...}}, or measure "
+                  "more",
+                  FitWarning, stacklevel=stacklevel)
+
+
+def on_bounds(x, low, high, names, stacklevel=3):
+    """The names whose estimate is on a finite bound, with a FitWarning naming them."""
+    tol = 1e-10 * np.maximum(1.0, np.abs(x))
+    hit = [f"{n} = {v:.6g} ({'lower' if v - lo <= tl else 'upper'} bound)"
+           for n, v, lo, hi, tl in zip(names, x, low, high, tol)
+           if v - lo <= tl or hi - v <= tl]
+    if hit:
+        warnings.warn(f"estimates on their bounds: {', '.join(hit)}; the data pull them past "
+                      "the bound, and their standard errors assume they are free", FitWarning,
+                      stacklevel=stacklevel)
+    return tuple(h.split(" = ")[0] for h in hit)
 
 
 def _output_derivatives(mod, t, y, p, u, k, columns, h=1e-7):
@@ -128,11 +235,9 @@ def fit(mod, t, data, params, y0, measured=None, initial=None, bounds=None, weig
     -------
     FitResult (params, stderr, cov, success, cost, nfev, residuals)
     """
-    names = [params] if isinstance(params, str) else list(params)
+    names = distinct_names(params)
     columns = sensitivity_columns(mod, names)
-    t = np.asarray(t, dtype=float)
-    if t.ndim != 1 or t.size < 2 or np.any(np.diff(t) <= 0):
-        raise ValueError("t must be a 1-D array of at least two increasing sample times")
+    t = _sample_times(t)
     measured_names, rows = measured_rows(mod, measured)
     data = _as_data(data, len(rows), t.size)
     w = _weights(weights, data.shape)
@@ -146,11 +251,13 @@ def fit(mod, t, data, params, y0, measured=None, initial=None, bounds=None, weig
         if key not in cache:
             cache.clear()
             p, y_start = _apply(theta, columns, base_p, base_y0)
-            sol = simulate(mod, (t[0], t[-1]), y_start, method=method, params=p, t_eval=t,
-                           sensitivities=names, **simulate_options)
+            try:
+                sol = simulate(mod, (t[0], t[-1]), y_start, method=method, params=p, t_eval=t,
+                               sensitivities=names, **simulate_options)
+            except LagrgenError as error:
+                raise type(error)(f"{at_trial(names, theta)}: {error}") from None
             if not sol.success:
-                raise LagrgenError(f"the simulation failed at θ = {dict(zip(names, theta))}: "
-                                   f"{sol.message}")
+                raise LagrgenError(f"{at_trial(names, theta)}: {sol.message}")
             cache[key] = _model_rows(mod, sol, rows, p, columns)
         return cache[key]
 
@@ -161,16 +268,32 @@ def fit(mod, t, data, params, y0, measured=None, initial=None, bounds=None, weig
         return (w[:, :, None] * evaluate(theta)[1]).reshape(-1, len(names))
 
     result = least_squares(residuals, theta0, jac=jacobian, bounds=(low, high), x_scale="jac")
-    J = result.jac
-    dof = max(result.fun.size - len(names), 1)
-    s2 = 2 * result.cost / dof
-    cov = np.linalg.pinv(J.T @ J) * s2
-    stderr = np.sqrt(np.clip(np.diag(cov), 0, None))
+    J = result.jac[w.ravel() != 0]
+    accuracy = float(np.max(simulate_options.get("rtol", 1e-6)))
+    rank = unseen_directions(J, names, accuracy)[0]
+    dof = J.shape[0] - rank
+    s2 = 2 * result.cost / dof if dof > 0 else np.nan
+    cov, unidentified, directions = covariance(J, s2, names, accuracy)
+    if directions:
+        _warn_unseen(directions, rank, len(names))
+    if dof <= 0:
+        warnings.warn(f"{J.shape[0]} weighted samples for {rank} determined names leave no "
+                      "residual to estimate the noise: the standard errors are NaN",
+                      FitWarning, stacklevel=2)
+    stderr = np.sqrt(np.diag(cov))
     return FitResult(params=dict(zip(names, map(float, result.x))),
                      stderr=dict(zip(names, map(float, stderr))), cov=cov, names=tuple(names),
                      success=bool(result.success), cost=float(result.cost),
                      nfev=int(result.nfev), message=str(result.message),
-                     residuals=result.fun.reshape(data.shape))
+                     residuals=result.fun.reshape(data.shape), unidentified=unidentified,
+                     unseen=directions, at_bounds=on_bounds(result.x, low, high, names))
+
+
+def at_trial(names, theta):
+    """What a failure at a trial point of the fit says first: where, and what to do."""
+    values = ", ".join(f"{n} = {v:.6g}" for n, v in zip(names, theta))
+    return (f"the simulation failed at the trial point {values} (bound the fitted names to "
+            "where the model is valid with bounds={name: (low, high)})")
 
 
 def _start_and_bounds(mod, names, columns, p, y0, initial, bounds):
@@ -225,6 +348,8 @@ class ModalUpdate:
     frequencies_hz : the model's natural frequencies at the estimates, paired with the measured
     pairing : the model mode index paired with each measured frequency
     success, cost, nfev : as scipy.optimize.least_squares reports them
+    unidentified, unseen, at_bounds : as for `FitResult`: the names the frequencies do not
+        determine, the directions they do not see, the estimates on their bounds
     """
     params: dict
     frequencies_hz: np.ndarray
@@ -232,6 +357,9 @@ class ModalUpdate:
     success: bool
     cost: float
     nfev: int
+    unidentified: tuple = ()
+    unseen: list = field(default_factory=list, repr=False)
+    at_bounds: tuple = ()
 
 
 def fit_modes(mod, q0, measured_hz, params, initial=None, bounds=None, shapes=None, p=None,
@@ -246,14 +374,16 @@ def fit_modes(mod, q0, measured_hz, params, initial=None, bounds=None, shapes=No
     -------
     ModalUpdate (params, frequencies_hz, pairing, success, cost, nfev)
     """
-    names = [params] if isinstance(params, str) else list(params)
+    names = distinct_names(params)
     for name in names:
         if name not in mod.parameters:
             raise unknown_name("parameter", name, tuple(mod.parameters))
     target = np.atleast_1d(np.asarray(measured_hz, dtype=float))
     n = mod.n_coordinates
-    if target.ndim != 1 or not 0 < target.size <= n or np.any(target <= 0):
-        raise ValueError(f"measured_hz must be 1 to {n} positive frequencies")
+    if target.ndim != 1 or not 0 < target.size <= n or not np.all(np.isfinite(target)) \
+            or np.any(target <= 0):
+        raise ValueError(f"measured_hz must be 1 to {n} finite positive frequencies, got "
+                         f"{np.array2string(target, precision=6)}")
     if shapes is not None:
         shapes = np.asarray(shapes, dtype=float).reshape(n, -1)
         if shapes.shape[1] != target.size:
@@ -267,9 +397,26 @@ def fit_modes(mod, q0, measured_hz, params, initial=None, bounds=None, shapes=No
         out = base.copy()
         out[index] = theta
         return out
+    dependent = None
+    if mod.n_constraints:
+        first = linearize(mod, equilibrium(mod, q0, p=with_theta(theta0)), p=with_theta(theta0))
+        dependent = [name for name in first.model_coordinates
+                     + tuple(f"{c}_dot" for c in first.model_coordinates)
+                     if name not in first.states]
+
+    def linearized(p_vector):
+        """The linearization at these parameters, about q0 (a constrained model: about its
+        equilibrium near q0, which moves with them), in the same independent coordinates."""
+        q = equilibrium(mod, q0, p=p_vector) if mod.n_constraints else q0
+        return linearize(mod, q, p=p_vector, dependent=dependent)
 
     def eigen(theta):
-        res = modes(linearize(mod, q0, p=with_theta(theta)))
+        res = modes(linearized(with_theta(theta)))
+        if res.kind != "classical":
+            raise LagrgenError(
+                f"fit_modes needs the classical modes of a second-order form with symmetric C; "
+                f"the linearization of model {mod.name!r} here has none (velocity constraints "
+                "or gyroscopic terms): fit its eigenvalues with lagrgen.fit on responses instead")
         order = _pairing(res.shapes, shapes, target.size)
         return res, order
 
@@ -286,20 +433,26 @@ def fit_modes(mod, q0, measured_hz, params, initial=None, bounds=None, shapes=No
             plus, minus = with_theta(theta), with_theta(theta)
             plus[j] += step
             minus[j] -= step
-            up, down = linearize(mod, q0, p=plus), linearize(mod, q0, p=minus)
+            up, down = linearized(plus), linearized(minus)
             dK, dM = (up.K - down.K) / (2 * step), (up.M - down.M) / (2 * step)
             for r, mode in enumerate(order):
-                phi = res.shapes[:, mode]
+                phi = res.independent_shapes[:, mode]
                 dlam = phi @ (dK - lam[mode] * dM) @ phi
                 J[r, c] = dlam / (4 * np.pi * res.omega[mode]) / target[r]
         return J
 
     result = least_squares(residuals, theta0, jac=jacobian, bounds=(low, high), x_scale="jac")
     res, order = eigen(result.x)
+    rank, directions = unseen_directions(jacobian(result.x), names, h)[:2]
+    if directions:
+        _warn_unseen(directions, rank, len(names), "their estimates are one point of a family "
+                     "that matches the frequencies as well")
+    unidentified = tuple(n for n in names if any(n in d for d in directions))
     return ModalUpdate(params=dict(zip(names, map(float, result.x))),
                        frequencies_hz=res.frequencies_hz[list(order)], pairing=tuple(order),
                        success=bool(result.success), cost=float(result.cost),
-                       nfev=int(result.nfev))
+                       nfev=int(result.nfev), unidentified=unidentified, unseen=directions,
+                       at_bounds=on_bounds(result.x, low, high, names))
 
 
 def _pairing(model_shapes, measured_shapes, k):

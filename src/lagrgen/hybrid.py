@@ -27,6 +27,15 @@ limit (μ_s·|N| − |λ| ↓ 0). Then:
 * Tolerances. A gap counts as closed within `gap_tol` (default 1e-9); a slip velocity counts as
   zero within 1000·gap_tol (at the start, and for frictions stopping together with the one whose
   event fired).
+* The start is classified as any switch: a closed gap closing faster than 1000·gap_tol is struck
+  at t0, one at rest is held, one opening is free; a gap below −gap_tol, a restitution outside
+  [0, 1], μ < 0 or μ_s < μ (at the start and at every switch) and two closed impacts with
+  parallel gradients (duplicate contacts) are `ContactError`s. A solve whose segments stop
+  advancing (STALL_SEGMENTS in a row shorter than ten spacings of doubles at the far end of the
+  span) ends with a message saying so; max_steps and max_wall_time hold between segments too.
+* Forces. Every saved state carries the forces of its mode (`HybridSystem.forces`): the model's
+  constraint multipliers, each impact's contact force, each friction's force along its slip
+  velocity.
 
 `HybridSystem` holds that logic; `simulate_hybrid` runs it with `solve_ivp` (engine "scipy") or in
 C (`lagrgen.native._ode.solve_hybrid`, `native/lg_hybrid.c`, the same rules).
@@ -35,6 +44,7 @@ import time
 
 import numpy as np
 
+from .errors import ContactError
 from .methods import NATIVE_METHODS
 
 OPEN, CONTACT, STICK, SLIP = "open", "contact", "stick", "slip"
@@ -43,6 +53,9 @@ GAP_TOL = 1e-9
 REST_FACTOR = 1e-6
 MAX_TRANSITIONS = 100000
 PGS_SWEEPS = 200
+#: Segments in a row that may end within ten spacings of doubles (at the far end of the span)
+#: of their start before the solve stops as making no progress (native/lg_hybrid.h).
+STALL_SEGMENTS = 100
 
 
 class HybridSystem:
@@ -78,14 +91,14 @@ class HybridSystem:
         frictions = terms[k:].reshape(self.nf, self._friction_size)
         return M, F, A, gamma, impacts, frictions
 
-    def solve(self, t, y, contact, slip):
+    def solve(self, t, y, contact, slip, constraint_forces=False):
         """Accelerations and forces in the mode (contact: bool per impact; slip: per friction
         +1/−1 slipping in that direction, 0 sticking).
 
         Returns
         -------
         (q̈, λ of the impacts (0 where open), λ of the frictions (0 where slipping), N of the
-        frictions, the terms)
+        frictions, the terms), and with `constraint_forces` also λ of the model's constraints
         """
         n, m = self.n, self.m
         M, F, A, gamma, imp, fr = self.terms(t, y)
@@ -140,7 +153,22 @@ class HybridSystem:
             row = self._normal_row(j, impact_row)
             normal[j] = abs(lam[row]) if row is not None else (
                 abs(fr[j, 4]) if self.normal[j] is None else 0.0)
+        if constraint_forces:
+            return qdd, lam_impact, lam_friction, normal, (M, A, imp, fr), lam[:m].copy()
         return qdd, lam_impact, lam_friction, normal, (M, A, imp, fr)
+
+    def forces(self, t, y, contact, slip):
+        """The forces of the mode at (t, y): λ of the model's constraints, then each impact's
+        contact force (its multiplier; 0 while open), then each friction's force along its slip
+        direction (the sticking multiplier, or −μ·|N|·s while slipping); NaN where the mode
+        equations are singular."""
+        try:
+            _, lam_i, lam_f, normal, (_, _, _, fr), lam_m = self.solve(t, y, contact, slip, True)
+        except np.linalg.LinAlgError:
+            return np.full(self.m + self.ni + self.nf, np.nan)
+        along = [lam_f[j] if slip[j] == 0 else -fr[j, 2] * slip[j] * normal[j]
+                 for j in range(self.nf)]
+        return np.concatenate([lam_m, lam_i, along])
 
     def _normal_row(self, j, impact_row):
         """The row of R whose multiplier is friction j's normal force, or None."""
@@ -246,23 +274,39 @@ class Switching:
         self.transitions.append((float(t), self.system.names[k], kind))
 
     def start(self, t, y):
-        """Settle the initial mode: frictions with v = 0 (|v| ≤ 1000·gap_tol) try sticking,
-        closed contacts with ġ ≤ 0 are held; returns y (unchanged)."""
+        """The initial mode, classified as at any later switch: a closed contact (g ≤ gap_tol)
+        that is closing (ġ < −1000·gap_tol) is struck first, one at rest (|ġ| ≤ 1000·gap_tol)
+        is held, one opening is free; frictions with v = 0 (|v| ≤ 1000·gap_tol) try sticking.
+        Returns y (after the impacts at the start, if any). ContactError for a start inside a
+        surface (g < −gap_tol) or coefficients out of range."""
         s = self.system
-        _, _, _, _, (_, _, imp, fr) = s.solve(t, y, self.contact, self.slip)
+        imp, fr = s.terms(t, y)[4:]
+        check_coefficients(s, imp, fr, t)
+        inside = [i for i in range(s.ni) if not imp[i, 0] >= -self.gap_tol]
+        if inside:
+            raise ContactError(start_inside_message(s, inside[0], imp[inside[0], 0],
+                                                    self.gap_tol))
+        still = 1e3 * self.gap_tol
+        closing = []
         for i in range(s.ni):
-            if imp[i, 0] <= self.gap_tol and imp[i, 1] <= 0:
-                self.contact[i] = True
+            if imp[i, 0] <= self.gap_tol:
+                if imp[i, 1] < -still:
+                    closing.append(i)
+                elif imp[i, 1] <= still:
+                    self.contact[i] = True
         for j in range(s.nf):
             v = fr[j, 0]
-            self.slip[j] = 0 if abs(v) <= 1e3 * self.gap_tol else (1 if v > 0 else -1)
+            self.slip[j] = 0 if abs(v) <= still else (1 if v > 0 else -1)
+        if closing:
+            y = self._impacts(t, y, closing, imp)
         return self.settle(t, y, record=False)
 
     def switch(self, t, y, fired):
         """The state and mode after the segment ended at (t, y) on the events `fired`."""
         s = self.system
         closing = []
-        imp = s.terms(t, y)[4]
+        imp, fr = s.terms(t, y)[4:]
+        check_coefficients(s, imp, fr, t)
         for i in range(s.ni):
             if not self.contact[i] and (i in fired or imp[i, 0] <= self.gap_tol) \
                     and imp[i, 1] < 0:
@@ -374,6 +418,91 @@ class Switching:
         return shortest
 
 
+def coefficient_problem(imp, fr):
+    """(kind, index, value, μ) of the first coefficient out of range in the impact rows `imp`
+    and friction rows `fr` of `HybridSystem.terms` — a restitution outside [0, 1] ("restitution"),
+    μ < 0 ("mu"), μ_s < μ ("mu_static") — or None. NaN is out of every range."""
+    for i, row in enumerate(imp):
+        if not 0.0 <= row[3] <= 1.0:
+            return "restitution", i, row[3], None
+    for j, row in enumerate(fr):
+        if not row[2] >= 0.0:
+            return "mu", j, row[2], None
+        if not row[3] >= row[2]:
+            return "mu_static", j, row[3], row[2]
+    return None
+
+
+def coefficient_message(system, kind, k, value, mu, t):
+    """The ContactError message of `coefficient_problem`'s finding at time t."""
+    if kind == "restitution":
+        return (f"impact {system.impacts[k][0]!r} has restitution {value:g} at t = {t:.9g}: "
+                "it must be between 0 and 1 (check the parameter values of the run)")
+    name = system.frictions[k][0]
+    if kind == "mu":
+        return (f"friction {name!r} has mu = {value:g} at t = {t:.9g}: a friction coefficient "
+                "must be ≥ 0 (check the parameter values of the run)")
+    return (f"friction {name!r} has mu_static = {value:g} below mu = {mu:g} at t = {t:.9g}: "
+            "the static coefficient must be at least the kinetic one (check the parameter "
+            "values of the run)")
+
+
+def check_coefficients(system, imp, fr, t):
+    """ContactError when a restitution or friction coefficient is out of range."""
+    problem = coefficient_problem(imp, fr)
+    if problem is not None:
+        raise ContactError(coefficient_message(system, *problem, t))
+
+
+def start_inside_message(system, i, gap, gap_tol):
+    return (f"the run starts inside the surface of impact {system.impacts[i][0]!r}: its gap is "
+            f"{gap:g} (< -gap_tol = {-gap_tol:g}); start with the gap ≥ 0 (a state saved at a "
+            "contact has gap 0)")
+
+
+def check_start(mod, t0, y0, p, u, gap_tol=GAP_TOL, run=None):
+    """ContactError (prefixed with the run index, if given) when the state (t0, y0) starts
+    inside an impact's surface or a coefficient is out of range at the values p, u."""
+    system = HybridSystem(mod, p, lambda t: u)
+    imp, fr = system.terms(t0, np.asarray(y0, dtype=float))[4:]
+    try:
+        check_coefficients(system, imp, fr, t0)
+        inside = [i for i in range(system.ni) if not imp[i, 0] >= -gap_tol]
+        if inside:
+            raise ContactError(start_inside_message(system, inside[0], imp[inside[0], 0],
+                                                    gap_tol))
+    except ContactError as exc:
+        if run is None:
+            raise
+        raise ContactError(f"run {run}: {exc}") from None
+
+
+def duplicate_contacts(system, t, y, gap_tol):
+    """ContactError naming two impacts closed at (t, y) whose gap gradients are parallel (two
+    contacts on one surface make the contact equations singular), or None."""
+    imp = system.terms(t, np.asarray(y, dtype=float))[4]
+    closed = [i for i in range(system.ni) if abs(imp[i, 0]) <= max(gap_tol, 1e-9)]
+    for a, i in enumerate(closed):
+        for k in closed[a + 1:]:
+            wi, wk = imp[i, 4:], imp[k, 4:]
+            norm = np.linalg.norm(wi) * np.linalg.norm(wk)
+            if norm > 0 and abs(abs(wi @ wk) - norm) <= 1e-9 * norm:
+                return ContactError(
+                    f"impacts {system.impacts[i][0]!r} and {system.impacts[k][0]!r} touch at "
+                    f"t = {t:.9g} along parallel gap gradients: two contacts on one surface "
+                    "(duplicate contacts) make the contact equations singular; declare each "
+                    "contact once")
+    return None
+
+
+def singular_modes(system, t, y, gap_tol):
+    """The ContactError for mode equations found singular at (t, y): duplicate contacts when two
+    closed impacts have parallel gradients, else dependent contacts or constraints."""
+    return duplicate_contacts(system, t, y, gap_tol) or ContactError(
+        f"at t = {t:.9g} the mode equations of the impacts and frictions are singular: the "
+        "held contacts, sticking frictions and constraints are dependent there")
+
+
 class ChatteringError(RuntimeError):
     """More mode switches than `max_transitions`: the system chatters."""
 
@@ -398,17 +527,31 @@ def simulate_hybrid(mod, t_span, y0, method, p, u_at, rtol, atol, t_eval=None,
     sw = Switching(system, rest_velocity=rest_velocity, gap_tol=gap_tol,
                    max_transitions=max_transitions)
     t0, tf = map(float, t_span)
-    t, y = t0, sw.start(t0, np.asarray(y0, dtype=float))
-    ts, ys = [np.array([t0])], [y[:, None]]
+    y0 = np.asarray(y0, dtype=float)
+    try:
+        t, y = t0, sw.start(t0, y0)
+    except np.linalg.LinAlgError:
+        raise singular_modes(system, t0, y0, gap_tol) from None
+    mode = (tuple(sw.contact), tuple(sw.slip))
+    ts, ys, modes = [np.array([t0])], [y[:, None]], [mode]
+    if sw.transitions:                      # struck at the start: saved before and after
+        opened = ((False,) * system.ni, mode[1])
+        ts, ys, modes = [np.array([t0]), np.array([t0])], [y0[:, None], y[:, None]], \
+            [opened, mode]
     nfev, segments, status, message = 0, 0, 0, "The solver successfully reached the end."
     steps, started, stopped = 0, time.monotonic(), None
+    no_progress, least = 0, stall_step(t0, tf)
     te_all = None if t_eval is None else np.asarray(t_eval, dtype=float)
     if te_all is not None:
         ts, ys = [te_all[te_all <= t0]], [np.repeat(y[:, None], np.sum(te_all <= t0), axis=1)]
+        modes = [mode]
     while t < tf:
+        t_start = t
         contact, slip = tuple(sw.contact), tuple(sw.slip)
         piece = sw.lift_off(t, y)
         t_end = min(tf, t + 0.5 * piece) if np.isfinite(piece) else tf
+        if not t_end > t:
+            t_end = tf
 
         def fun(tt, yy):
             return system.rhs(tt, yy, contact, slip)
@@ -427,10 +570,12 @@ def simulate_hybrid(mod, t_span, y0, method, p, u_at, rtol, atol, t_eval=None,
         if te_all is None:
             ts.append(sol.t[1:])
             ys.append(sol.y[:, 1:])
+            modes.append((contact, slip))
         else:
             te = te_all[(te_all > t) & (te_all <= t_stop)]
             ts.append(te)
             ys.append(sol.sol(te) if len(te) else np.zeros((len(y), 0)))
+            modes.append((contact, slip))
         if max_steps is not None and steps >= max_steps:
             stopped = "max_steps"
         elif max_wall_time is not None and time.monotonic() - started > max_wall_time:
@@ -440,23 +585,51 @@ def simulate_hybrid(mod, t_span, y0, method, p, u_at, rtol, atol, t_eval=None,
             break
         if sol.status == 0:
             t, y = t_end, sol.y[:, -1]
-            continue
-        fired = [k for k in range(system.n_events) if len(sol.t_events[k])]
-        t_hit = min(sol.t_events[k][0] for k in fired)
-        fired = [k for k in fired if sol.t_events[k][0] == t_hit]
-        y_hit = sol.y_events[fired[0]][0]
-        try:
-            y = sw.switch(t_hit, y_hit, fired)
-        except ChatteringError as exc:
-            status, message = -1, str(exc)
+        else:
+            fired = [k for k in range(system.n_events) if len(sol.t_events[k])]
+            t_hit = min(sol.t_events[k][0] for k in fired)
+            fired = [k for k in fired if sol.t_events[k][0] == t_hit]
+            y_hit = sol.y_events[fired[0]][0]
+            try:
+                y = sw.switch(t_hit, y_hit, fired)
+            except ChatteringError as exc:
+                status, message = -1, str(exc)
+                break
+            except np.linalg.LinAlgError:
+                raise singular_modes(system, t_hit, y_hit, gap_tol) from None
+            t = t_hit
+            if te_all is None:
+                ts.append(np.array([t]))
+                ys.append(y[:, None])
+                modes.append((tuple(sw.contact), tuple(sw.slip)))
+        no_progress = no_progress + 1 if t - t_start < least else 0
+        if no_progress >= STALL_SEGMENTS:
+            status, message = -1, stall_message(t, least, sw.transitions)
             break
-        t = t_hit
-        if te_all is None:
-            ts.append(np.array([t]))
-            ys.append(y[:, None])
+    forces = [system.forces(ti, yi, *m) for times, states, m in zip(ts, ys, modes)
+              for ti, yi in zip(times, states.T)]
+    forces = np.array(forces).reshape(-1, system.m + system.ni + system.nf).T
     return dict(t=np.concatenate(ts), y=np.concatenate(ys, axis=1), transitions=sw.transitions,
+                forces=forces,
                 mode=sw.mode(), nfev=nfev, status=status, message=message, n_segments=segments,
                 success=status >= 0, stopped=stopped, t_reached=t, n_steps=steps)
+
+
+def stall_step(t0, tf):
+    """The least progress a segment must make: ten spacings of doubles at the far end of the
+    span (as the native engine's stall test, lg_ode.h)."""
+    far = max(abs(t0), abs(tf))
+    return 10 * abs(np.nextafter(far, np.inf) - far)
+
+
+def stall_message(t, least, transitions):
+    """Why a hybrid solve stopped making progress at t."""
+    last = ", ".join(f"{kind} {name!r}" for _, name, kind in transitions[-3:]) or "none"
+    return (f"the hybrid solve made no progress: {STALL_SEGMENTS} segments in a row ended within "
+            f"{least:.3g} s of their start, at t = {t:.9g} (last transitions: {last}). Impacts "
+            "that never come to rest (rest_velocity too small: the default is 1e-6 times the "
+            "fastest impact) or contacts that hold a body from both sides keep switching "
+            "without advancing: raise rest_velocity or check the impacts")
 
 
 class _EventValues:
@@ -481,8 +654,10 @@ def _event(values, k):
 
 
 KIND_NAMES = ("impact", CONTACT, "release", STICK, SLIP)
-#: lg_result_t.stopped codes of the guards (LG_STOP_STEPS, LG_STOP_WALL).
-GUARDS = {1: "max_steps", 2: "max_wall_time"}
+#: lg_result_t.stopped codes of the guards (LG_STOP_STEPS, LG_STOP_WALL, LG_STOP_SAVED).
+GUARDS = {1: "max_steps", 2: "max_wall_time", 4: "saved"}
+#: lg_hybrid_result_t.failure codes (lg_hybrid.h).
+FAILURES = {1: "model", 2: "inside", 3: "restitution", 4: "mu", 5: "mu_static", 6: "stalled"}
 NORMAL_KINDS = {None: 0, "constraint": 1, "impact": 2}
 
 
@@ -499,7 +674,9 @@ def solve_hybrid_native(mod, t_span, y0, method, p, u_spec, rtol, atol, t_eval=N
     """
     from .native import _ode
     from .native.engine import _tolerances
-    system = HybridSystem(mod, p, None)
+    u_spec = list(u_spec)
+    system = HybridSystem(mod, p, lambda t: np.array(
+        [_ode.signal_values(tuple(spec), t)[0] for spec in u_spec]))
     n = mod.n_coordinates
     rtol, atol = _tolerances(rtol, atol, 2 * n)
     kinds = [NORMAL_KINDS[None if ref is None else ref[0]] for ref in system.normal]
@@ -514,13 +691,38 @@ def solve_hybrid_native(mod, t_span, y0, method, p, u_spec, rtol, atol, t_eval=N
         int(max_transitions), poll, int(max_steps or 0), float(max_wall_time or 0.0))
     transitions = [(float(t), system.names[int(k)], KIND_NAMES[int(kind)])
                    for t, k, kind in out["transitions"]]
+    message = native_failure_message(mod, system, out, transitions, float(gap_tol), t0, tf,
+                                     np.asarray(y0, dtype=float))
     mode = {d[0]: CONTACT if c else OPEN for d, c in zip(system.impacts, out["contact"])}
     mode.update({d[0]: STICK if s == 0 else SLIP for d, s in zip(system.frictions, out["slip"])})
-    return dict(t=out["t"], y=out["y"].T.copy(), transitions=transitions, mode=mode,
-                nfev=out["nfev"], status=out["status"], message=out["message"],
+    return dict(t=out["t"], y=out["y"].T.copy(), forces=out["forces"].T.copy(),
+                transitions=transitions, mode=mode,
+                nfev=out["nfev"], status=out["status"], message=message,
                 n_segments=out["n_segments"], success=out["status"] >= 0,
                 stopped=GUARDS.get(out["stopped"]), t_reached=out["t_reached"],
                 n_steps=out["n_steps"])
+
+
+def native_failure_message(mod, system, out, transitions, gap_tol, t0, tf, y0):
+    """The message of a native hybrid solve, named as the SciPy engine names it; ContactError
+    for what the SciPy engine raises (coefficients out of range, a start inside a surface,
+    duplicate contacts)."""
+    failure = FAILURES.get(out["failure"])
+    t = out["t_reached"]
+    k, value, other = out["failed_element"], out["failed_value"], out["failed_other"]
+    if failure in ("restitution", "mu", "mu_static"):
+        when = t if out["n_segments"] else t0
+        raise ContactError(coefficient_message(system, failure, k, value, other, when))
+    if failure == "inside":
+        raise ContactError(start_inside_message(system, k, value, gap_tol))
+    if failure == "stalled":
+        return stall_message(t, stall_step(t0, tf), transitions)
+    if failure == "model":
+        at = (out["t"][-1], out["y"][-1]) if len(out["t"]) else (t0, y0)
+        found = duplicate_contacts(system, *at, gap_tol)
+        if found is not None:
+            raise found
+    return out["message"]
 
 
 def simulate_nonsmooth(mod, t_span, y0, method, p, inputs, u_at, rtol, atol, t_eval, dense_output,
@@ -535,7 +737,7 @@ def simulate_nonsmooth(mod, t_span, y0, method, p, inputs, u_at, rtol, atol, t_e
     from .results import stopped_by_guard
     from scipy.integrate._ivp.ivp import OdeResult
 
-    from .native.engine import _t_eval, native_reason
+    from .native.engine import _t_eval, guard_reason, native_reason
     from .runtime.arguments import input_specs
     if events is not None:
         raise ValueError("a model with impacts or frictions takes no Python events: declare them "
@@ -580,10 +782,13 @@ def simulate_nonsmooth(mod, t_span, y0, method, p, inputs, u_at, rtol, atol, t_e
     sol.transitions = out["transitions"]
     sol.mode = out["mode"]
     sol.n_segments = out["n_segments"]
+    m = mod.n_constraints
+    sol.hybrid_constraint_forces = out["forces"][:m]
+    sol.contact_names = tuple(d[0] for d in mod.nonsmooth_definitions if d[1] == "impact") + \
+        tuple(d[0] for d in mod.nonsmooth_definitions if d[1] == "friction")
+    sol.contact_forces = out["forces"][m:]
     sol.guard = None
     if out["stopped"] is not None:
-        limit = max_steps if out["stopped"] == "max_steps" else f"{max_wall_time:g} s"
-        what = "step" if out["stopped"] == "max_steps" else "wall-time"
-        stopped_by_guard(sol, f"the {what} limit {out['stopped']}={limit} was reached",
+        stopped_by_guard(sol, guard_reason(out["stopped"], max_steps, max_wall_time),
                          out["t_reached"], float(t_span[1]), out["n_steps"])
     return sol

@@ -28,7 +28,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import scipy.linalg
 
-from .errors import ConstraintError, LagrgenError, MassMatrixError
+from .errors import ConstraintError, LagrgenError, MassMatrixError, NonFiniteError
 from .runtime.arguments import as_vector, input_vector, parameters_from
 
 #: Relative pivot below which the constraint Jacobian counts as rank-deficient (redundant
@@ -382,6 +382,8 @@ def _check_on_manifold(mod, t, y0, p, u, G):
 
 
 def _check_positive_definite(mod, M, t, q0):
+    if not np.isfinite(M).all() and np.isfinite(q0).all():
+        raise NonFiniteError.in_mass_matrix(mod.name, t, q0)
     try:
         np.linalg.cholesky(M)
     except np.linalg.LinAlgError:

@@ -195,6 +195,7 @@ class ModelSpec:
     stabilization: tuple = (0.0, 0.0)  # Baumgarte (α, β), 1/s
     events: tuple = ()        # Event(name, g, terminal, direction)
     nonsmooth: tuple = ()     # Impact / Friction records, in declaration order
+    initial_state: tuple = ()  # [q0, q̇0] as 2n floats, or () when none is declared
 
     @property
     def external(self):

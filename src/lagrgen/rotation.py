@@ -27,7 +27,7 @@ class Rotation(sp.MutableDenseMatrix):
     """A 3×3 SymPy Matrix that remembers the elementary rotations it is the product of.
 
     `factors` is a tuple of (axis letter, angle) in product order, or None when unknown (after
-    any operation other than a product of two `Rotation`s). lagrgen uses the factors to write the
+    any operation other than a product of two `Rotation` matrices). lagrgen uses the factors to write the
     angular velocity in closed form (ω_body = Σ_i (F_{i+1}·…·F_k)ᵀ·e_i·(d angle_i/dt)); a plain
     matrix works too, at the cost of a symbolic simplification.
     """

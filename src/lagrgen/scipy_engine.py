@@ -88,11 +88,11 @@ def solve_scipy(mod, t_span, y0, method, p, u_at, rtol, atol, t_eval=None, dense
                     events=events, **options)
     sol.engine, sol.guard = "scipy", None
     if guard is not None:
-        _drop_guard_event(sol, guard, t_span)
+        drop_guard_event(sol, guard, t_span)
     return sol
 
 
-def _drop_guard_event(sol, guard, t_span):
+def drop_guard_event(sol, guard, t_span):
     """Drop the guard's event from `sol` and, if it stopped the run, say so (status −1)."""
     sol.t_events, sol.y_events = sol.t_events[:-1], sol.y_events[:-1]
     if not sol.t_events:        # the guard was the only event: as solve_ivp without events

@@ -80,11 +80,13 @@ def initial_sensitivities(columns, dim):
 
 
 def solve_sensitivities(mod, t_span, y0, method, p, u_at, rtol, atol, names, inputs=None,
-                        engine=None, t_eval=None, dense_output=False, **options):
+                        engine=None, t_eval=None, dense_output=False, max_steps=None,
+                        max_wall_time=None, **options):
     """The augmented system, natively in C when the engine can run it (`engine` as simulate's),
     else by solve_ivp; returns SciPy's OdeResult with `y` the states, `sensitivities`
-    (k, 2n, len(t)) and `engine`."""
-    from .native.engine import native_reason, raise_native_failure, solve_native
+    (k, 2n, len(t)), `engine` and `guard` (why max_steps or max_wall_time stopped it, or None)."""
+    from .native.engine import native_reason, raise_native_failure, report_guard, solve_native
+    from .scipy_engine import Guard, drop_guard_event
     from .runtime.arguments import input_specs
     dim = 2 * mod.n_coordinates
     columns = sensitivity_columns(mod, names)
@@ -97,17 +99,23 @@ def solve_sensitivities(mod, t_span, y0, method, p, u_at, rtol, atol, names, inp
         index = [j if kind == "p" else -1 for kind, j in columns]
         sol = solve_native(mod, t_span, z0, method, p, input_specs(mod, inputs), rtol, atol,
                            t_eval, dense_output, stop_on_nonfinite=True, sensitivity_index=index,
-                           **options)
+                           max_steps=max_steps, max_wall_time=max_wall_time, **options)
         raise_native_failure(mod, sol, p, u_at)
+        report_guard(sol, t_span, max_steps, max_wall_time)
     else:
         fun, jac = augmented_functions(mod, p, u_at, columns)
         if getattr(method, "__name__", method) in STIFF_METHODS:
             options.setdefault("jac", jac)
+        guard = None
+        if max_steps is not None or max_wall_time is not None:
+            guard = Guard(max_steps, max_wall_time)
+            options["events"] = [guard]
         sol = solve_ivp(fun, t_span, z0, method=SOLVERS.get(method, method), rtol=rtol,
                         atol=atol, t_eval=t_eval, dense_output=dense_output, **options)
-        sol.engine = "scipy"
+        sol.engine, sol.guard = "scipy", None
+        if guard is not None:
+            drop_guard_event(sol, guard, t_span)
     sol.sensitivities = sol.y[dim:].reshape(len(columns), dim, -1)
     sol.y = sol.y[:dim]
     sol.sensitivity_names = tuple(names if not isinstance(names, str) else [names])
-    sol.guard = None
     return sol

@@ -9,6 +9,7 @@ import numpy as np
 from .functions import POWER_TERMS
 from .methods import METHODS
 from .native.engine import native_reason, simulate_native
+from .options import SWITCHING_OPTIONS, check_run_options as checked_options
 from .progress import ProgressBar
 from .results import Outputs, with_coordinates
 from .runtime.arguments import input_function, parameters_from, state_vector, unknown_name
@@ -17,7 +18,7 @@ from .scipy_engine import solve_scipy
 ENGINES = (None, "native", "scipy")
 
 
-def simulate(mod, t_span, y0, method="RK45", params=None, inputs=None, rtol=1e-6, atol=1e-9,
+def simulate(mod, t_span, y0=None, method="RK45", params=None, inputs=None, rtol=1e-6, atol=1e-9,
              t_eval=None, dense_output=False, events=None, engine=None, max_steps=None,
              max_wall_time=None, progress=False, sensitivities=None, **options):
     """Integrate ẏ = mod.rhs(t, y) over `t_span` from `y0` = [q0, q̇0], natively in C or with
@@ -27,7 +28,8 @@ def simulate(mod, t_span, y0, method="RK45", params=None, inputs=None, rtol=1e-6
     ----------
     mod : a built model (either backend)
     t_span : (t0, t1)
-    y0 : array of 2n numbers, or a dict of coordinate and `<coordinate>_dot` names (missing: 0)
+    y0 : array of 2n numbers, or a dict of coordinate and `<coordinate>_dot` names (missing: 0);
+        None: the model's `initial_state` (declared with `model.initial_state`, else zeros)
     method : one of METHODS or a solver class; the stiff ones get the analytic `mod.jacobian`
         (Radau and BDF run as `lagrgen.solvers` classes: SciPy's, with direct LAPACK LU)
     params : dict of parameter names (or the model's Symbols) -> value, or a full array
@@ -61,7 +63,10 @@ def simulate(mod, t_span, y0, method="RK45", params=None, inputs=None, rtol=1e-6
     A constrained model's result also has `constraint_forces` (λ, n_constraints × len(t), with
     M·q̈ = F + Aᵀλ) and `constraint_residuals` (Φ then A·q̇ + b, (n_holonomic + n_constraints) ×
     len(t)), `constraint_names` and `multipliers` ({name: λ row}, the reaction asked for by
-    the constraint's name). Its initial state should satisfy the constraints (see
+    the constraint's name). A model with impacts or frictions also has `contact_names` and
+    `contact_forces` (each impact's contact force, 0 while open, then each friction's force along
+    its slip velocity: the sticking force, or −μ·N·sign(v) while slipping), which
+    `multipliers` holds by name too. Its initial state should satisfy the constraints (see
     `lagrgen.consistent_state`; Baumgarte stabilization pulls a small violation back).
 
     Raises
@@ -70,9 +75,12 @@ def simulate(mod, t_span, y0, method="RK45", params=None, inputs=None, rtol=1e-6
     MassMatrixError when M is not positive definite, ConstraintError when the constraints are
     redundant at the initial state or become dependent during the run.
     """
-    check_run_options(method, engine, max_steps, max_wall_time, options)
+    check_run_options(method, engine, options)
     t_span = time_span(t_span)
-    y0 = state_vector(y0, tuple(mod.coordinates))
+    rtol, atol, t_eval, max_steps, max_wall_time, options = checked_options(
+        rtol, atol, t_span, t_eval, max_steps, max_wall_time, options)
+    refuse_switching_options(mod, options)
+    y0 = state_vector(mod.initial_state if y0 is None else y0, tuple(mod.coordinates))
     p = parameters_from(mod, params)
     u_at = input_function(mod, inputs)
     if sensitivities is not None:
@@ -113,8 +121,9 @@ def simulate(mod, t_span, y0, method="RK45", params=None, inputs=None, rtol=1e-6
     return finished_result(mod, sol, p, u_at, method)
 
 
-def check_run_options(method, engine, max_steps, max_wall_time, options):
-    """TypeError/ValueError for arguments no engine takes, before any work is done."""
+def check_run_options(method, engine, options):
+    """TypeError/ValueError for arguments no engine takes, before any work is done (the numeric
+    options: `lagrgen.options.check_run_options`)."""
     if "args" in options:
         raise TypeError("simulate() takes no 'args': pass parameters as params={name: value} "
                         "(or a full parameter array) and inputs as inputs={name: value or f(t)}")
@@ -122,11 +131,14 @@ def check_run_options(method, engine, max_steps, max_wall_time, options):
         raise ValueError(f"unknown method {method!r}: use one of {', '.join(METHODS)}")
     if engine not in ENGINES:
         raise ValueError(f"engine must be None, 'native' or 'scipy', not {engine!r}")
-    if max_steps is not None and not (int(max_steps) == max_steps and max_steps > 0):
-        raise ValueError(f"max_steps must be a positive integer, got {max_steps!r}")
-    if max_wall_time is not None and not max_wall_time > 0:
-        raise ValueError(f"max_wall_time must be a positive number of seconds, got "
-                         f"{max_wall_time!r}")
+
+
+def refuse_switching_options(mod, options):
+    """ValueError for rest_velocity, gap_tol or max_transitions given for a smooth model."""
+    given = [k for k in SWITCHING_OPTIONS if k in options]
+    if given and not mod.nonsmooth_definitions:
+        raise ValueError(f"{given[0]} applies to a model with impacts or frictions "
+                         "(model.impact, model.friction); this model has none")
 
 
 def run_sensitivities(mod, t_span, y0, method, p, u_at, rtol, atol, names, events, max_steps,
@@ -136,12 +148,11 @@ def run_sensitivities(mod, t_span, y0, method, p, u_at, rtol, atol, names, event
     if mod.nonsmooth_definitions or events is not None or mod.event_definitions:
         raise ValueError("sensitivities are computed for smooth models without events: this "
                          "model has impacts, friction or events")
-    if max_steps is not None or max_wall_time is not None:
-        raise ValueError("max_steps and max_wall_time are not available with sensitivities")
     if mod.n_constraints:
         from .constraints import check_state
         check_state(mod, t_span[0], y0, p, u_at(t_span[0]))
-    return solve_sensitivities(mod, t_span, y0, method, p, u_at, rtol, atol, names, **options)
+    return solve_sensitivities(mod, t_span, y0, method, p, u_at, rtol, atol, names,
+                               max_steps=max_steps, max_wall_time=max_wall_time, **options)
 
 
 def time_span(t_span):
@@ -168,8 +179,13 @@ def finished_result(mod, sol, p, u_at, method=None):
     if mod.n_constraints:
         from .constraints import along
         sol.constraint_forces, sol.constraint_residuals = along(mod, sol, p, u_at)
+        if mod.nonsmooth_definitions:      # with the contacts held: the hybrid solve's λ
+            sol.constraint_forces = sol.hybrid_constraint_forces
         sol.constraint_names = tuple(mod.constraint_names)
         sol.multipliers = dict(zip(sol.constraint_names, sol.constraint_forces))
+    if mod.nonsmooth_definitions:
+        sol.multipliers = {**(sol.multipliers if mod.n_constraints else {}),
+                           **dict(zip(sol.contact_names, sol.contact_forces))}
     return sol
 
 

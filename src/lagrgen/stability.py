@@ -111,20 +111,24 @@ class EigenvalueSweep:
 
         Parameters
         ----------
-        ax : None (a new figure) or a pair of matplotlib Axes (real, imaginary)
+        ax : None (a new figure), a pair of matplotlib Axes (real, imaginary), or one Axes (the
+            real parts only)
 
         Returns
         -------
-        The pair of Axes.
+        The Axes drawn on (a pair, or the one given).
         """
         import matplotlib.pyplot as plt
         if ax is None:
             _, ax = plt.subplots(2, 1, sharex=True, figsize=(7, 6))
-        ax_re, ax_im = ax
+        single = not isinstance(ax, (tuple, list, np.ndarray))
+        ax_re, ax_im = (ax, None) if single else ax
         v = self.values
+        axes = [a for a in (ax_re, ax_im) if a is not None]
         for b in range(self.eigenvalues.shape[1]):
             line, = ax_re.plot(v, self.eigenvalues[:, b].real, lw=1.4)
-            ax_im.plot(v, self.eigenvalues[:, b].imag, lw=1.4, color=line.get_color())
+            if ax_im is not None:
+                ax_im.plot(v, self.eigenvalues[:, b].imag, lw=1.4, color=line.get_color())
         crossings = self.crossings()
 
         def boundary(i, j):
@@ -136,18 +140,19 @@ class EigenvalueSweep:
         for start, stop in _runs(self.stable):
             lo = v[start] if start == 0 else boundary(start - 1, start)
             hi = v[stop] if stop == len(v) - 1 else boundary(stop, stop + 1)
-            for a in (ax_re, ax_im):
+            for a in axes:
                 a.axvspan(lo, hi, color=stable_color, alpha=0.12, lw=0)
         for value in sorted({c[0] for c in crossings}):
-            for a in (ax_re, ax_im):
+            for a in axes:
                 a.axvline(value, color="k", ls="--", lw=0.8)
             ax_re.annotate(f"{value:.6g}", (value, 0), xytext=(4, 4),
                            textcoords="offset points", fontsize=8)
         ax_re.axhline(0.0, color="k", lw=0.6)
         ax_re.set_ylabel("Re s [1/s]")
-        ax_im.set_ylabel("Im s [rad/s]")
-        ax_im.set_xlabel(self.options.get("label", "value"))
+        axes[-1].set_xlabel(self.options.get("label", "value"))
         ax_re.set_title("eigenvalues (shaded: stable)")
+        if ax_im is not None:
+            ax_im.set_ylabel("Im s [rad/s]")
         return ax
 
 

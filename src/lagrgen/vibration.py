@@ -15,7 +15,7 @@ import numpy as np
 import scipy.linalg
 from scipy.optimize import linear_sum_assignment, root
 
-from .errors import LagrgenError, MassMatrixError, UnknownNameError
+from .errors import LagrgenError, MassMatrixError, NonFiniteError, UnknownNameError
 from .linearization import (FrozenTimeWarning, Linearization, linearize,  # noqa: F401
                             warn_frozen_time)
 from .runtime.arguments import as_vector, input_vector, parameters_from
@@ -43,7 +43,8 @@ class Modes:
     λ < 0: an unstable equilibrium), φ_iᵀ·M·φ_i = 1 (and φᵀ·M·φ = I when K is symmetric; for a
     constrained model the independent modes drawn in all coordinates, T_q·φ).
     State-space modes (`kind == "state"`): one per conjugate pair or real eigenvalue s of A, with
-    ω = |s|, ζ = −Re s/|s| (ζ = −1 for a real s > 0), complex shapes scaled to a largest entry of 1.
+    ω = abs(s), ζ = −Re(s)/abs(s) (ζ = −1 for a real s > 0), complex shapes scaled to a largest
+    entry of 1.
     """
 
     omega: np.ndarray
@@ -55,6 +56,7 @@ class Modes:
     model: object = field(repr=False, default=None)   # the built model analysed (None: from a lin)
     omega_squared: np.ndarray = None
     kind: str = "classical"
+    independent_shapes: np.ndarray = field(repr=False, default=None)  # classical: in lin.coordinates
 
     @property
     def frequencies_hz(self):
@@ -64,7 +66,7 @@ class Modes:
     @property
     def stable(self):
         """Whether no eigenvalue of the state matrix has a positive real part (beyond round-off:
-        ZERO_TOL of the largest |s|)."""
+        ZERO_TOL of the largest abs(s))."""
         s = self.eigenvalues
         return np.bool_(not (s.size and s.real.max() > ZERO_TOL * max(1.0, np.abs(s).max())))
 
@@ -350,12 +352,12 @@ def classical_modes(lin, model=None):
     zeta, omega_d = damping(lin.M, lin.C, lin.K, shapes, np.nan_to_num(omega))
     return Modes(omega=omega, shapes=lin.to_coordinates(shapes), damping_ratios=zeta,
                  omega_damped=omega_d, eigenvalues=lin.eigenvalues, linearization=lin,
-                 model=model, omega_squared=lam, kind="classical")
+                 model=model, omega_squared=lam, kind="classical", independent_shapes=shapes)
 
 
 def state_modes(lin, model=None):
     """Modes of δẋ = A·δx: one per conjugate pair (the s with Im s > 0) or real eigenvalue s,
-    ω = |s|, ζ = −Re s/|s|, ascending by ω; shapes are the coordinate part of basis·v."""
+    ω = abs(s), ζ = −Re(s)/abs(s), ascending by ω; shapes are the coordinate part of basis·v."""
     s, vectors = np.linalg.eig(lin.A) if lin.A.size else (np.zeros(0), np.zeros((0, 0)))
     scale = max(1.0, np.abs(s).max(initial=0.0))
     keep = [i for i in range(len(s)) if s[i].imag > ZERO_TOL * scale
@@ -367,7 +369,7 @@ def state_modes(lin, model=None):
     order = np.lexsort((s.real, omega))
     s, vectors, omega = s[order], vectors[:, order], omega[order]
     with np.errstate(invalid="ignore", divide="ignore"):
-        zeta = np.where(omega > ZERO_TOL * scale, -s.real / omega, 0.0)
+        zeta = np.where(omega > ZERO_TOL * scale, -s.real / omega, 0.0) + 0.0   # no −0
     shapes = (lin.basis @ vectors)[:len(lin.q0)]
     for i in range(shapes.shape[1]):
         big = shapes[np.argmax(np.abs(shapes[:, i])), i]
@@ -380,7 +382,10 @@ def state_modes(lin, model=None):
 
 
 def check_mass_matrix(lin):
-    """Raise MassMatrixError unless lin.M is symmetric positive definite."""
+    """Raise MassMatrixError unless lin.M is symmetric positive definite (NonFiniteError when
+    an entry overflowed)."""
+    if not np.isfinite(lin.M).all() and np.isfinite(lin.q0).all():
+        raise NonFiniteError.in_mass_matrix(lin.name, lin.t, lin.q0)
     try:
         np.linalg.cholesky(lin.M)
     except np.linalg.LinAlgError:

@@ -13,6 +13,7 @@ import sys
 import numpy as np
 
 from ..errors import LagrgenError
+from .arguments import check_numeric_options
 
 #: The command modules, in the order `python -m lagrgen --help` lists them.
 COMMANDS = (
@@ -44,6 +45,7 @@ def main(argv=None):
     """Run the command line `argv` (default: sys.argv[1:]); return the exit status."""
     args = parser().parse_args(argv)
     try:
+        check_numeric_options(args)
         return args.run(args)
     except BrokenPipeError:
         return closed_pipe()

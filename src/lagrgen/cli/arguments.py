@@ -63,6 +63,33 @@ def add_run_options(parser):
                         "separate items with ';' or ','")
 
 
+# -- numeric options ---------------------------------------------------------------------------
+#: The run options a command may take (its attribute, its flag, the rule of lagrgen.options).
+NUMERIC_OPTIONS = (("rtol", "--rtol", "relative_tolerance"),
+                   ("atol", "--atol", "absolute_tolerance"),
+                   ("max_step", "--max-step", "max_step"),
+                   ("max_steps", "--max-steps", "count"),
+                   ("max_time", "--max-time", "seconds"))
+
+
+def check_numeric_options(args):
+    """LagrgenError naming the flag when a numeric run option is out of its range: the rules of
+    `lagrgen.options`, which `simulate`, ensembles and the FMU's settings apply too."""
+    from .. import options
+    for attribute, flag, rule in NUMERIC_OPTIONS:
+        value = getattr(args, attribute, None)
+        if value is None:
+            continue
+        try:
+            if rule == "max_step":
+                options.max_step(value)
+            else:
+                getattr(options, rule)(value, flag)
+        except ValueError as exc:
+            text = str(exc)
+            raise LagrgenError(text if text.startswith(flag) else f"{flag}: {text}") from None
+
+
 # -- model files -------------------------------------------------------------------------------
 def models_in(path, names=None):
     """The Model objects defined at top level of the model file `path` (optionally by name)."""
@@ -196,12 +223,13 @@ def inputs_option(args, model, constant=False):
 
 
 def initial_state(text, model):
-    """y0 = [q0, q̇0] from "v1,v2,..." (n or 2n numbers) or "name=v,name'=v,..." (others 0)."""
+    """y0 = [q0, q̇0] from "v1,v2,..." (n or 2n numbers) or "name=v,name'=v,..." (others 0);
+    without text, the model's initial state (`model.initial_state`, else zeros)."""
     names = model.coordinate_names
     n = len(names)
-    y0 = np.zeros(2 * n)
     if not text:
-        return y0
+        return np.array(model.initial_values or [0.0] * (2 * n), dtype=float)
+    y0 = np.zeros(2 * n)
     if "=" not in text:
         values = [number(v, "--y0") for v in text.split(",") if v.strip()]
         if len(values) not in (n, 2 * n):
@@ -223,34 +251,46 @@ def initial_state(text, model):
 
 # -- sweep ranges ------------------------------------------------------------------------------
 def sweep_range(text, option="--param"):
-    """(name, values) from NAME=START:STOP:N (the value of `option`)."""
+    """(name, values) from NAME=START:STOP:N (the value of `option`), N at most
+    `lagrgen.sweep.MAX_SWEEP_VALUES`."""
+    from ..sweep import MAX_SWEEP_VALUES
     name, sep, spec = text.partition("=")
     parts = spec.split(":")
     if not sep or len(parts) != 3 or not name.strip().isidentifier():
-        raise LagrgenError(f"{option}: expected NAME=START:STOP:N, got {text!r}")
+        raise LagrgenError(f"{option}: expected NAME=START:STOP:N, got {text[:80]!r}")
     start, stop = number(parts[0], f"{option} START"), number(parts[1], f"{option} STOP")
-    try:
-        count = int(parts[2])
-    except ValueError:
-        count = 0
-    if count < 1:
-        raise LagrgenError(f"{option}: N must be a positive whole number, got {parts[2]!r}")
-    return name.strip(), np.linspace(start, stop, count)
+    count = parts[2].strip()
+    if not (count.isdigit() and len(count) <= 9 and 1 <= int(count) <= MAX_SWEEP_VALUES):
+        raise LagrgenError(f"{option}: N must be a whole number from 1 to {MAX_SWEEP_VALUES}, "
+                           f"got {count[:20]!r}{'...' if len(count) > 20 else ''}")
+    return name.strip(), np.linspace(start, stop, int(count))
 
 
 # -- CSV records -------------------------------------------------------------------------------
 def read_record(path):
     """(column names without their units, values (rows, columns)) of a CSV with a header row,
-    as `simulate --csv` writes it (t first)."""
-    with open(path, newline="") as stream:
-        rows = list(csv.reader(stream))
+    as `simulate --csv` writes it (t first); UTF-8, with or without a byte-order mark. A field
+    longer than the csv module's limit, or bytes that are not UTF-8, are one-line errors."""
+    try:
+        with open(path, newline="", encoding="utf-8-sig") as stream:
+            reader = csv.reader(stream)
+            try:
+                rows = list(reader)
+            except csv.Error as exc:
+                raise LagrgenError(f"{path}, line {reader.line_num}: not a CSV record of numbers "
+                                   f"({exc})") from None
+    except UnicodeDecodeError as exc:
+        raise LagrgenError(f"{path}: not a UTF-8 text file (byte {exc.start}: "
+                           f"{exc.reason})") from None
+    except OSError as exc:
+        raise LagrgenError(f"cannot read the record {path}: {exc.strerror or exc}") from None
     if len(rows) < 3:
         raise LagrgenError(f"{path}: a header row and at least two rows of samples are needed")
     names = [cell.split(" [")[0].strip() for cell in rows[0]]
     try:
         values = np.array([[float(v) for v in row] for row in rows[1:] if row], dtype=float)
     except ValueError as exc:
-        raise LagrgenError(f"{path}: every sample must be a number ({exc})") from None
+        raise LagrgenError(f"{path}: every sample must be a number ({str(exc)[:80]})") from None
     if values.ndim != 2 or values.shape[1] != len(names):
         raise LagrgenError(f"{path}: every row must have {len(names)} values like the header")
     return names, values

@@ -16,7 +16,8 @@ def add(sub):
         example="python -m lagrgen bench examples/double_pendulum.py --methods RK45 Radau "
                 "--output bench.md")
     add_model_file(b)
-    b.add_argument("--y0", metavar="VALUES", help="initial state (default: every q = 0.1, q' = 0)")
+    b.add_argument("--y0", metavar="VALUES", help="initial state (default: the model's initial "
+                   "state, else every q = 0.1, q' = 0)")
     b.add_argument("--t-end", type=float, default=10.0, help="end time of the solve (default 10)")
     b.add_argument("--methods", nargs="+", metavar="METHOD",
                    help=f"solve_ivp methods (default: {' '.join(BENCH_METHODS)})")
@@ -37,7 +38,7 @@ def run(args):
     for model in models_in(args.model_file, args.model):
         def fresh(name=model.name):
             return models_in(args.model_file, [name])[0]
-        y0 = initial_state(args.y0, model) if args.y0 else None
+        y0 = initial_state(args.y0, model) if args.y0 or model.initial_values else None
         if y0 is not None and model.constraint_names:
             from ..build import build
             from ..constraints import consistent_state

@@ -27,7 +27,8 @@ def add(sub):
     s.add_argument("--t-start", type=float, default=0.0, metavar="T0", help="start time (default 0)")
     s.add_argument("--y0", metavar="VALUES",
                    help="initial state: n positions or 2n values q, q' separated by commas, or "
-                   "COORD=VALUE,COORD'=VALUE (or COORD_dot=VALUE); default all zero")
+                   "COORD=VALUE,COORD'=VALUE (or COORD_dot=VALUE; the others 0); default the "
+                   "model's initial state (model.initial_state), else all zero")
     s.add_argument("--inputs", action="append", metavar="NAME=VALUE,...",
                    help="inputs: numbers or expressions of t, e.g. F=0.5*sin(2*t) (default 0); "
                    "repeat the flag or separate items with ';' (commas inside brackets stay: "
@@ -142,7 +143,7 @@ def write_outputs(args, model, sol, params, mod=None, plot_outputs=()):
     from ..simulate import evaluate_outputs
     written = []
     names = model.coordinate_names
-    units = model.units
+    units = model.units if mod is None else mod.units      # the built model's: energies too
     outputs = evaluate_outputs(mod, sol) if mod is not None and len(sol.t) else None
     if args.csv == "-":
         write_csv(sys.stdout, sol, names, outputs, units)

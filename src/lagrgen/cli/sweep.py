@@ -24,7 +24,8 @@ def add(sub):
                    help="an input as an expression of t, the swept name and the parameters, "
                    "e.g. F=A*sin(w*t)")
     s.add_argument("--t-end", type=float, required=True, metavar="T", help="end time of each run")
-    s.add_argument("--y0", metavar="VALUES", help="initial state, as for simulate (default 0)")
+    s.add_argument("--y0", metavar="VALUES", help="initial state, as for simulate (default: the "
+                   "model's initial state, else 0)")
     s.add_argument("--measure", choices=MEASURES, default="amplitude",
                    help="amplitude (half peak-to-peak), max (largest |q|) or final (default "
                    "amplitude), over the steady window")

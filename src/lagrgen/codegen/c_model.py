@@ -15,9 +15,32 @@ def read_template(name):
     return (TEMPLATES / name).read_text()
 
 
+#: The longest string literal every ISO C99 compiler must accept (5.2.4.1; -pedantic warns).
+MAX_C_STRING = 4095
+#: Bytes that stand for themselves in a C string: printable ASCII but the quote, the backslash
+#: and the question mark (the first character of a trigraph such as ??/, a backslash in ISO C).
+SAFE_C_BYTES = frozenset(b for b in range(0x20, 0x7F) if chr(b) not in '"\\?')
+C_ESCAPES = {ord('"'): '\\"', ord("\\"): "\\\\"}
+
+
 def c_string(text):
-    """`text` as a C string literal (ASCII only: everything else as \\u escapes of JSON)."""
-    return '"' + text.replace("\\", "\\\\").replace('"', '\\"') + '"'
+    """`text` (UTF-8) as an ISO C string literal: `"` and `\\` escaped, every other byte that is
+    not printable ASCII, and `?`, as a three-digit octal escape, so that no user text can end
+    the literal (trigraphs included) or reach the compiler as code."""
+    return '"' + "".join(chr(b) if b in SAFE_C_BYTES else C_ESCAPES.get(b, f"\\{b:03o}")
+                         for b in text.encode("utf-8")) + '"'
+
+
+def c_char_array(text):
+    """The initializer of a NUL-terminated `const char x[]` holding `text` (UTF-8): a string
+    literal (`c_string`) up to MAX_C_STRING bytes, else the bytes as numbers (beyond ASCII as
+    octal character constants), 20 a line."""
+    data = text.encode("utf-8")
+    if len(data) <= MAX_C_STRING:
+        return c_string(text)
+    codes = [str(b) if b < 0x80 else f"'\\{b:03o}'" for b in data] + ["0"]
+    lines = [", ".join(codes[i:i + 20]) for i in range(0, len(codes), 20)]
+    return "{\n    " + ",\n    ".join(lines) + "\n}"
 
 
 def legend(info):
@@ -92,8 +115,7 @@ def kernel_functions(equations, max_statements=400, units=None, names=None):
                            for a in inputs)
         params += "".join(f", double {pointer}{o}" for o in outputs)
         args = ", ".join(inputs) + "".join(f", {o}" for o in outputs)
-        unused = [o for o in outputs if not kernel.outputs.get(o)]
-        prologue = "    " + " ".join(f"(void){a};" for a in (*inputs, *unused)) + "\n"
+        prologue = "    " + " ".join(f"(void){a};" for a in (*inputs, *outputs)) + "\n"
         if lanes:
             stmts = in_lanes(stmts, kernel.spec.lanes, lanes)
         limit = part_limit(kernel, max_statements)
@@ -195,7 +217,7 @@ def model_source(info, equations, max_statements=400, functions=FUNCTIONS):
         coordinate_names=_names(info.coordinates),
         parameter_names=_names(info.parameters), input_names=_names(info.inputs),
         defaults=", ".join(_double(d) for d in defaults),
-        metadata=c_string(info.to_json()))
+        metadata=c_char_array(info.to_json()))
 
 
 def module_source(info, units=0, functions=FUNCTIONS, template="module.c.in"):

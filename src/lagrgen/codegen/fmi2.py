@@ -56,6 +56,11 @@ def parameter_start_values(info, params=None):
     return out
 
 
+def state_start_values(info):
+    """Start values of the states [q, q̇]: the model's initial state, else zeros."""
+    return [float(v) for v in info.initial_state] or [0.0] * (2 * len(info.coordinates))
+
+
 def fmu_guid(info, start_values, start_time, stop_time, settings=()):
     """A GUID determined by the model's content hash and what the description adds to it
     (`settings`: the kind, FMI version and solver start values)."""
@@ -138,12 +143,13 @@ def model_description(info, guid, start_values, start_time=0.0, stop_time=10.0, 
             **attributes})
         ET.SubElement(sv, type_, real)
 
+    start = state_start_values(info)
     for i, c in enumerate(q):
         variable(i, {"causality": "output", "variability": "continuous", "initial": "exact"},
-                 {"start": "0.0"}, f"coordinate {c} (a state)")
+                 {"start": number_text(start[i])}, f"coordinate {c} (a state)")
     for i, c in enumerate(q):
         variable(n + i, {"causality": "local", "variability": "continuous", "initial": "exact"},
-                 {"start": "0.0"}, f"rate of {c} (a state)")
+                 {"start": number_text(start[n + i])}, f"rate of {c} (a state)")
     for i in range(2 * n):
         variable(2 * n + i, {"causality": "local", "variability": "continuous",
                              "initial": "calculated"},

@@ -8,8 +8,8 @@ value reference. The C side is `templates/fmi3.c.in`; the shared variables in `f
 from xml.etree import ElementTree as ET
 
 from .._version import __version__
-from .fmi2 import (number_text, method_items, output_description, source_file_names,
-                  value_references, variable_names, xml_text)
+from .fmi2 import (method_items, number_text, output_description, source_file_names,
+                   state_start_values, value_references, variable_names, xml_text)
 
 
 def model_description_fmi3(info, token, start_values, start_time=0.0, stop_time=10.0,
@@ -54,12 +54,13 @@ def model_description_fmi3(info, token, start_values, start_time=0.0, stop_time=
 
     variable(vr["time"], {"causality": "independent", "variability": "continuous"},
              "simulation time", name="time")
+    start = state_start_values(info)
     for i, c in enumerate(q):
         variable(i, {"causality": "output", "variability": "continuous", "initial": "exact",
-                     "start": "0.0"}, f"coordinate {c} (a state)")
+                     "start": number_text(start[i])}, f"coordinate {c} (a state)")
     for i, c in enumerate(q):
         variable(n + i, {"causality": "local", "variability": "continuous", "initial": "exact",
-                         "start": "0.0"}, f"rate of {c} (a state)")
+                         "start": number_text(start[n + i])}, f"rate of {c} (a state)")
     for i in range(2 * n):
         variable(2 * n + i, {"causality": "local", "variability": "continuous",
                              "initial": "calculated", "derivative": str(i)},

@@ -9,7 +9,6 @@ communication step is one solve of the native engine (a C port of SciPy's solve_
 inputs held, its method and tolerances the parameters solver.method, solver.rtol, solver.atol.
 """
 import io
-import math
 import platform
 import shutil
 import sys
@@ -20,11 +19,12 @@ from string import Template
 
 from ..errors import BuildError, ModelError
 from ..methods import NATIVE_CODES, NATIVE_METHODS
+from ..options import absolute_tolerance, relative_tolerance
 from ..toolchain import compiler_command, run_compiler, write_atomic
 from ..functions import MODEL_UNIT, functions_of
 from .c_model import TEMPLATES, read_template, standalone_files, substitutions
 from .fmi2 import (fmu_guid, model_description, number_text, numbers_text,
-                   parameter_start_values, source_file_names)
+                   parameter_start_values, source_file_names, state_start_values)
 from .fmi3 import build_description, model_description_fmi3
 
 FMI_HEADERS = {2: TEMPLATES / "fmi2", 3: TEMPLATES / "fmi3"}
@@ -67,16 +67,11 @@ def check_kind(kind, fmi_version):
 
 def solver_start_values(method, rtol, atol):
     """(method index, rtol, atol) of a co-simulation FMU's solver parameters; ValueError for an
-    unknown method or a tolerance that is not positive (rtol) or not >= 0 (atol)."""
+    unknown method or a tolerance out of range (`lagrgen.options`: rtol in (0, 1), atol ≥ 0)."""
     if method not in NATIVE_METHODS:
         raise ValueError(f"method {method!r} has no native implementation: use one of "
                          f"{', '.join(NATIVE_METHODS)}")
-    rtol, atol = float(rtol), float(atol)
-    if not (math.isfinite(rtol) and rtol > 0):
-        raise ValueError(f"rtol must be positive, got {rtol}")
-    if not (math.isfinite(atol) and atol >= 0):
-        raise ValueError(f"atol must be zero or positive, got {atol}")
-    return NATIVE_CODES[method], rtol, atol
+    return NATIVE_CODES[method], relative_tolerance(rtol), absolute_tolerance(atol)
 
 
 def fmu_core(info, guid, start_values, solver):
@@ -85,6 +80,7 @@ def fmu_core(info, guid, start_values, solver):
     method, rtol, atol = solver
     return Template(read_template("fmu_core.c.in")).substitute(
         substitutions(info), guid=guid, start_parameters=numbers_text(start_values),
+        start_states=numbers_text(state_start_values(info)),
         n_events_or_1=max(len(events), 1), n_outputs_or_1=max(len(info.output_names), 1),
         event_terminal=numbers_text(terminal for _, terminal, _ in events),
         event_direction=numbers_text(direction for _, _, direction in events),

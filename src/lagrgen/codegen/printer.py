@@ -352,7 +352,7 @@ def c_function(name, params, args, statements, comment, max_statements=400, prol
         lines += [f"{indent}w[{slot_of(slot[s.name])}] = {s.name};" for s in chunk
                   if isinstance(s, Declare) and s.name in slot]
         text = (f"LG_FN {linkage} void {name}_part{k}({params}, double *w)\n{{\n{prologue}"
-                + open_loop + "\n".join(lines) + close_loop + "\n}\n")
+                + "    (void)w;\n" + open_loop + "\n".join(lines) + close_loop + "\n}\n")
         if tu_of_part:
             text = f"#if LG_IN_TU({tu_of_part(k)})\n{text}#endif\n"
         parts.append(text)

@@ -152,7 +152,8 @@ def solve(str method, uintptr_t rhs, uintptr_t jacobian, int dim, p, list inputs
           double tf, y0, double rtol, atol, double max_step, double first_step, t_eval,
           bint dense, uintptr_t events=0, event_max=None, event_direction=None,
           bint stop_on_nonfinite=False, long max_steps=0, double max_wall_time=0.0,
-          Poll poll=None, uintptr_t directional=0, sensitivity_index=None):
+          Poll poll=None, uintptr_t directional=0, sensitivity_index=None,
+          double save_budget=0.0):
     """Run one solve in C without the GIL.
 
     Parameters
@@ -180,6 +181,9 @@ def solve(str method, uintptr_t rhs, uintptr_t jacobian, int dim, p, list inputs
         method react to it as SciPy's do (rejected steps, Newton failures).
     max_steps, max_wall_time : int, float
         Stop after this many accepted steps / seconds (0: no limit); `stopped` says which.
+    save_budget : float
+        Without max_steps and t_eval: the doubles the solve may save (0: lg_ode.h's
+        LG_SAVE_BUDGET, < 0: no bound); beyond it the solve stops (stopped 4).
     poll : Poll or None
         Called about every poll.interval seconds; its exception (KeyboardInterrupt on Ctrl-C) is
         raised here after the solve has stopped and freed its memory.
@@ -192,7 +196,8 @@ def solve(str method, uintptr_t rhs, uintptr_t jacobian, int dim, p, list inputs
     Returns
     -------
     dict
-        t, y (len(t), dim), status, stopped (0, or 1/2/3: max_steps, max_wall_time, poll),
+        t, y (len(t), dim), status, stopped (0, or 1/2/3/4: max_steps, max_wall_time, poll,
+        the save budget),
         t_reached (when stopped), message, nfev, njev, nlu, n_steps, seg (steps, 5),
         coef (1-D), ev (k, 2) of (index, t), ev_y (k, dim), model_failure (0, 1 mass matrix
         not positive definite, 2 events function, 3 non-finite derivative), fail_t, fail_y (the
@@ -264,6 +269,7 @@ def solve(str method, uintptr_t rhs, uintptr_t jacobian, int dim, p, list inputs
                     0 if te is None else te.shape[0], dense, stop_on_nonfinite, max_steps,
                     max_wall_time)
         op.y0 = <const double *>cnp.PyArray_DATA(y0a)
+        op.save_budget = save_budget
         set_poll(&op, poll)
         with nogil:
             rc = lg_solve(&pb, &op, &res)
@@ -473,7 +479,9 @@ cdef extern from "lg_hybrid.h":
         double t_reached
         char message[256]
         long nfev, n_steps, n_segments
-        lg_buf_t t, y, transitions
+        int failure, failed_element
+        double failed_value, failed_other
+        lg_buf_t t, y, forces, transitions
     int lg_hybrid_solve(lg_hybrid_t *, const lg_options_t *, lg_hybrid_result_t *) nogil
     void lg_hybrid_result_free(lg_hybrid_result_t *) nogil
 
@@ -482,7 +490,7 @@ def solve_hybrid(str method, uintptr_t terms, int n, int m, int ni, int nf, norm
                  normal_index, p, list inputs, double t0, double tf, y0, double rtol, atol,
                  double max_step, double first_step, t_eval, double rest_velocity,
                  double gap_tol, long max_transitions, Poll poll=None, long max_steps=0,
-                 double max_wall_time=0.0):
+                 double max_wall_time=0.0, double save_budget=0.0):
     """Run a hybrid solve (lagrgen/native/lg_hybrid.c) in C without the GIL.
 
     Parameters
@@ -499,8 +507,10 @@ def solve_hybrid(str method, uintptr_t terms, int n, int m, int ni, int nf, norm
     Returns
     -------
     dict
-        t, y (len(t), 2n), transitions (k, 3) of (t, element, kind code), contact (ni),
-        slip (nf), status, message, nfev, n_segments.
+        t, y (len(t), 2n), forces (len(t), m + ni + nf) (lg_hybrid_result_t.forces),
+        transitions (k, 3) of (t, element, kind code), contact (ni),
+        slip (nf), status, message, nfev, n_segments, failure (an LG_HY_* code of
+        lg_hybrid.h) with failed_element, failed_value, failed_other.
     """
     if method not in METHOD_CODES:
         raise ValueError(f"method {method!r} has no native implementation")
@@ -546,6 +556,7 @@ def solve_hybrid(str method, uintptr_t terms, int n, int m, int ni, int nf, norm
                     NULL if te is None else <const double *>cnp.PyArray_DATA(te),
                     0 if te is None else te.shape[0], False, True, max_steps, max_wall_time)
         op.y0 = <const double *>cnp.PyArray_DATA(y0a)
+        op.save_budget = save_budget
         set_poll(&op, poll)
         with nogil:
             rc = lg_hybrid_solve(&hy, &op, &res)
@@ -558,7 +569,10 @@ def solve_hybrid(str method, uintptr_t terms, int n, int m, int ni, int nf, norm
                         message=res.message.decode(), nfev=res.nfev, n_steps=res.n_steps,
                         stopped=res.stopped, t_reached=res.t_reached,
                         n_segments=res.n_segments, transitions=buf_array(&res.transitions, 3),
-                        contact=contact[:ni].copy(), slip=slip[:nf].copy())
+                        forces=buf_array(&res.forces, m + ni + nf),
+                        contact=contact[:ni].copy(), slip=slip[:nf].copy(),
+                        failure=res.failure, failed_element=res.failed_element,
+                        failed_value=res.failed_value, failed_other=res.failed_other)
         finally:
             lg_hybrid_result_free(&res)
     finally:

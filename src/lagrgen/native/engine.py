@@ -17,6 +17,8 @@ from scipy.integrate._ivp.rk import Dop853DenseOutput, RkDenseOutput
 
 from ..errors import MassMatrixError, NonFiniteError
 from ..methods import BY_NAME, NATIVE_METHODS
+from ..options import (absolute_tolerance, count, first_step as checked_first_step,
+                       max_step as checked_max_step, output_times, relative_tolerance, seconds)
 from ..results import stopped_by_guard
 from ..runtime.arguments import input_specs, python_callable_inputs
 
@@ -73,13 +75,28 @@ def simulate_native(mod, t_span, y0, method, p, inputs, u_at, rtol, atol, t_eval
                        dense_output, events, stop_on_nonfinite=True, max_steps=max_steps,
                        max_wall_time=max_wall_time, poll=Poll(progress), **options)
     raise_native_failure(mod, sol, p, u_at)
-    sol.guard = None
-    if sol.stopped in ("max_steps", "max_wall_time"):
-        limit = max_steps if sol.stopped == "max_steps" else f"{max_wall_time:g} s"
-        what = "step" if sol.stopped == "max_steps" else "wall-time"
-        stopped_by_guard(sol, f"the {what} limit {sol.stopped}={limit} was reached",
-                         sol.t_reached, float(t_span[1]), sol.n_steps)
+    report_guard(sol, t_span, max_steps, max_wall_time)
     return sol
+
+
+def report_guard(sol, t_span, max_steps, max_wall_time):
+    """Set `sol.guard` (None, or why max_steps / max_wall_time stopped the native solve) and say
+    so in its message."""
+    sol.guard = None
+    if sol.stopped in ("max_steps", "max_wall_time", "saved"):
+        stopped_by_guard(sol, guard_reason(sol.stopped, max_steps, max_wall_time),
+                         sol.t_reached, float(t_span[1]), sol.n_steps)
+
+
+def guard_reason(stopped, max_steps, max_wall_time):
+    """Why a native solve stopped: `stopped` is a name of STOPPED."""
+    if stopped == "saved":
+        return (f"the native engine saves at most {SAVE_BUDGET_GIB:g} GiB of steps without "
+                "t_eval or max_steps (give t_eval for the times you need, or max_steps to allow "
+                "more)")
+    limit = max_steps if stopped == "max_steps" else f"{max_wall_time:g} s"
+    what = "step" if stopped == "max_steps" else "wall-time"
+    return f"the {what} limit {stopped}={limit} was reached"
 
 
 def native_events(mod):
@@ -92,13 +109,16 @@ def native_events(mod):
 
 def raise_native_failure(mod, sol, p, u_at):
     """Raise, for a native solve, the error the SciPy engine raises at the same point: the
-    model's own error at the state where it failed, or NonFiniteError."""
+    model's own error at the state where it failed, or NonFiniteError. The state is the model's
+    own (2n) part of an augmented one (sensitivities)."""
+    dim = 2 * mod.n_coordinates
     if sol.mass_matrix_failure is not None:
         t, y = sol.mass_matrix_failure
-        mod.rhs(t, y, p, u_at(t))
+        mod.rhs(t, y[:dim], p, u_at(t))
         raise MassMatrixError.at(mod.name, t, y[:mod.n_coordinates])
     if sol.nonfinite_failure is not None:
-        raise NonFiniteError.at(mod.name, *sol.nonfinite_failure)
+        t, y = sol.nonfinite_failure
+        raise NonFiniteError.at(mod.name, t, y[:dim])
 
 
 def _tolerances(rtol, atol, dim):
@@ -108,28 +128,16 @@ def _tolerances(rtol, atol, dim):
                       f"Setting `rtol = np.maximum(rtol, {100 * EPS})`.", stacklevel=3)
     if np.ndim(rtol) != 0:
         raise ValueError("the native engine takes a scalar rtol")
-    rtol = float(rtol)       # _ode clips it to 100 EPS; Radau/BDF's Newton tolerance uses it as given
-    atol = np.asarray(atol, dtype=float)
+    rtol = relative_tolerance(rtol)  # _ode clips it to 100 EPS; Radau/BDF's Newton uses it
+    atol = np.asarray(absolute_tolerance(atol), dtype=float)
     if atol.ndim > 0 and atol.shape != (dim,):
-        raise ValueError("`atol` has wrong shape.")
-    if np.any(atol < 0):
-        raise ValueError("`atol` must be positive.")
+        raise ValueError(f"atol must be one number or {dim} (one per state), got {atol.size}")
     return rtol, np.ascontiguousarray(np.broadcast_to(atol, (dim,)), dtype=float)
 
 
 def _t_eval(t_eval, t0, tf):
-    """solve_ivp's t_eval checks; returns a float array in the direction of integration."""
-    if t_eval is None:
-        return None
-    t_eval = np.asarray(t_eval, dtype=float)
-    if t_eval.ndim != 1:
-        raise ValueError("`t_eval` must be 1-dimensional.")
-    if np.any(t_eval < min(t0, tf)) or np.any(t_eval > max(t0, tf)):
-        raise ValueError("Values in `t_eval` are not within `t_span`.")
-    d = np.diff(t_eval)
-    if tf > t0 and np.any(d <= 0) or tf < t0 and np.any(d >= 0):
-        raise ValueError("Values in `t_eval` are not properly sorted.")
-    return np.ascontiguousarray(t_eval)
+    """t_eval checked as every engine checks it (`lagrgen.options.output_times`)."""
+    return output_times(t_eval, t0, tf)
 
 
 def _event_arrays(events):
@@ -179,7 +187,7 @@ def _interpolant(dense, row, coef, dim):
 def solve_native(mod, t_span, y0, method="RK45", p=None, u_spec=None, rtol=1e-3, atol=1e-6,
                  t_eval=None, dense_output=False, events=None, max_step=np.inf,
                  first_step=None, stop_on_nonfinite=False, max_steps=None, max_wall_time=None,
-                 poll=None, sensitivity_index=None):
+                 poll=None, sensitivity_index=None, save_budget=0.0):
     """Integrate a compiled model entirely in C, step for step as `solve_ivp`.
 
     Parameters
@@ -217,6 +225,9 @@ def solve_native(mod, t_span, y0, method="RK45", p=None, u_spec=None, rtol=1e-3,
         Integrate the forward sensitivities with the state (native/lg_sensitivity.h): one entry
         per column, a parameter index or −1 for an initial state; y0 (and atol, the results)
         are then of the augmented state [y, S_1, …, S_k].
+    save_budget : float
+        Without max_steps and t_eval, the doubles (t, y, dense coefficients) the solve may
+        save before it stops (`stopped` "saved"): 0 the default 2^27 (1 GiB), < 0 no bound.
     poll : lagrgen.native._ode.Poll, optional
         Run about every 0.05 s of wall time (signals, progress, a stop flag); its exception
         (KeyboardInterrupt on Ctrl-C) ends the solve and is raised.
@@ -245,17 +256,8 @@ def solve_native(mod, t_span, y0, method="RK45", p=None, u_spec=None, rtol=1e-3,
     if len(u_spec) != len(mod.inputs):
         raise ValueError(f"{len(mod.inputs)} input descriptions needed, got {len(u_spec)}")
     rtol, atol = _tolerances(rtol, atol, dim)
-    max_step = float(max_step)
-    if max_step <= 0:
-        raise ValueError("`max_step` must be positive.")
-    if first_step is None:
-        first = 0.0
-    else:
-        first = float(first_step)
-        if first <= 0:
-            raise ValueError("`first_step` must be positive.")
-        if first > abs(tf - t0):
-            raise ValueError("`first_step` exceeds bounds.")
+    max_step = checked_max_step(max_step)
+    first = checked_first_step(first_step, (t0, tf)) or 0.0
     te = _t_eval(t_eval, t0, tf)
     ev_addr, ev_max, ev_dir = _event_arrays(events)
     sensitive = sensitivity_index is not None
@@ -264,7 +266,8 @@ def solve_native(mod, t_span, y0, method="RK45", p=None, u_spec=None, rtol=1e-3,
     out = _ode.solve(method, cm.function_address("rhs"), jac, dim, p, list(u_spec), t0, tf,
                      y0, rtol, atol, max_step, first, te, bool(dense_output), ev_addr,
                      ev_max, ev_dir, bool(stop_on_nonfinite), _limit(max_steps, "max_steps"),
-                     _limit(max_wall_time, "max_wall_time"), poll, directional, sensitivity_index)
+                     _limit(max_wall_time, "max_wall_time"), poll, directional, sensitivity_index,
+                     float(save_budget))
     ts, ys = out["t"], out["y"].T.copy()
     sol = None
     if dense_output:
@@ -295,14 +298,13 @@ def solve_native(mod, t_span, y0, method="RK45", p=None, u_spec=None, rtol=1e-3,
 
 
 #: lg_result_t.stopped -> the name of the limit that ended the solve.
-STOPPED = {0: None, 1: "max_steps", 2: "max_wall_time", 3: "poll"}
+STOPPED = {0: None, 1: "max_steps", 2: "max_wall_time", 3: "poll", 4: "saved"}
+#: lg_ode.h's LG_SAVE_BUDGET (2^27 doubles) in GiB.
+SAVE_BUDGET_GIB = 2 ** 27 * 8 / 2 ** 30
 
 
 def _limit(value, name):
-    """A guard for the C core: None -> 0 (no limit); otherwise a positive number."""
-    if value is None:
-        return 0
-    if not value > 0 or (name == "max_steps" and int(value) != value):
-        kind = "integer" if name == "max_steps" else "number of seconds"
-        raise ValueError(f"{name} must be a positive {kind}, got {value!r}")
-    return int(value) if name == "max_steps" else float(value)
+    """A guard for the C core: None -> 0 (no limit); otherwise checked by `lagrgen.options`."""
+    if name == "max_steps":
+        return count(value, name) or 0
+    return seconds(value, name) or 0.0

@@ -33,7 +33,7 @@ typedef struct {
     double *P, *Minv, *work, *D, *WP, *impulse, *after, *target, *before, *e;
     int *row_of_impact, *row_of_friction, *involved, *closing, *resting, *bounced;
     int n_bounced;
-    double *fastest, *fy, *fy2, *yp;
+    double *fastest, *fy, *fy2, *yp, *force_row;
     const int *contact, *slip;     /* the mode of the current evaluation */
     lg_hybrid_result_t *result;
 } hy_ctx;
@@ -44,6 +44,8 @@ void lg_hybrid_result_free(lg_hybrid_result_t *r)
     free(r->t.data);
     free(r->y.data);
     free(r->transitions.data);
+    free(r->forces.data);
+    memset(&r->forces, 0, sizeof r->forces);
     memset(&r->t, 0, sizeof r->t);
     memset(&r->y, 0, sizeof r->y);
     memset(&r->transitions, 0, sizeof r->transitions);
@@ -418,19 +420,65 @@ static int hy_settle(hy_ctx *c, double t, const double *y, int record)
     return 0;
 }
 
-static int hy_start(hy_ctx *c, double t, const double *y)
+/* 2 (result->failure set) when a restitution is outside [0, 1] or a friction coefficient out
+ * of range in the terms at hand (NaN is out of every range), else 0. */
+static int hy_check_coefficients(hy_ctx *c)
+{
+    lg_hybrid_result_t *r = c->result;
+    for (int i = 0; i < c->ni; ++i)
+        if (!(IMP(c, i)[3] >= 0.0 && IMP(c, i)[3] <= 1.0)) {
+            r->failure = LG_HY_RESTITUTION;
+            r->failed_element = i;
+            r->failed_value = IMP(c, i)[3];
+            return 2;
+        }
+    for (int j = 0; j < c->nf; ++j) {
+        double mu = FR(c, j)[2], mu_s = FR(c, j)[3];
+        if (!(mu >= 0.0) || !(mu_s >= mu)) {
+            r->failure = mu >= 0.0 ? LG_HY_MU_STATIC : LG_HY_MU;
+            r->failed_element = j;
+            r->failed_value = mu >= 0.0 ? mu_s : mu;
+            r->failed_other = mu;
+            return 2;
+        }
+    }
+    return 0;
+}
+
+static int hy_impacts(hy_ctx *c, double t, double *y, int nc);
+
+/* The initial mode, classified as at any switch: a closed gap (g <= gap_tol) closing
+ * (ġ < -1000·gap_tol) is struck, one at rest held, one opening free; a gap below -gap_tol is a
+ * start inside the surface (2, failure LG_HY_INSIDE). y changes when struck. */
+static int hy_start(hy_ctx *c, double t, double *y)
 {
     lg_hybrid_t *h = c->h;
+    double still = 1e3 * h->gap_tol;
+    int nc = 0, err;
     hy_inputs(c, t);
     if (hy_solve_mode(c, t, y))
         return 1;
-    for (int i = 0; i < c->ni; ++i)
-        if (IMP(c, i)[0] <= h->gap_tol && IMP(c, i)[1] <= 0)
+    if (hy_check_coefficients(c))
+        return 2;
+    for (int i = 0; i < c->ni; ++i) {
+        double g = IMP(c, i)[0], gd = IMP(c, i)[1];
+        if (!(g >= -h->gap_tol)) {
+            c->result->failure = LG_HY_INSIDE;
+            c->result->failed_element = i;
+            c->result->failed_value = g;
+            return 2;
+        }
+        if (g <= h->gap_tol && gd < -still)
+            c->closing[nc++] = i;
+        else if (g <= h->gap_tol && gd <= still)
             h->contact[i] = 1;
+    }
     for (int j = 0; j < c->nf; ++j) {
         double v = FR(c, j)[0];
-        h->slip[j] = fabs(v) <= 1e3 * h->gap_tol ? 0 : (v > 0 ? 1 : -1);
+        h->slip[j] = fabs(v) <= still ? 0 : (v > 0 ? 1 : -1);
     }
+    if (nc && (err = hy_impacts(c, t, y, nc)))
+        return err;
     return hy_settle(c, t, y, 0);
 }
 
@@ -489,6 +537,8 @@ static int hy_switch(hy_ctx *c, double t, double *y, int *fired, int nfired)
     hy_inputs(c, t);
     if (hy_terms(c, t, y, c->u))
         return 1;
+    if (hy_check_coefficients(c))
+        return 2;
     for (int i = 0; i < c->ni; ++i) {
         int hit = 0;
         for (int a = 0; a < nfired; ++a)
@@ -532,6 +582,34 @@ static int hy_switch(hy_ctx *c, double t, double *y, int *fired, int nfired)
         }
     }
     return hy_settle(c, t, y, 1);
+}
+
+/* The forces (lg_hybrid_result_t.forces) of the output rows saved since the last call, all in
+ * the mode (contact, slip); 0, or -1 when out of memory. */
+static int hy_forces_since(hy_ctx *c, const int *contact, const int *slip)
+{
+    lg_hybrid_result_t *res = c->result;
+    int n = c->n, k = c->m + c->ni + c->nf;
+    double *row = c->force_row;
+    for (size_t r = k ? res->forces.len / k : res->t.len; r < res->t.len; ++r) {
+        double t = res->t.data[r];
+        hy_inputs(c, t);
+        if (hy_solve(c, t, res->y.data + r * 2 * n, c->u, contact, slip)) {
+            for (int a = 0; a < k; ++a)
+                row[a] = NAN;
+        } else {
+            for (int q = 0; q < c->m; ++q)
+                row[q] = c->x[n + q];
+            for (int i = 0; i < c->ni; ++i)
+                row[c->m + i] = c->lam_i[i];
+            for (int j = 0; j < c->nf; ++j)
+                row[c->m + c->ni + j] = slip[j] == 0 ? c->lam_f[j]
+                                        : -FR(c, j)[2] * slip[j] * c->normal[j];
+        }
+        if (k && lg_buf_push(&res->forces, row, k))
+            return -1;
+    }
+    return 0;
 }
 
 /* Half the predicted flight of a contact that just bounced (inf when none). */
@@ -625,6 +703,8 @@ int lg_hybrid_solve(lg_hybrid_t *h, const lg_options_t *options, lg_hybrid_resul
     c.closing = hy_alloc(blocks, &nb, (h->ni + 1) * sizeof(int));
     c.resting = hy_alloc(blocks, &nb, (h->ni + 1) * sizeof(int));
     c.bounced = hy_alloc(blocks, &nb, (h->ni + 1) * sizeof(int));
+    c.force_row = hy_alloc(blocks, &nb, (rmax + 1) * D);
+    int *opened = hy_alloc(blocks, &nb, (h->ni + 1) * sizeof(int));
     double *y = hy_alloc(blocks, &nb, dim * D);
     double *emax = hy_alloc(blocks, &nb, (ne + 1) * D);
     double *edir = hy_alloc(blocks, &nb, (ne + 1) * D);
@@ -652,9 +732,18 @@ int lg_hybrid_solve(lg_hybrid_t *h, const lg_options_t *options, lg_hybrid_resul
     int err = hy_start(&c, t, y);
     if (err) {
         res->status = -1;
-        snprintf(res->message, sizeof res->message, err < 0 ? "out of memory" :
+        if (err == 1)
+            res->failure = LG_HY_MODEL;
+        snprintf(res->message, sizeof res->message, err < 0 ? "out of memory" : err == 2 ?
+                 "the initial state or coefficients are invalid" :
                  "the model failed at the initial state (mass matrix or mode equations singular)");
         rc = err < 0 ? -1 : 0;
+        goto done;
+    }
+    if (!options->t_eval && res->transitions.len       /* struck at the start: before, after */
+        && (lg_buf_push(&res->t, &t, 1) || lg_buf_push(&res->y, options->y0, dim)
+            || hy_forces_since(&c, opened, h->slip))) {
+        rc = -1;
         goto done;
     }
     if (!options->t_eval && (lg_buf_push(&res->t, &t, 1) || lg_buf_push(&res->y, y, dim))) {
@@ -669,18 +758,39 @@ int lg_hybrid_solve(lg_hybrid_t *h, const lg_options_t *options, lg_hybrid_resul
         }
         ++eval_i;
     }
+    if (hy_forces_since(&c, h->contact, h->slip)) {
+        rc = -1;
+        goto done;
+    }
     snprintf(res->message, sizeof res->message, "The solver successfully reached the end.");
     double interval = options->poll_interval > 0 ? options->poll_interval : 0.05;
     double started = hy_wall_seconds(), next_poll = started + interval;
+    double far = fmax(fabs(options->t0), fabs(tf));
+    double least = 10 * fabs(nextafter(far, INFINITY) - far);   /* as lg_solve's stall test */
+    double budget = options->max_steps > 0 || options->t_eval || options->save_budget < 0 ? 0
+                    : (options->save_budget > 0 ? options->save_budget : (double)LG_SAVE_BUDGET);
+    long no_progress = 0;
     while (t < tf) {
-        if (options->poll && hy_wall_seconds() >= next_poll) {   /* between segments too */
+        double t_start = t;
+        int stop = 0;                                   /* the guards hold between segments too */
+        if (options->max_steps > 0 && res->n_steps >= options->max_steps)
+            stop = LG_STOP_STEPS;
+        else if (options->max_wall_time > 0
+                 && hy_wall_seconds() - started > options->max_wall_time)
+            stop = LG_STOP_WALL;
+        else if (budget > 0 && (double)(res->t.len + res->y.len) > budget)
+            stop = LG_STOP_SAVED;
+        else if (options->poll && hy_wall_seconds() >= next_poll) {
             next_poll = hy_wall_seconds() + interval;
-            if (options->poll(options->poll_ctx, t)) {
-                res->status = -1;
-                res->stopped = LG_STOP_POLL;
-                snprintf(res->message, sizeof res->message, "stopped at t = %.9g", t);
-                break;
-            }
+            if (options->poll(options->poll_ctx, t))
+                stop = LG_STOP_POLL;
+        }
+        if (stop) {
+            res->status = -1;
+            res->stopped = stop;
+            res->t_reached = t;
+            snprintf(res->message, sizeof res->message, "stopped at t = %.9g", t);
+            break;
         }
         memcpy(mode_c, h->contact, (h->ni + 1) * sizeof(int));
         memcpy(mode_s, h->slip, (h->nf + 1) * sizeof(int));
@@ -710,6 +820,8 @@ int lg_hybrid_solve(lg_hybrid_t *h, const lg_options_t *options, lg_hybrid_resul
         if (options->max_wall_time > 0)
             op.max_wall_time = fmax(options->max_wall_time - (hy_wall_seconds() - started),
                                     1e-9);
+        if (budget > 0)
+            op.save_budget = fmax(budget - (double)(res->t.len + res->y.len), 1.0);
         op.t0 = t;
         op.tf = t_end;
         op.y0 = y;
@@ -751,6 +863,8 @@ int lg_hybrid_solve(lg_hybrid_t *h, const lg_options_t *options, lg_hybrid_resul
                 goto done;
             }
             lg_result_free(&seg);
+            if (hy_forces_since(&c, mode_c, mode_s))
+                rc = -1;
             break;
         }
         if (seg.status < 0) {
@@ -777,10 +891,23 @@ int lg_hybrid_solve(lg_hybrid_t *h, const lg_options_t *options, lg_hybrid_resul
             rc = -1;
             goto done;
         }
+        if (hy_forces_since(&c, mode_c, mode_s)) {
+            lg_result_free(&seg);
+            rc = -1;
+            goto done;
+        }
         if (seg.status == 0) {
             memcpy(y, seg.y.data + (rows - 1) * dim, dim * D);
             t = t_end;
             lg_result_free(&seg);
+            no_progress = t - t_start < least ? no_progress + 1 : 0;
+            if (no_progress >= LG_HY_STALL_SEGMENTS) {
+                res->status = -1;
+                res->failure = LG_HY_STALLED;
+                res->t_reached = t;
+                snprintf(res->message, sizeof res->message, "no progress at t = %.9g", t);
+                break;
+            }
             continue;
         }
         /* terminal event(s): the earliest time, every event found there */
@@ -800,6 +927,9 @@ int lg_hybrid_solve(lg_hybrid_t *h, const lg_options_t *options, lg_hybrid_resul
         err = hy_switch(&c, t, y, fired, nfired);
         if (err) {
             res->status = -1;
+            res->t_reached = t;
+            if (err == 1)
+                res->failure = LG_HY_MODEL;
             snprintf(res->message, sizeof res->message, err < 0 ? "out of memory" :
                      "at t = %.9g the model failed while switching modes", t);
             rc = err < 0 ? -1 : 0;
@@ -812,9 +942,18 @@ int lg_hybrid_solve(lg_hybrid_t *h, const lg_options_t *options, lg_hybrid_resul
                      "(raise max_transitions, or check the model)", h->max_transitions, t);
             break;
         }
-        if (!options->t_eval && (lg_buf_push(&res->t, &t, 1) || lg_buf_push(&res->y, y, dim))) {
+        if (!options->t_eval && (lg_buf_push(&res->t, &t, 1) || lg_buf_push(&res->y, y, dim)
+                                 || hy_forces_since(&c, h->contact, h->slip))) {
             rc = -1;
             goto done;
+        }
+        no_progress = t - t_start < least ? no_progress + 1 : 0;
+        if (no_progress >= LG_HY_STALL_SEGMENTS) {
+            res->status = -1;
+            res->failure = LG_HY_STALLED;
+            res->t_reached = t;
+            snprintf(res->message, sizeof res->message, "no progress at t = %.9g", t);
+            break;
         }
     }
 done:

@@ -15,6 +15,14 @@ extern "C" {
 
 /* Transition kinds (lg_hybrid_result_t.transitions rows are (t, element, kind)). */
 enum { LG_IMPACT = 0, LG_CONTACT = 1, LG_RELEASE = 2, LG_STICK = 3, LG_SLIP = 4 };
+/* Why a hybrid solve failed (lg_hybrid_result_t.failure): the model's functions or the mode
+ * equations (singular); a start inside an impact's surface (gap < -gap_tol); a restitution
+ * outside [0, 1]; mu < 0; mu_static < mu (failed_element: the impact or friction, failed_value
+ * and failed_other: the values); no progress (LG_HY_STALL_SEGMENTS segments in a row shorter
+ * than ten spacings of doubles at the far end of the span). */
+enum { LG_HY_OK = 0, LG_HY_MODEL = 1, LG_HY_INSIDE = 2, LG_HY_RESTITUTION = 3, LG_HY_MU = 4,
+       LG_HY_MU_STATIC = 5, LG_HY_STALLED = 6 };
+#define LG_HY_STALL_SEGMENTS 100
 /* What a friction's normal force is: an expression, a constraint's or an impact's multiplier. */
 enum { LG_NORMAL_EXPRESSION = 0, LG_NORMAL_CONSTRAINT = 1, LG_NORMAL_IMPACT = 2 };
 
@@ -40,14 +48,23 @@ typedef struct {
     double t_reached;            /* where it stopped */
     char message[256];
     long nfev, n_steps, n_segments;
+    int failure;                 /* LG_HY_*: why status is -1 (0 when stopped or fine) */
+    int failed_element;
+    double failed_value, failed_other;
     lg_buf_t t, y;               /* output times and states */
+    lg_buf_t forces;             /* per output time, in the mode of that time: λ of the model's
+                                  * constraints (m), the contact forces (ni, 0 while open), the
+                                  * friction forces along the slip direction (nf: the sticking
+                                  * multiplier, or −μ·|N|·s while slipping); NaN if singular */
     lg_buf_t transitions;        /* (t, element, kind) triples */
 } lg_hybrid_result_t;
 
 /* Run a hybrid solve from y0 over [t0, tf] (options: method, tolerances, max_step, t_eval; its
- * y0, t0, tf, dense and events are set per segment). The initial mode is settled first (closed
- * gaps with ġ <= 0 held, frictions with v = 0 tried sticking). Returns 0 when it ran (the
- * outcome in result->status), -1 when out of memory. Always free the result. */
+ * y0, t0, tf, dense and events are set per segment). The initial mode is classified as at any
+ * switch (closed gaps closing struck, at rest held, opening free; frictions with v = 0 tried
+ * sticking). max_steps, max_wall_time (and the default save budget) bound the whole solve,
+ * max_transitions the switches. Returns 0 when it ran (the outcome in result->status and
+ * result->failure), -1 when out of memory. Always free the result. */
 int lg_hybrid_solve(lg_hybrid_t *h, const lg_options_t *options, lg_hybrid_result_t *result);
 void lg_hybrid_result_free(lg_hybrid_result_t *result);
 

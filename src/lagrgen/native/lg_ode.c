@@ -1681,12 +1681,23 @@ static double wall_seconds(void)
     return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
 }
 
+/* The doubles a solve without max_steps and t_eval may save (0: none bound). */
+static double save_budget(const lg_options_t *op)
+{
+    if (op->max_steps > 0 || op->t_eval || op->save_budget < 0)
+        return 0;
+    return op->save_budget > 0 ? op->save_budget : (double)LG_SAVE_BUDGET;
+}
+
 /* The guards after an accepted step: LG_STOP_* when the solve must end here, else 0. */
 static int guard_stop(const lg_options_t *op, const lg_result_t *r, double t, double start,
                       double *next_poll)
 {
     if (op->max_steps > 0 && r->n_steps >= op->max_steps)
         return LG_STOP_STEPS;
+    double budget = save_budget(op);
+    if (budget > 0 && (double)(r->t.len + r->y.len + r->seg.len + r->coef.len) > budget)
+        return LG_STOP_SAVED;
     if (op->max_wall_time <= 0 && !op->poll)
         return 0;
     double now = wall_seconds();
@@ -1754,6 +1765,9 @@ int lg_solve(const lg_problem_t *pb, const lg_options_t *op, lg_result_t *r)
     if (pb->n_events && eval_events(&s, op->t0, op->y0, g))
         goto model_failed;
     int i_eval = 0, finished = 0;
+    double far = fmax(fabs(op->t0), fabs(op->tf));
+    double stall_step = 10 * fabs(nextafter(far, INFINITY) - far);
+    long short_steps = 0;
     while (1) {
         rc = solver_step(&s, &finished);
         if (rc == 1) {
@@ -1766,6 +1780,7 @@ int lg_solve(const lg_problem_t *pb, const lg_options_t *op, lg_result_t *r)
         if (finished)
             status = 0;
         r->n_steps++;
+        short_steps = fabs(s.t - s.t_old) < stall_step ? short_steps + 1 : 0;
         double t_out = s.t;
         const double *y_out = s.y;
         if (op->dense) {
@@ -1810,6 +1825,14 @@ int lg_solve(const lg_problem_t *pb, const lg_options_t *op, lg_result_t *r)
             status = terminate ? 1 : 0;
             break;
         }
+        if (short_steps >= LG_STALL_STEPS) {
+            status = -1;
+            set_message(r, "the step size collapsed: %ld steps in a row below %.3g (10 spacings "
+                        "of doubles at %.6g), the last %.3g at t = %.6g: it cannot reach t = %.6g "
+                        "(the model is too stiff for this method, or its parameters run away)",
+                        short_steps, stall_step, far, fabs(s.t - s.t_old), s.t, op->tf);
+            break;
+        }
         r->stopped = guard_stop(op, r, s.t, start, &next_poll);
         if (r->stopped) {
             status = -1;
@@ -1819,6 +1842,10 @@ int lg_solve(const lg_problem_t *pb, const lg_options_t *op, lg_result_t *r)
             else if (r->stopped == LG_STOP_WALL)
                 set_message(r, "the wall-time limit max_wall_time=%g s was reached",
                             op->max_wall_time);
+            else if (r->stopped == LG_STOP_SAVED)
+                set_message(r, "the results saved reached the default bound of %.0f doubles "
+                            "(%ld steps) without t_eval or max_steps", save_budget(op),
+                            r->n_steps);
             else
                 set_message(r, "the solve was stopped at t = %.17g", s.t);
             break;

@@ -35,8 +35,18 @@ typedef int (*lg_sys_fn)(void *ctx, double t, const double *y, const double *u, 
 typedef int (*lg_poll_fn)(void *ctx, double t);
 
 enum { LG_RK23 = 0, LG_RK45 = 1, LG_DOP853 = 2, LG_RADAU = 3, LG_BDF = 4 };
-/* Why a solve stopped before tf (lg_result_t.stopped). */
-enum { LG_STOP_NONE = 0, LG_STOP_STEPS = 1, LG_STOP_WALL = 2, LG_STOP_POLL = 3 };
+/* Why a solve stopped before tf (lg_result_t.stopped). LG_STOP_SAVED: the default bound on the
+ * results a solve saves per step (save_budget) was reached. */
+enum { LG_STOP_NONE = 0, LG_STOP_STEPS = 1, LG_STOP_WALL = 2, LG_STOP_POLL = 3,
+       LG_STOP_SAVED = 4 };
+/* Without max_steps and t_eval a solve saves every step: it stops (LG_STOP_SAVED) once that
+ * would exceed this many doubles (t, y and dense coefficients: 1 GiB), so that a run whose step
+ * size collapses cannot take the machine's memory. */
+#define LG_SAVE_BUDGET ((size_t)1 << 27)
+/* A solve fails (status -1) after this many accepted steps in a row shorter than ten spacings of
+ * doubles at the far end of its span (10·|nextafter(T, ±inf) − T|, T = max(|t0|, |tf|), SciPy's
+ * smallest step there): at that pace it could not reach tf in 10^14 steps. */
+#define LG_STALL_STEPS 1000
 enum { LG_SIGNAL_CONSTANT = 0, LG_SIGNAL_LINEAR = 1, LG_SIGNAL_CUBIC = 2,
        LG_SIGNAL_PREVIOUS = 3 };
 
@@ -88,6 +98,8 @@ typedef struct {
     lg_poll_fn poll;            /* NULL: never called */
     void *poll_ctx;
     double poll_interval;       /* seconds between polls (<= 0: 0.05) */
+    double save_budget;         /* doubles a solve without max_steps and t_eval may save
+                                 * (0: LG_SAVE_BUDGET, < 0: no bound) */
 } lg_options_t;
 
 /* A growable array of doubles. */

@@ -12,7 +12,7 @@ cdef extern from "lg_ode.h":
     ctypedef int (*lg_poll_fn)(void *ctx, double t) noexcept nogil
     enum:
         LG_RK23, LG_RK45, LG_DOP853, LG_RADAU, LG_BDF
-        LG_STOP_NONE, LG_STOP_STEPS, LG_STOP_WALL, LG_STOP_POLL
+        LG_STOP_NONE, LG_STOP_STEPS, LG_STOP_WALL, LG_STOP_POLL, LG_STOP_SAVED
     ctypedef struct lg_signal_t:
         int kind
         int m
@@ -53,6 +53,7 @@ cdef extern from "lg_ode.h":
         lg_poll_fn poll
         void *poll_ctx
         double poll_interval
+        double save_budget
     ctypedef struct lg_buf_t:
         double *data
         size_t len, cap

@@ -9,6 +9,8 @@ from dataclasses import dataclass
 import sympy as sp
 from sympy.printing.conventions import split_super_sub
 
+from ..records import Impact
+
 #: trigsimp only entries of at most this many operations, and at most SIMPLIFY_BUDGET in all:
 #: trigsimp's time grows fast with size, and big models must still print quickly.
 SIMPLIFY_MAX_OPS = 100
@@ -144,6 +146,7 @@ def render(model, latex=False, matrices=False, simplify=True):
         out = [f"# {model.name}: M(q, t) q'' = F(q, q', t, u) for q = ({names})",
                *equation_lines(eqs)]
     out += constraint_lines(model, latex)
+    out += nonsmooth_lines(model, latex)
     if matrices:
         out += matrix_lines(eqs, latex)
     units = unit_lines(model)
@@ -183,6 +186,35 @@ def constraint_lines(model, latex=False):
             lines.append(f"{to_text(expr)} = 0    ({kind}, multiplier {name})")
     if latex:
         lines.append(r"\end{aligned}")
+    return lines
+
+
+def nonsmooth_lines(model, latex=False):
+    """The impacts and frictions, one line each (nothing without them): an impact's gap ≥ 0
+    and restitution; a friction's slip velocity, normal force and coefficients."""
+    records = model.nonsmooth
+    if not records:
+        return []
+    rules, names = display_symbols(model)
+
+    def shown(expr):
+        expr = sp.sympify(expr).xreplace(rules)
+        if expr.is_number and expr.is_real:
+            return f"{float(expr):g}"
+        return f"${to_latex(expr, names)}$" if latex else to_text(expr)
+    mark = "%" if latex else "#"
+    lines = [f"{mark} impacts and frictions (a hybrid solve: lagrgen.hybrid)"]
+    for record in records:
+        if isinstance(record, Impact):
+            lines.append(f"{mark} impact {record.name}: {shown(record.gap)} >= 0, restitution "
+                         f"{shown(record.restitution)}")
+            continue
+        normal = (f"the multiplier of {record.normal_force}"
+                  if isinstance(record.normal_force, str) else shown(record.normal_force))
+        static = "" if record.mu_static == record.mu else \
+            f", mu_static = {shown(record.mu_static)}"
+        lines.append(f"{mark} friction {record.name}: slip velocity {shown(record.slip_velocity)}, "
+                     f"normal force {normal}, mu = {shown(record.mu)}{static}")
     return lines
 
 

@@ -45,6 +45,11 @@ def drawn_points(model, p, q, tick=0.0):
             points.append(data[0])
         else:
             points.extend(data)
+    if not points:
+        raise LagrgenError(
+            f"model {model.name!r} draws nothing (no particles, bodies, lines or springs with "
+            "ends): add model.line(...) through the points to show, e.g. for a model from "
+            "lagrgen.from_sympy")
     return np.stack(points, axis=1)
 
 
@@ -85,7 +90,7 @@ def mode_title(model_name, result, k):
     """'name: mode 2, 1.234 Hz, ζ = 0.01' (rigid-body or unstable modes say so)."""
     w = result.omega[k]
     if not np.isfinite(w):
-        what = f"unstable (ω² = {np.real(result.eigenvalues[k]):.3g} rad²/s²)"
+        what = f"unstable (ω² = {np.real(result.omega_squared[k]):.3g} rad²/s²)"
     elif w == 0:
         what = "rigid-body mode (0 Hz)"
     else:
@@ -94,16 +99,17 @@ def mode_title(model_name, result, k):
 
 
 def mode_motion(result, k, amplitude, periods=1, frames_per_period=36):
-    """(times, q of shape (n, frames)): q0 + amplitude·φ_k·sin(ω_k·t) over `periods` periods
-    (the last frame left out so that a looping animation is seamless)."""
+    """(times, q of shape (n, frames)): q0 + amplitude·Im(φ_k·e^(iω_k·t)) over `periods` periods
+    (φ_k·sin(ω_k·t) for a real shape; a complex one moves each coordinate with its own phase),
+    the last frame left out so that a looping animation is seamless."""
     w = result.omega[k]
     period = 2 * np.pi / w if np.isfinite(w) and w > 0 else NOMINAL_PERIOD
     count = max(int(round(periods * frames_per_period)), 2)
     times = np.arange(count) * (periods * period / count)
-    phase = np.sin(2 * np.pi * times / period)
+    turn = np.exp(2j * np.pi * times / period)
     lin = result.linearization
-    shape = np.real(result.shapes[:, k])
-    return times, lin.q0[:, None] + amplitude * shape[:, None] * phase[None, :]
+    motion = np.imag(np.asarray(result.shapes[:, k], dtype=complex)[:, None] * turn[None, :])
+    return times, lin.q0[:, None] + amplitude * motion
 
 
 def check_mode_index(result, k):
@@ -125,7 +131,7 @@ def animate_mode(model, result, k, path, p, amplitude=None, periods=1, frames_pe
     """
     k = check_mode_index(result, k)
     lin = result.linearization
-    shape = np.real(result.shapes[:, k])
+    shape = np.abs(result.shapes[:, k]) if np.iscomplexobj(result.shapes) else result.shapes[:, k]
     if amplitude is None:
         amplitude = visible_amplitude(model, p, lin.q0, shape)
     times, q = mode_motion(result, k, amplitude, periods, frames_per_period)

@@ -20,13 +20,13 @@ from libc.math cimport isfinite
 
 from lagrgen.runtime.abi cimport (LG_ABI_VERSION, LG_CAPSULE_NAME, lg_directions_fn,
                                   lg_function, lg_model_t)
-from lagrgen.errors import BuildError, ConstraintError, MassMatrixError
+from lagrgen.errors import BuildError, ConstraintError, MassMatrixError, NonFiniteError
 from lagrgen.functions import BY_NAME, FUNCTIONS, MODEL_UNIT
 from lagrgen.runtime.describe import BuiltModule
 from lagrgen.runtime.info import INFO_ATTRIBUTES, ModelInfo
 from lagrgen.runtime import units
-from lagrgen.runtime.arguments import (defaults_array, input_vector, parameter_vector,
-                                       require_finite)
+from lagrgen.runtime.arguments import (defaults_array, initial_state_array, input_vector,
+                                       parameter_vector, require_finite)
 
 cnp.import_array()
 
@@ -187,9 +187,13 @@ cdef class CompiledModel:
         dependent constraints."""
         cdef int n = self.n_coordinates
         state = np.array([y[i] for i in range(2 * n)])
-        if self.n_constraints and np.all(np.isfinite(state)):
+        if np.all(np.isfinite(state)) and np.isfinite(t):
             M = np.empty(n * n)
             self.pointer("mass_matrix")(t, y, p, u, <double *>cnp.PyArray_DATA(M))
+            if not np.all(np.isfinite(M)):
+                raise NonFiniteError.in_mass_matrix(self.name, t, state[:n])
+            if not self.n_constraints:
+                raise MassMatrixError.at(self.name, t, state[:n])
             try:
                 np.linalg.cholesky(M.reshape(n, n))
             except np.linalg.LinAlgError:
@@ -373,6 +377,7 @@ def bind_module(module, capsule):
     for attr in INFO_ATTRIBUTES:
         setattr(module, attr, getattr(model.info, attr))
     module.defaults = model.defaults
+    module.initial_state = initial_state_array(model.info)
     module.time_in_c = model.time_in_c
     module.function_address = model.function_address
     module.backend = "c"

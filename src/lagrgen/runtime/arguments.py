@@ -22,6 +22,14 @@ def defaults_array(defaults):
     return out
 
 
+def initial_state_array(info):
+    """A built model's initial state [q0, q̇0] as a read-only float64 array: the declared one,
+    or zeros."""
+    out = np.array(info.initial_state or [0.0] * (2 * len(info.coordinates)), dtype=np.float64)
+    out.setflags(write=False)
+    return out
+
+
 def as_vector(obj, size, what):
     """`obj` as a C-contiguous, aligned, native-order 1-D float64 array of length `size`."""
     try:

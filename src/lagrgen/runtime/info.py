@@ -19,7 +19,8 @@ class ModelInfo:
     `defaults` are floats, None where a value must be given at run time; `event_definitions` are
     (name, terminal, direction) triples; `n_holonomic` counts the holonomic constraints, which come
     first in `constraint_names`; `nonsmooth_definitions` are (name, "impact" | "friction", normal)
-    triples of the impacts and frictions (`lagrgen.nonsmooth`), normal None or (kind, index).
+    triples of the impacts and frictions (`lagrgen.nonsmooth`), normal None or (kind, index);
+    `initial_state` the declared [q0, q̇0] (2n floats), or () when none was declared.
     """
 
     name: str
@@ -36,10 +37,11 @@ class ModelInfo:
     content_hash: str = ""
     lagrgen_version: str = ""
     nonsmooth_definitions: tuple = ()
+    initial_state: tuple = ()
 
     def __post_init__(self):
         for name in ("coordinates", "parameters", "inputs", "defaults", "output_names",
-                     "constraint_names"):
+                     "constraint_names", "initial_state"):
             object.__setattr__(self, name, tuple(getattr(self, name)))
         object.__setattr__(self, "event_definitions",
                            tuple(tuple(e) for e in self.event_definitions))

@@ -24,6 +24,7 @@ class BuiltModel(Protocol):
     parameters: Tuple[str, ...]
     inputs: Tuple[str, ...]
     defaults: np.ndarray          # float64, read-only, NaN where a value must be given at run time
+    initial_state: np.ndarray     # float64 (2n,), read-only: the declared [q0, q̇0], or zeros
     units: Dict[str, str]         # name -> unit label, for the names that have one
     output_names: Tuple[str, ...]  # the user's outputs, then the three energies
     constraint_names: Tuple[str, ...]  # one per multiplier λ: holonomic, then velocity constraints

@@ -9,9 +9,10 @@ import math
 
 import numpy as np
 
-from ..errors import ConstraintError, MassMatrixError
+from ..errors import ConstraintError, MassMatrixError, NonFiniteError
 from ..functions import FUNCTIONS
-from .arguments import as_vector, defaults_array, input_vector, parameter_vector
+from .arguments import (as_vector, defaults_array, initial_state_array, input_vector,
+                        parameter_vector)
 from .describe import describe
 from .info import INFO_ATTRIBUTES
 
@@ -51,6 +52,7 @@ class PythonModel:
         for name in INFO_ATTRIBUTES:
             setattr(self, name, getattr(info, name))
         self.defaults = defaults_array(info.defaults)
+        self.initial_state = initial_state_array(info)
         self.build_info = {}
         self.source = source
         code = compile(source, f"<lagrgen python backend: {self.name}>", "exec")
@@ -78,9 +80,11 @@ class PythonModel:
         """Cholesky factor of the n×n matrix M, or MassMatrixError naming the state: also when M
         is not finite, or a pivot is below PIVOT_TOL times its diagonal entry (numerically
         singular, e.g. a 3-D body at gimbal lock), as in C."""
+        if not np.isfinite(M).all():
+            if np.isfinite(q).all() and np.isfinite(t):
+                raise NonFiniteError.in_mass_matrix(self.name, t, q)
+            raise MassMatrixError.at(self.name, t, q)
         try:
-            if not np.isfinite(M).all():
-                raise np.linalg.LinAlgError
             L = np.linalg.cholesky(M)
         except np.linalg.LinAlgError:
             raise MassMatrixError.at(self.name, t, q) from None
