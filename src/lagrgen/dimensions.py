@@ -60,8 +60,10 @@ def _dimension(expr, units):
     return sp.Integer(1)
 
 
+@functools.lru_cache(maxsize=1024)
 def _si(unit):
-    """(dimension dependencies, scale to SI) of a unit expression."""
+    """(dimension dependencies, scale to SI) of a unit expression (the terms of T and V have few
+    distinct ones: each is converted once)."""
     import sympy.physics.units as u
     from sympy.physics.units.systems.si import SI, dimsys_SI
     dims = dimsys_SI.get_dimensional_dependencies(SI.get_dimensional_expr(unit))
@@ -81,8 +83,8 @@ def energy_unit(equations):
     """The label of the energies of `equations` (`lagrgen.lagrange.Equations`), or None."""
     import sympy.physics.units as u
     spec = equations.spec
-    if equations.energies is None or spec.external is not None:
-        return None
+    if equations.energies is None or spec.external is not None or not spec.units:
+        return None          # no label at all: nothing makes the energies joules
     labels = dict(spec.units)
     units = {sp.Symbol(str(equations.t)): u.second}
     for q, qd, name in zip(equations.q, equations.qd, spec.coordinate_names):
