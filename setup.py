@@ -23,19 +23,29 @@ native = Extension(
     extra_compile_args=["-O3", "-std=c99", "-fno-math-errno", "-fno-fast-math"],
 )
 
+# The collocation NLP's loops over points (lagrgen/collocation/_points.pyx).
+collocation = Extension(
+    "lagrgen.collocation._points",
+    ["src/lagrgen/collocation/_points.pyx"],
+    include_dirs=[numpy.get_include(), TEMPLATES],
+    define_macros=[("NPY_NO_DEPRECATED_API", "NPY_1_7_API_VERSION")],
+    extra_compile_args=["-O2"],
+)
+
 setup(
     packages=["lagrgen", "lagrgen.codegen", "lagrgen.codegen.templates",
               "lagrgen.codegen.templates.functions", "lagrgen.codegen.templates.fmi2",
               "lagrgen.codegen.templates.fmi3",
-              "lagrgen.runtime", "lagrgen.outputs", "lagrgen.native"],
+              "lagrgen.runtime", "lagrgen.outputs", "lagrgen.native", "lagrgen.collocation"],
     package_dir={"": "src"},
     package_data={"lagrgen.codegen.templates": ["*.in", "*.h"],
                   "lagrgen.codegen.templates.functions": ["*.c"],
                   "lagrgen.codegen.templates.fmi2": ["*.h", "*.txt"],
                   "lagrgen.codegen.templates.fmi3": ["*.h", "*.txt"],
                   "lagrgen.runtime": ["*.pxd"],
-                  "lagrgen.native": ["*.c", "*.h", "*.pxd", "LICENSE.scipy", "README.md"]},
-    ext_modules=cythonize([runtime, native], compiler_directives={"language_level": "3"},
+                  "lagrgen.native": ["*.c", "*.h", "*.pxd", "LICENSE.scipy", "README.md"],
+                  "lagrgen.collocation": ["*.pyx"]},
+    ext_modules=cythonize([runtime, native, collocation], compiler_directives={"language_level": "3"},
                           quiet=True, include_path=["src"]),
     zip_safe=False,
 )

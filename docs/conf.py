@@ -101,7 +101,7 @@ API = [
                                  "eigenvalue_sweep", "vibration.Linearization", "vibration.Modes",
                                  "FrozenTimeWarning"]),
     ("Identification", ["fit", "fit_modes", "fit.FitResult", "fit.ModalUpdate"]),
-    ("Optimal motions", ["Collocation"]),
+    ("Optimal motions", ["Collocation", "CollocationResult"]),
     ("Exceptions", ["LagrgenError", "ModelError", "UnknownNameError", "BuildError", "CompileError",
                     "MassMatrixError", "ConstraintError", "NonFiniteError"]),
 ]

@@ -76,8 +76,9 @@ def test_every_registered_function_exists_on_both_backends_with_its_shapes(both)
     q, qd, y = np.full(n, 0.3), np.full(n, -0.2), np.full(2 * n, 0.1)
     for f in FUNCTIONS:
         fn = getattr(both, f.name)
+        a = np.full(n + both.n_constraints, 0.7)
         args = {"state": (0.0, y), "q": (q, 0.0), "q_qd": (q, qd, 0.0),
-                "directions": (0.0, y, np.ones((3, 2 * n)))}[f.call]
+                "directions": (0.0, y, np.ones((3, 2 * n))), "implicit": (q, qd, a, 0.0)}[f.call]
         out = fn(*args)
         outs = out if isinstance(out, tuple) else (out,)
         assert [o.shape for o in outs] == f.shapes({**dims, "k": 3}), f.name
@@ -94,7 +95,8 @@ def test_backends_agree_on_every_registered_function(compile_once):
         for f in FUNCTIONS:
             args = {"state": (0.4, y), "q": (y[:2], 0.4), "q_qd": (y[:2], y[2:], 0.4),
                     "directions": (0.4, y, rng.uniform(-1, 1, (2, 4)),
-                                   rng.uniform(-1, 1, (2, 5)))}[f.call]
+                                   rng.uniform(-1, 1, (2, 5))),
+                    "implicit": (y[:2], y[2:], y[::-1][:2], 0.4)}[f.call]
             a, b = getattr(c, f.name)(*args, p, u), getattr(py, f.name)(*args, p, u)
             for x, z in zip(a if isinstance(a, tuple) else (a,), b if isinstance(b, tuple) else (b,)):
                 assert_allclose(x, z, rtol=1e-12, atol=1e-12)

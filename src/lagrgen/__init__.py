@@ -28,6 +28,7 @@ _LAZY = {
     "consistent_state": "constraints",
     "from_sympy": "sympy_interop",
     "export_fmu": "build",
+    "Collocation": "collocation", "CollocationResult": "collocation",
     "rotation": None,
 }
 
@@ -35,7 +36,7 @@ __all__ = ["Model", "build", "load", "simulate", "evaluate_outputs", "output_eve
            "simulate_many", "EnsembleResult", "open_ensemble", "sweep", "equilibrium", "linearize",
            "modes", "eigenvalue_sweep",
            "frequency_response", "FrozenTimeWarning", "FitWarning", "consistent_state",
-           "from_sympy", "export_fmu", "rotation",
+           "from_sympy", "export_fmu", "rotation", "Collocation", "CollocationResult",
            "LagrgenError", "ConstraintError", "ModelError", "UnknownNameError", "MassMatrixError",
            "BuildError", "CompileError", "NonFiniteError", "ContactError", "StoreError", "StoreWarning",
            "__version__"]

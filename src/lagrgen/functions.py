@@ -7,9 +7,10 @@ methods. Every C model function has the one signature
 
     int <model>_<function>(double t, const double *y, const double *p, const double *u, double *out)
 
-with y = [q, q̇] (q̇ ignored by the functions of q alone), the outputs concatenated row-major in
-`out`, and the result 0 on success or 1 when the mass matrix is not positive definite; a function
-of the call style "directions" also takes k directions (`DIRECTIONS_SIGNATURE`).
+with y = [q, q̇] (q̇ ignored by the functions of q alone; y = [q, q̇, q̈, λ] for the functions of the
+implicit form), the outputs concatenated row-major in `out`, and the result 0 on success or 1 when
+the mass matrix is not positive definite; a function of the call style "directions" also takes k
+directions (`DIRECTIONS_SIGNATURE`).
 This module imports nothing: the compiled runtime reads it at import time.
 """
 from dataclasses import dataclass
@@ -20,6 +21,7 @@ CALL_STYLES = {
     "q_qd": ("q", "qd", "t"),   # f(q, qd, t=0.0, p=None, u=None)
     "state": ("t", "y"),        # f(t, y, p=None, u=None)
     "directions": ("t", "y", "dy", "dp"),   # f(t, y, dy, dp=None, p=None, u=None)
+    "implicit": ("q", "qd", "a", "t"),   # f(q, qd, a, t=0.0, p=None, u=None), a = [q̈, λ]
 }
 
 
@@ -122,6 +124,17 @@ FUNCTIONS = (
                   "M, F, the constraints' A and γ, and the impacts' and frictions' terms "
                   "(lagrgen.nonsmooth) that the hybrid drivers assemble each mode from",
                   ("mf", "constraints", "nonsmooth")),
+    ModelFunction("residual_terms", "implicit",
+                  (Output("r", ("n_implicit",)), Output("dr_dy", ("n_implicit", "2n")),
+                   Output("dr_da", ("n_implicit", "n_implicit")),
+                   Output("dr_du", ("n_implicit", "n_inputs"))),
+                  "r = [M·q̈ − F − Aᵀλ; A·q̈ − γ] of the implicit form at a given a = [q̈, λ], "
+                  "and its derivatives ∂r/∂[q, q̇], ∂r/∂a, ∂r/∂u",
+                  ("mf", "constraints", "jacobian_b", "dF_du", "constraint_jacobian")),
+    ModelFunction("residual_parameter_jacobian", "implicit",
+                  (Output("dr_dp", ("n_implicit", "n_params")),),
+                  "∂r/∂p of r = [M·q̈ − F − Aᵀλ; A·q̈ − γ] at a given a = [q̈, λ]",
+                  ("parameter_b", "constraint_parameter_jacobian"), "parameters"),
 )
 
 BY_NAME = {f.name: f for f in FUNCTIONS}

@@ -27,6 +27,7 @@ COMMANDS = (
     "bench",
     "sweep",
     "fit",
+    "optimize",
 )
 
 

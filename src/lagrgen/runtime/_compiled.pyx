@@ -206,7 +206,8 @@ cdef class CompiledModel:
         """Seconds per call of the C function `which` (e.g. "rhs", "jacobian"), looped inside C."""
         cdef lg_function fn = self.pointer(which)
         cdef int n = self.n_coordinates
-        cdef cnp.ndarray ya = as_f64(y, 2 * n, "y")
+        cdef cnp.ndarray ya = np.zeros(3 * n + self.n_constraints)   # room for [q, q̇, q̈, λ]
+        ya[:2 * n] = as_f64(y, 2 * n, "y")
         cdef cnp.ndarray pa = self.params(p)
         cdef cnp.ndarray ua = self.input_values(u)
         cdef cnp.ndarray out = np.empty(max(f.size(self.dimensions) for f in FUNCTIONS
@@ -314,6 +315,20 @@ cdef class StateArgumentsFunction(BoundFunction):
         return self.evaluate(t, data(ya), p, u)
 
 
+cdef class ImplicitFunction(BoundFunction):
+    """f(q, qd, a, t=0.0, p=None, u=None) with a = [q̈, λ]; new float64 arrays on every call."""
+
+    def __call__(self, q, qd, a, double t=0.0, p=None, u=None):
+        cdef int n = self.model.n_coordinates
+        cdef int m = self.model.n_constraints
+        y = np.empty(3 * n + m)
+        y[:n] = as_f64(q, n, "q")
+        y[n:2 * n] = as_f64(qd, n, "qd")
+        y[2 * n:] = as_f64(a, n + m, "a (the accelerations, then the constraint multipliers)")
+        cdef cnp.ndarray ya = <cnp.ndarray>y
+        return self.evaluate(t, data(ya), p, u)
+
+
 cdef class DirectionsFunction:
     """f(t, y, dy, dp=None, p=None, u=None) -> (ẏ, the derivatives of ẏ along the directions):
     dy is one direction (2n,) or k of them (k, 2n), dp the matching parameter directions (n_params,)
@@ -364,7 +379,7 @@ cdef class DirectionsFunction:
 
 
 CALLABLES = {"state": StateFunction, "q": CoordinateFunction, "q_qd": StateArgumentsFunction,
-             "directions": DirectionsFunction}
+             "implicit": ImplicitFunction, "directions": DirectionsFunction}
 #: The functions not of the one signature lg_function.
 DIRECTION_FUNCTIONS = frozenset(f.name for f in FUNCTIONS if f.call == "directions")
 

@@ -66,6 +66,7 @@ class ModelInfo:
         return {"n": n, "2n": 2 * n, "n_params": len(self.parameters),
                 "n_inputs": len(self.inputs), "n_constraints": m,
                 "n_holonomic": self.n_holonomic, "n_residuals": self.n_holonomic + m,
+                "n_implicit": n + m,
                 "n_events": len(self.event_definitions), "n_power": len(POWER_TERMS),
                 "n_outputs": len(self.output_names),
                 "n_hybrid": sum(HYBRID_FIELDS[kind] + n for _, kind, _ in

@@ -85,6 +85,12 @@ class BuiltModel(Protocol):
         """(M, F, A, γ, terms): what the hybrid drivers assemble each mode from (n_hybrid terms
         of the impacts and frictions, layout in lagrgen.nonsmooth)."""
 
+    def residual_terms(self, q, qd, a, t=0.0, p=None, u=None) -> tuple:
+        """(r, ∂r/∂[q, q̇], ∂r/∂a, ∂r/∂u) of r = [M·q̈ − F − Aᵀλ; A·q̈ − γ], a = [q̈, λ]."""
+
+    def residual_parameter_jacobian(self, q, qd, a, t=0.0, p=None, u=None) -> np.ndarray:
+        """∂r/∂p, (n + n_constraints, n_params), of the same r."""
+
 
 class CompiledBuiltModel(BuiltModel, Protocol):
     """What the C backend adds: its compiled runtime object and the addresses of its C functions."""

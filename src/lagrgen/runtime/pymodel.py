@@ -3,7 +3,8 @@
 Scalars go through `math` on Python floats (faster than NumPy for single values); q̈ comes from
 NumPy's solve. This is the honest baseline the compiled path is measured against. Its methods come
 from the same registry as the compiled ones (`lagrgen.functions`): each has one implementation
-below, `_<name>(t, q, qd, p, u)`, and is called with the arguments of its call style.
+below, `_<name>(t, q, qd, p, u)` (`_<name>(t, q, qd, a, p, u)` for the implicit form), and is
+called with the arguments of its call style.
 """
 import math
 
@@ -256,6 +257,42 @@ class PythonModel:
         dF_du = self._kernel("dF_du", t, q, qd, None, p, u)[0].reshape(n, k)
         return M, B[:, :n].copy(), B[:, n:].copy(), dF_du
 
+    def _residual_terms(self, t, q, qd, a, p, u):
+        n, m, k = self.n_coordinates, self.n_constraints, len(self.inputs)
+        M, F = self._mf(t, q, qd, p, u)
+        acc = np.array(a[:n])
+        r = np.zeros(n + m)
+        r[:n] = M @ acc - F
+        dr_dy = np.zeros((n + m, 2 * n))
+        dr_dy[:n] = -self._b(t, q, qd, a, p, u)
+        dr_da = np.zeros((n + m, n + m))
+        dr_da[:n, :n] = M
+        dr_du = np.zeros((n + m, k))
+        dr_du[:n] = -self._kernel("dF_du", t, q, qd, None, p, u)[0].reshape(n, k)
+        if m:
+            A, gamma = self._kernel("constraints", t, q, qd, None, p, u)
+            A = A.reshape(m, n)
+            H, G = self._kernel("constraint_jacobian", t, q, qd, a, p, u)
+            r[:n] -= A.T @ np.array(a[n:])
+            r[n:] = A @ acc - gamma
+            dr_dy[:n, :n] -= H.reshape(n, n)
+            dr_dy[n:] = -G.reshape(m, 2 * n)
+            dr_da[:n, n:] = -A.T
+            dr_da[n:, :n] = A
+        return r, dr_dy, dr_da, dr_du
+
+    def _residual_parameter_jacobian(self, t, q, qd, a, p, u):
+        n, m, k = self.n_coordinates, self.n_constraints, len(self.parameters)
+        out = np.zeros((n + m, k))
+        if not k:
+            return out
+        out[:n] = -self._kernel("parameter_b", t, q, qd, a, p, u)[0].reshape(n, k)
+        if m:
+            Hp, Gp = self._kernel("constraint_parameter_jacobian", t, q, qd, a, p, u)
+            out[:n] -= Hp.reshape(n, k)
+            out[n:] = -Gp.reshape(m, k)
+        return out
+
     def _outputs(self, t, q, qd, p, u):
         return self._kernel("outputs", t, q, qd, None, p, u)[0]
 
@@ -324,5 +361,15 @@ def _directions_caller(model, impl):
     return call
 
 
+def _implicit_caller(model, impl):
+    n, m = model.n_coordinates, model.n_constraints
+
+    def call(q, qd, a, t=0.0, p=None, u=None):
+        return impl(float(t), as_vector(q, n, "q").tolist(), as_vector(qd, n, "qd").tolist(),
+                    as_vector(a, n + m, "a (the accelerations, then the constraint "
+                              "multipliers)").tolist(), *model._arguments(p, u))
+    return call
+
+
 _CALLERS = {"state": _state_caller, "q": _coordinate_caller, "q_qd": _state_arguments_caller,
-            "directions": _directions_caller}
+            "directions": _directions_caller, "implicit": _implicit_caller}

@@ -1,0 +1,233 @@
+"""The discretization: the collocation points, where each variable sits in the decision vector, the
+defects that tie neighbouring points, the quadrature of integrals, and interpolation between nodes.
+
+Every point j carries z_j = [q, q̇, q̈, λ, u] (the accelerations and multipliers are variables, so
+the defects are linear and all nonlinearity sits in the model's residual r(z) = 0 at each point);
+the decision vector is x = [z_0, …, z_{P−1}, unknown parameters, T (free duration only)]. With
+h = T/(nodes − 1) and x = (q, q̇), f = ẋ = (q̇, q̈) on the interval k:
+
+    trapezoidal      x_{k+1} − x_k − h/2·(f_k + f_{k+1}) = 0                  points = nodes
+    backward-euler   x_{k+1} − x_k − h·f_{k+1} = 0                              points = nodes
+    hermite-simpson  x_e − x_s − h/6·(f_s + 4·f_m + f_e) = 0,                  points = nodes and
+                     x_m − (x_s + x_e)/2 − h/8·(f_s − f_e) = 0                  midpoints
+
+Each defect row is Σ c0·x_col + h·Σ c1·x_col: linear for a fixed duration, bilinear in (T, x) for
+a free one. Integrals are h·Σ_j w_j·L(z_j) with the scheme's weights (trapezoid; right endpoint;
+Simpson). Between nodes a state is the cubic Hermite interpolant of its node values and rates, an
+acceleration or input linear (quadratic through the midpoint for Hermite–Simpson).
+"""
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import LagrgenError
+
+SCHEMES = ("trapezoidal", "hermite-simpson", "backward-euler")
+_ALIASES = {"trapezoid": "trapezoidal", "hs": "hermite-simpson", "simpson": "hermite-simpson",
+            "euler": "backward-euler", "implicit-euler": "backward-euler"}
+#: The point variables in order, and what each is called in names.
+KINDS = ("q", "qd", "qdd", "lam", "u")
+
+
+def scheme_name(scheme):
+    """The canonical name of a collocation scheme ("backward euler" → "backward-euler")."""
+    if not isinstance(scheme, str):
+        raise TypeError(f"scheme must be a string, got {type(scheme).__name__}")
+    key = scheme.strip().lower().replace("_", "-").replace(" ", "-")
+    key = _ALIASES.get(key, key)
+    if key not in SCHEMES:
+        raise LagrgenError(f"unknown collocation scheme {scheme!r}: use one of "
+                           f"{', '.join(map(repr, SCHEMES))}")
+    return key
+
+
+@dataclass(frozen=True)
+class Layout:
+    """Where each variable lives in the decision vector x.
+
+    n coordinates, m constraint multipliers, nu inputs; `unknown` the indices (in the model's
+    parameter order) of the parameters that are variables; `free` whether T is a variable.
+    """
+    n: int
+    m: int
+    nu: int
+    nodes: int
+    scheme: str
+    unknown: tuple
+    free: bool
+    T_scale: float = 1.0     # a free duration's variable is T/T_scale
+
+    @property
+    def points(self):
+        return 2 * self.nodes - 1 if self.scheme == "hermite-simpson" else self.nodes
+
+    @property
+    def stride(self):
+        """Points per node interval (2 with midpoints)."""
+        return 2 if self.scheme == "hermite-simpson" else 1
+
+    @property
+    def nz(self):
+        """Variables per point: q, q̇, q̈ (n each), λ (m), u (nu)."""
+        return 3 * self.n + self.m + self.nu
+
+    @property
+    def ni(self):
+        """Residual rows per point: n dynamics, m constraints at acceleration level."""
+        return self.n + self.m
+
+    def offset(self, kind):
+        """The position of the first variable of `kind` (one of KINDS) within a point."""
+        n, m = self.n, self.m
+        return {"q": 0, "qd": n, "qdd": 2 * n, "lam": 3 * n, "u": 3 * n + m}[kind]
+
+    @property
+    def p_start(self):
+        return self.points * self.nz
+
+    @property
+    def T_index(self):
+        return self.p_start + len(self.unknown) if self.free else None
+
+    @property
+    def dh_dx(self):
+        """∂h/∂x_T of the node interval h = T/(nodes − 1) by the duration's variable."""
+        return self.T_scale / (self.nodes - 1)
+
+    def duration(self, x):
+        """T at the decision vector x (a free duration's variable is T/T_scale)."""
+        return self.T_scale * x[self.T_index]
+
+    @property
+    def size(self):
+        return self.p_start + len(self.unknown) + int(self.free)
+
+    @property
+    def node_points(self):
+        """The point index of each node."""
+        return np.arange(self.nodes) * self.stride
+
+    @property
+    def fractions(self):
+        """Each point's time as a fraction of the duration."""
+        return np.linspace(0.0, 1.0, self.points)
+
+    def index(self, point, kind, i):
+        """The position in x of variable i of `kind` at `point`."""
+        return point * self.nz + self.offset(kind) + i
+
+    def point_block(self, x):
+        """The (points, nz) view of x's point variables."""
+        return x[:self.p_start].reshape(self.points, self.nz)
+
+
+def defects(layout):
+    """The defect rows as triplets (rows, cols, c0, c1) and their count: row = Σ (c0 + h·c1)·x."""
+    n, nz, N = layout.n, layout.nz, layout.nodes
+    comp = np.arange(n)
+    rows, cols, c0, c1 = [], [], [], []
+    if layout.scheme == "hermite-simpson":
+        per = 4 * n
+        start = np.arange(N - 1)[:, None] * 2                  # point of the interval's start
+        base = np.arange(N - 1)[:, None] * per
+        for block, (xk, fk) in enumerate((("q", "qd"), ("qd", "qdd"))):
+            ox, of = layout.offset(xk), layout.offset(fk)
+            simpson = base + block * n + comp                   # x_e − x_s − h/6 (f_s + 4f_m + f_e)
+            hermite = base + 2 * n + block * n + comp   # x_m − (x_s + x_e)/2 − h/8 (f_s − f_e)
+            s, mid, e = start * nz, (start + 1) * nz, (start + 2) * nz
+            for row, col, a, b in (
+                    (simpson, e + ox + comp, 1.0, 0.0), (simpson, s + ox + comp, -1.0, 0.0),
+                    (simpson, s + of + comp, 0.0, -1 / 6), (simpson, mid + of + comp, 0.0, -4 / 6),
+                    (simpson, e + of + comp, 0.0, -1 / 6),
+                    (hermite, mid + ox + comp, 1.0, 0.0), (hermite, s + ox + comp, -0.5, 0.0),
+                    (hermite, e + ox + comp, -0.5, 0.0), (hermite, s + of + comp, 0.0, -1 / 8),
+                    (hermite, e + of + comp, 0.0, 1 / 8)):
+                rows.append(row), cols.append(col)
+                c0.append(np.full(row.shape, a)), c1.append(np.full(row.shape, b))
+    else:
+        per = 2 * n
+        k = np.arange(N - 1)[:, None]
+        base = k * per
+        for block, (xk, fk) in enumerate((("q", "qd"), ("qd", "qdd"))):
+            ox, of = layout.offset(xk), layout.offset(fk)
+            row = base + block * n + comp
+            s, e = k * nz, (k + 1) * nz
+            entries = [(e + ox + comp, 1.0, 0.0), (s + ox + comp, -1.0, 0.0)]
+            if layout.scheme == "trapezoidal":
+                entries += [(s + of + comp, 0.0, -0.5), (e + of + comp, 0.0, -0.5)]
+            else:
+                entries += [(e + of + comp, 0.0, -1.0)]
+            for col, a, b in entries:
+                rows.append(row), cols.append(col)
+                c0.append(np.full(row.shape, a)), c1.append(np.full(row.shape, b))
+    flat = [np.concatenate([a.ravel() for a in arrays]) for arrays in (rows, cols, c0, c1)]
+    return flat[0].astype(np.int64), flat[1].astype(np.int64), flat[2], flat[3], (N - 1) * per
+
+
+def quadrature(layout):
+    """The weights w_j with ∫ L dt ≈ h·Σ_j w_j·L(z_j) (h the node interval)."""
+    P = layout.points
+    if layout.scheme == "trapezoidal":
+        w = np.ones(P)
+        w[[0, -1]] = 0.5
+    elif layout.scheme == "backward-euler":
+        w = np.ones(P)
+        w[0] = 0.0
+    else:
+        w = np.empty(P)
+        w[1::2] = 4 / 6
+        w[0::2] = 2 / 6
+        w[[0, -1]] = 1 / 6
+    return w
+
+
+def interpolation(layout, kind, i, s, duration):
+    """(cols, coefficients) with variable i of `kind` at time s ∈ [0, duration] ≈ Σ c·x[cols].
+
+    States (q, q̇) use the cubic Hermite interpolant of the two nodes' values and rates (the one
+    Hermite–Simpson's midpoint defect imposes); accelerations and inputs are linear between nodes,
+    quadratic through the midpoint for Hermite–Simpson."""
+    N, h = layout.nodes, duration / (layout.nodes - 1)
+    k = int(min(max(np.floor(s / h), 0), N - 2))
+    theta = min(max((s - k * h) / h, 0.0), 1.0)
+    stride = layout.stride
+    start, end = k * stride, (k + 1) * stride
+    if kind in ("q", "qd"):
+        rate = "qd" if kind == "q" else "qdd"
+        th2, th3 = theta * theta, theta ** 3
+        entries = [(layout.index(start, kind, i), 2 * th3 - 3 * th2 + 1),
+                   (layout.index(start, rate, i), h * (th3 - 2 * th2 + theta)),
+                   (layout.index(end, kind, i), -2 * th3 + 3 * th2),
+                   (layout.index(end, rate, i), h * (th3 - th2))]
+    elif stride == 2:
+        entries = [(layout.index(start, kind, i), 2 * (theta - 0.5) * (theta - 1)),
+                   (layout.index(start + 1, kind, i), -4 * theta * (theta - 1)),
+                   (layout.index(end, kind, i), 2 * theta * (theta - 0.5))]
+    else:
+        entries = [(layout.index(start, kind, i), 1 - theta), (layout.index(end, kind, i), theta)]
+    entries = [(c, v) for c, v in entries if v != 0.0]
+    return np.array([c for c, _ in entries], dtype=np.int64), np.array([v for _, v in entries])
+
+
+def interpolate_rows(values_at_points, layout, kind, times, duration, rates=None):
+    """Evaluate the interpolant of `interpolation` for one variable's point values (and, for a
+    state, its rate's point values `rates`) at `times`; both arrays have one value per point."""
+    out = np.empty(len(times))
+    h = duration / (layout.nodes - 1)
+    stride = layout.stride
+    for j, s in enumerate(times):
+        k = int(min(max(np.floor(s / h), 0), layout.nodes - 2))
+        theta = min(max((s - k * h) / h, 0.0), 1.0)
+        a, b = k * stride, (k + 1) * stride
+        if rates is not None:
+            th2, th3 = theta * theta, theta ** 3
+            out[j] = ((2 * th3 - 3 * th2 + 1) * values_at_points[a]
+                      + h * (th3 - 2 * th2 + theta) * rates[a]
+                      + (-2 * th3 + 3 * th2) * values_at_points[b] + h * (th3 - th2) * rates[b])
+        elif stride == 2:
+            out[j] = (2 * (theta - 0.5) * (theta - 1) * values_at_points[a]
+                      - 4 * theta * (theta - 1) * values_at_points[a + 1]
+                      + 2 * theta * (theta - 0.5) * values_at_points[b])
+        else:
+            out[j] = (1 - theta) * values_at_points[a] + theta * values_at_points[b]
+    return out

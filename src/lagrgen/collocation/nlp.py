@@ -1,0 +1,747 @@
+"""The collocation NLP: constraint values, their sparse Jacobian, the objective and its gradient,
+and the exact Hessian of the Lagrangian, for IPOPT (through `cyipopt`).
+
+Constraints, in order: the residual r(z_j) = 0 at every point (`residual_terms` of the model's
+function table, called from C for all points at once); the path constraints at every point (a
+compiled unit); a constrained model's position and velocity levels at the first node; the
+defects (linear, or bilinear in T for a free duration; rows scaled as Δx/h − f); the linear
+instance constraints (periodicity, values between nodes). The objective is h·Σ_j w_j·L(z_j) + T (minimum
+time) + Σ ω·(C·x − d)² (data). The Hessian of σ·f + Σ μ·g is assembled from per-point kernels
+(∇²(μᵀr) of the model, ∇²(μᵀg) of the path, σ·h·w_j·∇²L), the cross terms with T and the data
+term's constant 2σ·CᵀΩC; contributions to one entry are summed (`np.bincount`).
+"""
+import copy
+import time
+
+import numpy as np
+import scipy.sparse as sps
+
+from ..calculus import internal_symbols
+from ..errors import LagrgenError
+from ._points import kernel_rows, residual_rows
+from .grid import defects, interpolation, quadrature
+from .symbolic import (consistency_derivatives, path_derivatives, point_variables_of,
+                       residual_hessian, residual_jacobian_structure, residual_parameter_hessian,
+                       scalar_derivatives, weights)
+from .units import compiled_unit
+
+
+class Transcription:
+    """The NLP of a `Collocation` problem, with the callbacks IPOPT calls."""
+
+    def __init__(self, problem, hessian_kind):
+        self.problem, self.hessian_kind = problem, hessian_kind
+        L = self.layout = problem.layout
+        self.mod = problem.mod
+        self.quad = quadrature(L)
+        self.n_path = len(problem._path)
+        self.exact = hessian_kind == "exact"
+        if self.exact:
+            self._hessian_units()
+        self._residual_structure()
+        self._problem_unit()
+        self._consistency()
+        self._defect_structure()
+        self._linear_rows()
+        self._data_term()
+        self._variable_bounds()
+        self._jacobian_structure()
+        if self.exact:
+            self._hessian_structure()
+        self._entry = None          # (x, the values at x): one tuple, read and replaced whole
+        self.defect_scale = 1.0
+        self.evaluations = {"constraints": 0, "jacobian": 0, "hessian": 0, "objective": 0}
+
+    def bound(self, defect_scale):
+        """A copy of this NLP for one solve, its defect rows scaled by `defect_scale` (1/h of the
+        starting point: rows Δx/h − f), with its own evaluation cache and counts; the structure
+        is shared (nothing of it is written after construction)."""
+        other = copy.copy(self)
+        other.defect_scale = float(defect_scale)
+        other._entry = None
+        other.evaluations = dict.fromkeys(self.evaluations, 0)
+        return other
+
+    # -- structure ---------------------------------------------------------------------------
+    def _residual_structure(self):
+        L, mod = self.layout, self.mod
+        n, m, nu, ni, nz = L.n, L.m, L.nu, L.ni, L.nz
+        s = self.hessian_unit.structure["jacobian"] if self.exact else \
+            residual_jacobian_structure(_equations(self.problem.model))
+        n_params = len(mod.parameters)
+        size1 = ni + ni * 2 * n + ni * ni + ni * nu
+        rows, cols, pick = [], [], []
+        for i in range(ni):
+            for c in range(2 * n):
+                if s["dr_dy"][i][c]:
+                    rows.append(i), cols.append(c), pick.append(ni + i * 2 * n + c)
+            for c in range(ni):
+                if s["dr_da"][i][c]:
+                    rows.append(i), cols.append(2 * n + c)
+                    pick.append(ni + ni * 2 * n + i * ni + c)
+            for c in range(nu):
+                if s["dr_du"][i][c]:
+                    rows.append(i), cols.append(3 * n + m + c)
+                    pick.append(ni + ni * 2 * n + ni * ni + i * nu + c)
+            for k, j in enumerate(L.unknown):
+                if s["dr_dp"][i][j]:
+                    rows.append(i), cols.append(nz + k), pick.append(size1 + i * n_params + j)
+        self.dyn_rows = np.array(rows, dtype=np.int64)
+        self.dyn_cols = np.array(cols, dtype=np.int64)
+        self.dyn_pick = np.array(pick, dtype=np.int64)
+        self.terms = mod.function_address("residual_terms")
+        self.parameter_terms = mod.function_address("residual_parameter_jacobian") \
+            if L.unknown else 0
+
+    def _problem_unit(self):
+        """The compiled path constraints and objective integrand (None when there are neither)."""
+        problem, L = self.problem, self.layout
+        exprs = [e for _, e, _, _ in problem._path]
+        integrand = problem._integrand
+        self.unit = None
+        if not exprs and integrand is None:
+            return
+        key = repr((L.n, L.m, L.nu, L.unknown, [str(e) for e in exprs], str(integrand)))
+        self.unit = compiled_unit(self.mod, "problem", key,
+                                  lambda: _problem_unit(L, exprs, integrand))
+        s = self.unit.structure
+        self.path_jac = np.array(s["path_jacobian"], dtype=np.int64).reshape(-1, 2)
+        self.path_hess = np.array(s["path_hessian"], dtype=np.int64).reshape(-1, 2)
+        self.obj_grad = np.array(s["objective_gradient"], dtype=np.int64)
+        self.obj_hess = np.array(s["objective_hessian"], dtype=np.int64).reshape(-1, 2)
+
+    def _consistency(self):
+        """The constraints' position and velocity levels at the first node (the acceleration
+        level holds at every point), except rows the initial instance values already satisfy:
+        those are checked, not imposed twice."""
+        L, problem, mod = self.layout, self.problem, self.mod
+        self.n_cons = 0
+        if not L.m:
+            return
+        self.cons_unit = compiled_unit(mod, "consistency", "",
+                                       lambda: _consistency_unit(problem.model))
+        s = self.cons_unit.structure
+        rows_total, nh = s["rows"], mod.dimensions["n_holonomic"]
+        jac = np.array(s["jacobian"], dtype=np.int64).reshape(-1, 2)
+        hess = np.array(s["hessian"], dtype=np.int64).reshape(-1, 2)
+        position = {j: k for k, j in enumerate(L.unknown)}
+
+        def local(c):      # z column, an unknown parameter's column, or None (a known one)
+            return c if c < L.nz else (L.nz + position[c - L.nz] if c - L.nz in position
+                                       else None)
+        unknown_rows = {r for r, c in jac if c >= L.nz and c - L.nz in position}
+        fixed_q = all((0, "q", i) in problem._fixed for i in range(L.n))
+        fixed_qd = all((0, "qd", i) in problem._fixed for i in range(L.n))
+        z = np.zeros((1, L.nz))
+        for (point, kind, i), value in problem._fixed.items():
+            if point == 0:
+                z[0, L.offset(kind) + i] = value
+        values = np.empty((1, rows_total))
+        kernel_rows(self.cons_unit.address("consistency"), np.array([problem.t0]), z,
+                    np.nan_to_num(np.array(problem.params, dtype=float), nan=1.0), L.n, L.m,
+                    L.nu, np.zeros((1, 0)), values)
+        keep = []
+        for r in range(rows_total):
+            settled = fixed_q if r < nh else (fixed_q and fixed_qd)
+            if settled and r not in unknown_rows:
+                if abs(values[0, r]) > 1e-8:
+                    name = mod.constraint_names[r if r < nh else r - nh]
+                    level = "position" if r < nh else "velocity"
+                    raise LagrgenError(
+                        f"the initial state violates the {level} level of constraint {name!r} "
+                        f"by {values[0, r]:.3g}: give a consistent one (lagrgen.consistent_state) "
+                        "or leave some coordinates free")
+                continue
+            keep.append(r)
+        self.cons_keep = np.array(keep, dtype=np.int64)
+        self.n_cons = len(keep)
+        row_of = {r: k for k, r in enumerate(keep)}
+        entries = [(e, row_of[r], local(c)) for e, (r, c) in enumerate(jac)
+                   if r in row_of and local(c) is not None]
+        self.cons_jac_pick = np.array([e for e, _, _ in entries], dtype=np.int64)
+        self.cons_jac = np.array([(r, c) for _, r, c in entries], dtype=np.int64).reshape(-1, 2)
+        pairs = [(e, local(r), local(c)) for e, (r, c) in enumerate(hess)]
+        pairs = [(e, r, c) for e, r, c in pairs if r is not None and c is not None]
+        self.cons_hess_pick = np.array([e for e, _, _ in pairs], dtype=np.int64)
+        self.cons_hess = np.array([(r, c) for _, r, c in pairs], dtype=np.int64).reshape(-1, 2)
+        self.cons_sizes = (rows_total, len(jac), len(hess))
+
+    def _first_point(self, state):
+        return {"t": state["t"][:1], "Z": state["Z"][:1], "p": state["p"]}
+
+    def _hessian_units(self):
+        L, model = self.layout, self.problem.model
+        self.hessian_unit = compiled_unit(self.mod, "hessian", "",
+                                          lambda: _hessian_unit(model))
+        self.res_hess = np.array(self.hessian_unit.structure["entries"],
+                                 dtype=np.int64).reshape(-1, 2)
+        self.parameter_unit = None
+        if L.unknown:
+            self.parameter_unit = compiled_unit(self.mod, "parameter_hessian", "",
+                                                lambda: _parameter_hessian_unit(model))
+            entries = np.array(self.parameter_unit.structure["entries"],
+                               dtype=np.int64).reshape(-1, 2)
+            position = {j: k for k, j in enumerate(L.unknown)}
+            keep, local = [], []
+            for e, (r, c) in enumerate(entries):
+                pr = position.get(r - L.nz)
+                if pr is None:
+                    continue
+                if c < L.nz:
+                    keep.append(e), local.append((L.nz + pr, c))
+                elif c - L.nz in position:
+                    keep.append(e), local.append((L.nz + pr, L.nz + position[c - L.nz]))
+            self.par_keep = np.array(keep, dtype=np.int64)
+            self.par_hess = np.array(local, dtype=np.int64).reshape(-1, 2)
+
+    def _defect_structure(self):
+        L = self.layout
+        rows, cols, c0, c1, count = defects(L)
+        self.n_defects = count
+        self.def_rows, self.def_cols, self.def_c0, self.def_c1 = rows, cols, c0, c1
+        self.D0 = sps.csr_matrix((c0, (rows, cols)), shape=(count, L.size))
+        self.D1 = sps.csr_matrix((c1, (rows, cols)), shape=(count, L.size))
+        self.def_T_rows = np.unique(rows[c1 != 0]) if L.free else np.zeros(0, dtype=np.int64)
+        self.D1_cols = np.unique(cols[c1 != 0]) if L.free else np.zeros(0, dtype=np.int64)
+
+    def _linear_rows(self):
+        """The periodic and between-node instance constraints E·x = e."""
+        L, problem = self.layout, self.problem
+        rows, cols, vals, rhs = [], [], [], []
+        for kind, i in problem._periodic:
+            r = len(rhs)
+            rows += [r, r]
+            cols += [L.index(L.points - 1, kind, i), L.index(0, kind, i)]
+            vals += [1.0, -1.0]
+            rhs.append(0.0)
+        T = problem.duration_bounds[0]
+        for s, kind, i, value in problem._interpolated:
+            c, v = interpolation(L, kind, i, s, T)
+            r = len(rhs)
+            rows += [r] * len(c)
+            cols += list(c)
+            vals += list(v)
+            rhs.append(value)
+        self.E = sps.csr_matrix((vals, (rows, cols)), shape=(len(rhs), L.size))
+        self.E.sort_indices()
+        self.e = np.array(rhs)
+
+    def _data_term(self):
+        """Σ ω·(C·x − d)² over every present sample of every track."""
+        L, problem = self.layout, self.problem
+        T = problem.duration_bounds[0]
+        rows, cols, vals, d, w = [], [], [], [], []
+        for times, data, names, weights_, present, _ in problem._tracks:
+            for r, (kind, i) in enumerate(names):
+                for k in np.flatnonzero(present[r]):
+                    c, v = interpolation(L, kind, i, times[k], T)
+                    row = len(d)
+                    rows += [row] * len(c)
+                    cols += list(c)
+                    vals += list(v)
+                    d.append(data[r, k])
+                    w.append(weights_[r, k])
+        self.n_data = len(d)
+        self.C = sps.csr_matrix((vals, (rows, cols)), shape=(len(d), L.size))
+        self.d, self.omega = np.array(d), np.array(w)
+        if self.n_data:
+            H = (self.C.T @ sps.diags(2.0 * self.omega) @ self.C).tocoo()
+            lower = H.row >= H.col
+            self.data_hess = (H.row[lower].astype(np.int64), H.col[lower].astype(np.int64),
+                              H.data[lower])
+
+    def _variable_bounds(self):
+        L, problem, mod = self.layout, self.problem, self.mod
+        lo, hi = np.full(L.size, -np.inf), np.full(L.size, np.inf)
+        blo, bhi = lo[:L.p_start].reshape(L.points, L.nz), hi[:L.p_start].reshape(L.points, L.nz)
+        for (kind, i), (a, b) in problem._bounds.items():
+            if kind == "p":
+                lo[L.p_start + i], hi[L.p_start + i] = a, b
+            else:
+                col = L.offset(kind) + i
+                blo[:, col], bhi[:, col] = a, b
+        times = self.point_times(problem.duration_bounds[0])
+        for k, values in problem._given.items():
+            col = L.offset("u") + k
+            v = _given_values(values, times, L, mod.inputs[k])
+            blo[:, col], bhi[:, col] = v, v
+        names = _variable_names(L, mod)
+        for (point, kind, i), value in problem._fixed.items():
+            j = L.index(point, kind, i)
+            if not lo[j] - 1e-12 <= value <= hi[j] + 1e-12:
+                raise LagrgenError(f"the instance value {value} of {names[kind][i]} at point "
+                                   f"{point} lies outside its bounds [{lo[j]}, {hi[j]}]")
+            lo[j] = hi[j] = value
+        if L.free:
+            lo[L.T_index], hi[L.T_index] = np.array(problem.duration_bounds) / L.T_scale
+        self.lo, self.hi = lo, hi
+        self.g_lo = np.concatenate([np.zeros(L.points * L.ni),
+                                    np.tile([lo_ for _, _, lo_, _ in problem._path], L.points),
+                                    np.zeros(self.n_cons + self.n_defects), self.e])
+        self.g_hi = np.concatenate([np.zeros(L.points * L.ni),
+                                    np.tile([hi_ for _, _, _, hi_ in problem._path], L.points),
+                                    np.zeros(self.n_cons + self.n_defects), self.e])
+
+    def _columns(self, local):
+        """Global columns of per-point local columns (local < nz: the point's own variables,
+        nz + k: unknown parameter k): an array (points, len(local))."""
+        L = self.layout
+        j = np.arange(L.points)[:, None] * L.nz
+        local = np.asarray(local, dtype=np.int64)[None, :]
+        return np.where(local < L.nz, j + local, L.p_start + local - L.nz)
+
+    @property
+    def defect_row(self):
+        """The first defect row."""
+        L = self.layout
+        return L.points * (L.ni + self.n_path) + self.n_cons
+
+    def _jacobian_structure(self):
+        L = self.layout
+        P, ni = L.points, L.ni
+        rows = [(np.arange(P)[:, None] * ni + self.dyn_rows[None, :]).ravel()]
+        cols = [self._columns(self.dyn_cols).ravel()]
+        if self.n_path:
+            rows.append((P * ni + np.arange(P)[:, None] * self.n_path
+                         + self.path_jac[None, :, 0]).ravel())
+            cols.append(self._columns(self.path_jac[:, 1]).ravel())
+        if self.n_cons:
+            rows.append(P * (ni + self.n_path) + self.cons_jac[:, 0])
+            cols.append(np.where(self.cons_jac[:, 1] < L.nz, self.cons_jac[:, 1],
+                                 L.p_start + self.cons_jac[:, 1] - L.nz))
+        base = self.defect_row
+        rows.append(base + self.def_rows), cols.append(self.def_cols)
+        if L.free:
+            rows.append(base + self.def_T_rows)
+            cols.append(np.full(self.def_T_rows.size, L.T_index))
+        E = self.E.tocoo()
+        self.E_values = E.data
+        rows.append(base + self.n_defects + E.row), cols.append(E.col)
+        self.jac_rows = np.concatenate(rows).astype(np.int64)
+        self.jac_cols = np.concatenate(cols).astype(np.int64)
+        self.n_constraints = base + self.n_defects + self.E.shape[0]
+
+    def _hessian_structure(self):
+        """The union of every contribution's (row, col) in the lower triangle, and each
+        contribution's place in it."""
+        L = self.layout
+        parts = []
+
+        def per_point(local_pairs):
+            r = self._columns(local_pairs[:, 0])
+            c = self._columns(local_pairs[:, 1])
+            parts.append((r.ravel(), c.ravel()))
+
+        per_point(self.res_hess)
+        if self.parameter_unit is not None:
+            per_point(self.par_hess)
+        if self.unit is not None and self.n_path:
+            per_point(self.path_hess)
+        if self.unit is not None and self.problem._integrand is not None:
+            per_point(self.obj_hess)
+            if L.free:
+                c = self._columns(self.obj_grad).ravel()
+                parts.append((np.full(c.size, L.T_index), c))
+        if L.free:
+            parts.append((np.full(self.D1_cols.size, L.T_index), self.D1_cols))
+        if self.n_cons:
+            first = np.where(self.cons_hess < L.nz, self.cons_hess,
+                             L.p_start + self.cons_hess - L.nz)
+            parts.append((first[:, 0], first[:, 1]))
+        if self.n_data:
+            parts.append(self.data_hess[:2])
+        rows = np.concatenate([np.maximum(r, c) for r, c in parts]).astype(np.int64)
+        cols = np.concatenate([np.minimum(r, c) for r, c in parts]).astype(np.int64)
+        key = rows * L.size + cols
+        unique, where = np.unique(key, return_inverse=True)
+        self.hess_rows, self.hess_cols = unique // L.size, unique % L.size
+        self.hess_map = where.astype(np.int64)
+
+    # -- evaluation --------------------------------------------------------------------------
+    def point_times(self, T):
+        return self.problem.t0 + T * self.layout.fractions
+
+    def _state(self, x):
+        """(Z, p, T, t, h) at x."""
+        L = self.layout
+        Z = L.point_block(x)
+        p = np.array(self.problem.params)
+        if L.unknown:
+            p[list(L.unknown)] = x[L.p_start:L.p_start + len(L.unknown)]
+        T = L.duration(x) if L.free else self.problem.duration_bounds[0]
+        return Z, p, T, self.point_times(T), T / (L.nodes - 1)
+
+    def _at(self, x):
+        """The residuals and their Jacobian entries at x (computed once per x)."""
+        entry = self._entry
+        if entry is not None and np.array_equal(x, entry[0]):
+            return entry[1]
+        L = self.layout
+        Z, p, T, t, h = self._state(x)
+        Z = np.ascontiguousarray(Z)
+        r = np.empty((L.points, L.ni))
+        jac = np.empty((L.points, self.dyn_pick.size))
+        failed = residual_rows(self.terms, self.parameter_terms, t, Z, p, L.n, L.m, L.nu,
+                                       len(p), self.dyn_pick, r, jac)
+        if failed:
+            raise LagrgenError("the model's residual failed at a collocation point")
+        state = {"Z": Z, "p": p, "T": T, "t": t, "h": h, "r": r, "jac": jac}
+        self._entry = (np.array(x), state)
+        return state
+
+    def _kernel(self, name, state, width, W=None, unit=None):
+        """(points, width) outputs of kernel `name` of `unit` (default: the problem's unit) at
+        every point, with the per-point weights W."""
+        L = self.layout
+        out = np.empty((L.points, width))
+        W = np.zeros((L.points, 0)) if W is None else np.ascontiguousarray(W)
+        kernel_rows((unit or self.unit).address(name), state["t"], state["Z"], state["p"],
+                    L.n, L.m, L.nu, W, out)
+        return out
+
+    def _consistency_kernel(self, name, state, which, weights=None):
+        """A kernel of the consistency unit at the first point (which: 0 values, 1 Jacobian, 2
+        Hessian entries)."""
+        L = self.layout
+        out = np.empty((1, self.cons_sizes[which]))
+        W = np.zeros((1, 0)) if weights is None else np.ascontiguousarray(weights[None, :])
+        first = self._first_point(state)
+        kernel_rows(self.cons_unit.address(name), first["t"], np.ascontiguousarray(first["Z"]),
+                    first["p"], L.n, L.m, L.nu, W, out)
+        return out[0]
+
+    def _path_values(self, state):
+        if "path" not in state:
+            state["path"] = self._kernel("path_values", state, self.n_path)
+        return state["path"]
+
+    def _integrand(self, state):
+        if "L" not in state:
+            state["L"] = self._kernel("objective", state, 1)[:, 0]
+        return state["L"]
+
+    def _integrand_gradient(self, state):
+        if "dL" not in state:
+            state["dL"] = self._kernel("objective_gradient", state, self.obj_grad.size)
+        return state["dL"]
+
+    # -- the callbacks ------------------------------------------------------------------------
+    def objective(self, x):
+        self.evaluations["objective"] += 1
+        state = self._at(x)
+        L, f = self.layout, 0.0
+        if self.problem._integrand is not None:
+            f += state["h"] * float(self.quad @ self._integrand(state))
+        if self.problem._minimize_time:
+            f += state["T"]
+        if self.n_data:
+            res = self.C @ x - self.d
+            f += float(self.omega @ (res * res))
+        return f
+
+    def gradient(self, x):
+        state = self._at(x)
+        L = self.layout
+        g = np.zeros(L.size)
+        if self.problem._integrand is not None:
+            dL = self._integrand_gradient(state)
+            cols = self._columns(self.obj_grad)
+            g += np.bincount(cols.ravel(), (state["h"] * self.quad[:, None] * dL).ravel(),
+                             minlength=L.size)
+            if L.free:
+                g[L.T_index] += float(self.quad @ self._integrand(state)) * L.dh_dx
+        if self.problem._minimize_time:
+            g[L.T_index] += L.T_scale
+        if self.n_data:
+            g += 2.0 * (self.C.T @ (self.omega * (self.C @ x - self.d)))
+        return g
+
+    def constraints(self, x):
+        self.evaluations["constraints"] += 1
+        state = self._at(x)
+        parts = [state["r"].ravel()]
+        if self.n_path:
+            parts.append(self._path_values(state).ravel())
+        if self.n_cons:
+            parts.append(self._consistency_kernel("consistency", state, 0)[self.cons_keep])
+        parts.append(self.defect_scale * (self.D0 @ x + state["h"] * (self.D1 @ x)))
+        parts.append(self.E @ x)
+        return np.concatenate(parts)
+
+    def jacobianstructure(self):
+        return self.jac_rows, self.jac_cols
+
+    def jacobian(self, x):
+        self.evaluations["jacobian"] += 1
+        state = self._at(x)
+        L = self.layout
+        parts = [state["jac"].ravel()]
+        if self.n_path:
+            if "path_jac" not in state:
+                state["path_jac"] = self._kernel("path_jacobian", state, len(self.path_jac))
+            parts.append(state["path_jac"].ravel())
+        if self.n_cons:
+            parts.append(self._consistency_kernel("consistency_jacobian", state,
+                                                  1)[self.cons_jac_pick])
+        parts.append(self.defect_scale * (self.def_c0 + state["h"] * self.def_c1))
+        if L.free:
+            parts.append(self.defect_scale * L.dh_dx * (self.D1 @ x)[self.def_T_rows])
+        parts.append(self.E_values)
+        return np.concatenate(parts)
+
+    def hessianstructure(self):
+        return self.hess_rows, self.hess_cols
+
+    def hessian(self, x, lagrange, obj_factor):
+        self.evaluations["hessian"] += 1
+        state = self._at(x)
+        L = self.layout
+        P, ni = L.points, L.ni
+        mu = np.asarray(lagrange)
+        parts = [self._kernel("residual_hessian", state, len(self.res_hess),
+                              mu[:P * ni].reshape(P, ni), self.hessian_unit).ravel()]
+        if self.parameter_unit is not None:
+            full = self._kernel("residual_parameter_hessian", state,
+                                len(self.parameter_unit.structure["entries"]),
+                                mu[:P * ni].reshape(P, ni), self.parameter_unit)
+            parts.append(full[:, self.par_keep].ravel())
+        if self.unit is not None and self.n_path:
+            W = mu[P * ni:P * (ni + self.n_path)].reshape(P, self.n_path)
+            parts.append(self._kernel("path_hessian", state, len(self.path_hess), W).ravel())
+        if self.unit is not None and self.problem._integrand is not None:
+            W = (obj_factor * state["h"] * self.quad)[:, None]
+            parts.append(self._kernel("objective_hessian", state, len(self.obj_hess), W).ravel())
+            if L.free:
+                parts.append((obj_factor * L.dh_dx * self.quad[:, None]
+                              * self._integrand_gradient(state)).ravel())
+        if L.free:
+            base = self.defect_row
+            mu_def = mu[base:base + self.n_defects]
+            parts.append(self.defect_scale * L.dh_dx * (self.D1.T @ mu_def)[self.D1_cols])
+        if self.n_cons:
+            weights_ = np.zeros(self.cons_sizes[0])
+            start = P * (ni + self.n_path)
+            weights_[self.cons_keep] = mu[start:start + self.n_cons]
+            parts.append(self._consistency_kernel("consistency_hessian", state, 2,
+                                                  weights_)[self.cons_hess_pick])
+        if self.n_data:
+            parts.append(obj_factor * self.data_hess[2])
+        values = np.concatenate(parts)
+        return np.bincount(self.hess_map, values, minlength=self.hess_rows.size)
+
+
+# -- the units -------------------------------------------------------------------------------
+def _equations(model):
+    from ..lagrange import derived
+    return derived(model.spec())
+
+
+def _hessian_unit(model):
+    """The residual's weighted Hessian in z (and, in the structure, which entries of the
+    residual's Jacobian are not identically zero)."""
+    eq = _equations(model)
+    entries = residual_hessian(eq)
+    return (f"{model.name}: ∇²_z(Σ w_i·r_i), z = [q, q̇, q̈, λ, u], lower triangle",
+            [("residual_hessian", "the residual's weighted Hessian, nonzero lower entries",
+              [e for _, _, e in entries])],
+            {"entries": [[r, c] for r, c, _ in entries],
+             "jacobian": residual_jacobian_structure(eq)})
+
+
+def _consistency_unit(model):
+    """[Φ; A·q̇ + b], its Jacobian and weighted Hessian in z and every parameter."""
+    eq = _equations(model)
+    rows, jac, hess = consistency_derivatives(eq)
+    return (f"{model.name}: the constraints' position and velocity levels",
+            [("consistency", "[Φ; A·q̇ + b]", rows),
+             ("consistency_jacobian", "their Jacobian's nonzero entries", [e for _, _, e in jac]),
+             ("consistency_hessian", "Σ mu_k·∇²row_k, lower entries", [e for _, _, e in hess])],
+            {"rows": len(rows), "jacobian": [[r, c] for r, c, _ in jac],
+             "hessian": [[r, c] for r, c, _ in hess]})
+
+
+def _parameter_hessian_unit(model):
+    eq = _equations(model)
+    entries = residual_parameter_hessian(eq)
+    return (f"{model.name}: ∇²(Σ w_i·r_i) in the rows of the parameters",
+            [("residual_parameter_hessian", "the residual's weighted Hessian, parameter rows",
+              [e for _, _, e in entries])],
+            {"entries": [[r, c] for r, c, _ in entries]})
+
+
+def _problem_unit(layout, path, integrand):
+    """The path constraints' values, Jacobian and weighted Hessian, and the integrand's value,
+    gradient and Hessian, in the variables z (per point) and the unknown parameters."""
+    variables = point_variables_of(layout.n, layout.m, layout.nu) + \
+        [internal_symbols("p", max(layout.unknown) + 1)[j] for j in layout.unknown]
+    kernels, structure = [], {"path_jacobian": [], "path_hessian": [],
+                              "objective_gradient": [], "objective_hessian": []}
+    if path:
+        jac, hess = path_derivatives(path, variables, weights(len(path)))
+        kernels += [("path_values", "the path constraints", path),
+                    ("path_jacobian", "their Jacobian's nonzero entries", [e for _, _, e in jac]),
+                    ("path_hessian", "Σ w_k·∇²g_k, lower entries", [e for _, _, e in hess])]
+        structure["path_jacobian"] = [[r, c] for r, c, _ in jac]
+        structure["path_hessian"] = [[r, c] for r, c, _ in hess]
+    if integrand is not None:
+        grad, hess = scalar_derivatives(integrand, variables)
+        w = weights(1)[0]
+        kernels += [("objective", "the objective's integrand L", [integrand]),
+                    ("objective_gradient", "∇L, nonzero entries", [e for _, e in grad]),
+                    ("objective_hessian", "w·∇²L, lower entries", [w * e for _, _, e in hess])]
+        structure["objective_gradient"] = [c for c, _ in grad]
+        structure["objective_hessian"] = [[r, c] for r, c, _ in hess]
+    return "collocation problem: path constraints and objective integrand", kernels, structure
+
+
+def _given_values(values, times, layout, name):
+    if callable(values):
+        out = np.array([float(values(t)) for t in times])
+    else:
+        arr = np.asarray(values, dtype=float)
+        if arr.ndim == 0:
+            out = np.full(times.size, float(arr))
+        elif arr.shape == (layout.nodes,):
+            nodes = times[layout.node_points]
+            out = np.interp(times, nodes, arr)
+        elif arr.shape == (layout.points,):
+            out = arr
+        else:
+            raise LagrgenError(f"input({name!r}, values): give a number, a callable of t or one "
+                               f"value per node ({layout.nodes}), got shape {arr.shape}")
+    if not np.all(np.isfinite(out)):
+        raise LagrgenError(f"input({name!r}, ...): the values must be finite")
+    return out
+
+
+def _variable_names(layout, mod):
+    coords = list(mod.coordinates)
+    return {"q": coords, "qd": [f"{c}_dot" for c in coords], "qdd": [f"{c}_ddot" for c in coords],
+            "lam": list(mod.constraint_names), "u": list(mod.inputs)}
+
+
+# -- IPOPT -----------------------------------------------------------------------------------
+STATUS_SUCCESS = (0, 1)   # Solve_Succeeded, Solved_To_Acceptable_Level
+
+
+def ipopt():
+    """The `cyipopt` module, or a LagrgenError saying how to install it."""
+    try:
+        import cyipopt
+    except ImportError:
+        raise LagrgenError(
+            "Collocation.solve needs IPOPT through the cyipopt module: pip install "
+            "'lagrgen[optimize]' (the binary wheels of cyipopt-wheels carry IPOPT; no system "
+            "library is needed)") from None
+    return cyipopt
+
+
+class _Progress:
+    """One line per IPOPT iteration, at most `rate` lines a second (and always the last)."""
+
+    def __init__(self, enabled, rate=4.0):
+        self.enabled, self.interval = enabled, 1.0 / rate
+        self.last_print = -np.inf
+        self.pending = None
+        self.iterations = 0
+        self.interrupted = False
+
+    def __call__(self, alg_mod, iter_count, obj_value, inf_pr, inf_du, mu, d_norm,
+                 regularization_size, alpha_du, alpha_pr, ls_trials):
+        self.iterations = iter_count
+        line = (f"{iter_count:5d}  {obj_value: .8e}  {inf_pr:.2e}  {inf_du:.2e}  "
+                f"{np.log10(max(mu, 1e-300)):6.2f}  {alpha_pr:.2e}")
+        now = time.perf_counter()
+        if self.enabled:
+            if iter_count == 0:
+                print(" iter   objective        inf_pr    inf_du    lg(mu)  alpha_pr", flush=True)
+            if now - self.last_print >= self.interval or iter_count < 3:
+                print(line, flush=True)
+                self.last_print, self.pending = now, None
+            else:
+                self.pending = line
+        return not self.interrupted
+
+    def finish(self):
+        if self.enabled and self.pending:
+            print(self.pending, flush=True)
+
+
+def solve_nlp(problem, tr, x0, hessian, tol, max_iter, progress, options):
+    """Run IPOPT on the transcription from x0; the CollocationResult."""
+    from .result import CollocationResult
+    cyipopt = ipopt()
+    start = time.perf_counter()
+    monitor = _Progress(progress)
+    adapter = _Callbacks(tr, monitor)
+    nlp = cyipopt.Problem(n=tr.layout.size, m=tr.n_constraints, problem_obj=adapter,
+                          lb=tr.lo, ub=tr.hi, cl=tr.g_lo, cu=tr.g_hi)
+    settings = {"tol": float(tol), "max_iter": int(max_iter), "print_level": 0, "sb": "yes"}
+    if hessian == "quasi-newton":
+        settings["hessian_approximation"] = "limited-memory"
+    settings.update(options)
+    for key, value in settings.items():
+        nlp.add_option(key, value)
+    x0 = np.clip(np.asarray(x0, dtype=float), tr.lo, tr.hi)
+    try:
+        x, info = nlp.solve(x0)
+    except KeyboardInterrupt:
+        raise
+    finally:
+        if hasattr(nlp, "close"):
+            nlp.close()
+    if adapter.interrupt is not None:
+        raise KeyboardInterrupt
+    monitor.finish()
+    seconds = time.perf_counter() - start
+    result = CollocationResult.from_solution(problem, tr, np.asarray(x), info,
+                                             monitor.iterations, seconds, hessian)
+    result.callback_seconds = adapter.seconds
+    if progress:
+        print(result.summary(), flush=True)
+    return result
+
+
+class _Callbacks:
+    """The object cyipopt calls: the transcription's callbacks, with Ctrl-C ending the solve and
+    the time spent in them counted (`seconds`; the rest of a solve is IPOPT's own)."""
+
+    def __init__(self, tr, monitor):
+        self.tr, self.monitor, self.interrupt = tr, monitor, None
+        self.seconds = 0.0
+        self.jacobianstructure = tr.jacobianstructure
+        if tr.exact:
+            self.hessianstructure = tr.hessianstructure
+
+    def _guard(self, f, *args):
+        start = time.perf_counter()
+        try:
+            return f(*args)
+        except KeyboardInterrupt as exc:
+            self.interrupt = exc
+            self.monitor.interrupted = True
+            raise
+        finally:
+            self.seconds += time.perf_counter() - start
+
+    def objective(self, x):
+        return self._guard(self.tr.objective, x)
+
+    def gradient(self, x):
+        return self._guard(self.tr.gradient, x)
+
+    def constraints(self, x):
+        return self._guard(self.tr.constraints, x)
+
+    def jacobian(self, x):
+        return self._guard(self.tr.jacobian, x)
+
+    def hessian(self, x, lagrange, obj_factor):
+        return self._guard(self.tr.hessian, x, lagrange, obj_factor)
+
+    def intermediate(self, *args):
+        try:
+            return self.monitor(*args)
+        except KeyboardInterrupt as exc:
+            self.interrupt = exc
+            return False

@@ -1,0 +1,409 @@
+"""`lagrgen.Collocation`: an optimal-control or identification problem on a built model, declared
+piece by piece (bounds, instance constraints, path constraints, an objective, data) and solved by
+direct collocation with IPOPT (`solve`).
+"""
+import math
+import numbers
+
+import numpy as np
+
+from ..errors import LagrgenError
+from ..runtime.arguments import key_name, parameter_vector, unknown_name
+from .grid import Layout, scheme_name
+from .symbolic import internal_expression
+
+
+class Collocation:
+    """An optimal motion or an identification of the built model `mod`, by direct collocation.
+
+    States q, q̇, the accelerations q̈ (and a constrained model's multipliers λ) and the inputs u
+    are variables at every collocation point; the model's residual M·q̈ − F − Aᵀλ = 0 (and the
+    constraints at acceleration level, A·q̈ = γ) holds at every point, and the scheme's defects tie
+    neighbouring points (`lagrgen.collocation.grid`).
+
+    Parameters
+    ----------
+    mod : built model
+        A model built with the C backend (`lagrgen.build(model)`) in this session.
+    nodes : int
+        Number of nodes (≥ 2), equally spaced over the duration.
+    duration : float or (float, float)
+        The duration T; a pair (lo, hi) makes T a variable in those bounds (free final time).
+    scheme : {"hermite-simpson", "trapezoidal", "backward-euler"}
+    unknown_params : list of str, optional
+        Parameters to estimate or optimize (variables of the problem); the others keep their
+        values (`params`, else the defaults).
+    params : dict, optional
+        Values of known parameters (name -> value) replacing the defaults; also the starting values
+        of unknown ones.
+    t0 : float
+        The time of the first node (for a model that depends on t).
+    """
+
+    def __init__(self, mod, nodes, duration, scheme="hermite-simpson", unknown_params=None, *,
+                 params=None, t0=0.0):
+        self.mod = _compiled_model(mod)
+        self.model = _source_model(self.mod)
+        if isinstance(nodes, bool) or not isinstance(nodes, numbers.Integral) or nodes < 2:
+            raise LagrgenError(f"nodes must be an integer of at least 2, got {nodes!r}")
+        self.nodes = int(nodes)
+        self.scheme = scheme_name(scheme)
+        self.free_duration, self.duration_bounds = _duration(duration)
+        self.t0 = _finite(t0, "t0")
+        names = tuple(self.mod.parameters)
+        unknown = [] if unknown_params is None else (
+            [unknown_params] if isinstance(unknown_params, str) else list(unknown_params))
+        unknown = [key_name(u) for u in unknown]
+        for u in unknown:
+            if u not in names:
+                raise unknown_name("parameter", u, names)
+        if len(set(unknown)) != len(unknown):
+            raise LagrgenError(f"unknown_params names a parameter twice: {unknown}")
+        self.unknown = tuple(unknown)
+        values = parameter_vector(params, names, self.mod.defaults) if params is not None \
+            else np.array(self.mod.defaults, dtype=float)
+        missing = [name for name, v in zip(names, values)
+                   if not np.isfinite(v) and name not in self.unknown]
+        if missing:
+            raise LagrgenError(f"parameter(s) {', '.join(missing)} have no default value: give "
+                               "them in params={...} or list them in unknown_params")
+        self.params = values
+        n, m, nu = self.mod.n_coordinates, self.mod.n_constraints, len(self.mod.inputs)
+        self.layout = Layout(n, m, nu, self.nodes, self.scheme,
+                             tuple(names.index(u) for u in self.unknown), self.free_duration)
+        if self.mod.explicit_time and self.free_duration:
+            raise LagrgenError(
+                f"model {self.mod.name!r} depends on t explicitly, which a free duration does not "
+                "allow (the node times move with the duration): fix the duration")
+        self._bounds = {}         # (kind, i) -> (lo, hi)
+        self._fixed = {}          # (point, kind, i) -> value
+        self._interpolated = []   # (t, kind, i, value) of instance constraints between nodes
+        self._periodic = []       # (kind, i)
+        self._path = []           # (label, internal expression, lo, hi)
+        self._integrand = None    # internal expression of ∫ L dt
+        self._integrand_text = None
+        self._minimize_time = False
+        self._tracks = []         # (times, data (k, m), [(kind, i)], weights (k, m), names)
+        self._given = {}          # input index -> values at the points
+        self._transcription = None
+
+    def __repr__(self):
+        duration = self.duration_bounds if self.free_duration else self.duration_bounds[0]
+        return (f"Collocation({self.mod.name!r}, nodes={self.nodes}, scheme={self.scheme!r}, "
+                f"duration={duration!r}, unknown_params={list(self.unknown)})")
+
+    # -- names -----------------------------------------------------------------------------
+    def variable(self, name):
+        """(kind, index) of a name: a coordinate ("q"), `<coordinate>_dot` ("qd"),
+        `<coordinate>_ddot` ("qdd"), a constraint's multiplier ("lam"), an input ("u"), an
+        unknown parameter ("p") or "duration" ("T")."""
+        name = key_name(name)
+        coords = list(self.mod.coordinates)
+        for suffix, kind in (("_ddot", "qdd"), ("_dot", "qd")):
+            if name.endswith(suffix) and name[:-len(suffix)] in coords:
+                return kind, coords.index(name[:-len(suffix)])
+        if name in coords:
+            return "q", coords.index(name)
+        if name in self.mod.inputs:
+            return "u", list(self.mod.inputs).index(name)
+        if name in self.mod.constraint_names:
+            return "lam", list(self.mod.constraint_names).index(name)
+        if name in self.unknown:
+            return "p", self.unknown.index(name)
+        if name == "duration":
+            return "T", 0
+        if name in self.mod.parameters:
+            raise LagrgenError(f"parameter {name!r} is not an unknown of this problem: list it "
+                               "in unknown_params to bound or estimate it")
+        known = (coords + [f"{c}_dot" for c in coords] + [f"{c}_ddot" for c in coords]
+                 + list(self.mod.inputs) + list(self.mod.constraint_names) + list(self.unknown))
+        raise unknown_name("variable", name, tuple(known))
+
+    def _point_variable(self, name, what):
+        kind, i = self.variable(name)
+        if kind in ("p", "T"):
+            what_it_is = "an unknown parameter" if kind == "p" else "the duration"
+            raise LagrgenError(f"{what} takes states, accelerations, multipliers and inputs; "
+                               f"{name!r} is {what_it_is}")
+        return kind, i
+
+    # -- declarations ----------------------------------------------------------------------
+    def bound(self, name, lo=-math.inf, hi=math.inf):
+        """lo ≤ name ≤ hi at every point (a state, `<coordinate>_dot`, `<coordinate>_ddot`, input,
+        constraint multiplier or unknown parameter); a free duration's bounds are given to the
+        constructor."""
+        kind, i = self.variable(name)
+        if kind == "T":
+            raise LagrgenError("the duration's bounds are the constructor's duration=(lo, hi)")
+        lo, hi = _finite_or_inf(lo, f"the lower bound of {name!r}"), \
+            _finite_or_inf(hi, f"the upper bound of {name!r}")
+        if lo > hi:
+            raise LagrgenError(f"bound({name!r}, {lo}, {hi}): the lower bound exceeds the upper")
+        self._bounds[(kind, i)] = (lo, hi)
+        self._changed()
+        return self
+
+    def initial(self, q=None, qd=None, qdd=None, u=None):
+        """Instance constraints at the first node: q, q̇, q̈ and u as dicts (name -> value) or
+        arrays of all of them."""
+        self._instance(0, q, qd, qdd, u, "initial")
+        return self
+
+    def final(self, q=None, qd=None, qdd=None, u=None):
+        """Instance constraints at the last node (like `initial`)."""
+        self._instance(self.layout.points - 1, q, qd, qdd, u, "final")
+        return self
+
+    def _instance(self, point, q, qd, qdd, u, what):
+        n, nu = self.layout.n, self.layout.nu
+        for kind, values, size, names in (
+                ("q", q, n, self.mod.coordinates), ("qd", qd, n, self.mod.coordinates),
+                ("qdd", qdd, n, self.mod.coordinates), ("u", u, nu, self.mod.inputs)):
+            if values is None:
+                continue
+            if isinstance(values, dict):
+                items = []
+                for key, value in values.items():
+                    name = key_name(key)
+                    if name not in names:
+                        raise unknown_name("coordinate" if kind != "u" else "input", name,
+                                           tuple(names))
+                    items.append((list(names).index(name), value))
+            else:
+                arr = np.atleast_1d(np.asarray(values, dtype=float))
+                if arr.shape != (size,):
+                    raise LagrgenError(f"{what}({kind}=...) takes a dict or {size} values, got "
+                                       f"shape {arr.shape}")
+                items = list(enumerate(arr))
+            for i, value in items:
+                self._fixed[(point, kind, i)] = _finite(value, f"{what} value of {kind}[{i}]")
+        self._changed()
+
+    def periodic(self, names=None):
+        """x(T) = x(0) for the named states, accelerations or inputs (None: every q and q̇)."""
+        if names is None:
+            coords = self.mod.coordinates
+            names = list(coords) + [f"{c}_dot" for c in coords]
+        elif isinstance(names, str):
+            names = [names]
+        for name in names:
+            self._periodic.append(self._point_variable(name, "periodic"))
+        self._changed()
+        return self
+
+    def at(self, t, name, value):
+        """An instance constraint name(t) = value (between nodes: on the interpolant)."""
+        kind, i = self._point_variable(name, "at")
+        t = _finite(t, "at(t, ...)") - self.t0
+        value = _finite(value, f"at(..., {name!r}, value)")
+        if self.free_duration:
+            if abs(t) > 0:
+                raise LagrgenError("at(t, ...) with a free duration takes t = t0 only (the other "
+                                   "node times move); use final(...) for the end")
+            self._fixed[(0, kind, i)] = value
+        else:
+            T = self.duration_bounds[0]
+            if not -1e-12 * T <= t <= T * (1 + 1e-12):
+                raise LagrgenError(f"at(t={t + self.t0}, ...) lies outside the problem's time span "
+                                   f"[{self.t0}, {self.t0 + T}]")
+            step = T / (self.layout.points - 1)
+            j = round(t / step)
+            if abs(j * step - t) <= 1e-9 * step:
+                self._fixed[(j, kind, i)] = value
+            else:
+                self._interpolated.append((t, kind, i, value))
+        self._changed()
+        return self
+
+    def path(self, expr, lo=-math.inf, hi=math.inf):
+        """lo ≤ expr ≤ hi at every collocation point; `expr` in the model's symbols (coordinates,
+        their first and second derivatives, parameters, inputs, t)."""
+        lo, hi = _finite_or_inf(lo, "path lo"), _finite_or_inf(hi, "path hi")
+        if lo > hi:
+            raise LagrgenError(f"path(..., {lo}, {hi}): the lower bound exceeds the upper")
+        if lo == -math.inf and hi == math.inf:
+            raise LagrgenError("path(expr) needs a bound: path(expr, lo, hi)")
+        label = f"path constraint {len(self._path) + 1}"
+        internal = internal_expression(self.model, expr, label, allow_time=not self.free_duration)
+        self._path.append((label, internal, lo, hi))
+        self._changed()
+        return self
+
+    def minimize(self, integral=None, time=False):
+        """The objective: ∫ integral dt over the motion (an expression in the model's symbols),
+        plus T when `time` (minimum time; needs a free duration). Replaces an earlier objective;
+        data terms (`track`) are added to it."""
+        if integral is None and not time:
+            raise LagrgenError("minimize() needs integral=expr and/or time=True")
+        if time and not self.free_duration:
+            raise LagrgenError("minimize(time=True) needs a free duration: "
+                               "Collocation(..., duration=(lo, hi))")
+        self._integrand = None if integral is None else internal_expression(
+            self.model, integral, "the objective's integrand", allow_time=not self.free_duration)
+        self._minimize_time = bool(time)
+        self._changed()
+        return self
+
+    def track(self, t, data, names, weights=None):
+        """A data term Σ weights·(value(t_i) − data_i)², the values interpolated between nodes.
+
+        Parameters
+        ----------
+        t : (k,) sample times in the problem's span, in any order (gaps allowed)
+        data : (len(names), k) samples (a 1-D array for one name); NaN marks a missing sample
+        names : a name or list of names of states, accelerations or inputs
+        weights : a scalar, one per name, or (len(names), k); default 1 (with the noise's standard
+            deviation σ, 1/σ² weighs each sample by its precision)
+        """
+        if self.free_duration:
+            raise LagrgenError("track() needs a fixed duration (the samples' places on the grid "
+                               "would move with a free one)")
+        names = [names] if isinstance(names, str) else list(names)
+        rows = [self._point_variable(name, "track") for name in names]
+        t = np.atleast_1d(np.asarray(t, dtype=float))
+        data = np.asarray(data, dtype=float)
+        if data.ndim == 1:
+            data = data[None, :]
+        if t.ndim != 1 or data.shape != (len(names), t.size):
+            raise LagrgenError(f"track: data must have shape (len(names), len(t)) = "
+                               f"({len(names)}, {t.size}), got {data.shape}")
+        if not np.all(np.isfinite(t)):
+            raise LagrgenError("track: the sample times must be finite")
+        T = self.duration_bounds[0]
+        s = t - self.t0
+        if np.any(s < -1e-12 * T) or np.any(s > T * (1 + 1e-12)):
+            raise LagrgenError(f"track: sample times must lie in [{self.t0}, {self.t0 + T}]")
+        w = np.ones_like(data) if weights is None else np.broadcast_to(
+            np.asarray(weights, dtype=float).reshape(-1, 1) if np.ndim(weights) == 1
+            else np.asarray(weights, dtype=float), data.shape).copy()
+        if not np.all(np.isfinite(w)) or np.any(w < 0):
+            raise LagrgenError("track: weights must be finite and not negative")
+        present = np.isfinite(data) & (w > 0)
+        if not present.any():
+            raise LagrgenError("track: no sample with a positive weight and a finite value")
+        self._tracks.append((np.clip(s, 0.0, T), data, rows, w, present, tuple(names)))
+        self._changed()
+        return self
+
+    def input(self, name, values):
+        """Make input `name` known (not a variable): a number, a callable of t (e.g. a
+        `lagrgen.Signal`), or one value per node."""
+        kind, k = self._point_variable(name, "input")
+        if kind != "u":
+            raise LagrgenError(f"input(): {name!r} is not an input of model {self.mod.name!r}")
+        if self.free_duration and callable(values):
+            raise LagrgenError("input(name, callable) needs a fixed duration")
+        self._given[k] = values
+        self._changed()
+        return self
+
+    def _changed(self):
+        self._transcription = None
+
+    # -- solving ---------------------------------------------------------------------------
+    def solve(self, guess=None, hessian="exact", tol=1e-8, max_iter=3000, progress=True,
+              options=None):
+        """Solve the problem with IPOPT.
+
+        Parameters
+        ----------
+        guess : None, CollocationResult, simulation result, dict or array
+            The starting point: None interpolates between the initial and final values (or the
+            middle of the bounds); an earlier result warm-starts (any node count); a simulation
+            (`lagrgen.simulate`) gives the states; a dict maps names (and "params", "duration")
+            to values, arrays over the nodes or callables of t; an array is the decision vector.
+        hessian : {"exact", "quasi-newton"}
+            The exact Hessian of the Lagrangian (compiled second derivatives of the model), or
+            IPOPT's limited-memory quasi-Newton approximation.
+        tol, max_iter : IPOPT's convergence tolerance and iteration limit
+        progress : print one line per iteration (throttled) and a summary
+        options : dict of further IPOPT options (name -> value)
+
+        Returns
+        -------
+        CollocationResult
+        """
+        from .guess import initial_guess
+        from .nlp import solve_nlp
+        if hessian not in ("exact", "quasi-newton"):
+            raise LagrgenError(f"hessian must be 'exact' or 'quasi-newton', got {hessian!r}")
+        if self._integrand is None and not self._minimize_time and not self._tracks:
+            raise LagrgenError("no objective: call minimize(integral=..., time=...) or track(...)")
+        transcription = self.transcription(hessian)
+        x0 = initial_guess(self, transcription, guess)
+        L = self.layout
+        T0 = L.duration(x0) if L.free else self.duration_bounds[0]
+        nlp = transcription.bound(defect_scale=(L.nodes - 1) / max(T0, 1e-12))
+        return solve_nlp(self, nlp, x0, hessian, tol, max_iter, progress, options or {})
+
+    def transcription(self, hessian="exact"):
+        """The NLP of this problem (made once per declaration state and Hessian kind)."""
+        from .nlp import Transcription
+        if self._transcription is None or self._transcription.hessian_kind != hessian:
+            self._transcription = Transcription(self, hessian)
+        return self._transcription
+
+
+def _compiled_model(mod):
+    if not hasattr(mod, "residual_terms") or not hasattr(mod, "n_coordinates"):
+        raise TypeError(f"Collocation takes a built model (lagrgen.build(model)), got "
+                        f"{type(mod).__name__}")
+    if getattr(mod, "backend", None) != "c":
+        raise LagrgenError("Collocation needs the C backend: lagrgen.build(model) (the Python "
+                           "backend has no function table for the NLP's loops)")
+    if mod.nonsmooth_definitions:
+        raise LagrgenError(f"model {mod.name!r} has impacts or friction, which direct "
+                           "collocation on smooth equations cannot represent")
+    return mod
+
+
+def _source_model(mod):
+    model = getattr(mod, "_source_model", None)
+    if model is None:
+        raise LagrgenError(
+            f"Collocation needs the lagrgen.Model that {mod.name!r} was built from (its "
+            "expressions and second derivatives are compiled from it): build it in this session "
+            "with lagrgen.build(model) rather than loading the module")
+    from ..cache import content_digest
+    from ..lagrange import derived
+    spec = model.spec()
+    if content_digest(spec, lambda: derived(spec)) != mod.content_hash:
+        raise LagrgenError(f"model {mod.name!r} was changed after it was built: build it again "
+                           "(lagrgen.build(model)) before setting up a Collocation")
+    return model
+
+
+def _finite(value, what):
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise LagrgenError(f"{what} must be a number, got {value!r}") from None
+    if not math.isfinite(v):
+        raise LagrgenError(f"{what} must be finite, got {v}")
+    return v
+
+
+def _finite_or_inf(value, what):
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise LagrgenError(f"{what} must be a number, got {value!r}") from None
+    if math.isnan(v):
+        raise LagrgenError(f"{what} is NaN")
+    return v
+
+
+def _duration(duration):
+    """(free, (lo, hi)) of the constructor's duration: a number (lo = hi) or a pair."""
+    if isinstance(duration, (tuple, list)):
+        if len(duration) != 2:
+            raise LagrgenError(f"duration=(lo, hi) takes two numbers, got {duration!r}")
+        lo, hi = (_finite(d, "duration bound") for d in duration)
+        if not 0 <= lo < hi:
+            raise LagrgenError(f"duration=(lo, hi) needs 0 ≤ lo < hi, got {duration!r}")
+        return True, (lo, hi)
+    T = _finite(duration, "duration")
+    if T <= 0:
+        raise LagrgenError(f"duration must be positive, got {T}")
+    return False, (T, T)
+

@@ -1,0 +1,203 @@
+"""What `Collocation.solve` returns: the motion at the nodes, the estimates, the solver's report,
+and the ways to look at it (plot, animation, xarray) and to check it (a re-simulation)."""
+import numpy as np
+
+from .grid import interpolate_rows
+from .statistics import parameter_errors
+
+#: IPOPT's return codes, by value.
+IPOPT_STATUS = {
+    0: "Solve_Succeeded", 1: "Solved_To_Acceptable_Level", 2: "Infeasible_Problem_Detected",
+    3: "Search_Direction_Becomes_Too_Small", 4: "Diverging_Iterates",
+    5: "User_Requested_Stop", 6: "Feasible_Point_Found", -1: "Maximum_Iterations_Exceeded",
+    -2: "Restoration_Failed", -3: "Error_In_Step_Computation", -4: "Maximum_CpuTime_Exceeded",
+    -5: "Maximum_WallTime_Exceeded", -10: "Not_Enough_Degrees_Of_Freedom",
+    -11: "Invalid_Problem_Definition", -12: "Invalid_Option", -13: "Invalid_Number_Detected",
+    -100: "Unrecoverable_Exception", -101: "NonIpopt_Exception_Thrown", -102: "Insufficient_Memory",
+    -199: "Internal_Error"}
+
+
+class Deviation(float):
+    """The largest deviation abs(y_simulated − y_collocated) over the nodes and states (a float),
+    with `by_state` (name -> its largest deviation) and the `simulation` it came from."""
+
+    def __new__(cls, value, by_state, simulation):
+        obj = super().__new__(cls, value)
+        obj.by_state, obj.simulation = by_state, simulation
+        return obj
+
+    def __repr__(self):
+        worst = max(self.by_state, key=self.by_state.get)
+        return f"Deviation({float(self):.3g}, worst {worst!r})"
+
+
+class CollocationResult:
+    """The solution of a `Collocation` problem.
+
+    Attributes
+    ----------
+    success, status, message : whether IPOPT converged, its return code and message
+    iterations, objective : IPOPT's iterations and the objective at the solution
+    t : (nodes,) node times; y : (2n, nodes) [q; q̇]; u : (n_inputs, nodes); qdd : (n, nodes)
+    multipliers : (n_constraints, nodes) the constraints' λ (constrained models)
+    params, stderr : {name: value} of the unknown parameters and their standard errors (from the
+        data term; NaN without data)
+    cov : covariance of the unknown parameters (k, k), or None
+    duration : T
+    coordinates, inputs : names
+    constraint_violation : the largest violation of any constraint (bounds included)
+    seconds : wall time of the solve (after the problem's units were made)
+    callback_seconds : the part of it spent evaluating the NLP (the rest is IPOPT's own)
+    x : the decision vector (a warm start for another solve)
+    """
+
+    def __init__(self, **fields):
+        self.__dict__.update(fields)
+
+    @classmethod
+    def from_solution(cls, problem, tr, x, info, iterations, seconds, hessian):
+        L, mod = problem.layout, problem.mod
+        Z = L.point_block(x)
+        nodes = L.node_points
+        T = float(L.duration(x)) if L.free else problem.duration_bounds[0]
+        t_points = tr.point_times(T)
+        status = int(info["status"])
+        params = {mod.parameters[j]: float(x[L.p_start + k]) for k, j in enumerate(L.unknown)}
+        g = tr.constraints(x)
+        violation = max(float(np.max(np.maximum(tr.g_lo - g, g - tr.g_hi), initial=0.0)),
+                        float(np.max(np.maximum(tr.lo - x, x - tr.hi), initial=0.0)))
+        stderr, cov = parameter_errors(tr, x) if status in (0, 1) else ({}, None)
+        stderr = {name: stderr.get(name, np.nan) for name in params}
+        full = np.array(problem.params)
+        full[list(L.unknown)] = x[L.p_start:L.p_start + len(L.unknown)]
+        message = info["status_msg"]
+        message = message.decode() if isinstance(message, bytes) else str(message)
+        return cls(
+            success=status in (0, 1), status=status, message=message,
+            iterations=int(iterations), objective=float(info["obj_val"]),
+            t=t_points[nodes], y=Z[nodes, :2 * L.n].T.copy(),
+            u=Z[nodes, L.offset("u"):].T.copy(), qdd=Z[nodes, 2 * L.n:3 * L.n].T.copy(),
+            multipliers=Z[nodes, 3 * L.n:3 * L.n + L.m].T.copy(),
+            params=params, stderr=stderr, cov=cov, duration=T,
+            coordinates=tuple(mod.coordinates), inputs=tuple(mod.inputs),
+            constraint_violation=violation, seconds=seconds, x=np.array(x),
+            hessian=hessian, scheme=L.scheme, t_points=t_points, _layout=L,
+            _problem=problem, _full_params=full, _evaluations=dict(tr.evaluations))
+
+    def __repr__(self):
+        return (f"CollocationResult(success={self.success}, objective={self.objective:.10g}, "
+                f"iterations={self.iterations}, duration={self.duration:.6g}, "
+                f"nodes={self.t.size})")
+
+    def summary(self):
+        """A few lines: the outcome, the objective, the duration and the estimates."""
+        lines = [f"{'solved' if self.success else 'NOT solved'}: {self.message} "
+                 f"({IPOPT_STATUS.get(self.status, self.status)})",
+                 f"objective {self.objective:.10g} after {self.iterations} iterations "
+                 f"({self.seconds:.3g} s, {self.hessian} Hessian, {self.scheme})",
+                 f"duration {self.duration:.6g}, largest constraint violation "
+                 f"{self.constraint_violation:.2e}"]
+        for name, value in self.params.items():
+            err = self.stderr.get(name, np.nan)
+            lines.append(f"  {name} = {value:.8g}" + (f" ± {err:.3g}" if np.isfinite(err) else ""))
+        return "\n".join(lines)
+
+    # -- values between the nodes ------------------------------------------------------------
+    def _point_values(self, kind, i):
+        L = self._layout
+        return L.point_block(self.x)[:, L.offset(kind) + i]
+
+    def state_at(self, times):
+        """[q; q̇] at `times` (a number or an array), on the collocation's interpolant: (2n,) or
+        (2n, len(times))."""
+        L = self._layout
+        scalar = np.ndim(times) == 0
+        s = np.clip(np.atleast_1d(np.asarray(times, dtype=float)) - self.t_points[0], 0.0,
+                    self.duration)
+        rows = []
+        for kind, rate in (("q", "qd"), ("qd", "qdd")):
+            for i in range(L.n):
+                rows.append(interpolate_rows(self._point_values(kind, i), L, kind, s,
+                                             self.duration, self._point_values(rate, i)))
+        out = np.array(rows)
+        return out[:, 0] if scalar else out
+
+    def input_signals(self):
+        """{input name: lagrgen.Signal} of the found inputs, as the scheme implies them: linear
+        between nodes (trapezoidal), a cubic through nodes and midpoints (Hermite–Simpson), the
+        next node's value held over each interval (backward Euler)."""
+        from ..signals import Signal
+        L = self._layout
+        out = {}
+        for k, name in enumerate(self.inputs):
+            values = self._point_values("u", k)
+            if L.scheme == "hermite-simpson":
+                out[name] = Signal(self.t_points, values, kind="cubic")
+            elif L.scheme == "trapezoidal":
+                out[name] = Signal(self.t, values, kind="linear")
+            else:
+                held = np.append(values[1:], values[-1])
+                out[name] = Signal(self.t, held, kind="previous")
+        return out
+
+    def check(self, method="DOP853", rtol=1e-10, atol=1e-12):
+        """Re-simulate the model from the first node's state with the found inputs and parameters
+        on the native engine; the largest deviation from the collocated states at the nodes
+        (a `Deviation`: a float with `by_state` and `simulation`). An unstable motion (a pendulum
+        held upright) departs even from an exact answer; a deviation that shrinks as the nodes
+        grow says the grid resolves the motion."""
+        from ..simulate import simulate
+        mod = self._problem.mod
+        sol = simulate(mod, (self.t[0], self.t[-1]), self.y[:, 0], method=method,
+                       params=self._full_params, inputs=self.input_signals(), t_eval=self.t,
+                       rtol=rtol, atol=atol)
+        names = list(self.coordinates) + [f"{c}_dot" for c in self.coordinates]
+        if sol.y.shape[1] != self.t.size:
+            return Deviation(np.inf, {name: np.inf for name in names}, sol)
+        error = np.abs(sol.y - self.y).max(axis=1)
+        return Deviation(float(error.max()), dict(zip(names, map(float, error))), sol)
+
+    # -- looking at it ---------------------------------------------------------------------------
+    def plot(self, path=None, title=None):
+        """Coordinates, rates and inputs against time (the data of `track` as dots); returns the
+        matplotlib Figure (saved to `path` if given)."""
+        from .plots import plot_result
+        return plot_result(self, path, title)
+
+    def animate(self, path=None, fps=20, max_frames=120, dpi=72, title=None):
+        """The mechanism moving along the solution: a notebook animation, saved to `path` (GIF or
+        MP4) if given."""
+        from ..outputs.notebook import animation
+        from ..results import SimulationResult
+        times = np.linspace(self.t[0], self.t[-1], max(2 * max_frames, self.t.size))
+        sol = SimulationResult(t=times, y=self.state_at(times))
+        sol.sol = self.state_at
+        sol.__dict__["_built"] = self._problem.mod
+        sol["params"] = self._full_params
+        anim = animation(sol, None, self._full_params, fps, max_frames, dpi,
+                         title or f"{self._problem.mod.name} (collocation)")
+        if path is not None:
+            anim.save(path)
+        return anim
+
+    def to_xarray(self):
+        """An xarray.Dataset: y (state, time), u (input, time), qdd (coordinate, time) and the
+        multipliers; the estimates, the objective and the solver's status in attrs."""
+        import xarray as xr
+        states = list(self.coordinates) + [f"{c}_dot" for c in self.coordinates]
+        data = {"y": (("state", "time"), self.y), "qdd": (("coordinate", "time"), self.qdd)}
+        coords = {"time": self.t, "state": states, "coordinate": list(self.coordinates)}
+        if self.inputs:
+            data["u"] = (("input", "time"), self.u)
+            coords["input"] = list(self.inputs)
+        names = self._problem.mod.constraint_names
+        if names:
+            data["multipliers"] = (("constraint", "time"), self.multipliers)
+            coords["constraint"] = list(names)
+        attrs = {"objective": self.objective, "status": self.status, "message": self.message,
+                 "iterations": self.iterations, "duration": self.duration,
+                 "scheme": self.scheme, "model": self._problem.mod.name}
+        for name, value in self.params.items():
+            attrs[f"param_{name}"] = value
+            attrs[f"stderr_{name}"] = self.stderr[name]
+        return xr.Dataset(data, coords=coords, attrs=attrs)
