@@ -72,6 +72,48 @@ def test_parameter_jacobian_in_c_equals_python(built, name):
                     atol=1e-12)
 
 
+@pytest.mark.parametrize("name", ["pendulum", "crank", "chain"])
+@pytest.mark.parametrize("backend", ["python", "c"])
+def test_directional_derivatives_are_the_jacobian_products(built, name, backend):
+    """ẏ and J·dy + ∂ẏ/∂p·dp along k directions (forward mode on the kernels) against the
+    Jacobian and parameter Jacobian formed whole; one direction keeps its 1-D shape."""
+    mod = built[name, backend]
+    rng = np.random.default_rng(11)
+    n, n_params = mod.n_coordinates, len(mod.parameters)
+    p = np.asarray(mod.defaults) * rng.uniform(0.8, 1.2, n_params)
+    u = rng.uniform(-1, 1, len(mod.inputs))
+    y = np.concatenate([rng.uniform(-0.5, 0.5, n), rng.uniform(-1, 1, n)])
+    if mod.n_constraints:
+        y = lagrgen.consistent_state(mod, y, 0.3, p)
+    dy, dp = rng.standard_normal((3, 2 * n)), rng.standard_normal((3, n_params))
+    ydot, products = mod.directional_derivatives(0.3, y, dy, dp, p, u)
+    expected = (dy @ mod.jacobian(0.3, y, p, u).T + dp @ mod.parameter_jacobian(0.3, y, p, u).T)
+    assert_allclose(ydot, mod.rhs(0.3, y, p, u), rtol=1e-13, atol=1e-13)
+    assert products.shape == (3, 2 * n)
+    assert_allclose(products, expected, rtol=1e-10, atol=1e-11 * np.abs(expected).max())
+    one = mod.directional_derivatives(0.3, y, dy[1], p=p, u=u)[1]
+    assert one.shape == (2 * n,)
+    assert_allclose(one, dy[1] @ mod.jacobian(0.3, y, p, u).T, rtol=1e-10,
+                    atol=1e-11 * np.abs(expected).max())
+    with pytest.raises(ValueError, match="dy must have shape"):
+        mod.directional_derivatives(0.3, y, np.ones(2 * n + 1))
+    with pytest.raises(ValueError, match="dp must have shape"):
+        mod.directional_derivatives(0.3, y, dy, np.ones((2, n_params + 1)))
+
+
+@pytest.mark.parametrize("name", ["pendulum", "crank"])
+def test_directional_derivatives_in_c_equal_python(built, name):
+    c, py = built[name, "c"], built[name, "python"]
+    y = np.concatenate([np.full(c.n_coordinates, 0.3), np.full(c.n_coordinates, -0.2)])
+    if c.n_constraints:
+        y = lagrgen.consistent_state(c, y)
+    dy = np.linspace(-1, 1, 4 * c.n_coordinates).reshape(2, -1)
+    dp = np.linspace(1, 2, 2 * len(c.parameters)).reshape(2, -1)
+    for a, b in zip(c.directional_derivatives(0.1, y, dy, dp),
+                    py.directional_derivatives(0.1, y, dy, dp)):
+        assert_allclose(a, b, rtol=1e-12, atol=1e-12)
+
+
 def closed_form_x(t, k, c, m=1.0):
     """x(t) of m·ẍ + c·ẋ + k·x = 0 from x = 1, ẋ = 0 (underdamped)."""
     wn = np.sqrt(k / m)

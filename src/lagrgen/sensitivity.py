@@ -2,7 +2,9 @@
 
 The augmented system is y' = f(t, y, p, u), S_j' = J·S_j + ∂f/∂p_j with S_j(0) = 0 (or a unit
 vector for an initial state y0:<state>), J = ∂f/∂y the model's analytic Jacobian and ∂f/∂p its
-analytic `parameter_jacobian`. The error control covers the sensitivities as well as the state
+analytic parameter Jacobian: the k products come from one call of the model's
+`directional_derivatives` (forward mode on its kernels, J never formed). The error control
+covers the sensitivities as well as the state
 (as CVODES with errconS set). For Radau and BDF the augmented Jacobian is taken block-diagonal,
 diag(J, …, J): the term ∂(J·S)/∂y only enters the Newton iteration matrix, which needs to be
 approximate. On a compiled model the augmented system runs in C (the native engine with the
@@ -42,19 +44,12 @@ def sensitivity_columns(mod, names):
 def augmented_functions(mod, p, u_at, columns):
     """(rhs, jacobian) of the augmented state z = [y, S_1, …, S_k] for solve_ivp."""
     dim, k = 2 * mod.n_coordinates, len(columns)
-    params = np.array([j if kind == "p" else -1 for kind, j in columns])
-    rhs, jacobian, parameter_jacobian = mod.rhs, mod.jacobian, mod.parameter_jacobian
+    P = parameter_directions(columns, len(mod.parameters))
+    directional, jacobian = mod.directional_derivatives, mod.jacobian
 
     def fun(t, z):
-        y, S = z[:dim], z[dim:].reshape(k, dim)
-        u = u_at(t)
-        ydot = rhs(t, y, p, u)
-        dS = S @ jacobian(t, y, p, u).T
-        if (params >= 0).any():
-            dfdp = parameter_jacobian(t, y, p, u)
-            for c, j in enumerate(params):
-                if j >= 0:
-                    dS[c] += dfdp[:, j]
+        y = z[:dim]
+        ydot, dS = directional(t, y, z[dim:].reshape(k, dim), P, p, u_at(t))
         out = np.concatenate([ydot, dS.ravel()])
         if not np.isfinite(out.sum()):
             raise NonFiniteError.at(mod.name, t, y)
@@ -64,6 +59,15 @@ def augmented_functions(mod, p, u_at, columns):
         return np.kron(np.eye(k + 1), jacobian(t, z[:dim], p, u_at(t)))
 
     return fun, jac
+
+
+def parameter_directions(columns, n_params):
+    """(k, n_params): the unit vector of each column's parameter (zeros for an initial state)."""
+    P = np.zeros((len(columns), n_params))
+    for c, (kind, j) in enumerate(columns):
+        if kind == "p":
+            P[c, j] = 1.0
+    return P
 
 
 def initial_sensitivities(columns, dim):
