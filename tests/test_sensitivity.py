@@ -29,8 +29,13 @@ def built(tmp_path_factory):
     models = {"osc": damped_oscillator(), "pendulum": example_model("double_pendulum"),
               "crank": example_model("slider_crank"),
               "chain": example_model("two_mass_chain", "absolute")}
-    return {(name, backend): lagrgen.build(model, out_dir=out, backend=backend)
-            for name, model in models.items() for backend in ("python", "c")}
+    built = {(name, backend): lagrgen.build(model, out_dir=out, backend=backend)
+             for name, model in models.items() for backend in ("python", "c")}
+    for name in ("pendulum", "chain"):          # the same trees in the recursive formulation
+        for backend in ("python", "c"):
+            built[f"{name}-recursive", backend] = lagrgen.build(
+                models[name], out_dir=out, backend=backend, formulation="recursive")
+    return built
 
 
 def central_parameter_jacobian(mod, t, y, p, u, h=1e-6):
@@ -43,7 +48,7 @@ def central_parameter_jacobian(mod, t, y, p, u, h=1e-6):
     return out
 
 
-@pytest.mark.parametrize("name", ["pendulum", "crank", "chain"])
+@pytest.mark.parametrize("name", ["pendulum", "crank", "chain", "chain-recursive"])
 @pytest.mark.parametrize("backend", ["python", "c"])
 def test_parameter_jacobian_matches_central_differences(built, name, backend):
     mod = built[name, backend]
@@ -62,7 +67,7 @@ def test_parameter_jacobian_matches_central_differences(built, name, backend):
         assert_allclose(J, reference, rtol=1e-6, atol=1e-6 * np.abs(reference).max())
 
 
-@pytest.mark.parametrize("name", ["pendulum", "crank"])
+@pytest.mark.parametrize("name", ["pendulum", "crank", "pendulum-recursive"])
 def test_parameter_jacobian_in_c_equals_python(built, name):
     c, py = built[name, "c"], built[name, "python"]
     y = np.concatenate([np.full(c.n_coordinates, 0.3), np.full(c.n_coordinates, -0.2)])
@@ -72,7 +77,8 @@ def test_parameter_jacobian_in_c_equals_python(built, name):
                     atol=1e-12)
 
 
-@pytest.mark.parametrize("name", ["pendulum", "crank", "chain"])
+@pytest.mark.parametrize("name", ["pendulum", "crank", "chain", "pendulum-recursive",
+                                  "chain-recursive"])
 @pytest.mark.parametrize("backend", ["python", "c"])
 def test_directional_derivatives_are_the_jacobian_products(built, name, backend):
     """ẏ and J·dy + ∂ẏ/∂p·dp along k directions (forward mode on the kernels) against the
@@ -101,7 +107,7 @@ def test_directional_derivatives_are_the_jacobian_products(built, name, backend)
         mod.directional_derivatives(0.3, y, dy, np.ones((2, n_params + 1)))
 
 
-@pytest.mark.parametrize("name", ["pendulum", "crank"])
+@pytest.mark.parametrize("name", ["pendulum", "crank", "pendulum-recursive"])
 def test_directional_derivatives_in_c_equal_python(built, name):
     c, py = built[name, "c"], built[name, "python"]
     y = np.concatenate([np.full(c.n_coordinates, 0.3), np.full(c.n_coordinates, -0.2)])
@@ -176,6 +182,26 @@ def test_native_sensitivities_equal_the_scipy_engines(built, method):
     scale = np.abs(runs[1].sensitivities).max()
     assert_allclose(runs[0].sensitivities, runs[1].sensitivities, atol=1e-6 * scale)
     assert_allclose(runs[0].y, runs[1].y, atol=1e-8)
+
+
+@pytest.mark.parametrize("backend", ["python", "c"])
+def test_recursive_sensitivities_equal_the_dense_ones(built, backend):
+    """The same pendulum in both formulations: ẏ, J·dy + ∂ẏ/∂p·dp to round-off, and the
+    sensitivities integrated with them (native engine for C) to the integration's tolerance."""
+    dense, recursive = built["pendulum", backend], built["pendulum-recursive", backend]
+    assert (dense.formulation, recursive.formulation) == ("dense", "recursive")
+    y = np.array([0.4, -0.2, 0.1, 0.3])
+    dy = np.linspace(-1, 1, 36).reshape(9, 4)
+    dp = np.linspace(1, 2, 9 * len(dense.parameters)).reshape(9, -1)
+    for a, b in zip(recursive.directional_derivatives(0.1, y, dy, dp, u=[0.2]),
+                    dense.directional_derivatives(0.1, y, dy, dp, u=[0.2])):
+        assert_allclose(a, b, rtol=1e-12, atol=1e-12 * np.abs(b).max())
+    t = np.linspace(0, 2, 9)
+    runs = [lagrgen.simulate(mod, (0, 2), y, method="DOP853", t_eval=t, rtol=1e-10, atol=1e-12,
+                             sensitivities=["m1", "L2", "y0:theta1"], inputs={"F": 0.2})
+            for mod in (recursive, dense)]
+    assert_allclose(runs[0].sensitivities, runs[1].sensitivities,
+                    atol=1e-7 * np.abs(runs[1].sensitivities).max())
 
 
 # -- identification ---------------------------------------------------------------------------

@@ -43,7 +43,7 @@ MODEL_UNIT = "model"
 class ModelFunction:
     """A function of a built model: name, call style (a key of CALL_STYLES), outputs, formula,
     the kernels its C body calls (names in lagrgen.kernels.KERNELS) and the unit it is compiled
-    into (MODEL_UNIT, or the label of a unit compiled on first use, such as "analysis")."""
+    into (MODEL_UNIT, or the label of a unit compiled on first use, such as "parameters")."""
     name: str
     call: str
     outputs: tuple
@@ -89,7 +89,7 @@ FUNCTIONS = (
     ModelFunction("directional_derivatives", "directions",
                   (Output("ydot", ("2n",)), Output("dydot", ("k", "2n"))),
                   "ẏ, and for each direction s: J·dy_s + ∂ẏ/∂p·dp_s (forward mode on the "
-                  "kernels, J never formed)", ("motion_tape", "motion_tangent", "constraints"),
+                  "kernels, or tangent sweeps of the recursion; J never formed)", ("motion_tape", "motion_tangent", "constraints"),
                   "directions"),
     ModelFunction("linear_terms", "q_qd",
                   (Output("M", ("n", "n")), Output("dF_dq", ("n", "n")),

@@ -44,7 +44,7 @@ def sensitivity_columns(mod, names):
 def augmented_functions(mod, p, u_at, columns):
     """(rhs, jacobian) of the augmented state z = [y, S_1, …, S_k] for solve_ivp."""
     dim, k = 2 * mod.n_coordinates, len(columns)
-    P = parameter_directions(columns, len(mod.parameters))
+    P = unit_rows(columns, "p", len(mod.parameters))
     directional, jacobian = mod.directional_derivatives, mod.jacobian
 
     def fun(t, z):
@@ -61,22 +61,14 @@ def augmented_functions(mod, p, u_at, columns):
     return fun, jac
 
 
-def parameter_directions(columns, n_params):
-    """(k, n_params): the unit vector of each column's parameter (zeros for an initial state)."""
-    P = np.zeros((len(columns), n_params))
-    for c, (kind, j) in enumerate(columns):
-        if kind == "p":
-            P[c, j] = 1.0
-    return P
-
-
-def initial_sensitivities(columns, dim):
-    """S(0): zeros for parameters, the unit vector e_i for an initial state y0:<state_i>."""
-    S0 = np.zeros((len(columns), dim))
-    for c, (kind, i) in enumerate(columns):
-        if kind == "y0":
-            S0[c, i] = 1.0
-    return S0
+def unit_rows(columns, kind, width):
+    """(k, width): row c the unit vector e_i of column c = (kind, i), zeros for the other kind.
+    Of kind "p": the parameter directions; of kind "y0": S(0)."""
+    rows = np.zeros((len(columns), width))
+    for c, (of, i) in enumerate(columns):
+        if of == kind:
+            rows[c, i] = 1.0
+    return rows
 
 
 def solve_sensitivities(mod, t_span, y0, method, p, u_at, rtol, atol, names, inputs=None,
@@ -90,7 +82,7 @@ def solve_sensitivities(mod, t_span, y0, method, p, u_at, rtol, atol, names, inp
     from .runtime.arguments import input_specs
     dim = 2 * mod.n_coordinates
     columns = sensitivity_columns(mod, names)
-    z0 = np.concatenate([y0, initial_sensitivities(columns, dim).ravel()])
+    z0 = np.concatenate([y0, unit_rows(columns, "y0", dim).ravel()])
     why_not = None if engine == "scipy" else native_reason(mod, method, inputs, None, options,
                                                             rtol)
     if engine == "native" and why_not:

@@ -408,10 +408,36 @@ static int lu_complex(double *a, int *piv, int n)
 
 /* The triangular solves of getrs for the real systems (BDF, Radau's error estimate; trsv's
  * column order: b[i] −= b[j]·L_ij for j = 0, 1, …, each column skipped where b[j] = 0; backward
- * b[j] /= U_jj then b[i] −= b[j]·U_ij for j = n−1, …, 0), four columns at a time: within a block the four b[j] are finished first, then every other b[i]
- * is held in a register through its four updates, taken in the same order. Each b[i] thus sees
- * the very same operations as column by column; a block with a zero b[j] goes column by column
- * (to skip exactly what trsv skips).                                                          */
+ * b[j] /= U_jj then b[i] −= b[j]·U_ij for j = n−1, …, 0), four columns at a time: within a block
+ * the four b[j] are finished first, then every other b[i] is held in a register through its four
+ * updates, taken in the same order (sub_four). Each b[i] thus sees the very same operations as
+ * column by column; a block with a zero b[j] goes column by column (to skip exactly what trsv
+ * skips). */
+
+/* b[i] −= x_0·col_0[i], then x_1·col_1[i], x_2·col_2[i], x_3·col_3[i], for i < len (each b[i] held
+ * in a register through its four updates); a column whose z_c is 0 is skipped (then column by
+ * column, as trsv). */
+static inline void sub_four(double *restrict b, int len, const double *const col[4],
+                            const double x[4], const int z[4])
+{
+    if (z[0] && z[1] && z[2] && z[3]) {
+        const double *restrict c0 = col[0], *restrict c1 = col[1], *restrict c2 = col[2],
+                               *restrict c3 = col[3];
+        const double x0 = x[0], x1 = x[1], x2 = x[2], x3 = x[3];
+        for (int i = 0; i < len; ++i) {
+            double t = b[i];
+            t -= x0 * c0[i];
+            t -= x1 * c1[i];
+            t -= x2 * c2[i];
+            t -= x3 * c3[i];
+            b[i] = t;
+        }
+    } else {
+        for (int c = 0; c < 4; ++c)
+            if (z[c])
+                axpy_sub(b, col[c], x[c], len);
+    }
+}
 
 /* b := L⁻¹·b, L the unit lower triangle of the column-major n × n a. */
 static void lower_solve(const double *restrict a, int n, double *restrict b)
@@ -433,22 +459,10 @@ static void lower_solve(const double *restrict a, int n, double *restrict b)
         const double x2 = b[j + 2];
         if (x2 != 0.0)
             b[j + 3] -= x2 * c2[j + 3];
-        const double x3 = b[j + 3];
-        if (x0 != 0.0 && x1 != 0.0 && x2 != 0.0 && x3 != 0.0) {
-            for (int i = j + 4; i < n; ++i) {
-                double t = b[i];
-                t -= x0 * c0[i];
-                t -= x1 * c1[i];
-                t -= x2 * c2[i];
-                t -= x3 * c3[i];
-                b[i] = t;
-            }
-        } else {
-            const double x[4] = {x0, x1, x2, x3};
-            for (int c = 0; c < 4; ++c)
-                if (x[c] != 0.0)
-                    axpy_sub(b + j + 4, c0 + (size_t)c * n + j + 4, x[c], n - j - 4);
-        }
+        const double x[4] = {x0, x1, x2, b[j + 3]};
+        const int z[4] = {x0 != 0.0, x1 != 0.0, x2 != 0.0, x[3] != 0.0};
+        const double *col[4] = {c0 + j + 4, c1 + j + 4, c2 + j + 4, c3 + j + 4};
+        sub_four(b + j + 4, n - j - 4, col, x, z);
     }
     for (; j < n; ++j)
         if (b[j] != 0.0)
@@ -482,23 +496,10 @@ static void upper_solve(const double *restrict a, int n, double *restrict b)
         const int z3 = b[j - 3] != 0.0;
         if (z3)
             b[j - 3] /= c3[j - 3];
-        const double x0 = b[j], x1 = b[j - 1], x2 = b[j - 2], x3 = b[j - 3];
-        if (z0 && z1 && z2 && z3) {
-            for (int i = 0; i < j - 3; ++i) {
-                double t = b[i];
-                t -= x0 * c0[i];
-                t -= x1 * c1[i];
-                t -= x2 * c2[i];
-                t -= x3 * c3[i];
-                b[i] = t;
-            }
-        } else {
-            const double x[4] = {x0, x1, x2, x3};
-            const int z[4] = {z0, z1, z2, z3};
-            for (int c = 0; c < 4; ++c)
-                if (z[c])
-                    axpy_sub(b, c0 - (size_t)c * n, x[c], j - 3);
-        }
+        const double x[4] = {b[j], b[j - 1], b[j - 2], b[j - 3]};
+        const int z[4] = {z0, z1, z2, z3};
+        const double *col[4] = {c0, c1, c2, c3};
+        sub_four(b, j - 3, col, x, z);
     }
     for (; j >= 0; --j)
         if (b[j] != 0.0) {
