@@ -4,16 +4,19 @@ Two model families, each size in a fresh process (nothing cached in memory, a fr
     nlink    the planar n-link pendulum of examples/nlink_pendulum.py (a chain), n = 2 … 100
     lattice  a planar mass–spring lattice (rows × cols point masses, each with x and y, nonlinear
              springs to the right and lower neighbours and to a wall, gravity): n = 2·rows·cols
-For each: the cold build's wall time split into its stages (derive, CSE, emit with the size of
-the C it compiles, gcc wall and CPU: what `module.build_info` records), the first use of the
-analysis unit (the parameter Jacobian, compiled on first use), operation counts of the M,F and
-Jacobian kernels, rhs and jacobian per call looped inside C (the process's CPU time per call,
+Each is built in the formulation lagrgen chooses (`--formulation` forces one: the chain is
+recursive from lagrgen.tree.RECURSIVE_FROM coordinates). For each: the cold build's wall time split
+into its stages (derive, CSE, emit with the size of the C it compiles, gcc wall and CPU: what
+`module.build_info` records), the first use of the analysis unit (the parameter Jacobian,
+compiled on first use), operation counts of the kernels that give M,F and the Jacobian in that
+formulation, rhs and jacobian per call looped inside C (the process's CPU time per call,
 best of 15 loops, so that other processes on a shared machine do not inflate it), growth exponents
 fitted over n = 10 … the largest n, and PyDy's cold build (KanesMethod + Cython, no Jacobian) for
 the chain when pydy and Cython are installed (CasADi and JiTCODE: see nlink.py).
 
     python benchmarks/scale.py                    # everything, writes benchmarks/results/scale.{md,json}
     python benchmarks/scale.py --n 2 10 --no-pydy # a quick look
+    python benchmarks/scale.py --formulation dense --n 10 20 --families nlink
 """
 import argparse
 import json
@@ -96,7 +99,7 @@ def cpu_per_call(mod, function, y, p, loops=15, min_time=0.02):
     return best
 
 
-def one(family, n):
+def one(family, n, formulation=None):
     """Measure one (family, n) in this process (nothing derived or cached before): the cold
     build, split into its stages (`module.build_info`: derive, CSE, emit, compile = gcc wall; the
     compiler processes' CPU), its C, then the first use of the analysis unit (the parameter
@@ -104,12 +107,13 @@ def one(family, n):
     import numpy as np
     import lagrgen
     from lagrgen.codegen.printer import CPrinter, kernel_statements, print_statements
-    from lagrgen.kernels import all_kernels
+    from lagrgen.kernels import model_kernels
 
     model = FAMILIES[family](n)
     with tempfile.TemporaryDirectory() as out:
         ch0, w0 = children_cpu(), time.perf_counter()
-        mod = lagrgen.build(model, out_dir=out, force=True, quiet=True)
+        mod = lagrgen.build(model, out_dir=out, force=True, quiet=True,
+                            formulation=formulation)
         wall_build = time.perf_counter() - w0
         compile_cpu = children_cpu() - ch0
         info = mod.build_info
@@ -123,8 +127,12 @@ def one(family, n):
                                                              "jacobian")}
     eq = model.equations()
     ops = {k.name: op_count(print_statements(CPrinter(), kernel_statements(k)))
-           for k in all_kernels(eq, ("mf", "jacobian_b"))}
-    return {"family": family, "n": n, "ops": ops, "c_kib": c_kib / 1024,
+           for k in model_kernels(eq, mod.formulation, ("mf", "jacobian_b"))}
+    mf = {k.name for k in model_kernels(eq, mod.formulation, ("mf",))}
+    ops = {"mf": sum(v for k, v in ops.items() if k in mf),
+           "jacobian_b": sum(v for k, v in ops.items() if k not in mf)}
+    return {"family": family, "n": n, "formulation": mod.formulation, "ops": ops,
+            "c_kib": c_kib / 1024,
             "derive": info["derive"], "cse": info["cse"], "emit": info["emit"],
             "compile_cpu": compile_cpu, "compile_wall": info["compile"],
             "build_wall": wall_build, "analysis_wall": analysis_wall,
@@ -150,8 +158,9 @@ def _installed(module):
     return importlib.util.find_spec(module) is not None
 
 
-def in_fresh_process(args):
-    out = subprocess.run([sys.executable, __file__, "--one", *map(str, args)],
+def in_fresh_process(args, formulation=None):
+    extra = ["--formulation", formulation] if formulation else []
+    out = subprocess.run([sys.executable, __file__, "--one", *map(str, args), *extra],
                          capture_output=True, text=True, timeout=1800)
     if out.returncode != 0:
         return {"error": out.stderr.strip().splitlines()[-1:]}
@@ -170,23 +179,25 @@ def exponent(rows, key, lo=10, hi=math.inf):
 
 
 def table(rows, pydy):
-    lines = ["| model | n | ops mf | ops jacobian_b | derive s | CSE s | emit s | C KiB | "
+    lines = ["| model | n | formulation | ops M,F | ops Jacobian | derive s | CSE s | emit s | C KiB | "
              "gcc wall s | gcc CPU s | cold build wall s | analysis unit on first use, wall s | "
              "rhs in C µs | jacobian in C µs | PyDy cold build wall s | load |",
-             "|" + "---|" * 16]
+             "|" + "---|" * 17]
     for r in rows:
         if "error" in r:
             lines.append(f"| {r.get('family')} | {r.get('n')} | error: {r['error']} |")
             continue
         py = pydy.get((r["family"], r["n"]))
         lines.append(
-            f"| {r['family']} | {r['n']} | {r['ops'].get('mf', 0)} | "
+            f"| {r['family']} | {r['n']} | {r.get('formulation', 'dense')} | "
+            f"{r['ops'].get('mf', 0)} | "
             f"{r['ops'].get('jacobian_b', 0)} | {r['derive']:.2f} | {r['cse']:.2f} | "
             f"{r['emit']:.2f} | {r['c_kib']:.0f} | {r['compile_wall']:.2f} | "
             f"{r['compile_cpu']:.2f} | **{r['build_wall']:.2f}** | {r['analysis_wall']:.2f} | "
             f"{r['rhs_us']:.2f} | {r['jacobian_us']:.2f} | "
             f"{py['build_wall']:.2f} | " if py else
-            f"| {r['family']} | {r['n']} | {r['ops'].get('mf', 0)} | "
+            f"| {r['family']} | {r['n']} | {r.get('formulation', 'dense')} | "
+            f"{r['ops'].get('mf', 0)} | "
             f"{r['ops'].get('jacobian_b', 0)} | {r['derive']:.2f} | {r['cse']:.2f} | "
             f"{r['emit']:.2f} | {r['c_kib']:.0f} | {r['compile_wall']:.2f} | "
             f"{r['compile_cpu']:.2f} | **{r['build_wall']:.2f}** | {r['analysis_wall']:.2f} | "
@@ -194,7 +205,7 @@ def table(rows, pydy):
         lines[-1] += f"{r['load']:.1f} |"
     top = max((r["n"] for r in rows if "error" not in r), default=40)
     lines += ["", f"Growth exponents fitted over n = 10 … {top} (log–log least squares):", "",
-              "| model | ops mf | ops jacobian_b | C size | derive | CSE | emit | gcc wall | "
+              "| model | ops M,F | ops Jacobian | C size | derive | CSE | emit | gcc wall | "
               "cold build wall | analysis unit | rhs | jacobian |", "|" + "---|" * 12]
     for family in FAMILIES:
         fam = [dict(r, ops_mf=r["ops"].get("mf"), ops_jac=r["ops"].get("jacobian_b"))
@@ -237,9 +248,10 @@ def targets(rows, pydy):
         lines.append(f"| {label} | {value:.2f} | {'≥' if bound < 0 else '≤'} {abs(bound)} | "
                      f"{'yes' if met else 'no'} |")
     lines += ["", "Where the per-call time goes (nlink, µs, best of 15): `forcing` runs the M,F "
-              "kernel alone, `linear_terms` the M,F and Jacobian kernels (no solves); the rest of "
-              "rhs and jacobian is the dense Cholesky factorization and solves (with 2n right-hand "
-              "sides for the Jacobian) and copying the (2n)² output.", "",
+              "kernel alone (recursive: M by the composite-body sums), `linear_terms` the M,F and "
+              "Jacobian kernels (no solves); the rest of rhs and jacobian is the dense Cholesky "
+              "factorization and solves (recursive: the articulated-body recursion and its solve), "
+              "with 2n right-hand sides for the Jacobian, and copying the (2n)² output.", "",
               "| n | M,F kernel | + Jacobian kernel | rhs | jacobian |", "|---|---|---|---|---|"]
     for n, r in sorted(by_n.items()):
         lines.append(f"| {n} | {r['mf_us']:.2f} | {r['kernels_us']:.2f} | {r['rhs_us']:.2f} | "
@@ -253,19 +265,22 @@ def main(argv=None):
     ap.add_argument("--families", nargs="+", default=list(FAMILIES))
     ap.add_argument("--pydy-n", type=int, nargs="*", default=[2, 10, 20])
     ap.add_argument("--no-pydy", action="store_true")
+    ap.add_argument("--formulation", choices=("dense", "recursive"), default=None,
+                    help="force one (default: lagrgen's choice)")
     ap.add_argument("--one", nargs=2, help=argparse.SUPPRESS)
     ap.add_argument("--out", default=str(HERE / "results" / "scale"))
     args = ap.parse_args(argv)
     if args.one:
         family, n = args.one[0], int(args.one[1])
-        print(json.dumps(pydy_one(n) if family == "nlink-pydy" else one(family, n)))
+        print(json.dumps(pydy_one(n) if family == "nlink-pydy" else
+                         one(family, n, args.formulation)))
         return
-    rows, pydy = [], {}
+    rows, pydy, load_before = [], {}, os.getloadavg()
     for family in args.families:
         for n in args.n:
             if family == "lattice" and n not in LATTICE:
                 continue
-            rows.append(in_fresh_process((family, n)))
+            rows.append(in_fresh_process((family, n), args.formulation))
             print(json.dumps(rows[-1]), file=sys.stderr, flush=True)
     if not args.no_pydy:
         for n in args.pydy_n:
@@ -281,11 +296,14 @@ def main(argv=None):
                  for m in ("casadi", "jitcode")) + ".")
     text = (f"# Scaling of lagrgen's build and generated code (issues 11, 23, 30)\n\n"
             f"{time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}, {os.cpu_count()} cores. Each "
-            f"row is a cold build in a fresh process (nothing derived before), wall seconds of "
+            f"row is a cold build in a fresh process (nothing derived before), in the "
+            f"formulation {args.formulation or 'lagrgen chooses'}, wall seconds of "
             f"its stages (`module.build_info`); the C is all the build compiles (the model's "
             f"module; the analysis unit is compiled on first use and timed apart); per-call "
             f"times are the best of 15 loops inside C (CPU time); load = 1-minute load average "
-            f"when the row finished. Peers: {peers}\n\n"
+            f"when the row finished (load average 1, 5, 15 min before the run: "
+            f"{' '.join(f'{x:.2f}' for x in load_before)}; after: "
+            f"{' '.join(f'{x:.2f}' for x in os.getloadavg())}). Peers: {peers}\n\n"
             + table(rows, pydy) + "\n\n" + targets(rows, pydy) + "\n")
     print(text)
     Path(args.out).parent.mkdir(parents=True, exist_ok=True)
