@@ -1,9 +1,13 @@
 """Builds lagrgen's compiled runtime (Cython, compiled once at install) and ships the C templates."""
 import numpy
 from Cython.Build import cythonize
-from setuptools import Extension, setup
+from setuptools import Extension, find_packages, setup
 
 TEMPLATES = "src/lagrgen/codegen/templates"
+
+# Directories of C templates and FMI headers: data, not Python packages (no __init__.py), shipped whole.
+TEMPLATE_PACKAGES = ["lagrgen.codegen.templates", "lagrgen.codegen.templates.functions",
+                     "lagrgen.codegen.templates.fmi2", "lagrgen.codegen.templates.fmi3"]
 
 runtime = Extension(
     "lagrgen.runtime._compiled",
@@ -33,10 +37,7 @@ collocation = Extension(
 )
 
 setup(
-    packages=["lagrgen", "lagrgen.codegen", "lagrgen.codegen.templates",
-              "lagrgen.codegen.templates.functions", "lagrgen.codegen.templates.fmi2",
-              "lagrgen.codegen.templates.fmi3",
-              "lagrgen.runtime", "lagrgen.outputs", "lagrgen.native", "lagrgen.collocation"],
+    packages=find_packages("src") + TEMPLATE_PACKAGES,
     package_dir={"": "src"},
     package_data={"lagrgen.codegen.templates": ["*.in", "*.h"],
                   "lagrgen.codegen.templates.functions": ["*.c"],

@@ -22,8 +22,10 @@ then `warm` (both cached, as a second run of a script finds them). opty's `numpy
 one its gallery uses. Writes benchmarks/results/collocation.md and .json.
 """
 import argparse
+import compileall
 import json
 import os
+import statistics
 import subprocess
 import sys
 import tempfile
@@ -113,8 +115,20 @@ def chain_lagrgen(lagrgen, sp, np, out_dir, links, nodes=51):
 
 
 # -- workers (each in a fresh process) -----------------------------------------------------------
-def worker_lagrgen(task, out_dir, hessian, nodes, links, restart, start):
-    start = time.perf_counter()
+#: IPOPT's own defaults for the options lagrgen sets with the exact Hessian.
+IPOPT_DEFAULTS = {"mu_strategy": "monotone", "min_refinement_steps": 1}
+
+
+def worker_floor():
+    """The imports both tools' scripts make."""
+    began = time.perf_counter()
+    import numpy  # noqa: F401
+    import sympy  # noqa: F401
+    return {"tool": "floor", "imports": time.perf_counter() - began}
+
+
+def worker_lagrgen(task, out_dir, hessian, nodes, links, restart, start, options):
+    began = time.perf_counter()
     import numpy as np
     import sympy as sp
     imported = time.perf_counter()
@@ -129,10 +143,10 @@ def worker_lagrgen(task, out_dir, hessian, nodes, links, restart, start):
         guess = opty_cart_guess(np, np.load(restart), prob.nodes)
     prob.transcription(hessian)
     ready = time.perf_counter()
-    res = prob.solve(guess=guess, hessian=hessian, progress=False)
+    res = prob.solve(guess=guess, hessian=hessian, progress=False, options=options)
     done = time.perf_counter()
     objective = res.objective / (prob.nodes - 1) if task == "cart" else res.objective
-    return {"tool": "lagrgen", "imports": imported - start, "build": built - imported,
+    return {"tool": "lagrgen", "imports": imported - began, "build": built - imported,
             "setup": ready - built, "solve": done - ready, "in_process": done - imported,
             "iterations": res.iterations, "objective": objective, "status": res.status,
             "ipopt_seconds": res.seconds, "callback_seconds": res.callback_seconds,
@@ -153,8 +167,8 @@ def opty_cart_guess(np, solution, nodes):
     return guess
 
 
-def worker_opty(task, save):
-    start = time.perf_counter()
+def worker_opty(task, save, tol=None):
+    began = time.perf_counter()
     import numpy as np
     import sympy as sm
     imported = time.perf_counter()
@@ -234,24 +248,33 @@ def worker_opty(task, save):
         guess[6 * nodes:7 * nodes] = 50.0
         guess[-1] = 0.01
     prob.add_option("print_level", 0)
+    if tol is not None:
+        prob.add_option("tol", tol)
+        prob.add_option("max_iter", 5000)
     ready = time.perf_counter()
     solution, info = prob.solve(guess)
     done = time.perf_counter()
     if save:
         np.save(save, solution)
     objective = solution[-1] if task == "cart" else info["obj_val"]
-    return {"tool": "opty", "imports": imported - start, "build": 0.0,
+    return {"tool": "opty", "imports": imported - began, "build": 0.0,
             "setup": ready - imported, "solve": done - ready, "in_process": done - imported,
             "iterations": len(prob.obj_value), "objective": float(objective),
             "status": int(info["status"]), "variables": int(prob.num_free)}
 
 
 # -- the runner ----------------------------------------------------------------------------------
+OPTY = "opty 1.5.0 (quasi-Newton)"
+TIMES = ("imports", "build", "setup", "solve", "in_process", "process", "ipopt_seconds",
+         "callback_seconds")
+
+
 def spawn(args, timeout=1800):
     """Run a worker in a fresh process; its JSON result with `process` (wall time) added."""
     cmd = [sys.executable, str(Path(__file__).resolve()), "--worker", *args]
-    start = time.perf_counter()
     env = dict(os.environ, PYTHONWARNINGS="ignore")
+    env.pop("PYTHONDONTWRITEBYTECODE", None)
+    start = time.perf_counter()
     proc = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout, env=env)
     wall = time.perf_counter() - start
     lines = [line for line in proc.stdout.splitlines() if line.startswith("{")]
@@ -260,6 +283,28 @@ def spawn(args, timeout=1800):
     out = json.loads(lines[-1])
     out["process"] = wall
     return out
+
+
+def median_run(runs):
+    """One run's figures with each time replaced by its median over `runs` (the rest is the same
+    in every run); the first error if any run failed."""
+    bad = [r for r in runs if "error" in r]
+    if bad:
+        return bad[0]
+    out = dict(runs[0], runs=len(runs))
+    for key in TIMES:
+        if key in out:
+            out[key] = statistics.median(r[key] for r in runs)
+    return out
+
+
+def compile_bytecode(with_opty):
+    """lagrgen's and opty's sources compiled to bytecode, as an installed package has them."""
+    import importlib.util
+    names = ["lagrgen"] + (["opty"] if with_opty else [])
+    for name in names:
+        for folder in importlib.util.find_spec(name).submodule_search_locations:
+            compileall.compile_dir(folder, quiet=1)
 
 
 def opty_available():
@@ -274,31 +319,35 @@ def rel(a, b):
     return abs(a - b) / abs(b)
 
 
-def fmt(x, digits=3):
-    return "—" if x is None else f"{x:.{digits}g}"
-
-
-def head_to_head(quick, with_opty, tmp):
-    rows, notes = [], []
+def head_to_head(quick, with_opty, repeat, tmp):
+    """The rows (task, tool, figures) and the floor's figures."""
+    rows, floors = [], []
     for task in ("swing-up", "cart"):
         out_dir = str(Path(tmp) / f"gen_{task}")
-        opty = None
         save = str(Path(tmp) / f"opty_{task}.npy")
+        exact = ["lagrgen", task, "--out", out_dir, "--hessian", "exact"]
+        cold = spawn(exact)
+        times = repeat if task == "swing-up" else 1
+        opty, warm = [], []
+        for _ in range(times):
+            if with_opty:
+                opty.append(spawn(["opty", task, "--save", save]))
+            warm.append(spawn(exact))
+            floors.append(spawn(["floor", "-"]))
         if with_opty:
-            opty = spawn(["opty", task, "--save", save])
-            rows.append((task, "opty 1.5.0 (quasi-Newton)", opty))
-        cold = spawn(["lagrgen", task, "--out", out_dir, "--hessian", "exact"])
+            rows.append((task, OPTY, median_run(opty)))
         rows.append((task, "lagrgen exact Hessian, cold", cold))
-        warm = spawn(["lagrgen", task, "--out", out_dir, "--hessian", "exact"])
-        rows.append((task, "lagrgen exact Hessian, warm", warm))
+        rows.append((task, "lagrgen exact Hessian, warm", median_run(warm)))
         if not quick:
             qn = spawn(["lagrgen", task, "--out", out_dir, "--hessian", "quasi-newton"])
             rows.append((task, "lagrgen quasi-Newton, warm", qn))
-        if task == "cart" and opty and "error" not in opty:
-            again = spawn(["lagrgen", task, "--out", out_dir, "--hessian", "exact",
-                           "--restart", save])
+        if task == "cart" and opty and "error" not in opty[0]:
+            again = spawn([*exact, "--restart", save])
             rows.append((task, "lagrgen exact, started at opty's answer", again))
-    return rows, notes
+            if not quick:
+                tight = spawn(["opty", task, "--tol", "1e-12"])
+                rows.append((task, "opty 1.5.0, tol 1e-12", tight))
+    return rows, median_run(floors)
 
 
 def nodes_growth(quick, tmp):
@@ -313,35 +362,69 @@ def size_growth(quick, tmp):
     out = []
     for n in links:
         out_dir = str(Path(tmp) / f"gen_chain{n}")
-        cold = spawn(["lagrgen", "chain", "--out", out_dir, "--hessian", "exact", "--links",
-                      str(n)])
-        warm = spawn(["lagrgen", "chain", "--out", out_dir, "--hessian", "exact", "--links",
-                      str(n)])
-        qn = spawn(["lagrgen", "chain", "--out", out_dir, "--hessian", "quasi-newton",
-                    "--links", str(n)])
+        chain = ["lagrgen", "chain", "--out", out_dir, "--links", str(n)]
+        cold = spawn([*chain, "--hessian", "exact"])
+        warm = spawn([*chain, "--hessian", "exact"])
+        qn = spawn([*chain, "--hessian", "quasi-newton"])
         out.append((n, cold, warm, qn))
     return out
 
 
-def report(rows, nodes, sizes, load):
+def option_comparison(quick, tmp, rows, nodes, sizes):
+    """(problem, lagrgen's options' figures, IPOPT's defaults' figures) with the exact Hessian,
+    warm caches (the directories of the runs before)."""
+    ipopt = ["--hessian", "exact", "--options", json.dumps(IPOPT_DEFAULTS)]
+    found = {f"{task}": r for task, tool, r in rows if tool == "lagrgen exact Hessian, warm"}
+    cases = [("swing-up (random start)", found.get("swing-up"),
+              ["lagrgen", "swing-up", "--out", str(Path(tmp) / "gen_swing-up")]),
+             ("cart", found.get("cart"), ["lagrgen", "cart", "--out", str(Path(tmp) / "gen_cart")])]
+    for n, r in nodes:
+        if n in (501, 2001):
+            cases.append((f"swing-up from rest, {n} nodes", r,
+                          ["lagrgen", "swing-up", "--out", str(Path(tmp) / "gen_nodes"),
+                           "--nodes", str(n), "--start", "rest"]))
+    for n, _, warm, _ in sizes:
+        if n <= (5 if quick else 10):
+            cases.append((f"chain of {n} links", warm,
+                          ["lagrgen", "chain", "--out", str(Path(tmp) / f"gen_chain{n}"),
+                           "--links", str(n)]))
+    return [(name, ours, spawn([*args, *ipopt])) for name, ours, args in cases if ours]
+
+
+def report(rows, floor, nodes, sizes, options, load, repeat):
+    opty = {task: r for task, tool, r in rows if tool == OPTY and "error" not in r}
     lines = ["# Direct collocation: lagrgen against opty 1.5.0", "",
              f"Same machine, same run, each figure a fresh process; load average {load}. "
-             "Objective of the cart problem: the node interval h (lagrgen: T/299).", "",
+             f"The swing-up's opty and warm lagrgen figures are medians of {repeat} interleaved "
+             "runs. Objective of the cart problem: the node interval h (lagrgen: T/299). "
+             "`floor`: a process that imports numpy and SymPy and exits (both tools' scripts do): "
+             + (f"{floor['process']:.2f} s, of which {floor['imports']:.2f} s imports "
+                f"(median of {floor.get('runs', 1)})." if "error" not in floor else "failed."),
+             "",
              "| problem | tool | objective | rel. to opty | iterations | imports s "
              "| build / set-up s | solve s | in-process s | process s | status |",
              "| --- | --- | --: | --: | --: | --: | --: | --: | --: | --: | --: |"]
-    opty = {task: r for task, tool, r in rows if tool.startswith("opty") and "error" not in r}
     for task, tool, r in rows:
         if "error" in r:
             lines.append(f"| {task} | {tool} | error: {r['error'][0][:60]} | | | | | | | | |")
             continue
         ref = opty.get(task)
-        ratio = f"{rel(r['objective'], ref['objective']):.1e}" if ref and tool != \
-            "opty 1.5.0 (quasi-Newton)" else ""
+        ratio = f"{rel(r['objective'], ref['objective']):.1e}" if ref and tool != OPTY else ""
         lines.append(f"| {task} | {tool} | {r['objective']:.12g} | {ratio} | {r['iterations']} "
                      f"| {r['imports']:.2f} | {r['build'] + r['setup']:.2f} | {r['solve']:.2f} "
                      f"| {r['in_process']:.2f} | {r['process']:.2f} | {r['status']} |")
-    lines += ["", "Wall-time ratios lagrgen / opty (target ≤ 0.2):", ""]
+    tight = next((r for _, tool, r in rows if tool.endswith("tol 1e-12") and "error" not in r),
+                 None)
+    warm_cart = next((r for task, tool, r in rows if task == "cart" and
+                      tool == "lagrgen exact Hessian, warm" and "error" not in r), None)
+    if tight and warm_cart:
+        lines += ["", f"opty's cart run stops above its local minimum: with tol 1e-12 it reaches "
+                  f"{tight['objective']:.12g} (status {tight['status']}, {tight['iterations']} "
+                  f"iterations), {rel(warm_cart['objective'], tight['objective']):.1e} from "
+                  "lagrgen's."]
+    lines += ["", "Wall-time ratios lagrgen / opty (target ≤ 0.2); `above the floor` compares "
+              "what each process spends beyond the floor:", ""]
+    base = floor.get("process", 0.0) if "error" not in floor else 0.0
     for task, ref in opty.items():
         for tool_name in ("lagrgen exact Hessian, cold", "lagrgen exact Hessian, warm"):
             r = next((r for t, tool, r in rows if t == task and tool == tool_name
@@ -350,30 +433,46 @@ def report(rows, nodes, sizes, load):
                 lines.append(f"- {task}, {tool_name.split(', ')[1]}: process "
                              f"{r['process'] / ref['process']:.2f}, in-process "
                              f"{r['in_process'] / ref['in_process']:.2f}, solve "
-                             f"{r['solve'] / ref['solve']:.2f} (iterations {r['iterations']} vs "
-                             f"{ref['iterations']})")
-    lines += ["", "Where lagrgen's solve time goes (IPOPT's own work — factorizing and solving the "
-              "KKT systems — against the evaluation of the NLP in lagrgen's callbacks):", ""]
+                             f"{r['solve'] / ref['solve']:.2f}, above the floor "
+                             f"{(r['process'] - base) / (ref['process'] - base):.2f} "
+                             f"(iterations {r['iterations']} vs {ref['iterations']})")
+    lines += ["", "Where each warm process's time goes (s): the floor, the tool's own imports and "
+              "the model's build (lagrgen: a cache hit) or set-up (opty: code generation), the "
+              "solve (lagrgen: IPOPT's own work — factorizing and solving its KKT systems — the "
+              "NLP callbacks, and the rest: the starting point and the result), and what is "
+              "left (interpreter start and exit beyond the floor's):", "",
+              "| problem | tool | floor | own imports, build / set-up | solve: IPOPT | "
+              "solve: callbacks | solve: rest | left | process |",
+              "| --- | --- | --: | --: | --: | --: | --: | --: | --: |"]
     for task, tool, r in rows:
-        if tool.startswith("lagrgen") and "error" not in r:
-            lines.append(f"- {task}, {tool}: {r['ipopt_seconds']:.2f} s in IPOPT's solve, of "
-                         f"which {r['callback_seconds']:.2f} s in the callbacks "
-                         f"({1e3 * r['ipopt_seconds'] / max(r['iterations'], 1):.1f} ms per "
-                         "iteration)")
+        if "error" in r or tool not in (OPTY, "lagrgen exact Hessian, warm"):
+            continue
+        own = r["imports"] + r["build"] + r["setup"] - floor.get("imports", 0.0)
+        if tool == OPTY:
+            parts = [r["solve"], None, None]
+        else:
+            ipopt = r["ipopt_seconds"] - r["callback_seconds"]
+            parts = [ipopt, r["callback_seconds"], r["solve"] - r["ipopt_seconds"]]
+        left = r["process"] - base - own - r["solve"]
+        cells = " | ".join("" if v is None else f"{v:.3f}" for v in parts)
+        lines.append(f"| {task} | {tool} | {base:.3f} | {own:.3f} | {cells} | {left:.3f} | "
+                     f"{r['process']:.3f} |")
     lines += ["", "## Growth with the number of nodes (swing-up started at rest, exact Hessian, "
               "warm cache)", "",
-              "| nodes | variables | iterations | solve s | ms per iteration | of which callbacks "
-              "| objective |",
-              "| --: | --: | --: | --: | --: | --: | --: |"]
+              "| nodes | variables | iterations | status | solve s | ms per iteration "
+              "| of which callbacks | objective |",
+              "| --: | --: | --: | --: | --: | --: | --: | --: |"]
     for n, r in nodes:
         if "error" in r:
-            lines.append(f"| {n} | error: {r['error'][0][:60]} | | | | | |")
+            lines.append(f"| {n} | error: {r['error'][0][:60]} | | | | | | |")
             continue
         per = 1e3 / max(r["iterations"], 1)
-        lines.append(f"| {n} | {r['variables']} | {r['iterations']} | {r['solve']:.2f} | "
-                     f"{per * r['ipopt_seconds']:.1f} | {per * r['callback_seconds']:.1f} | "
-                     f"{r['objective']:.10g} |")
-    lines += ["", "## Growth with the model (n-link chain, a torque per joint, 51 nodes, "
+        lines.append(f"| {n} | {r['variables']} | {r['iterations']} | {r['status']} | "
+                     f"{r['solve']:.2f} | {per * r['ipopt_seconds']:.1f} | "
+                     f"{per * r['callback_seconds']:.1f} | {r['objective']:.10g} |")
+    lines += ["", "Status 2 is IPOPT's Infeasible_Problem_Detected: at 201 nodes backward "
+              "Euler's numerical damping leaves |T| ≤ 2 too weak to bring the pendulum up.",
+              "", "## Growth with the model (n-link chain, a torque per joint, 51 nodes, "
               "Hermite–Simpson)", "",
               "| links | variables | cold: build + units s | cold total s | warm total s | "
               "iterations exact | iterations quasi-Newton | solve exact s | solve quasi-Newton s |",
@@ -387,6 +486,19 @@ def report(rows, nodes, sizes, load):
                      f"{cold['in_process']:.2f} | {warm['in_process']:.2f} | "
                      f"{warm['iterations']} | {qn['iterations']} | {warm['solve']:.2f} | "
                      f"{qn['solve']:.2f} |")
+    lines += ["", "## lagrgen's IPOPT options against IPOPT's defaults (exact Hessian, warm)", "",
+              "lagrgen: `mu_strategy=adaptive`, `mu_oracle=loqo`, `min_refinement_steps=0`; "
+              f"IPOPT's defaults: {', '.join(f'`{k}={v}`' for k, v in IPOPT_DEFAULTS.items())}.",
+              "", "| problem | iterations lagrgen / IPOPT | solve s lagrgen / IPOPT | "
+              "objective lagrgen | objective IPOPT's defaults |",
+              "| --- | --: | --: | --: | --: |"]
+    for name, ours, theirs in options:
+        if "error" in theirs:
+            lines.append(f"| {name} | error: {theirs['error'][0][:60]} | | | |")
+            continue
+        lines.append(f"| {name} | {ours['iterations']} / {theirs['iterations']} | "
+                     f"{ours['solve']:.2f} / {theirs['solve']:.2f} | {ours['objective']:.12g} | "
+                     f"{theirs['objective']:.12g} |")
     return "\n".join(lines) + "\n"
 
 
@@ -394,6 +506,8 @@ def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="fewer sizes and runs")
     parser.add_argument("--no-opty", action="store_true", help="leave the peer out")
+    parser.add_argument("--repeat", type=int, default=3,
+                        help="runs of the swing-up's opty and warm lagrgen figures (medians)")
     parser.add_argument("--worker", nargs="+", help=argparse.SUPPRESS)
     parser.add_argument("--out", help=argparse.SUPPRESS)
     parser.add_argument("--hessian", default="exact", help=argparse.SUPPRESS)
@@ -402,33 +516,40 @@ def main():
     parser.add_argument("--restart", help=argparse.SUPPRESS)
     parser.add_argument("--save", help=argparse.SUPPRESS)
     parser.add_argument("--start", default="random", help=argparse.SUPPRESS)
+    parser.add_argument("--options", default="{}", help=argparse.SUPPRESS)
+    parser.add_argument("--tol", type=float, default=None, help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.worker:
         tool, task = args.worker
-        if tool == "opty":
-            result = worker_opty(task, args.save)
+        if tool == "floor":
+            result = worker_floor()
+        elif tool == "opty":
+            result = worker_opty(task, args.save, args.tol)
         else:
             result = worker_lagrgen(task, args.out, args.hessian, args.nodes, args.links,
-                                    args.restart, args.start)
+                                    args.restart, args.start, json.loads(args.options))
         print(json.dumps(result))
         return 0
     with_opty = not args.no_opty and opty_available()
-    if not with_opty:
+    if not args.no_opty and not with_opty:
         print("opty is not installed (pip install --no-deps opty==1.5.0): lagrgen alone")
+    compile_bytecode(with_opty)
+    repeat = 1 if args.quick else max(args.repeat, 1)
     load = ", ".join(f"{x:.2f}" for x in os.getloadavg())
     with tempfile.TemporaryDirectory(prefix="lagrgen_collocation_") as tmp:
-        rows, _ = head_to_head(args.quick, with_opty, tmp)
+        rows, floor = head_to_head(args.quick, with_opty, repeat, tmp)
         nodes = nodes_growth(args.quick, tmp)
         sizes = size_growth(args.quick, tmp)
+        options = option_comparison(args.quick, tmp, rows, nodes, sizes)
     load = f"{load} at the start, {', '.join(f'{x:.2f}' for x in os.getloadavg())} at the end"
-    text = report(rows, nodes, sizes, load)
+    text = report(rows, floor, nodes, sizes, options, load, repeat)
     print(text)
     RESULTS.parent.mkdir(parents=True, exist_ok=True)
     suffix = "_quick" if args.quick else ""
     (RESULTS.parent / f"collocation{suffix}.md").write_text(text)
     (RESULTS.parent / f"collocation{suffix}.json").write_text(json.dumps(
-        {"head_to_head": [[t, tool, r] for t, tool, r in rows],
-         "nodes": nodes, "sizes": sizes, "load": load}, indent=1))
+        {"head_to_head": [[t, tool, r] for t, tool, r in rows], "floor": floor,
+         "nodes": nodes, "sizes": sizes, "options": options, "load": load}, indent=1))
     return 0
 
 

@@ -100,6 +100,19 @@ def build(backend, formulation, tmp_path_factory):
     return build_once
 
 
+@pytest.fixture(scope="module")
+def compile_factory(compile_once):
+    """A function (factory of a Model) -> compiled model, each factory's model compiled at most
+    once in the module."""
+    cache = {}
+
+    def get(factory):
+        if factory not in cache:
+            cache[factory] = compile_once(factory())
+        return cache[factory]
+    return get
+
+
 def skip_unless_tree(model):
     """pytest.skip unless `model` is a kinematic tree (the recursive formulation applies)."""
     from lagrgen.lagrange import derived

@@ -63,9 +63,10 @@ def main(path, kind, version, unzipped):
     n_params = sum(1 for v in md.modelVariables if v.causality == "parameter"
                    and not v.name.startswith("solver."))
     n_inputs = sum(1 for v in md.modelVariables if v.causality == "input")
-    method = start + 8 * (1 + nx + max(n_params, 1) + max(n_inputs, 1) + 2)
+    rtol = start + 8 * (1 + nx + max(n_params, 1) + max(n_inputs, 1))
+    method = rtol + 8 * 2
     summary = {"size": len(good), "raw": 0, "raw_refused": 0, "signed": 0,
-               "signed_refused": 0, "nan_accepted": [], "int_accepted": [],
+               "signed_refused": 0, "nan_accepted": [], "int_accepted": [], "rtol_accepted": [],
                "accepted_then_ok": 0,
                "accepted_then_error": 0, "random": 0, "random_refused": 0}
 
@@ -117,6 +118,8 @@ def main(path, kind, version, unzipped):
                 summary["signed_refused"] += refused
                 if pattern == struct.pack("<d", float("nan")) and not refused:
                     summary["nan_accepted"].append(offset)
+                if offset == rtol and len(pattern) == 8 and not refused:
+                    summary["rtol_accepted"].append(struct.unpack("<d", pattern)[0])
                 if offset in (method, method + 4) and len(pattern) == 4 and not refused:
                     summary["int_accepted"].append(
                         ["method" if offset == method else "terminated",

@@ -1,6 +1,9 @@
 """Direct collocation (lagrgen.Collocation): known optima, the NLP's derivatives against finite
 differences, identification against the truth and against lagrgen.fit, constrained models, free
 durations, and the errors bad input gets."""
+import subprocess
+import sys
+
 import numpy as np
 import pytest
 import sympy as sp
@@ -376,6 +379,36 @@ def test_the_command_line_solves_a_problem_file(integrator, tmp_path, capsys):
     out = capsys.readouterr().out
     assert "objective 12" in out and "deviation" in out
     assert (tmp_path / "p.png").exists()
+
+
+def test_a_solve_imports_no_scipy_and_leaves_cyipopt_whole(integrator, out_dir):
+    """IPOPT's wrapper is loaded without cyipopt's SciPy interface (a third of a second of a
+    process); a later `import cyipopt` gets the same Problem class and exception."""
+    script = f"""
+import sys
+import sympy as sp
+import lagrgen
+model = lagrgen.Model("colloc_integrator")
+x, = model.coordinates("x")
+m, = model.parameters(m=1.0)
+F, = model.inputs("F")
+model.particle(m, sp.Matrix([x]))
+model.generalized_force(x, F)
+mod = lagrgen.build(model, out_dir={str(out_dir)!r})
+prob = lagrgen.Collocation(mod, nodes=11, duration=1.0)
+prob.initial(q=[0.0], qd=[0.0]).final(q=[1.0], qd=[0.0]).minimize(integral=F ** 2)
+res = prob.solve(progress=False)
+assert abs(res.objective - 12.0) < 1e-8, res.objective
+assert not [name for name in sys.modules if name.split(".")[0] == "scipy"]
+import cyipopt
+from cyipopt.exceptions import CyIpoptEvaluationError
+assert cyipopt.Problem is sys.modules["ipopt_wrapper"].Problem
+assert cyipopt.CyIpoptEvaluationError is CyIpoptEvaluationError
+assert sys.modules["ipopt_wrapper"].CyIpoptEvaluationError is CyIpoptEvaluationError
+print("ok")
+"""
+    done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True)
+    assert done.returncode == 0 and done.stdout.strip() == "ok", done.stderr
 
 
 # -- bad input ------------------------------------------------------------------------------

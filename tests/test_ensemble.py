@@ -283,8 +283,9 @@ def test_bad_ensemble_arguments(mod, tmp_path):
     xr = pytest.importorskip("xarray")
     pytest.importorskip("zarr")
     xr.Dataset({"a": ("x", [1.0])}).to_zarr(tmp_path / "other.zarr")
-    with pytest.raises(ValueError, match="not an ensemble store"):
+    with pytest.raises(ValueError, match="not an ensemble store") as info:
         lagrgen.open_ensemble(tmp_path / "other.zarr")
+    assert isinstance(info.value, lagrgen.StoreError)          # as open_ensemble's Raises says
 
 
 def test_progress_bar_on_request(mod, capsys):

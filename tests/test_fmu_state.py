@@ -73,6 +73,7 @@ def test_a_damaged_serialized_state_is_refused_and_never_crashes(fuzzed, kind, v
     # with the checksum made to match, each field is checked as the setters check it
     assert summary["signed"] > 250 and summary["signed_refused"] > 100
     assert summary["nan_accepted"] == [] and summary["int_accepted"] == []
+    assert all(0 < rtol < 1 for rtol in summary["rtol_accepted"])   # as the setter takes it
     assert summary["accepted_then_ok"] > 100
 
 

@@ -60,14 +60,8 @@ def slot_model():
 
 
 @pytest.fixture(scope="module")
-def built(compile_once):
-    cache = {}
-
-    def get(factory):
-        if factory not in cache:
-            cache[factory] = compile_once(factory())
-        return cache[factory]
-    return get
+def built(compile_factory):
+    return compile_factory
 
 
 # -- 28.2: a contact at its surface at the start ---------------------------------------------------

@@ -278,7 +278,13 @@ def test_sweep_follows_branches_through_a_crossing():
     model.potential_energy(k1 * x1**2 / 2 + k2 * x2**2 / 2)
     mod = lagrgen.build(model, backend="python")
     values = np.linspace(1.0, 9.0, 9)
-    sweep = lagrgen.eigenvalue_sweep(mod, values, lambda k: ([0, 0], None, {"k2": k}))
+    asked = []
+
+    def point(k):
+        asked.append(k)
+        return [0, 0], None, {"k2": k}
+    sweep = lagrgen.eigenvalue_sweep(mod, values, point)
+    assert asked == list(values)                      # each value linearized once
     imag = sweep.eigenvalues.imag
     follows = [b for b in range(4) if np.allclose(np.abs(imag[:, b]), np.sqrt(values))]
     fixed = [b for b in range(4) if np.allclose(np.abs(imag[:, b]), 2.0)]
@@ -296,6 +302,14 @@ def test_sweep_follows_branches_through_a_crossing():
         lagrgen.eigenvalue_sweep(mod, [1.0, 3.0, 2.0], lambda k: ([0, 0], None, {"k2": k}))
     with pytest.raises(lagrgen.LagrgenError, match=r"\(q0, qd0, p\)"):
         lagrgen.eigenvalue_sweep(mod, [1.0, 2.0], lambda k: [0, 0])
+
+    def broken(k):
+        q, qd = [0, 0]
+        p, = {"k2": k}, None           # the user's own mistake: its error, not lagrgen's
+        return q, qd, p
+    with pytest.raises(ValueError, match="too many values to unpack") as info:
+        lagrgen.eigenvalue_sweep(mod, [1.0, 2.0], broken)
+    assert not isinstance(info.value, lagrgen.LagrgenError)
 
 
 def test_clear_errors(build):

@@ -145,14 +145,8 @@ def rod_model():
 
 
 @pytest.fixture(scope="module")
-def built(compile_once):
-    cache = {}
-
-    def get(factory):
-        if factory not in cache:
-            cache[factory] = compile_once(factory())
-        return cache[factory]
-    return get
+def built(compile_factory):
+    return compile_factory
 
 
 def both(mod, *args, **kwargs):

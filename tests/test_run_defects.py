@@ -177,6 +177,8 @@ def test_fit_takes_the_guards(osc):
     (["--atol", "-1"], "--atol must be a finite number ≥ 0"),
     (["--max-step", "nan"], "--max-step: max_step must be a positive number"),
     (["--max-time", "inf"], "--max-time must be a positive number of seconds"),
+    (["--max-time", "-1"], "--max-time must be a positive number of seconds"),
+    (["--max-steps", "0"], "--max-steps must be a positive integer"),
 ])
 def test_the_command_line_checks_the_same_rules(option, message, capsys):
     from conftest import EXAMPLES

@@ -132,6 +132,17 @@ def test_inverted_pendulum_is_unstable(built):
     assert np.all(np.isnan(res.omega)) and not res.stable
     assert np.all(np.real(res.omega_squared) < 0)
     assert np.real(res.eigenvalues).max() > 2.0    # s = ±√(−ω²): one real root grows
+    from lagrgen.outputs.plotting import mode_label
+    assert mode_label(res, 0) == f"mode 1: unstable (ω² = {np.real(res.omega_squared[0]):.4g} " \
+        "rad²/s²)"
+    growing = lagrgen.vibration.Modes(omega=np.array([2.0]), shapes=np.ones((1, 1)),
+                                      damping_ratios=np.array([-1.0]), omega_damped=np.zeros(1),
+                                      eigenvalues=np.array([2.0 + 0j]), kind="state")
+    assert mode_label(growing, 0).endswith("ζ = -1, unstable")   # a real root s > 0
+    from lagrgen.cli.modes import modes_table
+    model = lagrgen.Model("real_state_mode")
+    model.coordinates("x")
+    assert "mode shapes (largest entry 1, one column" in modes_table(model, [0.0], growing)
 
 
 def test_linearize_is_the_derivative_of_the_residual(built):

@@ -105,12 +105,14 @@ def check_state(mod, t, y, p, u=None):
         check_independent(mod, t, y, A, "initial state")
 
 
-def along(mod, sol, p, u_at):
-    """(λ, residuals) at every output time of `sol`: arrays (m, len(t)) and (n_h + m, len(t))."""
-    lam = np.empty((mod.n_constraints, len(sol.t)))
+def along(mod, sol, p, u_at, forces=True):
+    """(λ, residuals) at every output time of `sol`: arrays (m, len(t)) and (n_h + m, len(t));
+    λ None without `forces` (a hybrid solve brings its own, with its contacts held)."""
+    lam = np.empty((mod.n_constraints, len(sol.t))) if forces else None
     res = np.empty((mod.dimensions["n_residuals"], len(sol.t)))
     for k, t in enumerate(sol.t):
         uk = u_at(t)
-        lam[:, k] = mod.constraint_forces(t, sol.y[:, k], p, uk)
+        if forces:
+            lam[:, k] = mod.constraint_forces(t, sol.y[:, k], p, uk)
         res[:, k] = mod.constraint_residuals(t, sol.y[:, k], p, uk)
     return lam, res

@@ -83,9 +83,12 @@ def energy_unit(equations):
     """The label of the energies of `equations` (`lagrgen.lagrange.Equations`), or None."""
     import sympy.physics.units as u
     spec = equations.spec
-    if equations.energies is None or spec.external is not None or not spec.units:
-        return None     # no label at all: every term dimensionless, no energy unit
+    if equations.energies is None or spec.external is not None:
+        return None
     labels = dict(spec.units)
+    names = spec.coordinate_names + spec.parameter_names + spec.input_names
+    if all(unit_quantity(labels.get(name)) in (None, 1) for name in names):
+        return None     # no label with a dimension (or none at all): no term is an energy
     units = {sp.Symbol(str(equations.t)): u.second}
     for q, qd, name in zip(equations.q, equations.qd, spec.coordinate_names):
         unit = unit_quantity(labels.get(name))
@@ -96,15 +99,25 @@ def energy_unit(equations):
             unit = unit_quantity(labels.get(name))
             if unit is not None:
                 units[sp.Symbol(str(symbol))] = unit
+    labelled = {str(symbol) for symbol in units}
     found = set()
-    for energy in equations.energies[:2]:
-        for term in sp.Add.make_args(sp.expand(sp.sympify(energy))):
-            if term.free_symbols and term.free_symbols <= set(units):
-                dims, scale = _si(_dimension(term, units))
-                found.add((tuple(sorted(dims.items())), scale))
+    for term in _terms(equations.energies[:2]):
+        symbols = {str(symbol) for symbol in term.free_symbols}
+        if symbols and symbols <= labelled:
+            dims, scale = _si(_dimension(sp.sympify(term), units))
+            found.add((tuple(sorted(dims.items())), scale))
     if len(found) != 1:
         return None
     dims, scale = found.pop()
     if dict(dims) != _si(u.joule)[0]:
         return None
     return "J" if scale == 1 else f"{scale:g} J"
+
+
+def _terms(energies):
+    """The terms of the expanded `energies`, expanded by SymEngine (SymPy's expand of a large
+    model's T takes seconds to minutes)."""
+    import symengine as se
+    for energy in energies:
+        expanded = se.expand(se.sympify(energy))
+        yield from expanded.args if isinstance(expanded, se.Add) else (expanded,)

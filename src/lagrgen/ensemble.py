@@ -17,6 +17,7 @@ import sys
 import threading
 from concurrent.futures import FIRST_COMPLETED, ThreadPoolExecutor, wait
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Optional
 
 import numpy as np
@@ -755,30 +756,17 @@ def _uploaded_module(name, filename, digest, data):
     once per process (not by name: a module of the same name elsewhere on sys.path, such as the
     model's description or an earlier build of it, must not shadow it)."""
     from distributed import get_worker
+
+    from .cache import file_digest, import_extension
+    from .toolchain import write_atomic
     with _WORKER_LOCK:
         if digest in _WORKER_MODULES:
             return _WORKER_MODULES[digest]
         if hashlib.sha256(data).hexdigest() != digest:
             raise LagrgenError(f"the compiled module of model {name!r} arrived damaged on this "
                                "Dask worker (its SHA-256 differs from the client's)")
-        path = os.path.join(get_worker().local_directory, f"lagrgen-{digest[:32]}-{filename}")
-        if not (os.path.isfile(path) and _file_digest(path) == digest):
-            temporary = f"{path}.{os.getpid()}.{threading.get_ident()}.part"
-            with open(temporary, "wb") as f:
-                f.write(data)
-                f.flush()
-                os.fsync(f.fileno())
-            os.replace(temporary, path)
-        import importlib.machinery
-        import importlib.util
-        loader = importlib.machinery.ExtensionFileLoader(name, path)
-        spec = importlib.util.spec_from_file_location(name, path, loader=loader)
-        module = importlib.util.module_from_spec(spec)
-        loader.exec_module(module)
-        _WORKER_MODULES[digest] = module
-        return module
-
-
-def _file_digest(path):
-    with open(path, "rb") as f:
-        return hashlib.sha256(f.read()).hexdigest()
+        path = Path(get_worker().local_directory) / f"lagrgen-{digest[:32]}-{filename}"
+        if not (path.is_file() and file_digest(path) == digest):
+            write_atomic(path, data, 0o755)
+        _WORKER_MODULES[digest] = import_extension(name, path)
+        return _WORKER_MODULES[digest]

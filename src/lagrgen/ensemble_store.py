@@ -302,7 +302,7 @@ def open_ensemble(store, verify=True):
                          f"{exc}); it is damaged or not a store of lagrgen.simulate_many") \
             from None
     if ds.attrs.get("lagrgen_format") not in FORMATS:
-        raise ValueError(f"{path!r} is not an ensemble store written by lagrgen.simulate_many")
+        raise StoreError(f"{path!r} is not an ensemble store written by lagrgen.simulate_many")
     if CHUNK_WRITTEN not in ds:
         return ds                                   # a store of format 1: no chunk records
     try:

@@ -182,14 +182,14 @@ def _warn_unseen(directions, rank, k, consequence="their standard errors are rep
 def on_bounds(x, low, high, names, stacklevel=3):
     """The names whose estimate is on a finite bound, with a FitWarning naming them."""
     tol = 1e-10 * np.maximum(1.0, np.abs(x))
-    hit = [f"{n} = {v:.6g} ({'lower' if v - lo <= tl else 'upper'} bound)"
+    hit = {n: f"{n} = {v:.6g} ({'lower' if v - lo <= tl else 'upper'} bound)"
            for n, v, lo, hi, tl in zip(names, x, low, high, tol)
-           if v - lo <= tl or hi - v <= tl]
+           if v - lo <= tl or hi - v <= tl}
     if hit:
-        warnings.warn(f"estimates on their bounds: {', '.join(hit)}; the data pull them past "
-                      "the bound, and their standard errors assume they are free", FitWarning,
-                      stacklevel=stacklevel)
-    return tuple(h.split(" = ")[0] for h in hit)
+        warnings.warn(f"estimates on their bounds: {', '.join(hit.values())}; the data pull "
+                      "them past the bound, and their standard errors assume they are free",
+                      FitWarning, stacklevel=stacklevel)
+    return tuple(hit)
 
 
 def _output_derivatives(mod, t, y, p, u, k, columns, h=1e-7):
@@ -444,7 +444,7 @@ def fit_modes(mod, q0, measured_hz, params, initial=None, bounds=None, shapes=No
 
     result = least_squares(residuals, theta0, jac=jacobian, bounds=(low, high), x_scale="jac")
     res, order = eigen(result.x)
-    rank, directions = unseen_directions(jacobian(result.x), names, h)[:2]
+    rank, directions = unseen_directions(result.jac, names, h)[:2]
     if directions:
         _warn_unseen(directions, rank, len(names), "their estimates are one point of a family "
                      "that matches the frequencies as well")

@@ -282,10 +282,7 @@ class Switching:
         s = self.system
         imp, fr = s.terms(t, y)[4:]
         check_coefficients(s, imp, fr, t)
-        inside = [i for i in range(s.ni) if not imp[i, 0] >= -self.gap_tol]
-        if inside:
-            raise ContactError(start_inside_message(s, inside[0], imp[inside[0], 0],
-                                                    self.gap_tol))
+        check_outside(s, imp, self.gap_tol)
         still = 1e3 * self.gap_tol
         closing = []
         for i in range(s.ni):
@@ -454,6 +451,14 @@ def check_coefficients(system, imp, fr, t):
         raise ContactError(coefficient_message(system, *problem, t))
 
 
+def check_outside(system, imp, gap_tol):
+    """ContactError when a gap of the impact rows `imp` is below −gap_tol: a start inside a
+    surface."""
+    inside = [i for i in range(system.ni) if not imp[i, 0] >= -gap_tol]
+    if inside:
+        raise ContactError(start_inside_message(system, inside[0], imp[inside[0], 0], gap_tol))
+
+
 def start_inside_message(system, i, gap, gap_tol):
     return (f"the run starts inside the surface of impact {system.impacts[i][0]!r}: its gap is "
             f"{gap:g} (< -gap_tol = {-gap_tol:g}); start with the gap ≥ 0 (a state saved at a "
@@ -467,10 +472,7 @@ def check_start(mod, t0, y0, p, u, gap_tol=GAP_TOL, run=None):
     imp, fr = system.terms(t0, np.asarray(y0, dtype=float))[4:]
     try:
         check_coefficients(system, imp, fr, t0)
-        inside = [i for i in range(system.ni) if not imp[i, 0] >= -gap_tol]
-        if inside:
-            raise ContactError(start_inside_message(system, inside[0], imp[inside[0], 0],
-                                                    gap_tol))
+        check_outside(system, imp, gap_tol)
     except ContactError as exc:
         if run is None:
             raise

@@ -36,6 +36,9 @@ from .runtime.arguments import as_vector, input_vector, parameters_from
 RANK_TOL = 1e-10
 #: Relative size of the constraint residuals above which the operating point is off the manifold.
 RESIDUAL_TOL = 1e-8
+#: Relative size (of the largest) below which an eigenvalue, a real or imaginary part or an
+#: asymmetry counts as zero.
+ZERO_TOL = 1e-9
 
 
 class FrozenTimeWarning(UserWarning):
@@ -130,8 +133,7 @@ class Linearization:
     def eigenvalues(self):
         """The eigenvalues of A (complex), ascending by real part (then imaginary part)."""
         s, _ = spectrum(self.A)
-        scale = 1e-9 * max(np.abs(s).max(initial=0.0), np.finfo(float).tiny)
-        return s[np.lexsort((s.imag, np.round(s.real / scale)))]
+        return s[ascending(s)]
 
     @property
     def n(self):
@@ -172,6 +174,13 @@ class Linearization:
         if B.shape[1] == 0:
             B, D = np.zeros((A.shape[0], 1)), np.zeros((A.shape[0], 1))
         return StateSpace(A, B, C, D)
+
+
+def ascending(values):
+    """The order of complex `values` by real part (equal within ZERO_TOL of the largest: a
+    conjugate pair), then imaginary part."""
+    scale = ZERO_TOL * max(np.abs(values).max(initial=0.0), np.finfo(float).tiny)
+    return np.lexsort((values.imag, np.round(values.real / scale)))
 
 
 def spectrum(A):
@@ -215,13 +224,13 @@ def linearize(mod, q0, qd0=None, t=0.0, p=None, u=None, dependent=None):
     `K` where a second-order form exists.
     """
     n = mod.n_coordinates
-    q0 = as_vector(q0, n, f"q0 (one value per coordinate {', '.join(mod.coordinates)})")
+    q0, p, u = operating_point(mod, q0, "q0", p, u)
     qd0 = np.zeros(n) if qd0 is None else as_vector(qd0, n, "qd0")
-    p, u, t = parameters_from(mod, p), input_vector(u, tuple(mod.inputs)), float(t)
+    t = float(t)
     warn_frozen_time(mod, t, "linearization")
     y0 = np.concatenate([q0, qd0])
     M, _, dF_dqd, dF_du = mod.linear_terms(q0, qd0, t, p, u)
-    _check_positive_definite(mod, M, t, q0)
+    check_positive_definite(mod.name, M, t, q0)
     J = mod.jacobian(t, y0, p, u)
     base = dict(q0=q0, qd0=qd0, t=t, p=p, u=u, inputs=tuple(mod.inputs), name=mod.name,
                 model_coordinates=tuple(mod.coordinates))
@@ -381,10 +390,20 @@ def _check_on_manifold(mod, t, y0, p, u, G):
             "lagrgen.consistent_state(mod, [*q0, *qd0]) projects one")
 
 
-def _check_positive_definite(mod, M, t, q0):
+def operating_point(mod, q, name, p, u):
+    """(q, p, u) of an operating point as arrays: `q` one value per coordinate (`name` says
+    which argument in an error), parameters and inputs as the model takes them."""
+    n = mod.n_coordinates
+    q = as_vector(q, n, f"{name} (one value per coordinate {', '.join(mod.coordinates)})")
+    return q, parameters_from(mod, p), input_vector(u, tuple(mod.inputs))
+
+
+def check_positive_definite(name, M, t, q0):
+    """MassMatrixError unless the mass matrix M of model `name` at (t, q0) is symmetric positive
+    definite (NonFiniteError when an entry overflowed at a finite q0)."""
     if not np.isfinite(M).all() and np.isfinite(q0).all():
-        raise NonFiniteError.in_mass_matrix(mod.name, t, q0)
+        raise NonFiniteError.in_mass_matrix(name, t, q0)
     try:
         np.linalg.cholesky(M)
     except np.linalg.LinAlgError:
-        raise MassMatrixError.at(mod.name, t, q0) from None
+        raise MassMatrixError.at(name, t, q0) from None

@@ -34,44 +34,37 @@ def _number(value, name, what):
         raise ValueError(f"{name} must be {what}, got {_shown(value)}") from None
 
 
-def relative_tolerance(rtol, name="rtol"):
-    """rtol as a float (or a float array, for the SciPy engine): every entry finite in (0, 1)."""
-    what = "positive and less than 1, e.g. 1e-6"
-    if np.ndim(rtol):
-        values = np.asarray(rtol)
+def _tolerance(value, name, what, ok, array_what):
+    """`value` as a float, or a 1-D float array, whose every entry satisfies `ok`; ValueError
+    naming the option (and the first bad entry of an array) otherwise."""
+    if np.ndim(value):
+        values = np.asarray(value)
         if values.dtype.kind not in "fiu" or values.ndim != 1:
-            raise ValueError(f"{name} must be a number or a 1-D array of numbers {what}, got "
-                             f"{_shown(rtol)}")
+            raise ValueError(f"{name} must be {array_what}, got {_shown(value)}")
         values = values.astype(float)
-        bad = ~((values > 0) & (values < 1))
+        bad = ~ok(values)
         if bad.any():
             raise ValueError(f"{name} must be {what}: entry {int(np.argmax(bad))} is "
                              f"{_shown(values[bad][0])}")
         return values
-    value = _number(rtol, name, what)
-    if not 0 < value < 1:
-        raise ValueError(f"{name} must be {what}, got {_shown(value)}")
-    return value
+    number = _number(value, name, what)
+    if not ok(np.float64(number)):
+        raise ValueError(f"{name} must be {what}, got {_shown(number)}")
+    return number
+
+
+def relative_tolerance(rtol, name="rtol"):
+    """rtol as a float (or a float array, for the SciPy engine): every entry finite in (0, 1)."""
+    what = "positive and less than 1, e.g. 1e-6"
+    return _tolerance(rtol, name, what, lambda v: (v > 0) & (v < 1),
+                      f"a number or a 1-D array of numbers {what}")
 
 
 def absolute_tolerance(atol, name="atol"):
     """atol as a float or a 1-D float array: every entry finite and ≥ 0."""
     what = "a finite number ≥ 0, e.g. 1e-9"
-    if np.ndim(atol):
-        values = np.asarray(atol)
-        if values.dtype.kind not in "fiu" or values.ndim != 1:
-            raise ValueError(f"{name} must be {what} or a 1-D array of them (one per state), "
-                             f"got {_shown(atol)}")
-        values = values.astype(float)
-        bad = ~(np.isfinite(values) & (values >= 0))
-        if bad.any():
-            raise ValueError(f"{name} must be {what}: entry {int(np.argmax(bad))} is "
-                             f"{_shown(values[bad][0])}")
-        return values
-    value = _number(atol, name, what)
-    if not (math.isfinite(value) and value >= 0):
-        raise ValueError(f"{name} must be {what}, got {_shown(value)}")
-    return value
+    return _tolerance(atol, name, what, lambda v: np.isfinite(v) & (v >= 0),
+                      f"{what} or a 1-D array of them (one per state)")
 
 
 def count(value, name, none="no limit"):

@@ -178,8 +178,9 @@ def finished_result(mod, sol, p, u_at, method=None):
         sol.event_names = tuple(name for name, _, _ in mod.event_definitions)
     if mod.n_constraints:
         from .constraints import along
-        sol.constraint_forces, sol.constraint_residuals = along(mod, sol, p, u_at)
-        if mod.nonsmooth_definitions:      # with the contacts held: the hybrid solve's λ
+        hybrid = bool(mod.nonsmooth_definitions)
+        sol.constraint_forces, sol.constraint_residuals = along(mod, sol, p, u_at, not hybrid)
+        if hybrid:                         # with the contacts held: the hybrid solve's λ
             sol.constraint_forces = sol.hybrid_constraint_forces
         sol.constraint_names = tuple(mod.constraint_names)
         sol.multipliers = dict(zip(sol.constraint_names, sol.constraint_forces))

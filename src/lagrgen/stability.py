@@ -17,11 +17,8 @@ import numpy as np
 from scipy.optimize import brentq, linear_sum_assignment
 
 from .errors import LagrgenError
-from .linearization import linearize, spectrum
+from .linearization import ZERO_TOL, linearize, spectrum
 
-#: Relative size (of the largest |s|) below which a real part counts as zero: marginal, not
-#: growing (undamped oscillations, rigid-body and ignorable-coordinate motions).
-ZERO_TOL = 1e-9
 #: Absolute tolerance (relative to the swept range) of a located crossing.
 CROSSING_XTOL = 1e-12
 #: Steps by which a branch is followed from a sampled value to a trial value of a crossing.
@@ -84,8 +81,7 @@ class EigenvalueSweep:
         def real_part(v):
             if v in (v0, v1):
                 return self.eigenvalues[i if v == v0 else i + 1, b].real - offset
-            s, V = self._continued(start, v)
-            return s[b].real - offset
+            return self._continued(start, v)[0][b].real - offset
         xtol = CROSSING_XTOL * max(1.0, abs(self.values[-1] - self.values[0]))
         return float(brentq(real_part, min(v0, v1), max(v0, v1), xtol=xtol,
                             rtol=4 * np.finfo(float).eps))
@@ -103,7 +99,6 @@ class EigenvalueSweep:
 
     def _spectrum_at(self, value):
         return spectrum_at(self.model, self.operating_point, value, self.options, self.states)
-
 
     def plot(self, ax=None, stable_color="tab:green"):
         """The root locus: real parts (top) and imaginary parts (bottom) of every branch against
@@ -189,15 +184,14 @@ def branch_cost(predicted, previous, s, V, scale):
 
 
 def _point(operating_point, value):
-    try:
-        q0, qd0, p = operating_point(value)
-    except (TypeError, ValueError) as exc:
-        if "unpack" not in str(exc):
-            raise
+    """operating_point(value) as (q0, qd0, p); LagrgenError when it returns anything else (its
+    own errors pass through as they are)."""
+    point = operating_point(value)
+    if not (isinstance(point, (tuple, list)) and len(point) == 3):
         raise LagrgenError("operating_point(value) must return (q0, qd0, p): the coordinates, "
-                           "their rates (None: at rest) and the parameters (a dict or None)") \
-            from None
-    return q0, qd0, p
+                           "their rates (None: at rest) and the parameters (a dict or None), "
+                           f"got {type(point).__name__} at value {value!r}")
+    return tuple(point)
 
 
 def eigenvalue_sweep(mod, values, operating_point, t=0.0, u=None, dependent=None, label=None):
@@ -232,7 +226,7 @@ def eigenvalue_sweep(mod, values, operating_point, t=0.0, u=None, dependent=None
         options["dependent"] = [name for name in
                                 list(mod.coordinates) + [f"{c}_dot" for c in mod.coordinates]
                                 if name not in first.states]
-    s, V = spectrum_at(mod, operating_point, values[0], options, first.states)
+    s, V = spectrum(first.A)
     rows, vectors = [s], [V]
     for value in values[1:]:
         s, V = paired(rows, vectors, *spectrum_at(mod, operating_point, value, options,

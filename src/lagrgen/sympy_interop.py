@@ -1,9 +1,13 @@
 """`from_sympy`: a lagrgen Model from the equations of motion of `sympy.physics.mechanics`.
 
-SymPy's `LagrangesMethod`, `KanesMethod` and `System` all end in M(q, t)·q̈ = F(q, q̇, t, u) once the
-generalized speeds are the coordinates' rates (u = q̇, true of every default joint). Those M and F
-are handed to the Model as they are (lagrgen compiles them, with their analytic Jacobian); the
-build's cache key hashes them, so a changed SymPy model is never served stale.
+SymPy's `LagrangesMethod`, `KanesMethod` and `System` all end in M(q, t)·q̈ = F(q, q̇, t, u). A
+Lagrangian's are that already; a `KanesMethod`'s M_u·u̇ = F_u is taken into the coordinates through
+its kinematic differential equations solved for the speeds, u = W(q, t)·q̇ + w(q, t) (u = q̇, W = I
+with SymPy's default joints): M = Wᵀ·M_u·W, F = Wᵀ·(F_u − M_u·(u̇ − W·q̈)), a speed that no
+coordinate's rate needs getting the ignorable coordinate `int_<u>` (`speed_map`), and outputs
+named like the speeds giving them back. Those M and F are handed to the Model as they are
+(lagrgen compiles them, with their analytic Jacobian); the build's cache key hashes them, so a
+changed SymPy model is never served stale.
 
 Constraints become lagrgen's (API.md §9: M·q̈ = F + Aᵀλ):
 
@@ -39,7 +43,11 @@ def from_sympy(method_or_system, name, defaults=None, inputs=None):
     `method_or_system`.
 
     For a `KanesMethod` (or a `System`, whose equations are formed with `form_eoms()` if they have
-    not been) the kinematic equations must be u = q̇; M·u̇ = F is then M·q̈ = F with u → q̇.
+    not been) the kinematic differential equations must be solvable for q̇: M·u̇ = F is taken into
+    the coordinates through u = W(q, t)·q̇ + w(q, t), a speed that is no coordinate's rate gets
+    the ignorable coordinate `int_<u>`, and the model has an output named like each speed (see
+    the module docstring). A `System` that forms its equations with `LagrangesMethod` needs
+    u = q̇.
 
     Parameters
     ----------
@@ -381,17 +389,9 @@ def _nonholonomic(q, holonomic, velocity, t, seed=0):
     if not velocity:
         return []
     rates = [qi.diff(t) for qi in q]
-    exprs = list(holonomic) + list(velocity)
     rows = [[sp.diff(e, qi) for qi in q] for e in holonomic] + \
            [[sp.diff(e, r) for r in rates] for e in velocity]
-    rng = random.Random(seed)
-    atoms = set()
-    for e in exprs:
-        atoms |= {a for a in e.atoms(AppliedUndef)} | (e.free_symbols - {t})
-    point = {a: sp.Float(rng.uniform(0.3, 1.3)) for a in atoms}
-    point[t] = sp.Float(rng.uniform(0.3, 1.3))
-    numeric = [[complex(sp.sympify(v).xreplace(point).doit().evalf()).real for v in row]
-               for row in rows]
+    numeric = _at_random_point(sp.Matrix(rows), seed).tolist()
     chosen, basis = [], [numeric[i] for i in range(len(holonomic))]
     for k, e in enumerate(velocity):
         trial = basis + [numeric[len(holonomic) + k]]

@@ -15,13 +15,10 @@ import numpy as np
 import scipy.linalg
 from scipy.optimize import linear_sum_assignment, root
 
-from .errors import LagrgenError, MassMatrixError, NonFiniteError, UnknownNameError
-from .linearization import (FrozenTimeWarning, Linearization, linearize,  # noqa: F401
+from .errors import LagrgenError, UnknownNameError
+from .linearization import (ZERO_TOL, FrozenTimeWarning, Linearization, ascending,  # noqa: F401
+                            check_positive_definite, linearize, operating_point,
                             warn_frozen_time)
-from .runtime.arguments import as_vector, input_vector, parameters_from
-
-#: Relative size below which an eigenvalue ω² (or an imaginary part, an asymmetry) counts as zero.
-ZERO_TOL = 1e-9
 
 
 class EquilibriumError(LagrgenError, RuntimeError):
@@ -118,12 +115,6 @@ class Modes:
         return source
 
 
-def _operating_point(mod, q, name, p, u):
-    n = mod.n_coordinates
-    q = as_vector(q, n, f"{name} (one value per coordinate {', '.join(mod.coordinates)})")
-    return q, parameters_from(mod, p), input_vector(u, tuple(mod.inputs))
-
-
 def equilibrium(mod, q_guess, p=None, u=None, t=0.0, tol=1e-9):
     """The configuration q with F(q, 0, t, u) = 0 nearest `q_guess`, found by scipy.optimize.root.
 
@@ -132,7 +123,7 @@ def equilibrium(mod, q_guess, p=None, u=None, t=0.0, tol=1e-9):
     Powell's hybrid method is the fallback. Raises EquilibriumError unless the residual satisfies
     max|F_i| ≤ tol·max(1, max|∂F_i/∂q_j|).
     """
-    q_guess, p, u = _operating_point(mod, q_guess, "q_guess", p, u)
+    q_guess, p, u = operating_point(mod, q_guess, "q_guess", p, u)
     warn_frozen_time(mod, t, "equilibrium")
     if mod.n_constraints:
         return _constrained_equilibrium(mod, q_guess, p, u, t, tol)
@@ -251,13 +242,6 @@ def undamped_modes(M, K):
     return lam, _mass_normalize(shapes, M)
 
 
-def ascending(values):
-    """The order of complex `values` by real part (equal within ZERO_TOL of the largest: a
-    conjugate pair), then imaginary part."""
-    scale = ZERO_TOL * max(np.abs(values).max(initial=0.0), np.finfo(float).tiny)
-    return np.lexsort((values.imag, np.round(values.real / scale)))
-
-
 def state_matrix(M, C, K):
     """A = [[0, I], [−M⁻¹K, −M⁻¹C]], so that ẋ = A·x for x = [δq, δq̇]."""
     n = M.shape[0]
@@ -344,7 +328,7 @@ def modes(mod_or_lin, q0=None, qd0=None, p=None, u=None, t=0.0):
 def classical_modes(lin, model=None):
     """Modes of M·δq̈ + C·δq̇ + K·δq = 0 with symmetric C: undamped ω and shapes of (K, M),
     damping ratios from the state matrix's eigenvalues assigned to them."""
-    check_mass_matrix(lin)
+    check_positive_definite(lin.name, lin.M, lin.t, lin.q0)
     lam, shapes = undamped_modes(lin.M, lin.K)
     lam_real = np.real(lam)
     omega = np.full(lin.n, np.nan)
@@ -379,17 +363,6 @@ def state_modes(lin, model=None):
         shapes = shapes.real
     return Modes(omega=omega, shapes=shapes, damping_ratios=zeta, omega_damped=np.abs(s.imag),
                  eigenvalues=lin.eigenvalues, linearization=lin, model=model, kind="state")
-
-
-def check_mass_matrix(lin):
-    """Raise MassMatrixError unless lin.M is symmetric positive definite (NonFiniteError when
-    an entry overflowed)."""
-    if not np.isfinite(lin.M).all() and np.isfinite(lin.q0).all():
-        raise NonFiniteError.in_mass_matrix(lin.name, lin.t, lin.q0)
-    try:
-        np.linalg.cholesky(lin.M)
-    except np.linalg.LinAlgError:
-        raise MassMatrixError.at(lin.name, lin.t, lin.q0) from None
 
 
 def input_index(names, input, model_name=""):

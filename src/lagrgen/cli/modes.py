@@ -90,9 +90,9 @@ def modes_table(model, q0, result):
     rows = [column(c, units) for c in names]
     width = max(len(r) for r in rows)
     complex_shapes = np.iscomplexobj(result.shapes)
-    lines.append("mode shapes (" + ("largest entry 1, magnitude@phase in degrees"
-                                    if complex_shapes else "mass-normalized")
-                 + ", one column per mode):")
+    scaling = ("largest entry 1, magnitude@phase in degrees" if complex_shapes else
+               "mass-normalized" if result.kind == "classical" else "largest entry 1")
+    lines.append(f"mode shapes ({scaling}, one column per mode):")
     for j, r in enumerate(rows):
         cells = [f"{abs(v):>7.4g}@{np.degrees(np.angle(v)):>5.0f}" if complex_shapes
                  else f"{np.real(v):>10.5g}" for v in result.shapes[j]]

@@ -78,8 +78,6 @@ def run(args):
     progress = True if args.progress else (False if args.quiet else "auto")
     t_eval = np.linspace(args.t_start, args.t_end, args.samples)
     options = {} if args.max_step is None else {"max_step": args.max_step}
-    if args.max_steps <= 0 or (args.max_time is not None and args.max_time <= 0):
-        raise LagrgenError("--max-steps and --max-time must be positive")
     plot_outputs = output_choice(args.plot_outputs, mod)
     started = time.perf_counter()
     sol = simulate(mod, (args.t_start, args.t_end), y0, method=args.method,

@@ -11,10 +11,8 @@ time) + Σ ω·(C·x − d)² (data). The Hessian of σ·f + Σ μ·g is assembl
 term's constant 2σ·CᵀΩC; contributions to one entry are summed (`np.bincount`).
 """
 import copy
-import time
 
 import numpy as np
-import scipy.sparse as sps
 
 from ..calculus import internal_symbols
 from ..errors import LagrgenError
@@ -199,8 +197,8 @@ class Transcription:
         rows, cols, c0, c1, count = defects(L)
         self.n_defects = count
         self.def_rows, self.def_cols, self.def_c0, self.def_c1 = rows, cols, c0, c1
-        self.D0 = sps.csr_matrix((c0, (rows, cols)), shape=(count, L.size))
-        self.D1 = sps.csr_matrix((c1, (rows, cols)), shape=(count, L.size))
+        self.D0 = Linear(rows, cols, c0, (count, L.size))
+        self.D1 = Linear(rows, cols, c1, (count, L.size))
         self.def_T_rows = np.unique(rows[c1 != 0]) if L.free else np.zeros(0, dtype=np.int64)
         self.D1_cols = np.unique(cols[c1 != 0]) if L.free else np.zeros(0, dtype=np.int64)
 
@@ -222,8 +220,7 @@ class Transcription:
             cols += list(c)
             vals += list(v)
             rhs.append(value)
-        self.E = sps.csr_matrix((vals, (rows, cols)), shape=(len(rhs), L.size))
-        self.E.sort_indices()
+        self.E = Linear(rows, cols, vals, (len(rhs), L.size))
         self.e = np.array(rhs)
 
     def _data_term(self):
@@ -242,13 +239,10 @@ class Transcription:
                     d.append(data[r, k])
                     w.append(weights_[r, k])
         self.n_data = len(d)
-        self.C = sps.csr_matrix((vals, (rows, cols)), shape=(len(d), L.size))
+        self.C = Linear(rows, cols, vals, (len(d), L.size))
         self.d, self.omega = np.array(d), np.array(w)
         if self.n_data:
-            H = (self.C.T @ sps.diags(2.0 * self.omega) @ self.C).tocoo()
-            lower = H.row >= H.col
-            self.data_hess = (H.row[lower].astype(np.int64), H.col[lower].astype(np.int64),
-                              H.data[lower])
+            self.data_hess = self.C.weighted_gram(2.0 * self.omega)
 
     def _variable_bounds(self):
         L, problem, mod = self.layout, self.problem, self.mod
@@ -314,9 +308,8 @@ class Transcription:
         if L.free:
             rows.append(base + self.def_T_rows)
             cols.append(np.full(self.def_T_rows.size, L.T_index))
-        E = self.E.tocoo()
-        self.E_values = E.data
-        rows.append(base + self.n_defects + E.row), cols.append(E.col)
+        self.E_values = self.E.values
+        rows.append(base + self.n_defects + self.E.rows), cols.append(self.E.cols)
         self.jac_rows = np.concatenate(rows).astype(np.int64)
         self.jac_cols = np.concatenate(cols).astype(np.int64)
         self.n_constraints = base + self.n_defects + self.E.shape[0]
@@ -435,7 +428,7 @@ class Transcription:
         if self.problem._minimize_time:
             f += state["T"]
         if self.n_data:
-            res = self.C @ x - self.d
+            res = self.C.dot(x) - self.d
             f += float(self.omega @ (res * res))
         return f
 
@@ -453,7 +446,7 @@ class Transcription:
         if self.problem._minimize_time:
             g[L.T_index] += L.T_scale
         if self.n_data:
-            g += 2.0 * (self.C.T @ (self.omega * (self.C @ x - self.d)))
+            g += 2.0 * self.C.tdot(self.omega * (self.C.dot(x) - self.d))
         return g
 
     def constraints(self, x):
@@ -464,8 +457,8 @@ class Transcription:
             parts.append(self._path_values(state).ravel())
         if self.n_cons:
             parts.append(self._consistency_kernel("consistency", state, 0)[self.cons_keep])
-        parts.append(self.defect_scale * (self.D0 @ x + state["h"] * (self.D1 @ x)))
-        parts.append(self.E @ x)
+        parts.append(self.defect_scale * (self.D0.dot(x) + state["h"] * self.D1.dot(x)))
+        parts.append(self.E.dot(x))
         return np.concatenate(parts)
 
     def jacobianstructure(self):
@@ -485,7 +478,7 @@ class Transcription:
                                                   1)[self.cons_jac_pick])
         parts.append(self.defect_scale * (self.def_c0 + state["h"] * self.def_c1))
         if L.free:
-            parts.append(self.defect_scale * L.dh_dx * (self.D1 @ x)[self.def_T_rows])
+            parts.append(self.defect_scale * L.dh_dx * self.D1.dot(x)[self.def_T_rows])
         parts.append(self.E_values)
         return np.concatenate(parts)
 
@@ -517,7 +510,7 @@ class Transcription:
         if L.free:
             base = self.defect_row
             mu_def = mu[base:base + self.n_defects]
-            parts.append(self.defect_scale * L.dh_dx * (self.D1.T @ mu_def)[self.D1_cols])
+            parts.append(self.defect_scale * L.dh_dx * self.D1.tdot(mu_def)[self.D1_cols])
         if self.n_cons:
             weights_ = np.zeros(self.cons_sizes[0])
             start = P * (ni + self.n_path)
@@ -528,6 +521,43 @@ class Transcription:
             parts.append(obj_factor * self.data_hess[2])
         values = np.concatenate(parts)
         return np.bincount(self.hess_map, values, minlength=self.hess_rows.size)
+
+
+class Linear:
+    """A sparse matrix as triplets (rows, cols, values) of a given shape, for the NLP's linear
+    parts (defects, instance rows, data samples): A·x and Aᵀ·y as sums of the entries' products
+    (duplicates add), with no SciPy on the solver's path."""
+
+    def __init__(self, rows, cols, values, shape):
+        self.rows = np.asarray(rows, dtype=np.int64).ravel()
+        self.cols = np.asarray(cols, dtype=np.int64).ravel()
+        self.values = np.asarray(values, dtype=float).ravel()
+        self.shape = tuple(shape)
+
+    def dot(self, x):
+        """A·x."""
+        return np.bincount(self.rows, self.values * x[self.cols], minlength=self.shape[0])
+
+    def tdot(self, y):
+        """Aᵀ·y."""
+        return np.bincount(self.cols, self.values * y[self.rows], minlength=self.shape[1])
+
+    def weighted_gram(self, w):
+        """The lower-triangle entries (rows, cols, values) of Aᵀ·diag(w)·A: one for each ordered
+        pair of entries of a row whose first column is not left of the second (duplicates add)."""
+        order = np.argsort(self.rows, kind="stable")
+        r, c, v = self.rows[order], self.cols[order], self.values[order]
+        first, second = [np.arange(r.size)], [np.arange(r.size)]
+        for gap in range(1, r.size):         # rows sorted: entries of a row are neighbours
+            same = np.flatnonzero(r[gap:] == r[:-gap])
+            if not same.size:
+                break
+            first += [same, same + gap]
+            second += [same + gap, same]
+        first, second = np.concatenate(first), np.concatenate(second)
+        keep = c[first] >= c[second]
+        first, second = first[keep], second[keep]
+        return c[first], c[second], w[r[first]] * v[first] * v[second]
 
 
 # -- the units -------------------------------------------------------------------------------
@@ -618,130 +648,3 @@ def _variable_names(layout, mod):
     coords = list(mod.coordinates)
     return {"q": coords, "qd": [f"{c}_dot" for c in coords], "qdd": [f"{c}_ddot" for c in coords],
             "lam": list(mod.constraint_names), "u": list(mod.inputs)}
-
-
-# -- IPOPT -----------------------------------------------------------------------------------
-STATUS_SUCCESS = (0, 1)   # Solve_Succeeded, Solved_To_Acceptable_Level
-
-
-def ipopt():
-    """The `cyipopt` module, or a LagrgenError saying how to install it."""
-    try:
-        import cyipopt
-    except ImportError:
-        raise LagrgenError(
-            "Collocation.solve needs IPOPT through the cyipopt module: pip install "
-            "'lagrgen[optimize]' (the binary wheels of cyipopt-wheels carry IPOPT; no system "
-            "library is needed)") from None
-    return cyipopt
-
-
-class _Progress:
-    """One line per IPOPT iteration, at most `rate` lines a second (and always the last)."""
-
-    def __init__(self, enabled, rate=4.0):
-        self.enabled, self.interval = enabled, 1.0 / rate
-        self.last_print = -np.inf
-        self.pending = None
-        self.iterations = 0
-        self.interrupted = False
-
-    def __call__(self, alg_mod, iter_count, obj_value, inf_pr, inf_du, mu, d_norm,
-                 regularization_size, alpha_du, alpha_pr, ls_trials):
-        self.iterations = iter_count
-        line = (f"{iter_count:5d}  {obj_value: .8e}  {inf_pr:.2e}  {inf_du:.2e}  "
-                f"{np.log10(max(mu, 1e-300)):6.2f}  {alpha_pr:.2e}")
-        now = time.perf_counter()
-        if self.enabled:
-            if iter_count == 0:
-                print(" iter   objective        inf_pr    inf_du    lg(mu)  alpha_pr", flush=True)
-            if now - self.last_print >= self.interval or iter_count < 3:
-                print(line, flush=True)
-                self.last_print, self.pending = now, None
-            else:
-                self.pending = line
-        return not self.interrupted
-
-    def finish(self):
-        if self.enabled and self.pending:
-            print(self.pending, flush=True)
-
-
-def solve_nlp(problem, tr, x0, hessian, tol, max_iter, progress, options):
-    """Run IPOPT on the transcription from x0; the CollocationResult."""
-    from .result import CollocationResult
-    cyipopt = ipopt()
-    start = time.perf_counter()
-    monitor = _Progress(progress)
-    adapter = _Callbacks(tr, monitor)
-    nlp = cyipopt.Problem(n=tr.layout.size, m=tr.n_constraints, problem_obj=adapter,
-                          lb=tr.lo, ub=tr.hi, cl=tr.g_lo, cu=tr.g_hi)
-    settings = {"tol": float(tol), "max_iter": int(max_iter), "print_level": 0, "sb": "yes"}
-    if hessian == "quasi-newton":
-        settings["hessian_approximation"] = "limited-memory"
-    settings.update(options)
-    for key, value in settings.items():
-        nlp.add_option(key, value)
-    x0 = np.clip(np.asarray(x0, dtype=float), tr.lo, tr.hi)
-    try:
-        x, info = nlp.solve(x0)
-    except KeyboardInterrupt:
-        raise
-    finally:
-        if hasattr(nlp, "close"):
-            nlp.close()
-    if adapter.interrupt is not None:
-        raise KeyboardInterrupt
-    monitor.finish()
-    seconds = time.perf_counter() - start
-    result = CollocationResult.from_solution(problem, tr, np.asarray(x), info,
-                                             monitor.iterations, seconds, hessian)
-    result.callback_seconds = adapter.seconds
-    if progress:
-        print(result.summary(), flush=True)
-    return result
-
-
-class _Callbacks:
-    """The object cyipopt calls: the transcription's callbacks, with Ctrl-C ending the solve and
-    the time spent in them counted (`seconds`; the rest of a solve is IPOPT's own)."""
-
-    def __init__(self, tr, monitor):
-        self.tr, self.monitor, self.interrupt = tr, monitor, None
-        self.seconds = 0.0
-        self.jacobianstructure = tr.jacobianstructure
-        if tr.exact:
-            self.hessianstructure = tr.hessianstructure
-
-    def _guard(self, f, *args):
-        start = time.perf_counter()
-        try:
-            return f(*args)
-        except KeyboardInterrupt as exc:
-            self.interrupt = exc
-            self.monitor.interrupted = True
-            raise
-        finally:
-            self.seconds += time.perf_counter() - start
-
-    def objective(self, x):
-        return self._guard(self.tr.objective, x)
-
-    def gradient(self, x):
-        return self._guard(self.tr.gradient, x)
-
-    def constraints(self, x):
-        return self._guard(self.tr.constraints, x)
-
-    def jacobian(self, x):
-        return self._guard(self.tr.jacobian, x)
-
-    def hessian(self, x, lagrange, obj_factor):
-        return self._guard(self.tr.hessian, x, lagrange, obj_factor)
-
-    def intermediate(self, *args):
-        try:
-            return self.monitor(*args)
-        except KeyboardInterrupt as exc:
-            self.interrupt = exc
-            return False

@@ -317,14 +317,16 @@ class Collocation:
             IPOPT's limited-memory quasi-Newton approximation.
         tol, max_iter : IPOPT's convergence tolerance and iteration limit
         progress : print one line per iteration (throttled) and a summary
-        options : dict of further IPOPT options (name -> value)
+        options : dict of further IPOPT options (name -> value), replacing lagrgen's defaults
+            (`lagrgen.collocation.solver`: with the exact Hessian mu_strategy="adaptive",
+            mu_oracle="loqo", min_refinement_steps=0)
 
         Returns
         -------
         CollocationResult
         """
         from .guess import initial_guess
-        from .nlp import solve_nlp
+        from .solver import solve_nlp
         if hessian not in ("exact", "quasi-newton"):
             raise LagrgenError(f"hessian must be 'exact' or 'quasi-newton', got {hessian!r}")
         if self._integrand is None and not self._minimize_time and not self._tracks:

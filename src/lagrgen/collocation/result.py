@@ -3,7 +3,6 @@ and the ways to look at it (plot, animation, xarray) and to check it (a re-simul
 import numpy as np
 
 from .grid import interpolate_rows
-from .statistics import parameter_errors
 
 #: IPOPT's return codes, by value.
 IPOPT_STATUS = {
@@ -66,7 +65,10 @@ class CollocationResult:
         g = tr.constraints(x)
         violation = max(float(np.max(np.maximum(tr.g_lo - g, g - tr.g_hi), initial=0.0)),
                         float(np.max(np.maximum(tr.lo - x, x - tr.hi), initial=0.0)))
-        stderr, cov = parameter_errors(tr, x) if status in (0, 1) else ({}, None)
+        stderr, cov = ({}, None)
+        if status in (0, 1) and tr.n_data and L.unknown:
+            from .statistics import parameter_errors
+            stderr, cov = parameter_errors(tr, x)
         stderr = {name: stderr.get(name, np.nan) for name in params}
         full = np.array(problem.params)
         full[list(L.unknown)] = x[L.p_start:L.p_start + len(L.unknown)]

@@ -13,17 +13,17 @@ flagged: the data cannot identify them).
 import warnings
 
 import numpy as np
-import scipy.sparse as sps
 
 
 def parameter_errors(tr, x):
     """{name: standard error} of the unknown parameters and their covariance (k, k), or ({}, None)
     when the problem has no data term or no unknown parameter."""
-    from scipy.sparse.linalg import splu
     L = tr.layout
     names = [tr.mod.parameters[j] for j in L.unknown]
     if not names or not tr.n_data:
         return {}, None
+    import scipy.sparse as sps
+    from scipy.sparse.linalg import splu
     scale = 1e-8 * (1.0 + np.abs(x))
     at_bound = (tr.hi - tr.lo <= 0) | (x - tr.lo <= scale) | (tr.hi - x <= scale)
     free = np.flatnonzero(~at_bound)
@@ -40,12 +40,12 @@ def parameter_errors(tr, x):
     J = sps.csr_matrix((values[keep], (row_position[tr.jac_rows[keep]],
                                        position[tr.jac_cols[keep]])),
                        shape=(rows.size, free.size))
-    C = tr.C[:, free]
+    C = sps.csr_matrix((tr.C.values, (tr.C.rows, tr.C.cols)), shape=tr.C.shape)[:, free]
     H = (C.T @ sps.diags(2.0 * tr.omega) @ C).tocsc()
     ridge = 1e-9 * max(1.0, float(np.max(H.diagonal(), initial=0.0)))
     H = H + ridge * sps.identity(free.size, format="csc")
     K = sps.bmat([[H, J.T], [J, None]], format="csc")
-    residual = tr.C @ x - tr.d
+    residual = tr.C.dot(x) - tr.d
     dof = tr.n_data - (free.size - rows.size)
     s2 = float(tr.omega @ residual ** 2) / dof if dof > 0 else np.nan
     k = len(names)

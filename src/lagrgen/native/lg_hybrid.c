@@ -644,6 +644,20 @@ static double hy_wall_seconds(void)
     return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
 }
 
+/* Count a segment that ended at t without progress (`short_segment`); 1 (status, failure and
+ * message set) once LG_HY_STALL_SEGMENTS did so in a row, else 0. */
+static int hy_stalled(lg_hybrid_result_t *res, double t, int short_segment, long *no_progress)
+{
+    *no_progress = short_segment ? *no_progress + 1 : 0;
+    if (*no_progress < LG_HY_STALL_SEGMENTS)
+        return 0;
+    res->status = -1;
+    res->failure = LG_HY_STALLED;
+    res->t_reached = t;
+    snprintf(res->message, sizeof res->message, "no progress at t = %.9g", t);
+    return 1;
+}
+
 static void *hy_alloc(void **list, int *count, size_t bytes)
 {
     void *p = calloc(1, bytes ? bytes : 1);
@@ -900,14 +914,8 @@ int lg_hybrid_solve(lg_hybrid_t *h, const lg_options_t *options, lg_hybrid_resul
             memcpy(y, seg.y.data + (rows - 1) * dim, dim * D);
             t = t_end;
             lg_result_free(&seg);
-            no_progress = t - t_start < least ? no_progress + 1 : 0;
-            if (no_progress >= LG_HY_STALL_SEGMENTS) {
-                res->status = -1;
-                res->failure = LG_HY_STALLED;
-                res->t_reached = t;
-                snprintf(res->message, sizeof res->message, "no progress at t = %.9g", t);
+            if (hy_stalled(res, t, t - t_start < least, &no_progress))
                 break;
-            }
             continue;
         }
         /* terminal event(s): the earliest time, every event found there */
@@ -947,14 +955,8 @@ int lg_hybrid_solve(lg_hybrid_t *h, const lg_options_t *options, lg_hybrid_resul
             rc = -1;
             goto done;
         }
-        no_progress = t - t_start < least ? no_progress + 1 : 0;
-        if (no_progress >= LG_HY_STALL_SEGMENTS) {
-            res->status = -1;
-            res->failure = LG_HY_STALLED;
-            res->t_reached = t;
-            snprintf(res->message, sizeof res->message, "no progress at t = %.9g", t);
+        if (hy_stalled(res, t, t - t_start < least, &no_progress))
             break;
-        }
     }
 done:
     for (int k = 0; k < nb; ++k)

@@ -157,7 +157,7 @@ def plot_modes(result, coordinates, path=None, title=None):
     x = np.arange(len(coordinates))
     for i, ax in enumerate(axes):
         shape = np.real(result.shapes[:, i])
-        ax.bar(x, shape, color="tab:blue" if np.isfinite(result.omega[i]) else "tab:red")
+        ax.bar(x, shape, color="tab:red" if growing(result, i) else "tab:blue")
         ax.axhline(0.0, color="black", linewidth=0.8)
         ax.set_title(mode_label(result, i), fontsize="medium")
         ax.grid(True, axis="y", alpha=0.3)
@@ -168,13 +168,19 @@ def plot_modes(result, coordinates, path=None, title=None):
     return finished(fig, path)
 
 
+def growing(result, i):
+    """Whether mode i grows: ω² < 0 (classical modes: ω is NaN) or ζ < 0."""
+    return not np.isfinite(result.omega[i]) or result.damping_ratios[i] < 0
+
+
 def mode_label(result, i):
-    """'mode 1: 0.3815 Hz (2.397 rad/s), ζ = 0' (or 'unstable' for ω² < 0)."""
+    """'mode 1: 0.3815 Hz (2.397 rad/s), ζ = 0' (or 'unstable' for ω² < 0, ', unstable' for
+    ζ < 0)."""
     w = result.omega[i]
     if not np.isfinite(w):
-        return f"mode {i + 1}: unstable (ω² = {np.real(result.eigenvalues[i]):.4g} rad²/s²)"
+        return f"mode {i + 1}: unstable (ω² = {np.real(result.omega_squared[i]):.4g} rad²/s²)"
     return (f"mode {i + 1}: {w / (2 * np.pi):.4g} Hz ({w:.4g} rad/s), "
-            f"ζ = {result.damping_ratios[i]:.3g}")
+            f"ζ = {result.damping_ratios[i]:.3g}{', unstable' if growing(result, i) else ''}")
 
 
 def model_parameters(model, params):

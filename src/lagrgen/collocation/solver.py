@@ -1,0 +1,186 @@
+"""IPOPT on a collocation NLP: loading it (through cyipopt, without its SciPy interface), the options
+collocation problems start from, one line of progress per iteration, and the solve.
+
+cyipopt's package imports `scipy.optimize` for its `minimize_ipopt` (about 0.3 s of a process);
+its compiled wrapper `ipopt_wrapper`, which holds `Problem`, needs only `cyipopt.exceptions`. That
+module is loaded from its file under its own name (so a later `import cyipopt` finds it and shares
+its exception class with the wrapper), then the wrapper alone; when anything fails on that path,
+or cyipopt is already imported, the package is imported as usual. A package imported after the
+wrapper alone lacks only the attribute `cyipopt.exceptions` (`from cyipopt.exceptions import …`
+works).
+"""
+import importlib.util
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import LagrgenError
+
+#: IPOPT's return codes that mean a solution (Solve_Succeeded, Solved_To_Acceptable_Level).
+STATUS_SUCCESS = (0, 1)
+#: The options every solve starts from (the caller's `options` replace them).
+BASE_OPTIONS = {"print_level": 0, "sb": "yes"}
+#: With the exact Hessian: the barrier parameter set at every iteration from the complementarity
+#: (LOQO's rule) rather than decreased only once each barrier problem is solved, and a step refined
+#: only when its residual asks for it (IPOPT checks the residual of every solve). On the problems of
+#: benchmarks/collocation.py they reach the same optima as IPOPT's defaults, in a third to a half of
+#: the iterations on the swing-ups and a few more on the cart (its results list both); with the
+#: quasi-Newton Hessian IPOPT's defaults do better.
+EXACT_OPTIONS = {"mu_strategy": "adaptive", "mu_oracle": "loqo", "min_refinement_steps": 0}
+QUASI_NEWTON_OPTIONS = {"hessian_approximation": "limited-memory"}
+
+
+def solver_options(hessian, tol, max_iter, options):
+    """The IPOPT options of a solve: the base, those of the Hessian's kind, tol and max_iter, and
+    then the caller's."""
+    kind = EXACT_OPTIONS if hessian == "exact" else QUASI_NEWTON_OPTIONS
+    return {**BASE_OPTIONS, **kind, "tol": float(tol), "max_iter": int(max_iter), **options}
+
+
+def ipopt():
+    """A module with cyipopt's `Problem` class, or a LagrgenError saying how to install it."""
+    for name in ("cyipopt", "ipopt_wrapper"):
+        module = sys.modules.get(name)
+        if module is not None and hasattr(module, "Problem"):
+            return module
+    try:
+        return _wrapper_alone()
+    except Exception:      # another layout of cyipopt: its package, as usual
+        pass
+    try:
+        import cyipopt
+    except ImportError:
+        raise LagrgenError(
+            "Collocation.solve needs IPOPT through the cyipopt module: pip install "
+            "'lagrgen[optimize]' (the binary wheels of cyipopt-wheels carry IPOPT; no system "
+            "library is needed)") from None
+    return cyipopt
+
+
+def _wrapper_alone():
+    """cyipopt's compiled `ipopt_wrapper` with `cyipopt.exceptions`, without the package."""
+    package = importlib.util.find_spec("cyipopt")
+    if package is None or importlib.util.find_spec("ipopt_wrapper") is None:
+        raise ImportError("no cyipopt")
+    if "cyipopt.exceptions" not in sys.modules:
+        path = Path(list(package.submodule_search_locations)[0]) / "exceptions.py"
+        spec = importlib.util.spec_from_file_location("cyipopt.exceptions", path)
+        module = importlib.util.module_from_spec(spec)
+        sys.modules[spec.name] = module
+        try:
+            spec.loader.exec_module(module)
+        except BaseException:
+            del sys.modules[spec.name]
+            raise
+    import ipopt_wrapper
+    if not hasattr(ipopt_wrapper, "Problem"):
+        raise ImportError("ipopt_wrapper has no Problem")
+    return ipopt_wrapper
+
+
+class _Progress:
+    """One line per IPOPT iteration, at most `rate` lines a second (and always the last)."""
+
+    def __init__(self, enabled, rate=4.0):
+        self.enabled, self.interval = enabled, 1.0 / rate
+        self.last_print = -np.inf
+        self.pending = None
+        self.iterations = 0
+        self.interrupted = False
+
+    def __call__(self, alg_mod, iter_count, obj_value, inf_pr, inf_du, mu, d_norm,
+                 regularization_size, alpha_du, alpha_pr, ls_trials):
+        self.iterations = iter_count
+        if not self.enabled:
+            return not self.interrupted
+        now = time.perf_counter()
+        line = (f"{iter_count:5d}  {obj_value: .8e}  {inf_pr:.2e}  {inf_du:.2e}  "
+                f"{np.log10(max(mu, 1e-300)):6.2f}  {alpha_pr:.2e}")
+        if iter_count == 0:
+            print(" iter   objective        inf_pr    inf_du    lg(mu)  alpha_pr", flush=True)
+        if now - self.last_print >= self.interval or iter_count < 3:
+            print(line, flush=True)
+            self.last_print, self.pending = now, None
+        else:
+            self.pending = line
+        return not self.interrupted
+
+    def finish(self):
+        if self.enabled and self.pending:
+            print(self.pending, flush=True)
+
+
+def solve_nlp(problem, tr, x0, hessian, tol, max_iter, progress, options):
+    """Run IPOPT on the transcription from x0; the CollocationResult."""
+    from .result import CollocationResult
+    cyipopt = ipopt()
+    start = time.perf_counter()
+    monitor = _Progress(progress)
+    adapter = _Callbacks(tr, monitor)
+    nlp = cyipopt.Problem(n=tr.layout.size, m=tr.n_constraints, problem_obj=adapter,
+                          lb=tr.lo, ub=tr.hi, cl=tr.g_lo, cu=tr.g_hi)
+    for key, value in solver_options(hessian, tol, max_iter, options).items():
+        nlp.add_option(key, value)
+    x0 = np.clip(np.asarray(x0, dtype=float), tr.lo, tr.hi)
+    try:
+        x, info = nlp.solve(x0)
+    finally:
+        if hasattr(nlp, "close"):
+            nlp.close()
+    if adapter.interrupt is not None:
+        raise KeyboardInterrupt
+    monitor.finish()
+    seconds = time.perf_counter() - start
+    result = CollocationResult.from_solution(problem, tr, np.asarray(x), info,
+                                             monitor.iterations, seconds, hessian)
+    result.callback_seconds = adapter.seconds
+    if progress:
+        print(result.summary(), flush=True)
+    return result
+
+
+class _Callbacks:
+    """The object cyipopt calls: the transcription's callbacks, with Ctrl-C ending the solve and
+    the time spent in them counted (`seconds`; the rest of a solve is IPOPT's own)."""
+
+    def __init__(self, tr, monitor):
+        self.tr, self.monitor, self.interrupt = tr, monitor, None
+        self.seconds = 0.0
+        self.jacobianstructure = tr.jacobianstructure
+        if tr.exact:
+            self.hessianstructure = tr.hessianstructure
+
+    def _guard(self, f, *args):
+        start = time.perf_counter()
+        try:
+            return f(*args)
+        except KeyboardInterrupt as exc:
+            self.interrupt = exc
+            self.monitor.interrupted = True
+            raise
+        finally:
+            self.seconds += time.perf_counter() - start
+
+    def objective(self, x):
+        return self._guard(self.tr.objective, x)
+
+    def gradient(self, x):
+        return self._guard(self.tr.gradient, x)
+
+    def constraints(self, x):
+        return self._guard(self.tr.constraints, x)
+
+    def jacobian(self, x):
+        return self._guard(self.tr.jacobian, x)
+
+    def hessian(self, x, lagrange, obj_factor):
+        return self._guard(self.tr.hessian, x, lagrange, obj_factor)
+
+    def intermediate(self, *args):
+        try:
+            return self.monitor(*args)
+        except KeyboardInterrupt as exc:
+            self.interrupt = exc
+            return False
