@@ -67,12 +67,16 @@ def test_parameter_jacobian_matches_central_differences(built, name, backend):
         assert_allclose(J, reference, rtol=1e-6, atol=1e-6 * np.abs(reference).max())
 
 
-@pytest.mark.parametrize("name", ["pendulum", "crank", "pendulum-recursive"])
-def test_parameter_jacobian_in_c_equals_python(built, name):
+def both_backends_at(built, name):
+    """The C and Python builds of `name` and a (consistent) state to compare them at."""
     c, py = built[name, "c"], built[name, "python"]
     y = np.concatenate([np.full(c.n_coordinates, 0.3), np.full(c.n_coordinates, -0.2)])
-    if c.n_constraints:
-        y = lagrgen.consistent_state(c, y)
+    return c, py, lagrgen.consistent_state(c, y) if c.n_constraints else y
+
+
+@pytest.mark.parametrize("name", ["pendulum", "crank", "pendulum-recursive"])
+def test_parameter_jacobian_in_c_equals_python(built, name):
+    c, py, y = both_backends_at(built, name)
     assert_allclose(c.parameter_jacobian(0.1, y), py.parameter_jacobian(0.1, y), rtol=1e-12,
                     atol=1e-12)
 
@@ -109,10 +113,7 @@ def test_directional_derivatives_are_the_jacobian_products(built, name, backend)
 
 @pytest.mark.parametrize("name", ["pendulum", "crank", "pendulum-recursive"])
 def test_directional_derivatives_in_c_equal_python(built, name):
-    c, py = built[name, "c"], built[name, "python"]
-    y = np.concatenate([np.full(c.n_coordinates, 0.3), np.full(c.n_coordinates, -0.2)])
-    if c.n_constraints:
-        y = lagrgen.consistent_state(c, y)
+    c, py, y = both_backends_at(built, name)
     dy = np.linspace(-1, 1, 4 * c.n_coordinates).reshape(2, -1)
     dp = np.linspace(1, 2, 2 * len(c.parameters)).reshape(2, -1)
     for a, b in zip(c.directional_derivatives(0.1, y, dy, dp),
