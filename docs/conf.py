@@ -99,7 +99,7 @@ API = [
                               "sweep.SweepResult"]),
     ("Vibration and stability", ["equilibrium", "linearize", "modes", "frequency_response",
                                  "eigenvalue_sweep", "vibration.Linearization", "vibration.Modes",
-                                 "FrozenTimeWarning"]),
+                                 "FrozenTimeWarning", "UnstableModeWarning"]),
     ("Identification", ["fit", "fit_modes", "fit.FitResult", "fit.ModalUpdate"]),
     ("Optimal motions", ["Collocation", "CollocationResult"]),
     ("Exceptions", ["LagrgenError", "ModelError", "UnknownNameError", "BuildError", "CompileError",

@@ -170,3 +170,30 @@ def state_function(expr, t, q, qd, params, inputs):
     assert not left, f"unexpected functions of t left in {plain}: {left}"
     f = sp.lambdify([Q, QD, T, tuple(params), U], plain, "numpy")
     return lambda q, qd, t, p, u: np.array(f(list(q), list(qd), t, list(p), list(u)), dtype=float)
+
+
+_FMI2_CALLBACKS = []
+
+
+@pytest.fixture
+def fmi2_callbacks():
+    """FMI 2 callbacks that live as long as the process, with FMPy's logger proxy pointed at them
+    for this test (the proxy is one global pointer, which an earlier `simulate_fmu(logger=...)`
+    leaves dangling: an FMU that logs through FMPy's default callbacks may then crash). The
+    messages logged collect in `.messages`."""
+    from ctypes import byref
+    from fmpy import calloc, free
+    from fmpy.fmi2 import (fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE,
+                           fmi2CallbackFunctions, fmi2CallbackLoggerTYPE)
+    from fmpy.logging import addLoggerProxy
+    if not _FMI2_CALLBACKS:
+        messages = []
+        callbacks = fmi2CallbackFunctions()
+        callbacks.logger = fmi2CallbackLoggerTYPE(lambda *args: messages.append(args[-1]))
+        callbacks.allocateMemory = fmi2CallbackAllocateMemoryTYPE(calloc)
+        callbacks.freeMemory = fmi2CallbackFreeMemoryTYPE(free)
+        _FMI2_CALLBACKS.append((callbacks, messages))
+    callbacks, messages = _FMI2_CALLBACKS[0]
+    callbacks.messages = messages
+    addLoggerProxy(byref(callbacks))
+    return callbacks

@@ -43,6 +43,10 @@ def test_a_store_name_with_double_colons_leaves_other_directories_alone(mod, tmp
     (tmp_path / "results" / "run" / "sub").mkdir(parents=True)
     (tmp_path / "results" / "run" / "notes.txt").write_text("mine")
     (tmp_path / "results" / "run" / "sub" / "data.csv").write_text("1,2")
+    with pytest.raises(FileNotFoundError, match="no ensemble store at 'results/run::2.zarr'"):
+        lagrgen.open_ensemble("results/run::2.zarr")             # reading one first: nothing
+    with pytest.raises(lagrgen.StoreError, match="not a store of lagrgen.simulate_many"):
+        lagrgen.open_ensemble("results/run")
     ds = six_runs(mod, "results/run::2.zarr")
     assert (tmp_path / "results" / "run" / "notes.txt").read_text() == "mine"
     assert (tmp_path / "results" / "run" / "sub" / "data.csv").read_text() == "1,2"

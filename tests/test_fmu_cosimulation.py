@@ -197,7 +197,7 @@ def test_fmi3_directional_derivatives_equal_the_jacobian(pendulum, tmp_path):
     fmu.freeInstance()
 
 
-def cs_instance(path, tmp_path, version):
+def cs_instance(path, tmp_path, version, callbacks=None):
     """An initialized co-simulation instance (FMPy's FMU2Slave / FMU3Slave) and its value
     references by name."""
     from fmpy.fmi2 import FMU2Slave
@@ -208,7 +208,7 @@ def cs_instance(path, tmp_path, version):
     if version == 2:
         fmu = FMU2Slave(guid=md.guid, unzipDirectory=unzipped, modelIdentifier=md.coSimulation.
                         modelIdentifier, instanceName="state")
-        fmu.instantiate()
+        fmu.instantiate(callbacks=callbacks)
         fmu.setupExperiment(startTime=0.0)
         fmu.enterInitializationMode()
         fmu.exitInitializationMode()
@@ -453,3 +453,34 @@ def test_a_failing_step_is_an_error_that_says_why(pendulum, version):
         fmpy.simulate_fmu(str(fmus["cs", version]), start_values={"m1": -1.0, "m2": -1.0},
                           stop_time=1.0, logger=lambda *args: messages.append(args[-1]))
     assert any(b"mass matrix is not positive definite at t = 0" in m for m in messages)
+
+
+@pytest.mark.parametrize("version", [2, 3])
+def test_solver_settings_out_of_range_are_refused_in_both_fmi_versions(pendulum, tmp_path,
+                                                                       version, fmi2_callbacks):
+    """The setters of solver.rtol, solver.atol and solver.method apply the rules of
+    lagrgen.options (issue 28, item 6): a bad value is an FMI error and the setting is kept."""
+    model, mod, fmus = pendulum
+    fmu, vr, set_real, get_real = cs_instance(fmus["cs", version], tmp_path, version,
+                                              fmi2_callbacks if version == 2 else None)
+    set_int = fmu.setInteger if version == 2 else fmu.setInt64
+    get_int = fmu.getInteger if version == 2 else fmu.getInt64
+    try:
+        for name, bad in [("solver.rtol", v) for v in (1e10, 1.0, np.inf, np.nan, 0.0, -1e-6)] + \
+                         [("solver.atol", v) for v in (np.nan, np.inf, -1.0)]:
+            kept = get_real([vr[name]])
+            with pytest.raises(Exception):
+                set_real([vr[name]], [bad])
+            assert get_real([vr[name]]) == kept, (name, bad)
+        kept = get_int([vr["solver.method"]])
+        for bad in (-1, 99, 2 ** 31 - 1):
+            with pytest.raises(Exception):
+                set_int([vr["solver.method"]], [bad])
+            assert get_int([vr["solver.method"]]) == kept
+        set_real([vr["solver.rtol"], vr["solver.atol"]], [1e-7, 1e-10])
+        set_int([vr["solver.method"]], [1])
+        assert get_real([vr["solver.rtol"], vr["solver.atol"]]) == [1e-7, 1e-10]
+        assert get_int([vr["solver.method"]]) == [1]
+        fmu.doStep(currentCommunicationPoint=0.0, communicationStepSize=0.05)
+    finally:
+        fmu.freeInstance()

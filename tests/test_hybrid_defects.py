@@ -59,6 +59,18 @@ def slot_model():
     return model
 
 
+def elastic_slot_model():
+    """A particle bouncing elastically between walls at x = 0 and x = w (w = 1 nm: wedged)."""
+    model = Model("elastic_slot")
+    x, = model.coordinates("x")
+    w, = model.parameters(w=1e-9)
+    model.particle(1, sp.Matrix([x, 0]))
+    model.potential_energy(G * x)
+    model.impact("left", x, restitution=1.0)
+    model.impact("right", w - x, restitution=1.0)
+    return model
+
+
 @pytest.fixture(scope="module")
 def built(compile_factory):
     return compile_factory
@@ -150,6 +162,40 @@ def test_bounces_that_never_come_to_rest_stop_as_making_no_progress(built, engin
     assert "rest_velocity" in sol.message and "impact 'floor'" in sol.message
     zeno = np.sqrt(2 / G) * (1 + 2 * 0.8 / (1 - 0.8))
     assert sol.t[-1] == pytest.approx(zeno, abs=1e-4)
+
+
+@pytest.mark.parametrize("engine", ENGINES)
+def test_a_body_wedged_between_two_impacts_stops_on_every_guard(built, engine):
+    """Each wall is struck 10⁹ times a second: the guards count over the whole hybrid solve
+    (its segments take a few steps each), not per segment."""
+    mod = built(elastic_slot_model)
+    y0 = [0.5e-9, 1.0]
+    sol = lagrgen.simulate(mod, (0, 1), y0, engine=engine, max_transitions=300)
+    assert not sol.success and "more than 300 mode switches" in sol.message
+    assert len(sol.transitions) == 301
+    sol = lagrgen.simulate(mod, (0, 1), y0, engine=engine, max_transitions=10 ** 9, max_steps=400)
+    assert not sol.success and "max_steps=400" in sol.message
+    assert len(sol.transitions) <= 401 and sol.t[-1] < 1e-6      # one impact at the start
+    start = time.monotonic()
+    sol = lagrgen.simulate(mod, (0, 1), y0, engine=engine, max_transitions=10 ** 9,
+                           max_wall_time=0.3)
+    assert time.monotonic() - start < 10
+    assert not sol.success and "max_wall_time" in sol.message
+    assert np.all(sol.y[0] >= -1e-12) and np.all(sol.y[0] <= 1e-9 + 1e-12)
+
+
+def test_an_ensemble_run_closing_at_the_start_is_struck_first(built):
+    mod = built(ball_model)
+    ens = lagrgen.simulate_many(mod, (0, 1), [[0.0, -1.0], [0.0, 0.0], [0.0, 1.0]], workers=1,
+                                t_eval=[0.0, 0.05], **TOL)
+    assert ens.success.all()
+    alone = [lagrgen.simulate(mod, (0, 1), y0, t_eval=[0.0, 0.05], **TOL)
+             for y0 in ([0.0, -1.0], [0.0, 0.0], [0.0, 1.0])]
+    for run, sol in enumerate(alone):
+        np.testing.assert_allclose(ens.y[run], sol.y, rtol=1e-12, atol=1e-15)
+    assert alone[0].transitions[0] == (0.0, "floor", "impact")
+    assert ens.y[0][1, 1] == pytest.approx(0.8 - G * 0.05, rel=1e-9)     # bounced, not sunk
+    assert ens.y[0][0, 1] > 0
 
 
 # -- 32.6: duplicate contacts ----------------------------------------------------------------------

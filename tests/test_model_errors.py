@@ -68,6 +68,17 @@ def test_parameters_called_several_times_append_in_order(build):
     assert mod.mass_matrix([0.0], p=[1.0, 2.0, 3.0, 4.0])[0, 0] == pytest.approx(10.0)
 
 
+def test_parameters_without_defaults_take_names_as_coordinates_do():
+    model = Model("positional_names")
+    assert model.parameters("m k") == (sp.Symbol("m"), sp.Symbol("k"))
+    assert model.parameters("c", "d, e", g=9.81) == tuple(sp.symbols("c d e g"))
+    assert model.parameter_names == ("m", "k", "c", "d", "e", "g")
+    with pytest.raises(ModelError, match="parameter"):
+        model.parameters(3)
+    with pytest.raises(ModelError, match="already"):
+        model.parameters("m")
+
+
 @pytest.fixture(scope="module")
 def no_default(build):
     """mẍ = −kx with k declared without a default."""

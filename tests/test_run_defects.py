@@ -187,28 +187,7 @@ def test_the_command_line_checks_the_same_rules(option, message, capsys):
     assert code == 1 and message in capsys.readouterr().err
 
 
-FMU_MESSAGES = []
-
-
-@pytest.fixture(scope="module")
-def fmu_callbacks():
-    """FMI 2 callbacks whose logger lives as long as the process: FMPy's logger proxy is one
-    global pointer, left dangling by an earlier `simulate_fmu(logger=...)` (FMPy's, not ours)."""
-    from ctypes import byref
-    from fmpy import calloc, free
-    from fmpy.fmi2 import (fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE,
-                           fmi2CallbackFunctions, fmi2CallbackLoggerTYPE)
-    from fmpy.logging import addLoggerProxy
-    callbacks = fmi2CallbackFunctions()
-    callbacks.logger = fmi2CallbackLoggerTYPE(lambda *args: FMU_MESSAGES.append(args[-1]))
-    callbacks.allocateMemory = fmi2CallbackAllocateMemoryTYPE(calloc)
-    callbacks.freeMemory = fmi2CallbackFreeMemoryTYPE(free)
-    addLoggerProxy(byref(callbacks))
-    FMU_MESSAGES.append(callbacks)          # kept alive with the module
-    return callbacks
-
-
-def test_the_fmu_solver_settings_follow_the_same_rules(tmp_path, fmu_callbacks):
+def test_the_fmu_solver_settings_follow_the_same_rules(tmp_path, fmi2_callbacks):
     fmpy = pytest.importorskip("fmpy")
     from fmpy.fmi2 import FMU2Slave
     with pytest.raises(ValueError, match="rtol must be positive and less than 1"):
@@ -218,7 +197,7 @@ def test_the_fmu_solver_settings_follow_the_same_rules(tmp_path, fmu_callbacks):
     vr = {v.name: v.valueReference for v in md.modelVariables}
     fmu = FMU2Slave(guid=md.guid, unzipDirectory=fmpy.extract(str(path), tmp_path / "unzipped"),
                     modelIdentifier=md.coSimulation.modelIdentifier, instanceName="rules")
-    fmu.instantiate(callbacks=fmu_callbacks)
+    fmu.instantiate(callbacks=fmi2_callbacks)
     try:
         for bad in (1e10, 1.0, np.inf, np.nan, 0.0):
             with pytest.raises(Exception):
@@ -227,7 +206,7 @@ def test_the_fmu_solver_settings_follow_the_same_rules(tmp_path, fmu_callbacks):
         assert fmu.getReal([vr["solver.rtol"]]) == [0.5]
         with pytest.raises(Exception):
             fmu.setReal([vr["solver.atol"]], [np.nan])
-        assert any(b"solver.rtol must be positive and less than 1" in m for m in FMU_MESSAGES
+        assert any(b"solver.rtol must be positive and less than 1" in m for m in fmi2_callbacks.messages
                    if isinstance(m, bytes))
     finally:
         fmu.freeInstance()

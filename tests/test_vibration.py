@@ -11,6 +11,8 @@
 - rigid-body modes, an unstable equilibrium, a circulatory (non-symmetric) K, a gyroscopic C;
 - the compiled and the Python backend give the same numbers; clear errors for bad arguments.
 """
+import warnings
+
 import numpy as np
 import pytest
 import scipy.linalg
@@ -128,8 +130,12 @@ def test_inverted_pendulum_is_unstable(built):
     mod = built(DOUBLE)
     q0 = lagrgen.equilibrium(mod, [3.0, 3.3])
     assert_allclose(q0, [np.pi, np.pi], atol=1e-9)
-    res = lagrgen.modes(mod, q0)
+    with pytest.warns(lagrgen.UnstableModeWarning, match=r"2 of 2 modes have ω² < 0.*NaN"):
+        res = lagrgen.modes(mod, q0)
     assert np.all(np.isnan(res.omega)) and not res.stable
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", lagrgen.UnstableModeWarning)
+        assert lagrgen.modes(mod, [0.0, 0.0]).stable
     assert np.all(np.real(res.omega_squared) < 0)
     assert np.real(res.eigenvalues).max() > 2.0    # s = ±√(−ω²): one real root grows
     from lagrgen.outputs.plotting import mode_label

@@ -97,9 +97,13 @@ class Description:
     def parameters(self, *names, **defaults):
         """Declare constant parameters (keyword = default value); return them as SymPy symbols.
 
-        A default may be a pair ``(value, "unit")``, e.g. ``parameters(m=(1.0, "kg"))``.
+        A default may be a pair ``(value, "unit")``, e.g. ``parameters(m=(1.0, "kg"))``. Names
+        without defaults (given at run time) may be positional: ``parameters("m k")`` or
+        ``parameters("m", "k")``.
         """
-        entries = [(n, None) for n in names] + list(defaults.items())
+        positional = [n for group in names
+                      for n in (split_names(group, "parameter") if isinstance(group, str) else [group])]
+        entries = [(n, None) for n in positional] + list(defaults.items())
         if not entries:
             raise ModelError("no parameter names given")
         new = []

@@ -321,8 +321,26 @@ def modes(mod_or_lin, q0=None, qd0=None, p=None, u=None, t=0.0):
     lin = as_linearization(mod_or_lin, q0, qd0, p, u, t)
     model = None if isinstance(mod_or_lin, Linearization) else mod_or_lin
     if lin.has_second_order_form and _is_symmetric(lin.C):
-        return classical_modes(lin, model)
+        result = classical_modes(lin, model)
+        warn_unstable_classical(result, lin.name)
+        return result
     return state_modes(lin, model)
+
+
+class UnstableModeWarning(UserWarning):
+    """A classical mode has ω² < 0 (an unstable equilibrium): its ω and ζ are NaN."""
+
+
+def warn_unstable_classical(result, name):
+    """Warn (UnstableModeWarning) when classical modes have no real ω (ω² < 0)."""
+    unstable = np.flatnonzero(np.isnan(result.omega))
+    if unstable.size:
+        warnings.warn(
+            f"model {name!r}: {unstable.size} of {len(result.omega)} modes have ω² < 0 "
+            f"(ω² = {', '.join(f'{w:.6g}' for w in np.real(result.omega_squared[unstable]))}): the "
+            f"operating point is an unstable equilibrium, so their omega and damping_ratios are NaN; "
+            f"read omega_squared and eigenvalues (stable is False)", UnstableModeWarning,
+            stacklevel=3)
 
 
 def classical_modes(lin, model=None):
