@@ -1,6 +1,8 @@
-"""Identification (issue 21): lagrgen.fit with the exact Jacobian from forward sensitivities
-against the finite-difference loop (scipy.optimize.least_squares with jac="2-point" over
-lagrgen.simulate), on noisy synthetic responses of a 2-DOF damped chain and a 5-link pendulum.
+"""Identification (issues 21, 30): lagrgen.fit with the exact Jacobian from forward sensitivities
+(the model's directional derivatives, forward mode on its kernels) against the finite-difference
+loop (scipy.optimize.least_squares with jac="2-point" over lagrgen.simulate), on noisy synthetic
+responses of a 2-DOF damped chain and a 5-link pendulum. The sensitivities' unit is compiled
+(on first use) before anything is timed.
 
     python benchmarks/identify.py [--repeats 3]
 
@@ -31,6 +33,9 @@ def problems(out):
     from two_mass_chain import absolute
     chain = lagrgen.build(absolute, out_dir=out, quiet=True)
     pendulum = lagrgen.build(make(5, "identify_nlink5"), out_dir=out, quiet=True)
+    for mod in (chain, pendulum):    # compile the sensitivities' unit (on first use) untimed
+        mod.directional_derivatives(0.0, np.zeros(2 * mod.n_coordinates),
+                                    np.zeros(2 * mod.n_coordinates))
     return [
         ("2-DOF damped chain", chain, np.linspace(0, 10, 201), [0.1, -0.05, 0, 0],
          ["k1", "k2", "c1", "c2"], ["x1", "x2"], 1e-3),

@@ -1,18 +1,22 @@
-"""How lagrgen's generated code and build grow with the model (issue 11).
+"""How lagrgen's generated code and build grow with the model (issues 11, 23, 30).
 
 Two model families, each size in a fresh process (nothing cached in memory, a fresh out_dir):
-    nlink    the planar n-link pendulum of examples/nlink_pendulum.py (a chain), n = 2 10 20 40 80
+    nlink    the planar n-link pendulum of examples/nlink_pendulum.py (a chain), n = 2 … 100
     lattice  a planar mass–spring lattice (rows × cols point masses, each with x and y, nonlinear
              springs to the right and lower neighbours and to a wall, gravity): n = 2·rows·cols
-For each: operation count per kernel (in the printed C: + − * / and libm / helper calls), C size,
-the build split in CPU seconds (derive, CSE, print, compile = the compiler processes' CPU) and the
-compile wall time (parallel units), rhs and jacobian per call looped inside C (the process's CPU
-time per call, best of 15 loops, so that other processes on a shared machine do not inflate it),
-growth exponents fitted over n = 10 … the largest n, and PyDy's cold build (KanesMethod + Cython, no
-Jacobian) for the chain when pydy and Cython are installed (CasADi and JiTCODE: see nlink.py).
+Each is built in the formulation lagrgen chooses (`--formulation` forces one: the chain is
+recursive from lagrgen.tree.RECURSIVE_FROM coordinates). For each: the cold build's wall time split
+into its stages (derive, CSE, emit with the size of the C it compiles, gcc wall and CPU: what
+`module.build_info` records), the first use of the analysis unit (the parameter Jacobian,
+compiled on first use), operation counts of the kernels that give M,F and the Jacobian in that
+formulation, rhs and jacobian per call looped inside C (the process's CPU time per call,
+best of 15 loops, so that other processes on a shared machine do not inflate it), growth exponents
+fitted over n = 10 … the largest n, and PyDy's cold build (KanesMethod + Cython, no Jacobian) for
+the chain when pydy and Cython are installed (CasADi and JiTCODE: see nlink.py).
 
     python benchmarks/scale.py                    # everything, writes benchmarks/results/scale.{md,json}
     python benchmarks/scale.py --n 2 10 --no-pydy # a quick look
+    python benchmarks/scale.py --formulation dense --n 10 20 --families nlink
 """
 import argparse
 import json
@@ -30,7 +34,8 @@ HERE = Path(__file__).resolve().parent
 ROOT = HERE.parent
 OP = re.compile(r"(?<![eE])[-+*/](?![=>])")
 CALL = re.compile(r"\b(sin|cos|tan|exp|log|sqrt|pow|fabs|lg_sq|lg_cube|lg_sign|atan2)\(")
-LATTICE = {2: (1, 1), 10: (1, 5), 20: (2, 5), 30: (3, 5), 40: (4, 5), 60: (6, 5), 80: (8, 5)}
+LATTICE = {2: (1, 1), 10: (1, 5), 20: (2, 5), 30: (3, 5), 40: (4, 5), 60: (6, 5), 80: (8, 5),
+           100: (10, 5)}
 
 
 def nlink(n):
@@ -94,42 +99,43 @@ def cpu_per_call(mod, function, y, p, loops=15, min_time=0.02):
     return best
 
 
-def one(family, n):
-    """Measure one (family, n) in this process; return a dict."""
+def one(family, n, formulation=None):
+    """Measure one (family, n) in this process (nothing derived or cached before): the cold
+    build, split into its stages (`module.build_info`: derive, CSE, emit, compile = gcc wall; the
+    compiler processes' CPU), its C, then the first use of the analysis unit (the parameter
+    Jacobian, compiled on first use), then per-call times and operation counts."""
     import numpy as np
     import lagrgen
-    from lagrgen.build import model_info
-    from lagrgen.codegen.c_model import model_source, translation_units
     from lagrgen.codegen.printer import CPrinter, kernel_statements, print_statements
-    from lagrgen.kernels import all_kernels
+    from lagrgen.kernels import model_kernels
 
     model = FAMILIES[family](n)
-    c0 = time.process_time()
-    eq = model.equations()
-    eq.differentiate()
-    c1 = time.process_time()
-    kernels = all_kernels(eq)
-    c2 = time.process_time()
-    ops = {k.name: op_count(print_statements(CPrinter(), kernel_statements(k))) for k in kernels}
-    c3 = time.process_time()
-    source = model_source(model_info(model.spec(), eq), eq)
-    c4 = time.process_time()
     with tempfile.TemporaryDirectory() as out:
         ch0, w0 = children_cpu(), time.perf_counter()
-        mod = lagrgen.build(model, out_dir=out, force=True, quiet=True)
+        mod = lagrgen.build(model, out_dir=out, force=True, quiet=True,
+                            formulation=formulation)
         wall_build = time.perf_counter() - w0
         compile_cpu = children_cpu() - ch0
         info = mod.build_info
+        c_kib = sum(p.stat().st_size for p in Path(out).glob(f"__lagrgen__/*/{model.name}*.c"))
         y = np.r_[np.full(n, 0.5) if family == "nlink" else np.full(n, 0.05), np.zeros(n)]
         p = np.asarray(mod.defaults, dtype=float)
+        w1 = time.perf_counter()
+        mod.parameter_jacobian(0.0, y, p)
+        analysis_wall = time.perf_counter() - w1
         percall = {f: cpu_per_call(mod, f, y, p) for f in ("forcing", "rhs", "linear_terms",
                                                              "jacobian")}
-    derive, cse, prnt = c1 - c0, c2 - c1, c4 - c3
-    return {"family": family, "n": n, "ops": ops, "c_kib": len(source) / 1024,
-            "units": translation_units(source), "derive": derive, "cse": cse, "print": prnt,
+    eq = model.equations()
+    ops = {k.name: op_count(print_statements(CPrinter(), kernel_statements(k)))
+           for k in model_kernels(eq, mod.formulation, ("mf", "jacobian_b"))}
+    mf = {k.name for k in model_kernels(eq, mod.formulation, ("mf",))}
+    ops = {"mf": sum(v for k, v in ops.items() if k in mf),
+           "jacobian_b": sum(v for k, v in ops.items() if k not in mf)}
+    return {"family": family, "n": n, "formulation": mod.formulation, "ops": ops,
+            "c_kib": c_kib / 1024,
+            "derive": info["derive"], "cse": info["cse"], "emit": info["emit"],
             "compile_cpu": compile_cpu, "compile_wall": info["compile"],
-            "build_cpu": derive + cse + prnt + compile_cpu,
-            "build_wall": derive + cse + prnt + info["compile"] + (wall_build - info["seconds"]),
+            "build_wall": wall_build, "analysis_wall": analysis_wall,
             "rhs_us": percall["rhs"] * 1e6, "jacobian_us": percall["jacobian"] * 1e6,
             "mf_us": percall["forcing"] * 1e6, "kernels_us": percall["linear_terms"] * 1e6,
             "load": os.getloadavg()[0]}
@@ -152,8 +158,9 @@ def _installed(module):
     return importlib.util.find_spec(module) is not None
 
 
-def in_fresh_process(args):
-    out = subprocess.run([sys.executable, __file__, "--one", *map(str, args)],
+def in_fresh_process(args, formulation=None):
+    extra = ["--formulation", formulation] if formulation else []
+    out = subprocess.run([sys.executable, __file__, "--one", *map(str, args), *extra],
                          capture_output=True, text=True, timeout=1800)
     if out.returncode != 0:
         return {"error": out.stderr.strip().splitlines()[-1:]}
@@ -172,9 +179,9 @@ def exponent(rows, key, lo=10, hi=math.inf):
 
 
 def table(rows, pydy):
-    lines = ["| model | n | ops mf | ops jacobian_b | C KiB | units | derive | CSE | print | "
-             "compile CPU | compile wall | cold build CPU | cold build wall | rhs in C µs | "
-             "jacobian in C µs | PyDy cold build CPU | load |",
+    lines = ["| model | n | formulation | ops M,F | ops Jacobian | derive s | CSE s | emit s | C KiB | "
+             "gcc wall s | gcc CPU s | cold build wall s | analysis unit on first use, wall s | "
+             "rhs in C µs | jacobian in C µs | PyDy cold build wall s | load |",
              "|" + "---|" * 17]
     for r in rows:
         if "error" in r:
@@ -182,27 +189,30 @@ def table(rows, pydy):
             continue
         py = pydy.get((r["family"], r["n"]))
         lines.append(
-            f"| {r['family']} | {r['n']} | {r['ops'].get('mf', 0)} | {r['ops'].get('jacobian_b', 0)}"
-            f" | {r['c_kib']:.0f} | {r['units']} | {r['derive']:.2f} | {r['cse']:.2f} | "
-            f"{r['print']:.2f} | {r['compile_cpu']:.2f} | {r['compile_wall']:.2f} | "
-            f"{r['build_cpu']:.2f} | {r['build_wall']:.2f} | {r['rhs_us']:.2f} | "
-            f"{r['jacobian_us']:.2f} | {py['build_cpu']:.2f}" if py else
-            f"| {r['family']} | {r['n']} | {r['ops'].get('mf', 0)} | {r['ops'].get('jacobian_b', 0)}"
-            f" | {r['c_kib']:.0f} | {r['units']} | {r['derive']:.2f} | {r['cse']:.2f} | "
-            f"{r['print']:.2f} | {r['compile_cpu']:.2f} | {r['compile_wall']:.2f} | "
-            f"{r['build_cpu']:.2f} | {r['build_wall']:.2f} | {r['rhs_us']:.2f} | "
-            f"{r['jacobian_us']:.2f} | —")
-        lines[-1] += f" | {r['load']:.1f} |"
+            f"| {r['family']} | {r['n']} | {r.get('formulation', 'dense')} | "
+            f"{r['ops'].get('mf', 0)} | "
+            f"{r['ops'].get('jacobian_b', 0)} | {r['derive']:.2f} | {r['cse']:.2f} | "
+            f"{r['emit']:.2f} | {r['c_kib']:.0f} | {r['compile_wall']:.2f} | "
+            f"{r['compile_cpu']:.2f} | **{r['build_wall']:.2f}** | {r['analysis_wall']:.2f} | "
+            f"{r['rhs_us']:.2f} | {r['jacobian_us']:.2f} | "
+            f"{py['build_wall']:.2f} | " if py else
+            f"| {r['family']} | {r['n']} | {r.get('formulation', 'dense')} | "
+            f"{r['ops'].get('mf', 0)} | "
+            f"{r['ops'].get('jacobian_b', 0)} | {r['derive']:.2f} | {r['cse']:.2f} | "
+            f"{r['emit']:.2f} | {r['c_kib']:.0f} | {r['compile_wall']:.2f} | "
+            f"{r['compile_cpu']:.2f} | **{r['build_wall']:.2f}** | {r['analysis_wall']:.2f} | "
+            f"{r['rhs_us']:.2f} | {r['jacobian_us']:.2f} | — | ")
+        lines[-1] += f"{r['load']:.1f} |"
     top = max((r["n"] for r in rows if "error" not in r), default=40)
     lines += ["", f"Growth exponents fitted over n = 10 … {top} (log–log least squares):", "",
-              "| model | ops mf | ops jacobian_b | C size | derive | CSE | print | compile CPU | "
-              "cold build CPU | cold build wall | rhs | jacobian |", "|" + "---|" * 12]
+              "| model | ops M,F | ops Jacobian | C size | derive | CSE | emit | gcc wall | "
+              "cold build wall | analysis unit | rhs | jacobian |", "|" + "---|" * 12]
     for family in FAMILIES:
         fam = [dict(r, ops_mf=r["ops"].get("mf"), ops_jac=r["ops"].get("jacobian_b"))
                for r in rows if r.get("family") == family and "error" not in r]
         cells = [exponent(fam, k) for k in ("ops_mf", "ops_jac", "c_kib", "derive", "cse",
-                                             "print", "compile_cpu", "build_cpu", "build_wall",
-                                             "rhs_us", "jacobian_us")]
+                                             "emit", "compile_wall", "build_wall",
+                                             "analysis_wall", "rhs_us", "jacobian_us")]
         lines.append(f"| {family} | " + " | ".join("—" if c is None else f"{c:.2f}" for c in cells)
                      + " |")
     return "\n".join(lines)
@@ -215,23 +225,19 @@ def targets(rows, pydy):
 
     def cell(n, key):
         return by_n[n][key] if n in by_n else None
-    ratio = (pydy[("nlink", 20)]["build_cpu"] / by_n[20]["build_cpu"]
+    ratio = (pydy[("nlink", 20)]["build_wall"] / by_n[20]["build_wall"]
              if ("nlink", 20) in pydy and 20 in by_n else None)
     checks = [
-        ("cold build n=20 (CPU s)", cell(20, "build_cpu"), 3.0),
-        ("cold build n=40 (CPU s)", cell(40, "build_cpu"), 15.0),
+        ("issue 30: cold build n=20 (wall s)", cell(20, "build_wall"), 1.5),
+        ("issue 30: cold build n=80 (wall s, 2 cores)", cell(80, "build_wall"), 20.0),
+        ("issue 30: cold build n=100 (wall s)", cell(100, "build_wall"), 30.0),
+        (f"issue 30: growth exponent of the cold build wall, n=10…{max(by_n, default=100)}",
+         exponent(fam, "build_wall"), 2.0),
         ("PyDy cold build / ours, n=20", ratio, -2.5),
         ("rhs in C n=20 (µs)", cell(20, "rhs_us"), 2.4),
         ("rhs in C n=40 (µs)", cell(40, "rhs_us"), 10.0),
-        ("jacobian in C n=20 (µs)", cell(20, "jacobian_us"), 10.0),
-        ("growth exponent of the cold build CPU, n=10…40", exponent(fam, "build_cpu", hi=40), 2.2),
-        ("growth exponent of the cold build wall, n=10…40", exponent(fam, "build_wall", hi=40),
-         2.2),
         ("issue 23: jacobian in C n=20 (µs)", cell(20, "jacobian_us"), 5.0),
         ("issue 23: rhs in C n=40 (µs)", cell(40, "rhs_us"), 6.0),
-        ("issue 23: cold build n=80 (wall s)", cell(80, "build_wall"), 20.0),
-        (f"issue 23: growth exponent of the cold build wall, n=10…{max(by_n, default=80)}",
-         exponent(fam, "build_wall"), 2.0),
     ]
     lines = ["| target (nlink) | measured | bound | met |", "|---|---|---|---|"]
     for label, value, bound in checks:
@@ -242,9 +248,10 @@ def targets(rows, pydy):
         lines.append(f"| {label} | {value:.2f} | {'≥' if bound < 0 else '≤'} {abs(bound)} | "
                      f"{'yes' if met else 'no'} |")
     lines += ["", "Where the per-call time goes (nlink, µs, best of 15): `forcing` runs the M,F "
-              "kernel alone, `linear_terms` the M,F and Jacobian kernels (no solves); the rest of "
-              "rhs and jacobian is the dense Cholesky factorization and solves (with 2n right-hand "
-              "sides for the Jacobian) and copying the (2n)² output.", "",
+              "kernel alone (recursive: M by the composite-body sums), `linear_terms` the M,F and "
+              "Jacobian kernels (no solves); the rest of rhs and jacobian is the dense Cholesky "
+              "factorization and solves (recursive: the articulated-body recursion and its solve), "
+              "with 2n right-hand sides for the Jacobian, and copying the (2n)² output.", "",
               "| n | M,F kernel | + Jacobian kernel | rhs | jacobian |", "|---|---|---|---|---|"]
     for n, r in sorted(by_n.items()):
         lines.append(f"| {n} | {r['mf_us']:.2f} | {r['kernels_us']:.2f} | {r['rhs_us']:.2f} | "
@@ -254,23 +261,26 @@ def targets(rows, pydy):
 
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--n", type=int, nargs="+", default=[2, 10, 20, 40, 80])
+    ap.add_argument("--n", type=int, nargs="+", default=[2, 10, 20, 40, 80, 100])
     ap.add_argument("--families", nargs="+", default=list(FAMILIES))
     ap.add_argument("--pydy-n", type=int, nargs="*", default=[2, 10, 20])
     ap.add_argument("--no-pydy", action="store_true")
+    ap.add_argument("--formulation", choices=("dense", "recursive"), default=None,
+                    help="force one (default: lagrgen's choice)")
     ap.add_argument("--one", nargs=2, help=argparse.SUPPRESS)
     ap.add_argument("--out", default=str(HERE / "results" / "scale"))
     args = ap.parse_args(argv)
     if args.one:
         family, n = args.one[0], int(args.one[1])
-        print(json.dumps(pydy_one(n) if family == "nlink-pydy" else one(family, n)))
+        print(json.dumps(pydy_one(n) if family == "nlink-pydy" else
+                         one(family, n, args.formulation)))
         return
-    rows, pydy = [], {}
+    rows, pydy, load_before = [], {}, os.getloadavg()
     for family in args.families:
         for n in args.n:
             if family == "lattice" and n not in LATTICE:
                 continue
-            rows.append(in_fresh_process((family, n)))
+            rows.append(in_fresh_process((family, n), args.formulation))
             print(json.dumps(rows[-1]), file=sys.stderr, flush=True)
     if not args.no_pydy:
         for n in args.pydy_n:
@@ -284,10 +294,16 @@ def main(argv=None):
              "; CasADi, JiTCODE: " + ", ".join(
                  f"{m} {'installed (see nlink.py)' if _installed(m) else 'not installed'}"
                  for m in ("casadi", "jitcode")) + ".")
-    text = (f"# Scaling of lagrgen's build and generated code (issues 11, 23)\n\n"
-            f"{time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}, {os.cpu_count()} cores, CPU "
-            f"seconds unless marked wall; per-call times are the best of 15 loops inside C (CPU "
-            f"time); load = 1-minute load average when the row finished. Peers: {peers}\n\n"
+    text = (f"# Scaling of lagrgen's build and generated code (issues 11, 23, 30)\n\n"
+            f"{time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}, {os.cpu_count()} cores. Each "
+            f"row is a cold build in a fresh process (nothing derived before), in the "
+            f"formulation {args.formulation or 'lagrgen chooses'}, wall seconds of "
+            f"its stages (`module.build_info`); the C is all the build compiles (the model's "
+            f"module; the analysis unit is compiled on first use and timed apart); per-call "
+            f"times are the best of 15 loops inside C (CPU time); load = 1-minute load average "
+            f"when the row finished (load average 1, 5, 15 min before the run: "
+            f"{' '.join(f'{x:.2f}' for x in load_before)}; after: "
+            f"{' '.join(f'{x:.2f}' for x in os.getloadavg())}). Peers: {peers}\n\n"
             + table(rows, pydy) + "\n\n" + targets(rows, pydy) + "\n")
     print(text)
     Path(args.out).parent.mkdir(parents=True, exist_ok=True)

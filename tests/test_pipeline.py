@@ -11,7 +11,7 @@ from numpy.testing import assert_allclose
 
 import lagrgen
 from lagrgen import Model
-from lagrgen.functions import FUNCTIONS
+from lagrgen.functions import DIRECTIONS_SIGNATURE, FUNCTIONS, MODEL_UNIT
 
 from conftest import EXAMPLES, ROOT, example_model
 
@@ -62,8 +62,10 @@ def test_a_build_writes_the_standalone_model_beside_the_module(double, tmp_path)
     mod = lagrgen.build(DOUBLE, out_dir=tmp_path)
     header = (tmp_path / "double_pendulum_model.h").read_text()
     for f in FUNCTIONS:
-        assert f"int double_pendulum_{f.name}(double t, const double *y, const double *p, " \
-               "const double *u, double *out);" in header
+        signature = (DIRECTIONS_SIGNATURE if f.call == "directions" else
+                     "double t, const double *y, const double *p, const double *u, double *out")
+        prototype = f"int double_pendulum_{f.name}({signature});"
+        assert (prototype in header) == (f.unit == MODEL_UNIT), f.name   # the others: export_c
     assert mod.content_hash in header
 
 
@@ -76,10 +78,10 @@ def test_every_registered_function_exists_on_both_backends_with_its_shapes(both)
         fn = getattr(both, f.name)
         a = np.full(n + both.n_constraints, 0.7)
         args = {"state": (0.0, y), "q": (q, 0.0), "q_qd": (q, qd, 0.0),
-                "implicit": (q, qd, a, 0.0)}[f.call]
+                "directions": (0.0, y, np.ones((3, 2 * n))), "implicit": (q, qd, a, 0.0)}[f.call]
         out = fn(*args)
         outs = out if isinstance(out, tuple) else (out,)
-        assert [o.shape for o in outs] == f.shapes(dims), f.name
+        assert [o.shape for o in outs] == f.shapes({**dims, "k": 3}), f.name
         assert all(o.dtype == np.float64 for o in outs)
 
 
@@ -92,6 +94,8 @@ def test_backends_agree_on_every_registered_function(compile_once):
         u = rng.uniform(-1, 1, 1)
         for f in FUNCTIONS:
             args = {"state": (0.4, y), "q": (y[:2], 0.4), "q_qd": (y[:2], y[2:], 0.4),
+                    "directions": (0.4, y, rng.uniform(-1, 1, (2, 4)),
+                                   rng.uniform(-1, 1, (2, 5))),
                     "implicit": (y[:2], y[2:], y[::-1][:2], 0.4)}[f.call]
             a, b = getattr(c, f.name)(*args, p, u), getattr(py, f.name)(*args, p, u)
             for x, z in zip(a if isinstance(a, tuple) else (a,), b if isinstance(b, tuple) else (b,)):

@@ -29,8 +29,13 @@ def built(tmp_path_factory):
     models = {"osc": damped_oscillator(), "pendulum": example_model("double_pendulum"),
               "crank": example_model("slider_crank"),
               "chain": example_model("two_mass_chain", "absolute")}
-    return {(name, backend): lagrgen.build(model, out_dir=out, backend=backend)
-            for name, model in models.items() for backend in ("python", "c")}
+    built = {(name, backend): lagrgen.build(model, out_dir=out, backend=backend)
+             for name, model in models.items() for backend in ("python", "c")}
+    for name in ("pendulum", "chain"):          # the same trees in the recursive formulation
+        for backend in ("python", "c"):
+            built[f"{name}-recursive", backend] = lagrgen.build(
+                models[name], out_dir=out, backend=backend, formulation="recursive")
+    return built
 
 
 def central_parameter_jacobian(mod, t, y, p, u, h=1e-6):
@@ -43,7 +48,7 @@ def central_parameter_jacobian(mod, t, y, p, u, h=1e-6):
     return out
 
 
-@pytest.mark.parametrize("name", ["pendulum", "crank", "chain"])
+@pytest.mark.parametrize("name", ["pendulum", "crank", "chain", "chain-recursive"])
 @pytest.mark.parametrize("backend", ["python", "c"])
 def test_parameter_jacobian_matches_central_differences(built, name, backend):
     mod = built[name, backend]
@@ -62,14 +67,58 @@ def test_parameter_jacobian_matches_central_differences(built, name, backend):
         assert_allclose(J, reference, rtol=1e-6, atol=1e-6 * np.abs(reference).max())
 
 
-@pytest.mark.parametrize("name", ["pendulum", "crank"])
-def test_parameter_jacobian_in_c_equals_python(built, name):
+def both_backends_at(built, name):
+    """The C and Python builds of `name` and a (consistent) state to compare them at."""
     c, py = built[name, "c"], built[name, "python"]
     y = np.concatenate([np.full(c.n_coordinates, 0.3), np.full(c.n_coordinates, -0.2)])
-    if c.n_constraints:
-        y = lagrgen.consistent_state(c, y)
+    return c, py, lagrgen.consistent_state(c, y) if c.n_constraints else y
+
+
+@pytest.mark.parametrize("name", ["pendulum", "crank", "pendulum-recursive"])
+def test_parameter_jacobian_in_c_equals_python(built, name):
+    c, py, y = both_backends_at(built, name)
     assert_allclose(c.parameter_jacobian(0.1, y), py.parameter_jacobian(0.1, y), rtol=1e-12,
                     atol=1e-12)
+
+
+@pytest.mark.parametrize("name", ["pendulum", "crank", "chain", "pendulum-recursive",
+                                  "chain-recursive"])
+@pytest.mark.parametrize("backend", ["python", "c"])
+def test_directional_derivatives_are_the_jacobian_products(built, name, backend):
+    """ẏ and J·dy + ∂ẏ/∂p·dp along k directions (forward mode on the kernels) against the
+    Jacobian and parameter Jacobian formed whole; one direction keeps its 1-D shape."""
+    mod = built[name, backend]
+    rng = np.random.default_rng(11)
+    n, n_params = mod.n_coordinates, len(mod.parameters)
+    p = np.asarray(mod.defaults) * rng.uniform(0.8, 1.2, n_params)
+    u = rng.uniform(-1, 1, len(mod.inputs))
+    y = np.concatenate([rng.uniform(-0.5, 0.5, n), rng.uniform(-1, 1, n)])
+    if mod.n_constraints:
+        y = lagrgen.consistent_state(mod, y, 0.3, p)
+    dy, dp = rng.standard_normal((3, 2 * n)), rng.standard_normal((3, n_params))
+    ydot, products = mod.directional_derivatives(0.3, y, dy, dp, p, u)
+    expected = (dy @ mod.jacobian(0.3, y, p, u).T + dp @ mod.parameter_jacobian(0.3, y, p, u).T)
+    assert_allclose(ydot, mod.rhs(0.3, y, p, u), rtol=1e-13, atol=1e-13)
+    assert products.shape == (3, 2 * n)
+    assert_allclose(products, expected, rtol=1e-10, atol=1e-11 * np.abs(expected).max())
+    one = mod.directional_derivatives(0.3, y, dy[1], p=p, u=u)[1]
+    assert one.shape == (2 * n,)
+    assert_allclose(one, dy[1] @ mod.jacobian(0.3, y, p, u).T, rtol=1e-10,
+                    atol=1e-11 * np.abs(expected).max())
+    with pytest.raises(ValueError, match="dy must have shape"):
+        mod.directional_derivatives(0.3, y, np.ones(2 * n + 1))
+    with pytest.raises(ValueError, match="dp must have shape"):
+        mod.directional_derivatives(0.3, y, dy, np.ones((2, n_params + 1)))
+
+
+@pytest.mark.parametrize("name", ["pendulum", "crank", "pendulum-recursive"])
+def test_directional_derivatives_in_c_equal_python(built, name):
+    c, py, y = both_backends_at(built, name)
+    dy = np.linspace(-1, 1, 4 * c.n_coordinates).reshape(2, -1)
+    dp = np.linspace(1, 2, 2 * len(c.parameters)).reshape(2, -1)
+    for a, b in zip(c.directional_derivatives(0.1, y, dy, dp),
+                    py.directional_derivatives(0.1, y, dy, dp)):
+        assert_allclose(a, b, rtol=1e-12, atol=1e-12)
 
 
 def closed_form_x(t, k, c, m=1.0):
@@ -134,6 +183,26 @@ def test_native_sensitivities_equal_the_scipy_engines(built, method):
     scale = np.abs(runs[1].sensitivities).max()
     assert_allclose(runs[0].sensitivities, runs[1].sensitivities, atol=1e-6 * scale)
     assert_allclose(runs[0].y, runs[1].y, atol=1e-8)
+
+
+@pytest.mark.parametrize("backend", ["python", "c"])
+def test_recursive_sensitivities_equal_the_dense_ones(built, backend):
+    """The same pendulum in both formulations: ẏ, J·dy + ∂ẏ/∂p·dp to round-off, and the
+    sensitivities integrated with them (native engine for C) to the integration's tolerance."""
+    dense, recursive = built["pendulum", backend], built["pendulum-recursive", backend]
+    assert (dense.formulation, recursive.formulation) == ("dense", "recursive")
+    y = np.array([0.4, -0.2, 0.1, 0.3])
+    dy = np.linspace(-1, 1, 36).reshape(9, 4)
+    dp = np.linspace(1, 2, 9 * len(dense.parameters)).reshape(9, -1)
+    for a, b in zip(recursive.directional_derivatives(0.1, y, dy, dp, u=[0.2]),
+                    dense.directional_derivatives(0.1, y, dy, dp, u=[0.2])):
+        assert_allclose(a, b, rtol=1e-12, atol=1e-12 * np.abs(b).max())
+    t = np.linspace(0, 2, 9)
+    runs = [lagrgen.simulate(mod, (0, 2), y, method="DOP853", t_eval=t, rtol=1e-10, atol=1e-12,
+                             sensitivities=["m1", "L2", "y0:theta1"], inputs={"F": 0.2})
+            for mod in (recursive, dense)]
+    assert_allclose(runs[0].sensitivities, runs[1].sensitivities,
+                    atol=1e-7 * np.abs(runs[1].sensitivities).max())
 
 
 # -- identification ---------------------------------------------------------------------------

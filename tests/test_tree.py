@@ -76,14 +76,21 @@ def random_state(mod, rng):
 
 
 def functions_at(mod, point):
-    """Every model function of an unconstrained model at one point, as a list of arrays."""
+    """Every model function of an unconstrained model at one point, as a list of arrays (the
+    directional derivatives along nine directions, more than one block of the recursion's solve,
+    the first without a parameter direction, and their difference from J·dy + ∂ẏ/∂p·dp)."""
     tv, y, p, u = point
     n = mod.n_coordinates
     q, qd = y[:n], y[n:]
+    rng = np.random.default_rng(n)
+    dy, dp = rng.normal(size=(9, 2 * n)), rng.normal(size=(9, len(mod.parameters)))
+    dp[0] = 0.0
+    J, P = mod.jacobian(tv, y, p, u), mod.parameter_jacobian(tv, y, p, u)
+    ydot, along = mod.directional_derivatives(tv, y, dy, dp, p, u)
     return [mod.mass_matrix(q, tv, p, u), mod.forcing(q, qd, tv, p, u), mod.rhs(tv, y, p, u),
-            mod.jacobian(tv, y, p, u), *mod.linear_terms(q, qd, tv, p, u),
-            mod.parameter_jacobian(tv, y, p, u), mod.outputs(tv, y, p, u),
-            mod.power_terms(tv, y, p, u)]
+            J, *mod.linear_terms(q, qd, tv, p, u), P, mod.outputs(tv, y, p, u),
+            mod.power_terms(tv, y, p, u), ydot, along,
+            along - dy @ J.T - dp @ P.T]
 
 
 def assert_same_functions(a, b, points=3, seed=0):

@@ -53,6 +53,7 @@ import sys
 import sysconfig
 import tempfile
 import time
+import weakref
 from contextlib import contextmanager
 from pathlib import Path
 
@@ -247,6 +248,56 @@ class Entry:
     @property
     def lock_file(self):
         return self.cache / f"{self.name}.lock"
+
+
+#: What a model's entry keeps for its units compiled on first use: the frozen description
+#: (pickled; SymPy objects pickle with their assumptions) and the compiler flags of the build.
+DESCRIPTION, FLAGS = "description.pickle", "flags.json"
+
+
+def keep_description(directory, spec, flags):
+    """Write the description `spec` and the build's `flags` into an entry's `directory`."""
+    import json
+    import pickle
+    write_atomic(Path(directory) / DESCRIPTION, pickle.dumps(spec, pickle.HIGHEST_PROTOCOL))
+    write_atomic(Path(directory) / FLAGS, json.dumps(list(flags)).encode())
+
+
+#: Descriptions built in this process, by content hash (held weakly).
+_described = weakref.WeakValueDictionary()
+
+
+def remember_description(content_hash, spec):
+    """Note that `spec` is the description of the model with `content_hash` (see `described`)."""
+    _described[content_hash] = spec
+
+
+def described(content_hash):
+    """The description of that content hash built in this process, or None."""
+    return _described.get(content_hash)
+
+
+def kept_description(entry):
+    """The description kept in `entry` by `keep_description`."""
+    import pickle
+    return _kept(entry, DESCRIPTION, pickle.loads)
+
+
+def kept_flags(entry):
+    """The build's compiler flags kept in `entry` by `keep_description`."""
+    import json
+    return _kept(entry, FLAGS, json.loads)
+
+
+def _kept(entry, file_name, read):
+    """`read(bytes)` of the entry's file; BuildError when it is missing (an entry made by an
+    older lagrgen) or unreadable."""
+    try:
+        return read((entry.directory / file_name).read_bytes())
+    except Exception as exc:   # OSError, or whatever unpickling or parsing raises
+        raise BuildError(f"the cache entry {entry.directory} does not keep the {file_name} of "
+                         f"model {entry.name!r} ({type(exc).__name__}: {exc}): rebuild it with "
+                         "this lagrgen") from None
 
 
 def read_text_file(path):

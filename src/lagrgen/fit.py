@@ -137,7 +137,8 @@ def unseen_directions(J, names, accuracy):
     largest 1), a column of zeros its own direction."""
     scale = np.linalg.norm(J, axis=0)
     safe = np.where(scale > 0, scale, 1.0)
-    _, s, Vt = np.linalg.svd(J / safe, full_matrices=True)
+    # Vt whole (k × k) without the m × m U of a tall J: full matrices only when J is wide
+    _, s, Vt = np.linalg.svd(J / safe, full_matrices=J.shape[0] < J.shape[1])
     tol = min(UNSEEN_FACTOR * accuracy, UNSEEN_MAX) * max(1.0, s.max(initial=0.0))
     rank = int(np.sum(s > tol))
     directions = []

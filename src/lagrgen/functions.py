@@ -8,8 +8,9 @@ methods. Every C model function has the one signature
     int <model>_<function>(double t, const double *y, const double *p, const double *u, double *out)
 
 with y = [q, q̇] (q̇ ignored by the functions of q alone; y = [q, q̇, q̈, λ] for the functions of the
-implicit form), the outputs concatenated row-major in
-`out`, and the result 0 on success or 1 when the mass matrix is not positive definite.
+implicit form), the outputs concatenated row-major in `out`, and the result 0 on success or 1 when
+the mass matrix is not positive definite; a function of the call style "directions" also takes k
+directions (`DIRECTIONS_SIGNATURE`).
 This module imports nothing: the compiled runtime reads it at import time.
 """
 from dataclasses import dataclass
@@ -19,6 +20,7 @@ CALL_STYLES = {
     "q": ("q", "t"),            # f(q, t=0.0, p=None, u=None)
     "q_qd": ("q", "qd", "t"),   # f(q, qd, t=0.0, p=None, u=None)
     "state": ("t", "y"),        # f(t, y, p=None, u=None)
+    "directions": ("t", "y", "dy", "dp"),   # f(t, y, dy, dp=None, p=None, u=None)
     "implicit": ("q", "qd", "a", "t"),   # f(q, qd, a, t=0.0, p=None, u=None), a = [q̈, λ]
 }
 
@@ -30,13 +32,24 @@ class Output:
     shape: tuple
 
 
+#: The compiled units of a built model. "model" is its module, what running it needs; any other
+#: label is a unit compiled on first use into its own module, `<model>_<label>` (lagrgen.units):
+#: "parameters" (the parameter Jacobian), "directions" (the directional derivatives of the
+#: sensitivities), "manifold" (the constraint residuals' Jacobian of the linearization).
+MODEL_UNIT = "model"
+
+
 @dataclass(frozen=True)
 class ModelFunction:
-    """A function of a built model: name, call style (a key of CALL_STYLES), outputs, formula."""
+    """A function of a built model: name, call style (a key of CALL_STYLES), outputs, formula,
+    the kernels its C body calls (names in lagrgen.kernels.KERNELS) and the unit it is compiled
+    into (MODEL_UNIT, or the label of a unit compiled on first use, such as "parameters")."""
     name: str
     call: str
     outputs: tuple
     formula: str
+    kernels: tuple = ()
+    unit: str = MODEL_UNIT
 
     def shapes(self, dims):
         """The output shapes as tuples of ints, for the dimensions `dims` (name -> size)."""
@@ -53,58 +66,85 @@ class ModelFunction:
         return total
 
 
+#: The C signature of the functions of call style "directions": k directions (dy_s, dp_s), each
+#: dy_s of 2n and dp_s of n_params doubles, stored one after the other (dp never NULL).
+DIRECTIONS_SIGNATURE = ("double t, const double *y, const double *p, const double *u, int k, "
+                        "const double *dy, const double *dp, double *out")
+
 FUNCTIONS = (
     ModelFunction("mass_matrix", "q", (Output("M", ("n", "n")),),
-                  "M(q, t) = ∂²T/∂q̇∂q̇ᵀ"),
+                  "M(q, t) = ∂²T/∂q̇∂q̇ᵀ", ("mf",)),
     ModelFunction("forcing", "q_qd", (Output("F", ("n",)),),
-                  "F(q, q̇, t, u), so that M·q̈ = F"),
+                  "F(q, q̇, t, u), so that M·q̈ = F", ("mf",)),
     ModelFunction("rhs", "state", (Output("ydot", ("2n",)),),
-                  "ẏ = [q̇, M⁻¹·F] for y = [q, q̇]"),
+                  "ẏ = [q̇, M⁻¹·F] for y = [q, q̇]", ("mf", "constraints")),
     ModelFunction("jacobian", "state", (Output("J", ("2n", "2n")),),
-                  "∂ẏ/∂y = [[0, I], [M⁻¹·(∂F/∂q − ∂(M·q̈)/∂q), M⁻¹·∂F/∂q̇]]"),
+                  "∂ẏ/∂y = [[0, I], [M⁻¹·(∂F/∂q − ∂(M·q̈)/∂q), M⁻¹·∂F/∂q̇]]",
+                  ("mf", "constraints", "jacobian_b", "constraint_jacobian")),
     ModelFunction("parameter_jacobian", "state", (Output("dydp", ("2n", "n_params")),),
                   "∂ẏ/∂p = [0; M⁻¹·(∂F/∂p − ∂(M·q̈)/∂p)] (with constraints: through the same "
-                  "saddle-point solve as the Jacobian)"),
+                  "saddle-point solve as the Jacobian)",
+                  ("mf", "constraints", "parameter_b", "constraint_parameter_jacobian"),
+                  "parameters"),
+    ModelFunction("directional_derivatives", "directions",
+                  (Output("ydot", ("2n",)), Output("dydot", ("k", "2n"))),
+                  "ẏ, and for each direction s: J·dy_s + ∂ẏ/∂p·dp_s (forward mode on the "
+                  "kernels, or tangent sweeps of the recursion; J never formed)", ("motion_tape", "motion_tangent", "constraints"),
+                  "directions"),
     ModelFunction("linear_terms", "q_qd",
                   (Output("M", ("n", "n")), Output("dF_dq", ("n", "n")),
                    Output("dF_dqd", ("n", "n")), Output("dF_du", ("n", "n_inputs"))),
-                  "M, ∂F/∂q, ∂F/∂q̇ and ∂F/∂u at one point"),
+                  "M, ∂F/∂q, ∂F/∂q̇ and ∂F/∂u at one point", ("mf", "jacobian_b", "dF_du")),
     ModelFunction("power_terms", "state", (Output("P", ("n_power",)),),
-                  "[Σ Q_j·q̇_j, R]: the power of the applied forces and the Rayleigh function"),
+                  "[Σ Q_j·q̇_j, R]: the power of the applied forces and the Rayleigh function",
+                  ("outputs",)),
     ModelFunction("outputs", "state", (Output("y", ("n_outputs",)),),
-                  "the outputs: the user's, then T, V, T + V, Σ Q_j·q̇_j and R"),
+                  "the outputs: the user's, then T, V, T + V, Σ Q_j·q̇_j and R", ("outputs",)),
     ModelFunction("constraint_forces", "state", (Output("lam", ("n_constraints",)),),
-                  "λ of M·q̈ = F + Aᵀ·λ, A·q̈ = γ (Aᵀλ: the generalized forces of constraint)"),
+                  "λ of M·q̈ = F + Aᵀ·λ, A·q̈ = γ (Aᵀλ: the generalized forces of constraint)",
+                  ("mf", "constraints")),
     ModelFunction("constraint_residuals", "state", (Output("residuals", ("n_residuals",)),),
-                  "Φ(q, t) of the holonomic constraints, then A·q̇ + b of all constraints"),
+                  "Φ(q, t) of the holonomic constraints, then A·q̇ + b of all constraints",
+                  ("constraint_residuals",)),
     ModelFunction("constraint_residual_jacobian", "state",
                   (Output("dr_dy", ("n_residuals", "2n")),),
                   "∂[Φ; A·q̇ + b]/∂[q, q̇]: the tangent space of the constraint manifold is its "
-                  "null space"),
+                  "null space", ("constraint_residual_jacobian",), "manifold"),
     ModelFunction("constraint_terms", "q_qd",
                   (Output("A", ("n_constraints", "n")), Output("lam", ("n_constraints",)),
                    Output("H", ("n", "n"))),
-                  "A, λ and ∂(Aᵀλ)/∂q (λ held fixed) at one point"),
+                  "A, λ and ∂(Aᵀλ)/∂q (λ held fixed) at one point",
+                  ("mf", "constraints", "constraint_jacobian")),
     ModelFunction("events", "state", (Output("g", ("n_events",)),),
-                  "g_k(t, q, q̇, u): the model's event functions (model.event)"),
+                  "g_k(t, q, q̇, u): the model's event functions (model.event)", ("events",)),
     ModelFunction("hybrid_terms", "state",
                   (Output("M", ("n", "n")), Output("F", ("n",)),
                    Output("A", ("n_constraints", "n")), Output("gamma", ("n_constraints",)),
                    Output("terms", ("n_hybrid",))),
                   "M, F, the constraints' A and γ, and the impacts' and frictions' terms "
-                  "(lagrgen.nonsmooth) that the hybrid drivers assemble each mode from"),
+                  "(lagrgen.nonsmooth) that the hybrid drivers assemble each mode from",
+                  ("mf", "constraints", "nonsmooth")),
     ModelFunction("residual_terms", "implicit",
                   (Output("r", ("n_implicit",)), Output("dr_dy", ("n_implicit", "2n")),
                    Output("dr_da", ("n_implicit", "n_implicit")),
                    Output("dr_du", ("n_implicit", "n_inputs"))),
                   "r = [M·q̈ − F − Aᵀλ; A·q̈ − γ] of the implicit form at a given a = [q̈, λ], "
-                  "and its derivatives ∂r/∂[q, q̇], ∂r/∂a, ∂r/∂u"),
+                  "and its derivatives ∂r/∂[q, q̇], ∂r/∂a, ∂r/∂u",
+                  ("mf", "constraints", "jacobian_b", "dF_du", "constraint_jacobian")),
     ModelFunction("residual_parameter_jacobian", "implicit",
                   (Output("dr_dp", ("n_implicit", "n_params")),),
-                  "∂r/∂p of r = [M·q̈ − F − Aᵀλ; A·q̈ − γ] at a given a = [q̈, λ]"),
+                  "∂r/∂p of r = [M·q̈ − F − Aᵀλ; A·q̈ − γ] at a given a = [q̈, λ]",
+                  ("parameter_b", "constraint_parameter_jacobian"), "parameters"),
 )
 
 BY_NAME = {f.name: f for f in FUNCTIONS}
+#: The unit labels, the model's first.
+UNITS = tuple(dict.fromkeys([MODEL_UNIT] + [f.unit for f in FUNCTIONS]))
+
+
+def functions_of(unit):
+    """The registered functions compiled into `unit`, in registry order."""
+    return tuple(f for f in FUNCTIONS if f.unit == unit)
 
 
 #: What `power_terms` returns, beside the outputs: d(T + V)/dt = input_power − 2·R for a

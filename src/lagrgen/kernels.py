@@ -16,14 +16,20 @@ assembled from these by the backends:
     constraint_jacobian   ∂(Aᵀλ)/∂q and [∂γ/∂q − ∂(A·a)/∂q | ∂γ/∂q̇]  } a = [q̈, λ] there
     parameter_b  P = ∂F/∂p − ∂(M·a)/∂p for a given a (= q̈); ∂ẏ/∂p's bottom half is M⁻¹·P
     constraint_parameter_jacobian  ∂(Aᵀλ)/∂p and ∂γ/∂p − ∂(A·a)/∂p (m > 0; a = [q̈, λ])
+    motion_tape  M, F (and A, γ) by the programs of mf (and constraints), with the tape c of
+                 their forward-mode coefficients (lagrgen.tangents)
+    motion_tangent  along one direction (δq, δq̇, δp), from the tape: δR = δF − δM·a + δAᵀ·λ and
+                 δG = δγ − δA·a with a = [q̈, λ] held fixed; [M −Aᵀ; A 0]·[δq̈; δλ] = [δR; δG]
 
-The recursive formulation of a kinematic tree (`lagrgen.tree`) replaces mf and jacobian_b by the
-terms of each node, which generic recursions over the tree combine (`model_kernels`):
+The recursive formulation of a kinematic tree (`lagrgen.tree`) computes what mf, jacobian_b,
+parameter_b and the motion kernels give from the terms of each node, which generic recursions over
+the tree combine (`model_kernels`, `TREE_REPLACES`):
 
     tree_nodes   each node's record (lagrgen.tree.NODE_FIELDS), in node order
     tree_slopes  their derivatives by the node's own q_j, q̇_j at a given a (SLOPE_FIELDS), and
                  the nonzero entries of ∂Q/∂q and ∂Q/∂q̇
     dF_du        ∂Q/∂u (the particles' terms do not depend on u)
+    tree_parameters  the nonzero derivatives of the node records and of Q by the parameters
 """
 from dataclasses import dataclass, field
 
@@ -32,6 +38,7 @@ import symengine as se
 from . import nonsmooth, tree
 from .caching import once_per
 from .functions import Output
+from .tangents import linearize
 
 #: The arguments of every kernel, in order (C: `double t, const double *q, ...`).
 KERNEL_ARGUMENTS = ("t", "q", "qd", "a", "p", "u")
@@ -46,6 +53,10 @@ class KernelSpec:
     expressions: object  # Equations -> {output name: [expression, row-major]}
     when: object = None  # Equations -> bool: whether the model has this kernel (None: always)
     notes: object = None  # Equations -> {(output name, index): comment} for the generated code
+    build: object = None  # Equations -> Kernel, for a kernel not CSE'd from `expressions`
+    arguments: tuple = KERNEL_ARGUMENTS   # its arguments: `t` a double, the others arrays
+    lanes: tuple = ()    # arrays holding one entry per direction: in C the kernel runs several
+                         # directions at once, entry i of lane b at [i·LG_LANES + b]
 
 
 @dataclass
@@ -77,6 +88,59 @@ def _jacobian_b(eq):
         B.extend(eq.dF_dq[i][j] - eq.dMa_dq[i][j] for j in range(eq.n))
         B.extend(eq.dF_dqd[i])
     return {"B": B}
+
+
+#: The seeds of the directional derivatives: each input's direction (an array argument).
+def _seeds(eq):
+    return {**{q: se.Symbol(f"dq[{i}]") for i, q in enumerate(eq.q)},
+            **{v: se.Symbol(f"dqd[{i}]") for i, v in enumerate(eq.qd)},
+            **{p: se.Symbol(f"dp[{j}]") for j, p in enumerate(eq.p)}}
+
+
+@once_per
+def motion_program(eq):
+    """(temporaries, {name: [expression]}) of M and F (and A, γ for a constrained model): the very
+    programs of the kernels mf (and constraints, its temporaries renumbered after mf's), so that
+    the values equal those of the rhs to the last bit."""
+    mf = kernel(eq, "mf")
+    temporaries, outputs = list(mf.temporaries), dict(mf.outputs)
+    if eq.m:
+        con = kernel(eq, "constraints")
+        start = 1 + max((int(str(x)[1:]) for x, _ in temporaries), default=-1)
+        rename = {x: se.Symbol(f"x{start + i}") for i, (x, _) in enumerate(con.temporaries)}
+        temporaries += [(rename[x], e.xreplace(rename)) for x, e in con.temporaries]
+        outputs.update({key: [e.xreplace(rename) for e in exprs]
+                        for key, exprs in con.outputs.items()})
+    return temporaries, outputs
+
+
+@once_per
+def motion_linearized(eq):
+    """The forward-mode program (`lagrgen.tangents.Linearized`) of `motion_program`."""
+    return linearize(*motion_program(eq), _seeds(eq))
+
+
+def _motion_tape(eq):
+    lin, values = motion_linearized(eq), motion_program(eq)[1]
+    outputs = {key: values.get(key, []) for key in ("M", "F", "A", "gamma")}
+    outputs["c"] = list(lin.tape)
+    return Kernel(KERNELS_BY_NAME["motion_tape"], lin.tape_temporaries, outputs)
+
+
+def _motion_tangent(eq):
+    lin = motion_linearized(eq)
+    n, m = eq.n, eq.m
+    d = lin.tangents
+    a = [se.Symbol(f"a[{i}]") for i in range(n + m)]
+    dR = []
+    for i in range(n):
+        r = d["F"][i] - sum((a[j] * d["M"][i * n + j] for j in range(n)), se.Integer(0))
+        r += sum((a[n + k] * d["A"][k * n + i] for k in range(m)), se.Integer(0))
+        dR.append(r)
+    dG = [d["gamma"][k] - sum((a[j] * d["A"][k * n + j] for j in range(n)), se.Integer(0))
+          for k in range(m)]
+    return Kernel(KERNELS_BY_NAME["motion_tangent"], list(lin.temporaries),
+                  {"dR": dR, "dG": dG})
 
 
 KERNELS = (
@@ -115,7 +179,19 @@ KERNELS = (
     KernelSpec("nonsmooth", "the impacts' and frictions' terms (layout in lagrgen.nonsmooth)",
                (Output("terms", ("n_hybrid",)),), lambda eq: {"terms": nonsmooth.terms(eq)},
                when=lambda eq: bool(eq.spec.nonsmooth)),
+    KernelSpec("motion_tape", "M, F (and A, γ) as mf (and constraints) compute them, and the tape c "
+               "of their forward-mode coefficients (lagrgen.tangents)",
+               (Output("M", ("n", "n")), Output("F", ("n",)),
+                Output("A", ("n_constraints", "n")), Output("gamma", ("n_constraints",)),
+                Output("c", ("n_tape",))), None, build=_motion_tape),
+    KernelSpec("motion_tangent", "along one direction (dq, dqd, dp), from the tape c: "
+               "dR = δF − δM·a + δAᵀ·λ and dG = δγ − δA·a, a = [q̈, λ] held fixed",
+               (Output("dR", ("n",)), Output("dG", ("n_constraints",))), None,
+               build=_motion_tangent, arguments=("c", "a", "dq", "dqd", "dp"),
+               lanes=("dq", "dqd", "dp", "dR", "dG")),
 )
+KERNELS_BY_NAME = {k.name: k for k in KERNELS}
+
 
 def _signed(expr, memo):
     """`expr` with every sum inside it written as ±S where S is the one of S, −S whose term with the
@@ -166,12 +242,6 @@ def cse_kernel(spec, outputs, notes=None):
     return Kernel(spec, list(replacements), result, dict(notes or {}))
 
 
-@once_per
-def all_kernels(eq):
-    """The kernels of KERNELS for the equations `eq`, in order (computed once per Equations)."""
-    return [cse_kernel(k, k.expressions(eq)) for k in KERNELS if k.when is None or k.when(eq)]
-
-
 def _tree_nodes(eq):
     return {"nodes": tree.node_records(tree.analyse(eq))}
 
@@ -216,6 +286,18 @@ TREE_KERNELS = (
 )
 #: The dense kernels the recursive formulation keeps (none of them needs M or F).
 _KEPT = ("outputs", "events")
+#: The kernels of each formulation, in the order they are generated.
+FORMULATION_KERNELS = {"dense": KERNELS,
+                       "recursive": TREE_KERNELS + tuple(k for k in KERNELS if k.name in _KEPT)}
+#: What the recursive formulation computes a dense kernel from: `lagrgen/codegen/templates/
+#: tree.c.in` (and `lagrgen.runtime.tree`) define lg_mf, lg_jacobian_b, lg_parameter_b and the
+#: directional derivatives by recursions over these kernels' node terms; a dense kernel not listed
+#: is kept as it is (the constraints' are absent: a tree has none).
+TREE_REPLACES = {"mf": ("tree_nodes",),
+                 "jacobian_b": ("tree_nodes", "tree_slopes"),
+                 "parameter_b": ("tree_nodes", "tree_parameters"),
+                 "motion_tape": ("tree_nodes", "tree_slopes", "tree_parameters"),
+                 "motion_tangent": ()}
 
 
 @once_per
@@ -225,13 +307,37 @@ def tree_parameter_gradients(eq):
 
 
 @once_per
-def recursive_kernels(eq):
-    """The kernels of the recursive formulation: TREE_KERNELS, then the kept dense ones."""
-    specs = TREE_KERNELS + tuple(k for k in KERNELS if k.name in _KEPT)
-    return [cse_kernel(k, k.expressions(eq), k.notes(eq) if k.notes else None)
-            for k in specs if k.when is None or k.when(eq)]
+def _kernels_of(eq):
+    return {}
 
 
-def model_kernels(eq, formulation="dense"):
-    """The kernels a build of `eq` in `formulation` ("dense" or "recursive") generates."""
-    return recursive_kernels(eq) if formulation == "recursive" else all_kernels(eq)
+def kernel(eq, name, formulation="dense"):
+    """The kernel `name` of the `formulation`'s kernels for the equations `eq` (computed once per
+    Equations)."""
+    spec = next(k for k in FORMULATION_KERNELS[formulation] if k.name == name)
+    done = _kernels_of(eq)
+    if spec not in done:
+        done[spec] = spec.build(eq) if spec.build else \
+            cse_kernel(spec, spec.expressions(eq), spec.notes(eq) if spec.notes else None)
+    return done[spec]
+
+
+def kernel_names(names, formulation="dense"):
+    """The kernels of `formulation` that compute what the dense kernels `names` give."""
+    if formulation == "dense":
+        return set(names)
+    return {r for k in names for r in TREE_REPLACES.get(k, (k,))}
+
+
+def model_kernels(eq, formulation="dense", names=None):
+    """The kernels a build of `eq` in `formulation` ("dense" or "recursive") generates, in order:
+    those the model has, and only those computing the dense kernels `names` when given (the
+    others are not formed)."""
+    wanted = None if names is None else kernel_names(names, formulation)
+    return [kernel(eq, k.name, formulation) for k in FORMULATION_KERNELS[formulation]
+            if (wanted is None or k.name in wanted) and (k.when is None or k.when(eq))]
+
+
+def all_kernels(eq, names=None):
+    """The dense formulation's kernels (`model_kernels`)."""
+    return model_kernels(eq, "dense", names)

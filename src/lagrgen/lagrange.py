@@ -218,11 +218,16 @@ class Equations:
         return any(self.t in e.free_symbols for row in self.M for e in row) or \
             any(self.t in f.free_symbols for f in self.F)
 
-    def differentiate(self):
-        """Evaluate (and cache) every Jacobian piece now; return self."""
-        _ = self.dF_dq, self.dF_dqd, self.dMa_dq, self.dF_du, self.dF_dp, self.dMa_dp
+    def differentiate(self, parameters=True):
+        """Evaluate (and cache) the Jacobian pieces now (by the parameters too, unless
+        `parameters` is False: a model's own module needs none of those); return self."""
+        _ = self.dF_dq, self.dF_dqd, self.dMa_dq, self.dF_du
         if self.m:
-            _ = self.gamma, self.dAl_dq, self.G, self.dAl_dp, self.G_p
+            _ = self.gamma, self.dAl_dq, self.G
+        if parameters:
+            _ = self.dF_dp, self.dMa_dp
+            if self.m:
+                _ = self.dAl_dp, self.G_p
         return self
 
     @cached_property

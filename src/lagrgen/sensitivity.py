@@ -2,7 +2,9 @@
 
 The augmented system is y' = f(t, y, p, u), S_j' = J·S_j + ∂f/∂p_j with S_j(0) = 0 (or a unit
 vector for an initial state y0:<state>), J = ∂f/∂y the model's analytic Jacobian and ∂f/∂p its
-analytic `parameter_jacobian`. The error control covers the sensitivities as well as the state
+analytic parameter Jacobian: the k products come from one call of the model's
+`directional_derivatives` (forward mode on its kernels, J never formed). The error control
+covers the sensitivities as well as the state
 (as CVODES with errconS set). For Radau and BDF the augmented Jacobian is taken block-diagonal,
 diag(J, …, J): the term ∂(J·S)/∂y only enters the Newton iteration matrix, which needs to be
 approximate. On a compiled model the augmented system runs in C (the native engine with the
@@ -42,19 +44,12 @@ def sensitivity_columns(mod, names):
 def augmented_functions(mod, p, u_at, columns):
     """(rhs, jacobian) of the augmented state z = [y, S_1, …, S_k] for solve_ivp."""
     dim, k = 2 * mod.n_coordinates, len(columns)
-    params = np.array([j if kind == "p" else -1 for kind, j in columns])
-    rhs, jacobian, parameter_jacobian = mod.rhs, mod.jacobian, mod.parameter_jacobian
+    P = unit_rows(columns, "p", len(mod.parameters))
+    directional, jacobian = mod.directional_derivatives, mod.jacobian
 
     def fun(t, z):
-        y, S = z[:dim], z[dim:].reshape(k, dim)
-        u = u_at(t)
-        ydot = rhs(t, y, p, u)
-        dS = S @ jacobian(t, y, p, u).T
-        if (params >= 0).any():
-            dfdp = parameter_jacobian(t, y, p, u)
-            for c, j in enumerate(params):
-                if j >= 0:
-                    dS[c] += dfdp[:, j]
+        y = z[:dim]
+        ydot, dS = directional(t, y, z[dim:].reshape(k, dim), P, p, u_at(t))
         out = np.concatenate([ydot, dS.ravel()])
         if not np.isfinite(out.sum()):
             raise NonFiniteError.at(mod.name, t, y)
@@ -66,13 +61,14 @@ def augmented_functions(mod, p, u_at, columns):
     return fun, jac
 
 
-def initial_sensitivities(columns, dim):
-    """S(0): zeros for parameters, the unit vector e_i for an initial state y0:<state_i>."""
-    S0 = np.zeros((len(columns), dim))
-    for c, (kind, i) in enumerate(columns):
-        if kind == "y0":
-            S0[c, i] = 1.0
-    return S0
+def unit_rows(columns, kind, width):
+    """(k, width): row c the unit vector e_i of column c = (kind, i), zeros for the other kind.
+    Of kind "p": the parameter directions; of kind "y0": S(0)."""
+    rows = np.zeros((len(columns), width))
+    for c, (of, i) in enumerate(columns):
+        if of == kind:
+            rows[c, i] = 1.0
+    return rows
 
 
 def solve_sensitivities(mod, t_span, y0, method, p, u_at, rtol, atol, names, inputs=None,
@@ -86,7 +82,7 @@ def solve_sensitivities(mod, t_span, y0, method, p, u_at, rtol, atol, names, inp
     from .runtime.arguments import input_specs
     dim = 2 * mod.n_coordinates
     columns = sensitivity_columns(mod, names)
-    z0 = np.concatenate([y0, initial_sensitivities(columns, dim).ravel()])
+    z0 = np.concatenate([y0, unit_rows(columns, "y0", dim).ravel()])
     why_not = None if engine == "scipy" else native_reason(mod, method, inputs, None, options,
                                                             rtol)
     if engine == "native" and why_not:

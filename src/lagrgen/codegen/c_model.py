@@ -3,9 +3,9 @@ Python) and the thin Python module glue (`<name>_module.c`) that includes it."""
 from pathlib import Path
 from string import Template
 
-from ..functions import FUNCTIONS
-from ..kernels import KERNEL_ARGUMENTS, model_kernels
-from .printer import c_function, kernel_statements
+from ..functions import DIRECTIONS_SIGNATURE, FUNCTIONS
+from ..kernels import KERNELS, kernel_names, model_kernels
+from .printer import c_function, in_lanes, kernel_statements
 from .tree_code import tree_c
 
 TEMPLATES = Path(__file__).resolve().parent / "templates"
@@ -71,17 +71,38 @@ TU_SETUP = """
 """
 
 
-def kernel_functions(equations, max_statements=400, units=None, formulation="dense"):
-    """The C functions lg_<kernel> of every registered kernel (split into parts when long).
+#: A kernel with lanes is split into parts of at most this fraction of `max_statements`: each of
+#: its statements holds LANES values, and the compiler's register allocation grows faster than
+#: linearly with the values live in one function (measured at n = 20: half-size parts compile
+#: the directions unit in 10 % less time; quarter-size ones no faster).
+LANE_PART_FRACTION = 0.5
+
+
+def part_limit(kernel, max_statements):
+    """Statements per part of `kernel` (see c_function)."""
+    return max(1, int(max_statements * LANE_PART_FRACTION)) if kernel.spec.lanes \
+        else max_statements
+
+
+def kernels_of(functions):
+    """The names of the kernels the C bodies of `functions` call, in the order of KERNELS (with
+    `constraints`, which the constraint solver of every unit calls)."""
+    wanted = {"constraints"} | {k for f in functions for k in f.kernels}
+    return [k.name for k in KERNELS if k.name in wanted]
+
+
+def kernel_functions(equations, max_statements=400, units=None, names=None,
+                     formulation="dense"):
+    """The C functions lg_<kernel> of the `formulation`'s kernels that the model has (only those
+    computing the dense kernels `names` when given, see `kernels.model_kernels`), split into parts
+    when long.
 
     When the kernels have more than one part, the parts are assigned to translation units 1, 2, ...
     of about STATEMENTS_PER_TU statements each (see TU_SETUP); `units`, a list, receives the number
     of those units (0 when nothing was split)."""
     chunks = []
-    arguments = ", ".join(KERNEL_ARGUMENTS)
-    prologue = "    " + " ".join(f"(void){a};" for a in KERNEL_ARGUMENTS) + "\n"
-    kernels = [(k, kernel_statements(k)) for k in model_kernels(equations, formulation)]
-    split = any(len(stmts) > max_statements for _, stmts in kernels)
+    kernels = [(k, kernel_statements(k)) for k in model_kernels(equations, formulation, names)]
+    split = any(len(stmts) > part_limit(k, max_statements) for k, stmts in kernels)
     per_tu = max(1, STATEMENTS_PER_TU // max_statements)
     counter = [0]
 
@@ -91,18 +112,45 @@ def kernel_functions(equations, max_statements=400, units=None, formulation="den
 
     for kernel, stmts in kernels:
         outputs = [o.name for o in kernel.spec.outputs]
-        params = ("double t, " + ", ".join(f"const double *{a}" for a in KERNEL_ARGUMENTS[1:])
-                  + "".join(f", double *{o}" for o in outputs))
-        args = arguments + "".join(f", {o}" for o in outputs)
-        unused = prologue.rstrip("\n") + "".join(f" (void){o};" for o in outputs) + "\n"
+        inputs = kernel.spec.arguments
+        lanes = LANES if kernel.spec.lanes else None
+        pointer = "*LG_RESTRICT " if lanes else "*"
+        params = ", ".join("double t" if a == "t" else f"const double {pointer}{a}"
+                           for a in inputs)
+        params += "".join(f", double {pointer}{o}" for o in outputs)
+        args = ", ".join(inputs) + "".join(f", {o}" for o in outputs)
+        prologue = "    " + " ".join(f"(void){a};" for a in (*inputs, *outputs)) + "\n"
+        if lanes:
+            stmts = in_lanes(stmts, kernel.spec.lanes, lanes)
+        limit = part_limit(kernel, max_statements)
         text = c_function(f"lg_{kernel.name}", params, args, stmts, kernel.spec.formula + ".",
-                          max_statements, unused, tu_of_part if split else None)
-        if split and len(stmts) <= max_statements:
+                          limit, prologue, tu_of_part if split else None, lanes)
+        if split and len(stmts) <= limit:
             text = f"#if LG_IN_TU(0)\n{text}#endif\n"
-        chunks.append(text)
+        chunks.append(tape_sizes(kernel) + text)
     if units is not None:
         units.append(1 + (counter[0] - 1) // per_tu if counter[0] else 0)
     return "\n".join(chunks)
+
+
+#: Directions a kernel with lanes (kernels.KernelSpec.lanes) evaluates at once (LG_LANES in C).
+LANES = 4
+
+#: A tape longer than this (LG_TAPE_ON_STACK in model.c.in) is allocated on the heap.
+TAPE_ON_STACK = 32768
+
+
+def tape_sizes(kernel):
+    """`#define LG_<KERNEL>_<OUTPUT> <length>` for each tape output of `kernel` (and <stdlib.h>
+    for a tape too long for the stack)."""
+    lines = []
+    for o in kernel.spec.outputs:
+        if o.shape == ("n_tape",):
+            size = max(len(kernel.outputs[o.name]), 1)
+            lines.append(f"#define LG_{kernel.name.upper()}_{o.name.upper()} {size}\n")
+            if size > TAPE_ON_STACK:
+                lines.append("#include <stdlib.h>\n")
+    return "".join(lines)
 
 
 def translation_units(model_c):
@@ -111,20 +159,25 @@ def translation_units(model_c):
     return max((int(k) for k in re.findall(r"^#if LG_IN_TU\((\d+)\)$", model_c, re.M)), default=0)
 
 
-def model_functions(name):
-    """The C definitions of every function of the registry, `<name>_<function>`."""
+def signature(function):
+    """The C parameter list of a registered function."""
+    return DIRECTIONS_SIGNATURE if function.call == "directions" else SIGNATURE
+
+
+def model_functions(name, functions=FUNCTIONS):
+    """The C definitions of the registered `functions`, `<name>_<function>`."""
     chunks = []
-    for f in FUNCTIONS:
+    for f in functions:
         outputs = ", ".join(o.name for o in f.outputs)
         body = read_template(f"functions/{f.name}.c").rstrip()
         chunks.append(f"/* {f.formula}; out = [{outputs}]. */\n"
-                      f"LG_FN int {name}_{f.name}({SIGNATURE})\n{{\n{body}\n}}\n")
+                      f"LG_FN int {name}_{f.name}({signature(f)})\n{{\n{body}\n}}\n")
     return "\n".join(chunks)
 
 
-def prototypes(name):
-    return "\n".join(f"/* {f.formula} */\nLG_FN int {name}_{f.name}({SIGNATURE});"
-                     for f in FUNCTIONS)
+def prototypes(name, functions=FUNCTIONS):
+    return "\n".join(f"/* {f.formula} */\nLG_FN int {name}_{f.name}({signature(f)});"
+                     for f in functions)
 
 
 def _names(names):
@@ -145,40 +198,46 @@ def substitutions(info):
                 **{f"{key}_or_1": max(value, 1) for key, value in sizes.items()})
 
 
-def model_header(info):
-    """`<name>_model.h`: the standalone model's interface."""
+def model_header(info, functions=FUNCTIONS):
+    """`<name>_model.h`: the standalone model's interface (its `functions`)."""
     return Template(read_template("model.h.in")).substitute(
         substitutions(info), guard=f"LAGRGEN_{info.name.upper()}_MODEL_H",
-        prototypes=prototypes(info.name))
+        prototypes=prototypes(info.name, functions))
 
 
-def model_source(info, equations, max_statements=400):
-    """`<name>_model.c`: kernels, linear algebra, model functions and metadata in plain C."""
+def model_source(info, equations, max_statements=400, functions=FUNCTIONS):
+    """`<name>_model.c`: the kernels the registered `functions` call, linear algebra, the
+    functions and metadata in plain C."""
     defaults = info.defaults or [0.0]
     units = []
-    formulation = info.formulation
-    kernels = kernel_functions(equations, max_statements, units, formulation)
+    formulation, names = info.formulation, kernels_of(functions)
+    kernels = kernel_functions(equations, max_statements, units, names, formulation)
     split = units[0] > 0
     recursive = formulation == "recursive"
     return Template(read_template("model.c.in")).substitute(
         substitutions(info), linalg=read_template("linalg.c.in"),
         recursive=int(recursive),
-        tree=tree_c(equations, read_template("tree.c.in")) if recursive else "",
+        tree=tree_c(equations, read_template("tree.c.in"), kernel_names(names, formulation))
+        if recursive else "",
         kernels=kernels, tu_setup=TU_SETUP if split else "",
         tu0_begin="#if LG_IN_TU(0)\n" if split else "", tu0_end="\n#endif" if split else "",
-        constraint_solver=read_template("constraints.c.in"),
-        functions=model_functions(info.name),
+        constraint_solver=read_template("constraints.c.in"), lanes=LANES,
+        tape_on_stack=TAPE_ON_STACK,
+        functions=model_functions(info.name, functions),
         coordinate_names=_names(info.coordinates),
         parameter_names=_names(info.parameters), input_names=_names(info.inputs),
         defaults=", ".join(_double(d) for d in defaults),
         metadata=c_char_array(info.to_json()))
 
 
-def module_source(info, units=0):
+def module_source(info, units=0, functions=FUNCTIONS, template="module.c.in"):
     """`<name>_module.c`: the Python extension glue that includes `<name>_model.c` (as unit 0 of
-    a model whose kernel parts are compiled as `units` separate units, see `unit_sources`)."""
-    table = ",\n".join(f'    {{"{f.name}", {info.name}_{f.name}}}' for f in FUNCTIONS)
-    text = Template(read_template("module.c.in")).substitute(substitutions(info), table=table)
+    a model whose kernel parts are compiled as `units` separate units, see `unit_sources`) and
+    lists its `functions`. The glue of a unit compiled on first use is `unit_module.c.in`: its
+    table for the runtime to add to the model's, no model of its own."""
+    table = ",\n".join(f'    {{"{f.name}", (lg_function){info.name}_{f.name}}}'
+                       for f in functions)
+    text = Template(read_template(template)).substitute(substitutions(info), table=table)
     if units:
         include = f'#include "{info.name}_model.c"'
         text = text.replace(include, "#define LG_TU 0\n" + include, 1)
@@ -192,10 +251,11 @@ def unit_sources(name, units):
             f'#define LG_TU {k}\n#include "{name}_model.c"\n' for k in range(1, units + 1)}
 
 
-def standalone_files(info, equations):
-    """{file name: text} of the standalone C model."""
+def standalone_files(info, equations, functions=FUNCTIONS):
+    """{file name: text} of the standalone C model with the registered `functions` (all of
+    them: `export_c`; the model unit's: what `build` compiles and publishes)."""
     name = info.name
-    return {f"{name}_model.h": model_header(info),
-            f"{name}_model.c": model_source(info, equations)}
+    return {f"{name}_model.h": model_header(info, functions),
+            f"{name}_model.c": model_source(info, equations, functions=functions)}
 
 

@@ -21,6 +21,7 @@ from ..errors import BuildError, ModelError
 from ..methods import NATIVE_CODES, NATIVE_METHODS
 from ..options import absolute_tolerance, relative_tolerance
 from ..toolchain import compiler_command, run_compiler, write_atomic
+from ..functions import MODEL_UNIT, functions_of
 from .c_model import TEMPLATES, read_template, standalone_files, substitutions
 from .fmi2 import (fmu_guid, model_description, number_text, numbers_text,
                    parameter_start_values, source_file_names, state_start_values)
@@ -120,7 +121,7 @@ def fmu_sources(info, equations, params=None, start_time=0.0, stop_time=10.0, to
     start_values = parameter_start_values(info, params)
     settings = () if (kind, fmi_version) == ("me", 2) else (kind, fmi_version, solver)
     guid = fmu_guid(info, start_values, start_time, stop_time, settings)
-    files = standalone_files(info, equations)
+    files = standalone_files(info, equations, functions_of(MODEL_UNIT))   # what running needs
     name = info.name
     files[f"{name}_fmu_core.c"] = fmu_core(info, guid, start_values, solver)
     files[f"{name}_fmu.c"] = fmu_glue(info, kind, fmi_version)

@@ -303,8 +303,30 @@ def _symbol_names(stmt):
     return {str(s) for s in stmt.expr.free_symbols}
 
 
+def in_lanes(statements, arrays, lanes):
+    """`statements` for `lanes` directions at once: an access x[i] of one of `arrays` becomes
+    x[lanes·i + b] (b the lane: see c_function's `lanes`)."""
+    import re
+    pattern = re.compile(rf"^({'|'.join(map(re.escape, arrays))})\[(\d+)\]$")
+
+    def lane(symbol):
+        match = pattern.match(symbol.name)
+        return se.Symbol(f"{match[1]}[{lanes * int(match[2])} + b]") if match else symbol
+
+    out = []
+    for stmt in statements:
+        expr = stmt.expr.xreplace({s: lane(s) for s in stmt.expr.free_symbols
+                                   if isinstance(s, se.Symbol)})
+        if isinstance(stmt, Store) and stmt.array in arrays:
+            out.append(Store(stmt.array, f"{lanes * stmt.index} + b", expr))
+        else:
+            out.append(type(stmt)(*(expr if f == "expr" else getattr(stmt, f)
+                                    for f in stmt.__dataclass_fields__)))
+    return out
+
+
 def c_function(name, params, args, statements, comment, max_statements=400, prologue="",
-               tu_of_part=None):
+               tu_of_part=None, lanes=None):
     """C source of `static void name(params)` running `statements`.
 
     A body longer than `max_statements` is split into parts `name_partK(params, w)` so the compiler
@@ -313,11 +335,19 @@ def c_function(name, params, args, statements, comment, max_statements=400, prol
     With `tu_of_part` (part index -> translation unit number ≥ 1), each part is wrapped in
     `#if LG_IN_TU(k)` and the calling function in `#if LG_IN_TU(0)`, so that a build may compile
     the parts as separate translation units (see model.c.in); compiled as one file, nothing changes.
+    With `lanes` (statements from `in_lanes`), every body runs in a loop over the lanes b, which
+    the compiler vectorizes.
     """
     printer = CPrinter()
     head = f"/* {comment} */\nLG_FN static void {name}({params})\n{{\n{prologue}"
+    indent, open_loop, close_loop, slot_of = "    ", "", "", "{}".format
+    if lanes:
+        indent, open_loop, close_loop = "        ", f"    for (int b = 0; b < {lanes}; ++b) {{\n", \
+            "\n    }"
+        slot_of = f"{lanes} * {{}} + b".format
     if len(statements) <= max_statements:
-        return head + print_statements(printer, statements) + "\n}\n"
+        return head + open_loop + print_statements(printer, statements, indent) + close_loop \
+            + "\n}\n"
     chunks = [statements[i:i + max_statements] for i in range(0, len(statements), max_statements)]
     defined = {s.name: k for k, chunk in enumerate(chunks) for s in chunk if isinstance(s, Declare)}
     imports = [sorted({v for s in chunk for v in _symbol_names(s)
@@ -331,18 +361,17 @@ def c_function(name, params, args, statements, comment, max_statements=400, prol
         parts.append("".join(f"LG_FN LG_PART_FN void {name}_part{k}({params}, double *w);\n"
                              for k in range(len(chunks))))
     for k, chunk in enumerate(chunks):
-        lines = [f"    const double {v} = w[{slot[v]}];" for v in imports[k]]
-        lines.append(print_statements(printer, chunk))
-        lines += [f"    w[{slot[s.name]}] = {s.name};" for s in chunk
+        lines = [f"{indent}const double {v} = w[{slot_of(slot[v])}];" for v in imports[k]]
+        lines.append(print_statements(printer, chunk, indent))
+        lines += [f"{indent}w[{slot_of(slot[s.name])}] = {s.name};" for s in chunk
                   if isinstance(s, Declare) and s.name in slot]
         text = (f"LG_FN {linkage} void {name}_part{k}({params}, double *w)\n{{\n{prologue}"
-                "    (void)w;\n"
-                + "\n".join(lines) + "\n}\n")
+                + "    (void)w;\n" + open_loop + "\n".join(lines) + close_loop + "\n}\n")
         if tu_of_part:
             text = f"#if LG_IN_TU({tu_of_part(k)})\n{text}#endif\n"
         parts.append(text)
     calls = "\n".join(f"    {name}_part{k}({args}, w);" for k in range(len(chunks)))
-    main = head + f"    double w[{max(len(slot), 1)}];\n" + calls + "\n}\n"
+    main = head + f"    double w[{max(len(slot), 1) * (lanes or 1)}];\n" + calls + "\n}\n"
     if tu_of_part:
         main = f"#if LG_IN_TU(0)\n{main}#endif\n"
     return "\n".join(parts) + "\n" + main

@@ -1,7 +1,7 @@
 """Python source of a model's kernels: one function per registered kernel, run by the Python
 backend (`lagrgen.runtime.pymodel`); for the recursive formulation also the tree's tables
 (`TREE`, read by `lagrgen.runtime.tree`)."""
-from ..kernels import KERNEL_ARGUMENTS, model_kernels
+from ..kernels import model_kernels
 from .printer import PythonPrinter, kernel_statements, print_statements
 
 
@@ -11,7 +11,7 @@ def python_source(equations, formulation="dense"):
     printer = PythonPrinter()
     chunks = []
     for kernel in model_kernels(equations, formulation):
-        lines = [f"def {kernel.name}({', '.join(KERNEL_ARGUMENTS)}):"]
+        lines = [f"def {kernel.name}({', '.join(kernel.spec.arguments)}):"]
         lines += [f"    {name} = [0.0] * {len(exprs)}" for name, exprs in kernel.outputs.items()]
         body = print_statements(printer, kernel_statements(kernel))
         if body:

@@ -40,8 +40,10 @@ def _ints(values):
     return ", ".join(str(int(v)) for v in values) if values else "0"
 
 
-def tree_c(equations, template):
-    """`template` (the text of tree.c.in) for the equations' tree."""
+def tree_c(equations, template, kernels=("tree_nodes", "tree_slopes", "tree_parameters")):
+    """`template` (the text of tree.c.in) for the equations' tree, in a unit that has the
+    `kernels` (names: the parts calling tree_slopes or tree_parameters are compiled when they are
+    among them)."""
     tables = layout(equations)
     n = len(tables["coordinate"])
     names = {"d": "DD"}
@@ -50,6 +52,8 @@ def tree_c(equations, template):
     offsets += [f"#define TREE_{name.upper()} {offset}"
                 for name, offset in tables["slope_fields"].items()]
     return Template(template).substitute(
+        has_slopes=int("tree_slopes" in kernels),
+        has_parameters=int("tree_parameters" in kernels),
         tree_d=tables["D"], node_width=tables["node_width"], slope_width=tables["slope_width"],
         nnz_q=len(tables["dq"]), nnz_qd=len(tables["dqd"]), field_offsets="\n".join(offsets),
         coordinates=_ints(tables["coordinate"]), parents=_ints(tables["parent"]),

@@ -16,16 +16,17 @@ from cpython.exc cimport PyErr_CheckSignals
 cnp.import_array()
 
 from lagrgen.native.lg_ode cimport *
+from lagrgen.runtime.abi cimport lg_directions_fn
 from lagrgen.methods import BY_NAME, NATIVE_CODES as METHOD_CODES
 
 cdef extern from "lg_sensitivity.h":
     ctypedef struct lg_sens_ctx:
-        lg_rhs_fn rhs, jacobian, parameter_jacobian
+        lg_directions_fn directional
+        lg_jac_fn jacobian
         const double *p
-        int dim, k, n_params
-        const int *param_index
+        int dim, k
+        const double *P
         double *J
-        double *P
     int lg_sens_rhs(void *ctx, double t, const double *z, const double *u, double *out) noexcept nogil
     int lg_sens_jac(void *ctx, double t, const double *z, const double *u, double *out) noexcept nogil
 
@@ -151,7 +152,7 @@ def solve(str method, uintptr_t rhs, uintptr_t jacobian, int dim, p, list inputs
           double tf, y0, double rtol, atol, double max_step, double first_step, t_eval,
           bint dense, uintptr_t events=0, event_max=None, event_direction=None,
           bint stop_on_nonfinite=False, long max_steps=0, double max_wall_time=0.0,
-          Poll poll=None, uintptr_t parameter_jacobian=0, sensitivity_index=None,
+          Poll poll=None, uintptr_t directional=0, sensitivity_index=None,
           double save_budget=0.0):
     """Run one solve in C without the GIL.
 
@@ -186,10 +187,11 @@ def solve(str method, uintptr_t rhs, uintptr_t jacobian, int dim, p, list inputs
     poll : Poll or None
         Called about every poll.interval seconds; its exception (KeyboardInterrupt on Ctrl-C) is
         raised here after the solve has stopped and freed its memory.
-    parameter_jacobian, sensitivity_index :
+    directional, sensitivity_index :
         With a sensitivity_index (k ints: a parameter index, or -1 for an initial state), the
         solve is of the augmented system [y, S_1..S_k] of native/lg_sensitivity.h: `dim` is
-        then (k + 1)·2n and `jacobian`, `parameter_jacobian` are required.
+        then (k + 1)·2n, and `jacobian` and `directional` (the address of the model's
+        directional_derivatives) are required.
 
     Returns
     -------
@@ -221,24 +223,26 @@ def solve(str method, uintptr_t rhs, uintptr_t jacobian, int dim, p, list inputs
     memset(&pb, 0, sizeof(pb))
     memset(&op, 0, sizeof(op))
     cdef lg_sens_ctx sens
-    cdef cnp.ndarray sens_index, sens_J, sens_P
+    cdef cnp.ndarray sens_P, sens_J
+    cdef int k, n_params = len(p)
     if sensitivity_index is not None:
-        sens_index = np.ascontiguousarray(sensitivity_index, dtype=np.intc)
-        if jacobian == 0 or parameter_jacobian == 0 or dim % (sens_index.shape[0] + 1):
-            raise ValueError("sensitivities need the jacobian and parameter_jacobian addresses "
-                             "and dim = (k + 1)·2n")
-        sens.rhs = <lg_rhs_fn>rhs
+        index = np.asarray(sensitivity_index, dtype=np.intp)
+        k = index.shape[0]
+        if jacobian == 0 or directional == 0 or dim % (k + 1):
+            raise ValueError("sensitivities need the jacobian and directional_derivatives "
+                             "addresses and dim = (k + 1)·2n")
+        sens_P = np.zeros((k, max(n_params, 1)))
+        for c in range(k):
+            if index[c] >= 0:
+                sens_P[c, index[c]] = 1.0
+        sens.directional = <lg_directions_fn>directional
         sens.jacobian = <lg_jac_fn>jacobian
-        sens.parameter_jacobian = <lg_rhs_fn>parameter_jacobian
         sens.p = <const double *>cnp.PyArray_DATA(pa)
-        sens.k = sens_index.shape[0]
-        sens.dim = dim // (sens.k + 1)
-        sens.n_params = len(p)
-        sens.param_index = <const int *>cnp.PyArray_DATA(sens_index)
+        sens.k = k
+        sens.dim = dim // (k + 1)
+        sens.P = <const double *>cnp.PyArray_DATA(sens_P)
         sens_J = np.empty(sens.dim * sens.dim)
-        sens_P = np.empty(max(sens.dim * sens.n_params, 1))
         sens.J = <double *>cnp.PyArray_DATA(sens_J)
-        sens.P = <double *>cnp.PyArray_DATA(sens_P)
         pb.sys_rhs = lg_sens_rhs
         pb.sys_jac = lg_sens_jac
         pb.sys_ctx = <void *>&sens

@@ -262,11 +262,11 @@ def solve_native(mod, t_span, y0, method="RK45", p=None, u_spec=None, rtol=1e-3,
     ev_addr, ev_max, ev_dir = _event_arrays(events)
     sensitive = sensitivity_index is not None
     jac = cm.function_address("jacobian") if BY_NAME[method].stiff or sensitive else 0
-    dfdp = cm.function_address("parameter_jacobian") if sensitive else 0
+    directional = cm.function_address("directional_derivatives") if sensitive else 0
     out = _ode.solve(method, cm.function_address("rhs"), jac, dim, p, list(u_spec), t0, tf,
                      y0, rtol, atol, max_step, first, te, bool(dense_output), ev_addr,
                      ev_max, ev_dir, bool(stop_on_nonfinite), _limit(max_steps, "max_steps"),
-                     _limit(max_wall_time, "max_wall_time"), poll, dfdp, sensitivity_index,
+                     _limit(max_wall_time, "max_wall_time"), poll, directional, sensitivity_index,
                      float(save_budget))
     ts, ys = out["t"], out["y"].T.copy()
     sol = None

@@ -316,6 +316,9 @@ static int lu_real(double *a, int *piv, int n)
     return info;
 }
 
+static void lower_solve(const double *restrict a, int n, double *restrict b);
+static void upper_solve(const double *restrict a, int n, double *restrict b);
+
 /* Solve A x = b in place from the factors: row interchanges, then L (unit) and U column by
  * column. */
 static void lu_solve_real(const double *a, const int *piv, int n, double *b)
@@ -326,14 +329,8 @@ static void lu_solve_real(const double *a, const int *piv, int n, double *b)
             b[k] = b[piv[k]];
             b[piv[k]] = t;
         }
-    for (int j = 0; j < n; ++j)
-        if (b[j] != 0.0)
-            axpy_sub(b + j + 1, a + (size_t)j * n + j + 1, b[j], n - j - 1);
-    for (int j = n - 1; j >= 0; --j)
-        if (b[j] != 0.0) {
-            b[j] /= a[j + (size_t)j * n];
-            axpy_sub(b, a + (size_t)j * n, b[j], j);
-        }
+    lower_solve(a, n, b);
+    upper_solve(a, n, b);
 }
 
 /* Complex numbers with the textbook product (as Fortran's complex multiply) and Smith's
@@ -409,19 +406,151 @@ static int lu_complex(double *a, int *piv, int n)
     return info;
 }
 
+/* The triangular solves of getrs for the real systems (BDF, Radau's error estimate; trsv's
+ * column order: b[i] −= b[j]·L_ij for j = 0, 1, …, each column skipped where b[j] = 0; backward
+ * b[j] /= U_jj then b[i] −= b[j]·U_ij for j = n−1, …, 0), four columns at a time: within a block
+ * the four b[j] are finished first, then every other b[i] is held in a register through its four
+ * updates, taken in the same order (sub_four). Each b[i] thus sees the very same operations as
+ * column by column; a block with a zero b[j] goes column by column (to skip exactly what trsv
+ * skips). */
+
+/* b[i] −= x_0·col_0[i], then x_1·col_1[i], x_2·col_2[i], x_3·col_3[i], for i < len (each b[i] held
+ * in a register through its four updates); a column whose z_c is 0 is skipped (then column by
+ * column, as trsv). */
+static inline void sub_four(double *restrict b, int len, const double *const col[4],
+                            const double x[4], const int z[4])
+{
+    if (z[0] && z[1] && z[2] && z[3]) {
+        const double *restrict c0 = col[0], *restrict c1 = col[1], *restrict c2 = col[2],
+                               *restrict c3 = col[3];
+        const double x0 = x[0], x1 = x[1], x2 = x[2], x3 = x[3];
+        for (int i = 0; i < len; ++i) {
+            double t = b[i];
+            t -= x0 * c0[i];
+            t -= x1 * c1[i];
+            t -= x2 * c2[i];
+            t -= x3 * c3[i];
+            b[i] = t;
+        }
+    } else {
+        for (int c = 0; c < 4; ++c)
+            if (z[c])
+                axpy_sub(b, col[c], x[c], len);
+    }
+}
+
+/* b := L⁻¹·b, L the unit lower triangle of the column-major n × n a. */
+static void lower_solve(const double *restrict a, int n, double *restrict b)
+{
+    int j = 0;
+    for (; j + 4 <= n; j += 4) {
+        const double *c0 = a + (size_t)j * n, *c1 = c0 + n, *c2 = c1 + n, *c3 = c2 + n;
+        const double x0 = b[j];
+        if (x0 != 0.0) {
+            b[j + 1] -= x0 * c0[j + 1];
+            b[j + 2] -= x0 * c0[j + 2];
+            b[j + 3] -= x0 * c0[j + 3];
+        }
+        const double x1 = b[j + 1];
+        if (x1 != 0.0) {
+            b[j + 2] -= x1 * c1[j + 2];
+            b[j + 3] -= x1 * c1[j + 3];
+        }
+        const double x2 = b[j + 2];
+        if (x2 != 0.0)
+            b[j + 3] -= x2 * c2[j + 3];
+        const double x[4] = {x0, x1, x2, b[j + 3]};
+        const int z[4] = {x0 != 0.0, x1 != 0.0, x2 != 0.0, x[3] != 0.0};
+        const double *col[4] = {c0 + j + 4, c1 + j + 4, c2 + j + 4, c3 + j + 4};
+        sub_four(b + j + 4, n - j - 4, col, x, z);
+    }
+    for (; j < n; ++j)
+        if (b[j] != 0.0)
+            axpy_sub(b + j + 1, a + (size_t)j * n + j + 1, b[j], n - j - 1);
+}
+
+/* b := U⁻¹·b, U the upper triangle (with its diagonal) of the column-major n × n a. */
+static void upper_solve(const double *restrict a, int n, double *restrict b)
+{
+    int j = n - 1;
+    for (; j >= 3; j -= 4) {
+        const double *c0 = a + (size_t)j * n, *c1 = c0 - n, *c2 = c1 - n, *c3 = c2 - n;
+        const int z0 = b[j] != 0.0;
+        if (z0) {
+            b[j] /= c0[j];
+            b[j - 1] -= b[j] * c0[j - 1];
+            b[j - 2] -= b[j] * c0[j - 2];
+            b[j - 3] -= b[j] * c0[j - 3];
+        }
+        const int z1 = b[j - 1] != 0.0;
+        if (z1) {
+            b[j - 1] /= c1[j - 1];
+            b[j - 2] -= b[j - 1] * c1[j - 2];
+            b[j - 3] -= b[j - 1] * c1[j - 3];
+        }
+        const int z2 = b[j - 2] != 0.0;
+        if (z2) {
+            b[j - 2] /= c2[j - 2];
+            b[j - 3] -= b[j - 2] * c2[j - 3];
+        }
+        const int z3 = b[j - 3] != 0.0;
+        if (z3)
+            b[j - 3] /= c3[j - 3];
+        const double x[4] = {b[j], b[j - 1], b[j - 2], b[j - 3]};
+        const int z[4] = {z0, z1, z2, z3};
+        const double *col[4] = {c0, c1, c2, c3};
+        sub_four(b, j - 3, col, x, z);
+    }
+    for (; j >= 0; --j)
+        if (b[j] != 0.0) {
+            b[j] /= a[j + (size_t)j * n];
+            axpy_sub(b, a + (size_t)j * n, b[j], j);
+        }
+}
+
 /* ------------------------------------------------------------------------------------------ */
 /* Explicit Runge-Kutta: rk.py (RungeKutta, RK23, RK45, DOP853)                                */
 
-/* acc[i] = sum_{j < m} K[j][i] c[j], summed in the order j = 0, 1, ... (as a dot product over
- * j for each i, but looping over i innermost so that the compiler can vectorize). */
-static void combine(const double *K, const double *c, int m, int n, double *acc)
+/* acc[i] = sum_{j < m} K[j][i] c[j], summed from 0.0 in the order j = 0, 1, ... (as a dot
+ * product over j for each i), eight i at a time held in registers (four independent chains of
+ * two-lane vectors where GCC's vector extension is available). */
+#if defined(__GNUC__)
+typedef double lg_v2 __attribute__((vector_size(16)));
+
+static inline lg_v2 load2(const double *x)
 {
-    for (int i = 0; i < n; ++i)
-        acc[i] = 0.0;
-    for (int j = 0; j < m; ++j) {
-        const double cj = c[j], *Kj = K + (size_t)j * n;
-        for (int i = 0; i < n; ++i)
-            acc[i] += Kj[i] * cj;
+    lg_v2 v;
+    memcpy(&v, x, sizeof v);
+    return v;
+}
+#endif
+
+static void combine(const double *restrict K, const double *restrict c, int m, int n,
+                    double *restrict acc)
+{
+    int i = 0;
+#if defined(__GNUC__)
+    for (; i + 8 <= n; i += 8) {
+        lg_v2 s0 = {0.0, 0.0}, s1 = s0, s2 = s0, s3 = s0;
+        const double *Kj = K + i;
+        for (int j = 0; j < m; ++j, Kj += n) {
+            const lg_v2 cj = {c[j], c[j]};
+            s0 += load2(Kj) * cj;
+            s1 += load2(Kj + 2) * cj;
+            s2 += load2(Kj + 4) * cj;
+            s3 += load2(Kj + 6) * cj;
+        }
+        memcpy(acc + i, &s0, sizeof s0);
+        memcpy(acc + i + 2, &s1, sizeof s1);
+        memcpy(acc + i + 4, &s2, sizeof s2);
+        memcpy(acc + i + 6, &s3, sizeof s3);
+    }
+#endif
+    for (; i < n; ++i) {
+        double s = 0.0;
+        for (int j = 0; j < m; ++j)
+            s += K[(size_t)j * n + i] * c[j];
+        acc[i] = s;
     }
 }
 
@@ -562,13 +691,12 @@ static int rk_dense_prepare(solver_t *s)
         F[1 * n + i] = h * f_old - dy;
         F[2 * n + i] = 2 * dy - h * (s->f[i] + f_old);
     }
-    for (int r = 0; r < 4; ++r)
-        for (int i = 0; i < n; ++i) {
-            double acc = 0.0;
-            for (int j = 0; j < DOP_N_EXTENDED; ++j)
-                acc += DOP_D[r * DOP_N_EXTENDED + j] * K[j * n + i];
-            F[(3 + r) * n + i] = h * acc;
-        }
+    for (int r = 0; r < 4; ++r) {
+        double *Fr = F + (3 + r) * n;
+        combine(K, DOP_D + r * DOP_N_EXTENDED, DOP_N_EXTENDED, n, Fr);
+        for (int i = 0; i < n; ++i)
+            Fr[i] *= h;
+    }
     return 0;
 }
 
@@ -907,17 +1035,14 @@ static void bdf_change_D(solver_t *s, int order, double factor)
                 acc += R[i * m + k] * U[k * m + j];
             RU[i * m + j] = acc;
         }
-    double *Dn = s->tmp2, *D = s->D;
-    for (int i = 0; i < n; ++i) {
-        for (int r = 0; r < m; ++r) {
-            double acc = 0.0;
-            for (int k = 0; k < m; ++k)
-                acc += RU[k * m + r] * D[k * n + i];
-            Dn[r] = acc;
-        }
-        for (int r = 0; r < m; ++r)
-            D[r * n + i] = Dn[r];
-    }
+    /* D'[r][i] = sum_k RU[k][r] D[k][i], row by row into K (free in BDF beyond y_predict, psi) */
+    double RUt[36], *Dn = s->K + 2 * n, *D = s->D;
+    for (int r = 0; r < m; ++r)
+        for (int k = 0; k < m; ++k)
+            RUt[r * m + k] = RU[k * m + r];
+    for (int r = 0; r < m; ++r)
+        combine(D, RUt + r * m, m, n, Dn + (size_t)r * n);
+    memcpy(D, Dn, (size_t)m * n * sizeof(double));
 }
 
 /* bdf.solve_bdf_system: Newton iterations for y = y_predict + d. Returns converged, -1 on a
@@ -1011,15 +1136,12 @@ static int bdf_step_impl(solver_t *s)
         }
         h = t_new - t;
         h_abs = fabs(h);
+        static const double ones[BDF_MAX_ORDER + 1] = {1, 1, 1, 1, 1, 1};
+        combine(D, ones, order + 1, n, y_predict);       /* sum_k D[k], as x·1 = x */
+        combine(D + n, s->gamma + 1, order, n, psi);
         for (int i = 0; i < n; ++i) {
-            double acc = 0.0, ps = 0.0;
-            for (int k = 0; k <= order; ++k)
-                acc += D[k * n + i];
-            y_predict[i] = acc;
-            s->scale[i] = s->atol[i] + s->rtol * fabs(acc);
-            for (int k = 1; k <= order; ++k)
-                ps += D[k * n + i] * s->gamma[k];
-            psi[i] = ps / s->alpha[order];
+            s->scale[i] = s->atol[i] + s->rtol * fabs(y_predict[i]);
+            psi[i] /= s->alpha[order];
         }
         int converged = 0;
         double c = h / s->alpha[order];

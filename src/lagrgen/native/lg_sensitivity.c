@@ -6,24 +6,7 @@
 int lg_sens_rhs(void *ctx, double t, const double *z, const double *u, double *out)
 {
     const lg_sens_ctx *c = (const lg_sens_ctx *)ctx;
-    const int d = c->dim;
-    if (c->rhs(t, z, c->p, u, out) || c->jacobian(t, z, c->p, u, c->J))
-        return 1;
-    if (c->n_params && c->parameter_jacobian(t, z, c->p, u, c->P))
-        return 1;
-    for (int s = 0; s < c->k; ++s) {
-        const double *S = z + d * (s + 1);
-        double *dS = out + d * (s + 1);
-        const int j = c->param_index[s];
-        for (int i = 0; i < d; ++i) {
-            const double *Ji = c->J + (size_t)i * d;
-            double acc = j >= 0 ? c->P[(size_t)i * c->n_params + j] : 0.0;
-            for (int m = 0; m < d; ++m)
-                acc += Ji[m] * S[m];
-            dS[i] = acc;
-        }
-    }
-    return 0;
+    return c->directional(t, z, c->p, u, c->k, z + c->dim, c->P, out);
 }
 
 int lg_sens_jac(void *ctx, double t, const double *z, const double *u, double *out)

@@ -11,17 +11,20 @@ Thread safety: nothing a call depends on is stored in a shared object. Converted
 locals of the call, which keeps them alive for as long as C (or a nogil loop) reads them.
 """
 import time
+import weakref
 
 import numpy as np
 cimport numpy as cnp
 from cpython.pycapsule cimport PyCapsule_GetPointer, PyCapsule_IsValid
 from libc.math cimport isfinite
 
-from lagrgen.runtime.abi cimport LG_ABI_VERSION, LG_CAPSULE_NAME, lg_function, lg_model_t
+from lagrgen.runtime.abi cimport (LG_ABI_VERSION, LG_CAPSULE_NAME, lg_directions_fn,
+                                  lg_function, lg_model_t)
 from lagrgen.errors import BuildError, ConstraintError, MassMatrixError, NonFiniteError
-from lagrgen.functions import FUNCTIONS
+from lagrgen.functions import BY_NAME, FUNCTIONS, MODEL_UNIT
 from lagrgen.runtime.describe import BuiltModule
 from lagrgen.runtime.info import INFO_ATTRIBUTES, ModelInfo
+from lagrgen.runtime import units
 from lagrgen.runtime.arguments import (defaults_array, initial_state_array, input_vector,
                                        parameter_vector, require_finite)
 
@@ -80,7 +83,8 @@ cdef class CompiledModel:
     cdef readonly dict dimensions
     cdef cnp.ndarray _zeros
     cdef bint _defaults_complete
-    cdef dict _addresses
+    cdef dict _addresses, _units
+    cdef object _module
 
     def __cinit__(self, capsule):
         if not PyCapsule_IsValid(capsule, LG_CAPSULE_NAME):
@@ -104,12 +108,10 @@ cdef class CompiledModel:
         self._defaults_complete = bool(np.isfinite(self.defaults).all())
         self._zeros = np.zeros(max(self.n_inputs, 1))
         self._zeros.setflags(write=False)
-        self._addresses = {}
-        cdef int i
-        for i in range(self.model.n_functions):
-            self._addresses[self.model.functions[i].name.decode("ascii")] = \
-                <size_t>self.model.functions[i].fn
-        missing = [f.name for f in FUNCTIONS if f.name not in self._addresses]
+        self._addresses = table(self.model)
+        self._units = {}
+        self._module = None
+        missing = [f.name for f in FUNCTIONS if f.unit == MODEL_UNIT and f.name not in self._addresses]
         if missing:
             raise BuildError(f"compiled model {self.name!r} lacks {', '.join(missing)}: it was "
                              "built by another lagrgen version; rebuild it")
@@ -135,16 +137,50 @@ cdef class CompiledModel:
                                     self.inputs, "input")
         return values if self.n_inputs else self._zeros
 
-    cdef lg_function pointer(self, str name) except NULL:
+    def address(self, str name):
+        """The address of the registered function `name`, compiling its unit on first use."""
         if name not in self._addresses:
-            raise ValueError(f"model {self.name!r} has no function {name!r}: it has "
-                             f"{', '.join(self._addresses)}")
-        return <lg_function><size_t>self._addresses[name]
+            if name not in BY_NAME:
+                raise ValueError(f"model {self.name!r} has no function {name!r}: it has "
+                                 f"{', '.join(f.name for f in FUNCTIONS)}")
+            self.attach(BY_NAME[name].unit)
+        return self._addresses[name]
+
+    def attach(self, str label):
+        """Add the functions of the unit `label` (compiled on first use, `runtime.units`)."""
+        with units.LOCK:
+            if label in self._units:
+                return
+            module = self._module() if self._module is not None else None
+            path = getattr(module, "__file__", None)
+            if path is None:
+                raise BuildError(f"the module of compiled model {self.name!r} has no file: its "
+                                 f"{label} functions cannot be compiled")
+            unit = units.unit_module(path, self.info, label)
+            capsule = getattr(unit, "_lagrgen_unit", None)
+            if capsule is None or not PyCapsule_IsValid(capsule, LG_CAPSULE_NAME):
+                raise BuildError(f"{unit.__name__} is not a unit of a lagrgen model")
+            found = <const lg_model_t *>PyCapsule_GetPointer(capsule, LG_CAPSULE_NAME)
+            other = ModelInfo.from_json(found.metadata.decode("utf-8"))
+            if found.abi_version != LG_ABI_VERSION or other.content_hash != self.info.content_hash:
+                raise BuildError(f"the {label} unit {unit.__file__} does not belong to compiled "
+                                 f"model {self.name!r} (another build or lagrgen version): "
+                                 "rebuild the model")
+            self._addresses.update(table(found))
+            self._units[label] = unit
+
+    cdef lg_function pointer(self, str name) except NULL:
+        """The C function `name` of the one signature lg_function."""
+        if name in DIRECTION_FUNCTIONS:
+            raise ValueError(f"{name} of model {self.name!r} does not have the signature (t, y, "
+                             "p, u, out)")
+        return <lg_function><size_t>self.address(name)
 
     def function_address(self, str name):
-        """The address of the C function `name` (for native solvers that call it without Python)."""
-        self.pointer(name)
-        return self._addresses[name]
+        """The address of the C function `name` (for native solvers that call it without Python;
+        a function of call style "directions" has the signature lg_directions_fn), compiling its
+        unit on first use."""
+        return self.address(name)
 
     cdef not_positive_definite(self, double t, const double *y, const double *p, const double *u):
         """Raise the error of a failed call at (t, y): M not positive definite, or (when M is)
@@ -174,7 +210,8 @@ cdef class CompiledModel:
         ya[:2 * n] = as_f64(y, 2 * n, "y")
         cdef cnp.ndarray pa = self.params(p)
         cdef cnp.ndarray ua = self.input_values(u)
-        cdef cnp.ndarray out = np.empty(max(f.size(self.dimensions) for f in FUNCTIONS) + 1)
+        cdef cnp.ndarray out = np.empty(max(f.size(self.dimensions) for f in FUNCTIONS
+                                            if f.name not in DIRECTION_FUNCTIONS) + 1)
         cdef double *o = <double *>cnp.PyArray_DATA(out)
         cdef const double *yp = data(ya)
         cdef const double *pp = data(pa)
@@ -189,6 +226,13 @@ cdef class CompiledModel:
         if status:
             self.not_positive_definite(t, yp, pp, up)
         return elapsed / repeat
+
+
+cdef dict table(const lg_model_t *model):
+    """{name: address} of a module's function table."""
+    cdef int i
+    return {model.functions[i].name.decode("ascii"): <size_t>model.functions[i].fn
+            for i in range(model.n_functions)}
 
 
 cdef class BoundFunction:
@@ -206,7 +250,7 @@ cdef class BoundFunction:
         self.model = model
         self.name = spec.name
         self.formula = spec.formula
-        self.fn = model.pointer(spec.name)
+        self.fn = model.pointer(spec.name) if spec.unit == MODEL_UNIT else NULL
         self.shapes = tuple(spec.shapes(model.dimensions))
         self.size = spec.size(model.dimensions)
         self.nd = len(self.shapes[0])
@@ -217,6 +261,8 @@ cdef class BoundFunction:
         return f"<{self.name} of compiled model {self.model.name!r}: {self.formula}>"
 
     cdef object evaluate(self, double t, const double *y, object p, object u):
+        if self.fn == NULL:
+            self.fn = self.model.pointer(self.name)
         cdef cnp.ndarray pa = self.model.params(p)
         cdef cnp.ndarray ua = self.model.input_values(u)
         cdef cnp.ndarray out
@@ -283,13 +329,65 @@ cdef class ImplicitFunction(BoundFunction):
         return self.evaluate(t, data(ya), p, u)
 
 
+cdef class DirectionsFunction:
+    """f(t, y, dy, dp=None, p=None, u=None) -> (ẏ, the derivatives of ẏ along the directions):
+    dy is one direction (2n,) or k of them (k, 2n), dp the matching parameter directions (n_params,)
+    or (k, n_params) (None: zeros); the derivatives have dy's shape."""
+
+    cdef CompiledModel model
+    cdef lg_directions_fn fn
+    cdef readonly str name, formula
+
+    def __init__(self, CompiledModel model, spec):
+        self.model = model
+        self.name = spec.name
+        self.formula = spec.formula
+        self.fn = NULL
+
+    def __repr__(self):
+        return f"<{self.name} of compiled model {self.model.name!r}: {self.formula}>"
+
+    def __call__(self, double t, y, dy, dp=None, p=None, u=None):
+        if self.fn == NULL:
+            self.fn = <lg_directions_fn><size_t>self.model.address(self.name)
+        cdef int dim = 2 * self.model.n_coordinates, n_params = self.model.n_params
+        cdef cnp.ndarray ya = as_f64(y, dim, "y")
+        cdef cnp.ndarray pa = self.model.params(p)
+        cdef cnp.ndarray ua = self.model.input_values(u)
+        directions = np.asarray(dy, dtype=np.float64)
+        single = directions.ndim == 1
+        if directions.ndim not in (1, 2) or directions.shape[directions.ndim - 1] != dim:
+            raise ValueError(f"dy must have shape ({dim},) or (k, {dim}), got {directions.shape}")
+        cdef cnp.ndarray dya = np.ascontiguousarray(directions.reshape(-1, dim))
+        cdef int k = dya.shape[0]
+        cdef cnp.ndarray dpa
+        if dp is None or not n_params:
+            dpa = np.zeros((k, max(n_params, 1)))
+        else:
+            dpa = np.ascontiguousarray(dp, dtype=np.float64)
+            if np.shape(dpa) != (tuple([n_params]) if single else tuple([k, n_params])):
+                raise ValueError(f"dp must have shape ({n_params},) or ({k}, {n_params}) to match "
+                                 f"dy, got {np.shape(dp)}")
+        if not (np.isfinite(dya).all() and np.isfinite(dpa).all()):
+            raise ValueError("dy and dp must be finite")
+        cdef cnp.ndarray out = np.empty((k + 1) * dim)
+        if self.fn(t, data(ya), data(pa), data(ua), k, data(dya), data(dpa),
+                   <double *>cnp.PyArray_DATA(out)):
+            self.model.not_positive_definite(t, data(ya), data(pa), data(ua))
+        derivatives = out[dim:].reshape(k, dim)
+        return out[:dim], (derivatives[0] if single else derivatives)
+
+
 CALLABLES = {"state": StateFunction, "q": CoordinateFunction, "q_qd": StateArgumentsFunction,
-             "implicit": ImplicitFunction}
+             "implicit": ImplicitFunction, "directions": DirectionsFunction}
+#: The functions not of the one signature lg_function.
+DIRECTION_FUNCTIONS = frozenset(f.name for f in FUNCTIONS if f.call == "directions")
 
 
 def bind_module(module, capsule):
     """Make `module` (a freshly imported model module) a built model: called by its PyInit."""
-    model = CompiledModel(capsule)
+    cdef CompiledModel model = CompiledModel(capsule)
+    model._module = weakref.ref(module)
     module.info = model.info
     for attr in INFO_ATTRIBUTES:
         setattr(module, attr, getattr(model.info, attr))

@@ -5,6 +5,9 @@ cdef extern from "lagrgen_model.h":
     const char *LG_CAPSULE_NAME
     ctypedef int (*lg_function)(double t, const double *y, const double *p, const double *u,
                                 double *out) noexcept nogil
+    ctypedef int (*lg_directions_fn)(double t, const double *y, const double *p, const double *u,
+                                     int k, const double *dy, const double *dp,
+                                     double *out) noexcept nogil
     ctypedef struct lg_entry_t:
         const char *name
         lg_function fn

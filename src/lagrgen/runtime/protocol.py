@@ -55,6 +55,9 @@ class BuiltModel(Protocol):
     def parameter_jacobian(self, t, y, p=None, u=None) -> np.ndarray:
         """∂ẏ/∂p, (2n, n_params), analytic."""
 
+    def directional_derivatives(self, t, y, dy, dp=None, p=None, u=None) -> tuple:
+        """(ẏ, J·dy + ∂ẏ/∂p·dp) for one direction (2n,) or k of them (k, 2n)."""
+
     def linear_terms(self, q, qd, t=0.0, p=None, u=None) -> tuple:
         """(M, ∂F/∂q, ∂F/∂q̇, ∂F/∂u) at one point."""
 

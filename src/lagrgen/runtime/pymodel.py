@@ -188,6 +188,27 @@ class PythonModel:
         out[n:] = X + W @ np.linalg.solve(S, Gp.reshape(-1, k) - A @ X)
         return out
 
+    def _directional_derivatives(self, t, q, qd, p, u, dy, dp):
+        n, m = self.n_coordinates, self.n_constraints
+        M, F, A, gamma, c = self._kernel("motion_tape", t, q, qd, None, p, u)
+        M = M.reshape(n, n)
+        self._factor(M, t, q)
+        a = np.linalg.solve(M, F)
+        al = a
+        if m:
+            a, lam, A, W, S = self._constrained(t, q, qd, p, u, M, a)
+            al = np.concatenate([a, lam])
+        tangent, c, al = self._kernels["motion_tangent"], c.tolist(), al.tolist()
+        out = np.empty((len(dy), 2 * n))
+        for s, (d, dps) in enumerate(zip(dy, dp)):
+            dR, dG = (np.array(v, dtype=np.float64)
+                      for v in tangent(c, al, d[:n].tolist(), d[n:].tolist(), dps.tolist()))
+            X = np.linalg.solve(M, dR)
+            if m:
+                X += W @ np.linalg.solve(S, dG - A @ X)
+            out[s, :n], out[s, n:] = d[n:], X
+        return np.concatenate([np.array(qd, dtype=np.float64), a]), out
+
     def _events(self, t, q, qd, p, u):
         if not self.event_definitions:
             return np.zeros(0)
@@ -314,6 +335,32 @@ def _state_arguments_caller(model, impl):
     return call
 
 
+def _directions_caller(model, impl):
+    n, n_params = model.n_coordinates, len(model.parameters)
+
+    def call(t, y, dy, dp=None, p=None, u=None):
+        y = as_vector(y, 2 * n, "y")
+        directions = np.asarray(dy, dtype=np.float64)
+        if directions.ndim not in (1, 2) or directions.shape[-1] != 2 * n:
+            raise ValueError(f"dy must have shape ({2 * n},) or (k, {2 * n}), got "
+                             f"{directions.shape}")
+        single, directions = directions.ndim == 1, directions.reshape(-1, 2 * n)
+        k = len(directions)
+        if dp is None:
+            dp = np.zeros((k, n_params))
+        dp = np.asarray(dp, dtype=np.float64)
+        if dp.shape not in ((k, n_params), (n_params,) if single else None):
+            raise ValueError(f"dp must have shape ({n_params},) or ({k}, {n_params}) to match "
+                             f"dy, got {dp.shape}")
+        dp = dp.reshape(k, n_params)
+        if not (np.isfinite(directions).all() and np.isfinite(dp).all()):
+            raise ValueError("dy and dp must be finite")
+        ydot, out = impl(float(t), y[:n].tolist(), y[n:].tolist(), *model._arguments(p, u),
+                         directions, dp)
+        return ydot, (out[0] if single else out)
+    return call
+
+
 def _implicit_caller(model, impl):
     n, m = model.n_coordinates, model.n_constraints
 
@@ -325,4 +372,4 @@ def _implicit_caller(model, impl):
 
 
 _CALLERS = {"state": _state_caller, "q": _coordinate_caller, "q_qd": _state_arguments_caller,
-            "implicit": _implicit_caller}
+            "directions": _directions_caller, "implicit": _implicit_caller}

@@ -159,43 +159,71 @@ class Recursion:
         out[np.ix_(self.coordinate, columns)] = B
         return out
 
-    def parameter_b(self, nodes, dv, dQ, a, A, n_params):
-        """P = ∂Q/∂p − ∂τ/∂p (n×n_params) at a, by tangent sweeps of the recursion, all
-        parameters at once (see lg_parameter_b in tree.c.in)."""
-        n, D = self.n, self.D
-        G, _, _ = self.forces(nodes, a, A)
-        P = np.zeros((n, n_params))
-        if len(dQ):
-            P[self.dQp[:, 0], self.dQp[:, 1]] = dQ
-        dnodes = np.zeros((n_params, n, nodes.shape[1]))
+    def parameter_records(self, dv, n_params, width):
+        """The node records' derivatives by each parameter, (n_params, n, width), from the
+        nonzero ones `dv` of the tree_parameters kernel."""
+        dnodes = np.zeros((n_params, self.n, width))
         params = np.repeat(np.arange(n_params), np.diff(self.dnode_start))
         if len(dv):
             dnodes[params, self.dnode[:, 0], self.dnode[:, 1]] = dv
-        S, m, uu = self.fields(nodes, self.node_fields, ("S", "mass", "u"))
+        return dnodes
 
-        def field(name):      # (n, n_params, D) or (n, n_params)
-            o = self.node_fields[name]
-            if _WIDTHS[name] == "D":
-                return dnodes[:, :, o:o + D].transpose(1, 0, 2)
-            return dnodes[:, :, o].T
-        dS, dkap, dm, du, dd, de, dh, dbase = (field(name) for name in
-                                               ("S", "kappa", "mass", "u", "d", "e", "h", "base"))
-        base, = self.fields(nodes, self.node_fields, ("base",))
-        dA = np.zeros((n, n_params, D))
+    def parameter_b(self, nodes, dv, dQ, a, A, n_params):
+        """P = ∂Q/∂p − ∂τ/∂p (n×n_params) at a, by tangent sweeps of the recursion, all
+        parameters at once (see lg_parameter_b in tree.c.in)."""
+        G, _, _ = self.forces(nodes, a, A)
+        P = np.zeros((self.n, n_params))
+        if len(dQ):
+            P[self.dQp[:, 0], self.dQp[:, 1]] = dQ
+        dnodes = self.parameter_records(dv, n_params, nodes.shape[1])
+        return P - self.tangent(nodes, a, A, G, dnodes=dnodes)
+
+    def tangent(self, nodes, a, A, G, dnodes=None, slopes=None, dy=None):
+        """δτ (n × columns, coordinate order) by one tangent sweep of the recursion per column at
+        a given a (see lg_tree_tangent in tree.c.in): the node records changing by `dnodes`
+        (columns × n × width) and/or each node's own coordinate and rate by `dy` (columns × 2n,
+        coordinate order) through its `slopes`."""
+        n, D = self.n, self.D
+        columns = len(dnodes) if dnodes is not None else len(dy)
+        S, m, uu, base = self.fields(nodes, self.node_fields, ("S", "mass", "u", "base"))
+        a_node = np.asarray(a, dtype=np.float64)[self.coordinate]
+        own = np.zeros((n, columns, D))          # each node's own change of its A_k
+        dbase = np.zeros((n, columns, D))
+        if dnodes is not None:
+            def field(name):      # (n, columns, D) or (n, columns)
+                o = self.node_fields[name]
+                if _WIDTHS[name] == "D":
+                    return dnodes[:, :, o:o + D].transpose(1, 0, 2)
+                return dnodes[:, :, o].T
+            dS, dkap, dm, du, dd, de, dh, dbase = (field(name) for name in (
+                "S", "kappa", "mass", "u", "d", "e", "h", "base"))
+            own += dS * a_node[:, None, None] + dkap
+        if dy is not None:
+            dq, dqd = dy[:, self.coordinate].T, dy[:, n + self.coordinate].T   # (n, columns)
+            sS, al, ald, su, c, cd, g, gd = self.fields(slopes, self.slope_fields, _SLOPE_NAMES)
+            own += al[:, None, :] * dq[:, :, None] + ald[:, None, :] * dqd[:, :, None]
+        dA = np.zeros((n, columns, D))
         for k in range(n):
             parent = self.parent[k]
-            dA[k] = (dA[parent] if parent >= 0 else dbase[k]) + dS[k] * a[self.coordinate[k]] \
-                + dkap[k]
-        dG = np.zeros((n, n_params, D))
+            dA[k] = (dA[parent] if parent >= 0 else dbase[k]) + own[k]
+        dG = np.zeros((n, columns, D))
+        dtau = np.zeros((n, columns))
         for k in range(n - 1, -1, -1):
             parent, ck = self.parent[k], self.coordinate[k]
             Ap = A[parent] if parent >= 0 else base[k]
             dAp = dA[parent] if parent >= 0 else dbase[k]
-            P[ck] -= (du[k] @ Ap + dAp @ uu[k] + dd[k] * a[ck] + dh[k] + dS[k] @ G[k]
-                      + dG[k] @ S[k])
+            x = dAp @ uu[k] + dG[k] @ S[k]
+            f = m[k] * dAp + dG[k]
+            if dnodes is not None:
+                x += du[k] @ Ap + dd[k] * a_node[k] + dh[k] + dS[k] @ G[k]
+                f += dm[k] * Ap + du[k] * a_node[k] + de[k]
+            if dy is not None:
+                x += (su[k] @ Ap + c[k] + sS[k] @ G[k]) * dq[k] + cd[k] * dqd[k]
+                f += g[k] * dq[k][:, None] + gd[k] * dqd[k][:, None]
+            dtau[ck] = x
             if parent >= 0:
-                dG[parent] += dm[k] * Ap + m[k] * dAp + du[k] * a[ck] + de[k] + dG[k]
-        return P
+                dG[parent] += f
+        return dtau
 
     def solve(self, nodes, factor, X):
         """M⁻¹·X for the n×k array X (rows: coordinates), with the recursion's factor."""
@@ -292,3 +320,30 @@ class RecursivePythonModel(PythonModel):
         P = self._tree.parameter_b(nodes, dv, dQ, qdd, A, k)
         out[n:] = self._tree.solve(nodes, factor, P)
         return out
+
+    def _directional_derivatives(self, t, q, qd, p, u, dy, dp):
+        """ẏ and, per direction, J·dy + ∂ẏ/∂p·dp: δR = δQ − δτ by tangent sweeps of the recursion
+        (all directions at once), then δq̈ = M⁻¹·δR by the recursion's solve (see
+        lg_tree_directions in tree.c.in)."""
+        n, k = self.n_coordinates, len(dy)
+        tree = self._tree
+        nodes, factor, qdd, A = self._factored(t, q, qd, p, u)
+        G, _, _ = tree.forces(nodes, qdd, A)
+        slopes, dQ, dQd = self._kernel("tree_slopes", t, q, qd, qdd.tolist(), p, u)
+        dnodes, R = None, np.zeros((n, k))
+        if len(self.parameters) and np.any(dp):
+            dv, dQp = self._kernel("tree_parameters", t, q, qd, qdd.tolist(), p, u)
+            per_parameter = tree.parameter_records(dv, len(self.parameters), nodes.shape[1])
+            dnodes = np.tensordot(dp, per_parameter, axes=1)
+            if len(dQp):
+                np.add.at(R, tree.dQp[:, 0], dQp[:, None] * dp[:, tree.dQp[:, 1]].T)
+        c = tree.coordinate
+        if len(dQ):
+            np.add.at(R, c[tree.dq[:, 0]], dQ[:, None] * dy[:, c[tree.dq[:, 1]]].T)
+        if len(dQd):
+            np.add.at(R, c[tree.dqd[:, 0]], dQd[:, None] * dy[:, n + c[tree.dqd[:, 1]]].T)
+        R -= tree.tangent(nodes, qdd, A, G, dnodes, slopes.reshape(n, -1), dy)
+        out = np.empty((k, 2 * n))
+        out[:, :n] = dy[:, n:]
+        out[:, n:] = tree.solve(nodes, factor, R).T
+        return np.concatenate([np.array(qd, dtype=np.float64), qdd]), out

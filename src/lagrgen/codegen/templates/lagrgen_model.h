@@ -13,6 +13,12 @@
 typedef int (*lg_function)(double t, const double *y, const double *p, const double *u,
                            double *out);
 
+/* A function of call style "directions" (lagrgen/functions.py: DIRECTIONS_SIGNATURE) takes k
+ * directions (dy_s: 2n doubles each, then dp_s: n_params each); it is listed in the table cast to
+ * lg_function and must be cast back to lg_directions_fn before it is called. */
+typedef int (*lg_directions_fn)(double t, const double *y, const double *p, const double *u,
+                                int k, const double *dy, const double *dp, double *out);
+
 typedef struct {
     const char *name;     /* the name in lagrgen/functions.py */
     lg_function fn;
