@@ -142,6 +142,17 @@ def threads_client():
         yield c
 
 
+def test_a_client_restarted_between_ensembles_gets_the_model_again(dask_client, tmp_path):
+    """client.restart() (workers restarted, their data dropped) between two calls: the second
+    ships the module again (it raised a raw TypeError from a cancelled future)."""
+    mod = lagrgen.build(spring("linear"), out_dir=tmp_path)
+    P = np.linspace(1.0, 3.0, 4)[:, None]
+    first = lagrgen.simulate_many(mod, (0, 1), [1.0, 0.0], params=P, t_eval=T, client=dask_client)
+    dask_client.restart()
+    again = lagrgen.simulate_many(mod, (0, 1), [1.0, 0.0], params=P, t_eval=T, client=dask_client)
+    np.testing.assert_array_equal(again.y, first.y)
+
+
 @pytest.mark.parametrize("cluster", ["processes", "threads"])
 def test_a_model_rebuilt_under_the_same_name_runs_its_own_equations(cluster, dask_client,
                                                                     threads_client, tmp_path):

@@ -701,7 +701,8 @@ def _worker_target(client, mod):
     """What a Dask task needs to find the model: a compiled model's module by content — its
     name, the SHA-256 of its file and the file's bytes (scattered to the workers once per client
     and content) — or the model object itself. A model rebuilt under the same name is another
-    content, so another file on the workers: never the module a worker loaded before."""
+    content, so another file on the workers: never the module a worker loaded before. Shipped
+    bytes the cluster no longer holds (`client.restart()`, lost workers) are shipped again."""
     if mod.backend != "c":
         return ("object", mod)
     with open(mod.__file__, "rb") as f:
@@ -709,7 +710,7 @@ def _worker_target(client, mod):
     digest = hashlib.sha256(data).hexdigest()
     key = (id(client), client.scheduler.address, digest)
     with _SCATTER_LOCK:
-        if key not in _SCATTERED:
+        if key not in _SCATTERED or _SCATTERED[key].status != "finished":
             _SCATTERED[key] = client.scatter(data, broadcast=True, hash=False)
         shipped = _SCATTERED[key]
     return ("module", (mod.__name__, os.path.basename(mod.__file__), digest, shipped))
