@@ -91,19 +91,25 @@ def check_numeric_options(args):
 
 
 # -- model files -------------------------------------------------------------------------------
-def models_in(path, names=None):
-    """The Model objects defined at top level of the model file `path` (optionally by name)."""
-    from ..model import Model
+def run_file(path, what):
+    """The top-level namespace of the Python file `path` (a `what` file: "model", "problem"), run
+    with its own directory on sys.path; a missing file or a syntax error is one LagrgenError."""
     path = Path(path)
     if not path.is_file():
-        raise LagrgenError(f"no model file {str(path)!r}")
+        raise LagrgenError(f"no {what} file {str(path)!r}")
     sys.path.insert(0, str(path.resolve().parent))
     try:
-        namespace = runpy.run_path(str(path), run_name=f"lagrgen_model_file_{path.stem}")
+        return runpy.run_path(str(path), run_name=f"lagrgen_{what}_file_{path.stem}")
     except SyntaxError as exc:
         raise LagrgenError(f"{exc.filename}, line {exc.lineno}: {exc.msg}") from None
     finally:
         sys.path.pop(0)
+
+
+def models_in(path, names=None):
+    """The Model objects defined at top level of the model file `path` (optionally by name)."""
+    from ..model import Model
+    namespace = run_file(path, "model")
     found, seen = [], set()
     for value in namespace.values():
         if isinstance(value, Model) and id(value) not in seen:

@@ -1,10 +1,6 @@
 """`python -m lagrgen optimize PROBLEM.py`: solve the collocation problem a file defines."""
-import runpy
-import sys
-from pathlib import Path
-
 from ..errors import LagrgenError
-from .arguments import command_parser
+from .arguments import command_parser, run_file
 
 
 def add(sub):
@@ -34,16 +30,7 @@ def add(sub):
 def problem_in(path):
     """(problem, guess) defined at top level of the file `path`."""
     from ..collocation import Collocation
-    path = Path(path)
-    if not path.is_file():
-        raise LagrgenError(f"no problem file {str(path)!r}")
-    sys.path.insert(0, str(path.resolve().parent))
-    try:
-        namespace = runpy.run_path(str(path), run_name=f"lagrgen_problem_file_{path.stem}")
-    except SyntaxError as exc:
-        raise LagrgenError(f"{exc.filename}, line {exc.lineno}: {exc.msg}") from None
-    finally:
-        sys.path.pop(0)
+    namespace = run_file(path, "problem")
     problem = namespace.get("problem")
     if not isinstance(problem, Collocation):
         raise LagrgenError(f"{path} defines no `problem` (a lagrgen.Collocation at module level; "
