@@ -115,6 +115,14 @@ double lg_signal_eval(const lg_signal_t *s, double t)
     }
 }
 
+/* A divisor b = br + i·bi prepared for Smith's quotient (1962): which part leads, the ratio r of
+ * the other to it and the denominator d, so that dividing many numbers by one b (the diagonal
+ * of U in the solves) takes two independent divisions each, bit for bit as cdiv. */
+typedef struct {
+    double r, d;
+    int real_leads;     /* |br| >= |bi| */
+} cdivisor_t;
+
 /* ------------------------------------------------------------------------------------------ */
 /* The solver state (one per solve; owned by lg_solve's stack frame and heap blocks)            */
 
@@ -143,12 +151,14 @@ typedef struct {
     /* implicit methods */
     double *J, *LU;          /* dim x dim */
     int *piv, *pivc;
-    double *LUc, *ctmp;      /* complex: real parts, then imaginary parts */
+    double *LUc;             /* complex: real parts, then imaginary parts */
+    cdivisor_t *udiv;        /* the diagonal of LUc's U, prepared for division */
     int have_lu, current_jac;
     int half;                /* n when J = [[0, I], [A, B]] (second_order_half), else 0 */
     int lu_half;             /* n when LU (and LUc) hold the reduced factors, else 0 */
     double lu_alpha, lu_beta;        /* LU factors alpha I - beta J */
     double luc_re, luc_im;           /* LUc factors sigma I - J, sigma = luc_re + i luc_im */
+    cdivisor_t sigma_div;            /* sigma, prepared for division */
     double h_abs_old, error_norm_old;
     int has_old;             /* Radau: h_abs_old / error_norm_old are not None */
     double *Z, *W, *dW, *F3, *Z0;   /* Radau: 3 x dim each */
@@ -343,21 +353,35 @@ static void lu_solve_real(const double *a, const int *piv, int n, double *b)
 /* Complex numbers with the textbook product (as Fortran's complex multiply) and Smith's
  * quotient: no calls to the C runtime's NaN-checking __muldc3. */
 
-/* (qr, qi) = (ar, ai) / (br, bi) (Smith 1962) */
-static void cdiv(double ar, double ai, double br, double bi, double *qr, double *qi)
+static cdivisor_t cdivisor(double br, double bi)
+{
+    cdivisor_t q;
+    q.real_leads = fabs(br) >= fabs(bi);
+    q.r = q.real_leads ? bi / br : br / bi;
+    q.d = q.real_leads ? br + bi * q.r : bi + br * q.r;
+    return q;
+}
+
+/* (qr, qi) = (ar, ai) / b for b prepared by cdivisor. */
+static inline void cdiv_by(double ar, double ai, const cdivisor_t *q, double *qr, double *qi)
 {
     double re, im;
-    if (fabs(br) >= fabs(bi)) {
-        double r = bi / br, d = br + bi * r;
-        re = (ar + ai * r) / d;
-        im = (ai - ar * r) / d;
+    if (q->real_leads) {
+        re = (ar + ai * q->r) / q->d;
+        im = (ai - ar * q->r) / q->d;
     } else {
-        double r = br / bi, d = bi + br * r;
-        re = (ar * r + ai) / d;
-        im = (ai * r - ar) / d;
+        re = (ar * q->r + ai) / q->d;
+        im = (ai * q->r - ar) / q->d;
     }
     *qr = re;
     *qi = im;
+}
+
+/* (qr, qi) = (ar, ai) / (br, bi) (Smith 1962) */
+static void cdiv(double ar, double ai, double br, double bi, double *qr, double *qi)
+{
+    cdivisor_t q = cdivisor(br, bi);
+    cdiv_by(ar, ai, &q, qr, qi);
 }
 
 /* (yr, yi)[i] -= (xr, xi)·(lr, li)[i], i < len: a complex axpy on split parts. */
@@ -631,21 +655,22 @@ static void factor_complex(solver_t *s, double sr, double si)
     int n = s->lu_half;
     s->luc_re = sr;
     s->luc_im = si;
-    if (n && schur_complex(s->J, n, sr, si, s->LUc, s->LUc + 2 * (size_t)n * n)) {
-        lu_complex(s->LUc, s->pivc, n);
-        return;
+    s->sigma_div = cdivisor(sr, si);
+    if (!(n && schur_complex(s->J, n, sr, si, s->LUc, s->LUc + 2 * (size_t)n * n))) {
+        if (n)
+            factor_real_full(s, s->lu_alpha, s->lu_beta);
+        n = s->dim;
+        size_t nn = (size_t)n * n;
+        for (int j = 0; j < n; ++j)
+            for (int i = 0; i < n; ++i) {
+                size_t c = i + (size_t)j * n;
+                s->LUc[c] = (i == j ? sr : 0.0) - s->J[i * n + j];
+                s->LUc[nn + c] = i == j ? si : 0.0;
+            }
     }
-    if (n)
-        factor_real_full(s, s->lu_alpha, s->lu_beta);
-    n = s->dim;
-    size_t nn = (size_t)n * n;
-    for (int j = 0; j < n; ++j)
-        for (int i = 0; i < n; ++i) {
-            size_t c = i + (size_t)j * n;
-            s->LUc[c] = (i == j ? sr : 0.0) - s->J[i * n + j];
-            s->LUc[nn + c] = i == j ? si : 0.0;
-        }
     lu_complex(s->LUc, s->pivc, n);
+    for (int k = 0; k < n; ++k)
+        s->udiv[k] = cdivisor(s->LUc[k + (size_t)k * n], s->LUc[(size_t)n * n + k + (size_t)k * n]);
 }
 
 /* b2 := b2 − L·b1, column by column (as the full lower solve's first n columns). */
@@ -671,12 +696,12 @@ static void solve_real(const solver_t *s, double *b)
         b[i] = (b[i] + beta * b[n + i]) / alpha;
 }
 
-/* A real and a complex system from their factors (a, piv: real n × n; c, pivc: complex), each
+/* A real and a complex system from their factors (a, piv: real n × n; c, pivc, udiv: complex), each
  * solved like lu_solve_real (same arithmetic), with the two systems' sweeps interleaved column
  * by column so that their chains of dependent updates (each column waits for the previous one's
  * division) overlap in the processor. x: the real right-hand side; (br, bi): the complex one. */
 static void lu_solve_pair(const double *a, const int *piv, const double *c, const int *pivc,
-                          int n, double *x, double *br, double *bi)
+                          const cdivisor_t *udiv, int n, double *x, double *br, double *bi)
 {
     size_t nn = (size_t)n * n;
     const double *re = c, *im = c + nn;
@@ -709,7 +734,7 @@ static void lu_solve_pair(const double *a, const int *piv, const double *c, cons
             axpy_sub(x, a + o, x[j], j);
         }
         if (br[j] != 0.0 || bi[j] != 0.0) {
-            cdiv(br[j], bi[j], re[o + j], im[o + j], br + j, bi + j);
+            cdiv_by(br[j], bi[j], udiv + j, br + j, bi + j);
             caxpy_sub(br, bi, re + o, im + o, br[j], bi[j], j);
         }
     }
@@ -722,7 +747,7 @@ static void solve_real_complex(const solver_t *s, double *b)
     int dim = s->dim, n = s->lu_half;
     double *x = b, *br = b + dim, *bi = b + 2 * dim;
     if (!n) {
-        lu_solve_pair(s->LU, s->piv, s->LUc, s->pivc, dim, x, br, bi);
+        lu_solve_pair(s->LU, s->piv, s->LUc, s->pivc, s->udiv, dim, x, br, bi);
         return;
     }
     const size_t nn = (size_t)n * n;
@@ -731,11 +756,11 @@ static void solve_real_complex(const solver_t *s, double *b)
     for (int k = 0; k < n; ++k)   /* d2 −= L·d1, as the full complex lower solve */
         if (br[k] != 0.0 || bi[k] != 0.0)
             caxpy_sub(br + n, bi + n, Lr + (size_t)k * n, Li + (size_t)k * n, br[k], bi[k], n);
-    lu_solve_pair(s->LU, s->piv, s->LUc, s->pivc, n, x + n, br + n, bi + n);
+    lu_solve_pair(s->LU, s->piv, s->LUc, s->pivc, s->udiv, n, x + n, br + n, bi + n);
     const double alpha = s->lu_alpha, beta = s->lu_beta;
     for (int i = 0; i < n; ++i) {
         x[i] = (x[i] + beta * x[n + i]) / alpha;
-        cdiv(br[i] + br[n + i], bi[i] + bi[n + i], s->luc_re, s->luc_im, br + i, bi + i);
+        cdiv_by(br[i] + br[n + i], bi[i] + bi[n + i], &s->sigma_div, br + i, bi + i);
     }
 }
 
@@ -1633,7 +1658,7 @@ static void set_message(lg_result_t *r, const char *fmt, ...)
 static void solver_free(solver_t *s)
 {
     void *blocks[] = {s->error_y, s->acc, s->y, s->y_old, s->y_new, s->f, s->u, s->scale, s->tmp, s->tmp2, s->ev_y, s->K,
-                      s->Q, s->dense_D, s->J, s->LU, s->piv, s->pivc, s->LUc, s->ctmp, s->Z,
+                      s->Q, s->dense_D, s->J, s->LU, s->piv, s->pivc, s->LUc, s->udiv, s->Z,
                       s->W, s->dW, s->F3, s->Z0, s->D};
     for (size_t i = 0; i < sizeof blocks / sizeof blocks[0]; ++i)
         free(blocks[i]);
@@ -1665,14 +1690,14 @@ static int solver_alloc(solver_t *s)
         s->piv = calloc(n + 1, sizeof(int));
         s->pivc = calloc(n + 1, sizeof(int));
         s->LUc = calloc(2 * nn + 2, sizeof(double));
-        s->ctmp = calloc(2 * n + 2, sizeof(double));
+        s->udiv = calloc(n + 1, sizeof(cdivisor_t));
         s->Z = calloc(3 * n + 1, sizeof(double));
         s->W = calloc(3 * n + 1, sizeof(double));
         s->dW = calloc(3 * n + 1, sizeof(double));
         s->F3 = calloc(3 * n + 1, sizeof(double));
         s->Z0 = calloc(3 * n + 1, sizeof(double));
         s->D = calloc((BDF_MAX_ORDER + 3) * n + 1, sizeof(double));
-        ok = ok && s->J && s->LU && s->piv && s->pivc && s->LUc && s->ctmp && s->Z && s->W
+        ok = ok && s->J && s->LU && s->piv && s->pivc && s->LUc && s->udiv && s->Z && s->W
              && s->dW && s->F3 && s->Z0 && s->D;
     }
     return ok ? 0 : -1;
