@@ -47,28 +47,26 @@ def touching_floors():
     return model
 
 
-def slot_model():
-    """A particle in a slot of width w (walls at x = 0 and x = w)."""
-    model = Model("slot")
+def walls(name, width, restitution):
+    """A particle between walls at x = 0 and x = w, struck with `restitution` at each."""
+    model = Model(name)
     x, = model.coordinates("x")
-    w, = model.parameters(w=1e-3)
+    w, = model.parameters(w=width)
     model.particle(1, sp.Matrix([x, 0]))
     model.potential_energy(G * x)
-    model.impact("left", x, restitution=0.0)
-    model.impact("right", w - x, restitution=0.0)
+    model.impact("left", x, restitution=restitution)
+    model.impact("right", w - x, restitution=restitution)
     return model
+
+
+def slot_model():
+    """A particle in a slot of width w (walls at x = 0 and x = w)."""
+    return walls("slot", 1e-3, 0.0)
 
 
 def elastic_slot_model():
-    """A particle bouncing elastically between walls at x = 0 and x = w (w = 1 nm: wedged)."""
-    model = Model("elastic_slot")
-    x, = model.coordinates("x")
-    w, = model.parameters(w=1e-9)
-    model.particle(1, sp.Matrix([x, 0]))
-    model.potential_energy(G * x)
-    model.impact("left", x, restitution=1.0)
-    model.impact("right", w - x, restitution=1.0)
-    return model
+    """A particle bouncing elastically between walls 1 nm apart (wedged)."""
+    return walls("elastic_slot", 1e-9, 1.0)
 
 
 @pytest.fixture(scope="module")
