@@ -702,7 +702,8 @@ def _worker_target(client, mod):
     name, the SHA-256 of its file and the file's bytes (scattered to the workers once per client
     and content) — or the model object itself. A model rebuilt under the same name is another
     content, so another file on the workers: never the module a worker loaded before. Shipped
-    bytes the cluster no longer holds (`client.restart()`, lost workers) are shipped again."""
+    bytes the cluster no longer holds (`client.restart()`, lost workers), or held for another
+    client that had this one's id and scheduler, are shipped again."""
     if mod.backend != "c":
         return ("object", mod)
     with open(mod.__file__, "rb") as f:
@@ -710,7 +711,10 @@ def _worker_target(client, mod):
     digest = hashlib.sha256(data).hexdigest()
     key = (id(client), client.scheduler.address, digest)
     with _SCATTER_LOCK:
-        if key not in _SCATTERED or _SCATTERED[key].status != "finished":
+        cached = _SCATTERED.get(key)
+        if cached is None or cached.client is not client or cached.status != "finished":
+            for stale in [k for k, f in _SCATTERED.items() if f.client.status == "closed"]:
+                del _SCATTERED[stale]       # keeps no closed client (and its bytes) alive
             _SCATTERED[key] = client.scatter(data, broadcast=True, hash=False)
         shipped = _SCATTERED[key]
     return ("module", (mod.__name__, os.path.basename(mod.__file__), digest, shipped))
