@@ -170,7 +170,7 @@ STAGES = [
     ("base", ["_version", "errors", "numbers", "names", "caching", "functions", "methods",
               "options", "signals", "toolchain"]),
     ("description", ["rotation", "bodies3d", "records", "checks", "description"]),
-    ("derivation", ["calculus", "terms", "contributions", "lagrange", "nonsmooth", "tree",
+    ("derivation", ["calculus", "terms", "frames", "contributions", "lagrange", "nonsmooth", "tree", "tree3d",
                     "dimensions"]),
     ("kernels", ["tangents", "kernels"]),
     ("code", ["codegen"]),
@@ -182,7 +182,7 @@ STAGES = [
                  "hybrid"]),
     ("analysis", ["linearization", "vibration", "stability", "sweep", "bench", "fit",
                   "collocation"]),
-    ("face", ["model", "sympy_interop", "expressions", "cli", "__main__", ""]),
+    ("face", ["model", "sympy_interop", "urdf", "expressions", "cli", "__main__", ""]),
 ]
 #: The package's sources in this checkout (the installed package has no .pyx files).
 PACKAGE = ROOT / "src" / "lagrgen"

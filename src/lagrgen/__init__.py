@@ -27,7 +27,7 @@ _LAZY = {
     "UnstableModeWarning": "vibration",
     "eigenvalue_sweep": "stability",
     "consistent_state": "constraints",
-    "from_sympy": "sympy_interop",
+    "from_sympy": "sympy_interop", "from_urdf": "urdf",
     "export_fmu": "build",
     "Collocation": "collocation", "CollocationResult": "collocation",
     "rotation": None,
@@ -37,7 +37,7 @@ __all__ = ["Model", "build", "load", "simulate", "evaluate_outputs", "output_eve
            "simulate_many", "EnsembleResult", "open_ensemble", "sweep", "equilibrium", "linearize",
            "modes", "eigenvalue_sweep",
            "frequency_response", "FrozenTimeWarning", "UnstableModeWarning", "FitWarning", "consistent_state",
-           "from_sympy", "export_fmu", "rotation", "Collocation", "CollocationResult",
+           "from_sympy", "from_urdf", "export_fmu", "rotation", "Collocation", "CollocationResult",
            "LagrgenError", "ConstraintError", "ModelError", "UnknownNameError", "MassMatrixError",
            "BuildError", "CompileError", "NonFiniteError", "ContactError", "StoreError", "StoreWarning",
            "__version__"]

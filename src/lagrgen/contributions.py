@@ -10,8 +10,8 @@ share of T, V, R and Q to the energies the outputs report.
 import symengine as se
 
 from .calculus import diff, rate
-from .records import (Body3D, Damper, Dissipation, Force, GeneralizedForce, KineticEnergy, Particle,
-                      PlanarBody, PotentialEnergy, Spring, Torque)
+from .records import (Articulation, Body3D, Damper, Dissipation, Force, GeneralizedForce,
+                      KineticEnergy, Particle, PlanarBody, PotentialEnergy, Spring, Torque)
 from .terms import Terms, expanded_terms
 
 
@@ -31,6 +31,7 @@ class Sums:
         self.F = [Terms(kinematic) for _ in range(n)]
         self.general_T = []
         self.particles = []     # constant masses (m, r), added to M and F by add_particles()
+        self.deferred = []      # what adds its kinetic terms to M and F only when they are formed
         self.T = self.V = self.R = se.Integer(0)
         self.Q = [se.Integer(0)] * n
 
@@ -86,6 +87,47 @@ def body_3d(record, sums):
     add_rotation(sums.M, sums.F, inertia, omega, sums.q, sums.qd, sums.t)
 
 
+def articulation(record, sums):
+    """T and V of every segment's body (`lagrgen.frames`); their terms of M and F are added only
+    when the dense equations are formed (`dense_articulation`): the recursive formulation needs
+    none of them."""
+    from . import frames
+    c = sums.convert
+    world = frames.frames(record, c, sums.q, sums.qd, sums.t)
+    gravity = [c(g) for g in record.gravity]
+    for frame in world:
+        sums.T += frames.kinetic_energy(frame)
+        sums.V += frames.potential_energy(frame, gravity)
+    sums.deferred.append(lambda: dense_articulation(record, world, sums))
+
+
+def dense_articulation(record, world, sums):
+    """Add each segment body's kinetic terms to M and F: a mass at its centre and its rotation
+    (`add_rotation`) when its mass is a nonzero number; otherwise a mass at the frame's origin,
+    the rotation about it and the cross term ṗ·(ω × R·h) as a general kinetic energy."""
+    from . import frames
+    omegas = frames.body_omega(record, sums.convert, sums.q, sums.qd, sums.t)
+    for frame, omega in zip(world, omegas):
+        m, h = frame.inertia[0], frame.inertia[1:4]
+        I_O = frames.symmetric(frame.inertia[4:])
+        if all(x == 0 for x in frame.inertia):
+            continue
+        if m.is_Number and m != 0 and all(x.is_Number for x in h):
+            c = [x / m for x in h]
+            I_c = [[I_O[i][j] - m * ((sum(x * x for x in c) if i == j else 0) - c[i] * c[j])
+                    for j in range(3)] for i in range(3)]
+            centre = [a + b for a, b in zip(frame.p, frames.apply(frame.R, c))]
+            sums.particles.append((m, centre))
+            add_rotation(sums.M, sums.F, I_c, omega, sums.q, sums.qd, sums.t)
+            continue
+        if m != 0:
+            sums.particles.append((m, frame.p))
+        add_rotation(sums.M, sums.F, I_O, omega, sums.q, sums.qd, sums.t)
+        if any(x != 0 for x in h):
+            sums.general_T.append(se.Add(*(a * b for a, b in zip(
+                frame.velocity, frames.cross(frame.omega, frames.apply(frame.R, h))))))
+
+
 def kinetic_energy(record, sums):
     """T += expr (differentiated as a whole)."""
     T = sums.convert(record.expr)
@@ -133,11 +175,24 @@ def generalized_force(record, sums):
 
 #: Record type -> its contribution function (one entry per physics kind of `lagrgen.records`).
 CONTRIBUTIONS = {
-    Particle: particle, PlanarBody: planar_body, Body3D: body_3d,
+    Particle: particle, PlanarBody: planar_body, Body3D: body_3d, Articulation: articulation,
     KineticEnergy: kinetic_energy, PotentialEnergy: potential_energy, Spring: spring,
     Damper: damper, Dissipation: dissipation,
     Force: force, Torque: torque, GeneralizedForce: generalized_force,
 }
+
+
+#: The records that add only to V, R or Q: none carries kinetic energy.
+APPLIED = (PotentialEnergy, Spring, Damper, Dissipation, Force, Torque, GeneralizedForce)
+
+
+def generalized_forces(records, convert, q, qd, t):
+    """Q_j = (applied forces)_j − ∂V/∂q_j − ∂R/∂q̇_j of the `records` (of the APPLIED kinds),
+    in the internal symbols."""
+    rest = Sums(convert, q, qd, t, kinematic=set())
+    for record in records:
+        CONTRIBUTIONS[type(record)](record, rest)
+    return [rest.Q[j] - diff(rest.V, q[j]) - diff(rest.R, qd[j]) for j in range(len(q))]
 
 
 # -- how kinetic energy enters M and F ------------------------------------------------------------

@@ -8,6 +8,8 @@ import functools
 
 import sympy as sp
 
+from .records import Articulation
+
 #: The outputs labelled with the energy unit.
 ENERGIES = ("kinetic_energy", "potential_energy", "total_energy")
 
@@ -84,6 +86,8 @@ def energy_unit(equations):
     spec = equations.spec
     if equations.energies is None or spec.external is not None:
         return None
+    if any(isinstance(r, Articulation) for r in spec.physics):
+        return "J"      # a robot of a URDF file: SI by the format's definition
     labels = dict(spec.units)
     names = spec.coordinate_names + spec.parameter_names + spec.input_names
     if all(unit_quantity(labels.get(name)) in (None, 1) for name in names):

@@ -63,6 +63,12 @@ class StoreWarning(UserWarning):
     failed."""
 
 
+class NotATree(Exception):
+    """Why a model is not (provably) a kinematic tree: raised and caught inside the derivation
+    (`lagrgen.tree`), which then keeps the dense formulation and says why when asked for the
+    recursive one."""
+
+
 class BuildError(LagrgenError, RuntimeError):
     """Generating, compiling or loading a compiled model failed."""
 

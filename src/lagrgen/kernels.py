@@ -243,19 +243,23 @@ def cse_kernel(spec, outputs, notes=None):
 
 
 def _tree_nodes(eq):
-    return {"nodes": tree.node_records(tree.analyse(eq))}
+    return {"nodes": tree.analyse(eq).node_records()}
 
 
 def _tree_slopes(eq):
+    """The planar tree's slopes (a spatial tree needs none: see lagrgen.tree3d) and ∂Q/∂y."""
     t = tree.analyse(eq)
     (_, dq), (_, dqd), _ = tree_gradients(eq)
-    return {"slopes": tree.slope_records(t, eq), "dQ": dq, "dQd": dqd}
+    slopes = tree.slope_records(t, eq) if t.kind == "planar" else []
+    return {"slopes": slopes, "dQ": dq, "dQd": dqd}
 
 
-def _node_notes(output, fields):
+def _node_notes(output, slopes=False):
     def notes(eq):
         t = tree.analyse(eq)
-        width = tree.record_width(fields, t.D)
+        if slopes and t.kind != "planar":
+            return {}
+        width = tree.record_width(tree.SLOPE_FIELDS, t.D) if slopes else t.width
         return {(output, k * width): note for k, note in enumerate(t.notes)}
     return notes
 
@@ -270,12 +274,12 @@ TREE_KERNELS = (
     KernelSpec("tree_nodes", "each node's terms of the recursion over the kinematic tree "
                "(lagrgen.tree.NODE_FIELDS), in node order",
                (Output("nodes", ("n", "node_width")),), _tree_nodes,
-               notes=_node_notes("nodes", tree.NODE_FIELDS)),
+               notes=_node_notes("nodes")),
     KernelSpec("tree_slopes", "the node terms' derivatives by their own q_k, q̇_k at a given "
                "a = q̈ (lagrgen.tree.SLOPE_FIELDS), and the nonzero entries of ∂Q/∂q, ∂Q/∂q̇",
                (Output("slopes", ("n", "slope_width")), Output("dQ", ("nnz_q",)),
                 Output("dQd", ("nnz_qd",))), _tree_slopes,
-               notes=_node_notes("slopes", tree.SLOPE_FIELDS)),
+               notes=_node_notes("slopes", slopes=True)),
     KernelSpec("dF_du", "∂F/∂u = ∂Q/∂u, n×n_inputs", (Output("dF_du", ("n", "n_inputs")),),
                lambda eq: {"dF_du": flatten(tree_gradients(eq)[2])}),
     KernelSpec("tree_parameters", "the nonzero derivatives of the node records and of Q by the "
@@ -285,7 +289,7 @@ TREE_KERNELS = (
                            "dQp": tree_parameter_gradients(eq)[1][1]}),
 )
 #: The dense kernels the recursive formulation keeps (none of them needs M or F).
-_KEPT = ("outputs", "events")
+_KEPT = ("outputs", "events", "nonsmooth")
 #: The kernels of each formulation, in the order they are generated.
 FORMULATION_KERNELS = {"dense": KERNELS,
                        "recursive": TREE_KERNELS + tuple(k for k in KERNELS if k.name in _KEPT)}

@@ -337,6 +337,8 @@ def dense_equations(spec, collected):
     q, qd, t = sums.q, sums.qd, sums.t
     n = len(q)
     sums.particles = list(collected.particles)
+    for deferred in sums.deferred:
+        deferred()
     sums.add_particles()
     M, F = sums.M, sums.F
     if sums.general_T:

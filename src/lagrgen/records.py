@@ -56,6 +56,37 @@ class Body3D:
 
 
 @dataclass(frozen=True)
+class Segment:
+    """One moving joint of an `Articulation` and the body it carries.
+
+    The segment's frame sits at `offset`, rotated by `rotation` (3×3, numbers), in its parent's
+    frame (parent −1: the fixed base, whose frame is the fixed frame), and then moves by `motion`
+    about (revolute) or along (prismatic) the unit `axis` (segment frame, numbers): `motion` is
+    the joint's coordinate q(t), or multiplier·q(t) + offset of the coordinate a mimic joint
+    follows. `inertia` is its body's (m, m·c_x, m·c_y, m·c_z, I_xx, I_xy, I_yy, I_xz, I_yz, I_zz)
+    about the segment frame's origin in its axes (SymPy numbers or parameter expressions; all
+    zero for a massless frame); `name` the joint's, `link` the body's (empty for none)."""
+    name: str
+    link: str
+    parent: int
+    kind: str
+    axis: tuple
+    rotation: sp.ImmutableMatrix
+    offset: sp.ImmutableMatrix
+    motion: sp.Expr
+    inertia: tuple
+
+
+@dataclass(frozen=True)
+class Articulation:
+    """A tree of rigid bodies joined by revolute and prismatic joints (`lagrgen.from_urdf`):
+    T of every segment's body, V = −Σ m·g·c of a uniform gravity `gravity` (3, fixed frame).
+    Segments come parents first."""
+    segments: tuple
+    gravity: sp.ImmutableMatrix
+
+
+@dataclass(frozen=True)
 class KineticEnergy:
     """T += expr."""
     expr: sp.Expr

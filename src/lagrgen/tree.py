@@ -37,12 +37,12 @@ from dataclasses import dataclass, field
 
 import symengine as se
 
+from . import tree3d
 from .calculus import diff
 from .caching import once_per
-from .contributions import CONTRIBUTIONS, Sums
-from .errors import ModelError
-from .records import (Body3D, Damper, Dissipation, Force, GeneralizedForce, PotentialEnergy,
-                      Spring, Torque)
+from .contributions import APPLIED, generalized_forces
+from .errors import ModelError, NotATree
+from .records import Body3D, PotentialEnergy
 
 #: The formulations a build can use: Cholesky of the dense M(q) (`lagrgen.kernels`), or the
 #: articulated-body recursion over a kinematic tree.
@@ -84,6 +84,19 @@ class Tree:
     Q: list
     base: list = field(default_factory=list)
     notes: list = field(default_factory=list)
+    kind = "planar"
+
+    @property
+    def fields(self):
+        """(name, width) of a node's record (NODE_FIELDS with "D" resolved)."""
+        return tuple((name, self.D if w == "D" else w) for name, w in NODE_FIELDS)
+
+    @property
+    def width(self):
+        return record_width(NODE_FIELDS, self.D)
+
+    def node_records(self):
+        return node_records(self)
 
     @property
     def n(self):
@@ -136,10 +149,6 @@ def field_offsets(fields, D):
     return out
 
 
-class NotATree(Exception):
-    """Why a model is not (provably) a kinematic tree."""
-
-
 @once_per
 def analysed(eq):
     """(`Tree`, None) for the `Equations` `eq` of a kinematic tree, else (None, the reason)."""
@@ -174,6 +183,8 @@ def choose(eq, formulation):
 # -- detection -----------------------------------------------------------------------------------
 def _tree(eq):
     spec = eq.spec
+    if tree3d.is_spatial(spec):
+        return tree3d.spatial_tree(eq)
     if spec.external is not None:
         raise NotATree("its M and F come from outside (from_sympy)")
     if eq.m:
@@ -372,7 +383,7 @@ def _loads(eq, particles, leaf, coordinate):
     for b, j in enumerate(leaf):
         by_leaf.setdefault(j, []).append(b)
     moving = set(eq.qd) | set(eq.u) | {eq.t}
-    loads, rest = {}, Sums(convert, q, eq.qd, eq.t, kinematic=set())
+    loads, rest = {}, []
     for record in spec.physics:
         if isinstance(record, PotentialEnergy):
             found = _particle_potential(convert(record.expr), particles, by_leaf, depth, q, moving)
@@ -381,10 +392,9 @@ def _loads(eq, particles, leaf, coordinate):
                 load = loads.setdefault(b, [se.Integer(0)] * len(particles[b][1]))
                 load[i] -= c
                 continue
-        if isinstance(record, (PotentialEnergy, Spring, Damper, Dissipation, Force, Torque,
-                               GeneralizedForce)):
-            CONTRIBUTIONS[type(record)](record, rest)
-    Q = [rest.Q[j] - diff(rest.V, q[j]) - diff(rest.R, eq.qd[j]) for j in range(eq.n)]
+        if isinstance(record, APPLIED):
+            rest.append(record)
+    Q = generalized_forces(rest, convert, q, eq.qd, eq.t)
     return loads, Q
 
 
@@ -529,8 +539,8 @@ def parameter_gradients(tree, eq):
     """(([(node, offset, parameter)], [∂record/∂p]), ([(coordinate, parameter)], [∂Q/∂p])): the
     nonzero derivatives of the node records (offset within a record) and of Q by the parameters,
     the first sorted by parameter."""
-    width = record_width(NODE_FIELDS, tree.D)
-    records = node_records(tree)
+    width = tree.width
+    records = tree.node_records()
     entries = []
     for pos, expr in enumerate(records):
         free = expr.free_symbols
@@ -555,4 +565,6 @@ def parameter_gradients(tree, eq):
 def explicit_time(tree, eq):
     """True if the equations depend on t explicitly (for a tree: through Q and the supports'
     motion)."""
+    if tree.kind == "spatial":
+        return tree3d.explicit_time(tree, eq)
     return any(eq.t in e.free_symbols for e in list(tree.Q) + [x for b in tree.base for x in b])

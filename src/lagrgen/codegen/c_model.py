@@ -6,7 +6,7 @@ from string import Template
 from ..functions import DIRECTIONS_SIGNATURE, FUNCTIONS
 from ..kernels import KERNELS, kernel_names, model_kernels
 from .printer import c_function, in_lanes, kernel_statements
-from .tree_code import tree_c
+from .tree_code import template_name, tree_c
 
 TEMPLATES = Path(__file__).resolve().parent / "templates"
 SIGNATURE = "double t, const double *y, const double *p, const double *u, double *out"
@@ -217,7 +217,8 @@ def model_source(info, equations, max_statements=400, functions=FUNCTIONS):
     return Template(read_template("model.c.in")).substitute(
         substitutions(info), linalg=read_template("linalg.c.in"),
         recursive=int(recursive),
-        tree=tree_c(equations, read_template("tree.c.in"), kernel_names(names, formulation))
+        tree=tree_c(equations, read_template(template_name(equations)),
+                    kernel_names(names, formulation))
         if recursive else "",
         kernels=kernels, tu_setup=TU_SETUP if split else "",
         tu0_begin="#if LG_IN_TU(0)\n" if split else "", tu0_end="\n#endif" if split else "",

@@ -1,15 +1,25 @@
-"""The recursive formulation's code: the generic recursions of `templates/tree.c.in` filled with
-one model's kinematic tree (its node tables, record layout and sparsity of ∂Q/∂y), and the same
-tables for the Python backend (`lagrgen.runtime.tree`)."""
+"""The recursive formulation's code: the generic recursions of `templates/tree.c.in` (a planar
+tree, `lagrgen.tree`) or `templates/tree3d.c.in` (a three-dimensional one, `lagrgen.tree3d`)
+filled with one model's kinematic tree (its node tables, record layout and sparsity of ∂Q/∂y),
+and the same tables for the Python backend (`lagrgen.runtime.tree`, `lagrgen.runtime.tree3d`)."""
 from string import Template
 
 from .. import tree as trees
 from ..kernels import tree_gradients, tree_parameter_gradients
 
+#: The template of each kind of tree.
+TEMPLATES = {"planar": "tree.c.in", "spatial": "tree3d.c.in"}
+
+
+def template_name(equations):
+    """The C template of the equations' tree."""
+    return TEMPLATES[trees.analyse(equations).kind]
+
 
 def layout(equations):
-    """The tables of the equations' tree: {"D", "node_width", "slope_width", "coordinate",
-    "parent", "end", "dq", "dqd", "node_fields", "slope_fields"} (plain Python values)."""
+    """The tables of the equations' tree: {"kind", "node_width", "node_fields", "coordinate",
+    "parent", "end", "dq", "dqd", "dnode", "dnode_start", "dQp"}, and for a planar tree "D",
+    "slope_width", "slope_fields" (plain Python values)."""
     tree = trees.analyse(equations)
     (dq, _), (dqd, _), _ = tree_gradients(equations)
     (dnode, _), (dQp, _) = tree_parameter_gradients(equations)
@@ -19,15 +29,16 @@ def layout(equations):
         start[j + 1] += 1
     for j in range(n_params):
         start[j + 1] += start[j]
-    return {"D": tree.D,
-            "node_width": trees.record_width(trees.NODE_FIELDS, tree.D),
-            "slope_width": trees.record_width(trees.SLOPE_FIELDS, tree.D),
-            "coordinate": list(tree.coordinate), "parent": list(tree.parent),
-            "end": list(tree.end), "dq": _nodes(dq, tree), "dqd": _nodes(dqd, tree),
-            "dnode": [[k, o] for k, o, _ in dnode], "dnode_start": start,
-            "dQp": [list(ij) for ij in dQp],
-            "node_fields": trees.field_offsets(trees.NODE_FIELDS, tree.D),
-            "slope_fields": trees.field_offsets(trees.SLOPE_FIELDS, tree.D)}
+    out = {"kind": tree.kind, "node_width": tree.width,
+           "node_fields": trees.field_offsets(tree.fields, None),
+           "coordinate": list(tree.coordinate), "parent": list(tree.parent),
+           "end": list(tree.end), "dq": _nodes(dq, tree), "dqd": _nodes(dqd, tree),
+           "dnode": [[k, o] for k, o, _ in dnode], "dnode_start": start,
+           "dQp": [list(ij) for ij in dQp]}
+    if tree.kind == "planar":
+        out.update(D=tree.D, slope_width=trees.record_width(trees.SLOPE_FIELDS, tree.D),
+                   slope_fields=trees.field_offsets(trees.SLOPE_FIELDS, tree.D))
+    return out
 
 
 def _nodes(pairs, tree):
@@ -41,20 +52,21 @@ def _ints(values):
 
 
 def tree_c(equations, template, kernels=("tree_nodes", "tree_slopes", "tree_parameters")):
-    """`template` (the text of tree.c.in) for the equations' tree, in a unit that has the
-    `kernels` (names: the parts calling tree_slopes or tree_parameters are compiled when they are
-    among them)."""
+    """`template` (the text of the tree's template, `template_name`) for the equations' tree, in
+    a unit that has the `kernels` (names: the parts calling tree_slopes or tree_parameters are
+    compiled when they are among them)."""
     tables = layout(equations)
     n = len(tables["coordinate"])
     names = {"d": "DD"}
     offsets = [f"#define TREE_{names.get(name, name.upper())} {offset}"
                for name, offset in tables["node_fields"].items()]
     offsets += [f"#define TREE_{name.upper()} {offset}"
-                for name, offset in tables["slope_fields"].items()]
+                for name, offset in tables.get("slope_fields", {}).items()]
     return Template(template).substitute(
         has_slopes=int("tree_slopes" in kernels),
         has_parameters=int("tree_parameters" in kernels),
-        tree_d=tables["D"], node_width=tables["node_width"], slope_width=tables["slope_width"],
+        tree_d=tables.get("D", 0), node_width=tables["node_width"],
+        slope_width=tables.get("slope_width", 0),
         nnz_q=len(tables["dq"]), nnz_qd=len(tables["dqd"]), field_offsets="\n".join(offsets),
         coordinates=_ints(tables["coordinate"]), parents=_ints(tables["parent"]),
         ends=_ints(tables["end"]), dq_index=_ints([i for ij in tables["dq"] for i in ij]),

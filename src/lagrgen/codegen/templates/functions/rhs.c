@@ -1,6 +1,5 @@
 #if LG_RECURSIVE
-    lg_tree w;
-    if (lg_tree_rhs(t, y, y + N, p, u, &w, out + N))
+    if (lg_tree_qdd(t, y, y + N, p, u, out + N))
         return 1;
 #else
     double M[N * N];

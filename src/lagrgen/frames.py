@@ -1,0 +1,161 @@
+"""World frames of an `Articulation`'s segments (SymEngine, internal symbols), composed from the
+parent's down the tree, as nested (not expanded) expressions.
+
+Segment k's frame has the orientation R_k = R_λ·P_k·J_k (P_k its placement's rotation, J_k the
+rotation of a revolute joint by its motion θ_k about the unit axis a: I + sin θ·[a]× +
+(1 − cos θ)·[a]×²; the identity for a prismatic one) and the origin p_k = p_λ + R_λ·(o_k + P_k·a·θ_k)
+(the last term for a prismatic joint only). Its angular velocity is ω_k = ω_λ + R_λ·P_k·a·θ̇_k
+(revolute), its origin's velocity ṗ_k = ṗ_λ + ω_λ × (p_k − p_λ) + R_λ·P_k·a·θ̇_k (prismatic); the
+joint's twist per unit rate, in Plücker coordinates at the fixed origin O, is
+s_k = [ω_a; p_k × ω_a] with ω_a = R_λ·P_k·a (revolute) or [0; R_λ·P_k·a] (prismatic).
+
+A body of dynamic parameters (m, h = m·c, I_O) about its frame's origin, in its axes, has at O in
+fixed axes the parameters (m, h_w, Ī) with h_w = m·p + R·h and
+Ī = R·I_O·Rᵀ + m·((p·p)·1 − p·pᵀ) + 2·(p·h')·1 − p·h'ᵀ − h'·pᵀ (h' = R·h): the spatial inertia
+[[Ī, [h_w]×], [[h_w]×ᵀ, m·1]].
+"""
+from dataclasses import dataclass
+
+import symengine as se
+
+from .calculus import rate
+
+ZERO = se.Integer(0)
+
+
+@dataclass
+class Frame:
+    """One segment's world frame: R (3×3 lists), p, omega (ω), velocity (ṗ), twist (6: the
+    joint's s_k), motion (θ_k) and inertia (the body's 10 parameters about its origin, its axes),
+    all SymEngine."""
+    R: list
+    p: list
+    omega: list
+    velocity: list
+    twist: list
+    motion: object
+    inertia: list
+
+
+def matmul(A, B):
+    return [[se.Add(*(A[i][k] * B[k][j] for k in range(3))) for j in range(3)] for i in range(3)]
+
+
+def apply(A, v):
+    return [se.Add(*(A[i][k] * v[k] for k in range(3))) for i in range(3)]
+
+
+def transpose(A):
+    return [[A[j][i] for j in range(3)] for i in range(3)]
+
+
+def cross(a, b):
+    """a × b of 3-lists."""
+    return [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
+
+
+def skew(a):
+    return [[ZERO, -a[2], a[1]], [a[2], ZERO, -a[0]], [-a[1], a[0], ZERO]]
+
+
+def axis_rotation(axis, angle):
+    """Rodrigues' rotation by `angle` about the unit `axis` (numbers): I + s·[a]× + (1 − c)·[a]×²."""
+    a = [se.sympify(x) for x in axis]
+    K = skew(a)
+    K2 = matmul(K, K)
+    s, c = se.sin(angle), se.cos(angle)
+    return [[(1 if i == j else 0) + s * K[i][j] + (1 - c) * K2[i][j] for j in range(3)]
+            for i in range(3)]
+
+
+def frames(record, convert, q, qd, t):
+    """The `Frame` of every segment of the Articulation `record`, in segment order."""
+    out = []
+    eye = [[se.Integer(int(i == j)) for j in range(3)] for i in range(3)]
+    zero3 = [ZERO] * 3
+    for segment in record.segments:
+        parent = out[segment.parent] if segment.parent >= 0 else \
+            Frame(eye, zero3, zero3, zero3, None, None, None)
+        P = [[convert(x) for x in row] for row in segment.rotation.tolist()]
+        o = [convert(x) for x in segment.offset]
+        theta = convert(segment.motion)
+        theta_rate = rate(theta, q, qd, t)
+        RP = matmul(parent.R, P)
+        direction = apply(RP, [se.sympify(x) for x in segment.axis])
+        if segment.kind == "revolute":
+            R = matmul(RP, axis_rotation(segment.axis, theta))
+            p = [a + b for a, b in zip(parent.p, apply(parent.R, o))]
+            omega = [a + d * theta_rate for a, d in zip(parent.omega, direction)]
+            velocity = [a + b for a, b in zip(parent.velocity,
+                                             cross(parent.omega, apply(parent.R, o)))]
+            twist = direction + cross(p, direction)
+        else:
+            R = RP
+            arm = apply(parent.R, o)
+            arm = [a + d * theta for a, d in zip(arm, direction)]
+            p = [a + b for a, b in zip(parent.p, arm)]
+            omega = list(parent.omega)
+            velocity = [a + b + d * theta_rate for a, b, d in
+                        zip(parent.velocity, cross(parent.omega, arm), direction)]
+            twist = [ZERO] * 3 + direction
+        out.append(Frame(R, p, omega, velocity, twist, theta,
+                         [convert(x) for x in segment.inertia]))
+    return out
+
+
+def symmetric(six):
+    """The 3×3 lists of a symmetric matrix given as (xx, xy, yy, xz, yz, zz)."""
+    xx, xy, yy, xz, yz, zz = six
+    return [[xx, xy, xz], [xy, yy, yz], [xz, yz, zz]]
+
+
+def world_inertia(frame):
+    """(m, h_w (3), Ī (xx, xy, yy, xz, yz, zz)): the body's spatial inertia at the fixed origin in
+    fixed axes (see the module's docstring)."""
+    m, h, I_O = frame.inertia[0], frame.inertia[1:4], symmetric(frame.inertia[4:])
+    R, p = frame.R, frame.p
+    hr = apply(R, h)
+    I = matmul(matmul(R, I_O), transpose(R))
+    pp, ph = se.Add(*(x * x for x in p)), se.Add(*(x * y for x, y in zip(p, hr)))
+    Ibar = [[I[i][j] + m * ((pp if i == j else 0) - p[i] * p[j])
+             + ((2 * ph) if i == j else 0) - p[i] * hr[j] - hr[i] * p[j]
+             for j in range(3)] for i in range(3)]
+    hw = [m * x + y for x, y in zip(p, hr)]
+    return [m] + hw + [Ibar[0][0], Ibar[0][1], Ibar[1][1], Ibar[0][2], Ibar[1][2], Ibar[2][2]]
+
+
+def kinetic_energy(frame):
+    """T = ½·m·ṗ·ṗ + ṗ·(ω × R·h) + ½·ωᵀ·(R·I_O·Rᵀ)·ω of the frame's body."""
+    m, h, I_O = frame.inertia[0], frame.inertia[1:4], symmetric(frame.inertia[4:])
+    if all(x == 0 for x in frame.inertia):
+        return ZERO
+    R, v, w = frame.R, frame.velocity, frame.omega
+    wb = apply(transpose(R), w)
+    T = m * se.Add(*(x * x for x in v)) / 2
+    T += se.Add(*(a * b for a, b in zip(v, cross(w, apply(R, h)))))
+    T += se.Add(*(wb[i] * I_O[i][j] * wb[j] for i in range(3) for j in range(3))) / 2
+    return T
+
+
+def potential_energy(frame, gravity):
+    """V = −g·(m·p + R·h) of the frame's body in the uniform gravity g."""
+    m, h = frame.inertia[0], frame.inertia[1:4]
+    centre = [m * x + y for x, y in zip(frame.p, apply(frame.R, h))]
+    return -se.Add(*(g * c for g, c in zip(gravity, centre)))
+
+
+def body_omega(record, convert, q, qd, t):
+    """Each segment's angular velocity in its own axes, ω_k = (P_k·J_k)ᵀ·ω_λ + a·θ̇_k (revolute)."""
+    out = []
+    for segment in record.segments:
+        parent = out[segment.parent] if segment.parent >= 0 else [ZERO] * 3
+        P = [[convert(x) for x in row] for row in segment.rotation.tolist()]
+        theta = convert(segment.motion)
+        if segment.kind == "revolute":
+            PJ = matmul(P, axis_rotation(segment.axis, theta))
+            w = apply(transpose(PJ), parent)
+            w = [x + se.sympify(a) * rate(theta, q, qd, t) for x, a in zip(w, segment.axis)]
+        else:
+            w = apply(transpose(P), parent)
+        out.append(w)
+    return out

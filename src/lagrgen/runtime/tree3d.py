@@ -1,0 +1,320 @@
+"""The recursive formulation of a three-dimensional tree in NumPy: the Python backend of a model
+built with formulation="recursive" whose tree is spatial (the recursions of
+`lagrgen/codegen/templates/tree3d.c.in`, the same arithmetic on the same kernel outputs; see
+`lagrgen.tree3d` for the mathematics).
+"""
+import numpy as np
+
+from ..errors import MassMatrixError
+from .pymodel import PIVOT_TOL, PythonModel
+
+
+def crm(v, m):
+    """v × m of motions (…, 6)."""
+    w, vo = v[..., :3], v[..., 3:]
+    return np.concatenate([np.cross(w, m[..., :3]),
+                           np.cross(w, m[..., 3:]) + np.cross(vo, m[..., :3])], axis=-1)
+
+
+def crf(v, f):
+    """v ×* f of a motion on a force (…, 6)."""
+    w, vo = v[..., :3], v[..., 3:]
+    return np.concatenate([np.cross(w, f[..., :3]) + np.cross(vo, f[..., 3:]),
+                           np.cross(w, f[..., 3:])], axis=-1)
+
+
+def inertia_matrix(Y):
+    """The 6×6 matrix of the inertia (m, h, Ī) (10 numbers)."""
+    m, h, I = Y[0], Y[1:4], Y[4:]
+    H = np.array([[0.0, -h[2], h[1]], [h[2], 0.0, -h[0]], [-h[1], h[0], 0.0]])
+    Ibar = np.array([[I[0], I[1], I[3]], [I[1], I[2], I[4]], [I[3], I[4], I[5]]])
+    return np.block([[Ibar, H], [H.T, m * np.eye(3)]])
+
+
+def inertia_apply(Y, m):
+    """Y·m for the inertia Y (10 numbers) and the motion m."""
+    return inertia_matrix(Y) @ m
+
+
+def force_derivative(Y, v):
+    """The 6×6 operator dY·ψ = v ×* (Y·ψ) − Y·(v × ψ) + ψ ×* (Y·v) (tree3d.c.in's
+    lg_sv_force_derivative, as a full matrix)."""
+    I6 = inertia_matrix(Y)
+    mom = I6 @ v
+    out = np.empty((6, 6))
+    for c in range(6):
+        e = np.zeros(6)
+        e[c] = 1.0
+        out[:, c] = crf(v, I6 @ e) - I6 @ crm(v, e) + crf(e, mom)
+    return out
+
+
+class SpatialRecursion:
+    """The tables of one model's spatial tree (`TREE` of its Python source) and the recursions."""
+
+    def __init__(self, tables):
+        self.coordinate = np.array(tables["coordinate"], dtype=np.intp)
+        self.parent = list(tables["parent"])
+        self.end = list(tables["end"])
+        self.n = len(self.parent)
+        self.fields = tables["node_fields"]
+        self.dq = np.array(tables["dq"], dtype=np.intp).reshape(-1, 2)
+        self.dqd = np.array(tables["dqd"], dtype=np.intp).reshape(-1, 2)
+        self.dnode = np.array(tables["dnode"], dtype=np.intp).reshape(-1, 2)
+        self.dnode_start = list(tables["dnode_start"])
+        self.dQp = np.array(tables["dQp"], dtype=np.intp).reshape(-1, 2)
+        self.path = []
+        for k in range(self.n):
+            up, i = [k], self.parent[k]
+            while i >= 0:
+                up.append(i)
+                i = self.parent[i]
+            self.path.append(up)
+
+    def split(self, nodes):
+        """(s, Y, base, Q in node order) of the node records (n × width)."""
+        o = self.fields
+        return (nodes[:, o["s"]:o["s"] + 6], nodes[:, o["Y"]:o["Y"] + 10],
+                nodes[:, o["base"]:o["base"] + 6], nodes[:, o["Q"]])
+
+    def motion(self, nodes, qd, a):
+        """(v, acc) of every node at q̇ and q̈ = a (coordinate order)."""
+        s, _, base, _ = self.split(nodes)
+        v, acc = np.zeros((self.n, 6)), np.zeros((self.n, 6))
+        for k in range(self.n):
+            parent, ck = self.parent[k], self.coordinate[k]
+            vp = v[parent] if parent >= 0 else np.zeros(6)
+            ap = acc[parent] if parent >= 0 else base[k]
+            v[k] = vp + s[k] * qd[ck]
+            acc[k] = ap + s[k] * a[ck] + crm(vp, s[k]) * qd[ck]
+        return v, acc
+
+    def forces(self, nodes, v, acc):
+        """The subtrees' inertia forces fc (n × 6) and τ (coordinate order)."""
+        s, Y, _, _ = self.split(nodes)
+        f = np.array([inertia_apply(Y[k], acc[k]) + crf(v[k], inertia_apply(Y[k], v[k]))
+                      for k in range(self.n)])
+        tau = np.empty(self.n)
+        for k in range(self.n - 1, -1, -1):
+            tau[self.coordinate[k]] = s[k] @ f[k]
+            if self.parent[k] >= 0:
+                f[self.parent[k]] += f[k]
+        return f, tau
+
+    def mass_matrix(self, nodes):
+        """M in node order by the composite-rigid-body algorithm."""
+        s, Y, _, _ = self.split(nodes)
+        Yc = np.array(Y)
+        M = np.zeros((self.n, self.n))
+        for k in range(self.n - 1, -1, -1):
+            F = inertia_apply(Yc[k], s[k])
+            for i in self.path[k]:
+                M[i, k] = M[k, i] = s[i] @ F
+            if self.parent[k] >= 0:
+                Yc[self.parent[k]] += Yc[k]
+        return M
+
+    def to_coordinates(self, M):
+        """A node-order matrix in coordinate order (rows and columns)."""
+        out = np.empty_like(M)
+        out[np.ix_(self.coordinate, self.coordinate)] = M
+        return out
+
+    def factor(self, M):
+        """The Cholesky factor of the node-order M (None when it is not positive definite, as
+        lg_tree_ltdl's pivot test)."""
+        if not np.isfinite(M).all():
+            return None
+        try:
+            L = np.linalg.cholesky(M)
+        except np.linalg.LinAlgError:
+            return None
+        if np.any(np.diagonal(L) ** 2 <= PIVOT_TOL * np.diagonal(M)):
+            return None
+        return L
+
+    def solve(self, L, X):
+        """M⁻¹·X for X in coordinate order (rows), with the node-order factor L."""
+        X = np.asarray(X, dtype=np.float64)
+        Xn = X[self.coordinate]
+        Yn = np.linalg.solve(L.T, np.linalg.solve(L, Xn))
+        out = np.empty_like(Yn)
+        out[self.coordinate] = Yn
+        return out
+
+    def b(self, nodes, qd, a, dQ, dQd):
+        """B = [∂Q/∂q − ∂τ/∂q | ∂Q/∂q̇ − ∂τ/∂q̇] (coordinate order) at q̈ = a (tree3d.c.in's
+        lg_tree_b)."""
+        n = self.n
+        s, Y, base, _ = self.split(nodes)
+        v, acc = self.motion(nodes, qd, a)
+        f, _ = self.forces(nodes, v, acc)
+        psi, alpha = np.zeros((n, 6)), np.zeros((n, 6))
+        Yc, dY = np.array(Y), np.zeros((n, 6, 6))
+        for k in range(n):
+            parent = self.parent[k]
+            vp = v[parent] if parent >= 0 else np.zeros(6)
+            ap = acc[parent] if parent >= 0 else base[k]
+            psi[k] = crm(vp, s[k])
+            alpha[k] = crm(ap, s[k]) + crm(vp, psi[k])
+            dY[k] = force_derivative(Y[k], v[k])
+        Bn = np.zeros((n, 2 * n))
+        Fa, G = np.zeros((n, 6)), np.zeros((n, 6))
+        for k in range(n - 1, -1, -1):
+            Fa[k] = inertia_apply(Yc[k], s[k])
+            G[k] = dY[k].T @ s[k]
+            dFq = inertia_apply(Yc[k], alpha[k]) + dY[k] @ psi[k] + crf(s[k], f[k])
+            dFv = inertia_apply(Yc[k], 2 * psi[k]) + dY[k] @ s[k]
+            for i in self.path[k]:
+                Bn[i, k] -= s[i] @ dFq
+                Bn[i, n + k] -= s[i] @ dFv
+            below = slice(k + 1, self.end[k])
+            Bn[below, k] -= Fa[below] @ alpha[k] + G[below] @ psi[k]
+            Bn[below, n + k] -= Fa[below] @ (2 * psi[k]) + G[below] @ s[k]
+            parent = self.parent[k]
+            if parent >= 0:
+                Yc[parent] += Yc[k]
+                dY[parent] += dY[k]
+        if len(dQ):
+            Bn[self.dq[:, 0], self.dq[:, 1]] += dQ
+        if len(dQd):
+            Bn[self.dqd[:, 0], n + self.dqd[:, 1]] += dQd
+        out = np.empty_like(Bn)
+        out[np.ix_(self.coordinate, np.concatenate([self.coordinate, n + self.coordinate]))] = Bn
+        return out
+
+    def tangent(self, nodes, dnodes, qd, a):
+        """δτ (coordinate order) of the inverse dynamics at q̈ = a when the node records change
+        by `dnodes` (tree3d.c.in's lg_tree_tangent)."""
+        n = self.n
+        s, Y, base, _ = self.split(nodes)
+        ds, dYn, dbase, _ = self.split(dnodes)
+        v, acc = self.motion(nodes, qd, a)
+        dv, dacc = np.zeros((n, 6)), np.zeros((n, 6))
+        f, df = np.zeros((n, 6)), np.zeros((n, 6))
+        for k in range(n):
+            parent, ck = self.parent[k], self.coordinate[k]
+            vp = v[parent] if parent >= 0 else np.zeros(6)
+            dvp = dv[parent] if parent >= 0 else np.zeros(6)
+            dap = dacc[parent] if parent >= 0 else dbase[k]
+            dv[k] = dvp + ds[k] * qd[ck]
+            dacc[k] = dap + ds[k] * a[ck] + (crm(dvp, s[k]) + crm(vp, ds[k])) * qd[ck]
+            mom = inertia_apply(Y[k], v[k])
+            f[k] = inertia_apply(Y[k], acc[k]) + crf(v[k], mom)
+            df[k] = (inertia_apply(dYn[k], acc[k]) + inertia_apply(Y[k], dacc[k])
+                     + crf(dv[k], mom)
+                     + crf(v[k], inertia_apply(dYn[k], v[k]) + inertia_apply(Y[k], dv[k])))
+        dtau = np.empty(n)
+        for k in range(n - 1, -1, -1):
+            dtau[self.coordinate[k]] = ds[k] @ f[k] + s[k] @ df[k]
+            parent = self.parent[k]
+            if parent >= 0:
+                f[parent] += f[k]
+                df[parent] += df[k]
+        return dtau
+
+    def parameter_records(self, dv, n_params, width):
+        """The node records' derivatives by each parameter, (n_params, n, width)."""
+        dnodes = np.zeros((n_params, self.n, width))
+        params = np.repeat(np.arange(n_params), np.diff(self.dnode_start))
+        if len(dv):
+            dnodes[params, self.dnode[:, 0], self.dnode[:, 1]] = dv
+        return dnodes
+
+
+class SpatialPythonModel(PythonModel):
+    """A `PythonModel` of the recursive formulation over a three-dimensional tree."""
+
+    def __init__(self, info, source):
+        super().__init__(info, source)
+        self._tree = SpatialRecursion(self._kernels["TREE"])
+
+    def _nodes(self, t, q, qd, p, u):
+        return self._kernel("tree_nodes", t, q, qd, None, p, u)[0].reshape(self.n_coordinates, -1)
+
+    def _inverse(self, nodes, qd, a):
+        v, acc = self._tree.motion(nodes, np.asarray(qd, dtype=float), np.asarray(a, dtype=float))
+        return self._tree.forces(nodes, v, acc)[1]
+
+    def _mf(self, t, q, qd, p, u):
+        nodes = self._nodes(t, q, qd, p, u)
+        tau = self._inverse(nodes, qd, np.zeros(self.n_coordinates))
+        Q = np.empty(self.n_coordinates)
+        Q[self._tree.coordinate] = self._tree.split(nodes)[3]
+        return self._tree.to_coordinates(self._tree.mass_matrix(nodes)), Q - tau
+
+    def _factored(self, t, q, qd, p, u):
+        """(node records, the node-order factor of M, q̈); MassMatrixError when M is not
+        positive definite."""
+        nodes = self._nodes(t, q, qd, p, u)
+        L = self._tree.factor(self._tree.mass_matrix(nodes))
+        if L is None:
+            raise MassMatrixError.at(self.name, t, q)
+        Q = np.empty(self.n_coordinates)
+        Q[self._tree.coordinate] = self._tree.split(nodes)[3]
+        qdd = self._tree.solve(L, Q - self._inverse(nodes, qd, np.zeros(self.n_coordinates)))
+        return nodes, L, qdd
+
+    def _b(self, t, q, qd, a, p, u, nodes=None):
+        if nodes is None:
+            nodes = self._nodes(t, q, qd, p, u)
+        _, dQ, dQd = self._kernel("tree_slopes", t, q, qd, list(a), p, u)
+        return self._tree.b(nodes, np.asarray(qd, dtype=float), np.asarray(a, dtype=float),
+                            dQ, dQd)
+
+    def _solved(self, t, q, qd, p, u):
+        M, _ = self._mf(t, q, qd, p, u)
+        return M, self._factored(t, q, qd, p, u)[2]
+
+    def _rhs(self, t, q, qd, p, u):
+        return np.concatenate([np.array(qd, dtype=np.float64), self._factored(t, q, qd, p, u)[2]])
+
+    def _jacobian(self, t, q, qd, p, u):
+        n = self.n_coordinates
+        nodes, L, qdd = self._factored(t, q, qd, p, u)
+        J = np.zeros((2 * n, 2 * n))
+        J[:n, n:] = np.eye(n)
+        J[n:] = self._tree.solve(L, self._b(t, q, qd, qdd, p, u, nodes))
+        return J
+
+    def _parameter_b(self, t, q, qd, a, p, u, nodes=None):
+        """P = ∂Q/∂p − ∂τ/∂p (n × n_params) at q̈ = a, by tangent sweeps."""
+        n, k = self.n_coordinates, len(self.parameters)
+        if nodes is None:
+            nodes = self._nodes(t, q, qd, p, u)
+        dv, dQ = self._kernel("tree_parameters", t, q, qd, list(a), p, u)
+        P = np.zeros((n, k))
+        if len(dQ):
+            P[self._tree.dQp[:, 0], self._tree.dQp[:, 1]] = dQ
+        dnodes = self._tree.parameter_records(dv, k, nodes.shape[1])
+        a = np.asarray(a, dtype=float)
+        for j in range(k):
+            if np.any(dnodes[j]):
+                P[:, j] -= self._tree.tangent(nodes, dnodes[j], np.asarray(qd, dtype=float), a)
+        return P
+
+    def _parameter_jacobian(self, t, q, qd, p, u):
+        n, k = self.n_coordinates, len(self.parameters)
+        out = np.zeros((2 * n, k))
+        if not k:
+            return out
+        nodes, L, qdd = self._factored(t, q, qd, p, u)
+        out[n:] = self._tree.solve(L, self._parameter_b(t, q, qd, qdd, p, u, nodes))
+        return out
+
+    def _residual_parameter_jacobian(self, t, q, qd, a, p, u):
+        k = len(self.parameters)
+        if not k:
+            return np.zeros((self.n_coordinates, 0))
+        return -self._parameter_b(t, q, qd, a[:self.n_coordinates], p, u)
+
+    def _directional_derivatives(self, t, q, qd, p, u, dy, dp):
+        n = self.n_coordinates
+        nodes, L, qdd = self._factored(t, q, qd, p, u)
+        R = self._b(t, q, qd, qdd, p, u, nodes) @ np.asarray(dy, dtype=float).T
+        if len(self.parameters) and np.any(dp):
+            R += self._parameter_b(t, q, qd, qdd, p, u, nodes) @ np.asarray(dp, dtype=float).T
+        out = np.empty((len(dy), 2 * n))
+        out[:, :n] = np.asarray(dy)[:, n:]
+        out[:, n:] = self._tree.solve(L, R).T
+        return np.concatenate([np.array(qd, dtype=np.float64), qdd]), out

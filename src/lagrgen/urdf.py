@@ -1,0 +1,572 @@
+"""Robots from URDF files: the file read and checked (`read`), then made a `lagrgen.Model`
+(`from_urdf`) whose bodies form a kinematic tree the recursive formulation runs in O(n).
+
+A URDF file (the Unified Robot Description Format of ROS) lists links (rigid bodies: mass, centre of
+mass and inertia about it, in the link frame) and joints (a parent link, a child link, the child
+frame's placement in the parent's, an axis and a type). Read here with the standard library's
+ElementTree: the format is a small XML vocabulary of which lagrgen needs links, joints, inertials,
+limits, dynamics and mimic tags, and every value must be checked anyway (a positive definite
+inertia, one root, no loop), which the URDF libraries of ROS (urdf_parser_py, yourdfpy, urchin) do
+not do; they would add lxml or trimesh for geometry lagrgen does not use. Documents with a DOCTYPE
+are refused (no entity is expanded).
+
+A fixed joint merges its child into its parent (the inertias added about a common frame). Each
+moving joint becomes one coordinate, named as the joint (characters a Python identifier does not
+allow become "_", a leading digit gets a leading "_"), and one input `tau_<joint>`, the torque
+(revolute, continuous) or force (prismatic) of its actuator.
+"""
+import keyword
+import math
+import re
+import xml.etree.ElementTree as ET
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from .errors import ModelError
+
+#: Joint types that carry a coordinate, and the fixed joint that merges two links.
+MOVING = ("revolute", "continuous", "prismatic")
+SUPPORTED = MOVING + ("fixed",)
+#: Relative tolerance of the checks of an inertia (positive semi-definite, triangle inequality).
+INERTIA_TOL = 1e-9
+
+
+class URDFError(ModelError):
+    """A URDF file cannot be read as a robot: the message names the element and what is wrong."""
+
+
+@dataclass(frozen=True)
+class Inertial:
+    """A link's mass, centre of mass `com` (link frame) and inertia about the centre (3×3, link
+    axes)."""
+    mass: float = 0.0
+    com: tuple = (0.0, 0.0, 0.0)
+    inertia: tuple = ((0.0, 0.0, 0.0), (0.0, 0.0, 0.0), (0.0, 0.0, 0.0))
+
+    @property
+    def origin_inertia(self):
+        """The inertia about the link frame's origin: I_c + m·(|c|²·1 − c·cᵀ) (3×3 array)."""
+        c = np.array(self.com)
+        return np.array(self.inertia) + self.mass * (c @ c * np.eye(3) - np.outer(c, c))
+
+
+@dataclass(frozen=True)
+class Limit:
+    """A joint's limits; None where the file gives none."""
+    lower: float = None
+    upper: float = None
+    velocity: float = None
+    effort: float = None
+
+
+@dataclass(frozen=True)
+class Joint:
+    """A joint of the file: the child frame is placed at `xyz`, rotated by `rotation` (3×3, from
+    the roll–pitch–yaw angles) in the parent's frame, and moves about / along the unit `axis`
+    (child frame) by its coordinate."""
+    name: str
+    kind: str
+    parent: str
+    child: str
+    xyz: tuple
+    rotation: tuple
+    axis: tuple
+    limit: Limit
+    damping: float = 0.0
+    friction: float = 0.0
+    mimic: tuple = None      # (joint name, multiplier, offset)
+
+
+@dataclass
+class Robot:
+    """A URDF robot: its links' inertials and its joints, checked to form one tree."""
+    name: str
+    links: dict                     # name -> Inertial
+    joints: list                    # Joint, in file order
+    root: str = None
+    children: dict = field(default_factory=dict)    # link -> [joints whose parent it is]
+
+    def parent_joint(self, link):
+        """The joint whose child is `link` (None for the root)."""
+        return next((j for j in self.joints if j.child == link), None)
+
+
+# -- reading -----------------------------------------------------------------------------------------
+def read(path):
+    """The `Robot` of the URDF file at `path`, checked (URDFError naming the element otherwise)."""
+    path = Path(path)
+    try:
+        text = path.read_bytes()
+    except OSError as exc:
+        raise URDFError(f"cannot read the URDF file {str(path)!r}: {exc.strerror or exc}") from None
+    return parse(text, str(path))
+
+
+def parse(text, where="<string>"):
+    """The `Robot` of the URDF document `text` (bytes or str)."""
+    if isinstance(text, str):
+        text = text.encode("utf-8")
+    if re.search(rb"<!(DOCTYPE|ENTITY)", text[:4096 * 16]):
+        raise URDFError(f"{where}: the document declares a DOCTYPE or ENTITY; URDF files need "
+                        "none, and lagrgen expands none (remove the declaration)")
+    try:
+        root = ET.fromstring(text)
+    except ET.ParseError as exc:
+        raise URDFError(f"{where} is not well-formed XML: {exc}") from None
+    if root.tag != "robot":
+        raise URDFError(f"{where}: the root element is <{root.tag}>, a URDF file has <robot>")
+    name = root.get("name") or Path(where).stem
+    links = {}
+    for element in root.findall("link"):
+        link = _attribute(element, "name", "<link>")
+        if link in links:
+            raise URDFError(f"{where}: two <link> elements are named {link!r}")
+        links[link] = _inertial(element, link)
+    joints, seen = [], set()
+    for element in root.findall("joint"):
+        joint = _joint(element, links)
+        if joint.name in seen:
+            raise URDFError(f"{where}: two <joint> elements are named {joint.name!r}")
+        seen.add(joint.name)
+        joints.append(joint)
+    robot = Robot(name, links, joints)
+    _check_tree(robot, where)
+    _check_mimics(robot)
+    return robot
+
+
+def _attribute(element, key, what):
+    value = element.get(key)
+    if value is None or not value.strip():
+        raise URDFError(f"{what} has no {key!r} attribute")
+    return value.strip()
+
+
+def _number(text, what):
+    try:
+        value = float(text)
+    except (TypeError, ValueError):
+        raise URDFError(f"{what} is {text!r}, not a number") from None
+    if not math.isfinite(value):
+        raise URDFError(f"{what} is {text!r}: a URDF value must be a finite number")
+    return value
+
+
+def _vector(element, key, what, default=(0.0, 0.0, 0.0)):
+    if element is None or element.get(key) is None:
+        return tuple(default)
+    parts = element.get(key).split()
+    if len(parts) != 3:
+        raise URDFError(f"{what} {key}={element.get(key)!r} must have 3 numbers")
+    return tuple(_number(p, f"{what} {key}") for p in parts)
+
+
+def rpy_matrix(rpy):
+    """R = Rz(yaw)·Ry(pitch)·Rx(roll) of URDF's fixed-axis roll–pitch–yaw angles (3×3 tuple)."""
+    r, p, y = rpy
+    cr, sr, cp, sp_, cy, sy = math.cos(r), math.sin(r), math.cos(p), math.sin(p), \
+        math.cos(y), math.sin(y)
+    return ((cy * cp, cy * sp_ * sr - sy * cr, cy * sp_ * cr + sy * sr),
+            (sy * cp, sy * sp_ * sr + cy * cr, sy * sp_ * cr - cy * sr),
+            (-sp_, cp * sr, cp * cr))
+
+
+def _inertial(element, link):
+    what = f"link {link!r}"
+    inertial = element.find("inertial")
+    if inertial is None:
+        return Inertial()
+    mass_element = inertial.find("mass")
+    mass = _number(mass_element.get("value") if mass_element is not None else "0",
+                   f"the mass of {what}")
+    if mass < 0:
+        raise URDFError(f"the mass of {what} is {mass:g}: a mass cannot be negative")
+    origin = inertial.find("origin")
+    com = _vector(origin, "xyz", f"the <inertial><origin> of {what}")
+    R = np.array(rpy_matrix(_vector(origin, "rpy", f"the <inertial><origin> of {what}")))
+    tensor = inertial.find("inertia")
+    keys = ("ixx", "ixy", "ixz", "iyy", "iyz", "izz")
+    values = {k: _number(tensor.get(k, "0") if tensor is not None else "0",
+                         f"the inertia {k} of {what}") for k in keys}
+    I = np.array([[values["ixx"], values["ixy"], values["ixz"]],
+                  [values["ixy"], values["iyy"], values["iyz"]],
+                  [values["ixz"], values["iyz"], values["izz"]]])
+    check_inertia(I, what)
+    I = R @ I @ R.T
+    return Inertial(mass, com, tuple(map(tuple, (I + I.T) / 2)))
+
+
+def check_inertia(I, what):
+    """Raise URDFError unless the 3×3 inertia I about the centre of mass is positive
+    semi-definite and its principal moments satisfy the triangle inequality (each at most the
+    sum of the other two), within INERTIA_TOL of the largest."""
+    moments = np.linalg.eigvalsh(I)
+    scale = max(abs(moments).max(), 1e-300)
+    if moments.min() < -INERTIA_TOL * scale:
+        raise URDFError(f"the inertia of {what} is not positive semi-definite (principal "
+                        f"moments {np.array2string(moments, precision=6)}): check the signs of "
+                        "ixy, ixz, iyz")
+    a, b, c = moments
+    if c > a + b + INERTIA_TOL * scale:
+        raise URDFError(f"the inertia of {what} breaks the triangle inequality (principal moments "
+                        f"{np.array2string(moments, precision=6)}: the largest exceeds the sum "
+                        "of the other two, which no mass distribution gives)")
+
+
+def _joint(element, links):
+    name = _attribute(element, "name", "<joint>")
+    what = f"joint {name!r}"
+    kind = _attribute(element, "type", what)
+    if kind not in SUPPORTED:
+        raise URDFError(f"{what} has type {kind!r}, which lagrgen does not support: use revolute, "
+                        "continuous, prismatic or fixed (a floating base is "
+                        "from_urdf(..., base='floating'))")
+    ends = {}
+    for end in ("parent", "child"):
+        tag = element.find(end)
+        if tag is None or not tag.get("link"):
+            raise URDFError(f"{what} has no <{end} link=...>")
+        if tag.get("link") not in links:
+            raise URDFError(f"{what} names the {end} link {tag.get('link')!r}, which the file "
+                            "does not define")
+        ends[end] = tag.get("link")
+    origin = element.find("origin")
+    xyz = _vector(origin, "xyz", f"the <origin> of {what}")
+    rotation = rpy_matrix(_vector(origin, "rpy", f"the <origin> of {what}"))
+    axis = _vector(element.find("axis"), "xyz", f"the <axis> of {what}", (1.0, 0.0, 0.0))
+    norm = math.sqrt(sum(a * a for a in axis))
+    if kind in MOVING:
+        if norm < 1e-12:
+            raise URDFError(f"the <axis> of {what} is zero: give the direction it moves about "
+                            "or along")
+        axis = tuple(a / norm for a in axis)
+    limit = _limit(element.find("limit"), what, kind)
+    dynamics = element.find("dynamics")
+    damping = _number(dynamics.get("damping", "0"), f"the damping of {what}") \
+        if dynamics is not None else 0.0
+    friction = _number(dynamics.get("friction", "0"), f"the friction of {what}") \
+        if dynamics is not None else 0.0
+    if damping < 0 or friction < 0:
+        raise URDFError(f"the <dynamics> of {what} has a negative damping or friction")
+    mimic = element.find("mimic")
+    if mimic is not None and kind in MOVING:
+        mimic = (_attribute(mimic, "joint", f"the <mimic> of {what}"),
+                 _number(mimic.get("multiplier", "1"), f"the mimic multiplier of {what}"),
+                 _number(mimic.get("offset", "0"), f"the mimic offset of {what}"))
+    else:
+        mimic = None
+    return Joint(name, kind, ends["parent"], ends["child"], xyz, rotation, axis, limit, damping,
+                 friction, mimic)
+
+
+def _limit(element, what, kind):
+    if element is None:
+        return Limit()
+    values = {}
+    for key in ("lower", "upper", "velocity", "effort"):
+        text = element.get(key)
+        values[key] = None if text is None else _number(text, f"the limit {key} of {what}")
+    if kind == "continuous":
+        values["lower"] = values["upper"] = None
+    if values["lower"] is not None and values["upper"] is not None and \
+            values["lower"] > values["upper"]:
+        raise URDFError(f"the limits of {what} have lower {values['lower']:g} > upper "
+                        f"{values['upper']:g}")
+    for key in ("velocity", "effort"):
+        if values[key] is not None and values[key] < 0:
+            raise URDFError(f"the {key} limit of {what} is negative")
+    return Limit(**values)
+
+
+def _check_tree(robot, where):
+    """One root link, every other link the child of exactly one joint, no loop."""
+    parent_of = {}
+    for joint in robot.joints:
+        if joint.child in parent_of:
+            raise URDFError(f"link {joint.child!r} is the child of two joints "
+                            f"({parent_of[joint.child].name!r} and {joint.name!r}): a URDF robot "
+                            "is a tree, so a closed loop cannot be described")
+        if joint.child == joint.parent:
+            raise URDFError(f"joint {joint.name!r} joins link {joint.child!r} to itself")
+        parent_of[joint.child] = joint
+    roots = [link for link in robot.links if link not in parent_of]
+    if not roots:
+        raise URDFError(f"{where}: every link is the child of a joint: the joints form a loop")
+    if len(roots) > 1:
+        raise URDFError(f"{where} has {len(roots)} root links ({', '.join(map(repr, roots[:5]))}"
+                        f"{', ...' if len(roots) > 5 else ''}): a robot has one link that is no "
+                        "joint's child; join the others with fixed joints")
+    robot.root = roots[0]
+    robot.children = {link: [] for link in robot.links}
+    for joint in robot.joints:
+        robot.children[joint.parent].append(joint)
+    reached, stack = set(), [robot.root]
+    while stack:
+        link = stack.pop()
+        reached.add(link)
+        stack.extend(j.child for j in robot.children[link])
+    lost = [link for link in robot.links if link not in reached]
+    if lost:
+        joint = parent_of[lost[0]]
+        raise URDFError(f"the joints form a loop through link {lost[0]!r} (joint "
+                        f"{joint.name!r}): it cannot be reached from the root {robot.root!r}")
+
+
+def _check_mimics(robot):
+    moving = {j.name: j for j in robot.joints if j.kind in MOVING}
+    for joint in robot.joints:
+        if joint.mimic is None:
+            continue
+        target = moving.get(joint.mimic[0])
+        if target is None:
+            raise URDFError(f"joint {joint.name!r} mimics {joint.mimic[0]!r}, which is not a "
+                            "moving joint of the file")
+        if target.mimic is not None:
+            raise URDFError(f"joint {joint.name!r} mimics {target.name!r}, which itself mimics "
+                            f"{target.mimic[0]!r}: mimic the joint that moves")
+
+
+def identifier(name):
+    """The Python identifier a URDF name becomes: other characters as "_", a leading digit with
+    a leading "_", a keyword with a trailing "_"."""
+    out = re.sub(r"\W", "_", name, flags=re.ASCII)
+    if not out or out[0].isdigit():
+        out = "_" + out
+    return out + "_" if keyword.iskeyword(out) else out
+
+
+# -- the model -------------------------------------------------------------------------------------
+#: The floating base's coordinates (API order) and, in tree order, the joints that realise
+#: R = Rz(yaw)·Ry(pitch)·Rx(roll) after the translation: (name, kind, axis).
+FLOATING_BASE = (("base_x", "prismatic", (1.0, 0.0, 0.0)), ("base_y", "prismatic", (0.0, 1.0, 0.0)),
+                 ("base_z", "prismatic", (0.0, 0.0, 1.0)), ("base_yaw", "revolute", (0.0, 0.0, 1.0)),
+                 ("base_pitch", "revolute", (0.0, 1.0, 0.0)),
+                 ("base_roll", "revolute", (1.0, 0.0, 0.0)))
+FLOATING_ORDER = ("base_x", "base_y", "base_z", "base_roll", "base_pitch", "base_yaw")
+#: The ten inertial parameters of a body, in Pinocchio's order (API §21), and their units.
+INERTIAL_NAMES = ("m", "mx", "my", "mz", "Ixx", "Ixy", "Iyy", "Ixz", "Iyz", "Izz")
+INERTIAL_UNITS = ("kg",) + ("kg*m",) * 3 + ("kg*m^2",) * 6
+
+
+@dataclass
+class Part:
+    """A moving joint of the robot as the model sees it: its joint (None for a floating base's
+    own), parent part (−1: the fixed base), placement (R, o) in the parent's frame, kind, axis,
+    the body it carries (link name, 10 parameters about its origin) and its coordinate name."""
+    joint: object
+    name: str
+    parent: int
+    rotation: np.ndarray
+    offset: np.ndarray
+    kind: str
+    axis: tuple
+    link: str = ""
+    body: np.ndarray = field(default_factory=lambda: np.zeros(10))
+
+
+def parts(robot, base="fixed"):
+    """The robot's moving joints as `Part`s, parents first (depth first from the root link, in
+    file order), with the links that fixed joints join merged into the body before them."""
+    out = []
+    if base == "floating":
+        for name, kind, axis in FLOATING_BASE:
+            out.append(Part(None, name, len(out) - 1, np.eye(3), np.zeros(3),
+                            kind, axis))
+    owner0 = len(out) - 1
+    stack = [(robot.root, owner0, np.eye(3), np.zeros(3))]
+    if owner0 >= 0:
+        out[owner0].link = robot.root
+    while stack:
+        link, owner, R, p = stack.pop()
+        if owner >= 0:
+            out[owner].body = out[owner].body + _placed(robot.links[link], R, p)
+        for joint in reversed(robot.children[link]):
+            Rj, pj = R @ np.array(joint.rotation), p + R @ np.array(joint.xyz)
+            if joint.kind == "fixed":
+                stack.append((joint.child, owner, Rj, pj))
+                continue
+            out.append(Part(joint, identifier(joint.name), owner, Rj, pj,
+                            "prismatic" if joint.kind == "prismatic" else "revolute",
+                            joint.axis, joint.child))
+            stack.append((joint.child, len(out) - 1, np.eye(3), np.zeros(3)))
+    return _parents_first(out)
+
+
+def _parents_first(out):
+    """The parts in depth-first order (the stack above visits children last-in first-out, so
+    later siblings' subtrees may come first): renumbered so each subtree is contiguous, in
+    file order."""
+    children = {i: [] for i in range(-1, len(out))}
+    for i, part in enumerate(out):
+        children[part.parent].append(i)
+    order = []
+
+    def visit(i):
+        order.append(i)
+        for c in sorted(children[i]):
+            visit(c)
+    for root in sorted(children[-1]):
+        visit(root)
+    index = {old: new for new, old in enumerate(order)}
+    result = []
+    for old in order:
+        part = out[old]
+        part.parent = index[part.parent] if part.parent >= 0 else -1
+        result.append(part)
+    return result
+
+
+def _placed(inertial, R, p):
+    """A link's 10 parameters about the origin of the frame it is placed in at (R, p)."""
+    m = inertial.mass
+    c = p + R @ np.array(inertial.com)
+    I_O = R @ np.array(inertial.inertia) @ R.T + m * (c @ c * np.eye(3) - np.outer(c, c))
+    return np.array([m, *(m * c), I_O[0, 0], I_O[0, 1], I_O[1, 1], I_O[0, 2], I_O[1, 2],
+                     I_O[2, 2]])
+
+
+def _check_moving_mass(robot, found):
+    """URDFError for a moving joint whose subtree carries no mass or inertia (its row of M would
+    be zero)."""
+    carried = [np.abs(part.body).max() for part in found]
+    for i in reversed(range(len(found))):
+        if found[i].parent >= 0:
+            carried[found[i].parent] = max(carried[found[i].parent], carried[i])
+    for part, amount in zip(found, carried):
+        if amount == 0.0:
+            what = f"joint {part.joint.name!r}" if part.joint else f"the floating base ({part.name})"
+            raise URDFError(f"{what} of {robot.name!r} moves no mass or inertia (every link below "
+                            "it is massless), so the motion it allows has no inertia: give a link "
+                            "below it an <inertial>, or make the joint fixed")
+
+
+def from_urdf(path, name=None, base="fixed", gravity=(0.0, 0.0, -9.81), joint_dynamics=True,
+              parameters=None, mimic=True):
+    """A `lagrgen.Model` of the robot in the URDF file `path` (API §19).
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        The URDF file.
+    name : str, optional
+        The model's name (default: the robot's, made an identifier).
+    base : "fixed" or "floating"
+        "floating": the root link moves freely, with the coordinates base_x, base_y, base_z,
+        base_roll, base_pitch, base_yaw first (orientation Rz(yaw)·Ry(pitch)·Rx(roll)).
+    gravity : 3 numbers or expressions
+        The uniform gravity in the fixed frame, m/s².
+    joint_dynamics : bool
+        True: each joint's <dynamics damping friction> as viscous damping and Coulomb friction
+        (with sticking, `Model.friction`); False: rigid-body dynamics only (as Pinocchio's aba).
+    parameters : None or "inertial"
+        "inertial": each moving body's mass, mass times centre and inertia about its frame's
+        origin are parameters (names m_<link>, mx_<link>, ..., Izz_<link>) with the file's values
+        as defaults; None: the numbers folded into the generated code.
+    mimic : bool
+        True: a <mimic> joint follows its joint (q = multiplier·q_joint + offset) and has no
+        coordinate of its own; False: it is an independent joint (as Pinocchio reads it).
+
+    Returns
+    -------
+    lagrgen.Model
+        One coordinate per moving joint (revolute, continuous: an angle in rad; prismatic: a
+        displacement in m), named as the joint, and one input `tau_<joint>` each; the joints'
+        limits in `model.limits`.
+    """
+    import sympy as sp
+
+    from .model import Model
+    from .records import Articulation, Segment
+    if base not in ("fixed", "floating"):
+        raise ModelError(f"base must be 'fixed' or 'floating', got {base!r}")
+    if parameters not in (None, "inertial"):
+        raise ModelError(f"parameters must be None or 'inertial', got {parameters!r}")
+    try:
+        gravity = [sp.sympify(g) for g in gravity]
+    except (TypeError, sp.SympifyError):
+        raise ModelError(f"gravity must be 3 numbers (m/s² in the fixed frame), got "
+                         f"{gravity!r}") from None
+    if len(gravity) != 3:
+        raise ModelError(f"gravity must have 3 components, got {len(gravity)}")
+    robot = read(path)
+    found = parts(robot, base)
+    _check_moving_mass(robot, found)
+    names = [p.name for p in found]
+    clash = {n for n in names if names.count(n) > 1}
+    if clash:
+        raise URDFError(f"joints of {robot.name!r} have names that become the same coordinate "
+                        f"{sorted(clash)[0]!r}: rename one of them")
+    followers = {p.name: p.joint.mimic for p in found
+                 if mimic and p.joint is not None and p.joint.mimic is not None}
+    coordinate_parts = [p for p in found if p.name not in followers]
+    if base == "floating":
+        by_name = {p.name: p for p in coordinate_parts}
+        coordinate_parts = [by_name[n] for n in FLOATING_ORDER] + coordinate_parts[6:]
+    model = Model(name if name is not None else identifier(robot.name))
+    units = " ".join("m" if p.kind == "prismatic" else "rad" for p in coordinate_parts)
+    q = dict(zip((p.name for p in coordinate_parts),
+                 model.coordinates([p.name for p in coordinate_parts], units=units)))
+    inertias = _inertias(model, found, parameters)
+    tau = model.inputs([f"tau_{p.name}" for p in coordinate_parts],
+                       units=" ".join("N" if p.kind == "prismatic" else "N*m"
+                                      for p in coordinate_parts))
+    motion = {}
+    for p in found:
+        if p.name in followers:
+            target, multiplier, offset = followers[p.name]
+            motion[p.name] = sp.Float(multiplier) * q[identifier(target)] + sp.Float(offset)
+        else:
+            motion[p.name] = q[p.name]
+    segments = tuple(Segment(p.name, p.link, p.parent, p.kind, tuple(float(a) for a in p.axis),
+                             sp.ImmutableMatrix(_clean(p.rotation)),
+                             sp.ImmutableMatrix(_clean(p.offset).reshape(3, 1)),
+                             motion[p.name], inertias[k])
+                     for k, p in enumerate(found))
+    model._add(Articulation(segments, sp.ImmutableMatrix(gravity)))
+    for p, u in zip(coordinate_parts, tau):
+        model.generalized_force(q[p.name], u)
+    if joint_dynamics:
+        _joint_dynamics(model, found, motion)
+    model.urdf = robot
+    model.urdf_limits = {p.name: p.joint.limit for p in coordinate_parts if p.joint is not None}
+    return model
+
+
+def _clean(array):
+    """Floats with the round-off of exact angles (|x| < 1e-15 beside ±1) set to 0: a placement
+    rotated by exactly π/2 folds to zeros and ones in the generated code."""
+    a = np.array(array, dtype=float)
+    a[np.abs(a) < 1e-15] = 0.0
+    return a
+
+
+def _inertias(model, found, parameters):
+    """Each part's 10 inertial parameters: numbers, or with parameters="inertial" the parameters
+    m_<link>, ... (defaults the file's values) of every part that carries a link."""
+    import sympy as sp
+    out = []
+    for p in found:
+        values = _clean(p.body)
+        if parameters != "inertial" or not p.link:
+            out.append(tuple(sp.Float(v) if v else sp.Integer(0) for v in values))
+            continue
+        link = identifier(p.link)
+        symbols = model.parameters(**{f"{n}_{link}": (float(v), unit) for n, v, unit in
+                                      zip(INERTIAL_NAMES, values, INERTIAL_UNITS)})
+        out.append(tuple(symbols))
+    return out
+
+
+def _joint_dynamics(model, found, motion):
+    """Viscous damping (a damper on the joint's motion) and Coulomb friction with sticking
+    (`Model.friction` on its rate, normal force 1, coefficient the friction torque or force)."""
+    for p in found:
+        if p.joint is None:
+            continue
+        if p.joint.damping > 0:
+            model.damper(p.joint.damping, motion[p.name])
+        if p.joint.friction > 0:
+            model.friction(f"friction_{p.name}", motion[p.name].diff(model.t), 1,
+                           mu=p.joint.friction)
