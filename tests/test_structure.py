@@ -333,7 +333,8 @@ def test_every_physics_record_has_one_contribution_function():
     kinds = {cls for cls in vars(records).values()
              if isinstance(cls, type) and dataclasses.is_dataclass(cls)}
     not_physics = {records.ModelSpec, records.Constraint, records.VelocityConstraint,
-                   records.ExternalEquations, records.Impact, records.Friction}
+                   records.ExternalEquations, records.Impact, records.Friction,
+                   records.Segment}
     assert kinds - not_physics == set(contributions.CONTRIBUTIONS)
     assert len(set(contributions.CONTRIBUTIONS.values())) == len(contributions.CONTRIBUTIONS)
 
