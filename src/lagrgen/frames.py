@@ -58,12 +58,27 @@ def skew(a):
     return [[ZERO, -a[2], a[1]], [a[2], ZERO, -a[0]], [-a[1], a[0], ZERO]]
 
 
+def number(x):
+    """A SymEngine number of the float x: an integer where it is one (so that 0 and ±1 fold)."""
+    return se.Integer(int(x)) if float(x).is_integer() else se.Float(x)
+
+
 def axis_rotation(axis, angle):
-    """Rodrigues' rotation by `angle` about the unit `axis` (numbers): I + s·[a]× + (1 − c)·[a]×²."""
-    a = [se.sympify(x) for x in axis]
+    """The rotation by `angle` about the unit `axis` (numbers): the elementary rotation about
+    ±x, ±y or ±z, else Rodrigues' I + s·[a]× + (1 − c)·[a]×²."""
+    a = [number(x) for x in axis]
+    s, c = se.sin(angle), se.cos(angle)
+    if sorted(abs(float(x)) for x in axis) == [0.0, 0.0, 1.0]:
+        i = next(k for k, x in enumerate(axis) if x)
+        sign = a[i]
+        j, k = (i + 1) % 3, (i + 2) % 3
+        R = [[se.Integer(0)] * 3 for _ in range(3)]
+        R[i][i] = se.Integer(1)
+        R[j][j] = R[k][k] = c
+        R[k][j], R[j][k] = sign * s, -sign * s
+        return R
     K = skew(a)
     K2 = matmul(K, K)
-    s, c = se.sin(angle), se.cos(angle)
     return [[(1 if i == j else 0) + s * K[i][j] + (1 - c) * K2[i][j] for j in range(3)]
             for i in range(3)]
 
@@ -81,7 +96,7 @@ def frames(record, convert, q, qd, t):
         theta = convert(segment.motion)
         theta_rate = rate(theta, q, qd, t)
         RP = matmul(parent.R, P)
-        direction = apply(RP, [se.sympify(x) for x in segment.axis])
+        direction = apply(RP, [number(x) for x in segment.axis])
         if segment.kind == "revolute":
             R = matmul(RP, axis_rotation(segment.axis, theta))
             p = [a + b for a, b in zip(parent.p, apply(parent.R, o))]
@@ -154,7 +169,7 @@ def body_omega(record, convert, q, qd, t):
         if segment.kind == "revolute":
             PJ = matmul(P, axis_rotation(segment.axis, theta))
             w = apply(transpose(PJ), parent)
-            w = [x + se.sympify(a) * rate(theta, q, qd, t) for x, a in zip(w, segment.axis)]
+            w = [x + number(a) * rate(theta, q, qd, t) for x, a in zip(w, segment.axis)]
         else:
             w = apply(transpose(P), parent)
         out.append(w)

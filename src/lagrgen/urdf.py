@@ -520,8 +520,7 @@ def from_urdf(path, name=None, base="fixed", gravity=(0.0, 0.0, -9.81), joint_dy
         else:
             motion[p.name] = q[p.name]
     segments = tuple(Segment(p.name, p.link, p.parent, p.kind, tuple(float(a) for a in p.axis),
-                             sp.ImmutableMatrix(_clean(p.rotation)),
-                             sp.ImmutableMatrix(_clean(p.offset).reshape(3, 1)),
+                             _exact(_clean(p.rotation)), _exact(_clean(p.offset).reshape(3, 1)),
                              motion[p.name], inertias[k])
                      for k, p in enumerate(found))
     model._add(Articulation(segments, sp.ImmutableMatrix(gravity)))
@@ -542,6 +541,13 @@ def _clean(array):
     return a
 
 
+def _exact(array):
+    """A SymPy matrix of the floats of `array`, integers where they are (0 and ±1 fold)."""
+    import sympy as sp
+    return sp.ImmutableMatrix([[sp.Integer(int(x)) if float(x).is_integer() else sp.Float(x)
+                                for x in row] for row in np.atleast_2d(array)])
+
+
 def _inertias(model, found, parameters):
     """Each part's 10 inertial parameters: numbers, or with parameters="inertial" the parameters
     m_<link>, ... (defaults the file's values) of every part that carries a link."""
@@ -550,7 +556,7 @@ def _inertias(model, found, parameters):
     for p in found:
         values = _clean(p.body)
         if parameters != "inertial" or not p.link:
-            out.append(tuple(sp.Float(v) if v else sp.Integer(0) for v in values))
+            out.append(tuple(_exact(values.reshape(1, -1))))
             continue
         link = identifier(p.link)
         symbols = model.parameters(**{f"{n}_{link}": (float(v), unit) for n, v, unit in
