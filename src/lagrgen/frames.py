@@ -83,6 +83,16 @@ def axis_rotation(axis, angle):
             for i in range(3)]
 
 
+def rodrigues(axis, theta):
+    """The rotations by the angles `theta` (array) about the unit `axis`, (len(theta), 3, 3), in
+    NumPy: I + sin θ·[a]× + (1 − cos θ)·[a]×²."""
+    import numpy as np
+    a = np.asarray(axis, dtype=float)
+    K = np.array([[0.0, -a[2], a[1]], [a[2], 0.0, -a[0]], [-a[1], a[0], 0.0]])
+    theta = np.asarray(theta, dtype=float)[..., None, None]
+    return np.eye(3) + np.sin(theta) * K + (1 - np.cos(theta)) * (K @ K)
+
+
 def frames(record, convert, q, qd, t):
     """The `Frame` of every segment of the Articulation `record`, in segment order."""
     out = []

@@ -169,13 +169,19 @@ def analyse(eq):
 
 def choose(eq, formulation):
     """The formulation a build of `eq` uses: `formulation` when given ("dense", or "recursive",
-    checked), else "recursive" for a kinematic tree of at least RECURSIVE_FROM coordinates."""
+    checked), else "recursive" for a three-dimensional tree (its dense equations take minutes to
+    derive from a few joints on, and run slower) and for a planar one of at least
+    RECURSIVE_FROM coordinates."""
     if formulation not in (None,) + FORMULATIONS:
         raise ModelError(f"unknown formulation {formulation!r}: use 'dense', 'recursive' or None")
     if formulation == "recursive":
         analyse(eq)
         return "recursive"
-    if formulation == "dense" or eq.n < RECURSIVE_FROM:
+    if formulation == "dense":
+        return "dense"
+    if tree3d.is_spatial(eq.spec):
+        return "recursive" if analysed(eq)[0] is not None else "dense"
+    if eq.n < RECURSIVE_FROM:
         return "dense"
     return "recursive" if analysed(eq)[0] is not None else "dense"
 

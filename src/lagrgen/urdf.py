@@ -382,22 +382,22 @@ def parts(robot, base="fixed"):
         link, owner, R, p = stack.pop()
         if owner >= 0:
             out[owner].body = out[owner].body + _placed(robot.links[link], R, p)
-        for joint in reversed(robot.children[link]):
+        pending = []
+        for joint in robot.children[link]:
             Rj, pj = R @ np.array(joint.rotation), p + R @ np.array(joint.xyz)
             if joint.kind == "fixed":
-                stack.append((joint.child, owner, Rj, pj))
+                pending.append((joint.child, owner, Rj, pj))
                 continue
             out.append(Part(joint, identifier(joint.name), owner, Rj, pj,
                             "prismatic" if joint.kind == "prismatic" else "revolute",
                             joint.axis, joint.child))
-            stack.append((joint.child, len(out) - 1, np.eye(3), np.zeros(3)))
+            pending.append((joint.child, len(out) - 1, np.eye(3), np.zeros(3)))
+        stack.extend(reversed(pending))
     return _parents_first(out)
 
 
 def _parents_first(out):
-    """The parts in depth-first order (the stack above visits children last-in first-out, so
-    later siblings' subtrees may come first): renumbered so each subtree is contiguous, in
-    file order."""
+    """The parts renumbered depth first (each subtree contiguous, siblings in file order)."""
     children = {i: [] for i in range(-1, len(out))}
     for i, part in enumerate(out):
         children[part.parent].append(i)
@@ -523,7 +523,9 @@ def from_urdf(path, name=None, base="fixed", gravity=(0.0, 0.0, -9.81), joint_dy
                              _exact(_clean(p.rotation)), _exact(_clean(p.offset).reshape(3, 1)),
                              motion[p.name], inertias[k])
                      for k, p in enumerate(found))
-    model._add(Articulation(segments, sp.ImmutableMatrix(gravity)))
+    record = Articulation(segments, sp.ImmutableMatrix(gravity))
+    model._add(record)
+    model._drawables.append(("robot", (record,)))
     for p, u in zip(coordinate_parts, tau):
         model.generalized_force(q[p.name], u)
     if joint_dynamics:
@@ -576,3 +578,40 @@ def _joint_dynamics(model, found, motion):
         if p.joint.friction > 0:
             model.friction(f"friction_{p.name}", motion[p.name].diff(model.t), 1,
                            mu=p.joint.friction)
+
+
+def tree_text(robot, base="fixed"):
+    """The robot's kinematic tree as text: one line per link, below the joint that carries it
+    (type, axis, limits), its mass, and which links fixed joints merge into one body."""
+    moving = sum(1 for j in robot.joints if j.kind in MOVING)
+    mass = sum(link.mass for link in robot.links.values())
+    lines = [f"robot {robot.name}: {moving + (6 if base == 'floating' else 0)} coordinates, "
+             f"{len(robot.links)} links, {len(robot.joints)} joints, {mass:.4g} kg "
+             f"({'floating' if base == 'floating' else 'fixed'} base)"]
+
+    def joint_text(joint):
+        if joint.kind == "fixed":
+            return f"{joint.name} (fixed: merged into the body above)"
+        axis = " ".join(f"{a:g}" for a in joint.axis)
+        unit = "m" if joint.kind == "prismatic" else "rad"
+        limit = joint.limit
+        span = "" if limit.lower is None else f" [{limit.lower:g}, {limit.upper:g}] {unit}"
+        follows = f", mimics {joint.mimic[0]}" if joint.mimic else ""
+        return f"{joint.name} ({joint.kind} along {axis}{span}{follows})" \
+            if joint.kind == "prismatic" else \
+            f"{joint.name} ({joint.kind} about {axis}{span}{follows})"
+
+    def visit(link, prefix, last, joint):
+        mass_text = f"{robot.links[link].mass:.4g} kg"
+        head = link if joint is None else f"{joint_text(joint)} -> {link}"
+        marker = "" if joint is None else ("`-- " if last else "|-- ")
+        lines.append(f"{prefix}{marker}{head}, {mass_text}")
+        children = robot.children[link]
+        for i, child in enumerate(children):
+            visit(child.child, prefix + ("" if joint is None else ("    " if last else "|   ")),
+                  i == len(children) - 1, child)
+    if base == "floating":
+        lines.append("floating base: base_x, base_y, base_z, base_roll, base_pitch, base_yaw "
+                     "(orientation Rz(yaw)·Ry(pitch)·Rx(roll))")
+    visit(robot.root, "", True, None)
+    return "\n".join(lines)

@@ -40,9 +40,15 @@ def command_parser(subparsers, name, help, description, example):
 
 
 def add_model_file(parser):
-    parser.add_argument("model_file", help="a Python file that defines lagrgen.Model objects")
+    parser.add_argument("model_file", help="a Python file that defines lagrgen.Model objects, "
+                        "or a robot's URDF file (.urdf)")
     parser.add_argument("--model", action="append",
                         help="only the model of this name (may be repeated; default: all)")
+    parser.add_argument("--base", choices=("fixed", "floating"), default="fixed",
+                        help="a URDF file's root link: fixed (default) or floating (six "
+                        "coordinates base_x … base_yaw)")
+    parser.add_argument("--no-joint-dynamics", dest="joint_dynamics", action="store_false",
+                        help="a URDF file: leave out its joints' <dynamics> damping and friction")
 
 
 def add_common(parser):
@@ -106,15 +112,33 @@ def run_file(path, what):
         sys.path.pop(0)
 
 
-def models_in(path, names=None):
-    """The Model objects defined at top level of the model file `path` (optionally by name)."""
+def is_urdf(path):
+    """True for a robot's URDF file (by its suffix)."""
+    return Path(path).suffix.lower() == ".urdf"
+
+
+def urdf_options(args):
+    """The from_urdf options of a command's arguments (`add_model_file`)."""
+    return {"base": getattr(args, "base", "fixed"),
+            "joint_dynamics": getattr(args, "joint_dynamics", True)}
+
+
+def models_in(path, names=None, urdf=None):
+    """The Model objects defined at top level of the model file `path` (optionally by name), or
+    the robot of a URDF file (`lagrgen.from_urdf` with the options `urdf`)."""
     from ..model import Model
-    namespace = run_file(path, "model")
-    found, seen = [], set()
-    for value in namespace.values():
-        if isinstance(value, Model) and id(value) not in seen:
-            seen.add(id(value))
-            found.append(value)
+    if is_urdf(path):
+        from ..urdf import from_urdf
+        if not Path(path).is_file():
+            raise LagrgenError(f"no URDF file {str(path)!r}")
+        found = [from_urdf(path, **(urdf or {}))]
+    else:
+        namespace = run_file(path, "model")
+        found, seen = [], set()
+        for value in namespace.values():
+            if isinstance(value, Model) and id(value) not in seen:
+                seen.add(id(value))
+                found.append(value)
     if not found:
         raise LagrgenError(
             f"{path} defines no lagrgen.Model at top level: a model file must create one, "
@@ -134,7 +158,7 @@ def models_in(path, names=None):
 
 
 def single_model(args):
-    models = models_in(args.model_file, args.model)
+    models = models_in(args.model_file, args.model, urdf_options(args))
     if len(models) > 1:
         raise LagrgenError(f"{args.model_file} defines several models "
                            f"({', '.join(m.name for m in models)}): choose one with --model NAME")

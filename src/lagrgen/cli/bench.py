@@ -3,7 +3,8 @@ from pathlib import Path
 
 from ..errors import LagrgenError
 from ..methods import BENCH_METHODS
-from .arguments import add_model_file, command_parser, initial_state, models_in
+from .arguments import (add_model_file, command_parser, initial_state, models_in,
+                        urdf_options)
 
 
 def add(sub):
@@ -35,9 +36,9 @@ def run(args):
     if unknown:
         raise LagrgenError(f"--methods: unknown method {unknown[0]!r} (use {', '.join(BENCH_METHODS)})")
     reports = []
-    for model in models_in(args.model_file, args.model):
+    for model in models_in(args.model_file, args.model, urdf_options(args)):
         def fresh(name=model.name):
-            return models_in(args.model_file, [name])[0]
+            return models_in(args.model_file, [name], urdf_options(args))[0]
         y0 = initial_state(args.y0, model) if args.y0 or model.initial_values else None
         if y0 is not None and model.constraint_names:
             from ..build import build

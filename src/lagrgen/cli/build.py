@@ -1,5 +1,5 @@
 """`python -m lagrgen build MODEL.py`: derive, generate C, compile and cache every model."""
-from .arguments import add_common, command_parser, models_in
+from .arguments import add_common, command_parser, models_in, urdf_options
 
 
 def add(sub):
@@ -14,7 +14,7 @@ def add(sub):
 
 def run(args):
     from ..build import build
-    for model in models_in(args.model_file, args.model):
+    for model in models_in(args.model_file, args.model, urdf_options(args)):
         module = build(model, out_dir=args.out, verbose=args.verbose, quiet=args.quiet,
                        force=args.force)
         info = module.build_info

@@ -1,5 +1,5 @@
 """`python -m lagrgen export-c MODEL.py`: each model as plain C (`<name>_model.h`, `.c`)."""
-from .arguments import add_model_file, command_parser, models_in
+from .arguments import add_model_file, command_parser, models_in, urdf_options
 
 
 def add(sub):
@@ -17,7 +17,7 @@ def add(sub):
 
 def run(args):
     from ..build import export_c
-    for model in models_in(args.model_file, args.model):
+    for model in models_in(args.model_file, args.model, urdf_options(args)):
         paths = export_c(model, args.out)
         if not args.quiet:
             print(f"{model.name}: wrote {', '.join(str(p) for p in paths)}")

@@ -1,6 +1,7 @@
 """`python -m lagrgen export-fmu MODEL.py`: each model as an FMU (FMI 2.0 or 3.0, Model Exchange
 or Co-Simulation)."""
-from .arguments import add_model_file, command_parser, models_in, parameters_option
+from .arguments import (add_model_file, command_parser, models_in, parameters_option,
+                        urdf_options)
 
 
 def add(sub):
@@ -42,7 +43,7 @@ def add(sub):
 def run(args):
     from ..build import export_fmu
     from ..codegen.fmu import KIND_TITLES
-    for model in models_in(args.model_file, args.model):
+    for model in models_in(args.model_file, args.model, urdf_options(args)):
         params = parameters_option(args, model)
         path = export_fmu(model, args.out, params=params, start_time=args.start_time,
                           stop_time=args.stop_time, tolerance=args.tolerance, kind=args.kind,

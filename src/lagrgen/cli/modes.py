@@ -6,7 +6,8 @@ from pathlib import Path
 import numpy as np
 
 from .arguments import (add_run_options, assignments, build_for, column, command_parser,
-                        inputs_option, known_names, models_in, number, parameters_option)
+                        inputs_option, known_names, models_in, number, parameters_option,
+                        urdf_options)
 
 
 def add(sub):
@@ -34,7 +35,7 @@ def run(args):
     from ..outputs.plotting import plot_modes
     import warnings
     from ..vibration import FrozenTimeWarning, equilibrium, modes
-    models = models_in(args.model_file, args.model)
+    models = models_in(args.model_file, args.model, urdf_options(args))
     for k, model in enumerate(models):
         params = parameters_option(args, model)
         inputs = inputs_option(args, model, constant=True)

@@ -1,12 +1,13 @@
 """`python -m lagrgen show MODEL.py`: the equations of motion as text or LaTeX."""
-from .arguments import add_model_file, command_parser, models_in
+from .arguments import add_model_file, command_parser, is_urdf, models_in, urdf_options
 
 
 def add(sub):
     s = command_parser(sub, "show", help="print the equations of motion (plain text or LaTeX)",
                        description="Print each model's equations of motion, one line per "
                        "coordinate: sum_j M_ij q_j'' = F_i, with q' and q'' for the velocities and "
-                       "accelerations (LaTeX: \\dot{q}, \\ddot{q}).",
+                       "accelerations (LaTeX: \\dot{q}, \\ddot{q}); for a URDF file, the robot's "
+                       "kinematic tree.",
                        example="python -m lagrgen show examples/double_pendulum.py --latex")
     add_model_file(s)
     s.add_argument("--latex", action="store_true", help="print LaTeX (an aligned environment)")
@@ -17,7 +18,11 @@ def add(sub):
 
 def run(args):
     from ..outputs.display import render
+    if is_urdf(args.model_file):
+        from ..urdf import read, tree_text
+        print(tree_text(read(args.model_file), args.base))
+        return 0
     texts = [render(model, latex=args.latex, matrices=args.matrices, simplify=not args.raw)
-             for model in models_in(args.model_file, args.model)]
+             for model in models_in(args.model_file, args.model, urdf_options(args))]
     print("\n\n".join(texts))
     return 0

@@ -15,9 +15,9 @@ AXIS_COLOURS = ("tab:red", "tab:green", "tab:blue")
 
 
 def is_3d(model):
-    """True if the model has a 3-D body or a drawable point with 3 components."""
+    """True if the model has a 3-D body, a robot or a drawable point with 3 components."""
     for kind, points in model.drawables:
-        if kind == "body3d":
+        if kind in ("body3d", "robot"):
             return True
         if kind == "point":
             points = points[:1]          # (position, mass): the mass only sizes the marker
@@ -34,10 +34,57 @@ def spatial(model, position, p):
     return lambda t, q: np.stack([f(t, q) for f in parts], axis=-1)
 
 
+def robot_origins(model, record, p, t, q):
+    """The origins of a robot's segment frames along the frames, (segments, frames, 3), by its
+    forward kinematics in NumPy (`lagrgen.frames`, numerically)."""
+    from ..frames import rodrigues
+    origins, rotations = [], []
+    frames = np.shape(t)[0]
+    for segment in record.segments:
+        theta = numeric_function(model, segment.motion, p)(t, q)
+        P = np.array(segment.rotation.tolist(), dtype=float)
+        o = np.array(segment.offset, dtype=float).reshape(3)
+        axis = np.array(segment.axis, dtype=float)
+        if segment.parent >= 0:
+            R0, p0 = rotations[segment.parent], origins[segment.parent]
+        else:
+            R0, p0 = np.broadcast_to(np.eye(3), (frames, 3, 3)), np.zeros((frames, 3))
+        RP = R0 @ P
+        if segment.kind == "revolute":
+            origins.append(p0 + R0 @ o)
+            rotations.append(RP @ rodrigues(axis, theta))
+        else:
+            origins.append(p0 + R0 @ o + (RP @ axis) * theta[:, None])
+            rotations.append(RP)
+    return origins
+
+
+def robot_tracks(model, record, p, t, q):
+    """Line tracks from each link-carrying segment's origin to its parent link's (or to the
+    fixed origin for a root of a fixed base)."""
+    origins = robot_origins(model, record, p, t, q)
+    tracks = []
+    for k, segment in enumerate(record.segments):
+        if not segment.link:
+            continue
+        parent = segment.parent
+        while parent >= 0 and not record.segments[parent].link:
+            parent = record.segments[parent].parent
+        if parent >= 0:
+            tracks.append(("line", [origins[parent], origins[k]]))
+        elif segment.parent < 0:
+            tracks.append(("line", [np.zeros_like(origins[k]), origins[k]]))
+        tracks.append(("point", [origins[k]]))
+    return tracks
+
+
 def tracks_3d(model, p, t, q):
     """[(kind, data)] along the frames: (frames, 3) point arrays; (frames, 3, 3) R for bodies."""
     tracks = []
     for kind, points in model.drawables:
+        if kind == "robot":
+            tracks += robot_tracks(model, points[0], p, t, q)
+            continue
         if kind == "body3d":
             position, R = points
             Rn = np.stack([np.stack([numeric_function(model, R[i, j], p)(t, q) for j in range(3)],
