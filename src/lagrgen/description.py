@@ -311,7 +311,8 @@ class Description:
                              f"{len(position)}")
         kin = self._orientation(orientation, "rigid_body_3d orientation")
         self._drawables.append(("body3d", (position, kin.R)))
-        self._add(Body3D(mass, frozen(position), frozen(inertia), frozen(kin.omega)))
+        self._add(Body3D(mass, frozen(position), frozen(inertia), frozen(kin.omega), frozen(kin.R),
+                          frozen(kin.omega_fixed)))
 
     def torque_3d(self, moment, orientation):
         """A moment acting on the body of orientation R: Q_j += moment · ∂ω_fixed/∂q̇_j.

@@ -128,6 +128,32 @@ def frames(record, convert, q, qd, t):
     return out
 
 
+def cross6(a, b):
+    """a × b of two motions [ω; v] (6-lists): [ω_a × ω_b; ω_a × v_b + v_a × ω_b]."""
+    w = cross(a[:3], b[:3])
+    v = [x + y for x, y in zip(cross(a[:3], b[3:]), cross(a[3:], b[:3]))]
+    return w + v
+
+
+def diff(expr, symbol):
+    """∂expr/∂symbol (0 for a symbol it does not hold)."""
+    return expr.diff(symbol) if symbol in expr.free_symbols else ZERO
+
+
+def centre_inertia(body):
+    """(m, h, Ī) at the fixed origin of a body of mass m at its centre p with the inertia I
+    (about the centre, body axes) turned by R: h = m·p, Ī = R·I·Rᵀ + m·((p·p)·1 − p·pᵀ) (a
+    particle: I = 0)."""
+    m, p = body.mass, body.p
+    I = matmul(matmul(body.R, body.inertia), transpose(body.R)) if body.R is not None \
+        else [[ZERO] * 3 for _ in range(3)]
+    pp = se.Add(*(x * x for x in p))
+    Ibar = [[I[i][j] + m * ((pp if i == j else 0) - p[i] * p[j]) for j in range(3)]
+            for i in range(3)]
+    return [m] + [m * x for x in p] + [Ibar[0][0], Ibar[0][1], Ibar[1][1], Ibar[0][2],
+                                        Ibar[1][2], Ibar[2][2]]
+
+
 def symmetric(six):
     """The 3×3 lists of a symmetric matrix given as (xx, xy, yy, xz, yz, zz)."""
     xx, xy, yy, xz, yz, zz = six

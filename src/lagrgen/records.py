@@ -48,11 +48,15 @@ class PlanarBody:
 
 @dataclass(frozen=True)
 class Body3D:
-    """T += ½·mass·ṙ·ṙ + ½·ωᵀ·I·ω, ω the body-frame angular velocity (contains q̇), I constant."""
+    """T += ½·mass·ṙ·ṙ + ½·ωᵀ·I·ω, ω the body-frame angular velocity (contains q̇), I constant;
+    `orientation` the rotation R(q, t) (body → fixed components) ω comes from, `omega_fixed`
+    the angular velocity in fixed axes, R·ω."""
     mass: sp.Expr
     position: sp.ImmutableMatrix
     inertia: sp.ImmutableMatrix
     omega: sp.ImmutableMatrix
+    orientation: sp.ImmutableMatrix = None
+    omega_fixed: sp.ImmutableMatrix = None
 
 
 @dataclass(frozen=True)

@@ -241,7 +241,7 @@ def _placed(eq, particles, chosen, dims):
     q, names, n = eq.q, eq.spec.coordinate_names, eq.n
     moved = [frozenset(b for b in chosen if j in particles[b][2]) for j in range(n)]
     parent_coordinate = _forest(moved, names)
-    coordinate, parent, end = _preorder(parent_coordinate)
+    coordinate, parent, end = tree3d.preorder(parent_coordinate)
     node_of = {j: k for k, j in enumerate(coordinate)}
     leaf = []
     for _, _, cols in particles:
@@ -345,35 +345,6 @@ def _shared_columns(particles, leaf, dims, q, names, parent_coordinate, t):
             j = parent_coordinate[j]
     return [{d: (col if col is not None else [se.Integer(0)] * d) for d, col in Sj.items()}
             for Sj in S]
-
-
-def _preorder(parent_coordinate):
-    """(coordinate, parent, end) of the nodes in preorder: roots and children by index."""
-    n = len(parent_coordinate)
-    children = {j: [] for j in range(-1, n)}
-    for j in range(n):
-        children[parent_coordinate[j]].append(j)
-    coordinate, parent, end = [], [], [0] * n
-    node_of = {}
-
-    def visit(j, p):
-        k = len(coordinate)
-        node_of[j] = k
-        coordinate.append(j)
-        parent.append(p)
-        for c in children[j]:
-            visit(c, k)
-        end[k] = len(coordinate)
-
-    import sys
-    limit = sys.getrecursionlimit()
-    sys.setrecursionlimit(max(limit, 4 * n + 100))
-    try:
-        for root in children[-1]:
-            visit(root, -1)
-    finally:
-        sys.setrecursionlimit(limit)
-    return tuple(coordinate), tuple(parent), tuple(end)
 
 
 # -- the nodes' terms ----------------------------------------------------------------------------

@@ -24,6 +24,7 @@ The tree of a `from_urdf` model is its structure (an `Articulation` record); not
 kinetic energy beside it, and a joint that mimics another (one coordinate in two branches) leaves
 the model to the dense formulation.
 """
+import math
 from dataclasses import dataclass, field
 
 import symengine as se
@@ -31,7 +32,7 @@ import symengine as se
 from . import frames
 from .contributions import APPLIED, generalized_forces
 from .errors import NotATree
-from .records import Articulation
+from .records import Articulation, Body3D, Particle, PotentialEnergy
 
 #: Layout of one node's record in the tree_nodes kernel: (name, width).
 FIELDS = (("s", 6), ("Y", 10), ("base", 6), ("Q", 1))
@@ -79,7 +80,6 @@ class SpatialTree:
 def is_spatial(spec):
     """True if the model's bodies are three-dimensional (an articulation or 3-D rigid bodies):
     the recursion over its tree, if any, is this module's."""
-    from .records import Body3D
     return any(isinstance(r, (Articulation, Body3D)) for r in spec.physics)
 
 
@@ -90,8 +90,7 @@ def spatial_tree(eq):
         raise NotATree("it has constraints")
     articulations = [r for r in spec.physics if isinstance(r, Articulation)]
     if not articulations:
-        raise NotATree("its 3-D rigid bodies are not an articulation (from_urdf): the "
-                       "recursion over hand-written 3-D bodies is not available")
+        return _from_bodies(eq)
     if len(articulations) > 1:
         raise NotATree("it has two articulations")
     record = articulations[0]
@@ -154,3 +153,264 @@ def _subtree_ends(parent):
 def explicit_time(tree, eq):
     """True if the node terms or Q depend on t."""
     return any(eq.t in x.free_symbols for x in tree.node_records())
+
+
+def preorder(parent_coordinate):
+    """(coordinate, parent, end) of the nodes in preorder from {coordinate: parent coordinate or
+    −1}: roots and children by index, each subtree contiguous (`end`: one past its last node)."""
+    n = len(parent_coordinate)
+    children = {j: [] for j in range(-1, n)}
+    for j in range(n):
+        children[parent_coordinate[j]].append(j)
+    coordinate, parent, end = [], [], [0] * n
+    stack = [(root, -1) for root in reversed(children[-1])]
+    while stack:
+        j, p = stack.pop()
+        coordinate.append(j)
+        parent.append(p)
+        k = len(coordinate) - 1
+        stack.extend((c, k) for c in reversed(children[j]))
+    return tuple(coordinate), tuple(parent), _subtree_ends(tuple(parent))
+
+
+# -- hand-written bodies ----------------------------------------------------------------------------
+@dataclass(eq=False)
+class Body:
+    """A body of a hand-written model (internal symbols): mass, centre p (3), orientation R
+    (3×3, None for a particle), inertia about the centre in body axes (None for a particle),
+    angular velocity in fixed axes, and the coordinates it depends on."""
+    mass: object
+    p: list
+    R: list = None
+    inertia: list = None
+    omega: list = None
+    coordinates: frozenset = frozenset()
+
+
+def _from_bodies(eq):
+    """The tree of a model of `rigid_body_3d`s (and 3-D particles), proven from the expressions:
+    each coordinate q_j moves the bodies below it rigidly with one twist s_j(q) (the same for all
+    of them), fixed in the body above (∂s_j/∂q_k = s_k × s_j for k above j, 0 otherwise). The
+    identities are tested at random points with exact rational arithmetic (sin and cos of each
+    angle at a rational point of the unit circle), in floating point where a function other than
+    sin and cos of a coordinate remains (`Identities`). Potentials m_b·g·p_b,i of the bodies with
+    one g become gravity; everything else of V, R and Q is Q."""
+    spec, q, t = eq.spec, eq.q, eq.t
+    convert = eq.collected.convert
+    bodies, others = [], []
+    for record in spec.physics:
+        if isinstance(record, Body3D):
+            if record.orientation is None or record.omega_fixed is None:
+                raise NotATree("a 3-D body has no orientation recorded")
+            bodies.append(Body(convert(record.mass), [convert(x) for x in record.position],
+                               [[convert(x) for x in row] for row in record.orientation.tolist()],
+                               [[convert(x) for x in row] for row in record.inertia.tolist()],
+                               [convert(x) for x in record.omega_fixed]))
+        elif isinstance(record, Particle) and len(record.position) == 3:
+            bodies.append(Body(convert(record.mass), [convert(x) for x in record.position]))
+        elif isinstance(record, APPLIED):
+            others.append(record)
+        else:
+            raise NotATree(f"it has a {type(record).__name__} beside its 3-D bodies")
+    moving, index = set(q) | set(eq.qd) | {t}, {qj: j for j, qj in enumerate(q)}
+    for body in bodies:
+        free = set().union(*(x.free_symbols for x in body.p + [y for row in body.R or []
+                                                               for y in row]))
+        if t in free or body.mass.free_symbols & moving or any(
+                x.free_symbols & moving for row in body.inertia or [] for x in row):
+            raise NotATree("a body moves with t, or its mass or inertia varies")
+        body.coordinates = frozenset(index[s] for s in free if s in index)
+    bodies = [b for b in bodies if b.coordinates]
+    n = len(q)
+    moved = [frozenset(b for b, body in enumerate(bodies) if j in body.coordinates)
+             for j in range(n)]
+    for j in range(n):
+        if not any(bodies[b].R is not None for b in moved[j]):
+            raise NotATree(f"coordinate {spec.coordinate_names[j]!r} moves no 3-D rigid body")
+    twists = [_twist(eq, bodies, moved[j], j) for j in range(n)]
+    check = Identities(eq)
+    parent_coordinate = _chains(moved, twists, q, spec.coordinate_names, check)
+    coordinate, parent, end = preorder(parent_coordinate)
+    ancestors = {j: set() for j in range(n)}
+    for j in range(n):
+        k = parent_coordinate[j]
+        while k >= 0:
+            ancestors[j].add(k)
+            k = parent_coordinate[k]
+    for j in range(n):
+        for b in moved[j]:
+            if not check.same(_column(eq, bodies[b], j, twists[j]), twists[j]):
+                raise NotATree(f"the bodies moved by {spec.coordinate_names[j]!r} do not move "
+                               "as one rigid body with it")
+        for k in range(n):
+            expected = frames.cross6(twists[k], twists[j]) if k in ancestors[j] else [0] * 6
+            if k not in ancestors[j] and not any(q[k] in x.free_symbols for x in twists[j]):
+                continue
+            derivative = [frames.diff(x, q[k]) for x in twists[j]]
+            if not check.same(derivative, expected):
+                raise NotATree(f"the axis of {spec.coordinate_names[j]!r} is not fixed in the "
+                               f"body above it ({spec.coordinate_names[k]!r} turns it otherwise)")
+    node_of = {j: k for k, j in enumerate(coordinate)}
+    leaf = []
+    for body in bodies:
+        own = max(body.coordinates, key=node_of.get)
+        if any(j != own and j not in ancestors[own] for j in body.coordinates):
+            raise NotATree("a body depends on coordinates of two branches")
+        leaf.append(own)
+    gravity, rest = _gravity(eq, bodies, others, convert)
+    Q = generalized_forces(rest, convert, q, eq.qd, t)
+    zero = se.Integer(0)
+    records, notes = [], []
+    names = spec.coordinate_names
+    for k, j in enumerate(coordinate):
+        carried = [b for b, own in enumerate(leaf) if own == j]
+        Y = [zero] * 10
+        for b in carried:
+            Y = [a + c for a, c in zip(Y, frames.centre_inertia(bodies[b]))]
+        base = [zero] * 3 + [-g for g in gravity] if parent[k] < 0 else [zero] * 6
+        records.append(list(twists[j]) + Y + base + [Q[j]])
+        above = f", below {names[coordinate[parent[k]]]}" if parent[k] >= 0 else ", a root"
+        notes.append(f"node {k}: coordinate {names[j]}{above}; carries "
+                     f"{len(carried) or 'no'} bod{'y' if len(carried) == 1 else 'ies'}")
+    return SpatialTree(coordinate, parent, end, records, Q, notes)
+
+
+def _column(eq, body, j, reference=None):
+    """Body b's twist column for q̇_j at the fixed origin: [ω_j; ∂p/∂q_j − ω_j × p] with
+    ω_j = ∂ω/∂q̇_j (fixed axes); for a particle, whose rotation is not known, ω_j is the
+    `reference` twist's (the entries of ω not compared: None)."""
+    qj, qdj = eq.q[j], eq.qd[j]
+    dp = [frames.diff(x, qj) for x in body.p]
+    if body.R is None:
+        w = reference[:3]
+        return [None] * 3 + [a - c for a, c in zip(dp, frames.cross(w, body.p))]
+    w = [frames.diff(x, qdj) for x in body.omega]
+    return w + [a - c for a, c in zip(dp, frames.cross(w, body.p))]
+
+
+def _twist(eq, bodies, moved, j):
+    """s_j from the rigid body that depends on the fewest coordinates among those q_j moves."""
+    rigid = [b for b in moved if bodies[b].R is not None]
+    chosen = min(rigid, key=lambda b: (len(bodies[b].coordinates), b))
+    return _column(eq, bodies[chosen], j)
+
+
+def _chains(moved, twists, q, names, check):
+    """{coordinate: parent coordinate or −1} from the sets of bodies each coordinate moves
+    (nested or disjoint); coordinates that move the same bodies form a chain, a coordinate whose
+    twist depends on another (∂s_j/∂q_k ≠ 0 at the `check`'s points) after it."""
+    n = len(moved)
+    zero = [0] * 6
+    depends = {j: {k for k in range(n) if k != j and moved[k] == moved[j]
+                   and any(q[k] in x.free_symbols for x in twists[j])
+                   and not check.same([frames.diff(x, q[k]) for x in twists[j]], zero)}
+               for j in range(n)}
+    order, placed_set = [], set()
+    for size in sorted({len(m) for m in moved}, reverse=True):
+        group = [j for j in range(n) if len(moved[j]) == size]
+        while group:
+            ready = [j for j in group if depends[j] <= placed_set]
+            if not ready:
+                raise NotATree("the axes of coordinates that move the same bodies depend on "
+                               "each other")
+            order.append(ready[0])
+            placed_set.add(ready[0])
+            group.remove(ready[0])
+    parent = {}
+    for position, j in enumerate(order):
+        parent[j] = -1
+        for i in order[:position]:
+            common = moved[i] & moved[j]
+            if not common:
+                continue
+            if common != moved[j]:
+                raise NotATree(f"coordinates {names[i]!r} and {names[j]!r} move overlapping but "
+                               "different sets of bodies")
+            parent[j] = i
+    return parent
+
+
+def _gravity(eq, bodies, others, convert):
+    """(g, the records left for Q): potentials c·p_b,i of one body each whose loads are m_b·g
+    for one g (every massive body loaded), else g = 0 and every record stays."""
+    zero = se.Integer(0)
+    moving = set(eq.q) | set(eq.qd) | set(eq.u) | {eq.t}
+    loads, used = [[zero] * 3 for _ in bodies], []
+    for record in others:
+        if not isinstance(record, PotentialEnergy):
+            continue
+        V = convert(record.expr)
+        for b, body in enumerate(bodies):
+            found = False
+            for i, x in enumerate(body.p):
+                if x == 0:
+                    continue
+                c = V / x
+                if not (c.free_symbols & moving):
+                    loads[b][i] -= c
+                    used.append(record)
+                    found = True
+                    break
+            if found:
+                break
+    if not used:
+        return [zero] * 3, others
+    g = None
+    for load, body in zip(loads, bodies):
+        if body.mass == 0:
+            continue
+        ratio = [se.expand(x / body.mass) for x in load]
+        if g is None:
+            g = ratio
+        elif any(se.expand(a - b) != 0 for a, b in zip(g, ratio)):
+            return [zero] * 3, others
+    return g, [r for r in others if not any(r is u for u in used)]
+
+
+class Identities:
+    """Tests of identities between expressions of the equations `eq` at random points: exact
+    where only sin and cos of coordinates and rational numbers remain after a rational
+    substitution (each angle at a rational point of the unit circle, every other symbol
+    rational), else (floating-point constants, other functions) in double precision to 1e-9
+    relative (two points each)."""
+
+    def __init__(self, eq, points=2, seed=20261128):
+        import random
+        rng = random.Random(seed)
+        symbols = list(eq.q) + list(eq.qd) + list(eq.p) + list(eq.u) + [eq.t]
+        self.exact, self.floats = [], []
+        for _ in range(points):
+            exact, floats = {}, {}
+            for s in symbols:
+                value = se.Rational(rng.randint(-97, 97), rng.randint(50, 97)) or se.Rational(1, 3)
+                exact[s], floats[s] = value, float(value)
+            for qj in eq.q:
+                k = se.Rational(rng.randint(1, 89), 97)       # angle 2·atan(k): a circle point
+                s, c = 2 * k / (1 + k * k), (1 - k * k) / (1 + k * k)
+                exact[se.sin(qj)], exact[se.cos(qj)] = s, c
+                floats[qj] = 2 * math.atan(float(k))
+            self.exact.append(exact)
+            self.floats.append(floats)
+
+    def _value(self, expr, point):
+        """(value, exact?) of `expr` at the point."""
+        value = expr.xreplace(self.exact[point])
+        if value.is_Number:
+            return value, not isinstance(value, se.RealDouble)
+        return float(expr.subs(self.floats[point]).n()), False
+
+    def same(self, a, b):
+        """True if the lists of expressions a and b agree at every point (an entry None in a is
+        not tested)."""
+        for point in range(len(self.exact)):
+            for x, y in zip(a, b):
+                if x is None:
+                    continue
+                vx, ex = self._value(se.sympify(x), point)
+                vy, ey = self._value(se.sympify(y), point)
+                if ex and ey:
+                    if vx != vy:
+                        return False
+                elif abs(float(vx) - float(vy)) > 1e-9 * (1 + abs(float(vx)) + abs(float(vy))):
+                    return False
+        return True
