@@ -358,3 +358,73 @@ def test_every_command_takes_a_urdf(tmp_path):
     assert plot.stat().st_size > 10_000
     missing = run_cli("simulate", tmp_path / "none.urdf", "--t-end", "1", cwd=tmp_path)
     assert missing.returncode != 0 and "no URDF file" in missing.stderr
+
+
+# -- hand-written three-dimensional trees -------------------------------------------------------------
+def spatial_arm(name="spatial_arm"):
+    """A hand-written tree of `rigid_body_3d`s: a sliding and turning base, a two-joint arm on it
+    and a second branch, with parameters in masses, inertias, lengths and gravity."""
+    import sympy as sp
+
+    from lagrgen import rotation
+    model = lagrgen.Model(name)
+    x, yaw, a, b, c = model.coordinates("x yaw a b c")
+    m1, m2, L, g = model.parameters(m1=2.0, m2=0.7, L=0.4, g=9.81)
+    tau, = model.inputs("tau")
+    R0 = rotation.z(yaw)
+    p0 = sp.Matrix([x, 0, 0])
+    model.rigid_body_3d(m1, [0.1, 0.12, 0.05], p0 + R0 * sp.Matrix([0, 0, 0.1]), R0)
+    R1 = R0 * rotation.y(a)
+    p1 = p0 + R0 * sp.Matrix([0, 0, 0.2]) + R1 * sp.Matrix([0, 0, L / 2])
+    model.rigid_body_3d(m2, [m2 * L ** 2 / 12, m2 * L ** 2 / 12, 0.001], p1, R1)
+    R2 = R1 * rotation.x(b) * rotation.z(sp.Rational(1, 3))
+    p2 = p0 + R0 * sp.Matrix([0, 0, 0.2]) + R1 * sp.Matrix([0, 0, L]) + R2 * sp.Matrix([0.05, 0, 0.1])
+    model.rigid_body_3d(0.5, sp.Matrix([[0.01, 0.001, 0], [0.001, 0.02, 0], [0, 0, 0.015]]), p2, R2)
+    R3 = R0 * rotation.x(c)
+    p3 = p0 + R0 * sp.Matrix([0.1, 0, 0]) + R3 * sp.Matrix([0, 0.15, 0])
+    model.rigid_body_3d(0.3, [0.002, 0.001, 0.002], p3, R3)
+    for mass, p in ((m1, p0 + R0 * sp.Matrix([0, 0, 0.1])), (m2, p1), (0.5, p2), (0.3, p3)):
+        model.potential_energy(mass * g * p[2])
+    model.generalized_force(a, tau)
+    model.damper(0.3, b)
+    return model
+
+
+@pytest.fixture(scope="module")
+def hand_written(tmp_path_factory):
+    out = tmp_path_factory.mktemp("spatial_arm")
+    model = spatial_arm()
+    return {form: lagrgen.build(model, out_dir=out, quiet=True, formulation=form)
+            for form in ("dense", "recursive")}
+
+
+def test_a_hand_written_3d_tree_takes_the_recursion_and_agrees_with_the_dense_one(hand_written):
+    dense, rec = hand_written["dense"], hand_written["recursive"]
+    assert rec.formulation == "recursive"
+    from lagrgen.lagrange import derived
+    from lagrgen.tree import analysed
+    tree, _ = analysed(derived(spatial_arm().spec()))
+    assert tree.kind == "spatial" and tree.parent == (-1, 0, 1, 2, 1)    # x, yaw, then two branches
+    n = rec.n_coordinates
+    for y, u in states(n, count=2):
+        u = u[:1]
+        assert relative(rec.rhs(0.0, y, u=u), dense.rhs(0.0, y, u=u)) < 1e-12
+        assert relative(rec.jacobian(0.0, y, u=u), dense.jacobian(0.0, y, u=u)) < 1e-11
+        assert relative(rec.parameter_jacobian(0.0, y, u=u),
+                        dense.parameter_jacobian(0.0, y, u=u)) < 1e-11
+        assert relative(rec.mass_matrix(y[:n]), dense.mass_matrix(y[:n])) < 1e-13
+
+
+def test_a_3d_body_whose_axis_moves_with_it_is_not_a_tree():
+    import sympy as sp
+
+    from lagrgen import rotation
+    model = lagrgen.Model("wobble")
+    a, b = model.coordinates("a b")
+    R = rotation.z(a) * rotation.x(b)
+    # the body's centre swings with b about an axis through a point that a moves along x
+    model.rigid_body_3d(1.0, [0.1, 0.2, 0.3], sp.Matrix([sp.sin(a) ** 2, 0, 0]) + R * sp.Matrix(
+        [0, 0, 0.3]), R)
+    with pytest.raises(lagrgen.ModelError, match="formulation='recursive'"):
+        lagrgen.build(model, backend="python", formulation="recursive")
+    assert lagrgen.build(model, backend="python").formulation == "dense"

@@ -150,11 +150,12 @@ def driven_joint():
     return model
 
 
-def top():
+def screw():
+    """A 3-D body that turns about z and slides along x by one coordinate: its axis moves with it."""
     from lagrgen import rotation
-    model = lagrgen.Model("top")
+    model = lagrgen.Model("screw")
     a, b = model.coordinates("a b")
-    model.rigid_body_3d(1.0, [0.1, 0.2, 0.3], [0, 0, 0], rotation.z(a) * rotation.x(b))
+    model.rigid_body_3d(1.0, [0.1, 0.2, 0.3], [a, 0, 0], rotation.z(a) * rotation.x(b))
     return model
 
 
@@ -162,7 +163,7 @@ def top():
     (relative_double_pendulum, "move differently|depends on other coordinates"),
     (overlapping, "overlapping"),
     (with_constraint, "constraints"),
-    (top, "3-D rigid bodies"),
+    (screw, "not fixed in the body above"),
     (driven_joint, r"\(or on t\)|t together with the coordinates"),
 ], ids=["relative angles", "overlapping", "constraint", "3-D body", "driven joint"])
 def test_what_is_not_a_tree_keeps_the_dense_formulation(make, reason):

@@ -65,6 +65,51 @@ def as_vector(value, what):
 
 
 
+#: The kinds of atoms `check_expression` inspects, gathered in one traversal of an expression.
+_CHECKED_ATOMS = (sp.Derivative, AppliedUndef, sp.Function, sp.Number, sp.Piecewise,
+                  sp.core.numbers.ComplexInfinity, sp.core.numbers.ImaginaryUnit)
+
+
+def _checked(scope, velocities, inputs):
+    """The subexpressions `scope` has already found valid under these flags (declarations only
+    grow, so what was valid stays valid): a chain's positions share their parents' terms, and a
+    drawn line repeats the particles' positions."""
+    cache = scope.__dict__.setdefault("_checked_subtrees", {})
+    return cache.setdefault((velocities, inputs), set())
+
+
+def _declared(scope):
+    """(parameters, coordinates, inputs) of `scope` as sets, kept while their counts hold."""
+    key = (len(scope.parameter_symbols), len(scope.q), len(scope.input_functions))
+    cached = scope.__dict__.get("_declared_sets")
+    if cached is None or cached[0] != key:
+        cached = (key, (frozenset(scope.parameter_symbols), frozenset(scope.q),
+                        frozenset(scope.input_functions)))
+        scope.__dict__["_declared_sets"] = cached
+    return cached[1]
+
+
+def _scan(expr, checked):
+    """(free symbols, {kind: atoms of it}, and "subtrees": every subexpression visited) of
+    `expr`, in one traversal that skips the subtrees in `checked`."""
+    symbols, kinds, seen = set(), {kind: [] for kind in _CHECKED_ATOMS}, set()
+    stack = [expr]
+    while stack:
+        e = stack.pop()
+        if e in seen or e in checked:
+            continue
+        seen.add(e)
+        if e.is_Symbol:
+            symbols.add(e)
+            continue
+        for kind in _CHECKED_ATOMS:
+            if isinstance(e, kind):
+                kinds[kind].append(e)
+        stack.extend(e.args)
+    kinds["subtrees"] = seen
+    return symbols, kinds
+
+
 def check_expression(scope, expr, where, velocities=True, inputs=True, vector=False):
     """Return `expr` sympified, after checking every symbol and function in it is one `scope` (a
     `Description`: its name, t, parameters, coordinates and inputs) declares.
@@ -88,8 +133,12 @@ def check_expression(scope, expr, where, velocities=True, inputs=True, vector=Fa
             expr, (sp.Rel, sp.logic.boolalg.Boolean)) else f"a {type(expr).__name__}"
         raise ModelError(f"{where}: {expr} is {kind}, not an expression; write the quantity "
                          "itself (for a switch use Piecewise, Heaviside or sign)")
-    allowed = set(scope.parameter_symbols) | {scope.t}
-    for s in expr.free_symbols - allowed:
+    checked = _checked(scope, velocities, inputs)
+    if expr in checked:
+        return expr
+    symbols, kinds = _scan(expr, checked)
+    parameters, coordinates, inputs_ = _declared(scope)
+    for s in symbols - parameters - {scope.t}:
         twin = next((p for p in scope.parameter_symbols if p.name == s.name), None)
         if twin is not None or s.name == "t":
             raise ModelError(
@@ -100,17 +149,17 @@ def check_expression(scope, expr, where, velocities=True, inputs=True, vector=Fa
         raise ModelError(
             f"{where}: symbol {s} is neither a coordinate, a parameter, an input nor t; "
             f"declare it with model.parameters({s}=...) or model.inputs('{s}')")
-    for d in expr.atoms(sp.Derivative):
-        if d.expr not in scope.q or d.variables != (scope.t,):
+    for d in kinds[sp.Derivative]:
+        if d.expr not in coordinates or d.variables != (scope.t,):
             raise ModelError(
                 f"{where}: {d} is not allowed; only first time derivatives of coordinates "
                 "(velocities) may appear")
         if not velocities:
             raise ModelError(f"{where}: must not depend on velocities, but contains {d}")
-    for f in expr.atoms(AppliedUndef):
-        if f in scope.q:
+    for f in kinds[AppliedUndef]:
+        if f in coordinates:
             continue
-        if f in scope.input_functions:
+        if f in inputs_:
             if not inputs:
                 raise ModelError(
                     f"{where}: must not depend on input {f.func.__name__} (its time derivative "
@@ -119,26 +168,28 @@ def check_expression(scope, expr, where, velocities=True, inputs=True, vector=Fa
         raise ModelError(
             f"{where}: {f} is neither a coordinate nor an input of model {scope.name!r}; "
             "coordinates and inputs must be functions of model.t declared on this model")
-    for f in expr.atoms(sp.Function):
+    for f in kinds[sp.Function]:
         if not isinstance(f, AppliedUndef) and not isinstance(f, SUPPORTED_FUNCTIONS):
             names = ", ".join(fn.__name__ for fn in SUPPORTED_FUNCTIONS)
             raise ModelError(f"{where}: function {f.func.__name__} is not supported (use {names})")
-    if expr.has(sp.zoo, sp.oo, sp.nan, -sp.oo):
+    if kinds[sp.core.numbers.ComplexInfinity] or any(
+            n in (sp.oo, -sp.oo) or n is sp.nan for n in kinds[sp.Number]):
         raise ModelError(f"{where}: expression {expr} contains an infinity or NaN")
-    if expr.has(sp.I):
+    if kinds[sp.core.numbers.ImaginaryUnit]:
         raise ModelError(f"{where}: expression {expr} is complex (it contains I): every quantity "
                          "of a model is a real number")
-    for piecewise in expr.atoms(sp.Piecewise):
+    for piecewise in kinds[sp.Piecewise]:
         if piecewise.args[-1].cond is not sp.true:
             raise ModelError(
                 f"{where}: {piecewise} has no branch for when no condition holds (it would be "
                 "NaN there); end it with an otherwise branch (value, True), e.g. "
                 "Piecewise((f, x > 0), (0, True))")
-    for number in expr.atoms(sp.Number):
+    for number in kinds[sp.Number]:
         if not fits_a_double(number):
             raise ModelError(
                 f"{where}: the number {sp.N(number, 6)} does not fit a double (|x| up to "
                 "1.8e308): rescale the model's units or parameters")
+    checked.update(kinds.pop("subtrees"))
     return expr
 
 
@@ -171,7 +222,8 @@ def check_distinct_gap(name, gap, impacts, coordinates, t):
 
 def check_affine_in_velocities(expr, qd, where):
     """`expr`, which must be w(q, t)·q̇ + b(q, t) with w not identically zero."""
-    coefficients = [sp.diff(expr, v) for v in qd]
+    present = expr.atoms(sp.Derivative)
+    coefficients = [sp.diff(expr, v) if v in present else sp.Integer(0) for v in qd]
     for v, c in zip(qd, coefficients):
         if any(c.has(w) for w in qd):
             raise ModelError(f"{where}: the slip velocity {expr} is not linear in the velocities "

@@ -187,7 +187,11 @@ class Description:
     @property
     def qd(self):
         """The generalized speeds dq_i/dt, in declaration order."""
-        return tuple(c.diff(self.t) for c in self._coordinates)
+        cached = self.__dict__.get("_speeds")
+        if cached is None or len(cached) != len(self._coordinates):
+            cached = tuple(sp.Derivative(c, self.t) for c in self._coordinates)
+            self.__dict__["_speeds"] = cached
+        return cached
 
     @property
     def parameter_symbols(self):

@@ -392,12 +392,15 @@ class Identities:
             self.exact.append(exact)
             self.floats.append(floats)
 
-    def _value(self, expr, point):
-        """(value, exact?) of `expr` at the point."""
+    def _exact(self, expr, point):
+        """The exact value of `expr` at the point, or None."""
         value = expr.xreplace(self.exact[point])
-        if value.is_Number:
-            return value, not isinstance(value, se.RealDouble)
-        return float(expr.subs(self.floats[point]).n()), False
+        return value if value.is_Number and not isinstance(value, se.RealDouble) else None
+
+    def _float(self, expr, point):
+        """The value of `expr` in double precision at the point (each angle consistent with its
+        sine and cosine)."""
+        return float(expr.subs(self.floats[point]).n())
 
     def same(self, a, b):
         """True if the lists of expressions a and b agree at every point (an entry None in a is
@@ -406,11 +409,13 @@ class Identities:
             for x, y in zip(a, b):
                 if x is None:
                     continue
-                vx, ex = self._value(se.sympify(x), point)
-                vy, ey = self._value(se.sympify(y), point)
-                if ex and ey:
+                x, y = se.sympify(x), se.sympify(y)
+                vx, vy = self._exact(x, point), self._exact(y, point)
+                if vx is not None and vy is not None:
                     if vx != vy:
                         return False
-                elif abs(float(vx) - float(vy)) > 1e-9 * (1 + abs(float(vx)) + abs(float(vy))):
+                    continue
+                fx, fy = self._float(x, point), self._float(y, point)
+                if abs(fx - fy) > 1e-9 * (1 + abs(fx) + abs(fy)):
                     return False
         return True
