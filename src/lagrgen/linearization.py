@@ -72,10 +72,11 @@ class Linearization:
     """The motion about (q0, qd0, t, p, u) to first order: δẋ = A·δx + B_state·δu in the
     independent states x (`states`), δy = basis·δx for y = [q, q̇].
 
-    `A` (k×k) and `eigenvalues` always exist. `M`, `C`, `K` (and `B`, API.md §5: the input
-    matrix of M·δq̈ + C·δq̇ + K·δq = B·δu) exist where a second-order form does — models without
-    velocity constraints — and raise SecondOrderFormError saying why otherwise; there `B` is the
-    first-order input matrix, which `state_matrices()` always returns with A.
+    `A` (k×k) and `eigenvalues` always exist. `M`, `C`, `K` (and `B`, the input matrix of
+    M·δq̈ + C·δq̇ + K·δq = B·δu, as the guide's "Vibration" page writes it) exist where a
+    second-order form does — models without velocity constraints — and raise
+    SecondOrderFormError saying why otherwise; there `B` is the first-order input matrix, which
+    `state_matrices()` always returns with A.
     """
 
     A: np.ndarray
