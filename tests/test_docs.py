@@ -229,7 +229,8 @@ def test_the_manual_builds_without_a_warning(tmp_path):
     assert proc.returncode == 0, proc.stderr[-4000:]
     api = (out / "api.html").read_text()
     for name in ("lagrgen.simulate", "lagrgen.Model", "lagrgen.build", "lagrgen.modes",
-                 "lagrgen.simulate_many", "lagrgen.fit"):
+                 "lagrgen.simulate_many", "lagrgen.fit", "lagrgen.stability.EigenvalueSweep",
+                 "lagrgen.stability.Crossing", "lagrgen.NotAnEquilibriumWarning"):
         assert f'id="{name}"' in api, name
     index = (out / "index.html").read_text()
     for page in PAGES[1:]:
