@@ -79,7 +79,10 @@ class EigenvalueSweep:
     @property
     def structural(self):
         """(len(values), branches) bool: the structural zeros, roots of ignorable states split
-        off exactly (`linearization.spectrum`), which no parameter moves."""
+        off exactly (`linearization.spectrum`), which no parameter moves (none known without
+        `vectors`)."""
+        if self.vectors is None:
+            return np.zeros(self.eigenvalues.shape, dtype=bool)
         return structural_zeros(self.eigenvalues, self.vectors)
 
     def leading_roots(self):
