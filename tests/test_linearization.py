@@ -21,7 +21,7 @@ from numpy.testing import assert_allclose
 
 import lagrgen
 from lagrgen.linearization import SecondOrderFormError
-from conftest import load_example
+from conftest import EXAMPLES, load_example
 from test_sympy_constraints import kane_four_bar, kane_sleigh
 
 R, G = 0.3, 9.81
@@ -88,8 +88,27 @@ def test_rolling_disk_critical_speed(disk):
     assert sweep.eigenvalues.shape == (23, 6)
     (value, branch, kind), = sweep.crossings()
     assert kind == "unstable->stable" and abs(value - CRITICAL) < 1e-8
+    assert sweep.crossings()[0].pair is None            # a real root, through 0
     assert sweep.eigenvalues[0, branch].real > 1.0            # the falling-over root
     assert not sweep.stable[0] and sweep.stable[-1]
+    # yaw, int_spin and int_spin_dot are ignorable: three structural zeros at every value
+    assert (sweep.structural.sum(axis=1) == 3).all()
+    assert_allclose(sweep.eigenvalues[sweep.structural], 0, atol=0)
+    assert_critical_speed_on_any_grid(mod, lambda v: ([0, 0, 0], [0, 0, v / R], None))
+
+
+#: Sweeps across the critical speed: coarse to fine, either way, the crossing in another cell.
+GRIDS = [np.linspace(0.3, 2.5, 5), np.linspace(0.3, 2.5, 11), np.linspace(2.5, 0.3, 23),
+         np.linspace(0.2, 3.0, 57)]
+
+
+def assert_critical_speed_on_any_grid(mod, point, dependent=None):
+    """One crossing, unstable->stable, within 1e-8 of √(g·r/3), on each of GRIDS."""
+    for values in GRIDS:
+        sweep = lagrgen.eigenvalue_sweep(mod, values, point, dependent=dependent)
+        (value, _, kind), = sweep.crossings()
+        assert kind == "unstable->stable", values
+        assert abs(value - CRITICAL) < 1e-8, (values, value - CRITICAL)
 
 
 def rolling_disk_on_the_ground():
@@ -120,10 +139,23 @@ def rolling_disk_on_the_ground():
     return km, {r: R, m: 2.0, g: G}
 
 
-def test_nonholonomic_rolling_disk_matches_sympys_linearizer(tmp_path):
+@pytest.fixture(scope="module", params=["c", "python"])
+def ground_disk(request, tmp_path_factory):
     km, values = rolling_disk_on_the_ground()
     mod = lagrgen.build(lagrgen.from_sympy(km, "disk_on_ground", defaults=values),
-                        out_dir=tmp_path)
+                        backend=request.param, out_dir=tmp_path_factory.mktemp("ground"))
+    return km, values, mod
+
+
+def rolling_on_the_ground(v):
+    """The ground disk's operating point rolling upright along x at speed v."""
+    y = np.zeros(10)
+    y[7], y[8] = v / R, v              # spin about the axle, the contact point moving along x
+    return y[:5], y[5:], None
+
+
+def test_nonholonomic_rolling_disk_matches_sympys_linearizer(ground_disk):
+    km, values, mod = ground_disk
     assert mod.n_constraints == 2
     v = 1.6 * CRITICAL
     y = np.zeros(10)
@@ -142,6 +174,20 @@ def test_nonholonomic_rolling_disk_matches_sympys_linearizer(tmp_path):
     slow = y.copy()
     slow[7:9] *= 0.5 / 1.6
     assert not lagrgen.modes(mod, slow[:5], slow[5:]).stable
+
+
+def test_nonholonomic_rolling_disk_critical_speed(ground_disk):
+    """The disk on the ground (five coordinates, the rolling conditions as dependent speeds) has
+    the critical speed of the three-coordinate disk to 1e-8, whichever rates are dependent. The
+    heading's coupling to the lean acceleration is zero but computes as round-off (J·T sums
+    cancelling); kept, it tied the heading's zero root to the double root of the critical speed
+    and spread it by eps^(1/3): crossings 1e-5..1e-4 off."""
+    _, _, mod = ground_disk
+    lin = lagrgen.linearize(mod, *rolling_on_the_ground(1.01 * CRITICAL)[:2])
+    heading = lin.states.index("q1")
+    assert lin.A[lin.states.index("q2_dot"), heading] == 0.0
+    for dependent in (None, ["q3_dot", "q5_dot"]):
+        assert_critical_speed_on_any_grid(mod, rolling_on_the_ground, dependent)
 
 
 def test_chaplygin_sleigh_closed_form(build):
@@ -330,6 +376,15 @@ def test_crossing_on_a_grid_value_is_that_value():
             assert [(b, kind) for _, b, kind in found] == [(0, "unstable->stable"),
                                                           (1, "unstable->stable")]
             assert_allclose([value for value, _, _ in found], 0.0, atol=1e-8)
+            assert [c.pair for c in found] == [1, 0]         # one complex pair: a Hopf crossing
+    import pickle
+    assert pickle.loads(pickle.dumps(found)) == found
+    assert [c.pair for c in pickle.loads(pickle.dumps(found))] == [1, 0]
+    from lagrgen.cli.stability import report
+    crossing_lines = [line for line in report(model, "v", sweep).splitlines()
+                      if line.startswith("  v = ")]
+    line, = crossing_lines
+    assert line.endswith(": branches 0 and 1 (a complex pair: Hopf) unstable->stable")
 
 
 def test_clear_errors(build):
@@ -357,7 +412,6 @@ def test_kane_models_that_cannot_be_taken_say_why():
 
 def test_stability_command(tmp_path, capsys):
     from lagrgen.cli import main
-    from conftest import EXAMPLES
     png, table = tmp_path / "locus.png", tmp_path / "locus.csv"
     status = main(["stability", str(EXAMPLES / "rolling_disk.py"), "--sweep", "v=0.5:2:16",
                    "--qd0", "int_spin=v/r", "--params", "r=0.3", "--plot", str(png),
@@ -365,7 +419,14 @@ def test_stability_command(tmp_path, capsys):
     out = capsys.readouterr().out
     assert status == 0 and png.stat().st_size > 10_000
     value = float(out.split("v = ")[1].split(":")[0])
-    assert abs(value - CRITICAL) < 1e-8 and "unstable->stable" in out
+    assert abs(value - CRITICAL) < 1e-8 and "branch 0 (a real root) unstable->stable" in out
+    # above the critical speed the leading root is the lean-and-heading oscillation on the
+    # imaginary axis: its frequency, never the zero of an ignorable coordinate tying with it
+    lines = out.splitlines()
+    start = next(k for k, line in enumerate(lines) if "|Im s| of it" in line) + 1
+    speeds, frequencies = np.array([[float(line.split()[0]), float(line.split()[3])]
+                                    for line in lines[start:start + 16]]).T
+    assert (frequencies[speeds > CRITICAL] > 0.5).all()
     rows = np.loadtxt(table, delimiter=",", skiprows=1)
     assert rows.shape == (16, 2 + 2 * 6) and rows[0, 1] == 0 and rows[-1, 1] == 1
     # at rest: the model's equilibrium near --at, swept over a parameter
@@ -377,7 +438,7 @@ def test_stability_command(tmp_path, capsys):
     assert "not a parameter" in capsys.readouterr().err
 
 
-def test_whipple_bicycle_benchmark(tmp_path):
+def test_whipple_bicycle_benchmark(tmp_path, capsys):
     """The benchmark bicycle (Meijaard et al. 2007), from SymPy's KanesMethod with its wheel
     spins as speeds without coordinates: the eigenvalues at 5 m/s and the weave and capsize
     speeds of the benchmark (4.29238253634111 and 6.02426201538837 m/s, Basu-Mandal, Chatterjee
@@ -390,11 +451,34 @@ def test_whipple_bicycle_benchmark(tmp_path):
     for published in (-0.775341882195845 + 4.46486771378823j, -0.322866429004087,
                       -14.0783896927982):          # weave, capsize, castering (table 2)
         assert np.abs(s - published).min() < 1e-10
-    sweep = lagrgen.eigenvalue_sweep(mod, np.linspace(0.0, 10.0, 21), example.upright)
-    values = sorted({round(value, 12) for value, _, _ in sweep.crossings()})
-    assert abs(values[0] - 4.29238253634111) < 1e-9
-    assert abs(values[1] - 6.02426201538837) < 1e-9
-    assert [k for _, _, k in sweep.crossings()] == ["unstable->stable"] * 2 + ["stable->unstable"]
+    for n in (11, 21, 57):
+        sweep = lagrgen.eigenvalue_sweep(mod, np.linspace(0.0, 10.0, n), example.upright)
+        weave_a, weave_b, capsize = sweep.crossings()
+        assert weave_a.value == weave_b.value and abs(weave_a.value - 4.29238253634111) < 1e-9
+        assert abs(capsize.value - 6.02426201538837) < 1e-9
+        assert [c.kind for c in sweep.crossings()] == ["unstable->stable"] * 2 + [
+            "stable->unstable"]
+        # the weave is a complex pair crossing together (Hopf); the capsize a real root
+        assert (weave_a.pair, weave_b.pair) == (weave_b.branch, weave_a.branch)
+        assert capsize.pair is None
+        # the table's root of the largest real part leaves the ignorable spins and heading out:
+        # at 5 m/s, inside the stable range, it is the capsize root
+        at_5 = sweep.leading_roots()[np.argmin(abs(sweep.values - 5.0))]
+        assert abs(at_5 - -0.322866429004087) < 1e-10
+    # structural zeros: the heading, the two spin angles and the speed (upright, no first-order
+    # coupling to the lean and steer)
+    assert (sweep.structural.sum(axis=1) == 4).all()
+    from lagrgen.cli import main
+    assert main(["stability", str(EXAMPLES / "bicycle.py"), "--sweep", "v=0:10:11", "--qd0",
+                 "int_rear_spin=v/rr;int_front_spin=v/rf", "--out", str(tmp_path)]) == 0
+    out = capsys.readouterr().out
+    crossing_lines = [line for line in out.splitlines() if line.startswith("  v = ")]
+    assert len(crossing_lines) == 2, out
+    assert "v = 4.292382536: branches" in crossing_lines[0] and "Hopf" in crossing_lines[0]
+    assert "v = 6.024262015: branch 3 (a real root) stable->unstable" in crossing_lines[1]
+    table = {float(line.split()[0]): line.split() for line in out.splitlines()
+             if line.split() and line.split()[0] == "5"}
+    assert table[5.0][2] == "-0.32287" and table[5.0][3] == "0"
 
 
 def test_fit_modes_of_a_holonomic_model():

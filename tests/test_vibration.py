@@ -80,9 +80,24 @@ def rotating_frame_model():
     return model
 
 
+def pulled_cart_pendulum():
+    """A cart s on a spring carrying a pendulum whose bob (x, y) is held by a rod,
+    (x − s)² + y² = L², and pulled sideways by a constant force P: its equilibrium leans."""
+    model = lagrgen.Model("pulled_cart_pendulum")
+    s, x, y = model.coordinates("s x y")
+    M, m, k, L, g, P = model.parameters(M=1.0, m=0.5, k=4.0, L=1.0, g=9.81, P=2.0)
+    model.particle(M, sp.Matrix([s]))
+    model.particle(m, sp.Matrix([x, y]))
+    model.potential_energy(k * s**2 / 2 + m * g * y - P * x)
+    model.constraint((x - s)**2 + y**2 - L**2, name="rod")
+    return model
+
+
 CHAIN = chain_model()
 OSCILLATOR = oscillator_model()
 DOUBLE = example_model("double_pendulum")
+FREE_PAIR = free_pair_model()
+PULLED = pulled_cart_pendulum()
 EQUAL_PENDULUM = {"m1": 1.3, "m2": 1.3, "L1": 0.7, "L2": 0.7, "g": 9.81}
 
 
@@ -253,7 +268,8 @@ def test_backends_agree(compile_once):
         lin_py = lagrgen.linearize(py_mod, q0, qd0=[0.5, -0.25], p=p, u=u)
         for name in "MCKB":
             assert_allclose(getattr(lin_c, name), getattr(lin_py, name), rtol=1e-12, atol=1e-14)
-        res_c, res_py = lagrgen.modes(c_mod, q0, p=p), lagrgen.modes(py_mod, q0, p=p)
+        with pytest.warns(lagrgen.NotAnEquilibriumWarning):        # any point, to compare
+            res_c, res_py = lagrgen.modes(c_mod, q0, p=p), lagrgen.modes(py_mod, q0, p=p)
         assert_allclose(res_c.omega, res_py.omega, rtol=1e-12)
         assert_allclose(res_c.shapes, res_py.shapes, rtol=1e-10, atol=1e-12)
         assert_allclose(res_c.damping_ratios, res_py.damping_ratios, rtol=1e-10, atol=1e-14)
@@ -392,3 +408,49 @@ def test_display_symbols_round_trip():
         M, F = DOUBLE.mass_matrix().xreplace(rules), DOUBLE.forcing().xreplace(rules)
         expected = sum(M[i, j] * names[f"theta{j + 1}''"] for j in range(2)) - F[i]
         assert sp.simplify(read - expected) == 0
+
+
+def test_modes_away_from_an_equilibrium_warn(built):
+    """Modes at a point that is not an equilibrium describe no motion (issue 37, item 10): the
+    pendulum at θ = 1 (θ̈ ≠ 0), or passing its lowest point (θ̇ ≠ 0), warns; its equilibria,
+    stable or not, and a steady motion (two masses drifting together) do not."""
+    mod = built(DOUBLE)
+    with pytest.warns(lagrgen.NotAnEquilibriumWarning, match=r"accelerations are not zero "
+                      r"\(theta1_ddot = .*Find an equilibrium with lagrgen.equilibrium"):
+        lagrgen.modes(mod, [1.0, 0.0])
+    with pytest.warns(lagrgen.NotAnEquilibriumWarning, match=r"the accelerations change along "
+                      r"its rates \(theta1_dot = 2, theta2_dot = -1\)"):
+        lagrgen.modes(mod, [0.0, 0.0], qd0=[2.0, -1.0])
+    with pytest.warns(lagrgen.NotAnEquilibriumWarning, match="accelerations"):
+        lagrgen.modes(lagrgen.linearize(mod, [1.0, 0.0]))        # from a Linearization too
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", lagrgen.NotAnEquilibriumWarning)
+        assert lagrgen.modes(mod, [0.0, 0.0]).stable
+        with pytest.warns(lagrgen.UnstableModeWarning):
+            lagrgen.modes(mod, [np.pi, np.pi])                  # an equilibrium, unstable
+        free = built(FREE_PAIR)
+        lagrgen.modes(free, [0.0, 0.0], qd0=[0.5, 0.5])         # drifting: a steady motion
+
+
+def test_modes_take_the_dependent_coordinates(built):
+    """A constrained model's modes: at its (leaning) equilibrium the frequencies do not depend on
+    which coordinates are dependent; away from it they do, and the warning says so."""
+    mod = built(PULLED)
+    q0 = lagrgen.equilibrium(mod, [0.0, 0.3, -0.9])
+    assert abs(q0[1] - q0[0]) > 0.1                              # leaning: x, y and s all free
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", lagrgen.NotAnEquilibriumWarning)
+        reference = lagrgen.modes(mod, q0).frequencies_hz
+        for dependent in (["s"], ["x"], ["y"]):
+            res = lagrgen.modes(mod, q0, dependent=dependent)
+            assert res.linearization.coordinates == tuple(c for c in "sxy" if c not in dependent)
+            assert_allclose(res.frequencies_hz, reference, rtol=1e-9)
+    off = np.array([0.3, 0.3 + np.sin(0.8), -np.cos(0.8)])
+    answers = []
+    for dependent in (["s"], ["x"]):
+        with pytest.warns(lagrgen.NotAnEquilibriumWarning, match="which coordinates are dependent"):
+            answers.append(lagrgen.modes(mod, off, dependent=dependent).frequencies_hz)
+    assert np.abs(answers[0] - answers[1]).max() > 1e-3
+    lin = lagrgen.linearize(mod, q0)
+    with pytest.raises(lagrgen.LagrgenError, match="pass dependent= to lagrgen.linearize"):
+        lagrgen.modes(lin, dependent=["x"])

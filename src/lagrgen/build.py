@@ -39,7 +39,8 @@ def build(model, out_dir="generated", backend="c", **options):
 
     Returns
     -------
-    The built model (API.md §3): a module for "c", a `PythonModel` for "python".
+    The built model (`runtime.protocol.BuiltModel` in the API reference): a module for "c", a
+    `PythonModel` for "python".
     """
     from .description import Description
     if not isinstance(model, Description):

@@ -478,8 +478,9 @@ def load(name, out_dir="generated"):
     Returns
     -------
     module
-        The built model (API.md §3), from the cache entry last published into `out_dir`, after
-        checking its module against the digest and the content hash recorded when it was made.
+        The built model (`runtime.protocol.BuiltModel` in the API reference), from the cache
+        entry last published into `out_dir`, after checking its module against the digest and the
+        content hash recorded when it was made.
 
     Raises
     ------

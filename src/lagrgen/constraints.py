@@ -1,8 +1,9 @@
 """Constraints at run time: projecting a state onto them, checking they are independent, and the
 multipliers and residuals along a solution.
 
-A constrained model (API.md §9) satisfies M·q̈ = F + Aᵀ·λ, A·q̈ = γ with A = [Φ_q; A_v]; its
-`constraint_residuals(t, y)` are Φ(q, t) (holonomic) followed by c = A·q̇ + b (all constraints).
+A constrained model (the guide's "Constraints") satisfies M·q̈ = F + Aᵀ·λ, A·q̈ = γ with
+A = [Φ_q; A_v]; its `constraint_residuals(t, y)` are Φ(q, t) (holonomic) followed by
+c = A·q̇ + b (all constraints).
 Since c is affine in q̇, A is read off c exactly: column j is c(q, e_j) − c(q, 0).
 """
 import numpy as np

@@ -515,10 +515,11 @@ class Description:
         self._changed()
 
     def impact(self, name, gap, restitution=1.0):
-        """A unilateral contact gap(q, t) ≥ 0 (API.md §13): on closing contact q̇ jumps by Newton's
-        law along ∇gap with restitution `restitution` (a number in [0, 1] or an expression of
-        parameters); accumulating impacts become a resting contact, released when its multiplier
-        (the contact force, M·q̈ = F + ∇gapᵀ·λ) would turn negative. See `lagrgen.hybrid`."""
+        """A unilateral contact gap(q, t) ≥ 0 (the guide's "Impacts, contact and dry friction"): on
+        closing contact q̇ jumps by Newton's law along ∇gap with restitution `restitution` (a
+        number in [0, 1] or an expression of parameters); accumulating impacts become a resting
+        contact, released when its multiplier (the contact force, M·q̈ = F + ∇gapᵀ·λ) would turn
+        negative. See `lagrgen.hybrid`."""
         check_name(name, "impact name")
         where = f"impact {name}"
         gap = self._check(gap, where, velocities=False, inputs=False)
@@ -535,9 +536,10 @@ class Description:
         self._changed()
 
     def friction(self, name, slip_velocity, normal_force, mu, mu_static=None):
-        """Coulomb friction with sticking on the slip velocity v = w(q, t)·q̇ + b(q, t) (API.md
-        §13): a force −mu·abs(N)·sign(v) along ∂v/∂q̇ while slipping; v = 0 held while the force
-        that takes is at most mu_static·abs(N) (mu_static defaults to mu). `normal_force` is an expression
+        """Coulomb friction with sticking on the slip velocity v = w(q, t)·q̇ + b(q, t) (the guide's
+        "Impacts, contact and dry friction"): a force −mu·abs(N)·sign(v) along ∂v/∂q̇ while
+        slipping; v = 0 held while the force that takes is at most mu_static·abs(N) (mu_static
+        defaults to mu). `normal_force` is an expression
         or the name of a constraint or impact whose multiplier is N: write that constraint or gap
         as a signed distance (a gradient of unit length, e.g. x·sin α + y·cos α for a slope), so
         that its multiplier is a force; likewise v should be the sliding speed itself."""

@@ -1,4 +1,4 @@
-"""Hybrid simulation of impacts, resting contact and Coulomb friction with sticking (API.md §13).
+"""Hybrid simulation of impacts, resting contact and Coulomb friction with sticking.
 
 A solve is a sequence of smooth segments. In a segment every impact is `open` or in `contact`
 (gap = 0 held) and every friction `slips` in a fixed direction s = ±1 or `sticks` (v = 0 held); the

@@ -72,10 +72,11 @@ class Linearization:
     """The motion about (q0, qd0, t, p, u) to first order: δẋ = A·δx + B_state·δu in the
     independent states x (`states`), δy = basis·δx for y = [q, q̇].
 
-    `A` (k×k) and `eigenvalues` always exist. `M`, `C`, `K` (and `B`, API.md §5: the input
-    matrix of M·δq̈ + C·δq̇ + K·δq = B·δu) exist where a second-order form does — models without
-    velocity constraints — and raise SecondOrderFormError saying why otherwise; there `B` is the
-    first-order input matrix, which `state_matrices()` always returns with A.
+    `A` (k×k) and `eigenvalues` always exist. `M`, `C`, `K` (and `B`, the input matrix of
+    M·δq̈ + C·δq̇ + K·δq = B·δu, as the guide's "Vibration" page writes it) exist where a
+    second-order form does — models without velocity constraints — and raise
+    SecondOrderFormError saying why otherwise; there `B` is the first-order input matrix, which
+    `state_matrices()` always returns with A.
     """
 
     A: np.ndarray
@@ -92,6 +93,7 @@ class Linearization:
     name: str = ""
     model_coordinates: tuple = ()
     constraint_forces: np.ndarray = None   # λ0 at the operating point (constrained models)
+    qdd0: np.ndarray = None    # q̈ at the operating point: 0 at an equilibrium or a steady motion
     second_order: SecondOrderForm = field(default=None, repr=False)
     why_not_second_order: str = ""
 
@@ -204,6 +206,13 @@ def spectrum(A):
     return np.concatenate([s.astype(complex), np.zeros(len(zero), dtype=complex)]), vectors
 
 
+def structural_zeros(s, vectors):
+    """Which roots of `spectrum`'s (s, vectors) it split off as structural zeros: exactly 0 with
+    a unit vector (a root kept is never both: its vector e_j would make column j of what
+    remains zero, and j split off). Works on stacks: s (..., k), vectors (..., k, k)."""
+    return (s == 0) & (np.count_nonzero(vectors, axis=-2) == 1)
+
+
 def linearize(mod, q0, qd0=None, t=0.0, p=None, u=None, dependent=None):
     """Linearize the built model `mod` about (q0, qd0) at time t, exactly to first order.
 
@@ -233,7 +242,8 @@ def linearize(mod, q0, qd0=None, t=0.0, p=None, u=None, dependent=None):
     M, _, dF_dqd, dF_du = mod.linear_terms(q0, qd0, t, p, u)
     check_positive_definite(mod.name, M, t, q0)
     J = mod.jacobian(t, y0, p, u)
-    base = dict(q0=q0, qd0=qd0, t=t, p=p, u=u, inputs=tuple(mod.inputs), name=mod.name,
+    base = dict(q0=q0, qd0=qd0, qdd0=mod.rhs(t, y0, p, u)[n:], t=t, p=p, u=u,
+                inputs=tuple(mod.inputs), name=mod.name,
                 model_coordinates=tuple(mod.coordinates))
     rates = tuple(f"{c}_dot" for c in mod.coordinates)
     if not mod.n_constraints:
@@ -254,7 +264,7 @@ def linearize(mod, q0, qd0=None, t=0.0, p=None, u=None, dependent=None):
     rows = list(ind_q) + [n + j for j in ind_v]
     A_c = G[n_h:, n:]
     B_state = np.vstack([np.zeros_like(dF_du), constrained_input_response(M, A_c, dF_du)])[rows]
-    A = J[rows] @ T
+    A = product_with_exact_zeros(J[rows], T)
     names = tuple(mod.coordinates[j] for j in ind_q) + tuple(rates[j] for j in ind_v)
     _, lam, _ = mod.constraint_terms(q0, qd0, t, p, u)
     lin = Linearization(A=A, B_state=B_state, states=names, basis=T,
@@ -267,6 +277,18 @@ def linearize(mod, q0, qd0=None, t=0.0, p=None, u=None, dependent=None):
     else:
         lin.second_order = reduced_second_order(A, T[:n, :len(ind_q)], M, B_state)
     return lin
+
+
+def product_with_exact_zeros(X, Y):
+    """X·Y with the entries that cancel to within their own round-off set to 0:
+    abs((X·Y)_ij) ≤ k·eps·(abs(X)·abs(Y))_ij, k the inner dimension (the bound of the error of a
+    k-term sum of products). A coupling the model does not have then stays an exact zero of A,
+    so `spectrum` splits off the ignorable states it leaves (round-off there would couple a
+    zero root to the others and spread a double root by eps^(1/3))."""
+    product = X @ Y
+    bound = X.shape[1] * np.finfo(float).eps * (np.abs(X) @ np.abs(Y))
+    product[np.abs(product) <= bound] = 0.0
+    return product
 
 
 def reduced_second_order(A, Tq, M, B_state):

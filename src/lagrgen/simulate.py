@@ -51,8 +51,9 @@ def simulate(mod, t_span, y0=None, method="RK45", params=None, inputs=None, rtol
         ∂y(t)/∂p_j are integrated with the state (`lagrgen.sensitivity`; in C on the native
         engine); the result then has `sensitivities`, (k, 2n, len(t))
     A model with impacts or frictions (`model.impact`, `model.friction`) runs as a hybrid solve
-    (`lagrgen.hybrid`, API.md §13): its result also has `transitions` [(t, name, kind)], `mode`
-    and `n_segments`; options `rest_velocity`, `gap_tol`, `max_transitions`; no dense_output.
+    (`lagrgen.hybrid`, the guide's "Impacts, contact and dry friction"): its result also has
+    `transitions` [(t, name, kind)], `mode` and `n_segments`; options `rest_velocity`,
+    `gap_tol`, `max_transitions`; no dense_output.
     **options : passed to `solve_ivp` unchanged (max_step, first_step, ...)
 
     Returns

@@ -17,7 +17,7 @@ import numpy as np
 from scipy.optimize import brentq, linear_sum_assignment
 
 from .errors import LagrgenError
-from .linearization import ZERO_TOL, linearize, spectrum
+from .linearization import ZERO_TOL, linearize, spectrum, structural_zeros
 
 #: Absolute tolerance (relative to the swept range) of a located crossing.
 CROSSING_XTOL = 1e-12
@@ -26,6 +26,26 @@ CROSSING_XTOL = 1e-12
 MARGINAL_ROUND_OFF = 1e3 * np.finfo(float).eps
 #: Steps by which a branch is followed from a sampled value to a trial value of a crossing.
 CONTINUATION_STEPS = 6
+
+
+class Crossing(tuple):
+    """Where branch `branch` of an eigenvalue sweep crosses the imaginary axis: the tuple
+    (value, branch, kind), kind "stable->unstable" or "unstable->stable" read in the direction
+    of increasing value, with `pair`, the branch of its complex conjugate that crosses with it
+    (a Hopf crossing: the pair's real part changes sign with a nonzero frequency), or None for a
+    real root."""
+
+    def __new__(cls, value, branch, kind, pair=None):
+        crossing = super().__new__(cls, (float(value), int(branch), kind))
+        crossing.pair = None if pair is None else int(pair)
+        return crossing
+
+    def __getnewargs__(self):
+        return (*self, self.pair)
+
+    value = property(lambda self: self[0], doc="where the real part is zero")
+    branch = property(lambda self: self[1], doc="the column of `eigenvalues` that crosses")
+    kind = property(lambda self: self[2], doc='"stable->unstable" or "unstable->stable"')
 
 
 @dataclass(eq=False)
@@ -56,20 +76,60 @@ class EigenvalueSweep:
         tol = self._tolerance()
         return np.where(re > tol, 1, np.where(re < -tol, -1, 0))
 
+    @property
+    def structural(self):
+        """(len(values), branches) bool: the structural zeros, roots of ignorable states split
+        off exactly (`linearization.spectrum`), which no parameter moves (none known without
+        `vectors`)."""
+        if self.vectors is None:
+            return np.zeros(self.eigenvalues.shape, dtype=bool)
+        return structural_zeros(self.eigenvalues, self.vectors)
+
+    def leading_roots(self):
+        """(len(values),) complex: at each value the root with the largest real part, structural
+        zeros left out (0 when nothing else is left); of roots whose real parts tie within the
+        tolerance, the one of the largest frequency abs(Im s)."""
+        tol = self._tolerance()
+        return np.array([_leading(row[~structural], tol)
+                         for row, structural in zip(self.eigenvalues, self.structural)])
+
     def crossings(self):
         """Where a branch's real part changes sign between neighbouring values, located by root
-        finding (to ~1e-12 of the range): a list of (value, branch, "stable->unstable" |
-        "unstable->stable") ordered by value. A real part within ZERO_TOL of zero is marginal
-        (stable); the boundary with it is where the real part itself is zero."""
+        finding (to ~1e-12 of the range): a list of `Crossing`, each the tuple (value, branch,
+        "stable->unstable" | "unstable->stable"), ordered by value; the two branches of a complex
+        pair crossing together (a Hopf crossing) name each other as `pair`. A real part within
+        ZERO_TOL of zero is marginal (stable); the boundary with it is where the real part
+        itself is zero."""
         growing = self._signs() > 0
-        found = []
-        for b in range(self.eigenvalues.shape[1]):
-            for i in np.flatnonzero(growing[1:, b] != growing[:-1, b]):
-                kind = "stable->unstable" if growing[i + 1, b] else "unstable->stable"
-                if self.values[-1] < self.values[0]:
-                    kind = "unstable->stable" if growing[i + 1, b] else "stable->unstable"
-                found.append((self._locate(i, b), b, kind))
+        changes = [(i, b) for b in range(self.eigenvalues.shape[1])
+                   for i in np.flatnonzero(growing[1:, b] != growing[:-1, b])]
+        partner = {(i, b): self._conjugate(i, b, changes) for i, b in changes}
+        located, found = {}, []
+        for i, b in changes:
+            pair = partner[(i, b)]
+            key = (i, min(b, pair)) if pair is not None else (i, b)
+            if key not in located:
+                located[key] = self._locate(i, b)
+            found.append(Crossing(located[key], b, self._kind(growing[i + 1, b]), pair))
         return sorted(found, key=lambda c: (c[0], c[1]))
+
+    def _kind(self, growing_after):
+        """The kind of a crossing read in the direction of increasing value."""
+        if self.values[-1] < self.values[0]:
+            growing_after = not growing_after
+        return "stable->unstable" if growing_after else "unstable->stable"
+
+    def _conjugate(self, i, b, changes):
+        """The branch that is branch b's complex conjugate at values[i] and values[i + 1] and
+        changes sign with it there (a complex pair crossing the imaginary axis), else None."""
+        s = self.eigenvalues[[i, i + 1]]
+        tol = self._tolerance()
+        if np.any(np.abs(s[:, b].imag) <= tol):
+            return None
+        for i_other, other in changes:
+            if i_other == i and other != b and np.all(np.abs(s[:, other] - s[:, b].conj()) <= tol):
+                return int(other)
+        return None
 
     def _locate(self, i, b):
         """The value between values[i] and values[i + 1] where branch b's real part crosses 0.
@@ -162,6 +222,15 @@ class EigenvalueSweep:
         return ax
 
 
+def _leading(roots, tol):
+    """The root with the largest real part (0 when there is none); of those within tol of it,
+    the one of the largest abs(Im s)."""
+    if not roots.size:
+        return 0j
+    ties = roots[roots.real >= roots.real.max() - tol]
+    return complex(ties[np.argmax(np.abs(ties.imag))])
+
+
 def _runs(mask):
     """(start, stop) index pairs of the runs of True in `mask`."""
     runs, start = [], None
@@ -220,7 +289,8 @@ def eigenvalue_sweep(mod, values, operating_point, t=0.0, u=None, dependent=None
 
     Returns
     -------
-    EigenvalueSweep: `values`, `eigenvalues` (len(values), len(states)), `crossings()`, `plot()`.
+    EigenvalueSweep: `values`, `eigenvalues` (len(values), len(states)), `stable`,
+    `structural`, `crossings()` (a list of `Crossing`), `leading_roots()`, `plot()`.
     """
     values = np.asarray(values, dtype=float)
     if values.ndim != 1 or len(values) < 2 or not np.all(np.isfinite(values)):

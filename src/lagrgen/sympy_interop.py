@@ -9,7 +9,7 @@ named like the speeds giving them back. Those M and F are handed to the Model as
 (lagrgen compiles them, with their analytic Jacobian); the build's cache key hashes them, so a
 changed SymPy model is never served stale.
 
-Constraints become lagrgen's (API.md §9: M·q̈ = F + Aᵀλ):
+Constraints become lagrgen's (M·q̈ = F + Aᵀλ, the guide's "Constraints"):
 
 - `LagrangesMethod(L, q, hol_coneqs=Φ, nonhol_coneqs=c)`: each Φ_i(q, t) = 0 is
   `model.constraint(Φ_i)` and each c_i(q, q̇, t) = 0 `model.velocity_constraint(c_i)`; M and F are

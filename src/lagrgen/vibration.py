@@ -194,7 +194,7 @@ def _constrained_equilibrium(mod, q_guess, p, u, t, tol):
         "starting guess")
 
 
-def as_linearization(mod_or_lin, q0=None, qd0=None, p=None, u=None, t=0.0):
+def as_linearization(mod_or_lin, q0=None, qd0=None, p=None, u=None, t=0.0, dependent=None):
     """A Linearization as given, or the built model linearized at (q0, qd0) (q0 None: the
     equilibrium near 0) at time t."""
     if isinstance(mod_or_lin, Linearization):
@@ -203,7 +203,49 @@ def as_linearization(mod_or_lin, q0=None, qd0=None, p=None, u=None, t=0.0):
         warnings.simplefilter("ignore", FrozenTimeWarning)   # modes warns once, below
         if q0 is None:
             q0 = equilibrium(mod_or_lin, np.zeros(mod_or_lin.n_coordinates), p=p, u=u, t=t)
-        return linearize(mod_or_lin, q0, qd0, t=t, p=p, u=u)
+        return linearize(mod_or_lin, q0, qd0, t=t, p=p, u=u, dependent=dependent)
+
+
+class NotAnEquilibriumWarning(UserWarning):
+    """Modes at an operating point that is neither an equilibrium nor a steady motion: the
+    linearization holds for that instant only, and its frequencies and stability say nothing
+    about the motion (which leaves the point)."""
+
+
+#: Relative size (of the largest entry of A, at least 1) above which an acceleration at the
+#: operating point, or its change along the rates, is not zero.
+STEADY_TOL = 1e-6
+
+
+def unsteady_reasons(lin):
+    """Why the operating point of `lin` is neither an equilibrium nor a steady motion, as text
+    (empty when it is one): accelerations q̈0 ≠ 0, or rates along which the accelerations change
+    (A·[q̇0, 0] ≠ 0 in the independent states). A steady motion y0 + t·[q̇0, 0] solves the
+    linearized equations: a wheel's spin, a heading, a free body drifting."""
+    scale = STEADY_TOL * max(1.0, np.abs(lin.A).max(initial=0.0))
+    names = lin.model_coordinates
+    reasons = []
+    if lin.qdd0 is not None and np.abs(lin.qdd0).max(initial=0.0) > scale:
+        reasons.append("its accelerations are not zero (" + ", ".join(
+            f"{c}_ddot = {a:.4g}" for c, a in zip(names, lin.qdd0) if abs(a) > scale) + ")")
+    rates = np.array([lin.qd0[names.index(x)] if x in names else 0.0 for x in lin.states])
+    if np.abs(lin.A @ rates).max(initial=0.0) > scale * max(1.0, np.abs(rates).max(initial=0.0)):
+        reasons.append("the accelerations change along its rates (" + ", ".join(
+            f"{c}_dot = {v:.4g}" for c, v in zip(names, lin.qd0) if v) + ")")
+    return " and ".join(reasons)
+
+
+def warn_not_equilibrium(lin, reasons):
+    """Warn (NotAnEquilibriumWarning) that modes are asked at a point that is neither an
+    equilibrium nor a steady motion, for `reasons`."""
+    choice = (" For a constrained model they also depend on which coordinates are dependent "
+              "(dependent=...)." if len(lin.states) < 2 * len(lin.model_coordinates) else "")
+    warnings.warn(
+        f"model {lin.name!r}: the operating point is not an equilibrium or a steady motion: "
+        f"{reasons}. These modes linearize that instant only; their frequencies and `stable` do "
+        f"not describe the motion, which leaves the point.{choice} Find an equilibrium with "
+        "lagrgen.equilibrium (or give the rates of a steady motion).",
+        NotAnEquilibriumWarning, stacklevel=3)
 
 
 def _is_symmetric(A):
@@ -327,9 +369,14 @@ def damping(M, C, K, shapes, omega):
     return zeta, omega_d
 
 
-def modes(mod_or_lin, q0=None, qd0=None, p=None, u=None, t=0.0):
+def modes(mod_or_lin, q0=None, qd0=None, p=None, u=None, t=0.0, dependent=None):
     """The modes of a linearization (see `Modes`): classical where there is a second-order form
     with symmetric C, else those of the state matrix A.
+
+    Modes describe small motions about an equilibrium or a steady motion. At any other point
+    (accelerations q̈0 ≠ 0, or rates along which they change) the linearization holds for that
+    instant only, its frequencies and `stable` say nothing about the motion, and a
+    NotAnEquilibriumWarning says so.
 
     Parameters
     ----------
@@ -337,18 +384,30 @@ def modes(mod_or_lin, q0=None, qd0=None, p=None, u=None, t=0.0):
     q0, qd0 : the operating point (q0 None: the equilibrium found near q = 0; qd0 None: at rest)
     p, u : parameters and constant inputs
     t : for a model that depends explicitly on t, the frozen time (FrozenTimeWarning)
+    dependent : a constrained model's dependent coordinates and `<coordinate>_dot` rates, as for
+        `linearize` (default: chosen by pivoted QR)
 
     Returns
     -------
     Modes: omega, frequencies_hz, shapes, damping_ratios, omega_damped, eigenvalues, stable.
     """
-    if not isinstance(mod_or_lin, Linearization):
+    if isinstance(mod_or_lin, Linearization):
+        if dependent is not None:
+            raise LagrgenError(
+                "modes(lin, dependent=...): a Linearization has its independent states already "
+                f"({', '.join(mod_or_lin.states)}); pass dependent= to lagrgen.linearize, or "
+                "call lagrgen.modes(mod, q0, dependent=...) with the built model")
+    else:
         warn_frozen_time(mod_or_lin, t, "modal analysis")
-    lin = as_linearization(mod_or_lin, q0, qd0, p, u, t)
+    lin = as_linearization(mod_or_lin, q0, qd0, p, u, t, dependent)
+    unsteady = unsteady_reasons(lin)
+    if unsteady:
+        warn_not_equilibrium(lin, unsteady)
     model = None if isinstance(mod_or_lin, Linearization) else mod_or_lin
     if lin.has_second_order_form and _is_symmetric(lin.C):
         result = classical_modes(lin, model)
-        warn_unstable_classical(result, lin.name)
+        if not unsteady:
+            warn_unstable_classical(result, lin.name)
         return result
     return state_modes(lin, model)
 

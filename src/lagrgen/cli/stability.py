@@ -130,19 +130,22 @@ def steady_rates(mod, q0, given, p):
 
 
 def report(model, name, result):
-    """The crossings, then a line per value: stable or not and the largest real part."""
+    """The crossings (a complex pair's on one line), then a line per value: stable or not, the
+    largest real part and the frequency of its root."""
     lines = [f"{model.name}: {len(result.states)} states ({', '.join(result.states)})"]
-    crossings = result.crossings()
-    if crossings:
-        for value, branch, kind in crossings:
-            lines.append(f"  {name} = {value:.10g}: branch {branch} {kind}")
-    else:
+    crossings = [c for c in result.crossings() if c.pair is None or c.branch < c.pair]
+    for c in crossings:
+        if c.pair is None:
+            lines.append(f"  {name} = {c.value:.10g}: branch {c.branch} (a real root) {c.kind}")
+        else:
+            lines.append(f"  {name} = {c.value:.10g}: branches {c.branch} and {c.pair} (a complex "
+                         f"pair: Hopf) {c.kind}")
+    if not crossings:
         lines.append("  no eigenvalue crosses the imaginary axis in this range")
     lines.append(f"{name:>14}  {'stable':>6}  {'max Re s':>12}  {'|Im s| of it':>12}")
-    for v, row, stable in zip(result.values, result.eigenvalues, result.stable):
-        k = int(np.argmax(row.real))
-        lines.append(f"{v:>14.6g}  {'yes' if stable else 'no':>6}  {row[k].real:>12.5g}  "
-                     f"{abs(row[k].imag):>12.5g}")
+    for v, s, stable in zip(result.values, result.leading_roots(), result.stable):
+        lines.append(f"{v:>14.6g}  {'yes' if stable else 'no':>6}  {s.real:>12.5g}  "
+                     f"{abs(s.imag):>12.5g}")
     return "\n".join(lines)
 
 

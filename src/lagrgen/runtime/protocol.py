@@ -1,4 +1,4 @@
-"""The interface of a built model (API.md §3), as both backends provide it.
+"""The interface of a built model (`BuiltModel` in the API reference), as both backends provide it.
 
 A compiled model is the imported module itself (its attributes are bound by
 `lagrgen.runtime._compiled.bind_module`); a Python model is a `PythonModel`. Both take their names,

@@ -36,7 +36,7 @@ _IEEE_NAMESPACE["_nan"] = np.nan
 
 
 class PythonModel:
-    """A built model evaluated in Python (API.md §3); `lagrgen.build(model, backend="python")`.
+    """A built model evaluated in Python (`BuiltModel`); `lagrgen.build(model, backend="python")`.
 
     Parameters
     ----------
