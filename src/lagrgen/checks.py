@@ -100,15 +100,16 @@ def check_expression(scope, expr, where, velocities=True, inputs=True, vector=Fa
         raise ModelError(
             f"{where}: symbol {s} is neither a coordinate, a parameter, an input nor t; "
             f"declare it with model.parameters({s}=...) or model.inputs('{s}')")
+    coordinates = frozenset(scope.q)     # a set: a tuple's `in` compares SymPy trees one by one
     for d in expr.atoms(sp.Derivative):
-        if d.expr not in scope.q or d.variables != (scope.t,):
+        if d.expr not in coordinates or d.variables != (scope.t,):
             raise ModelError(
                 f"{where}: {d} is not allowed; only first time derivatives of coordinates "
                 "(velocities) may appear")
         if not velocities:
             raise ModelError(f"{where}: must not depend on velocities, but contains {d}")
     for f in expr.atoms(AppliedUndef):
-        if f in scope.q:
+        if f in coordinates:
             continue
         if f in scope.input_functions:
             if not inputs:
