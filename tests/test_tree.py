@@ -23,14 +23,14 @@ from conftest import EXAMPLE_MODELS, example_model, load_example, random_point, 
 t = sp.Symbol("t")
 
 
-def random_tree(seed, dims=2, support=None):
+def random_tree(seed, dims=2, support=None, name=None):
     """A random tree of joints in absolute coordinates (each link's offset a function of its own
     coordinate), a mass at every joint, planar rigid bodies on some pins, gravity, a spring, a
     damper, a force with an input, a torque and a generalized force; hanging from `support`, a
     point moving with t (default: fixed)."""
     rng = np.random.default_rng(seed)
     n = int(rng.integers(4, 8))
-    model = lagrgen.Model(f"tree{seed}_{dims}d")
+    model = lagrgen.Model(name or f"tree{seed}_{dims}d")
     q = model.coordinates([f"q{i}" for i in range(n)])
     masses = model.parameters(**{f"m{i}": float(rng.uniform(0.5, 2)) for i in range(3)})
     lengths = model.parameters(**{f"l{i}": float(rng.uniform(0.5, 1.5)) for i in range(n)})

@@ -156,7 +156,7 @@ def test_a_recursive_models_units_hold_its_tree_kernels(tmp_path):
     P = mod.parameter_jacobian(0.2, Y)
     assert_allclose(P, python.parameter_jacobian(0.2, Y), rtol=1e-12, atol=1e-14)
     unit, = analysis_units(tmp_path, "tree_chain")
-    assert re.search(r"^LG_FN static void lg_tree_parameters\(",
+    assert re.search(r"^LG_FN static int lg_tree_parameters\(",
                      (unit / "tree_chain_parameters_model.c").read_text(), re.M)
     dy, dp = np.vstack([np.eye(4), Y]), np.arange(20.0).reshape(5, 4) / 10
     ydot, products = mod.directional_derivatives(0.2, Y, dy, dp)

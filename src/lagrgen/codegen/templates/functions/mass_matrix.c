@@ -1,4 +1,3 @@
-    double F[N];
+#define LG_MASS_MATRIX_WORK N
     (void)u;
-    lg_mf(t, y, lg_zeros, lg_zeros, p, lg_zeros, out, F);
-    return 0;
+    return lg_mf(t, y, lg_zeros, lg_zeros, p, lg_zeros, out, work);
