@@ -157,6 +157,42 @@ def test_every_function_of_a_large_model_runs_on_a_small_stack(chain):
             assert value < 1e-12, (name, where, value)
 
 
+#: Run in a fresh process: forcing of the chain (an N×N workspace, an output of N) with the address
+#: space capped just above what the process uses, then without the cap.
+NO_ROOM = textwrap.dedent("""
+    import resource, sys
+    import numpy as np
+    import lagrgen
+    mod = lagrgen.load("big_chain", sys.argv[1])
+    x, v = np.linspace(0.0, 1.0, mod.n_coordinates), np.zeros(mod.n_coordinates)
+    expected = mod.forcing(x, v)
+    used = int(open("/proc/self/statm").read().split()[0]) * resource.getpagesize()
+    soft, hard = resource.getrlimit(resource.RLIMIT_AS)
+    resource.setrlimit(resource.RLIMIT_AS, (used + 4 * 2 ** 20, hard))
+    try:
+        mod.forcing(x, v)
+        print("computed")
+    except MemoryError as error:
+        print("MemoryError:", error)
+    finally:
+        resource.setrlimit(resource.RLIMIT_AS, (soft, hard))
+    print(np.array_equal(mod.forcing(x, v), expected))
+""")
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc/self/statm")
+def test_a_workspace_the_heap_has_no_room_for_is_a_memory_error(chain):
+    """A function whose workspace cannot be allocated returns LG_NO_MEMORY (2), which the runtime
+    raises as MemoryError saying so, and the model works again once there is room."""
+    run = subprocess.run([sys.executable, "-c", NO_ROOM, str(chain)], capture_output=True,
+                         text=True, timeout=300)
+    assert run.returncode == 0, run.stderr[-1500:]
+    refused, again = run.stdout.splitlines()
+    assert refused.startswith("MemoryError: compiled model 'big_chain' could not allocate the "
+                              "work arrays"), refused
+    assert again == "True"
+
+
 # -- every workspace on the stack, every one on the heap ---------------------------------------
 def cart_pendulum(name):
     """A cart x driven by an input force, with a pendulum bob (px, py) held on a rod of length L
