@@ -1,13 +1,8 @@
     /* out = [0; M⁻¹·P] (2n×n_params) with P = ∂F/∂p − ∂(M·q̈)/∂p, q̈ from the same factor of M
      * as the rhs; the bottom half is written and solved in place. */
 #if N_PARAMS && LG_RECURSIVE
-#define LG_PARAMETER_JACOBIAN_WORK (LG_TREE_WORK + N + LG_TREE_SOLVE_WORK)
-    lg_tree w = lg_tree_on(work);
-    double *a = work + LG_TREE_WORK, *P = out + N * N_PARAMS;
-    LG_TRY(lg_tree_rhs(t, y, y + N, p, u, &w, a));
-    LG_TRY(lg_parameter_b(t, y, y + N, a, p, u, P));
-    lg_tree_solve(&w, P, N_PARAMS, lg_tree_coordinate, P, N_PARAMS, 0, a + N);
-    memset(out, 0, (size_t)N * N_PARAMS * sizeof(double));
+#define LG_PARAMETER_JACOBIAN_WORK 0
+    return lg_tree_parameter_jacobian(t, y, p, u, out);
 #elif N_PARAMS
 #define LG_PARAMETER_JACOBIAN_WORK                                                                \
     (N * N + N + N_CONSTRAINTS * (1 + 2 * N + N_CONSTRAINTS)                                      \

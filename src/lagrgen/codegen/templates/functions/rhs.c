@@ -1,7 +1,6 @@
 #if LG_RECURSIVE
-#define LG_RHS_WORK LG_TREE_WORK
-    lg_tree w = lg_tree_on(work);
-    LG_TRY(lg_tree_rhs(t, y, y + N, p, u, &w, out + N));
+#define LG_RHS_WORK 0
+    LG_TRY(lg_tree_qdd(t, y, y + N, p, u, out + N));
 #else
 #define LG_RHS_WORK (N * N + N_CONSTRAINTS * (1 + 2 * N + N_CONSTRAINTS))
     double *M = work;
