@@ -274,6 +274,40 @@ def test_unit_errors():
         m.parameters(k=(1.0, "N", 3))
 
 
+#: Labels that are no unit (issue 37.4): one that runs code if evaluated, Python values that are
+#: not expressions, labels that do not tokenize, and a number too large to compute.
+HOSTILE_LABELS = ('__import__("pathlib").Path("PWNED").touch()', '"abc"', "[1,2]",
+                  "(1).__class__", "]]>", "<![CDATA[x", "10^(10^10)", "m^", "((m)", "N/0")
+
+
+def test_unit_labels_are_read_by_a_grammar_never_evaluated(tmp_path, monkeypatch):
+    """A label is inert text: read by the unit grammar, and "no unit" when it cannot be read;
+    the labels a model gives still label it, verbatim, in C metadata as in Python."""
+    from lagrgen.dimensions import read_unit, unit_quantity
+    import sympy.physics.units as u
+    monkeypatch.chdir(tmp_path)
+    for label in HOSTILE_LABELS:
+        assert read_unit(label) is None and unit_quantity(label) is None, label
+    assert not (tmp_path / "PWNED").exists()
+    assert read_unit("kg*m^2/s^2") == u.kilogram * u.meter ** 2 / u.second ** 2
+    assert read_unit("N*s/m") == u.newton * u.second / u.meter
+    assert read_unit("s^-1") == read_unit("s**(-1)") == read_unit("1/s") == 1 / u.second
+    assert read_unit("(m/s)^2") == u.meter ** 2 / u.second ** 2
+    assert read_unit("1e-3*m") == u.meter / 1000
+    model = Model("hostile_units")
+    names = [f"x{i}" for i in range(len(HOSTILE_LABELS))]
+    xs = model.coordinates(names, units=list(HOSTILE_LABELS))
+    k, = model.parameters(k=(2.0, "N/m"))
+    for x in xs:
+        model.particle(1, [x])
+        model.spring(k, x)
+    for backend in ("python", "c"):
+        mod = lagrgen.build(model, backend=backend, out_dir=tmp_path / "out", quiet=True)
+        assert mod.units == {**dict(zip(names, HOSTILE_LABELS)), "k": "N/m"}
+        assert mod.rhs(0.0, np.r_[np.ones(len(names)), np.zeros(len(names))])[-1] == -2.0
+    assert not (tmp_path / "PWNED").exists()
+
+
 def test_csv_headers_and_plot_panels_carry_units(built):
     from lagrgen.cli.simulate import write_csv
     from lagrgen.outputs.plotting import plot_time_history

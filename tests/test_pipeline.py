@@ -44,7 +44,7 @@ def test_exported_c_needs_only_libm_and_runs_the_c_example(tmp_path):
     source = (out / "double_pendulum_model.c").read_text()
     header = (out / "double_pendulum_model.h").read_text()
     includes = [line for line in (source + header).splitlines() if line.startswith("#include")]
-    assert includes == ["#include <math.h>", "#include <string.h>",
+    assert includes == ["#include <math.h>", "#include <stdlib.h>", "#include <string.h>",
                         '#include "double_pendulum_model.h"']
     assert "Python.h" not in source and "define LG_FN" in header
     exe = tmp_path / "rk4"

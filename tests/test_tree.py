@@ -23,14 +23,14 @@ from conftest import EXAMPLE_MODELS, example_model, load_example, random_point, 
 t = sp.Symbol("t")
 
 
-def random_tree(seed, dims=2, support=None):
+def random_tree(seed, dims=2, support=None, name=None):
     """A random tree of joints in absolute coordinates (each link's offset a function of its own
     coordinate), a mass at every joint, planar rigid bodies on some pins, gravity, a spring, a
     damper, a force with an input, a torque and a generalized force; hanging from `support`, a
     point moving with t (default: fixed)."""
     rng = np.random.default_rng(seed)
     n = int(rng.integers(4, 8))
-    model = lagrgen.Model(f"tree{seed}_{dims}d")
+    model = lagrgen.Model(name or f"tree{seed}_{dims}d")
     q = model.coordinates([f"q{i}" for i in range(n)])
     masses = model.parameters(**{f"m{i}": float(rng.uniform(0.5, 2)) for i in range(3)})
     lengths = model.parameters(**{f"l{i}": float(rng.uniform(0.5, 1.5)) for i in range(n)})
@@ -85,12 +85,14 @@ def functions_at(mod, point):
     rng = np.random.default_rng(n)
     dy, dp = rng.normal(size=(9, 2 * n)), rng.normal(size=(9, len(mod.parameters)))
     dp[0] = 0.0
+    a = rng.normal(size=n)
     J, P = mod.jacobian(tv, y, p, u), mod.parameter_jacobian(tv, y, p, u)
     ydot, along = mod.directional_derivatives(tv, y, dy, dp, p, u)
     return [mod.mass_matrix(q, tv, p, u), mod.forcing(q, qd, tv, p, u), mod.rhs(tv, y, p, u),
             J, *mod.linear_terms(q, qd, tv, p, u), P, mod.outputs(tv, y, p, u),
             mod.power_terms(tv, y, p, u), ydot, along,
-            along - dy @ J.T - dp @ P.T]
+            along - dy @ J.T - dp @ P.T, *mod.residual_terms(q, qd, a, tv, p, u),
+            mod.residual_parameter_jacobian(q, qd, a, tv, p, u)]
 
 
 def assert_same_functions(a, b, points=3, seed=0):
@@ -287,6 +289,29 @@ def test_recursive_jacobians_match_finite_differences(compiled):
     fd = np.column_stack([(mod.rhs(tv, y, p + h * e, u) - mod.rhs(tv, y, p - h * e, u)) / (2 * h)
                           for e in np.eye(len(p))])
     assert_allclose(P, fd, rtol=1e-6, atol=1e-6 * np.abs(P).max())
+
+
+def test_residual_parameter_jacobian_of_both_backends_and_formulations(compiled):
+    """Issue 37.7: ∂r/∂p of the implicit form, by the recursion on both backends (the Python
+    backend's recursive models called a dense kernel they do not have), equals the dense
+    formulation's and the central differences of r."""
+    recursive_c, dense_c, recursive_py = compiled
+    model = random_tree(3, support=[sp.sin(t) / 3, sp.cos(2 * t) / 4])
+    dense_py = lagrgen.build(model, backend="python", formulation="dense")
+    rng = np.random.default_rng(37)
+    tv, y, p, u = random_state(recursive_c, rng)
+    n = recursive_c.n_coordinates
+    q, qd, a = y[:n], y[n:], rng.normal(size=n)
+    h = 1e-6
+    fd = np.column_stack([(recursive_c.residual_terms(q, qd, a, tv, p + h * e, u)[0]
+                           - recursive_c.residual_terms(q, qd, a, tv, p - h * e, u)[0]) / (2 * h)
+                          for e in np.eye(len(p))])
+    assert np.abs(fd).max() > 0.1
+    for mod in (recursive_c, dense_c, recursive_py, dense_py):
+        dr_dp = mod.residual_parameter_jacobian(q, qd, a, tv, p, u)
+        assert_allclose(dr_dp, fd, rtol=1e-6, atol=1e-6 * np.abs(fd).max())
+        assert_allclose(dr_dp, dense_c.residual_parameter_jacobian(q, qd, a, tv, p, u),
+                        rtol=1e-10, atol=1e-10 * np.abs(fd).max())
 
 
 def test_c_and_python_agree_on_every_example_recursively(tmp_path):

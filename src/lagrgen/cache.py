@@ -16,11 +16,12 @@ derives nothing.
 
 An entry holds compiled *units*. A unit is a directory with the sources it was compiled from,
 its extension module `<module><EXT_SUFFIX>`, `module.sha256`, the digest of that module taken
-when it was made, and (the model's own unit) `content.sha256`, the content digest of the model it
-was compiled from, which the module also carries in its metadata (`content_hash`): a unit is
-sound when its module matches its digest and carries the content digest expected of it, so a
-module copied from another model (with its digest) is never imported, and an imported module
-whose `content_hash` differs is refused. The model's own module is the entry's main unit: the
+when it was made, and (the model's own unit and its units compiled on first use)
+`content.sha256`, the content digest of the model it was compiled from, which the module also
+carries in its metadata (`content_hash`): a unit is sound when its module is whole (an ELF file
+cut short is not, whatever its digest says: `whole_module`), matches its digest and carries the
+content digest expected of it, so a module copied from another model (with its digests) or cut
+short is never imported, and an imported module whose `content_hash` differs is refused. The model's own module is the entry's main unit: the
 entry directory itself, module `<name>`. Further units (say an analysis compiled on first use)
 live inside the entry, each in its own directory `<entry>/<label>-<key of its own digest>/` with
 module `<name>_<label>` (`Entry.unit(label, digest)`), so one entry may hold any number of them,
@@ -28,7 +29,7 @@ each looked up, made, checked and repaired like the main unit, and discarded wit
 
 Every unit is made in a private directory beside its final place and renamed into place after an
 fsync (`store`), so a build that dies halfway leaves nothing a later lookup would pick up; a unit
-whose module does not match its recorded digest, or does not import, is discarded and made again
+that is not sound (`lookup`), or does not import, is discarded and made again
 (`import_or_repair`). Publishing copies the main unit's module and standalone C into the output
 directory by atomic writes and then records the key (`publish`).
 
@@ -251,16 +252,20 @@ class Entry:
 
 
 #: What a model's entry keeps for its units compiled on first use: the frozen description
-#: (pickled; SymPy objects pickle with their assumptions) and the compiler flags of the build.
-DESCRIPTION, FLAGS = "description.pickle", "flags.json"
+#: (pickled; SymPy objects pickle with their assumptions), the compiler flags of the build and
+#: the generator's digest (which tells a description of another model from one another version
+#: of lagrgen or SymPy made).
+DESCRIPTION, FLAGS, GENERATOR = "description.pickle", "flags.json", "generator.sha256"
 
 
 def keep_description(directory, spec, flags):
-    """Write the description `spec` and the build's `flags` into an entry's `directory`."""
+    """Write the description `spec`, the build's `flags` and the generator's digest into an
+    entry's `directory`."""
     import json
     import pickle
     write_atomic(Path(directory) / DESCRIPTION, pickle.dumps(spec, pickle.HIGHEST_PROTOCOL))
     write_atomic(Path(directory) / FLAGS, json.dumps(list(flags)).encode())
+    write_atomic(Path(directory) / GENERATOR, (generator_digest() + "\n").encode())
 
 
 #: Descriptions built in this process, by content hash (held weakly).
@@ -287,6 +292,11 @@ def kept_flags(entry):
     """The build's compiler flags kept in `entry` by `keep_description`."""
     import json
     return _kept(entry, FLAGS, json.loads)
+
+
+def kept_generator(entry):
+    """The generator digest kept in `entry` by `keep_description` (None: none readable)."""
+    return read_text_file(entry.directory / GENERATOR)
 
 
 def _kept(entry, file_name, read):
@@ -316,20 +326,57 @@ def recorded_content(unit):
 
 
 def lookup(unit, content_hash=None):
-    """True if the unit's module exists and matches the digest recorded when it was made, and,
-    when a content digest is expected (`content_hash`, or the one the unit records), the unit
-    records that digest and its module carries it."""
+    """True if the unit's module exists, is whole (`whole_module`) and matches the digest recorded
+    when it was made, and, when a content digest is expected (`content_hash`, or the one the unit
+    records), the unit records that digest and its module carries it."""
     try:
         data = unit.module_file.read_bytes()
     except OSError:
         return False
     if read_text_file(unit.directory / "module.sha256") != hashlib.sha256(data).hexdigest():
         return False
+    if not whole_module(data):
+        return False
     recorded = recorded_content(unit)
     expected = content_hash or recorded
     if expected is None:
         return True
     return recorded == expected and f'"content_hash": "{expected}"'.encode() in data
+
+
+#: ELF: (the header's struct format, the offsets in a program header of p_offset and p_filesz and
+#: their format), by EI_CLASS (1: 32-bit, 2: 64-bit).
+_ELF_LAYOUT = {1: ("16xHHIIIIIHHHHHH", 4, 16, "I"), 2: ("16xHHIQQQIHHHHHH", 8, 32, "Q")}
+_PT_LOAD = 1
+
+
+def whole_module(data):
+    """False when `data`, a shared library's bytes, is an ELF file cut short: its program or
+    section header table, or a segment the dynamic loader maps, reaches past its end (the loader
+    does not check, and the process dies of SIGBUS when it touches the missing pages, even when
+    the digest recorded beside it matches). Other formats are True: the loaders of Mach-O and PE
+    refuse a file shorter than its segments."""
+    import struct
+    if data[:4] != b"\x7fELF" or len(data) < 6 or data[4] not in _ELF_LAYOUT \
+            or data[5] not in (1, 2):
+        return data[:4] != b"\x7fELF"
+    header, p_offset, p_filesz, word = _ELF_LAYOUT[data[4]]
+    order = "<" if data[5] == 1 else ">"
+    try:
+        (_, _, _, _, phoff, shoff, _, _, phentsize, phnum, shentsize, shnum,
+         _) = struct.unpack_from(order + header, data)
+        if phoff + phnum * phentsize > len(data) or shoff + shnum * shentsize > len(data):
+            return False
+        for k in range(phnum):
+            at = phoff + k * phentsize
+            kind, = struct.unpack_from(order + "I", data, at)
+            offset, = struct.unpack_from(order + word, data, at + p_offset)
+            size, = struct.unpack_from(order + word, data, at + p_filesz)
+            if kind == _PT_LOAD and offset + size > len(data):
+                return False
+    except struct.error:
+        return False
+    return True
 
 
 def check_content(module, content_hash, where):

@@ -15,6 +15,19 @@ from .records import (Articulation, Body3D, Damper, Dissipation, Force, Generali
 from .terms import Terms, expanded_terms
 
 
+class _TermsRow(dict):
+    """A row of M's `Terms` accumulators, each made when first used (`row[j]`): a model whose M is
+    sparse, or is never formed (the recursive formulation), makes few of the n² accumulators."""
+
+    def __init__(self, kinematic):
+        super().__init__()
+        self.kinematic = kinematic
+
+    def __missing__(self, j):
+        terms = self[j] = Terms(self.kinematic)
+        return terms
+
+
 class Sums:
     """What the physics records add up to, for n coordinates.
 
@@ -27,7 +40,7 @@ class Sums:
     def __init__(self, convert, q, qd, t, kinematic):
         n = len(q)
         self.convert, self.q, self.qd, self.t = convert, q, qd, t
-        self.M = [[Terms(kinematic) for _ in range(n)] for _ in range(n)]
+        self.M = [_TermsRow(kinematic) for _ in range(n)]
         self.F = [Terms(kinematic) for _ in range(n)]
         self.general_T = []
         self.particles = []     # constant masses (m, r), added to M and F by add_particles()

@@ -8,9 +8,10 @@ methods. Every C model function has the one signature
     int <model>_<function>(double t, const double *y, const double *p, const double *u, double *out)
 
 with y = [q, q̇] (q̇ ignored by the functions of q alone; y = [q, q̇, q̈, λ] for the functions of the
-implicit form), the outputs concatenated row-major in `out`, and the result 0 on success or 1 when
-the mass matrix is not positive definite; a function of the call style "directions" also takes k
-directions (`DIRECTIONS_SIGNATURE`).
+implicit form), the outputs concatenated row-major in `out`, and the result 0 on success, 1 when
+the mass matrix is not positive definite, or NO_MEMORY when its work arrays could not be
+allocated; a function of the call style "directions" also takes k directions
+(`DIRECTIONS_SIGNATURE`).
 This module imports nothing: the compiled runtime reads it at import time.
 """
 from dataclasses import dataclass
@@ -65,6 +66,10 @@ class ModelFunction:
             total += k
         return total
 
+
+#: What a model function returns when the heap has no room for its work arrays (LG_NO_MEMORY of
+#: the C templates' linalg.c.in).
+NO_MEMORY = 2
 
 #: The C signature of the functions of call style "directions": k directions (dy_s, dp_s), each
 #: dy_s of 2n and dp_s of n_params doubles, stored one after the other (dp never NULL).

@@ -10,8 +10,10 @@ was built from (its content hash, which also covers lagrgen's generator and the 
 So a unit works the same after `lagrgen.load()` or `import <name>` in a fresh process. The runtime
 asks for units through `lagrgen.runtime.units`, where this module registers its provider.
 """
+import atexit
 import dataclasses
 import hashlib
+import shutil
 import sys
 import tempfile
 from pathlib import Path
@@ -26,25 +28,42 @@ from .runtime import units as runtime_units
 def unit_module(model_file, info, label):
     """The module of the unit `label` of the compiled model whose module file is `model_file` and
     whose `ModelInfo` is `info`: looked up in the model's cache entry, or compiled into it (into a
-    private directory when the cache cannot be written)."""
+    private directory when the cache cannot be written). A unit is sound like a model's module
+    (`cache.lookup`: whole, matching its digest, carrying the model's content hash); one that is
+    not (damaged, or another model's) is never imported: it is discarded and compiled again."""
     entry = entry_of(Path(model_file), info.name)
     flags = cache.kept_flags(entry)
     unit = entry.unit(label, unit_digest(info.content_hash, label, flags))
+    content = info.content_hash
 
     def make(work):
         compile_unit(description_of(entry, info), info, label, unit.module, work, flags)
 
     try:
         with cache.writing(entry):
-            if not cache.lookup(unit):
-                cache.store(unit, make)
-            return cache.import_or_repair(unit, make)
+            if not cache.lookup(unit, content):
+                cache.store(unit, make, content)
+            return cache.import_or_repair(unit, make, content_hash=content)
     except cache.ReadOnlyCache:
-        if cache.lookup(unit):
-            return cache.import_extension(unit.module, unit.module_file)
-        private = Path(tempfile.mkdtemp(prefix=f"lagrgen-{unit.module}-"))
+        if cache.lookup(unit, content):
+            return cache.check_content(cache.import_extension(unit.module, unit.module_file),
+                                       content, str(unit.module_file))
+        return private_unit(unit, make, content)
+
+
+def private_unit(unit, make, content_hash):
+    """The unit made by `make` in a private temporary directory (its cache cannot be written),
+    imported, and the directory removed (the loaded module stays mapped; where the platform
+    keeps a loaded module's file, what is left is removed at exit)."""
+    private = Path(tempfile.mkdtemp(prefix=f"lagrgen-{unit.module}-"))
+    try:
         make(private)
-        return cache.import_extension(unit.module, cache.Unit(private, unit.module).module_file)
+        module = cache.import_extension(unit.module, cache.Unit(private, unit.module).module_file)
+    finally:
+        shutil.rmtree(private, ignore_errors=True)
+        if private.exists():
+            atexit.register(shutil.rmtree, private, ignore_errors=True)
+    return cache.check_content(module, content_hash, unit.module)
 
 
 def unit_digest(content_hash, label, flags):
@@ -95,12 +114,19 @@ def description_of(entry, info):
     spec = cache.kept_description(entry)
     digests = {content_digest(spec, asked, lambda: derived(spec))
                for asked in (None, info.formulation)}
-    if info.content_hash not in digests:
+    if info.content_hash in digests:
+        return spec
+    if cache.kept_generator(entry) == cache.generator_digest():
         raise BuildError(
-            f"compiled model {info.name!r} was built by another version of lagrgen or SymPy than "
-            f"the one running, which cannot compile its {entry.directory.name} analysis units "
-            "to match: rebuild the model")
-    return spec
+            f"the cache entry {entry.directory} keeps the {cache.DESCRIPTION} of another model "
+            f"({spec.name!r} with coordinates {', '.join(spec.coordinate_names)}) than compiled "
+            f"model {info.name!r} (content hash {info.content_hash}), so its analysis units "
+            "cannot be compiled from it: rebuild the model with lagrgen.build(model, "
+            f"out_dir={str(entry.out_dir)!r}, force=True)")
+    raise BuildError(
+        f"compiled model {info.name!r} was built by another version of lagrgen or SymPy than "
+        f"the one running, which cannot compile its {entry.directory.name} analysis units "
+        "to match: rebuild the model")
 
 
 runtime_units.register(unit_module)

@@ -124,7 +124,7 @@ def kernel_functions(equations, max_statements=400, units=None, names=None,
             stmts = in_lanes(stmts, kernel.spec.lanes, lanes)
         limit = part_limit(kernel, max_statements)
         text = c_function(f"lg_{kernel.name}", params, args, stmts, kernel.spec.formula + ".",
-                          limit, prologue, tu_of_part if split else None, lanes)
+                          limit, prologue, tu_of_part if split else None, lanes, status=True)
         if split and len(stmts) <= limit:
             text = f"#if LG_IN_TU(0)\n{text}#endif\n"
         chunks.append(tape_sizes(kernel) + text)
@@ -136,21 +136,19 @@ def kernel_functions(equations, max_statements=400, units=None, names=None,
 #: Directions a kernel with lanes (kernels.KernelSpec.lanes) evaluates at once (LG_LANES in C).
 LANES = 4
 
-#: A tape longer than this (LG_TAPE_ON_STACK in model.c.in) is allocated on the heap.
-TAPE_ON_STACK = 32768
+#: A function keeps its work arrays on its stack up to this many doubles (32 KiB), on the heap
+#: above (LG_STACK_DOUBLES in model.c.in, LG_WORKSPACE in linalg.c.in): a model whose arrays fit
+#: allocates nothing, and nested calls stay well within a thread's stack of 256 KiB. Measured on
+#: a dense chain of 65 and of 100 masses (M on the heap), rhs and jacobian take the same time
+#: with every workspace on the stack (-DLG_STACK_DOUBLES=1000000), within the timing noise.
+STACK_DOUBLES = 4096
 
 
 def tape_sizes(kernel):
-    """`#define LG_<KERNEL>_<OUTPUT> <length>` for each tape output of `kernel` (and <stdlib.h>
-    for a tape too long for the stack)."""
-    lines = []
-    for o in kernel.spec.outputs:
-        if o.shape == ("n_tape",):
-            size = max(len(kernel.outputs[o.name]), 1)
-            lines.append(f"#define LG_{kernel.name.upper()}_{o.name.upper()} {size}\n")
-            if size > TAPE_ON_STACK:
-                lines.append("#include <stdlib.h>\n")
-    return "".join(lines)
+    """`#define LG_<KERNEL>_<OUTPUT> <length>` for each tape output of `kernel`."""
+    return "".join(f"#define LG_{kernel.name.upper()}_{o.name.upper()} "
+                   f"{max(len(kernel.outputs[o.name]), 1)}\n"
+                   for o in kernel.spec.outputs if o.shape == ("n_tape",))
 
 
 def translation_units(model_c):
@@ -165,14 +163,32 @@ def signature(function):
 
 
 def model_functions(name, functions=FUNCTIONS):
-    """The C definitions of the registered `functions`, `<name>_<function>`."""
+    """The C definitions of the registered `functions`, `<name>_<function>`.
+
+    A body that works in arrays defines `LG_<FUNCTION>_WORK`, their length in doubles, and uses
+    the workspace `work`; it becomes `lg_<function>_body(..., work)`, which may return from
+    anywhere, called by the function with its workspace (LG_RETURN_WITH_WORKSPACE: on the stack
+    when short, else on the heap, released on every return)."""
     chunks = []
     for f in functions:
         outputs = ", ".join(o.name for o in f.outputs)
         body = read_template(f"functions/{f.name}.c").rstrip()
-        chunks.append(f"/* {f.formula}; out = [{outputs}]. */\n"
-                      f"LG_FN int {name}_{f.name}({signature(f)})\n{{\n{body}\n}}\n")
+        head = f"/* {f.formula}; out = [{outputs}]. */\nLG_FN int {name}_{f.name}({signature(f)})"
+        work = f"LG_{f.name.upper()}_WORK"
+        if f"#define {work}" not in body:
+            chunks.append(f"{head}\n{{\n{body}\n}}\n")
+            continue
+        inner = f"lg_{f.name}_body"
+        chunks.append(f"LG_FN static int {inner}({signature(f)}, double *work)\n{{\n"
+                      f"    (void)work;\n{body}\n}}\n\n{head}\n{{\n"
+                      f"    LG_RETURN_WITH_WORKSPACE(double, work, {work},\n"
+                      f"                             {inner}({argument_names(f)}, work));\n}}\n")
     return "\n".join(chunks)
+
+
+def argument_names(function):
+    """The names of the C parameters of a registered function, as a call's arguments."""
+    return ", ".join(part.replace("*", " ").split()[-1] for part in signature(function).split(","))
 
 
 def prototypes(name, functions=FUNCTIONS):
@@ -214,16 +230,16 @@ def model_source(info, equations, max_statements=400, functions=FUNCTIONS):
     kernels = kernel_functions(equations, max_statements, units, names, formulation)
     split = units[0] > 0
     recursive = formulation == "recursive"
+    tree_kernels = kernel_names(names, formulation)
     return Template(read_template("model.c.in")).substitute(
         substitutions(info), linalg=read_template("linalg.c.in"),
         recursive=int(recursive),
-        tree=tree_c(equations, read_template(template_name(equations)),
-                    kernel_names(names, formulation))
-        if recursive else "",
+        tree=tree_c(equations, read_template(template_name(equations)), tree_kernels)
+        if recursive and "tree_nodes" in tree_kernels else "",
         kernels=kernels, tu_setup=TU_SETUP if split else "",
         tu0_begin="#if LG_IN_TU(0)\n" if split else "", tu0_end="\n#endif" if split else "",
         constraint_solver=read_template("constraints.c.in"), lanes=LANES,
-        tape_on_stack=TAPE_ON_STACK,
+        stack_doubles=STACK_DOUBLES,
         functions=model_functions(info.name, functions),
         coordinate_names=_names(info.coordinates),
         parameter_names=_names(info.parameters), input_names=_names(info.inputs),

@@ -326,11 +326,13 @@ def in_lanes(statements, arrays, lanes):
 
 
 def c_function(name, params, args, statements, comment, max_statements=400, prologue="",
-               tu_of_part=None, lanes=None):
-    """C source of `static void name(params)` running `statements`.
+               tu_of_part=None, lanes=None, status=False):
+    """C source of `static void name(params)` running `statements` (with `status`: `static int`,
+    returning 0, or LG_NO_MEMORY when the workspace of its parts could not be allocated).
 
     A body longer than `max_statements` is split into parts `name_partK(params, w)` so the compiler
-    never sees one huge function; a temporary used by a later part passes through the workspace w.
+    never sees one huge function; a temporary used by a later part passes through the workspace w
+    (with `status`, an LG_WORKSPACE of linalg.c.in: on the heap when long; else on the stack).
     `prologue` starts every function body (e.g. `(void)t;` for arguments a kernel may not use).
     With `tu_of_part` (part index -> translation unit number ≥ 1), each part is wrapped in
     `#if LG_IN_TU(k)` and the calling function in `#if LG_IN_TU(0)`, so that a build may compile
@@ -339,7 +341,9 @@ def c_function(name, params, args, statements, comment, max_statements=400, prol
     the compiler vectorizes.
     """
     printer = CPrinter()
-    head = f"/* {comment} */\nLG_FN static void {name}({params})\n{{\n{prologue}"
+    head = f"/* {comment} */\nLG_FN static {'int' if status else 'void'} {name}({params})\n{{\n" \
+        f"{prologue}"
+    done = "\n    return 0;" if status else ""
     indent, open_loop, close_loop, slot_of = "    ", "", "", "{}".format
     if lanes:
         indent, open_loop, close_loop = "        ", f"    for (int b = 0; b < {lanes}; ++b) {{\n", \
@@ -347,7 +351,7 @@ def c_function(name, params, args, statements, comment, max_statements=400, prol
         slot_of = f"{lanes} * {{}} + b".format
     if len(statements) <= max_statements:
         return head + open_loop + print_statements(printer, statements, indent) + close_loop \
-            + "\n}\n"
+            + done + "\n}\n"
     chunks = [statements[i:i + max_statements] for i in range(0, len(statements), max_statements)]
     defined = {s.name: k for k, chunk in enumerate(chunks) for s in chunk if isinstance(s, Declare)}
     imports = [sorted({v for s in chunk for v in _symbol_names(s)
@@ -371,7 +375,12 @@ def c_function(name, params, args, statements, comment, max_statements=400, prol
             text = f"#if LG_IN_TU({tu_of_part(k)})\n{text}#endif\n"
         parts.append(text)
     calls = "\n".join(f"    {name}_part{k}({args}, w);" for k in range(len(chunks)))
-    main = head + f"    double w[{max(len(slot), 1) * (lanes or 1)}];\n" + calls + "\n}\n"
+    size = max(len(slot), 1) * (lanes or 1)
+    if status:
+        main = (head + f"    LG_WORKSPACE(double, w, {size});\n    if (w == NULL)\n"
+                "        return LG_NO_MEMORY;\n" + calls + "\n    LG_RELEASE(w);" + done + "\n}\n")
+    else:
+        main = head + f"    double w[{size}];\n" + calls + "\n}\n"
     if tu_of_part:
         main = f"#if LG_IN_TU(0)\n{main}#endif\n"
     return "\n".join(parts) + "\n" + main

@@ -69,6 +69,7 @@ def tree_c(equations, template, kernels=("tree_nodes", "tree_slopes", "tree_para
         slope_width=tables.get("slope_width", 0),
         nnz_q=len(tables["dq"]), nnz_qd=len(tables["dqd"]), field_offsets="\n".join(offsets),
         coordinates=_ints(tables["coordinate"]), parents=_ints(tables["parent"]),
+        node_rows=_ints(range(n)),
         ends=_ints(tables["end"]), dq_index=_ints([i for ij in tables["dq"] for i in ij]),
         dqd_index=_ints([i for ij in tables["dqd"] for i in ij]),
         columns=_ints(tables["coordinate"] + [n + j for j in tables["coordinate"]]),

@@ -21,7 +21,7 @@ from libc.math cimport isfinite
 from lagrgen.runtime.abi cimport (LG_ABI_VERSION, LG_CAPSULE_NAME, lg_directions_fn,
                                   lg_function, lg_model_t)
 from lagrgen.errors import BuildError, ConstraintError, MassMatrixError, NonFiniteError
-from lagrgen.functions import BY_NAME, FUNCTIONS, MODEL_UNIT
+from lagrgen.functions import BY_NAME, FUNCTIONS, MODEL_UNIT, NO_MEMORY
 from lagrgen.runtime.describe import BuiltModule
 from lagrgen.runtime.info import INFO_ATTRIBUTES, ModelInfo
 from lagrgen.runtime import units
@@ -182,10 +182,13 @@ cdef class CompiledModel:
         unit on first use."""
         return self.address(name)
 
-    cdef not_positive_definite(self, double t, const double *y, const double *p, const double *u):
-        """Raise the error of a failed call at (t, y): M not positive definite, or (when M is)
-        dependent constraints."""
+    cdef failed(self, int status, double t, const double *y, const double *p, const double *u):
+        """Raise the error of a call that returned `status` at (t, y): no memory for its work
+        arrays (NO_MEMORY), else M not positive definite, or (when M is) dependent constraints."""
         cdef int n = self.n_coordinates
+        if status == NO_MEMORY:
+            raise MemoryError(f"compiled model {self.name!r} could not allocate the work arrays "
+                              f"of a function at t = {t!r} (the heap has no room)")
         state = np.array([y[i] for i in range(2 * n)])
         if np.all(np.isfinite(state)) and np.isfinite(t):
             M = np.empty(n * n)
@@ -221,10 +224,12 @@ cdef class CompiledModel:
         start = time.perf_counter()
         with nogil:
             for i in range(repeat):
-                status |= fn(t, yp, pp, up, o)
+                status = fn(t, yp, pp, up, o)
+                if status:
+                    break
         elapsed = time.perf_counter() - start
         if status:
-            self.not_positive_definite(t, yp, pp, up)
+            self.failed(status, t, yp, pp, up)
         return elapsed / repeat
 
 
@@ -271,8 +276,9 @@ cdef class BoundFunction:
             out = <cnp.ndarray>cnp.PyArray_EMPTY(self.nd, self.dims, cnp.NPY_DOUBLE, 0)
         else:
             out = <cnp.ndarray>cnp.PyArray_EMPTY(1, &size, cnp.NPY_DOUBLE, 0)
-        if self.fn(t, y, data(pa), data(ua), <double *>cnp.PyArray_DATA(out)):
-            self.model.not_positive_definite(t, y, data(pa), data(ua))
+        cdef int status = self.fn(t, y, data(pa), data(ua), <double *>cnp.PyArray_DATA(out))
+        if status:
+            self.model.failed(status, t, y, data(pa), data(ua))
         if len(self.shapes) == 1:
             return out
         parts, start = [], 0
@@ -371,9 +377,10 @@ cdef class DirectionsFunction:
         if not (np.isfinite(dya).all() and np.isfinite(dpa).all()):
             raise ValueError("dy and dp must be finite")
         cdef cnp.ndarray out = np.empty((k + 1) * dim)
-        if self.fn(t, data(ya), data(pa), data(ua), k, data(dya), data(dpa),
-                   <double *>cnp.PyArray_DATA(out)):
-            self.model.not_positive_definite(t, data(ya), data(pa), data(ua))
+        cdef int status = self.fn(t, data(ya), data(pa), data(ua), k, data(dya), data(dpa),
+                                  <double *>cnp.PyArray_DATA(out))
+        if status:
+            self.model.failed(status, t, data(ya), data(pa), data(ua))
         derivatives = out[dim:].reshape(k, dim)
         return out[:dim], (derivatives[0] if single else derivatives)
 

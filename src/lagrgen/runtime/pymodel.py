@@ -114,6 +114,11 @@ class PythonModel:
         n = self.n_coordinates
         return self._kernel("jacobian_b", t, q, qd, a, p, u)[0].reshape(n, 2 * n)
 
+    def _parameter_b(self, t, q, qd, a, p, u):
+        """P = ∂F/∂p − ∂(M·a)/∂p at a given a, an (n, n_params) array."""
+        n = self.n_coordinates
+        return self._kernel("parameter_b", t, q, qd, a, p, u)[0].reshape(n, len(self.parameters))
+
     def _solved(self, t, q, qd, p, u):
         """(M, q̈ = M⁻¹F) after checking M is positive definite."""
         M, F = self._mf(t, q, qd, p, u)
@@ -176,13 +181,12 @@ class PythonModel:
         if not k:
             return out
         if not self.n_constraints:
-            P = self._kernel("parameter_b", t, q, qd, a.tolist(), p, u)[0].reshape(n, k)
-            out[n:] = np.linalg.solve(M, P)
+            out[n:] = np.linalg.solve(M, self._parameter_b(t, q, qd, a.tolist(), p, u))
             return out
         # [M −Aᵀ; A 0]·[δa; δλ] = [P + Hp; Gp]: δλ = S⁻¹(Gp − A·M⁻¹R1), δa = M⁻¹R1 + W·δλ
         a, lam, A, W, S = self._constrained(t, q, qd, p, u, M, a)
         al = a.tolist() + lam.tolist()
-        R1 = self._kernel("parameter_b", t, q, qd, al, p, u)[0].reshape(n, k)
+        R1 = self._parameter_b(t, q, qd, al, p, u)
         Hp, Gp = self._kernel("constraint_parameter_jacobian", t, q, qd, al, p, u)
         X = np.linalg.solve(M, R1 + Hp.reshape(n, k))
         out[n:] = X + W @ np.linalg.solve(S, Gp.reshape(-1, k) - A @ X)
@@ -286,7 +290,7 @@ class PythonModel:
         out = np.zeros((n + m, k))
         if not k:
             return out
-        out[:n] = -self._kernel("parameter_b", t, q, qd, a, p, u)[0].reshape(n, k)
+        out[:n] = -self._parameter_b(t, q, qd, a, p, u)
         if m:
             Hp, Gp = self._kernel("constraint_parameter_jacobian", t, q, qd, a, p, u)
             out[:n] -= Hp.reshape(n, k)

@@ -316,10 +316,19 @@ class RecursivePythonModel(PythonModel):
         if not k:
             return out
         nodes, factor, qdd, A = self._factored(t, q, qd, p, u)
-        dv, dQ = self._kernel("tree_parameters", t, q, qd, qdd.tolist(), p, u)
-        P = self._tree.parameter_b(nodes, dv, dQ, qdd, A, k)
+        P = self._parameter_b(t, q, qd, qdd, p, u, nodes, A)
         out[n:] = self._tree.solve(nodes, factor, P)
         return out
+
+    def _parameter_b(self, t, q, qd, a, p, u, nodes=None, A=None):
+        """P = ∂F/∂p − ∂(M·a)/∂p at a given a (the residual's), by the recursion's tangent sweeps
+        (the node records and accelerations at a: `nodes`, `A`, formed here when not given)."""
+        a = np.asarray(a[:self.n_coordinates], dtype=np.float64)
+        if nodes is None:
+            nodes = self._nodes(t, q, qd, p, u)
+            A = self._tree.accelerations(nodes, a)
+        dv, dQ = self._kernel("tree_parameters", t, q, qd, a.tolist(), p, u)
+        return self._tree.parameter_b(nodes, dv, dQ, a, A, len(self.parameters))
 
     def _directional_derivatives(self, t, q, qd, p, u, dy, dp):
         """ẏ and, per direction, J·dy + ∂ẏ/∂p·dp: δR = δQ − δτ by tangent sweeps of the recursion

@@ -1,6 +1,6 @@
 #if N_CONSTRAINTS
-    lg_constraint_residuals(t, y, y + N, lg_zeros, p, u, out);
+    return lg_constraint_residuals(t, y, y + N, lg_zeros, p, u, out);
 #else
     (void)t, (void)y, (void)p, (void)u, (void)out;
-#endif
     return 0;
+#endif

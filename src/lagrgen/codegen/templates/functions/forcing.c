@@ -1,3 +1,2 @@
-    double M[N * N];
-    lg_mf(t, y, y + N, lg_zeros, p, u, M, out);
-    return 0;
+#define LG_FORCING_WORK (N * N)
+    return lg_mf(t, y, y + N, lg_zeros, p, u, work, out);

@@ -1,9 +1,9 @@
 #if LG_RECURSIVE
-    (void)u;
-    lg_tree_mass_matrix(t, y, p, out);
+#define LG_MASS_MATRIX_WORK 0
+    (void)u, (void)work;
+    return lg_tree_mass_matrix(t, y, p, out);
 #else
-    double F[N];
+#define LG_MASS_MATRIX_WORK N
     (void)u;
-    lg_mf(t, y, lg_zeros, lg_zeros, p, lg_zeros, out, F);
+    return lg_mf(t, y, lg_zeros, lg_zeros, p, lg_zeros, out, work);
 #endif
-    return 0;

@@ -1,3 +1,2 @@
-    double outputs[N_OUTPUTS + 1];
-    lg_outputs(t, y, y + N, lg_zeros, p, u, outputs, out);
-    return 0;
+#define LG_POWER_TERMS_WORK (N_OUTPUTS + 1)
+    return lg_outputs(t, y, y + N, lg_zeros, p, u, work, out);
