@@ -261,10 +261,41 @@ def module_outputs(mod, point, k=2):
     return out
 
 
+#: A spatial tree (lagrgen.tree3d): a revolute joint about a skew axis, a prismatic one below it
+#: and a third branch, with off-diagonal inertias.
+ROBOT = """<?xml version="1.0"?><robot name="r">
+<link name="base"/>
+<link name="a"><inertial><origin xyz="0.05 0.02 -0.1" rpy="0.1 0.2 0.3"/><mass value="1.3"/>
+<inertia ixx="0.02" ixy="0.001" ixz="-0.002" iyy="0.025" iyz="0.003" izz="0.01"/></inertial></link>
+<link name="b"><inertial><origin xyz="0 0.03 0.01"/><mass value="0.7"/>
+<inertia ixx="0.004" ixy="0" ixz="0.0005" iyy="0.006" iyz="0" izz="0.005"/></inertial></link>
+<link name="c"><inertial><origin xyz="0 0 -0.05"/><mass value="0.5"/>
+<inertia ixx="0.003" ixy="0.0002" ixz="0" iyy="0.003" iyz="0.0001" izz="0.001"/></inertial></link>
+<joint name="j1" type="revolute"><parent link="base"/><child link="a"/>
+<origin xyz="0 0 0.3" rpy="0.3 -0.2 0.1"/><axis xyz="0 0.6 0.8"/>
+<dynamics damping="0.2"/></joint>
+<joint name="j2" type="prismatic"><parent link="a"/><child link="b"/>
+<origin xyz="0.1 0 -0.25" rpy="0 1.5707963267948966 0"/><axis xyz="1 0 0"/></joint>
+<joint name="j3" type="continuous"><parent link="a"/><child link="c"/>
+<origin xyz="0.02 0 -0.1"/><axis xyz="1 0 0"/></joint>
+</robot>"""
+
+
+def robot(name):
+    """The ROBOT with inertial parameters, from a file of its own."""
+    import tempfile
+    from pathlib import Path
+    path = Path(tempfile.mkdtemp()) / "robot.urdf"
+    path.write_text(ROBOT)
+    return lagrgen.from_urdf(path, name=name, parameters="inertial")
+
+
 @pytest.mark.skipif(shutil.which("gcc") is None, reason="needs gcc with AddressSanitizer")
 @pytest.mark.parametrize("make, formulation", [(cart_pendulum, "dense"),
                                                (lambda name: random_tree(2, name=name),
-                                                "recursive")])
+                                                "recursive"),
+                                               (robot, "recursive")],
+                         ids=["dense", "planar tree", "spatial tree"])
 def test_workspaces_on_the_stack_and_on_the_heap_give_the_same_numbers(tmp_path, make,
                                                                        formulation):
     """The standalone C of a dense model with a constraint, an input and an event, and of a
