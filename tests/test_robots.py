@@ -428,3 +428,63 @@ def test_a_3d_body_whose_axis_moves_with_it_is_not_a_tree():
     with pytest.raises(lagrgen.ModelError, match="formulation='recursive'"):
         lagrgen.build(model, backend="python", formulation="recursive")
     assert lagrgen.build(model, backend="python").formulation == "dense"
+
+
+# -- everything works on a robot ---------------------------------------------------------------------
+def test_a_robot_runs_natively_as_with_scipy_and_linearizes(arm):
+    n = arm.n_coordinates
+    y0 = np.zeros(2 * n)
+    y0[:n] = 0.3
+    t = np.linspace(0.0, 0.5, 6)
+    native = lagrgen.simulate(arm, (0.0, 0.5), y0, method="Radau", t_eval=t)
+    scipy = lagrgen.simulate(arm, (0.0, 0.5), y0, method="Radau", t_eval=t, engine="scipy")
+    assert native.engine == "native" and native.success and scipy.success
+    assert np.abs(native.y - scipy.y).max() < 1e-9
+    q0, qdd0 = np.full(n, 0.2), arm.rhs(0.0, np.concatenate([np.full(n, 0.2), np.zeros(n)]))[n:]
+    with pytest.warns(lagrgen.NotAnEquilibriumWarning):
+        lin = lagrgen.modes(arm, q0)
+    lin = lagrgen.linearize(arm, q0)
+    h = 1e-6
+
+    def residual(q):                 # M(q)·q̈0 − F(q, 0): K is its derivative (q̈0 held)
+        return arm.mass_matrix(q) @ qdd0 - arm.forcing(q, np.zeros(n))
+    K = np.column_stack([(residual(q0 + h * e) - residual(q0 - h * e)) / (2 * h)
+                         for e in np.eye(n)])
+    assert relative(lin.K, K) < 1e-7
+    assert relative(lin.M, arm.mass_matrix(q0)) < 1e-14
+
+
+def test_a_fit_recovers_an_inertial_parameter_of_a_robot(small):
+    mod = small["recursive", "c"]
+    t = np.linspace(0.0, 0.4, 21)
+    y0 = np.concatenate([[0.4, 0.05, 0.2], np.zeros(3)])
+    truth = lagrgen.simulate(mod, (0.0, 0.4), y0, t_eval=t, method="DOP853", rtol=1e-11,
+                             atol=1e-12)
+    fit = lagrgen.fit(mod, t, truth.q, params=["m_slider"], y0=y0, initial={"m_slider": 1.6},
+                      method="DOP853", rtol=1e-11, atol=1e-12)
+    assert fit.success
+    assert fit.params["m_slider"] == pytest.approx(1.1, rel=1e-6)
+
+
+def test_a_robot_exports_as_plain_c_and_as_a_validated_fmu(tmp_path):
+    fmpy = pytest.importorskip("fmpy")
+    from fmpy.validation import validate_fmu
+    model = lagrgen.from_urdf(ARM, joint_dynamics=False, name="arm_export")
+    from lagrgen.build import export_c
+    files = export_c(model, out_dir=tmp_path)
+    source = next(f for f in files if str(f).endswith(".c"))
+    compiled = subprocess.run(["gcc", "-std=c99", "-Wall", "-Werror", "-c", str(source), "-o",
+                               str(tmp_path / "arm.o")], capture_output=True, text=True)
+    assert compiled.returncode == 0, compiled.stderr[-2000:]
+    fmu = lagrgen.export_fmu(model, tmp_path)
+    assert validate_fmu(str(fmu)) == []
+    n = len(model.q)
+    start = {"joint2": 0.4, "joint4": -1.2}
+    result = fmpy.simulate_fmu(str(fmu), start_values=start, stop_time=0.3, output_interval=0.1)
+    mod = lagrgen.build(model, out_dir=tmp_path, quiet=True)
+    y0 = np.zeros(2 * n)
+    y0[1], y0[3] = 0.4, -1.2
+    times = np.clip(result["time"], 0.0, 0.3)
+    native = lagrgen.simulate(mod, (0.0, 0.3), y0, method="DOP853", rtol=1e-10, atol=1e-12,
+                              t_eval=times)
+    assert np.abs(np.array([result[f"joint{k + 1}"] for k in range(n)]) - native.q).max() < 1e-4
