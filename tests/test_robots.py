@@ -488,3 +488,37 @@ def test_a_robot_exports_as_plain_c_and_as_a_validated_fmu(tmp_path):
     native = lagrgen.simulate(mod, (0.0, 0.3), y0, method="DOP853", rtol=1e-10, atol=1e-12,
                               t_eval=times)
     assert np.abs(np.array([result[f"joint{k + 1}"] for k in range(n)]) - native.q).max() < 1e-4
+
+
+# -- the regressor (issue 38) -----------------------------------------------------------------------
+@pytest.mark.parametrize("form", ["dense", "recursive"])
+@pytest.mark.parametrize("backend", ["c", "python"])
+def test_the_regressor_times_the_inertial_parameters_is_the_inverse_dynamics(small, form, backend):
+    mod = small[form, backend]
+    n = mod.n_coordinates
+    assert mod.inertial_parameters == tuple(name for name in mod.parameters)   # all inertial
+    assert mod.dimensions["n_inertial"] == 30
+    pi = np.asarray(mod.defaults)
+    for y, a in states(n, count=2, seed=21):
+        q, qd = y[:n], y[n:]
+        Y = mod.regressor(q, qd, a)
+        assert Y.shape == (n, 30)
+        damping = np.array([0.2 * qd[0], 0.0, 0.0])     # the shoulder's damper is left out
+        expected = mod.mass_matrix(q) @ a - mod.forcing(q, qd) - damping
+        assert relative(Y @ pi, expected) < 1e-13
+        assert relative(Y, small["dense", "c"].regressor(q, qd, a)) < 1e-13
+
+
+def test_a_model_without_inertial_parameters_has_an_empty_regressor(arm):
+    assert arm.inertial_parameters == ()
+    assert arm.regressor(np.zeros(7), np.zeros(7), np.zeros(7)).shape == (7, 0)
+
+
+def test_the_regressor_is_pinocchios(tmp_path):
+    pin = pytest.importorskip("pinocchio")
+    model = lagrgen.from_urdf(ARM, parameters="inertial", joint_dynamics=False, name="arm_pi")
+    mod = lagrgen.build(model, out_dir=tmp_path, quiet=True)
+    pm = pin.buildModelFromUrdf(str(ARM))
+    q, qd, a = np.random.default_rng(8).uniform(-1, 1, (3, 7))
+    Y = pin.computeJointTorqueRegressor(pm, pm.createData(), q, qd, a)
+    assert relative(mod.regressor(q, qd, a), Y) < 1e-13

@@ -147,6 +147,7 @@ def model_info(spec, equations, formulation=None):
     resolves to (`lagrgen.tree.choose`)."""
     from .dimensions import energy_units
     from .tree import analysed, choose, explicit_time
+    from .tree3d import inertial_parameters
     asked, formulation = formulation, choose(equations, formulation)
     if formulation == "recursive":
         time_dependent = explicit_time(analysed(equations)[0], equations)
@@ -164,6 +165,7 @@ def model_info(spec, equations, formulation=None):
         content_hash=content_digest(spec, asked, lambda: equations), lagrgen_version=__version__,
         nonsmooth_definitions=[(e["name"], e["kind"], e["normal"])
                                for e in _nonsmooth().describe(spec)],
+        inertial_parameters=inertial_parameters(spec),
         initial_state=spec.initial_state)
 
 

@@ -136,6 +136,10 @@ FUNCTIONS = (
                   "r = [M·q̈ − F − Aᵀλ; A·q̈ − γ] of the implicit form at a given a = [q̈, λ], "
                   "and its derivatives ∂r/∂[q, q̇], ∂r/∂a, ∂r/∂u",
                   ("mf", "constraints", "jacobian_b", "dF_du", "constraint_jacobian")),
+    ModelFunction("regressor", "implicit", (Output("Y", ("n", "n_inertial")),),
+                  "Y(q, q̇, q̈) with M·q̈ − F = Y·π for the bodies' inertial parameters π "
+                  "(inertial_parameters; forces of inputs, springs and dampers left out): "
+                  "∂(M·q̈ − F)/∂π", ("parameter_b", "body_poses"), "regressor"),
     ModelFunction("residual_parameter_jacobian", "implicit",
                   (Output("dr_dp", ("n_implicit", "n_params")),),
                   "∂r/∂p of r = [M·q̈ − F − Aᵀλ; A·q̈ − γ] at a given a = [q̈, λ]",

@@ -173,6 +173,9 @@ KERNELS = (
                "Hp = ∂(Aᵀλ)/∂p (n×n_params) and Gp = ∂γ/∂p − ∂(A·a)/∂p (m×n_params), a = [q̈, λ]",
                (Output("Hp", ("n", "n_params")), Output("Gp", ("n_constraints", "n_params"))),
                lambda eq: {"Hp": flatten(eq.dAl_dp), "Gp": flatten(eq.G_p)}, lambda eq: eq.m > 0),
+    KernelSpec("body_poses", "each body's pose (R, p) in the fixed frame (a spatial tree only)",
+               (Output("poses", ("n", "12")),), lambda eq: {"poses": []},
+               when=lambda eq: False),
     KernelSpec("events", "the event functions g_k(t, q, q̇, u), whose roots the solvers locate",
                (Output("g", ("n_events",)),), lambda eq: {"g": list(eq.events)},
                when=lambda eq: bool(eq.events)),
@@ -282,6 +285,11 @@ TREE_KERNELS = (
                notes=_node_notes("slopes", slopes=True)),
     KernelSpec("dF_du", "∂F/∂u = ∂Q/∂u, n×n_inputs", (Output("dF_du", ("n", "n_inputs")),),
                lambda eq: {"dF_du": flatten(tree_gradients(eq)[2])}),
+    KernelSpec("tree_poses", "each node's frame (R row-major, then its origin p) in the fixed frame "
+               "(a spatial tree: the frame its body's inertial parameters are about)",
+               (Output("poses", ("n", "12")),),
+               lambda eq: {"poses": [x for pose in tree.analyse(eq).poses for x in pose]},
+               when=lambda eq: tree.analyse(eq).kind == "spatial"),
     KernelSpec("tree_parameters", "the nonzero derivatives of the node records and of Q by the "
                "parameters (lagrgen.tree.parameter_gradients)",
                (Output("dnode", ("nnz_p",)), Output("dQp", ("nnz_qp",))),
@@ -301,7 +309,8 @@ TREE_REPLACES = {"mf": ("tree_nodes",),
                  "jacobian_b": ("tree_nodes", "tree_slopes"),
                  "parameter_b": ("tree_nodes", "tree_parameters"),
                  "motion_tape": ("tree_nodes", "tree_slopes", "tree_parameters"),
-                 "motion_tangent": ()}
+                 "motion_tangent": (),
+                 "body_poses": ("tree_poses",)}
 
 
 @once_per

@@ -45,7 +45,9 @@ class SpatialTree:
     Nodes are in preorder (a parent before its children, every subtree contiguous):
     `coordinate[k]` is node k's coordinate, `parent[k]` its parent node (−1: a root), `end[k]`
     one past the last node of its subtree; `records[k]` the node's FIELDS (SymEngine), `Q` the
-    generalized forces in coordinate order.
+    generalized forces in coordinate order; `poses[k]` the node's frame in the fixed one (R
+    row-major, then its origin: 12 expressions), the frame its body's inertial parameters are
+    about.
     """
     coordinate: tuple
     parent: tuple
@@ -53,6 +55,7 @@ class SpatialTree:
     records: list
     Q: list
     notes: list = field(default_factory=list)
+    poses: list = field(default_factory=list)
     kind = "spatial"
     fields = FIELDS
 
@@ -121,8 +124,9 @@ def _from_articulation(eq, record, others):
     gravity = [convert(g) for g in record.gravity]
     Q = generalized_forces(others, convert, q, eq.qd, eq.t)
     zero = se.Integer(0)
-    records, notes = [], []
+    records, notes, poses = [], [], []
     for k, (segment, frame) in enumerate(zip(record.segments, world)):
+        poses.append([x for row in frame.R for x in row] + list(frame.p))
         base = [zero] * 3 + [-g for g in gravity] if parent[k] < 0 else [zero] * 6
         records.append(list(frame.twist) + frames.world_inertia(frame) + base
                        + [Q[coordinate[k]]])
@@ -130,7 +134,28 @@ def _from_articulation(eq, record, others):
                  else ", a root")
         notes.append(f"node {k}: {segment.kind} joint {names[coordinate[k]]}{above}; carries "
                      f"{('link ' + segment.link) if segment.link else 'no body'}")
-    return SpatialTree(tuple(coordinate), parent, end, records, Q, notes)
+    return SpatialTree(tuple(coordinate), parent, end, records, Q, notes, poses)
+
+
+def inertial_symbols(spec):
+    """Per segment of the model's articulation, the ten parameters that are its body's inertial
+    parameters (m, m·c_x, m·c_y, m·c_z, I_xx, I_xy, I_yy, I_xz, I_yz, I_zz), or None where they
+    are not ten distinct parameters; [] for a model without an articulation."""
+    record = next((r for r in spec.physics if isinstance(r, Articulation)), None)
+    if record is None:
+        return []
+    parameters = set(spec.parameters)
+    out = []
+    for segment in record.segments:
+        values = tuple(segment.inertia)
+        ok = len(set(values)) == 10 and all(v in parameters for v in values)
+        out.append(values if ok else None)
+    return out
+
+
+def inertial_parameters(spec):
+    """The names of the model's inertial parameters, ten per body, in segment order."""
+    return tuple(s.name for values in inertial_symbols(spec) if values for s in values)
 
 
 def _subtree_ends(parent):
@@ -272,7 +297,8 @@ def _from_bodies(eq):
         above = f", below {names[coordinate[parent[k]]]}" if parent[k] >= 0 else ", a root"
         notes.append(f"node {k}: coordinate {names[j]}{above}; carries "
                      f"{len(carried) or 'no'} bod{'y' if len(carried) == 1 else 'ies'}")
-    return SpatialTree(coordinate, parent, end, records, Q, notes)
+    identity = [se.Integer(int(i == j)) for i in range(3) for j in range(3)] + [zero] * 3
+    return SpatialTree(coordinate, parent, end, records, Q, notes, [identity] * len(coordinate))
 
 
 def _column(eq, body, j, reference=None):

@@ -241,6 +241,8 @@ def model_source(info, equations, max_statements=400, functions=FUNCTIONS):
         constraint_solver=read_template("constraints.c.in"), lanes=LANES,
         stack_doubles=STACK_DOUBLES,
         functions=model_functions(info.name, functions),
+        inertial_index=", ".join(str(info.parameters.index(name))
+                                 for name in info.inertial_parameters) or "0",
         coordinate_names=_names(info.coordinates),
         parameter_names=_names(info.parameters), input_names=_names(info.inputs),
         defaults=", ".join(_double(d) for d in defaults),

@@ -35,6 +35,11 @@ def layout(equations):
            "end": list(tree.end), "dq": _nodes(dq, tree), "dqd": _nodes(dqd, tree),
            "dnode": [[k, o] for k, o, _ in dnode], "dnode_start": start,
            "dQp": [list(ij) for ij in dQp]}
+    columns, start = [], 0
+    for values in trees.tree3d.inertial_symbols(equations.spec) or [None] * len(tree.coordinate):
+        columns.append(start if values else -1)
+        start += 10 if values else 0
+    out["inertial_column"] = columns
     if tree.kind == "planar":
         out.update(D=tree.D, slope_width=trees.record_width(trees.SLOPE_FIELDS, tree.D),
                    slope_fields=trees.field_offsets(trees.SLOPE_FIELDS, tree.D))
@@ -65,6 +70,8 @@ def tree_c(equations, template, kernels=("tree_nodes", "tree_slopes", "tree_para
     return Template(template).substitute(
         has_slopes=int("tree_slopes" in kernels),
         has_parameters=int("tree_parameters" in kernels),
+        has_poses=int("tree_poses" in kernels),
+        inertial_columns=_ints(tables["inertial_column"]),
         tree_d=tables.get("D", 0), node_width=tables["node_width"],
         slope_width=tables.get("slope_width", 0),
         nnz_q=len(tables["dq"]), nnz_qd=len(tables["dqd"]), field_offsets="\n".join(offsets),

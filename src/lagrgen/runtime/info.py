@@ -22,7 +22,9 @@ class ModelInfo:
     triples of the impacts and frictions (`lagrgen.nonsmooth`), normal None or (kind, index);
     `initial_state` the declared [q0, q̇0] (2n floats), or () when none was declared;
     `formulation` how q̈ and the Jacobian are computed: "dense" (Cholesky of M) or "recursive"
-    (over the kinematic tree, `lagrgen.tree`).
+    (over the kinematic tree, `lagrgen.tree`); `inertial_parameters` the parameters that are the
+    bodies' ten inertial parameters (m, m·c, I about the body frame's origin), ten per body, the
+    columns of the regressor.
     """
 
     name: str
@@ -41,10 +43,11 @@ class ModelInfo:
     nonsmooth_definitions: tuple = ()
     initial_state: tuple = ()
     formulation: str = "dense"
+    inertial_parameters: tuple = ()
 
     def __post_init__(self):
         for name in ("coordinates", "parameters", "inputs", "defaults", "output_names",
-                     "constraint_names", "initial_state"):
+                     "constraint_names", "initial_state", "inertial_parameters"):
             object.__setattr__(self, name, tuple(getattr(self, name)))
         object.__setattr__(self, "event_definitions",
                            tuple(tuple(e) for e in self.event_definitions))
@@ -72,6 +75,7 @@ class ModelInfo:
                 "n_implicit": n + m,
                 "n_events": len(self.event_definitions), "n_power": len(POWER_TERMS),
                 "n_outputs": len(self.output_names),
+                "n_inertial": len(self.inertial_parameters),
                 "n_hybrid": sum(HYBRID_FIELDS[kind] + n for _, kind, _ in
                                 self.nonsmooth_definitions)}
 
@@ -96,4 +100,4 @@ class ModelInfo:
 INFO_ATTRIBUTES = ("name", "coordinates", "parameters", "inputs", "units", "output_names",
                    "constraint_names", "event_definitions", "explicit_time", "content_hash",
                    "lagrgen_version", "n_coordinates", "n_constraints", "dimensions",
-                   "nonsmooth_definitions", "formulation")
+                   "nonsmooth_definitions", "formulation", "inertial_parameters")

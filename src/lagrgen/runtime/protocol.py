@@ -32,6 +32,7 @@ class BuiltModel(Protocol):
     nonsmooth_definitions: Tuple[tuple, ...]  # (name, "impact" | "friction", normal), §13
     explicit_time: bool           # M or F depends on t explicitly
     formulation: str              # "dense" (Cholesky of M) or "recursive" (over the kinematic tree)
+    inertial_parameters: Tuple[str, ...]  # the bodies' inertial parameters π, 10 per body (§21)
     content_hash: str             # of the derived equations and lagrgen's generator
     lagrgen_version: str
     n_coordinates: int
@@ -88,6 +89,9 @@ class BuiltModel(Protocol):
 
     def residual_terms(self, q, qd, a, t=0.0, p=None, u=None) -> tuple:
         """(r, ∂r/∂[q, q̇], ∂r/∂a, ∂r/∂u) of r = [M·q̈ − F − Aᵀλ; A·q̈ − γ], a = [q̈, λ]."""
+
+    def regressor(self, q, qd, a, t=0.0, p=None, u=None) -> np.ndarray:
+        """Y, (n, len(inertial_parameters)), with M·q̈ − F = Y·π at q̈ = a (§21)."""
 
     def residual_parameter_jacobian(self, q, qd, a, t=0.0, p=None, u=None) -> np.ndarray:
         """∂r/∂p, (n + n_constraints, n_params), of the same r."""

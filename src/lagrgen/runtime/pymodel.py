@@ -297,6 +297,14 @@ class PythonModel:
             out[n:] = -Gp.reshape(m, k)
         return out
 
+    def _regressor(self, t, q, qd, a, p, u):
+        """Y = ∂(M·q̈ − F)/∂π: minus P's columns of the inertial parameters at q̈ = a."""
+        n = self.n_coordinates
+        index = [self.parameters.index(name) for name in self.inertial_parameters]
+        if not index:
+            return np.zeros((n, 0))
+        return -self._parameter_b(t, q, qd, list(a[:n]), p, u)[:, index]
+
     def _outputs(self, t, q, qd, p, u):
         return self._kernel("outputs", t, q, qd, None, p, u)[0]
 

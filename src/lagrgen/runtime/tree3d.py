@@ -302,12 +302,6 @@ class SpatialPythonModel(PythonModel):
         out[n:] = self._tree.solve(L, self._parameter_b(t, q, qd, qdd, p, u, nodes))
         return out
 
-    def _residual_parameter_jacobian(self, t, q, qd, a, p, u):
-        k = len(self.parameters)
-        if not k:
-            return np.zeros((self.n_coordinates, 0))
-        return -self._parameter_b(t, q, qd, a[:self.n_coordinates], p, u)
-
     def _directional_derivatives(self, t, q, qd, p, u, dy, dp):
         n = self.n_coordinates
         nodes, L, qdd = self._factored(t, q, qd, p, u)
