@@ -327,12 +327,24 @@ static void hy_delassus(hy_ctx *c, const int *rows, int k)
     }
 }
 
+/* q̇ += WP·Λ: the impulses c->impulse[0..k) along the rows of the last hy_delassus. */
+static void hy_apply_impulse(hy_ctx *c, double *y, int k)
+{
+    int n = c->n;
+    for (int a = 0; a < n; ++a) {
+        double s = 0;
+        for (int q = 0; q < k; ++q)
+            s += c->WP[a * k + q] * c->impulse[q];
+        y[n + a] += s;
+    }
+}
+
 /* q̇⁺ by the generalized Newton law for the closing impacts (closing[0..nc), restitution e[]
  * per closing one) and the held ones (e = 0); y updated in place; before[] gets ġ⁻. */
 static int hy_impact(hy_ctx *c, double t, double *y, const double *u, const int *closing, int nc,
                      const double *e)
 {
-    int n = c->n, k = 0;
+    int k = 0;
     if (hy_terms(c, t, y, u) || hy_inverse_mass(c))
         return 1;
     for (int a = 0; a < nc; ++a)
@@ -370,12 +382,7 @@ static int hy_impact(hy_ctx *c, double t, double *y, const double *u, const int 
         if (change <= 1e-15 * scale)
             break;
     }
-    for (int a = 0; a < n; ++a) {
-        double s = 0;
-        for (int q = 0; q < k; ++q)
-            s += c->WP[a * k + q] * c->impulse[q];
-        y[n + a] += s;
-    }
+    hy_apply_impulse(c, y, k);
     return 0;
 }
 
@@ -463,7 +470,7 @@ static int hy_impacts(hy_ctx *c, double t, double *y, int nc);
  * 1: model failure or D singular, -1: out of memory. */
 static int hy_hold(hy_ctx *c, double t, double *y, const int *rows, int k)
 {
-    int n = c->n, moving = 0;
+    int moving = 0;
     if (hy_terms(c, t, y, c->u) || hy_inverse_mass(c))
         return 1;
     hy_delassus(c, rows, k);
@@ -475,12 +482,7 @@ static int hy_hold(hy_ctx *c, double t, double *y, const int *rows, int k)
         return 0;
     if (hy_lu_solve(c->D, c->impulse, k))
         return 1;
-    for (int a = 0; a < n; ++a) {
-        double s = 0;
-        for (int q = 0; q < k; ++q)
-            s += c->WP[a * k + q] * c->impulse[q];
-        y[n + a] += s;
-    }
+    hy_apply_impulse(c, y, k);
     for (int q = 0; q < k; ++q)
         if (c->before[q] != 0 && hy_record(c, t, rows[q], LG_CONTACT))
             return -1;
