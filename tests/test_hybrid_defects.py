@@ -196,7 +196,7 @@ def test_an_ensemble_run_closing_at_the_start_is_struck_first(built):
     assert ens.y[0][0, 1] > 0
 
 
-# -- 37.3: a closed contact's speed at the start ------------------------------------------------------
+# -- 37.3: a closed contact's speed at the start ---------------------------------------------
 def rest_speed(gap_tol):
     """The speed of a fall through gap_tol under g: below it a closed gap is at rest."""
     return np.sqrt(2 * gap_tol * G)

@@ -1,5 +1,6 @@
 """How a built model (either backend) names itself: its coordinates, parameters with defaults and
-inputs, and the formulation its build chose. Imports nothing heavy: a compiled model's module uses it at import."""
+inputs, and the formulation its build chose. Imports nothing heavy: a compiled model's module
+uses it at import."""
 import types
 
 
