@@ -258,7 +258,8 @@ def test_cli_builds_and_another_process_imports(tmp_path):
     out = tmp_path / "built"
     result = run(["-m", "lagrgen", "build", "springs.py", "--out", str(out)], tmp_path)
     assert result.returncode == 0, result.stderr
-    assert "soft" in result.stdout and "stiff" in result.stdout
+    assert "soft: built in " in result.stdout and "stiff: built in " in result.stdout
+    assert result.stdout.count(", dense formulation -> ") == 2
     check = ("import sys, json; sys.path.insert(0, sys.argv[1]); import soft, stiff; "
              "print(json.dumps([soft.rhs(0, [1.0, 0.0]).tolist(), stiff.name, stiff.coordinates]))")
     imported = run(["-c", check, str(out)], tmp_path)
@@ -267,6 +268,30 @@ def test_cli_builds_and_another_process_imports(tmp_path):
     assert rhs == [0.0, -4.0] and name == "stiff" and coordinates == ["x"]
     again = run(["-m", "lagrgen", "build", "springs.py", "--out", str(out)], tmp_path)
     assert again.returncode == 0 and again.stdout.count("cached") == 2
+    assert again.stdout.count(", dense formulation -> ") == 2
+
+
+def test_the_formulation_a_build_chose_is_shown(tmp_path, capsys):
+    """In the verbose output of a build (derived or cached), in the built model's repr, and on the
+    command line's line per model (a chain of RECURSIVE_FROM links: lagrgen chooses the
+    recursion)."""
+    from conftest import EXAMPLES, load_example
+    from lagrgen.tree import RECURSIVE_FROM
+    model = load_example("nlink_pendulum").make(RECURSIVE_FROM)
+    for formulation in (None, "dense"):
+        chosen = formulation or "recursive"
+        mod = lagrgen.build(model, out_dir=tmp_path, formulation=formulation, verbose=True)
+        assert f"{RECURSIVE_FROM} coordinates, {chosen} formulation" in capsys.readouterr().err
+        assert mod.formulation == chosen and f"(c backend, {chosen} formulation)" in repr(mod)
+        lagrgen.build(model, out_dir=tmp_path, formulation=formulation, verbose=True)
+        assert f"({chosen} formulation)" in capsys.readouterr().err.split("cached build")[1]
+    (tmp_path / "chain.py").write_text(f"import sys\nsys.path.insert(0, {str(EXAMPLES)!r})\n"
+                                       f"from nlink_pendulum import make\n"
+                                       f"chain = make({RECURSIVE_FROM})\n")
+    result = run(["-m", "lagrgen", "build", "chain.py", "--out", str(tmp_path)], tmp_path)
+    assert result.returncode == 0, result.stderr
+    assert f"nlink{RECURSIVE_FROM}: cached in " in result.stdout
+    assert ", recursive formulation -> " in result.stdout
 
 
 def test_cli_reports_a_bad_model_file_without_a_traceback(tmp_path):

@@ -169,3 +169,81 @@ def test_a_model_rebuilt_under_the_same_name_runs_its_own_equations(cluster, das
     quartic = lagrgen.build(spring("quartic"), out_dir=tmp_path)
     assert not np.allclose(lagrgen.simulate_many(quartic, (0, 1), [1.0, 0.0], params=P,
                                                  t_eval=T, client=client).y, local.y)
+
+
+# -- 37.12: sensitivities of an ensemble, here and on Dask workers ---------------------------------
+SENSITIVITIES = ["k", "y0:x"]
+K = np.array([[2.0], [4.0], [9.0]])
+
+
+def test_an_ensemble_returns_each_runs_sensitivities(mod):
+    """(runs, k, 2n, len(t)): per run those of `simulate(..., sensitivities=...)` (its states
+    too), and x = cos(√k·t) gives ∂x/∂k = −t·sin(√k·t)/(2√k) and ∂x/∂x0 = cos(√k·t)."""
+    for engine in ("native", "scipy"):
+        ens = lagrgen.simulate_many(mod, (0, 1), [1.0, 0.0], params=K, t_eval=T, workers=1,
+                                    sensitivities=SENSITIVITIES, rtol=1e-10, atol=1e-12,
+                                    engine=engine)
+        assert ens.success.all() and ens.engines == [engine] * 3
+        assert ens.sensitivities.shape == (3, 2, 2, len(T))
+        assert ens.sensitivity_names == ("k", "y0:x")
+        for run, (k,) in enumerate(K):
+            alone = lagrgen.simulate(mod, (0, 1), [1.0, 0.0], params=[k], t_eval=T,
+                                     sensitivities=SENSITIVITIES, rtol=1e-10, atol=1e-12,
+                                     engine=engine)
+            np.testing.assert_array_equal(ens.sensitivities[run], alone.sensitivities)
+            np.testing.assert_array_equal(ens.y[run], alone.y)
+            w = np.sqrt(k)
+            np.testing.assert_allclose(ens.sensitivities[run, 0, 0],
+                                       -T * np.sin(w * T) / (2 * w), atol=1e-8)
+            np.testing.assert_allclose(ens.sensitivities[run, 1, 0], np.cos(w * T), atol=1e-8)
+    plain = lagrgen.simulate_many(mod, (0, 1), [1.0, 0.0], params=K, t_eval=T, workers=1)
+    assert plain.sensitivities is None and plain.sensitivity_names == ()
+
+
+def test_ensemble_sensitivities_are_labelled_and_stored(mod, tmp_path):
+    ens = lagrgen.simulate_many(mod, (0, 1), [1.0, 0.0], params=K, t_eval=T, workers=1,
+                                sensitivities=SENSITIVITIES)
+    ds = ens.to_xarray()
+    assert ds.sensitivities.dims == ("run", "sensitivity", "state", "time")
+    assert ds.sensitivity.values.tolist() == SENSITIVITIES
+    np.testing.assert_array_equal(ds.sensitivities.values, ens.sensitivities)
+    stored = lagrgen.simulate_many(mod, (0, 1), [1.0, 0.0], params=K, t_eval=T, workers=1,
+                                   sensitivities=SENSITIVITIES, store=tmp_path / "s.zarr")
+    np.testing.assert_array_equal(stored.sensitivities.values, ens.sensitivities)
+    assert lagrgen.open_ensemble(tmp_path / "s.zarr").sensitivity.values.tolist() == \
+        SENSITIVITIES
+    import shutil
+    shutil.rmtree(tmp_path / "s.zarr" / "sensitivities")
+    with pytest.warns(StoreWarning, match="the chunk file sensitivities/0.0.0.0 is missing"):
+        assert not lagrgen.open_ensemble(tmp_path / "s.zarr").success.values.any()
+
+
+def test_ensemble_sensitivities_that_cannot_be_had_are_refused_before_any_run(mod):
+    with pytest.raises(lagrgen.UnknownNameError, match="unknown parameter name 'm'"):
+        lagrgen.simulate_many(mod, (0, 1), [1.0, 0.0], t_eval=T, sensitivities=["m"])
+    model = Model("sensitive_ball")
+    y, = model.coordinates("y")
+    model.particle(1, sp.Matrix([0, y]))
+    model.potential_energy(9.81 * y)
+    model.impact("floor", y)
+    ball = lagrgen.build(model, backend="python")
+    with pytest.raises(ValueError, match="sensitivities are computed for smooth models"):
+        lagrgen.simulate_many(ball, (0, 1), [1.0, 0.0], t_eval=T, sensitivities=["y0:y"])
+
+
+@pytest.mark.parametrize("cluster", ["processes", "threads"])
+def test_dask_workers_get_the_units_the_runs_call(cluster, dask_client, threads_client, mod,
+                                                  tmp_path):
+    """The directional derivatives (a unit compiled on first use) go to the workers with the
+    module: every run failed there, looking for a cache entry in the worker's directory."""
+    client = dask_client if cluster == "processes" else threads_client
+    local = lagrgen.simulate_many(mod, (0, 1), [1.0, 0.0], params=K, t_eval=T, workers=1,
+                                  sensitivities=SENSITIVITIES)
+    remote = lagrgen.simulate_many(mod, (0, 1), [1.0, 0.0], params=K, t_eval=T, client=client,
+                                   sensitivities=SENSITIVITIES)
+    assert remote.success.all(), remote.message
+    np.testing.assert_array_equal(remote.sensitivities, local.sensitivities)
+    np.testing.assert_array_equal(remote.y, local.y)
+    stored = lagrgen.simulate_many(mod, (0, 1), [1.0, 0.0], params=K, t_eval=T, client=client,
+                                   sensitivities=SENSITIVITIES, store=tmp_path / "d.zarr")
+    np.testing.assert_array_equal(stored.sensitivities.values, local.sensitivities)

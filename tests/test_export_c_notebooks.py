@@ -90,9 +90,12 @@ def test_repr_latex_shows_the_equations():
 def test_a_built_models_repr_names_its_interface(tmp_path):
     model = example_model("double_pendulum")
     for mod in (lagrgen.build(model, out_dir=tmp_path), lagrgen.build(model, backend="python")):
-        assert repr(mod) == (f"<lagrgen model 'double_pendulum' ({mod.backend} backend): "
-                             "coordinates theta1, theta2; parameters m1=1, m2=1, L1=1, L2=1, "
-                             "g=9.81; inputs F>")
+        assert repr(mod) == (f"<lagrgen model 'double_pendulum' ({mod.backend} backend, dense "
+                             "formulation): coordinates theta1, theta2; parameters m1=1, m2=1, "
+                             "L1=1, L2=1, g=9.81; inputs F>")
+    recursive = lagrgen.build(model, backend="python", formulation="recursive")
+    assert repr(recursive).startswith("<lagrgen model 'double_pendulum' (python backend, "
+                                      "recursive formulation): coordinates theta1, theta2;")
     bare = lagrgen.Model("bare")
     x, = bare.coordinates("x")
     k, = bare.parameters("k")

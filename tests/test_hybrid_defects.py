@@ -196,6 +196,103 @@ def test_an_ensemble_run_closing_at_the_start_is_struck_first(built):
     assert ens.y[0][0, 1] > 0
 
 
+# -- 37.3: a closed contact's speed at the start ---------------------------------------------
+def rest_speed(gap_tol):
+    """The speed of a fall through gap_tol under g: below it a closed gap is at rest."""
+    return np.sqrt(2 * gap_tol * G)
+
+
+def rod_model():
+    """A rod (centre x, y, angle th) whose left end touches the floor: gap y − (L/2)·sin th."""
+    model = Model("leaning_rod")
+    x, y, th = model.coordinates("x y th")
+    m, inertia, L = 2.0, 0.5, 1.0
+    model.rigid_body(m, inertia, sp.Matrix([x, y]), th)
+    model.potential_energy(m * G * y)
+    model.impact("end", y - L / 2 * sp.sin(th), restitution=0.5)
+    return model
+
+
+@pytest.mark.parametrize("engine", ENGINES)
+@pytest.mark.parametrize("gap_tol, speed", [(1e-9, -9e-7), (1e-9, -0.5 * rest_speed(1e-9)),
+                                            (1e-6, -0.5 * rest_speed(1e-6)),
+                                            (1e-3, -0.5 * rest_speed(1e-3))])
+def test_a_contact_closing_slower_than_a_fall_through_gap_tol_is_held_at_rest(built, engine,
+                                                                             gap_tol, speed):
+    """A ball at the floor closing at less than √(2·gap_tol·g) is at rest: an inelastic impulse
+    stops it at t = 0 (a "contact" transition, the states before and after saved) and it stays
+    at y = 0 for 1000 s instead of sinking at that speed."""
+    mod = built(ball_model)
+    sol = lagrgen.simulate(mod, (0, 1000), [0.0, speed], engine=engine, gap_tol=gap_tol,
+                           params={"e": 0.5}, **TOL)
+    assert sol.success and sol.transitions == [(0.0, "floor", "contact")]
+    assert sol.mode == {"floor": "contact"}
+    assert sol.t[0] == sol.t[1] == 0.0
+    assert sol.y[:, 0].tolist() == [0.0, speed] and sol.y[:, 1].tolist() == [0.0, 0.0]
+    assert sol.t[-1] == 1000.0 and np.all(sol.y[:, 1:] == 0.0)
+
+
+@pytest.mark.parametrize("engine", ENGINES)
+@pytest.mark.parametrize("gap_tol", [1e-9, 1e-6, 1e-3])
+def test_a_contact_closing_faster_at_the_start_bounces_and_one_opening_flies(built, engine,
+                                                                            gap_tol):
+    """At 0.9 m/s (above √(2·gap_tol·g) for every gap_tol here, 0.14 m/s at 1e-3) the ball is
+    struck at t = 0 and bounces at e·0.9; moving up at 0.9 m/s it flies and lands 2·0.9/g later
+    — not held at the floor, where it sank (or rose) at 0.9 m/s with gap_tol = 1e-3."""
+    mod = built(ball_model)
+    down = lagrgen.simulate(mod, (0, 2), [0.0, -0.9], engine=engine, gap_tol=gap_tol,
+                            params={"e": 0.5}, **TOL)
+    assert down.success and down.transitions[0] == (0.0, "floor", "impact")
+    assert down.y[1, 1] == pytest.approx(0.45, rel=1e-12)
+    assert down.transitions[1][0] == pytest.approx(2 * 0.45 / G, rel=1e-9)
+    assert down.y[0].min() >= -gap_tol and down.mode == {"floor": "contact"}
+    up = lagrgen.simulate(mod, (0, 2), [0.0, 0.9], engine=engine, gap_tol=gap_tol,
+                          params={"e": 0.5}, t_eval=[0.9 / G], **TOL)
+    assert up.transitions[0][2] == "impact"
+    assert up.transitions[0][0] == pytest.approx(2 * 0.9 / G, rel=1e-9)
+    assert up.y[0, 0] == pytest.approx(0.9 ** 2 / (2 * G), rel=1e-9)     # the apex
+
+
+def test_ensemble_runs_closing_at_the_start_are_held_or_struck_as_alone(built):
+    mod = built(ball_model)
+    y0 = [[0.0, -0.9], [0.0, -0.1], [0.0, 0.9]]
+    t = np.array([0.0, 0.05, 0.5, 1.0, 2.0])
+    options = dict(gap_tol=1e-3, params={"e": 0.5}, t_eval=t, **TOL)
+    ens = lagrgen.simulate_many(mod, (0, 2), y0, workers=1, **options)
+    assert ens.success.all()
+    for run, start in enumerate(y0):
+        alone = lagrgen.simulate(mod, (0, 2), start, **options)
+        np.testing.assert_allclose(ens.y[run], alone.y, rtol=1e-12, atol=1e-15)
+        assert ens.transitions[run] == alone.transitions
+    assert ens.transitions[1] == [(0.0, "floor", "contact")] and np.all(ens.y[1] == 0.0)
+    assert ens.transitions[0][0] == (0.0, "floor", "impact")
+    assert ens.y[0][1, 1] == pytest.approx(0.45 - G * t[1], rel=1e-9)      # bounced, not sunk
+    assert np.all(ens.y[:, 0] >= -1e-3)
+
+
+def test_the_impulse_that_holds_a_contact_at_the_start_is_along_the_inverse_mass(built):
+    """A rod leaning on one end, closing slowly there: the impulse Λ along the gap's gradient W
+    sets ġ = 0 and changes q̇ by M⁻¹·Wᵀ·Λ (x untouched, y and th in the ratio of 1/m to
+    −(L/2)·cos th/I), the same on both engines."""
+    mod = built(rod_model)
+    th, yd, thd = 0.3, 0.1, 0.3
+    gap_rate = yd - 0.5 * np.cos(th) * thd                  # −0.043: below √(2·1e-3·g)
+    y0 = [0.1, 0.5 * np.sin(th), th, 0.7, yd, thd]
+    after = {}
+    for engine in ENGINES:
+        sol = lagrgen.simulate(mod, (0, 0.01), y0, engine=engine, gap_tol=1e-3, **TOL)
+        assert sol.transitions[0] == (0.0, "end", "contact")
+        after[engine] = sol.y[:, 1]
+    np.testing.assert_allclose(after["native"], after["scipy"], rtol=1e-13, atol=1e-15)
+    change = after["native"][3:] - np.array(y0[3:])
+    W = np.array([0.0, 1.0, -0.5 * np.cos(th)])
+    assert change[0] == 0.0
+    assert W @ after["native"][3:] == pytest.approx(0.0, abs=1e-15)
+    impulse = change[1] * 2.0
+    np.testing.assert_allclose(change, impulse * W / [2.0, 2.0, 0.5], rtol=1e-12)
+    assert gap_rate < 0 and impulse > 0
+
+
 # -- 32.6: duplicate contacts ----------------------------------------------------------------------
 def test_duplicate_contacts_are_refused_when_declared():
     model = Model("duplicates")

@@ -200,6 +200,22 @@ def test_import_lagrgen_is_light():
     assert lines == ["[]", "True"]
 
 
+def test_the_modules_of_the_package_are_reachable_from_its_face():
+    """`lagrgen.tree.RECURSIVE_FROM`, as the manual writes it, right after `import lagrgen` (the
+    lazy face raised AttributeError until something imported lagrgen.tree); other names still
+    raise AttributeError."""
+    code = ("import sys, lagrgen; print('lagrgen.tree' in sys.modules, "
+            "lagrgen.tree.RECURSIVE_FROM, lagrgen.options.__name__)\n"
+            "for name in ('no_such_module', '_private'):\n"
+            "    try:\n        getattr(lagrgen, name)\n"
+            "    except AttributeError as exc:\n        print(exc)")
+    lines = run([sys.executable, "-c", code]).stdout.splitlines()
+    from lagrgen.tree import RECURSIVE_FROM
+    assert lines == [f"False {RECURSIVE_FROM} lagrgen.options",
+                     "module 'lagrgen' has no attribute 'no_such_module'",
+                     "module 'lagrgen' has no attribute '_private'"]
+
+
 # -- arguments checked once at the boundary -----------------------------------------------------
 def test_params_and_inputs_may_be_keyed_by_symbols(both):
     m1 = next(s for s in DOUBLE.parameter_symbols if s.name == "m1")

@@ -1,9 +1,11 @@
 """lagrgen: Lagrange's equations of motion, derived symbolically and compiled to C.
 
 The package face is lazy (PEP 562): `import lagrgen` loads only the version and the exceptions;
-SymPy, SciPy and matplotlib are imported when a function that needs them is first used.
+SymPy, SciPy and matplotlib are imported when a function that needs them is first used, and a
+module of the package (`lagrgen.tree`, `lagrgen.options`, ...) when it is first named.
 """
 import importlib
+import importlib.util
 import sys
 import types
 
@@ -59,6 +61,8 @@ sys.modules[__name__].__class__ = _Package
 
 def __getattr__(name):
     if name not in _LAZY:
+        if not name.startswith("_") and importlib.util.find_spec(f"{__name__}.{name}"):
+            return importlib.import_module(f".{name}", __name__)
         raise AttributeError(f"module 'lagrgen' has no attribute {name!r}")
     module_name = _LAZY[name]
     if module_name is None:

@@ -98,7 +98,7 @@ def build_c(name, digest, derive, out_dir, verbose=False, quiet=False, force=Fal
         progress.note("deriving the equations of motion ...")
         if info.formulation == "dense":
             equations.differentiate(parameters=False)
-        progress.step("derive", f"{equations.n} coordinates")
+        progress.step("derive", f"{equations.n} coordinates, {info.formulation} formulation")
         compile_model(generate(info, equations, progress), work, name, flags, progress,
                       kernel_part_flags)
         cache.keep_description(work, equations.spec, flags)
@@ -117,7 +117,7 @@ def build_c(name, digest, derive, out_dir, verbose=False, quiet=False, force=Fal
                                      digest, str(entry.main.module_file))
         hit = True
     if hit:
-        progress.note(f"cached build {entry.directory.name}")
+        progress.note(f"cached build {entry.directory.name} ({module.formulation} formulation)")
     times = dict(progress.times)
     if "cse" in times:
         times["cse+emit"] = times["cse"] + times["emit"]

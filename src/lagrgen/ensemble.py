@@ -59,6 +59,9 @@ class EnsembleResult:
     units : {name: unit} of the model (labels only)
     settings : {"method", "rtol", "atol"} of the runs
     transitions : None, or per run the list of (t, name, kind) of a non-smooth model's run
+    sensitivities : (runs, len(sensitivity_names), 2n, len(t)) the forward sensitivities
+        ∂y(t)/∂p_j of each run when `simulate_many(..., sensitivities=names)`, else None
+    sensitivity_names : the names given (parameters, `y0:<state>`), in that order
     """
 
     t: np.ndarray
@@ -79,6 +82,8 @@ class EnsembleResult:
     model_name: str = ""
     transitions: Optional[list] = None
     settings: dict = field(default_factory=dict)
+    sensitivities: Optional[np.ndarray] = None
+    sensitivity_names: tuple = ()
 
     @property
     def runs(self):
@@ -254,6 +259,7 @@ class Plan:
     dim: int = 0
     n_outputs: int = 0
     n_constraints: int = 0
+    sensitivities: tuple = ()
 
 
 @dataclass
@@ -279,6 +285,8 @@ def empty_part_result(plan, m):
         out["multipliers"] = np.full((m, plan.n_constraints, k), np.nan)
     if plan.outputs:
         out["outputs"] = np.full((m, plan.n_outputs, k), np.nan)
+    if plan.sensitivities:
+        out["sensitivities"] = np.full((m, len(plan.sensitivities), plan.dim, k), np.nan)
     return out
 
 
@@ -379,13 +387,14 @@ def _one_run(mod, plan, part, i, out):
     """Run i of the chunk through `lagrgen.simulate`, into row i of `out`; a failure of the run
     itself (not of the arguments) is kept in its row."""
     k = len(plan.t_eval)
-    for key in ("y", "multipliers", "outputs"):
+    for key in ("y", "multipliers", "outputs", "sensitivities"):
         if key in out:
             out[key][i] = np.nan
     try:
         sol = simulate(mod, plan.t_span, part.Y0[i], method=plan.method, params=part.P[i],
                        inputs=_run_inputs_for_simulate(mod, plan, part, i), rtol=plan.rtol,
-                       atol=plan.atol, t_eval=plan.t_eval, **plan.options)
+                       atol=plan.atol, t_eval=plan.t_eval,
+                       sensitivities=list(plan.sensitivities) or None, **plan.options)
     except (LagrgenError, np.linalg.LinAlgError, FloatingPointError, ArithmeticError) as exc:
         out["status"][i], out["nfev"][i], out["message"][i] = -1, 0, str(exc)
         out["engines"][i] = "scipy" if not plan.batch else "native"
@@ -399,6 +408,8 @@ def _one_run(mod, plan, part, i, out):
         out["multipliers"][i, :, :saved] = run_multipliers(mod, sol)[:, :saved]
     if "outputs" in out:
         out["outputs"][i, :, :saved] = evaluate_outputs(mod, sol)[:plan.n_outputs, :saved]
+    if "sensitivities" in out:
+        out["sensitivities"][i, :, :, :saved] = sol.sensitivities[:, :, :saved]
     transitions = getattr(sol, "transitions", None)
     if transitions is not None:             # non-smooth models (API §13): one list per run
         if out["transitions"] is None:
@@ -409,12 +420,15 @@ def _one_run(mod, plan, part, i, out):
 # ---------------------------------------------------------------- the driver
 
 
-def batch_reason(mod, method, options):
+def batch_reason(mod, method, options, sensitivities=()):
     """Why the runs cannot go through the C batch (a str), or None when they can. The hook for
     non-smooth models: a model with impacts or frictions (`nonsmooth_definitions`, API §13)
-    runs per run, where `simulate` gives each run's transitions, until the batch collects them."""
+    runs per run, where `simulate` gives each run's transitions, until the batch collects them;
+    so do runs with sensitivities (each on the native engine when it can run them)."""
     if options.get("engine") == "scipy":
         return "engine='scipy'"
+    if sensitivities:
+        return "the sensitivities are integrated per run"
     rest = {k: v for k, v in options.items() if k not in ("engine", "max_steps", "max_wall_time")}
     why = native_reason(mod, method, None, None, rest)
     if why:
@@ -426,7 +440,7 @@ def batch_reason(mod, method, options):
 
 def simulate_many(mod, t_span, y0=None, params=None, inputs=None, t_eval=None, method="RK45",
                   rtol=1e-6, atol=1e-9, workers=None, client=None, progress=None, outputs=False,
-                  store=None, **options):
+                  store=None, sensitivities=None, **options):
     """Integrate many runs of `mod` that share `t_span` and `t_eval`.
 
     Parameters
@@ -448,12 +462,18 @@ def simulate_many(mod, t_span, y0=None, params=None, inputs=None, t_eval=None, m
     store : None, or the path of a Zarr store (needs the `ensembles` extra): each chunk is
         written there as it finishes (by the Dask workers themselves with a client), and the
         whole result is never held in memory
+    sensitivities : parameter names (and `y0:<state>` names), as for `simulate`: each run
+        integrates its forward sensitivities ∂y(t)/∂p_j with its state (one `simulate` per run,
+        natively when it can; with a client the model's compiled derivatives go to the workers
+        with its module). Its states are then those of `simulate(..., sensitivities=...)`: the
+        error control covers the sensitivities too.
 
     Returns
     -------
     Without `store`: an EnsembleResult with t (len(t_eval),), y (runs, 2n, len(t_eval)),
     success, status, nfev, message (one per run), multipliers (constrained models), outputs
-    (with outputs=True); `to_xarray()` labels it. With `store`: the store opened lazily as an
+    (with outputs=True), sensitivities (runs, k, 2n, len(t_eval)) and sensitivity_names (with
+    sensitivities); `to_xarray()` labels it. With `store`: the store opened lazily as an
     `xarray.Dataset` (`lagrgen.open_ensemble(store)`): the same variables as `to_xarray()`,
     read from disk when used, with `attrs["messages"]` = {run: message} for the runs that did
     not end normally.
@@ -486,7 +506,8 @@ def simulate_many(mod, t_span, y0=None, params=None, inputs=None, t_eval=None, m
         raise ValueError("simulate_many needs at least one run")
     if mod.nonsmooth_definitions:
         check_starts(mod, t0, Y0, P, run_inputs, options.get("gap_tol"))
-    why_not = batch_reason(mod, method, options) if mod.backend == "c" else \
+    sensitivities = sensitivity_names(mod, sensitivities, options)
+    why_not = batch_reason(mod, method, options, sensitivities) if mod.backend == "c" else \
         "the model is not compiled"
     packed = None if why_not else batch_inputs(mod, inputs, run_inputs)
     if packed is not None and np.ndim(rtol) == 0:
@@ -501,7 +522,7 @@ def simulate_many(mod, t_span, y0=None, params=None, inputs=None, t_eval=None, m
                 options=dict(options), outputs=bool(outputs), batch=specs is not None,
                 specs=specs, dim=2 * mod.n_coordinates,
                 n_outputs=len(mod.output_names) if outputs else 0,
-                n_constraints=len(multiplier_names(mod)))
+                n_constraints=len(multiplier_names(mod)), sensitivities=sensitivities)
     if outputs and not hasattr(mod, "outputs"):
         raise ValueError(f"model {mod.name!r} has no outputs function")
     parallel = len(client.scheduler_info().get("workers", {})) if client is not None else \
@@ -528,6 +549,15 @@ def simulate_many(mod, t_span, y0=None, params=None, inputs=None, t_eval=None, m
         finish_store(store, sink.messages)
         return open_ensemble(store)
     return sink.result(mod, plan, meta)
+
+
+def sensitivity_names(mod, names, options):
+    """The `sensitivities` names of `simulate_many` as a tuple (empty for None), checked once
+    for all runs as `simulate` checks them."""
+    if names is None:
+        return ()
+    from .sensitivity import checked_names
+    return checked_names(mod, names, options.get("events"))
 
 
 def check_starts(mod, t0, Y0, P, run_inputs, gap_tol=None):
@@ -565,7 +595,7 @@ def ensemble_meta(mod, plan, P):
             "output_names": tuple(mod.output_names) if plan.outputs else (),
             "constraint_names": multiplier_names(mod),
             "elements": tuple(d[0] for d in mod.nonsmooth_definitions),
-            "units": dict(mod.units),
+            "units": dict(mod.units), "sensitivity_names": plan.sensitivities,
             "method": getattr(plan.method, "__name__", str(plan.method)),
             "rtol": float(np.max(plan.rtol)), "atol": float(np.max(plan.atol))}
 
@@ -605,7 +635,8 @@ class MemorySink:
             parameter_names=meta["parameters"], output_names=meta["output_names"],
             constraint_names=meta["constraint_names"], units=meta["units"],
             model_name=meta["model"], transitions=self.transitions,
-            settings={k: meta[k] for k in ("method", "rtol", "atol")})
+            settings={k: meta[k] for k in ("method", "rtol", "atol")},
+            sensitivities=arr.get("sensitivities"), sensitivity_names=meta["sensitivity_names"])
 
 
 class StoreSink:
@@ -697,16 +728,31 @@ _SCATTERED = {}
 _SCATTER_LOCK = threading.Lock()
 
 
-def _worker_target(client, mod):
+def _worker_target(client, mod, labels=()):
     """What a Dask task needs to find the model: a compiled model's module by content — its
     name, the SHA-256 of its file and the file's bytes (scattered to the workers once per client
-    and content) — or the model object itself. A model rebuilt under the same name is another
-    content, so another file on the workers: never the module a worker loaded before. Shipped
-    bytes the cluster no longer holds (`client.restart()`, lost workers), or held for another
-    client that had this one's id and scheduler, are shipped again."""
+    and content) — with the units compiled on first use that the runs call (`labels`, compiled
+    here first, shipped the same way), or the model object itself. A model rebuilt under the
+    same name is another content, so another file on the workers: never the module a worker
+    loaded before."""
     if mod.backend != "c":
-        return ("object", mod)
-    with open(mod.__file__, "rb") as f:
+        return ("object", mod, ())
+    from .runtime import units as runtime_units
+    shipped_units = []
+    for label in labels:
+        with runtime_units.LOCK:
+            unit = runtime_units.unit_module(mod.__file__, mod.compiled_model.info, label)
+        shipped_units.append((label, unit.__name__, *_shipped_file(client, unit.__file__)))
+    return ("module", (mod.__name__, *_shipped_file(client, mod.__file__)),
+            tuple(shipped_units))
+
+
+def _shipped_file(client, path):
+    """(file name, SHA-256, the file's bytes scattered to every worker) of the file `path`,
+    scattered once per client and content. Bytes the cluster no longer holds
+    (`client.restart()`, lost workers), or held for another client that had this one's id and
+    scheduler, are shipped again."""
+    with open(path, "rb") as f:
         data = f.read()
     digest = hashlib.sha256(data).hexdigest()
     key = (id(client), client.scheduler.address, digest)
@@ -717,7 +763,14 @@ def _worker_target(client, mod):
                 del _SCATTERED[stale]       # keeps no closed client (and its bytes) alive
             _SCATTERED[key] = client.scatter(data, broadcast=True, hash=False)
         shipped = _SCATTERED[key]
-    return ("module", (mod.__name__, os.path.basename(mod.__file__), digest, shipped))
+    return os.path.basename(path), digest, shipped
+
+
+def run_units(plan):
+    """The labels of the units compiled on first use that the runs of `plan` call: that of the
+    directional derivatives when they integrate sensitivities."""
+    from .functions import BY_NAME as FUNCTIONS_BY_NAME
+    return (FUNCTIONS_BY_NAME["directional_derivatives"].unit,) if plan.sensitivities else ()
 
 
 def _on_dask(client, mod, plan, parts, sink, bar):
@@ -725,7 +778,7 @@ def _on_dask(client, mod, plan, parts, sink, bar):
     itself and returns only the messages). A chunk's result is released on the worker as soon as
     it has been taken here, so the workers never hold more than the chunks under way."""
     from distributed import as_completed
-    target = _worker_target(client, mod)
+    target = _worker_target(client, mod, run_units(plan))
     path = sink.path if isinstance(sink, StoreSink) else None
     futures = client.map(_dask_part, parts, target=target, plan=plan, store=path, pure=False)
     by_key = {f.key: part for f, part in zip(futures, parts)}
@@ -741,9 +794,12 @@ def _on_dask(client, mod, plan, parts, sink, bar):
 
 
 def _dask_part(part, target, plan, store):
-    """One chunk on a Dask worker: import the uploaded compiled model (or use the object)."""
-    kind, value = target
+    """One chunk on a Dask worker: import the uploaded compiled model and offer it its uploaded
+    units (or use the object)."""
+    kind, value, shipped_units = target
     mod = _uploaded_module(*value) if kind == "module" else value
+    for unit in shipped_units:
+        _offer_unit(mod, *unit)
     stop = np.zeros(1, dtype=np.intc)
     if store is None:
         return solve_part(mod, plan, part, stop=stop)
@@ -756,22 +812,37 @@ _WORKER_LOCK = threading.Lock()
 
 def _uploaded_module(name, filename, digest, data):
     """The compiled model of content `digest` in this Dask worker's process: its bytes written
-    once under a content-addressed name in the worker's directory (atomically, never over a
-    file a process may have loaded), checked against the digest, and imported by that path
-    once per process (not by name: a module of the same name elsewhere on sys.path, such as the
-    model's description or an earlier build of it, must not shadow it)."""
+    once under a content-addressed name in the worker's directory (`_worker_file`) and imported
+    by that path once per process (not by name: a module of the same name elsewhere on
+    sys.path, such as the model's description or an earlier build of it, must not shadow it)."""
+    from .cache import import_extension
+    with _WORKER_LOCK:
+        if digest not in _WORKER_MODULES:
+            path = _worker_file(name, filename, digest, data)
+            _WORKER_MODULES[digest] = import_extension(name, path)
+        return _WORKER_MODULES[digest]
+
+
+def _offer_unit(mod, label, name, filename, digest, data):
+    """Make the uploaded unit `label` (module `name`) the one the uploaded model `mod` finds
+    when it first calls a function of that unit (`lagrgen.units.provide`)."""
+    from .units import provide
+    with _WORKER_LOCK:
+        provide(mod.__file__, label, name, _worker_file(name, filename, digest, data))
+
+
+def _worker_file(name, filename, digest, data):
+    """The path of the uploaded file of content `digest` in this worker's directory: written
+    once (atomically, never over a file a process may have loaded), checked against the
+    digest."""
     from distributed import get_worker
 
-    from .cache import file_digest, import_extension
+    from .cache import file_digest
     from .toolchain import write_atomic
-    with _WORKER_LOCK:
-        if digest in _WORKER_MODULES:
-            return _WORKER_MODULES[digest]
-        if hashlib.sha256(data).hexdigest() != digest:
-            raise LagrgenError(f"the compiled module of model {name!r} arrived damaged on this "
-                               "Dask worker (its SHA-256 differs from the client's)")
-        path = Path(get_worker().local_directory) / f"lagrgen-{digest[:32]}-{filename}"
-        if not (path.is_file() and file_digest(path) == digest):
-            write_atomic(path, data, 0o755)
-        _WORKER_MODULES[digest] = import_extension(name, path)
-        return _WORKER_MODULES[digest]
+    if hashlib.sha256(data).hexdigest() != digest:
+        raise LagrgenError(f"the compiled module {name!r} arrived damaged on this Dask worker "
+                           "(its SHA-256 differs from the client's)")
+    path = Path(get_worker().local_directory) / f"lagrgen-{digest[:32]}-{filename}"
+    if not (path.is_file() and file_digest(path) == digest):
+        write_atomic(path, data, 0o755)
+    return path

@@ -1,7 +1,8 @@
 """Ensembles as labelled data: the `xarray.Dataset` of an ensemble, and the Zarr store that
 `simulate_many(..., store=path)` fills chunk by chunk and `lagrgen.open_ensemble` reopens.
 
-One layout serves both (`layout`): dimensions run × state × time (plus `constraint` and `output`),
+One layout serves both (`layout`): dimensions run × state × time (plus `constraint`, `output` and
+`sensitivity`),
 the states named like the coordinates then `<coordinate>_dot`, one variable per parameter over
 `run` (named `param_<name>` where the name is taken by a variable of the layout), `success`,
 `status` and `nfev` per run, units in attrs. xarray and Zarr are the `ensembles` extra and are
@@ -18,12 +19,12 @@ from .errors import StoreError, StoreWarning
 RESERVED = ("y", "success", "status", "nfev", "multipliers", "outputs", "run", "state", "time",
             "constraint", "output", "chunk_written", "chunk_crc32", "chunk", "chunk_array",
             "transition", "transition_run", "transition_time", "transition_element",
-            "transition_kind")
+            "transition_kind", "sensitivities", "sensitivity")
 FORMAT = "lagrgen-ensemble-2"
 #: The formats `open_ensemble` reads (1: before the chunk records).
 FORMATS = ("lagrgen-ensemble-1", FORMAT)
 #: The per-run arrays a chunk of runs writes, in the order of its checksums.
-PER_RUN = ("y", "success", "status", "nfev", "multipliers", "outputs")
+PER_RUN = ("y", "success", "status", "nfev", "multipliers", "outputs", "sensitivities")
 #: The chunk records: a flag set once a chunk is written whole, and the CRC-32 of each of its
 #: per-run arrays as stored (0 for one the store lacks).
 CHUNK_WRITTEN, CHUNK_CRC32 = "chunk_written", "chunk_crc32"
@@ -83,6 +84,13 @@ def layout(meta, runs):
                             {"units": out_units})
         big["outputs"] = (("run", "output", "time"), (runs, len(meta["output_names"]), k), "f8",
                           {"long_name": "model outputs", "output_units": out_units})
+    names = meta.get("sensitivity_names", ())
+    if names:
+        coords["sensitivity"] = (("sensitivity",), np.array(names, dtype=str), {})
+        big["sensitivities"] = (("run", "sensitivity", "state", "time"),
+                                (runs, len(names), len(states), k), "f8",
+                                {"long_name": "forward sensitivities d y(t) / d p_j of the "
+                                              "parameters (or initial states y0:<state>) named"})
     attrs = {"model": meta["model"], "method": meta["method"], "rtol": meta["rtol"],
              "atol": meta["atol"], "units": json.dumps(units), "lagrgen_format": FORMAT,
              "coordinates_q": list(meta["coordinates"]), "parameters": list(meta["parameters"])}
@@ -107,11 +115,14 @@ def to_dataset(ens):
             "output_names": tuple(ens.output_names) if ens.outputs is not None else (),
             "constraint_names": tuple(ens.constraint_names)
             if ens.multipliers is not None else (),
+            "sensitivity_names": tuple(ens.sensitivity_names)
+            if ens.sensitivities is not None else (),
             "units": dict(ens.units), "method": "", "rtol": float("nan"), "atol": float("nan"),
             **ens.settings}
     coords, small, big, attrs = layout(meta, ens.runs)
     values = {"y": ens.y, "success": ens.success, "status": ens.status, "nfev": ens.nfev,
-              "multipliers": ens.multipliers, "outputs": ens.outputs}
+              "multipliers": ens.multipliers, "outputs": ens.outputs,
+              "sensitivities": ens.sensitivities}
     data = {name: (dims, v, a) for name, (dims, v, a) in small.items()}
     for name, (dims, shape, dtype, a) in big.items():
         data[name] = (dims, np.asarray(values[name]).astype(dtype, copy=False), a)
@@ -397,7 +408,7 @@ def marked(ds, health, chunk, path):
     out = ds.copy()
     for name, values in (("status", status), ("success", success), ("nfev", nfev)):
         out[name] = (ds[name].dims, values, ds[name].attrs)
-    for name in ("y", "multipliers", "outputs"):
+    for name in ("y", "multipliers", "outputs", "sensitivities"):
         if name in ds:
             out[name] = (ds[name].dims, _without(ds[name].data, bad, chunk), ds[name].attrs)
     damaged = {str(k * chunk): reason for k, reason in sorted(health.items())

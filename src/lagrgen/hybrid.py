@@ -24,11 +24,14 @@ limit (μ_s·|N| − |λ| ↓ 0). Then:
   sticking force is within μ_s·|N|, else slip on in the direction −sign(λ) ("slip"); a sticking
   contact slips when its force reaches μ_s·|N|. The mode is made consistent (forces ≥ 0, sticking
   forces within their cones) before the next segment; `max_transitions` bounds chattering.
-* Tolerances. A gap counts as closed within `gap_tol` (default 1e-9); a slip velocity counts as
-  zero within 1000·gap_tol (at the start, and for frictions stopping together with the one whose
-  event fired).
-* The start is classified as any switch: a closed gap closing faster than 1000·gap_tol is struck
-  at t0, one at rest is held, one opening is free; a gap below −gap_tol, a restitution outside
+* Tolerances. A gap counts as closed within `gap_tol` (default 1e-9), and its speed as zero at the
+  start within the speed of a fall through gap_tol; a slip velocity counts as zero within
+  1000·gap_tol (at the start, and for frictions stopping together with the one whose event
+  fired).
+* The start is classified as any switch: a closed gap at rest — abs(ġ) at most √(2·gap_tol·abs(g̈)),
+  the speed of a fall through gap_tol (g̈ with every contact open) — is held if its force is
+  ≥ 0, with ġ set to 0 by an inelastic impulse; one closing faster is struck at t0; any other
+  is free; a gap below −gap_tol, a restitution outside
   [0, 1], μ < 0 or μ_s < μ (at the start and at every switch) and two closed impacts with
   parallel gradients (duplicate contacts) are `ContactError`s. A solve whose segments stop
   advancing (STALL_SEGMENTS in a row shorter than ten spacings of doubles at the far end of the
@@ -211,19 +214,37 @@ class HybridSystem:
         """q̇⁺ by the generalized Newton law (see the module) for the closing impacts (indices)
         and the held ones; `rebound` gives e per closing impact. Returns (y⁺, ġ⁻ of each
         closing impact)."""
-        n = self.n
-        M, _, A, _, imp, _ = self.terms(t, y)
         involved = list(closing) + [i for i in range(self.ni) if contact[i] and i not in closing]
         e = np.array([rebound[i] if i in closing else 0.0 for i in involved])
-        W = imp[involved, 4:]
-        P = self.inverse_mass(M, A)
-        D = W @ P @ W.T
-        before = imp[involved, 1]
+        before, PW, D = self.delassus(t, y, involved)
         target = -e * np.minimum(before, 0.0)
         impulse = projected_gauss_seidel(D, before, target)
         y_plus = y.copy()
-        y_plus[n:] = y[n:] + P @ W.T @ impulse
+        y_plus[self.n:] = y[self.n:] + PW @ impulse
         return y_plus, before[:len(closing)]
+
+    def delassus(self, t, y, rows):
+        """(ġ, P·Wᵀ, D = W·P·Wᵀ) of the impacts `rows` at (t, y): a generalized impulse Λ along
+        their gradients W changes q̇ by P·Wᵀ·Λ and their ġ by D·Λ."""
+        M, _, A, _, imp, _ = self.terms(t, y)
+        W = imp[rows, 4:]
+        PW = self.inverse_mass(M, A) @ W.T
+        return imp[rows, 1], PW, W @ PW
+
+    def hold(self, t, y, rows):
+        """y after the inelastic impulses that set ġ = 0 for the impacts `rows` (held
+        contacts): D·Λ = −ġ, q̇⁺ = q̇ + P·Wᵀ·Λ."""
+        before, PW, D = self.delassus(t, y, rows)
+        y_plus = y.copy()
+        y_plus[self.n:] = y[self.n:] + PW @ np.linalg.solve(D, -before)
+        return y_plus
+
+    def rest_speeds(self, t, y, slip, gap_tol):
+        """√(2·gap_tol·abs(g̈)) per impact, g̈ = W·q̈ − γ with every contact open: the speed a
+        gap gains falling through gap_tol (or loses rising within it), below which a closed gap
+        counts as at rest."""
+        qdd, _, _, _, (_, _, imp, _) = self.solve(t, y, [False] * self.ni, slip)
+        return np.sqrt(2.0 * gap_tol * np.abs(imp[:, 4:] @ qdd - imp[:, 2]))
 
 
 def projected_gauss_seidel(D, before, target, sweeps=PGS_SWEEPS):
@@ -274,26 +295,35 @@ class Switching:
         self.transitions.append((float(t), self.system.names[k], kind))
 
     def start(self, t, y):
-        """The initial mode, classified as at any later switch: a closed contact (g ≤ gap_tol)
-        that is closing (ġ < −1000·gap_tol) is struck first, one at rest (|ġ| ≤ 1000·gap_tol)
-        is held, one opening is free; frictions with v = 0 (|v| ≤ 1000·gap_tol) try sticking.
-        Returns y (after the impacts at the start, if any). ContactError for a start inside a
-        surface (g < −gap_tol) or coefficients out of range."""
+        """The initial mode. A closed contact (g ≤ gap_tol) is at rest when abs(ġ) is at most
+        the speed of a fall through gap_tol, √(2·gap_tol·abs(g̈)) (g̈ with every contact open):
+        it is held if its force is then ≥ 0, and an inelastic impulse sets its ġ to 0 (a
+        "contact" transition when ġ was not 0); one closing faster is struck first; any other
+        is free. Frictions with v = 0 (abs(v) ≤ 1000·gap_tol) try sticking. Returns y (after
+        the impulses at the start, if any). ContactError for a start inside a surface
+        (g < −gap_tol) or coefficients out of range."""
         s = self.system
         imp, fr = s.terms(t, y)[4:]
         check_coefficients(s, imp, fr, t)
         check_outside(s, imp, self.gap_tol)
-        still = 1e3 * self.gap_tol
-        closing = []
-        for i in range(s.ni):
-            if imp[i, 0] <= self.gap_tol:
-                if imp[i, 1] < -still:
-                    closing.append(i)
-                elif imp[i, 1] <= still:
-                    self.contact[i] = True
         for j in range(s.nf):
             v = fr[j, 0]
-            self.slip[j] = 0 if abs(v) <= still else (1 if v > 0 else -1)
+            self.slip[j] = 0 if abs(v) <= 1e3 * self.gap_tol else (1 if v > 0 else -1)
+        closed = [i for i in range(s.ni) if imp[i, 0] <= self.gap_tol]
+        if not closed:
+            return self.settle(t, y, record=False)
+        speed = s.rest_speeds(t, y, self.slip, self.gap_tol)
+        for i in closed:
+            self.contact[i] = bool(abs(imp[i, 1]) <= speed[i])
+        self.settle(t, y, record=False)
+        held = [i for i in closed if self.contact[i]]
+        moving = [i for i in held if imp[i, 1] != 0]
+        if moving:
+            y = s.hold(t, y, held)
+            for i in moving:
+                self._record(t, i, CONTACT)
+            imp = s.terms(t, y)[4]
+        closing = [i for i in closed if not self.contact[i] and imp[i, 1] < -speed[i]]
         if closing:
             y = self._impacts(t, y, closing, imp)
         return self.settle(t, y, record=False)

@@ -41,6 +41,16 @@ def sensitivity_columns(mod, names):
     return columns
 
 
+def checked_names(mod, names, events=None):
+    """The sensitivity `names` as a tuple, after checking them (`sensitivity_columns`) and that
+    the model is smooth and has no events (ValueError: sensitivities do not cross switches)."""
+    sensitivity_columns(mod, names)
+    if mod.nonsmooth_definitions or events is not None or mod.event_definitions:
+        raise ValueError("sensitivities are computed for smooth models without events: this "
+                         "model has impacts, friction or events")
+    return (names,) if isinstance(names, str) else tuple(names)
+
+
 def augmented_functions(mod, p, u_at, columns):
     """(rhs, jacobian) of the augmented state z = [y, S_1, …, S_k] for solve_ivp."""
     dim, k = 2 * mod.n_coordinates, len(columns)

@@ -145,10 +145,8 @@ def refuse_switching_options(mod, options):
 def run_sensitivities(mod, t_span, y0, method, p, u_at, rtol, atol, names, events, max_steps,
                       max_wall_time, **options):
     """`simulate` with forward sensitivities (see `lagrgen.sensitivity`)."""
-    from .sensitivity import solve_sensitivities
-    if mod.nonsmooth_definitions or events is not None or mod.event_definitions:
-        raise ValueError("sensitivities are computed for smooth models without events: this "
-                         "model has impacts, friction or events")
+    from .sensitivity import checked_names, solve_sensitivities
+    checked_names(mod, names, events)
     if mod.n_constraints:
         from .constraints import check_state
         check_state(mod, t_span[0], y0, p, u_at(t_span[0]))

@@ -24,13 +24,27 @@ from .errors import BuildError
 from .functions import functions_of
 from .runtime import units as runtime_units
 
+#: Units that came with a copy of a model's module (a Dask worker's, `lagrgen.ensemble`):
+#: (the module file, resolved; label) -> (the unit's module name, its file).
+_PROVIDED = {}
+
+
+def provide(model_file, label, module, unit_file):
+    """Serve the unit `label` of the compiled model module `model_file` from `unit_file` (the
+    module `module`), a copy shipped with it, instead of looking for the model's cache entry."""
+    _PROVIDED[(str(Path(model_file).resolve()), label)] = (module, Path(unit_file))
+
 
 def unit_module(model_file, info, label):
     """The module of the unit `label` of the compiled model whose module file is `model_file` and
-    whose `ModelInfo` is `info`: looked up in the model's cache entry, or compiled into it (into a
-    private directory when the cache cannot be written). A unit is sound like a model's module
-    (`cache.lookup`: whole, matching its digest, carrying the model's content hash); one that is
-    not (damaged, or another model's) is never imported: it is discarded and compiled again."""
+    whose `ModelInfo` is `info`: one provided with the module (`provide`), else looked up in the
+    model's cache entry, or compiled into it (into a private directory when the cache cannot be
+    written). A unit is sound like a model's module (`cache.lookup`: whole, matching its digest,
+    carrying the model's content hash); one that is not (damaged, or another model's) is never
+    imported: it is discarded and compiled again."""
+    provided = _PROVIDED.get((str(Path(model_file).resolve()), label))
+    if provided is not None:
+        return cache.import_extension(*provided)
     entry = entry_of(Path(model_file), info.name)
     flags = cache.kept_flags(entry)
     unit = entry.unit(label, unit_digest(info.content_hash, label, flags))

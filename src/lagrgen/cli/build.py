@@ -20,5 +20,6 @@ def run(args):
         info = module.build_info
         state = "cached" if info["cache_hit"] else "built"
         if not args.quiet:
-            print(f"{model.name}: {state} in {info['seconds']:.2f} s -> {args.out}/")
+            print(f"{model.name}: {state} in {info['seconds']:.2f} s, {module.formulation} "
+                  f"formulation -> {args.out}/")
     return 0

@@ -31,9 +31,11 @@ typedef struct {
     double *lam_i, *lam_f, *normal, *qdd;
     double *u;                     /* inputs at a switching time */
     double *P, *Minv, *work, *D, *WP, *impulse, *after, *target, *before, *e;
-    int *row_of_impact, *row_of_friction, *involved, *closing, *resting, *bounced;
+    int *row_of_impact, *row_of_friction, *involved, *closing, *resting, *bounced, *held;
+    int *opened;                   /* ni zeros: every contact open */
     int n_bounced;
     double *fastest, *fy, *fy2, *yp, *force_row;
+    double *rest_speed;            /* per impact at the start: √(2·gap_tol·|g̈|) */
     const int *contact, *slip;     /* the mode of the current evaluation */
     lg_hybrid_result_t *result;
 } hy_ctx;
@@ -300,12 +302,49 @@ static int hy_inverse_mass(hy_ctx *c)
     return 0;
 }
 
+/* For the impacts rows[0..k) at the state whose terms and P are at hand: WP = P·Wᵀ (n×k),
+ * D = W·P·Wᵀ (k×k) and before = ġ: an impulse Λ along W changes q̇ by WP·Λ and ġ by D·Λ. */
+static void hy_delassus(hy_ctx *c, const int *rows, int k)
+{
+    int n = c->n;
+    for (int a = 0; a < n; ++a)
+        for (int q = 0; q < k; ++q) {
+            double s = 0;
+            const double *W = IMP(c, rows[q]) + IMPACT_FIELDS;
+            for (int b = 0; b < n; ++b)
+                s += c->P[a * n + b] * W[b];
+            c->WP[a * k + q] = s;
+        }
+    for (int q = 0; q < k; ++q) {
+        const double *W = IMP(c, rows[q]) + IMPACT_FIELDS;
+        for (int l = 0; l < k; ++l) {
+            double s = 0;
+            for (int b = 0; b < n; ++b)
+                s += W[b] * c->WP[b * k + l];
+            c->D[q * k + l] = s;
+        }
+        c->before[q] = IMP(c, rows[q])[1];
+    }
+}
+
+/* q̇ += WP·Λ: the impulses c->impulse[0..k) along the rows of the last hy_delassus. */
+static void hy_apply_impulse(hy_ctx *c, double *y, int k)
+{
+    int n = c->n;
+    for (int a = 0; a < n; ++a) {
+        double s = 0;
+        for (int q = 0; q < k; ++q)
+            s += c->WP[a * k + q] * c->impulse[q];
+        y[n + a] += s;
+    }
+}
+
 /* q̇⁺ by the generalized Newton law for the closing impacts (closing[0..nc), restitution e[]
  * per closing one) and the held ones (e = 0); y updated in place; before[] gets ġ⁻. */
 static int hy_impact(hy_ctx *c, double t, double *y, const double *u, const int *closing, int nc,
                      const double *e)
 {
-    int n = c->n, k = 0;
+    int k = 0;
     if (hy_terms(c, t, y, u) || hy_inverse_mass(c))
         return 1;
     for (int a = 0; a < nc; ++a)
@@ -317,25 +356,9 @@ static int hy_impact(hy_ctx *c, double t, double *y, const double *u, const int 
         if (c->h->contact[i] && !in)
             c->involved[k++] = i;
     }
-    /* WP = P·Wᵀ (n×k), D = W·P·Wᵀ (k×k) */
-    for (int a = 0; a < n; ++a)
-        for (int q = 0; q < k; ++q) {
-            double s = 0;
-            const double *W = IMP(c, c->involved[q]) + IMPACT_FIELDS;
-            for (int b = 0; b < n; ++b)
-                s += c->P[a * n + b] * W[b];
-            c->WP[a * k + q] = s;
-        }
+    hy_delassus(c, c->involved, k);
     double scale = 1.0;
     for (int q = 0; q < k; ++q) {
-        const double *W = IMP(c, c->involved[q]) + IMPACT_FIELDS;
-        for (int l = 0; l < k; ++l) {
-            double s = 0;
-            for (int b = 0; b < n; ++b)
-                s += W[b] * c->WP[b * k + l];
-            c->D[q * k + l] = s;
-        }
-        c->before[q] = IMP(c, c->involved[q])[1];
         c->after[q] = c->before[q];
         c->target[q] = q < nc ? -e[q] * fmin(c->before[q], 0.0) : 0.0;
         c->impulse[q] = 0.0;
@@ -359,12 +382,7 @@ static int hy_impact(hy_ctx *c, double t, double *y, const double *u, const int 
         if (change <= 1e-15 * scale)
             break;
     }
-    for (int a = 0; a < n; ++a) {
-        double s = 0;
-        for (int q = 0; q < k; ++q)
-            s += c->WP[a * k + q] * c->impulse[q];
-        y[n + a] += s;
-    }
+    hy_apply_impulse(c, y, k);
     return 0;
 }
 
@@ -447,36 +465,81 @@ static int hy_check_coefficients(hy_ctx *c)
 
 static int hy_impacts(hy_ctx *c, double t, double *y, int nc);
 
-/* The initial mode, classified as at any switch: a closed gap (g <= gap_tol) closing
- * (ġ < -1000·gap_tol) is struck, one at rest held, one opening free; a gap below -gap_tol is a
- * start inside the surface (2, failure LG_HY_INSIDE). y changes when struck. */
+/* The inelastic impulses that set ġ = 0 for the held contacts rows[0..k) (D·Λ = −ġ,
+ * q̇ += P·Wᵀ·Λ) with a "contact" transition for each whose ġ was not 0; y changes in place.
+ * 1: model failure or D singular, -1: out of memory. */
+static int hy_hold(hy_ctx *c, double t, double *y, const int *rows, int k)
+{
+    int moving = 0;
+    if (hy_terms(c, t, y, c->u) || hy_inverse_mass(c))
+        return 1;
+    hy_delassus(c, rows, k);
+    for (int q = 0; q < k; ++q) {
+        c->impulse[q] = -c->before[q];
+        moving |= c->before[q] != 0;
+    }
+    if (!moving)
+        return 0;
+    if (hy_lu_solve(c->D, c->impulse, k))
+        return 1;
+    hy_apply_impulse(c, y, k);
+    for (int q = 0; q < k; ++q)
+        if (c->before[q] != 0 && hy_record(c, t, rows[q], LG_CONTACT))
+            return -1;
+    return 0;
+}
+
+/* The initial mode. A closed gap (g <= gap_tol) is at rest when |ġ| is at most the speed of a
+ * fall through gap_tol, √(2·gap_tol·|g̈|) (g̈ with every contact open): it is held if its force
+ * is then >= 0, with ġ set to 0 (hy_hold); one closing faster is struck; any other is free.
+ * Frictions with |v| <= 1000·gap_tol try sticking. A gap below -gap_tol is a start inside the
+ * surface (2, failure LG_HY_INSIDE). y changes when held or struck. */
 static int hy_start(hy_ctx *c, double t, double *y)
 {
     lg_hybrid_t *h = c->h;
-    double still = 1e3 * h->gap_tol;
-    int nc = 0, err;
+    int nc = 0, nh = 0, closed = 0, err;
     hy_inputs(c, t);
-    if (hy_solve_mode(c, t, y))
+    if (hy_terms(c, t, y, c->u))
         return 1;
     if (hy_check_coefficients(c))
         return 2;
     for (int i = 0; i < c->ni; ++i) {
-        double g = IMP(c, i)[0], gd = IMP(c, i)[1];
+        double g = IMP(c, i)[0];
         if (!(g >= -h->gap_tol)) {
             c->result->failure = LG_HY_INSIDE;
             c->result->failed_element = i;
             c->result->failed_value = g;
             return 2;
         }
-        if (g <= h->gap_tol && gd < -still)
-            c->closing[nc++] = i;
-        else if (g <= h->gap_tol && gd <= still)
-            h->contact[i] = 1;
+        closed |= g <= h->gap_tol;
     }
     for (int j = 0; j < c->nf; ++j) {
         double v = FR(c, j)[0];
-        h->slip[j] = fabs(v) <= still ? 0 : (v > 0 ? 1 : -1);
+        h->slip[j] = fabs(v) <= 1e3 * h->gap_tol ? 0 : (v > 0 ? 1 : -1);
     }
+    if (!closed)
+        return hy_settle(c, t, y, 0);
+    if (hy_solve(c, t, y, c->u, c->opened, h->slip))
+        return 1;
+    for (int i = 0; i < c->ni; ++i) {
+        double gdd = -IMP(c, i)[2];
+        for (int b = 0; b < c->n; ++b)
+            gdd += IMP(c, i)[IMPACT_FIELDS + b] * c->qdd[b];
+        c->rest_speed[i] = sqrt(2.0 * h->gap_tol * fabs(gdd));
+        h->contact[i] = IMP(c, i)[0] <= h->gap_tol && fabs(IMP(c, i)[1]) <= c->rest_speed[i];
+    }
+    if ((err = hy_settle(c, t, y, 0)))
+        return err;
+    for (int i = 0; i < c->ni; ++i)
+        if (h->contact[i])
+            c->held[nh++] = i;
+    if (nh && (err = hy_hold(c, t, y, c->held, nh)))
+        return err;
+    if (hy_terms(c, t, y, c->u))
+        return 1;
+    for (int i = 0; i < c->ni; ++i)
+        if (IMP(c, i)[0] <= h->gap_tol && !h->contact[i] && IMP(c, i)[1] < -c->rest_speed[i])
+            c->closing[nc++] = i;
     if (nc && (err = hy_impacts(c, t, y, nc)))
         return err;
     return hy_settle(c, t, y, 0);
@@ -708,6 +771,7 @@ int lg_hybrid_solve(lg_hybrid_t *h, const lg_options_t *options, lg_hybrid_resul
     c.before = hy_alloc(blocks, &nb, (h->ni + 1) * D);
     c.e = hy_alloc(blocks, &nb, (h->ni + 1) * D);
     c.fastest = hy_alloc(blocks, &nb, (h->ni + 1) * D);
+    c.rest_speed = hy_alloc(blocks, &nb, (h->ni + 1) * D);
     c.fy = hy_alloc(blocks, &nb, dim * D);
     c.fy2 = hy_alloc(blocks, &nb, dim * D);
     c.yp = hy_alloc(blocks, &nb, dim * D);
@@ -717,8 +781,9 @@ int lg_hybrid_solve(lg_hybrid_t *h, const lg_options_t *options, lg_hybrid_resul
     c.closing = hy_alloc(blocks, &nb, (h->ni + 1) * sizeof(int));
     c.resting = hy_alloc(blocks, &nb, (h->ni + 1) * sizeof(int));
     c.bounced = hy_alloc(blocks, &nb, (h->ni + 1) * sizeof(int));
+    c.held = hy_alloc(blocks, &nb, (h->ni + 1) * sizeof(int));
     c.force_row = hy_alloc(blocks, &nb, (rmax + 1) * D);
-    int *opened = hy_alloc(blocks, &nb, (h->ni + 1) * sizeof(int));
+    int *opened = c.opened = hy_alloc(blocks, &nb, (h->ni + 1) * sizeof(int));
     double *y = hy_alloc(blocks, &nb, dim * D);
     double *emax = hy_alloc(blocks, &nb, (ne + 1) * D);
     double *edir = hy_alloc(blocks, &nb, (ne + 1) * D);

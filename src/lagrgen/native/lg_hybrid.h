@@ -61,8 +61,9 @@ typedef struct {
 
 /* Run a hybrid solve from y0 over [t0, tf] (options: method, tolerances, max_step, t_eval; its
  * y0, t0, tf, dense and events are set per segment). The initial mode is classified as at any
- * switch (closed gaps closing struck, at rest held, opening free; frictions with v = 0 tried
- * sticking). max_steps, max_wall_time (and the default save budget) bound the whole solve,
+ * switch (closed gaps closing struck; at rest, |ġ| <= √(2·gap_tol·|g̈|), held with ġ set to 0
+ * by an inelastic impulse; opening free; frictions with v = 0 tried sticking). max_steps,
+ * max_wall_time (and the default save budget) bound the whole solve,
  * max_transitions the switches. Returns 0 when it ran (the outcome in result->status and
  * result->failure), -1 when out of memory. Always free the result. */
 int lg_hybrid_solve(lg_hybrid_t *h, const lg_options_t *options, lg_hybrid_result_t *result);
