@@ -783,9 +783,9 @@ def _on_dask(client, mod, plan, parts, sink, bar):
     futures = client.map(_dask_part, parts, target=target, plan=plan, store=path, pure=False)
     by_key = {f.key: part for f, part in zip(futures, parts)}
     try:
-        for future, result in as_completed(futures, with_results=True):
+        for future in as_completed(futures):
             part = by_key.pop(future.key)
-            sink.take(part, result)
+            sink.take(part, future.result())
             bar.update(len(part))
             future.release()
     except BaseException:
