@@ -75,7 +75,7 @@ sphinx_gallery_conf = {
 #: The order of the guide's pages (file names in guide/ without .md); pages not named here follow
 #: by name.
 GUIDE_ORDER = ["model", "build", "running", "ensembles", "vibration", "stability", "constraints",
-               "bodies3d", "sympy", "nonsmooth", "identification", "optimization", "export",
+               "bodies3d", "robots", "sympy", "nonsmooth", "identification", "optimization", "export",
                "notebooks", "outputs", "command_line", "speed"]
 
 
@@ -90,7 +90,7 @@ def guide_pages():
 #: does not exist is left out (see `existing`), so names of API.md that a branch is still adding
 #: (`eigenvalue_sweep`, `Collocation`) appear once they exist, with no edit here.
 API = [
-    ("Describing a model", ["Model", "rotation", "from_sympy"]),
+    ("Describing a model", ["Model", "rotation", "from_sympy", "from_urdf", "urdf.URDFError"]),
     ("Building, loading, exporting", ["build", "load", "export_fmu",
                                       "runtime.protocol.BuiltModel"]),
     ("Running", ["simulate", "results.SimulationResult", "Signal", "evaluate_outputs",

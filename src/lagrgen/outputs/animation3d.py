@@ -34,9 +34,9 @@ def spatial(model, position, p):
     return lambda t, q: np.stack([f(t, q) for f in parts], axis=-1)
 
 
-def robot_origins(model, record, p, t, q):
-    """The origins of a robot's segment frames along the frames, (segments, frames, 3), by its
-    forward kinematics in NumPy (`lagrgen.frames`, numerically)."""
+def robot_frames(model, record, p, t, q):
+    """(origins, rotations) of a robot's segment frames along the frames ((frames, 3) and
+    (frames, 3, 3) per segment), by its forward kinematics in NumPy."""
     from ..frames import rodrigues
     origins, rotations = [], []
     frames = np.shape(t)[0]
@@ -56,13 +56,13 @@ def robot_origins(model, record, p, t, q):
         else:
             origins.append(p0 + R0 @ o + (RP @ axis) * theta[:, None])
             rotations.append(RP)
-    return origins
+    return origins, rotations
 
 
 def robot_tracks(model, record, p, t, q):
     """Line tracks from each link-carrying segment's origin to its parent link's (or to the
-    fixed origin for a root of a fixed base)."""
-    origins = robot_origins(model, record, p, t, q)
+    fixed origin for a root of a fixed base) and on to its body's centre of mass, a point there."""
+    origins, rotations = robot_frames(model, record, p, t, q)
     tracks = []
     for k, segment in enumerate(record.segments):
         if not segment.link:
@@ -74,7 +74,14 @@ def robot_tracks(model, record, p, t, q):
             tracks.append(("line", [origins[parent], origins[k]]))
         elif segment.parent < 0:
             tracks.append(("line", [np.zeros_like(origins[k]), origins[k]]))
-        tracks.append(("point", [origins[k]]))
+        mass = float(numeric_function(model, segment.inertia[0], p)(t[:1], q[:, :1])[0])
+        if mass <= 0.0:
+            continue
+        centre = np.array([float(numeric_function(model, h, p)(t[:1], q[:, :1])[0])
+                           for h in segment.inertia[1:4]]) / mass
+        point = origins[k] + rotations[k] @ centre
+        tracks.append(("line", [origins[k], point]))
+        tracks.append(("point", [point]))
     return tracks
 
 
