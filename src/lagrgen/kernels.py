@@ -289,7 +289,8 @@ TREE_KERNELS = (
                "(a spatial tree: the frame its body's inertial parameters are about)",
                (Output("poses", ("n", "12")),),
                lambda eq: {"poses": [x for pose in tree.analyse(eq).poses for x in pose]},
-               when=lambda eq: tree.analyse(eq).kind == "spatial"),
+               when=lambda eq: tree.analyse(eq).kind == "spatial"
+               and bool(tree.tree3d.inertial_parameters(eq.spec))),
     KernelSpec("tree_parameters", "the nonzero derivatives of the node records and of Q by the "
                "parameters (lagrgen.tree.parameter_gradients)",
                (Output("dnode", ("nnz_p",)), Output("dQp", ("nnz_qp",))),
