@@ -2,7 +2,6 @@
 records (weighted least squares, friction, physically consistent estimates) and exciting
 trajectories, on hand-written arms whose parameters are the links' inertial parameters."""
 import types
-import warnings
 
 import numpy as np
 import pytest
@@ -105,8 +104,8 @@ def stderr_of(est, names):
 def test_the_regressor_times_pi_is_the_inverse_dynamics(arms, example, backend):
     mod = arms[backend]
     names = inertial_parameters_of(mod)
-    assert names == tuple(f"{f}_{link}" for link in ("link1", "link2", "link3")
-                          for f in ("m", "mx", "my", "mz", "Ixx", "Ixy", "Iyy", "Ixz", "Iyz", "Izz"))
+    fields = ("m", "mx", "my", "mz", "Ixx", "Ixy", "Iyy", "Ixz", "Iyz", "Izz")
+    assert names == tuple(f"{f}_{link}" for link in ("link1", "link2", "link3") for f in fields)
     pi = np.array([example.TRUTH[n] for n in names])
     rng = np.random.default_rng(3)
     for q, qd, qdd in rng.normal(size=(5, 3, 3)):
@@ -380,3 +379,24 @@ def test_the_model_limits_are_used_when_none_are_given(arm, base):
     q, qd = traj.q(t), traj.qd(t)
     assert -1 <= q[0].min() and q[0].max() <= 1 and np.abs(qd[0]).max() <= 1.5
     assert -0.5 <= q[1].min() and q[1].max() <= 0.5 and np.abs(qd[2]).max() <= 2.0
+
+
+def test_consistent_estimates_of_a_planar_arm_free_the_parameters_it_lacks(planar):
+    """The planar arm has m, mx, my, Izz per link; its other six parameters are free in the
+    pseudo-inertia. Records of an Izz_link2 below (mx² + my²)/m cannot come from a body: the
+    consistent estimate moves it up to a realizable one."""
+    mod = planar["c"]
+    base = base_parameters(mod)
+    wrong = np.array([2.0, 0.5, 0.05, 0.3, 2.0, 0.5, 0.05, 0.05])     # Izz_link2 < 0.1263
+    t = np.linspace(0, 6, 601)
+    q = np.stack([np.sin(1.1 * t), 1.2 * np.sin(0.7 * t + 1)])
+    qd = np.stack([1.1 * np.cos(1.1 * t), 0.84 * np.cos(0.7 * t + 1)])
+    qdd = np.stack([-1.21 * np.sin(1.1 * t), -0.588 * np.sin(0.7 * t + 1)])
+    tau = inverse_dynamics(mod, wrong, q, qd, qdd)
+    tau = tau + 1e-3 * np.random.default_rng(0).standard_normal(tau.shape)
+    est = identify_inertial(mod, t, q, tau, qd, qdd, consistent=True, base=base)
+    assert est.unconstrained["Izz_link2"] == pytest.approx(0.05, abs=1e-3)
+    pi = est.inertial
+    assert pi["m_link2"] > 0
+    assert pi["Izz_link2"] >= (pi["mx_link2"] ** 2 + pi["my_link2"] ** 2) / pi["m_link2"] - 1e-9
+    assert est.price > 0 and set(pi) == set(base.parameters)

@@ -15,7 +15,6 @@ motion estimates them; a motion whose stacked Y_b is well conditioned (an exciti
 estimates them well.
 """
 import math
-import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -124,7 +123,7 @@ def _stack(one, q, qd, qdd):
     return out
 
 
-# -- base parameters ---------------------------------------------------------------------------------
+# -- base parameters -------------------------------------------------------------------------------
 @dataclass
 class BaseParameters:
     """The identifiable combinations of a model's inertial parameters.
@@ -331,7 +330,7 @@ def _limit_entry(coordinate, entry):
     return entry
 
 
-# -- records: orientation, velocities and accelerations ---------------------------------------------
+# -- records: orientation, velocities and accelerations -------------------------------------------
 def _records(mod, t, q, tau, qd, qdd):
     """t (N,), and q, tau, qd, qdd as (n, N) float arrays (qd, qdd None when not given)."""
     t = sample_times(t)
@@ -417,9 +416,10 @@ def filtered_records(t, q, tau, cutoff=None):
     q̈_i = (q_{i+1} − 2q_i + q_{i−1})/Δt². The torques get the same filter, and all records are
     decimated to one sample per first zero of the autocorrelation of white noise through the
     filter (about 0.56/cutoff s): the filtered noise of the samples kept is uncorrelated again,
-    so the standard errors stay honest, with fewer regressor calls. The first and last EDGE_PERIODS/cutoff
-    seconds are dropped: there the filter has no past or future, and its start-up transient (the
-    records' ends reflected oddly) has not yet decayed below about 1e-4 of the motion."""
+    so the standard errors stay honest, with fewer regressor calls. The first and last
+    EDGE_PERIODS/cutoff seconds are dropped: there the filter has no past or future, and its
+    start-up transient (the records' ends reflected oddly) has not decayed below about 1e-4 of
+    the motion."""
     from scipy.signal import butter, filtfilt
     rate = _uniform_rate(t)
     cutoff = CUTOFF_FACTOR * motion_bandwidth(q, rate) if cutoff is None else float(cutoff)
@@ -563,7 +563,7 @@ def identify_inertial(mod, t, q, tau, qd=None, qdd=None, consistent=False, frict
         cutoff=records.cutoff, step=records.step, unidentified=unidentified,
         unseen=directions)
     if consistent:
-        solution = _consistent(mod, base, result, Xw, yw, solution, friction)
+        solution = _consistent(mod, base, result, Xw, yw, solution)
     result.predicted = (X @ solution).reshape(m, n).T
     result.rms = dict(zip(mod.coordinates,
                           map(float, np.sqrt(np.mean((result.predicted - records.tau) ** 2, 1)))))
@@ -623,10 +623,12 @@ CONSISTENT_GAP = 1e-8
 
 
 def _nearest_consistent(J):
-    """J with its eigenvalues raised to at least 1e-6 of the largest: positive definite."""
+    """J with its eigenvalues raised to at least 1e-6 of the largest: positive definite (the
+    unit pseudo-inertia when J has no positive eigenvalue: a model without defaults)."""
     lam, V = np.linalg.eigh(0.5 * (J + J.T))
-    lam = np.maximum(lam, 1e-6 * max(lam.max(), 1e-12))
-    return (V * lam) @ V.T
+    if lam.max() <= 0:
+        return np.eye(4)
+    return (V * np.maximum(lam, 1e-6 * lam.max())) @ V.T
 
 
 class _Divergence:
@@ -665,18 +667,20 @@ class _Divergence:
         return gradient, hessian
 
 
-def _consistent(mod, base, result, Xw, yw, solution, friction):
+def _consistent(mod, base, result, Xw, yw, solution):
     """The physically consistent solution nearest the records (Lee & Wensing 2020): minimize
-    Q(x) + γ·D(x), Q the weighted least-squares objective ½‖R·(φ(x) − φ̂)‖² (Xw = Q·R, φ̂ the
-    unconstrained solution, φ(x) = [matrix·π; friction]) and D the log-det divergence from the
-    model's defaults (`_Divergence`, convex: a barrier that keeps each pseudo-inertia positive
-    definite), by Newton's method for γ = 1, 0.1, … until the suboptimality bound
-    γ·(4·links + friction terms) is below CONSISTENT_GAP. The directions the records do not
-    see stay at the defaults. Fills result.values, .inertial, .unconstrained and .price and
-    returns the consistent solution."""
+    ½‖R·(φ(x) − φ̂)‖² + γ·D(x) over x = [π of every link, friction], where R is the triangular
+    factor of the weighted observation matrix Xw (so the first term is the weighted sum of
+    squared residuals less its minimum, in units of the noise variance), φ̂ the unconstrained
+    solution, φ(x) = [matrix·π; friction], and D the log-det divergence from the model's
+    defaults (`_Divergence`: convex, a barrier keeping each pseudo-inertia positive definite),
+    along the central path γ → CONSISTENT_GAP/(4·links + friction terms) (`_central_path`).
+    The directions the records do not see stay at the defaults. Fills result.values,
+    .inertial, .unconstrained and .price and returns the consistent solution."""
     r, k = len(base.names), len(base.parameters)
     R = np.linalg.qr(Xw, mode="r")
-    rows = np.array([[fields.get(f, -1) for f in FIELDS] for _, fields in links_of(base.parameters)])
+    rows = np.array([[fields.get(f, -1) for f in FIELDS]
+                     for _, fields in links_of(base.parameters)])
     select = np.zeros((k, rows.size))
     select[rows[rows >= 0], np.flatnonzero(rows.ravel() >= 0)] = 1.0   # π = select @ x_links
     n_f = solution.size - r
@@ -867,7 +871,8 @@ def exciting_trajectory(mod, duration, harmonics=5, limits=None, q0=None, sample
     samples = samples or max(2 * (2 * L + 1), math.ceil(3 * len(base.names) / n))
     times = duration * np.arange(samples) / samples
     omega = 2 * np.pi / duration
-    at_times, on_grid = (_basis(omega, L, t) for t in (times, duration * np.arange(64 * L) / (64 * L)))
+    at_times = _basis(omega, L, times)
+    on_grid = _basis(omega, L, duration * np.arange(64 * L) / (64 * L))
     condition = _conditioning(mod, base)
 
     def scaled(x, grid=on_grid, margin=0.0):
