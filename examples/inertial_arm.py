@@ -10,9 +10,9 @@ the centre of mass in the link frame) and the inertia about the link frame's ori
     V_i = g·(m_i·z_O + (R·h_i)_z)
 
 (the body is declared by its centre of mass c_i and the inertia about it,
-I_c = I_O − m_i·(‖c_i‖²·1 − c_i·c_iᵀ), which is the same energy). `make(name)` returns the model;
-`TRUTH` holds physically consistent values of the 30 parameters (the defaults are 20 % off them,
-as a CAD model would be).
+I_c = I_O − m_i·(‖c_i‖²·1 − c_i·c_iᵀ), which is the same energy). Each joint is driven by its
+input torque tau_<joint>. `make(name)` returns the model; `TRUTH` holds physically consistent
+values of the 30 parameters (the defaults are 20 % off them, as a CAD model would be).
 """
 import sympy as sp
 
@@ -46,6 +46,8 @@ def make(name="inertial_arm", a2=0.45, d1=0.3, g=9.81):
     """The arm as a Model; parameters the 30 inertial ones, defaults 1.2·TRUTH."""
     model = Model(name)
     q1, q2, q3 = model.coordinates("q1 q2 q3")
+    for joint, torque in zip((q1, q2, q3), model.inputs("tau_q1 tau_q2 tau_q3")):
+        model.generalized_force(joint, torque)
     frames = [(sp.zeros(3, 1), rotation.z(q1))]
     frames.append((sp.Matrix([0, 0, d1]), rotation.z(q1) * rotation.y(q2)))
     frames.append((frames[1][0] + frames[1][1] * sp.Matrix([a2, 0, 0]),

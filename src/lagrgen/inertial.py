@@ -20,7 +20,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .errors import LagrgenError
-from .fit import covariance, sample_times, warn_unseen
+from .fit import covariance, sample_times, unseen_directions, warn_unseen
 from .runtime.arguments import unknown_name
 
 #: The ten inertial parameters of a link, in Pinocchio's order: m_<link>, mx_<link>, ...
@@ -130,8 +130,8 @@ class BaseParameters:
 
     Attributes
     ----------
-    names : the base parameters, each named as the combination it is ("Izz_link1 +
-        0.2025*m_link2 + ...")
+    names : the base parameters, each named as the combination it is
+        (``"Izz_link1 + 0.2025*m_link2 + ..."``)
     matrix : (r, k) array: π_b = matrix @ π, π in the order of `parameters`
     parameters : the k inertial parameters
     independent : the parameter each base parameter is built on (its column of the regressor
@@ -186,12 +186,14 @@ def base_parameters(mod, samples=None, seed=0, tol=BASE_TOL):
     The regressor is stacked over `samples` random states, W = [Y(q_s, q̇_s, q̈_s)] (N·n × k), and
     its columns scaled to unit norm. A column below `tol` (of the largest) is a parameter with no
     effect. A QR factorization with column pivoting, W·P = Q·R, gives the rank r (the diagonal
-    entries |R_ii| above tol·|R_11|). Which columns are kept follows Gautier: a QR factorization
+    entries abs(R_ii) above tol·abs(R_11)). Which columns are kept follows Gautier: a QR factorization
     of the columns in preference order (link by link from the base; in each link the inertias,
-    then the first moments, then the mass, `PREFERENCE`) has |R_ii| ≈ 0 exactly where column i
+    then the first moments, then the mass, `PREFERENCE`) has abs(R_ii) ≈ 0 exactly where column i
     is a combination of the columns before it; those are the dependent ones, W_d = W_i·β with β
     the least-squares solution, and
+
         Y·π = Y_i·(π_i + β·π_d) = Y_i·π_b,   π_b = [1 β]·P·π = matrix @ π.
+
     The entries of β are known to about 1e3·ε·cond(W_i) (relative to the column scales): each is
     rounded to that precision, and set to zero below it.
 
@@ -540,31 +542,28 @@ def identify_inertial(mod, t, q, tau, qd=None, qdd=None, consistent=False, frict
     t, q, tau, qd, qdd = _records(mod, t, q, tau, qd, qdd)
     records = (filtered_records(t, q, tau, cutoff) if qd is None or qdd is None else
                FilteredRecords(t, q, qd, qdd, tau))
-    X = _observation_matrix(mod, base, records, friction)
+    Y = _observation_blocks(mod, base, records, friction)
     names = base.names + (_friction_names(mod) if friction else ())
-    m, n = records.t.size, mod.n_coordinates
-    y = records.tau.T.ravel()
-    sigma = _joint_noise(X, y, n)
-    w = np.tile(1.0 / sigma, m)
-    Xw, yw = X * w[:, None], y * w
-    solution = np.linalg.lstsq(Xw, yw, rcond=None)[0]
-    residual = yw - Xw @ solution
-    rank = np.linalg.matrix_rank(Xw)
-    s2 = residual @ residual / (y.size - rank) if y.size > rank else np.nan
-    cov, unidentified, directions = covariance(Xw, s2, list(names), REGRESSOR_ACCURACY)
+    factors = _joint_factors(Y, records.tau.T)
+    sigma = _joint_noise(factors, Y)
+    solution, R, rss = _stacked_solution(factors / sigma[:, None, None])
+    rank = unseen_directions(R, names, REGRESSOR_ACCURACY)[0]
+    rows = Y.shape[0] * Y.shape[1]
+    s2 = rss / (rows - rank) if rows > rank else np.nan
+    cov, unidentified, directions = covariance(R, s2, list(names), REGRESSOR_ACCURACY)
     if directions:
-        warn_unseen(directions, len(names) - len(directions), len(names),
+        warn_unseen(directions, rank, len(names),
                     advice="Record a motion that excites them (lagrgen.exciting_trajectory)")
     result = InertialEstimate(
         values=dict(zip(names, map(float, solution))),
         stderr=dict(zip(names, map(float, np.sqrt(np.diag(cov))))), names=names, cov=cov,
         base=base, sigma=dict(zip(mod.coordinates, map(float, sigma))),
-        condition=float(np.linalg.cond(Xw)), t=records.t, tau=records.tau,
+        condition=float(np.linalg.cond(R)), t=records.t, tau=records.tau,
         cutoff=records.cutoff, step=records.step, unidentified=unidentified,
         unseen=directions)
     if consistent:
-        solution = _consistent(mod, base, result, Xw, yw, solution)
-    result.predicted = (X @ solution).reshape(m, n).T
+        solution = _consistent(mod, base, result, R, rss, solution)
+    result.predicted = (Y @ solution).T
     result.rms = dict(zip(mod.coordinates,
                           map(float, np.sqrt(np.mean((result.predicted - records.tau) ** 2, 1)))))
     return result
@@ -574,28 +573,57 @@ def _friction_names(mod):
     return (tuple(f"fv_{c}" for c in mod.coordinates) + tuple(f"fc_{c}" for c in mod.coordinates))
 
 
-def _observation_matrix(mod, base, records, friction):
-    """The stacked base regressor (m·n, r), rows sample by sample, with the friction columns
-    q̇_j and sign(q̇_j) on joint j's rows (friction=True)."""
+def _observation_blocks(mod, base, records, friction):
+    """The base regressor at each sample, (m, n, p), with the friction columns q̇_j and
+    sign(q̇_j) acting on joint j (friction=True)."""
     Y = stacked_regressor(mod, records.q.T, records.qd.T, records.qdd.T)[:, :, list(base.columns)]
     if friction:
         eye = np.eye(mod.n_coordinates)
         qd = records.qd.T[:, :, None]
         Y = np.concatenate([Y, qd * eye, np.sign(qd) * eye], axis=2)
-    return Y.reshape(-1, Y.shape[2])
+    return Y
 
 
-def _joint_noise(X, y, n):
+def _joint_factors(Y, tau):
+    """The triangular factors R_j, (n, p + 1, p + 1), of each joint's augmented observations
+    [Y_j, τ_j] = Q_j·R_j (Y_j = Y[:, j, :]): ‖[Y_j, τ_j]·v‖ = ‖R_j·v‖ for every v, so least
+    squares over all joints, with any weight per joint, work on the stacked R_j alone."""
+    from scipy.linalg import qr
+    m, n, p = Y.shape
+    factors = np.zeros((n, p + 1, p + 1))
+    for j in range(n):
+        block = np.asfortranarray(np.column_stack([Y[:, j, :], tau[:, j]]))
+        R = qr(block, mode="r", overwrite_a=True, check_finite=False)[0]
+        factors[j, :min(m, p + 1)] = R[:p + 1]
+    return factors
+
+
+def _stacked_solution(factors):
+    """(θ, R, ρ²) of the least squares Σ_j ‖Y_j·θ − τ_j‖² given the joints' factors: θ of least
+    norm, R (p × p) the triangular factor of the stacked Y (its singular values and right
+    singular vectors), ρ² the least sum of squared residuals."""
+    from scipy.linalg import qr
+    p = factors.shape[2] - 1
+    T = qr(factors.reshape(-1, p + 1), mode="r", check_finite=False)[0]
+    R, z = T[:p, :p], T[:p, p]
+    theta = np.linalg.lstsq(R, z, rcond=None)[0]
+    return theta, R, float(T[p, p] ** 2 + np.sum((R @ theta - z) ** 2))
+
+
+def _joint_noise(factors, Y):
     """σ_j of each joint's torque from the ordinary least-squares residual, Gautier's
-    σ_j² = ‖ρ_j‖²/(m − c_j); a joint fitted exactly (noise-free records) takes the largest σ."""
-    rho = (y - X @ np.linalg.lstsq(X, y, rcond=None)[0]).reshape(-1, n)
-    acting = np.array([np.count_nonzero(np.any(X[j::n] != 0, axis=0)) for j in range(n)])
-    dof = rho.shape[0] - acting
+    σ_j² = ‖ρ_j‖²/(m − c_j) (c_j the parameters acting on joint j); a joint fitted exactly
+    (noise-free records) takes the largest σ."""
+    theta = _stacked_solution(factors)[0]
+    rho2 = np.sum((factors @ np.append(theta, -1.0)) ** 2, axis=1)
+    acting = np.count_nonzero(np.any(Y != 0, axis=0), axis=1)
+    dof = Y.shape[0] - acting
     if np.any(dof <= 0):
-        raise ValueError(f"{rho.shape[0]} samples do not leave a residual to estimate the "
+        raise ValueError(f"{Y.shape[0]} samples do not leave a residual to estimate the "
                          f"torque noise of {int(acting.max())} parameters: record longer")
-    sigma = np.sqrt((rho ** 2).sum(axis=0) / dof)
-    tiny = 1e-12 * max(sigma.max(), np.abs(y).max())
+    sigma = np.sqrt(rho2 / dof)
+    scale = max(sigma.max(), np.abs(factors[:, :, -1]).max())
+    tiny = 1e-12 * scale
     return np.where(sigma > tiny, sigma, max(sigma.max(), tiny, np.finfo(float).tiny))
 
 
@@ -667,7 +695,7 @@ class _Divergence:
         return gradient, hessian
 
 
-def _consistent(mod, base, result, Xw, yw, solution):
+def _consistent(mod, base, result, R, unconstrained_cost, solution):
     """The physically consistent solution nearest the records (Lee & Wensing 2020): minimize
     ½‖R·(φ(x) − φ̂)‖² + γ·D(x) over x = [π of every link, friction], where R is the triangular
     factor of the weighted observation matrix Xw (so the first term is the weighted sum of
@@ -678,7 +706,6 @@ def _consistent(mod, base, result, Xw, yw, solution):
     The directions the records do not see stay at the defaults. Fills result.values,
     .inertial, .unconstrained and .price and returns the consistent solution."""
     r, k = len(base.names), len(base.parameters)
-    R = np.linalg.qr(Xw, mode="r")
     rows = np.array([[fields.get(f, -1) for f in FIELDS]
                      for _, fields in links_of(base.parameters)])
     select = np.zeros((k, rows.size))
@@ -695,12 +722,11 @@ def _consistent(mod, base, result, Xw, yw, solution):
     x = np.concatenate([np.array([_link_parameters(J) for J in J0]).ravel(), f0])
     x = _central_path(A, b, divergence, x, CONSISTENT_GAP / (4 * len(J0) + n_f))
     consistent = M @ x
-    unconstrained_cost = np.sum((yw - Xw @ solution) ** 2)
     result.unconstrained = dict(result.values)
     result.values = dict(zip(result.names, map(float, consistent)))
     result.inertial = dict(zip(base.parameters, map(float, select @ x[:rows.size])))
-    result.price = float(np.sum((yw - Xw @ consistent) ** 2) / unconstrained_cost - 1.0) \
-        if unconstrained_cost > 0 else 0.0
+    extra = np.sum((R @ (consistent - solution)) ** 2)      # ‖ρ(x)‖² − ‖ρ(φ̂)‖²
+    result.price = float(extra / unconstrained_cost) if unconstrained_cost > 0 else 0.0
     return consistent
 
 
