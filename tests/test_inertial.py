@@ -240,6 +240,28 @@ def test_joint_friction_is_estimated_with_its_own_columns(arm, base, example, re
                        atol=1e-11)
     without = identify_inertial(arm, t, q, rubbing, qd, qdd, base=base)
     assert min(without.rms.values()) > 1e3 * max(est.rms.values())
+    consistent = identify_inertial(arm, t, q, rubbing, qd, qdd, friction=True, consistent=True,
+                                   base=base)
+    assert np.allclose([consistent.values[f"fc_q{i}"] for i in (1, 2, 3)], fc.ravel(), rtol=1e-6)
+
+
+def test_filtered_records_keep_the_motion_and_decorrelate_the_noise():
+    """A 0.5 Hz motion sampled at 1 kHz: the cut-off is 5 times its highest frequency, the
+    derivatives match the motion's, and white torque noise through the filter is uncorrelated
+    between the samples kept (so its variance per sample is what the standard errors assume)."""
+    from lagrgen.inertial import filtered_records
+    t = np.arange(200000) * 1e-3
+    q = np.stack([np.sin(np.pi * t), 0.5 * np.cos(np.pi * t)])
+    noise = np.random.default_rng(0).standard_normal((20, t.size))     # 20 records of noise
+    records = filtered_records(t, q, noise)
+    assert records.cutoff == pytest.approx(5 * 0.5, rel=0.3)
+    assert records.step == pytest.approx(0.556 * 1000 / records.cutoff, rel=0.02)
+    qdd_error = records.qdd[0] + np.pi ** 2 * np.sin(np.pi * records.t)
+    assert np.abs(qdd_error).max() < 2e-4 * np.pi ** 2           # at the ends, after the trim
+    assert np.abs(qdd_error[10:-10]).max() < 1e-5 * np.pi ** 2   # inside
+    assert np.allclose(records.qd[1], -0.5 * np.pi * np.sin(np.pi * records.t), atol=1e-4)
+    lag1 = [np.corrcoef(row[:-1], row[1:])[0, 1] for row in records.tau]
+    assert abs(np.mean(lag1)) < 0.03          # ±0.008 by chance; 0.1 at a step of 1/(2·cutoff)
 
 
 def consistent_links(pi, names):

@@ -385,13 +385,14 @@ def _uniform_rate(t):
     return 1.0 / dt.mean()
 
 
-def _uncorrelated_step(b, a, span):
-    """The first lag (samples) at which white noise filtered forwards and backwards by (b, a)
-    is uncorrelated: the first zero of the autocorrelation of its impulse response."""
-    from scipy.signal import filtfilt
+def _uncorrelated_step(sos, span):
+    """The first lag (samples) at which white noise filtered forwards and backwards by the
+    second-order sections `sos` is uncorrelated: the first zero of the autocorrelation of its
+    impulse response."""
+    from scipy.signal import sosfiltfilt
     impulse = np.zeros(4 * span + 1)
     impulse[2 * span] = 1.0
-    h = filtfilt(b, a, impulse)
+    h = sosfiltfilt(sos, impulse)
     r = np.correlate(h, h, "full")[h.size - 1:]
     crossing = np.flatnonzero(r <= 0)
     return int(crossing[0]) if crossing.size else span
@@ -422,19 +423,19 @@ def filtered_records(t, q, tau, cutoff=None):
     EDGE_PERIODS/cutoff seconds are dropped: there the filter has no past or future, and its
     start-up transient (the records' ends reflected oddly) has not decayed below about 1e-4 of
     the motion."""
-    from scipy.signal import butter, filtfilt
+    from scipy.signal import butter, sosfiltfilt
     rate = _uniform_rate(t)
     cutoff = CUTOFF_FACTOR * motion_bandwidth(q, rate) if cutoff is None else float(cutoff)
     if not 0 < cutoff < 0.45 * rate:
         raise ValueError(f"the filter's cut-off must lie between 0 and 0.45 times the sampling "
                          f"rate ({0.45 * rate:.6g} Hz), got {cutoff:.6g} Hz: sample faster, or "
                          "give cutoff=... (Hz) or qd and qdd")
-    b, a = butter(FILTER_ORDER, cutoff / (rate / 2))
-    qf, tauf = filtfilt(b, a, q, axis=1), filtfilt(b, a, tau, axis=1)
+    sos = butter(FILTER_ORDER, cutoff / (rate / 2), output="sos")
+    qf, tauf = sosfiltfilt(sos, q, axis=1), sosfiltfilt(sos, tau, axis=1)
     dt = 1.0 / rate
     qd = (qf[:, 2:] - qf[:, :-2]) / (2 * dt)
     qdd = (qf[:, 2:] - 2 * qf[:, 1:-1] + qf[:, :-2]) / dt ** 2
-    step = _uncorrelated_step(b, a, int(math.ceil(2 * rate / cutoff)))
+    step = _uncorrelated_step(sos, int(math.ceil(2 * rate / cutoff)))
     edge = int(math.ceil(EDGE_PERIODS * rate / cutoff))
     keep = np.arange(edge, t.size - 2 - edge, step)
     if keep.size < 2:
