@@ -186,11 +186,11 @@ def base_parameters(mod, samples=None, seed=0, tol=BASE_TOL):
     The regressor is stacked over `samples` random states, W = [Y(q_s, q̇_s, q̈_s)] (N·n × k), and
     its columns scaled to unit norm. A column below `tol` (of the largest) is a parameter with no
     effect. A QR factorization with column pivoting, W·P = Q·R, gives the rank r (the diagonal
-    entries abs(R_ii) above tol·abs(R_11)). Which columns are kept follows Gautier: a QR factorization
-    of the columns in preference order (link by link from the base; in each link the inertias,
-    then the first moments, then the mass, `PREFERENCE`) has abs(R_ii) ≈ 0 exactly where column i
-    is a combination of the columns before it; those are the dependent ones, W_d = W_i·β with β
-    the least-squares solution, and
+    entries abs(R_ii) above tol·abs(R_11)). Which columns are kept follows Gautier: a QR
+    factorization of the columns in preference order (link by link from the base; in each link
+    the inertias, then the first moments, then the mass, `PREFERENCE`) has abs(R_ii) ≈ 0
+    exactly where column i is a combination of the columns before it; those are the dependent
+    ones, W_d = W_i·β with β the least-squares solution, and
 
         Y·π = Y_i·(π_i + β·π_d) = Y_i·π_b,   π_b = [1 β]·P·π = matrix @ π.
 
@@ -217,21 +217,21 @@ def base_parameters(mod, samples=None, seed=0, tol=BASE_TOL):
     if moving.size == 0:
         raise LagrgenError(f"no inertial parameter of model {mod.name!r} changes its torques")
     Ws = W[:, moving] / scale[moving]
-    rank = _pivoted_rank(Ws, tol)
-    kept = moving[_kept_in_order(Ws, [list(moving).index(j) for j in
-                                       _preference_order(names, moving)], tol, rank)]
+    order = [list(moving).index(j) for j in _preference_order(names, moving)]
+    kept = moving[_kept_in_order(Ws, order, tol, *_pivoted(Ws, tol))]
     dependent = np.array([j for j in moving if j not in set(kept)], dtype=int)
     beta = _grouping(W, scale, kept, dependent)
     return _named_base(names, kept, dependent, beta,
                        np.array([j for j in range(k) if j not in set(moving)], dtype=int))
 
 
-def _pivoted_rank(Ws, tol):
-    """The numerical rank of Ws: |R_ii| of its column-pivoted QR above tol·|R_11|."""
+def _pivoted(Ws, tol):
+    """(rank, pivots) of the column-pivoted QR of Ws: the rank counts the diagonal entries of R
+    above tol times the first."""
     from scipy.linalg import qr
-    R = qr(Ws, mode="r", pivoting=True)[0]
+    R, pivots = qr(Ws, mode="r", pivoting=True)
     d = np.abs(np.diag(R))
-    return int(np.sum(d > tol * d[0]))
+    return int(np.sum(d > tol * d[0])), pivots
 
 
 def _preference_order(names, columns):
@@ -242,7 +242,7 @@ def _preference_order(names, columns):
                                           PREFERENCE.index(names[j].partition("_")[0])))
 
 
-def _kept_in_order(Ws, order, tol, rank):
+def _kept_in_order(Ws, order, tol, rank, pivots):
     """Positions (in Ws) of the columns independent of those before them in `order` (Gautier's
     unpivoted QR); the first `rank` pivots of the pivoted QR if the two disagree (a tolerance
     too close to a genuine near-dependency)."""
@@ -250,9 +250,7 @@ def _kept_in_order(Ws, order, tol, rank):
     R = qr(Ws[:, order], mode="r")[0]
     d = np.abs(np.diag(R))[:len(order)]
     kept = sorted(order[i] for i in np.flatnonzero(d > tol * d.max()))
-    if len(kept) != rank:
-        kept = sorted(qr(Ws, mode="r", pivoting=True)[1][:rank])
-    return np.array(kept, dtype=int)
+    return np.array(kept if len(kept) == rank else sorted(pivots[:rank]), dtype=int)
 
 
 def _grouping(W, scale, kept, dependent):
@@ -498,7 +496,7 @@ class InertialEstimate:
             lines.append(f"{name:<{width}}  {value:12.6g}  {err:10.3g}  {rel}")
         rms = ", ".join(f"{j} {v:.3g}" for j, v in self.rms.items())
         lines.append(f"torque residual RMS: {rms}")
-        source = (f"filtered at {self.cutoff:.3g} Hz, every {self.step}th sample"
+        source = (f"filtered at {self.cutoff:.3g} Hz, one sample in {self.step}"
                   if self.cutoff else "given velocities and accelerations")
         lines.append(f"condition number {self.condition:.4g}; {self.t.size} samples ({source})")
         if self.price is not None:
@@ -521,15 +519,18 @@ def identify_inertial(mod, t, q, tau, qd=None, qdd=None, consistent=False, frict
     ----------
     mod : a built model whose inertial parameters are parameters (API §21)
     t : (N,) increasing sample times
-    q, tau : (n, N) joint positions and torques (one row per joint, as `sol.q`)
+    q, tau : (n, N) joint positions and torques (one row per joint, as `sol.q`; (N, n) is
+        refused with a ValueError saying to transpose)
     qd, qdd : (n, N) velocities and accelerations; when either is None both come from the
         positions through `filtered_records` (a zero-phase low-pass at `cutoff` Hz, central
         differences; the torques filtered alike, all decimated)
-    consistent : also find the physically consistent estimates: positive masses, inertias
-        positive definite and satisfying the triangle inequality, i.e. each link's
-        pseudo-inertia [[½tr(I)·1 − I, h], [hᵀ, m]] positive definite, parametrized by its
-        log-Cholesky factor (Rucker & Wensing 2022) and fitted with
-        scipy.optimize.least_squares; friction coefficients non-negative
+    consistent : return physically consistent estimates: positive masses, inertias positive
+        definite and satisfying the triangle inequality, i.e. each link's pseudo-inertia
+        [[½tr(I)·1 − I, h], [hᵀ, m]] positive definite (Wensing et al. 2017), friction
+        coefficients positive; the nearest to the records in the weighted residual, found by
+        an interior-point path on the log-det divergence from the model's defaults (Lee &
+        Wensing 2020), which also keeps the directions the records do not see at the defaults
+        (`est.inertial`, `est.unconstrained`, `est.price`)
     friction : add a viscous and a Coulomb friction coefficient per joint (`fv_<joint>`,
         `fc_<joint>`)
     cutoff : the filter's cut-off in Hz (None: 5 times the motion's highest frequency)
