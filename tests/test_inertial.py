@@ -116,6 +116,20 @@ def test_the_regressor_times_pi_is_the_inverse_dynamics(arms, example, backend):
         assert np.allclose(Y @ pi, tau, rtol=1e-12, atol=1e-12)
 
 
+@pytest.mark.parametrize("backend", ["c", "python"])
+def test_the_arms_directional_derivatives_are_the_jacobian_products(arms, backend):
+    """The forward-mode tangents of the arm (its sensitivities) compile and run: some of its
+    tangent temporaries are used by no output, and were once emitted before the temporaries
+    they name."""
+    mod = arms[backend]
+    rng = np.random.default_rng(6)
+    y, dy = rng.uniform(-1, 1, 6), rng.standard_normal((2, 6))
+    dp = rng.standard_normal((2, len(mod.parameters)))
+    expected = dy @ mod.jacobian(0.2, y).T + dp @ mod.parameter_jacobian(0.2, y).T
+    products = mod.directional_derivatives(0.2, y, dy, dp)[1]
+    assert np.allclose(products, expected, rtol=1e-10, atol=1e-11 * np.abs(expected).max())
+
+
 def test_the_stacked_regressor_is_the_regressor_per_sample(arm):
     rng = np.random.default_rng(4)
     q, qd, qdd = rng.normal(size=(3, 7, 3))
