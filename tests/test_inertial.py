@@ -146,6 +146,20 @@ def test_a_model_regressor_and_inertial_parameters_are_used_when_present(arm):
     assert np.array_equal(regressor_of(proxy, np.zeros(3), np.zeros(3), np.zeros(3)), marker)
 
 
+def test_a_model_declaring_no_inertial_parameters_falls_back_to_their_names(arm):
+    """A built model whose `inertial_parameters` is empty (it has no articulation) and whose
+    `regressor` has no columns: the names and the parameter Jacobian's columns are used."""
+    proxy = types.SimpleNamespace(**{name: getattr(arm, name) for name in (
+        "name", "coordinates", "parameters", "defaults", "n_coordinates", "n_constraints",
+        "residual_parameter_jacobian")})
+    proxy.inertial_parameters = ()
+    proxy.regressor = lambda q, qd, qdd: np.zeros((3, 0))
+    q = np.array([0.3, -0.2, 0.5])
+    assert inertial_parameters_of(proxy) == inertial_parameters_of(arm)
+    assert np.array_equal(regressor_of(proxy, q, q, q), regressor_of(arm, q, q, q))
+    assert regressor_of(proxy, q, q, q).shape == (3, 30)
+
+
 def test_a_model_without_inertial_parameters_is_refused(tmp_path):
     model = Model("no_inertial")
     x, = model.coordinates("x")

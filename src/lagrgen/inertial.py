@@ -53,12 +53,13 @@ REGRESSOR_ACCURACY = BASE_TOL
 
 # -- the regressor ---------------------------------------------------------------------------------
 def inertial_parameters_of(mod):
-    """The model's inertial parameter names: `mod.inertial_parameters`, else the parameters
-    named `<field>_<link>` (FIELDS) of each link with a mass parameter `m_<link>`, by link in
+    """The model's inertial parameter names: `mod.inertial_parameters` when it names some (a
+    model built from an articulation, such as a URDF's), else the parameters named
+    `<field>_<link>` (FIELDS) of each link with a mass parameter `m_<link>`, by link in
     parameter order."""
-    names = getattr(mod, "inertial_parameters", None)
-    if names is not None:
-        return tuple(names)
+    names = _declared_inertial(mod)
+    if names:
+        return names
     present = set(mod.parameters)
     links = [name[2:] for name in mod.parameters if name.startswith("m_") and len(name) > 2]
     names = tuple(f"{f}_{link}" for link in links for f in FIELDS if f"{f}_{link}" in present)
@@ -79,11 +80,17 @@ def links_of(names):
     return list(links.items())
 
 
+def _declared_inertial(mod):
+    """The inertial parameters the built model declares (empty when it declares none)."""
+    return tuple(getattr(mod, "inertial_parameters", None) or ())
+
+
 def _regressor_function(mod):
-    """A function (q, qd, qdd) -> Y (n, k): `mod.regressor`, else the columns of the inertial
-    parameters of ∂r/∂p, r = M·q̈ − F (the equations being linear in π, these are Y itself)."""
+    """A function (q, qd, qdd) -> Y (n, k): `mod.regressor` when the model declares its inertial
+    parameters, else the columns of the inertial parameters of ∂r/∂p, r = M·q̈ − F (the
+    equations being linear in π, these are Y itself)."""
     regressor = getattr(mod, "regressor", None)
-    if regressor is not None:
+    if regressor is not None and _declared_inertial(mod):
         return regressor
     if mod.n_constraints:
         raise LagrgenError(
