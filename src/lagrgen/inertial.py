@@ -584,12 +584,17 @@ def _friction_names(mod):
 
 def _observation_blocks(mod, base, records, friction):
     """The base regressor at each sample, (m, n, p), with the friction columns q̇_j and
-    sign(q̇_j) acting on joint j (friction=True)."""
+    sign(q̇_j) acting on joint j (friction=True). A column below BASE_TOL of the largest is
+    round-off of a parameter the records do not excite (the recursive formulation's sums leave
+    1e-17 where a product with q̇ = 0 would give 0): it is set to zero, so that the covariance,
+    which scales columns to unit norm, sees that the records do not determine it."""
     Y = stacked_regressor(mod, records.q.T, records.qd.T, records.qdd.T)[:, :, list(base.columns)]
     if friction:
         eye = np.eye(mod.n_coordinates)
         qd = records.qd.T[:, :, None]
         Y = np.concatenate([Y, qd * eye, np.sign(qd) * eye], axis=2)
+    norms = np.sqrt(np.einsum("mnp,mnp->p", Y, Y))
+    Y[:, :, norms <= BASE_TOL * norms.max(initial=0.0)] = 0.0
     return Y
 
 
