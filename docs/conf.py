@@ -75,8 +75,8 @@ sphinx_gallery_conf = {
 #: The order of the guide's pages (file names in guide/ without .md); pages not named here follow
 #: by name.
 GUIDE_ORDER = ["model", "build", "running", "ensembles", "vibration", "stability", "constraints",
-               "bodies3d", "robots", "sympy", "nonsmooth", "identification", "optimization", "export",
-               "notebooks", "outputs", "command_line", "speed"]
+               "bodies3d", "robots", "sympy", "nonsmooth", "identification", "inertial",
+               "optimization", "export", "notebooks", "outputs", "command_line", "speed"]
 
 
 def guide_pages():
@@ -102,7 +102,12 @@ API = [
                                  "stability.EigenvalueSweep", "stability.Crossing",
                                  "FrozenTimeWarning", "UnstableModeWarning",
                                  "NotAnEquilibriumWarning"]),
-    ("Identification", ["fit", "fit_modes", "fit.FitResult", "fit.ModalUpdate"]),
+    ("Identification", ["fit", "fit_modes", "fit.FitResult", "fit.ModalUpdate", "FitWarning",
+                        "IdentifiabilityWarning"]),
+    ("Inertial identification of robots", ["base_parameters", "identify_inertial",
+                                           "exciting_trajectory", "inertial.BaseParameters",
+                                           "inertial.InertialEstimate",
+                                           "inertial.ExcitingTrajectory"]),
     ("Optimal motions", ["Collocation", "CollocationResult"]),
     ("Exceptions", ["LagrgenError", "ModelError", "UnknownNameError", "BuildError", "CompileError",
                     "MassMatrixError", "ConstraintError", "NonFiniteError"]),

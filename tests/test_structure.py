@@ -180,7 +180,7 @@ STAGES = [
     ("running", ["progress", "results", "solvers", "scipy_engine", "native", "sensitivity",
                  "simulate", "constraints", "ensemble", "ensemble_store",
                  "hybrid"]),
-    ("analysis", ["linearization", "vibration", "stability", "sweep", "bench", "fit",
+    ("analysis", ["linearization", "vibration", "stability", "sweep", "bench", "fit", "inertial",
                   "collocation"]),
     ("face", ["model", "sympy_interop", "urdf", "expressions", "cli", "__main__", ""]),
 ]

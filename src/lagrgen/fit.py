@@ -34,6 +34,11 @@ class FitWarning(UserWarning):
     """The data do not determine every fitted name, or an estimate sits on its bound."""
 
 
+class IdentifiabilityWarning(FitWarning):
+    """The data do not determine some estimated names: a direction of the estimates that the
+    data do not see (`fit`, `fit_modes`, `identify_inertial`)."""
+
+
 @dataclass
 class FitResult:
     """Estimates of a least-squares fit.
@@ -123,7 +128,7 @@ def distinct_names(names, what="params"):
     return names
 
 
-def _sample_times(t):
+def sample_times(t):
     t = np.asarray(t, dtype=float)
     if t.ndim != 1 or t.size < 2 or not np.all(np.isfinite(t)) or np.any(np.diff(t) <= 0):
         raise ValueError("t must be a 1-D array of at least two finite, increasing sample times")
@@ -166,17 +171,18 @@ def covariance(J, s2, names, accuracy):
     return cov, tuple(names[i] for i in involved), directions
 
 
-def _warn_unseen(directions, rank, k, consequence="their standard errors are reported as inf",
-                 stacklevel=3):
+def warn_unseen(directions, rank, k, consequence="their standard errors are reported as inf",
+                advice="Fit fewer names, fix some with params={...}, or measure more",
+                stacklevel=3):
+    """An IdentifiabilityWarning naming the directions the data do not see."""
     combos = "; ".join(f"{next(iter(d))} alone" if len(d) == 1 else
-                       " : ".join(f"δ{n}" for n in d) + " = " +
+                       " : ".join(f"δ({n})" if " " in n else f"δ{n}" for n in d) + " = " +
                        " : ".join(f"{c:.3g}" for c in d.values()) for d in directions)
     which = [n for n in dict.fromkeys(n for d in directions for n in d)]
     warnings.warn(f"the data do not determine {', '.join(which)} (the Jacobian has rank {rank} "
                   f"of {k}): the fit does not change when the estimates move along {combos}; "
-                  f"{consequence}. Fit fewer names, fix some with params={{...}}, or measure "
-                  "more",
-                  FitWarning, stacklevel=stacklevel)
+                  f"{consequence}. {advice}",
+                  IdentifiabilityWarning, stacklevel=stacklevel)
 
 
 def on_bounds(x, low, high, names, stacklevel=3):
@@ -238,7 +244,7 @@ def fit(mod, t, data, params, y0, measured=None, initial=None, bounds=None, weig
     """
     names = distinct_names(params)
     columns = sensitivity_columns(mod, names)
-    t = _sample_times(t)
+    t = sample_times(t)
     measured_names, rows = measured_rows(mod, measured)
     data = _as_data(data, len(rows), t.size)
     w = _weights(weights, data.shape)
@@ -276,7 +282,7 @@ def fit(mod, t, data, params, y0, measured=None, initial=None, bounds=None, weig
     s2 = 2 * result.cost / dof if dof > 0 else np.nan
     cov, unidentified, directions = covariance(J, s2, names, accuracy)
     if directions:
-        _warn_unseen(directions, rank, len(names))
+        warn_unseen(directions, rank, len(names))
     if dof <= 0:
         warnings.warn(f"{J.shape[0]} weighted samples for {rank} determined names leave no "
                       "residual to estimate the noise: the standard errors are NaN",
@@ -446,7 +452,7 @@ def fit_modes(mod, q0, measured_hz, params, initial=None, bounds=None, shapes=No
     res, order = eigen(result.x)
     rank, directions = unseen_directions(result.jac, names, h)[:2]
     if directions:
-        _warn_unseen(directions, rank, len(names), "their estimates are one point of a family "
+        warn_unseen(directions, rank, len(names), "their estimates are one point of a family "
                      "that matches the frequencies as well")
     unidentified = tuple(n for n in names if any(n in d for d in directions))
     return ModalUpdate(params=dict(zip(names, map(float, result.x))),

@@ -52,7 +52,9 @@ class Store:
 def kernel_statements(kernel):
     """The statements of a kernel: every output entry in order, each preceded by the CSE
     temporaries it needs that are not defined yet (so a temporary sits next to its first use, and a
-    long kernel split into parts passes few of them between parts)."""
+    long kernel split into parts passes few of them between parts). A temporary no output needs
+    is left out (a tangent whose uses cancelled, say): it would be dead code, and could name
+    temporaries defined only after it."""
     temps = {str(sym): expr for sym, expr in kernel.temporaries}
     deps = {}
 
@@ -85,8 +87,7 @@ def kernel_statements(kernel):
                 stmts.append(Comment(notes[name, i]))
             require(sorted(needs(e), key=_index, reverse=True)[::-1])
             stmts.append(Store(name, i, e))
-    unused = [Declare(name, expr) for name, expr in temps.items() if name not in done]
-    return unused + stmts
+    return stmts
 
 
 def _index(name):
