@@ -301,6 +301,7 @@ BAD = {
     "an entity": ('<?xml version="1.0"?><!DOCTYPE r [<!ENTITY x "y">]><robot name="r"/>',
                   "DOCTYPE"),
     "not XML": ("<robot><link>", "not well-formed"),
+    "no link": ('<?xml version="1.0"?><robot name="r"></robot>', "defines no <link>"),
     "a massless joint": (robot(link("a", 1), link("b"), joint("j", "revolute", "a", "b")),
                          "moves no mass"),
     "a zero axis": (robot(link("a", 1), link("b", 1), joint("j", "revolute", "a", "b",
@@ -319,6 +320,21 @@ def test_bad_files_get_one_error_naming_the_element(case, tmp_path):
     path.write_text(text)
     with pytest.raises(URDFError, match=message):
         lagrgen.from_urdf(path)
+
+
+def test_an_unphysical_inertia_can_be_taken_as_it_is(tmp_path):
+    path = tmp_path / "odd.urdf"
+    path.write_text(BAD["a broken triangle inequality"][0])
+    with pytest.raises(URDFError, match="check_inertias=False"):
+        lagrgen.from_urdf(path)
+    from lagrgen.urdf import URDFWarning
+    with pytest.warns(URDFWarning, match="triangle inequality"):
+        model = lagrgen.from_urdf(path, check_inertias=False)
+    assert len(model.q) == 1
+    zero = tmp_path / "point.urdf"        # a point mass: an inertia that is round-off of zero
+    zero.write_text(robot(link("a", 1), link("b", 1.3, inertia=(0, 0, 2e-35, 0, 0, 0)),
+                          joint("j", "prismatic", "a", "b")))
+    assert len(lagrgen.from_urdf(zero).q) == 1
 
 
 def test_bad_arguments_are_refused(small_file, tmp_path):

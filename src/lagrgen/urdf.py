@@ -29,12 +29,19 @@ from .errors import ModelError
 #: Joint types that carry a coordinate, and the fixed joint that merges two links.
 MOVING = ("revolute", "continuous", "prismatic")
 SUPPORTED = MOVING + ("fixed",)
-#: Relative tolerance of the checks of an inertia (positive semi-definite, triangle inequality).
+#: Tolerance of the checks of an inertia (positive semi-definite, triangle inequality): relative
+#: to its largest principal moment, and absolute (kg·m²) for inertias that are round-off of zero.
 INERTIA_TOL = 1e-9
+INERTIA_ATOL = 1e-12
 
 
 class URDFError(ModelError):
     """A URDF file cannot be read as a robot: the message names the element and what is wrong."""
+
+
+class URDFWarning(UserWarning):
+    """Something of a URDF file lagrgen took as it is, though it is not physical (an inertia no
+    mass distribution has, read with check_inertias=False)."""
 
 
 @dataclass(frozen=True)
@@ -94,17 +101,18 @@ class Robot:
 
 
 # -- reading -----------------------------------------------------------------------------------------
-def read(path):
-    """The `Robot` of the URDF file at `path`, checked (URDFError naming the element otherwise)."""
+def read(path, check_inertias=True):
+    """The `Robot` of the URDF file at `path`, checked (URDFError naming the element otherwise;
+    an inertia no mass distribution has is a URDFWarning instead with check_inertias=False)."""
     path = Path(path)
     try:
         text = path.read_bytes()
     except OSError as exc:
         raise URDFError(f"cannot read the URDF file {str(path)!r}: {exc.strerror or exc}") from None
-    return parse(text, str(path))
+    return parse(text, str(path), check_inertias)
 
 
-def parse(text, where="<string>"):
+def parse(text, where="<string>", check_inertias=True):
     """The `Robot` of the URDF document `text` (bytes or str)."""
     if isinstance(text, str):
         text = text.encode("utf-8")
@@ -123,7 +131,7 @@ def parse(text, where="<string>"):
         link = _attribute(element, "name", "<link>")
         if link in links:
             raise URDFError(f"{where}: two <link> elements are named {link!r}")
-        links[link] = _inertial(element, link)
+        links[link] = _inertial(element, link, check_inertias)
     joints, seen = [], set()
     for element in root.findall("joint"):
         joint = _joint(element, links)
@@ -131,9 +139,10 @@ def parse(text, where="<string>"):
             raise URDFError(f"{where}: two <joint> elements are named {joint.name!r}")
         seen.add(joint.name)
         joints.append(joint)
+    if not links:
+        raise URDFError(f"{where} defines no <link>: a robot needs at least one")
     robot = Robot(name, links, joints)
     _check_tree(robot, where)
-    _check_mimics(robot)
     return robot
 
 
@@ -173,7 +182,7 @@ def rpy_matrix(rpy):
             (-sp_, cp * sr, cp * cr))
 
 
-def _inertial(element, link):
+def _inertial(element, link, check_inertias=True):
     what = f"link {link!r}"
     inertial = element.find("inertial")
     if inertial is None:
@@ -193,26 +202,33 @@ def _inertial(element, link):
     I = np.array([[values["ixx"], values["ixy"], values["ixz"]],
                   [values["ixy"], values["iyy"], values["iyz"]],
                   [values["ixz"], values["iyz"], values["izz"]]])
-    check_inertia(I, what)
+    check_inertia(I, what, check_inertias)
     I = R @ I @ R.T
     return Inertial(mass, com, tuple(map(tuple, (I + I.T) / 2)))
 
 
-def check_inertia(I, what):
-    """Raise URDFError unless the 3×3 inertia I about the centre of mass is positive
-    semi-definite and its principal moments satisfy the triangle inequality (each at most the
-    sum of the other two), within INERTIA_TOL of the largest."""
+def check_inertia(I, what, strict=True):
+    """Raise URDFError (a URDFWarning unless `strict`) unless the 3×3 inertia I about the centre
+    of mass is positive semi-definite and its principal moments satisfy the triangle inequality
+    (each at most the sum of the other two), within INERTIA_TOL of the largest or INERTIA_ATOL."""
+    import warnings
     moments = np.linalg.eigvalsh(I)
-    scale = max(abs(moments).max(), 1e-300)
-    if moments.min() < -INERTIA_TOL * scale:
-        raise URDFError(f"the inertia of {what} is not positive semi-definite (principal "
-                        f"moments {np.array2string(moments, precision=6)}): check the signs of "
-                        "ixy, ixz, iyz")
+    tol = max(INERTIA_TOL * abs(moments).max(), INERTIA_ATOL)
     a, b, c = moments
-    if c > a + b + INERTIA_TOL * scale:
-        raise URDFError(f"the inertia of {what} breaks the triangle inequality (principal moments "
-                        f"{np.array2string(moments, precision=6)}: the largest exceeds the sum "
-                        "of the other two, which no mass distribution gives)")
+    problem = None
+    if a < -tol:
+        problem = (f"is not positive semi-definite (principal moments "
+                   f"{np.array2string(moments, precision=6)}): check the signs of ixy, ixz, iyz")
+    elif c > a + b + tol:
+        problem = (f"breaks the triangle inequality (principal moments "
+                   f"{np.array2string(moments, precision=6)}: the largest exceeds the sum of the "
+                   "other two, which no mass distribution gives)")
+    if problem is None:
+        return
+    if strict:
+        raise URDFError(f"the inertia of {what} {problem}; correct the file's <inertia>, or read "
+                        "it as it is with from_urdf(..., check_inertias=False)")
+    warnings.warn(f"the inertia of {what} {problem}; taken as it is", URDFWarning, stacklevel=4)
 
 
 def _joint(element, links):
@@ -443,7 +459,7 @@ def _check_moving_mass(robot, found):
 
 
 def from_urdf(path, name=None, base="fixed", gravity=(0.0, 0.0, -9.81), joint_dynamics=True,
-              parameters=None, mimic=True):
+              parameters=None, mimic=True, check_inertias=True):
     """A `lagrgen.Model` of the robot in the URDF file `path` (API §19).
 
     Parameters
@@ -467,6 +483,10 @@ def from_urdf(path, name=None, base="fixed", gravity=(0.0, 0.0, -9.81), joint_dy
     mimic : bool
         True: a <mimic> joint follows its joint (q = multiplier·q_joint + offset) and has no
         coordinate of its own; False: it is an independent joint (as Pinocchio reads it).
+    check_inertias : bool
+        True: an inertia that is not positive semi-definite or breaks the triangle inequality
+        (no mass distribution has it) is a URDFError; False: a URDFWarning, and it is taken as it
+        is (as ROS and Pinocchio do).
 
     Returns
     -------
@@ -490,7 +510,9 @@ def from_urdf(path, name=None, base="fixed", gravity=(0.0, 0.0, -9.81), joint_dy
                          f"{gravity!r}") from None
     if len(gravity) != 3:
         raise ModelError(f"gravity must have 3 components, got {len(gravity)}")
-    robot = read(path)
+    robot = read(path, check_inertias)
+    if mimic:
+        _check_mimics(robot)
     found = parts(robot, base)
     _check_moving_mass(robot, found)
     names = [p.name for p in found]
