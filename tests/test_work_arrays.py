@@ -102,6 +102,7 @@ CALLS = textwrap.dedent("""
                             np.zeros((n, 0))]),
         "residual_parameter_jacobian": (lambda: mod.residual_parameter_jacobian(x, v, a, 0.0, p),
                                         [np.column_stack([K @ x / k, a])]),
+        "regressor": (lambda: mod.regressor(x, v, a, 0.0, p), [np.zeros((n, 0))]),
     }
 
     def relative_error(name):
