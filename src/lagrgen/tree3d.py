@@ -109,15 +109,18 @@ def _from_articulation(eq, record, others):
     """The tree of an Articulation: its segments in order, one coordinate each."""
     q, names = eq.q, eq.spec.coordinate_names
     convert = eq.collected.convert
-    coordinate = []
+    coordinate, multiplier = [], []
     for segment in record.segments:
         motion = convert(segment.motion)
-        if motion not in q:
-            raise NotATree(f"joint {segment.name!r} follows another joint (mimic): one "
-                           "coordinate moves two branches")
-        coordinate.append(q.index(motion))
-    if sorted(coordinate) != list(range(len(q))):
-        raise NotATree("its coordinates are not one joint each")
+        used = [j for j, qj in enumerate(q) if qj in motion.free_symbols]
+        scale = frames.diff(motion, q[used[0]]) if len(used) == 1 else None
+        if scale is None or scale.free_symbols or scale == 0:
+            raise NotATree(f"the motion of joint {segment.name!r} is not a multiple of one "
+                           "coordinate")
+        coordinate.append(used[0])
+        multiplier.append(scale)
+    if set(coordinate) != set(range(len(q))):
+        raise NotATree("a coordinate moves no joint")
     parent = tuple(s.parent for s in record.segments)
     end = _subtree_ends(parent)
     world = frames.frames(record, convert, q, eq.qd, eq.t)
@@ -128,8 +131,8 @@ def _from_articulation(eq, record, others):
     for k, (segment, frame) in enumerate(zip(record.segments, world)):
         poses.append([x for row in frame.R for x in row] + list(frame.p))
         base = [zero] * 3 + [-g for g in gravity] if parent[k] < 0 else [zero] * 6
-        records.append(list(frame.twist) + frames.world_inertia(frame) + base
-                       + [Q[coordinate[k]]])
+        records.append([multiplier[k] * x for x in frame.twist] + frames.world_inertia(frame)
+                       + base + [Q[coordinate[k]]])
         above = (f", below {names[coordinate[parent[k]]]}" if parent[k] >= 0
                  else ", a root")
         notes.append(f"node {k}: {segment.kind} joint {names[coordinate[k]]}{above}; carries "

@@ -18,8 +18,10 @@ def template_name(equations):
 
 def layout(equations):
     """The tables of the equations' tree: {"kind", "node_width", "node_fields", "coordinate",
-    "parent", "end", "dq", "dqd", "dnode", "dnode_start", "dQp"}, and for a planar tree "D",
-    "slope_width", "slope_fields" (plain Python values)."""
+    "parent", "end", "dq", "dqd", "dnode", "dnode_start", "dQp", "inertial_column"}, and for a
+    planar tree "D", "slope_width", "slope_fields" (plain Python values). The entries of ∂Q/∂y
+    (dq, dqd) are pairs of nodes for a planar tree, of coordinates for a spatial one (whose
+    coordinates may have several nodes)."""
     tree = trees.analyse(equations)
     (dq, _), (dqd, _), _ = tree_gradients(equations)
     (dnode, _), (dQp, _) = tree_parameter_gradients(equations)
@@ -29,10 +31,11 @@ def layout(equations):
         start[j + 1] += 1
     for j in range(n_params):
         start[j + 1] += start[j]
+    pairs = _nodes if tree.kind == "planar" else (lambda ij, _: [list(p) for p in ij])
     out = {"kind": tree.kind, "node_width": tree.width,
            "node_fields": trees.field_offsets(tree.fields, None),
            "coordinate": list(tree.coordinate), "parent": list(tree.parent),
-           "end": list(tree.end), "dq": _nodes(dq, tree), "dqd": _nodes(dqd, tree),
+           "end": list(tree.end), "dq": pairs(dq, tree), "dqd": pairs(dqd, tree),
            "dnode": [[k, o] for k, o, _ in dnode], "dnode_start": start,
            "dQp": [list(ij) for ij in dQp]}
     columns, start = [], 0
@@ -62,6 +65,10 @@ def tree_c(equations, template, kernels=("tree_nodes", "tree_slopes", "tree_para
     compiled when they are among them)."""
     tables = layout(equations)
     n = len(tables["coordinate"])
+    first, seen = [], set()
+    for c in tables["coordinate"]:
+        first.append(int(c not in seen))
+        seen.add(c)
     names = {"d": "DD"}
     offsets = [f"#define TREE_{names.get(name, name.upper())} {offset}"
                for name, offset in tables["node_fields"].items()]
@@ -76,10 +83,11 @@ def tree_c(equations, template, kernels=("tree_nodes", "tree_slopes", "tree_para
         slope_width=tables.get("slope_width", 0),
         nnz_q=len(tables["dq"]), nnz_qd=len(tables["dqd"]), field_offsets="\n".join(offsets),
         coordinates=_ints(tables["coordinate"]), parents=_ints(tables["parent"]),
-        node_rows=_ints(range(n)),
+        node_rows=_ints(range(n)), n_nodes=n, first_nodes=_ints(first),
         ends=_ints(tables["end"]), dq_index=_ints([i for ij in tables["dq"] for i in ij]),
         dqd_index=_ints([i for ij in tables["dqd"] for i in ij]),
-        columns=_ints(tables["coordinate"] + [n + j for j in tables["coordinate"]]),
+        columns=_ints(tables["coordinate"] + [len(equations.q) + j
+                                              for j in tables["coordinate"]]),
         nnz_p=len(tables["dnode"]), nnz_qp=len(tables["dQp"]),
         dnode_index=_ints([i for ko in tables["dnode"] for i in ko]),
         dnode_start=_ints(tables["dnode_start"]),

@@ -50,19 +50,22 @@ def force_derivative(Y, v):
 
 
 class SpatialRecursion:
-    """The tables of one model's spatial tree (`TREE` of its Python source) and the recursions."""
+    """The tables of one model's spatial tree (`TREE` of its Python source) and the recursions.
+    Nodes are joints; a coordinate has one node or several (joints that follow it)."""
 
-    def __init__(self, tables):
+    def __init__(self, tables, n_coordinates):
         self.coordinate = np.array(tables["coordinate"], dtype=np.intp)
         self.parent = list(tables["parent"])
         self.end = list(tables["end"])
         self.n = len(self.parent)
+        self.nc = n_coordinates
         self.fields = tables["node_fields"]
         self.dq = np.array(tables["dq"], dtype=np.intp).reshape(-1, 2)
         self.dqd = np.array(tables["dqd"], dtype=np.intp).reshape(-1, 2)
         self.dnode = np.array(tables["dnode"], dtype=np.intp).reshape(-1, 2)
         self.dnode_start = list(tables["dnode_start"])
         self.dQp = np.array(tables["dQp"], dtype=np.intp).reshape(-1, 2)
+        self.first = np.unique(self.coordinate, return_index=True)[1]
         self.path = []
         for k in range(self.n):
             up, i = [k], self.parent[k]
@@ -72,10 +75,16 @@ class SpatialRecursion:
             self.path.append(up)
 
     def split(self, nodes):
-        """(s, Y, base, Q in node order) of the node records (n × width)."""
+        """(s, Y, base, Q in node order) of the node records (nodes × width)."""
         o = self.fields
         return (nodes[:, o["s"]:o["s"] + 6], nodes[:, o["Y"]:o["Y"] + 10],
                 nodes[:, o["base"]:o["base"] + 6], nodes[:, o["Q"]])
+
+    def generalized_forces(self, nodes):
+        """Q in coordinate order (each coordinate's from its first node)."""
+        Q = np.empty(self.nc)
+        Q[self.coordinate[self.first]] = self.split(nodes)[3][self.first]
+        return Q
 
     def motion(self, nodes, qd, a):
         """(v, acc) of every node at q̇ and q̈ = a (coordinate order)."""
@@ -90,39 +99,36 @@ class SpatialRecursion:
         return v, acc
 
     def forces(self, nodes, v, acc):
-        """The subtrees' inertia forces fc (n × 6) and τ (coordinate order)."""
+        """The subtrees' inertia forces fc (nodes × 6) and τ (coordinate order)."""
         s, Y, _, _ = self.split(nodes)
         f = np.array([inertia_apply(Y[k], acc[k]) + crf(v[k], inertia_apply(Y[k], v[k]))
                       for k in range(self.n)])
-        tau = np.empty(self.n)
+        tau = np.zeros(self.nc)
         for k in range(self.n - 1, -1, -1):
-            tau[self.coordinate[k]] = s[k] @ f[k]
+            tau[self.coordinate[k]] += s[k] @ f[k]
             if self.parent[k] >= 0:
                 f[self.parent[k]] += f[k]
         return f, tau
 
     def mass_matrix(self, nodes):
-        """M in node order by the composite-rigid-body algorithm."""
+        """M (coordinate order) by the composite-rigid-body algorithm, the nodes' entries summed
+        per coordinate."""
         s, Y, _, _ = self.split(nodes)
         Yc = np.array(Y)
-        M = np.zeros((self.n, self.n))
+        H = np.zeros((self.n, self.n))
         for k in range(self.n - 1, -1, -1):
             F = inertia_apply(Yc[k], s[k])
             for i in self.path[k]:
-                M[i, k] = M[k, i] = s[i] @ F
+                H[i, k] = H[k, i] = s[i] @ F
             if self.parent[k] >= 0:
                 Yc[self.parent[k]] += Yc[k]
-        return M
-
-    def to_coordinates(self, M):
-        """A node-order matrix in coordinate order (rows and columns)."""
-        out = np.empty_like(M)
-        out[np.ix_(self.coordinate, self.coordinate)] = M
-        return out
+        G = np.zeros((self.n, self.nc))
+        G[np.arange(self.n), self.coordinate] = 1.0
+        return G.T @ H @ G
 
     def factor(self, M):
-        """The Cholesky factor of the node-order M (None when it is not positive definite, as
-        lg_tree_ltdl's pivot test)."""
+        """The Cholesky factor of M (None when it is not positive definite, as the C code's
+        pivot test)."""
         if not np.isfinite(M).all():
             return None
         try:
@@ -134,18 +140,14 @@ class SpatialRecursion:
         return L
 
     def solve(self, L, X):
-        """M⁻¹·X for X in coordinate order (rows), with the node-order factor L."""
+        """M⁻¹·X for X in coordinate order (rows), with the factor L."""
         X = np.asarray(X, dtype=np.float64)
-        Xn = X[self.coordinate]
-        Yn = np.linalg.solve(L.T, np.linalg.solve(L, Xn))
-        out = np.empty_like(Yn)
-        out[self.coordinate] = Yn
-        return out
+        return np.linalg.solve(L.T, np.linalg.solve(L, X))
 
     def b(self, nodes, qd, a, dQ, dQd):
         """B = [∂Q/∂q − ∂τ/∂q | ∂Q/∂q̇ − ∂τ/∂q̇] (coordinate order) at q̈ = a (tree3d.c.in's
-        lg_tree_b)."""
-        n = self.n
+        lg_tree_b), the nodes' entries summed per coordinate."""
+        n, nc = self.n, self.nc
         s, Y, base, _ = self.split(nodes)
         v, acc = self.motion(nodes, qd, a)
         f, _ = self.forces(nodes, v, acc)
@@ -158,30 +160,29 @@ class SpatialRecursion:
             psi[k] = crm(vp, s[k])
             alpha[k] = crm(ap, s[k]) + crm(vp, psi[k])
             dY[k] = force_derivative(Y[k], v[k])
-        Bn = np.zeros((n, 2 * n))
+        B = np.zeros((nc, 2 * nc))
         Fa, G = np.zeros((n, 6)), np.zeros((n, 6))
+        c = self.coordinate
         for k in range(n - 1, -1, -1):
             Fa[k] = inertia_apply(Yc[k], s[k])
             G[k] = dY[k].T @ s[k]
             dFq = inertia_apply(Yc[k], alpha[k]) + dY[k] @ psi[k] + crf(s[k], f[k])
             dFv = inertia_apply(Yc[k], 2 * psi[k]) + dY[k] @ s[k]
             for i in self.path[k]:
-                Bn[i, k] -= s[i] @ dFq
-                Bn[i, n + k] -= s[i] @ dFv
-            below = slice(k + 1, self.end[k])
-            Bn[below, k] -= Fa[below] @ alpha[k] + G[below] @ psi[k]
-            Bn[below, n + k] -= Fa[below] @ (2 * psi[k]) + G[below] @ s[k]
+                B[c[i], c[k]] -= s[i] @ dFq
+                B[c[i], nc + c[k]] -= s[i] @ dFv
+            below = np.arange(k + 1, self.end[k])
+            np.add.at(B, (c[below], c[k]), -(Fa[below] @ alpha[k] + G[below] @ psi[k]))
+            np.add.at(B, (c[below], nc + c[k]), -(Fa[below] @ (2 * psi[k]) + G[below] @ s[k]))
             parent = self.parent[k]
             if parent >= 0:
                 Yc[parent] += Yc[k]
                 dY[parent] += dY[k]
         if len(dQ):
-            Bn[self.dq[:, 0], self.dq[:, 1]] += dQ
+            np.add.at(B, (self.dq[:, 0], self.dq[:, 1]), dQ)
         if len(dQd):
-            Bn[self.dqd[:, 0], n + self.dqd[:, 1]] += dQd
-        out = np.empty_like(Bn)
-        out[np.ix_(self.coordinate, np.concatenate([self.coordinate, n + self.coordinate]))] = Bn
-        return out
+            np.add.at(B, (self.dqd[:, 0], nc + self.dqd[:, 1]), dQd)
+        return B
 
     def tangent(self, nodes, dnodes, qd, a):
         """δτ (coordinate order) of the inverse dynamics at q̈ = a when the node records change
@@ -204,9 +205,9 @@ class SpatialRecursion:
             df[k] = (inertia_apply(dYn[k], acc[k]) + inertia_apply(Y[k], dacc[k])
                      + crf(dv[k], mom)
                      + crf(v[k], inertia_apply(dYn[k], v[k]) + inertia_apply(Y[k], dv[k])))
-        dtau = np.empty(n)
+        dtau = np.zeros(self.nc)
         for k in range(n - 1, -1, -1):
-            dtau[self.coordinate[k]] = ds[k] @ f[k] + s[k] @ df[k]
+            dtau[self.coordinate[k]] += ds[k] @ f[k] + s[k] @ df[k]
             parent = self.parent[k]
             if parent >= 0:
                 f[parent] += f[k]
@@ -214,7 +215,7 @@ class SpatialRecursion:
         return dtau
 
     def parameter_records(self, dv, n_params, width):
-        """The node records' derivatives by each parameter, (n_params, n, width)."""
+        """The node records' derivatives by each parameter, (n_params, nodes, width)."""
         dnodes = np.zeros((n_params, self.n, width))
         params = np.repeat(np.arange(n_params), np.diff(self.dnode_start))
         if len(dv):
@@ -227,10 +228,10 @@ class SpatialPythonModel(PythonModel):
 
     def __init__(self, info, source):
         super().__init__(info, source)
-        self._tree = SpatialRecursion(self._kernels["TREE"])
+        self._tree = SpatialRecursion(self._kernels["TREE"], self.n_coordinates)
 
     def _nodes(self, t, q, qd, p, u):
-        return self._kernel("tree_nodes", t, q, qd, None, p, u)[0].reshape(self.n_coordinates, -1)
+        return self._kernel("tree_nodes", t, q, qd, None, p, u)[0].reshape(self._tree.n, -1)
 
     def _inverse(self, nodes, qd, a):
         v, acc = self._tree.motion(nodes, np.asarray(qd, dtype=float), np.asarray(a, dtype=float))
@@ -239,9 +240,7 @@ class SpatialPythonModel(PythonModel):
     def _mf(self, t, q, qd, p, u):
         nodes = self._nodes(t, q, qd, p, u)
         tau = self._inverse(nodes, qd, np.zeros(self.n_coordinates))
-        Q = np.empty(self.n_coordinates)
-        Q[self._tree.coordinate] = self._tree.split(nodes)[3]
-        return self._tree.to_coordinates(self._tree.mass_matrix(nodes)), Q - tau
+        return self._tree.mass_matrix(nodes), self._tree.generalized_forces(nodes) - tau
 
     def _factored(self, t, q, qd, p, u):
         """(node records, the node-order factor of M, q̈); MassMatrixError when M is not
@@ -250,8 +249,7 @@ class SpatialPythonModel(PythonModel):
         L = self._tree.factor(self._tree.mass_matrix(nodes))
         if L is None:
             raise MassMatrixError.at(self.name, t, q)
-        Q = np.empty(self.n_coordinates)
-        Q[self._tree.coordinate] = self._tree.split(nodes)[3]
+        Q = self._tree.generalized_forces(nodes)
         qdd = self._tree.solve(L, Q - self._inverse(nodes, qd, np.zeros(self.n_coordinates)))
         return nodes, L, qdd
 
