@@ -341,11 +341,31 @@ def test_an_unphysical_inertia_can_be_taken_as_it_is(tmp_path):
     assert len(lagrgen.from_urdf(zero).q) == 1
 
 
+def test_a_joint_that_moves_no_mass_can_be_held_fixed(tmp_path):
+    path = tmp_path / "hand.urdf"
+    path.write_text(robot(link("a", 1), link("b", 1.0, "0 0 -0.1"), link("finger"), link("tip"),
+                          joint("arm", "revolute", "a", "b", axis="0 1 0"),
+                          joint("grip", "revolute", "b", "finger", "0 0 -0.2", "0 0 0.3",
+                                "1 0 0"),
+                          joint("grip2", "revolute", "b", "tip", "0 0 -0.2", axis="1 0 0",
+                                extra='<mimic joint="grip" multiplier="-1" offset="0.2"/>')))
+    with pytest.raises(URDFError, match="joint 'grip'.*massless='fixed'"):
+        lagrgen.from_urdf(path)
+    from lagrgen.urdf import URDFWarning
+    with pytest.warns(URDFWarning, match="held fixed"):
+        model = lagrgen.from_urdf(path, massless="fixed")
+    assert [str(q.func) for q in model.q] == ["arm"]
+    mod = lagrgen.build(model, backend="python")
+    assert np.isfinite(mod.rhs(0.0, [0.3, 0.0])).all()
+
+
 def test_bad_arguments_are_refused(small_file, tmp_path):
     with pytest.raises(lagrgen.ModelError, match="base must be"):
         lagrgen.from_urdf(small_file, base="flying")
     with pytest.raises(lagrgen.ModelError, match="parameters must be"):
         lagrgen.from_urdf(small_file, parameters="all")
+    with pytest.raises(lagrgen.ModelError, match="massless must be"):
+        lagrgen.from_urdf(small_file, massless="drop")
     with pytest.raises(lagrgen.ModelError, match="3 components"):
         lagrgen.from_urdf(small_file, gravity=(0, -9.81))
     with pytest.raises(URDFError, match="cannot read"):

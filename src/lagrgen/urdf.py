@@ -25,6 +25,7 @@ from pathlib import Path
 import numpy as np
 
 from .errors import ModelError
+from .frames import rodrigues
 
 #: Joint types that carry a coordinate, and the fixed joint that merges two links.
 MOVING = ("revolute", "continuous", "prismatic")
@@ -382,9 +383,11 @@ class Part:
     body: np.ndarray = field(default_factory=lambda: np.zeros(10))
 
 
-def parts(robot, base="fixed"):
+def parts(robot, base="fixed", frozen=None):
     """The robot's moving joints as `Part`s, parents first (depth first from the root link, in
-    file order), with the links that fixed joints join merged into the body before them."""
+    file order), with the links that fixed joints join merged into the body before them; the
+    joints of `frozen` ({name: position}) are fixed at that position."""
+    frozen = frozen or {}
     out = []
     if base == "floating":
         for name, kind, axis in FLOATING_BASE:
@@ -401,7 +404,11 @@ def parts(robot, base="fixed"):
         pending = []
         for joint in robot.children[link]:
             Rj, pj = R @ np.array(joint.rotation), p + R @ np.array(joint.xyz)
-            if joint.kind == "fixed":
+            if joint.kind == "fixed" or joint.name in frozen:
+                if joint.kind in ("revolute", "continuous"):
+                    Rj = Rj @ rodrigues(joint.axis, [frozen[joint.name]])[0]
+                elif joint.kind == "prismatic":
+                    pj = pj + Rj @ np.array(joint.axis) * frozen[joint.name]
                 pending.append((joint.child, owner, Rj, pj))
                 continue
             out.append(Part(joint, identifier(joint.name), owner, Rj, pj,
@@ -443,23 +450,49 @@ def _placed(inertial, R, p):
                      I_O[2, 2]])
 
 
-def _check_moving_mass(robot, found):
-    """URDFError for a moving joint whose subtree carries no mass or inertia (its row of M would
-    be zero)."""
+def massless_coordinates(found, followers):
+    """The parts (coordinates) whose joints' subtrees carry no mass or inertia (their rows of M
+    would be zero); a joint that others follow (`followers`: {part name: (joint, multiplier,
+    offset)}) counts what they carry."""
     carried = [np.abs(part.body).max() for part in found]
     for i in reversed(range(len(found))):
         if found[i].parent >= 0:
             carried[found[i].parent] = max(carried[found[i].parent], carried[i])
+    total = {}
     for part, amount in zip(found, carried):
-        if amount == 0.0:
-            what = f"joint {part.joint.name!r}" if part.joint else f"the floating base ({part.name})"
-            raise URDFError(f"{what} of {robot.name!r} moves no mass or inertia (every link below "
-                            "it is massless), so the motion it allows has no inertia: give a link "
-                            "below it an <inertial>, or make the joint fixed")
+        key = identifier(followers[part.name][0]) if part.name in followers else part.name
+        total[key] = max(total.get(key, 0.0), amount)
+    return [part for part in found if part.name not in followers and total[part.name] == 0.0]
+
+
+def _frozen_massless(robot, found, followers, massless):
+    """{joint name: position} of the joints to fix: none, or (massless="fixed") those of the
+    massless coordinates at 0 and the joints that follow them at their offset; URDFError naming
+    the first massless coordinate when massless="error"."""
+    empty = massless_coordinates(found, followers)
+    if not empty:
+        return {}
+    part = empty[0]
+    what = f"joint {part.joint.name!r}" if part.joint else f"the floating base ({part.name})"
+    if massless == "error" or part.joint is None:
+        raise URDFError(f"{what} of {robot.name!r} moves no mass or inertia (every link below "
+                        "it, and below the joints that follow it, is massless), so the motion it "
+                        "allows has no inertia: give a link below it an <inertial>, make the "
+                        "joint fixed, or read the file with from_urdf(..., massless='fixed')")
+    import warnings
+    names = {p.joint.name for p in empty if p.joint is not None}
+    frozen = {name: 0.0 for name in names}
+    for p in found:
+        if p.name in followers and followers[p.name][0] in names:
+            frozen[p.joint.name] = followers[p.name][2]
+    warnings.warn(f"{robot.name!r}: {len(names)} joint(s) move no mass or inertia and are held "
+                  f"fixed at 0 ({', '.join(sorted(names)[:4])}{', ...' if len(names) > 4 else ''})",
+                  URDFWarning, stacklevel=3)
+    return frozen
 
 
 def from_urdf(path, name=None, base="fixed", gravity=(0.0, 0.0, -9.81), joint_dynamics=True,
-              parameters=None, mimic=True, check_inertias=True):
+              parameters=None, mimic=True, check_inertias=True, massless="error"):
     """A `lagrgen.Model` of the robot in the URDF file `path` (API §19).
 
     Parameters
@@ -487,6 +520,9 @@ def from_urdf(path, name=None, base="fixed", gravity=(0.0, 0.0, -9.81), joint_dy
         True: an inertia that is not positive semi-definite or breaks the triangle inequality
         (no mass distribution has it) is a URDFError; False: a URDFWarning, and it is taken as it
         is (as ROS and Pinocchio do).
+    massless : "error" or "fixed"
+        A joint that moves no mass or inertia (every link below it massless: its row of M would
+        be zero): a URDFError, or ("fixed") the joint held fixed at 0 with a URDFWarning.
 
     Returns
     -------
@@ -513,8 +549,9 @@ def from_urdf(path, name=None, base="fixed", gravity=(0.0, 0.0, -9.81), joint_dy
     robot = read(path, check_inertias)
     if mimic:
         _check_mimics(robot)
+    if massless not in ("error", "fixed"):
+        raise ModelError(f"massless must be 'error' or 'fixed', got {massless!r}")
     found = parts(robot, base)
-    _check_moving_mass(robot, found)
     names = [p.name for p in found]
     clash = {n for n in names if names.count(n) > 1}
     if clash:
@@ -522,6 +559,11 @@ def from_urdf(path, name=None, base="fixed", gravity=(0.0, 0.0, -9.81), joint_dy
                         f"{sorted(clash)[0]!r}: rename one of them")
     followers = {p.name: p.joint.mimic for p in found
                  if mimic and p.joint is not None and p.joint.mimic is not None}
+    frozen = _frozen_massless(robot, found, followers, massless)
+    if frozen:
+        found = parts(robot, base, frozen)
+        followers = {name: f for name, f in followers.items()
+                     if any(p.name == name for p in found)}
     coordinate_parts = [p for p in found if p.name not in followers]
     if base == "floating":
         by_name = {p.name: p for p in coordinate_parts}
