@@ -17,6 +17,7 @@ import numpy as np
 cimport numpy as cnp
 from cpython.pycapsule cimport PyCapsule_GetPointer, PyCapsule_IsValid
 from libc.math cimport isfinite
+from libc.string cimport memcpy, memset
 
 from lagrgen.runtime.abi cimport (LG_ABI_VERSION, LG_CAPSULE_NAME, lg_directions_fn,
                                   lg_function, lg_model_t)
@@ -69,6 +70,10 @@ cdef inline bint all_finite(cnp.ndarray arr):
 
 cdef inline const double *data(cnp.ndarray arr):
     return <const double *>cnp.PyArray_DATA(arr)
+
+
+cdef inline void copy_into(double *destination, cnp.ndarray source, Py_ssize_t count):
+    memcpy(destination, cnp.PyArray_DATA(source), count * sizeof(double))
 
 
 cdef class CompiledModel:
@@ -289,11 +294,16 @@ cdef class BoundFunction:
         return tuple(parts)
 
     cdef cnp.ndarray state_from(self, q, qd):
-        cdef int n = self.model.n_coordinates
-        y = np.zeros(2 * n)
-        y[:n] = as_f64(q, n, "q")
-        if qd is not None:
-            y[n:] = as_f64(qd, n, "qd")
+        """[q, q̇] (q̇ zero for None) in a new array."""
+        cdef cnp.npy_intp n = self.model.n_coordinates
+        cdef cnp.npy_intp size = 2 * n
+        cdef cnp.ndarray y = <cnp.ndarray>cnp.PyArray_EMPTY(1, &size, cnp.NPY_DOUBLE, 0)
+        cdef double *yp = <double *>cnp.PyArray_DATA(y)
+        copy_into(yp, as_f64(q, n, "q"), n)
+        if qd is None:
+            memset(yp + n, 0, n * sizeof(double))
+        else:
+            copy_into(yp + n, as_f64(qd, n, "qd"), n)
         return y
 
 
@@ -325,14 +335,16 @@ cdef class ImplicitFunction(BoundFunction):
     """f(q, qd, a, t=0.0, p=None, u=None) with a = [q̈, λ]; new float64 arrays on every call."""
 
     def __call__(self, q, qd, a, double t=0.0, p=None, u=None):
-        cdef int n = self.model.n_coordinates
-        cdef int m = self.model.n_constraints
-        y = np.empty(3 * n + m)
-        y[:n] = as_f64(q, n, "q")
-        y[n:2 * n] = as_f64(qd, n, "qd")
-        y[2 * n:] = as_f64(a, n + m, "a (the accelerations, then the constraint multipliers)")
-        cdef cnp.ndarray ya = <cnp.ndarray>y
-        return self.evaluate(t, data(ya), p, u)
+        cdef cnp.npy_intp n = self.model.n_coordinates
+        cdef cnp.npy_intp size = 3 * n + self.model.n_constraints
+        cdef cnp.ndarray y = <cnp.ndarray>cnp.PyArray_EMPTY(1, &size, cnp.NPY_DOUBLE, 0)
+        cdef double *yp = <double *>cnp.PyArray_DATA(y)
+        copy_into(yp, as_f64(q, n, "q"), n)
+        copy_into(yp + n, as_f64(qd, n, "qd"), n)
+        copy_into(yp + 2 * n,
+                  as_f64(a, size - 2 * n, "a (the accelerations, then the constraint multipliers)"),
+                  size - 2 * n)
+        return self.evaluate(t, data(y), p, u)
 
 
 cdef class DirectionsFunction:
