@@ -448,6 +448,22 @@ def test_the_model_limits_are_used_when_none_are_given(arm, base):
     assert -0.5 <= q[1].min() and q[1].max() <= 0.5 and np.abs(qd[2]).max() <= 2.0
 
 
+def test_given_limits_add_to_the_model_limits_field_by_field(arm, base):
+    """None in a given entry keeps the model's value: an acceleration added to a URDF's limits."""
+    proxy = types.SimpleNamespace(**{name: getattr(arm, name) for name in (
+        "name", "coordinates", "parameters", "defaults", "n_coordinates", "n_constraints",
+        "residual_parameter_jacobian")})
+    proxy.limits = {c: (-0.4, 0.4, 0.8, 87.0) for c in arm.coordinates}
+    accelerations = {"q1": 0.5, "q2": 30.0, "q3": 30.0}
+    traj = exciting_trajectory(proxy, 4.0, harmonics=2, base=base, max_iterations=3, starts=2,
+                               limits={c: (None, None, None, a) for c, a in accelerations.items()})
+    t = np.linspace(0, 4, 4001)
+    q, qd, qdd = traj.q(t), traj.qd(t), traj.qdd(t)
+    assert np.abs(q - traj.q0[:, None]).max() <= 0.4 + 1e-9 and np.abs(qd).max() <= 0.8 + 1e-9
+    assert np.abs(qdd[0]).max() <= 0.5 + 1e-6
+    assert np.abs(qdd[0]).max() > 0.45        # the acceleration limit binds on q1, not the model's
+
+
 def test_consistent_estimates_of_a_planar_arm_free_the_parameters_it_lacks(planar):
     """The planar arm has m, mx, my, Izz per link; its other six parameters are free in the
     pseudo-inertia. Records of an Izz_link2 below (mx² + my²)/m cannot come from a body: the

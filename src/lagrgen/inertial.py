@@ -304,8 +304,8 @@ def _combination_name(row, names, lead):
 # -- limits ----------------------------------------------------------------------------------------
 def _limit_arrays(mod, limits):
     """(lower, upper, velocity, acceleration), each (n,), inf where a joint has no such limit:
-    from `limits` ({coordinate: (lower, upper, velocity, acceleration)}), else from the model's
-    `limits` ({coordinate: (lower, upper, velocity, effort)}, the effort not used)."""
+    from `limits` ({coordinate: (lower, upper, velocity, acceleration)}), each None there taken
+    from the model's `limits` ({coordinate: (lower, upper, velocity, effort)}, the effort not used)."""
     n = mod.n_coordinates
     out = np.tile(np.array([[-np.inf], [np.inf], [np.inf], [np.inf]]), (1, n))
     given = dict(getattr(mod, "limits", None) or {})
@@ -313,7 +313,9 @@ def _limit_arrays(mod, limits):
     for coordinate, entry in (limits or {}).items():
         if coordinate not in mod.coordinates:
             raise unknown_name("coordinate", coordinate, tuple(mod.coordinates))
-        given[coordinate] = _limit_entry(coordinate, entry)
+        own = given.get(coordinate, (None,) * 4)
+        given[coordinate] = tuple(own[k] if value is None else value
+                                  for k, value in enumerate(_limit_entry(coordinate, entry)))
     for coordinate, entry in given.items():
         if coordinate in mod.coordinates:
             j = mod.coordinates.index(coordinate)
@@ -880,8 +882,9 @@ def exciting_trajectory(mod, duration, harmonics=5, limits=None, q0=None, sample
     duration : the period of the motion (s)
     harmonics : the number of harmonics L
     limits : dict coordinate -> (lower, upper, velocity, acceleration), None where absent;
-        coordinates not given take the model's `limits` (lower, upper, velocity) when it has
-        them. Every joint needs at least one finite limit.
+        what is not given (a coordinate, or a None in its entry) is taken from the model's
+        `limits` (lower, upper, velocity) when it has them, so `{c: (None, None, None, 10.0)}`
+        adds an acceleration limit to a URDF's. Every joint needs at least one finite limit.
     q0 : the offsets (dict or array; None: the middle of each joint's position range, else 0)
     samples : the number of times the condition number is computed at (None: enough for 3
         times the rows the base parameters need, and 2 per harmonic)
