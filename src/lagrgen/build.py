@@ -158,7 +158,7 @@ def model_info(spec, equations, formulation=None):
         content_hash=content_digest(spec, asked, lambda: equations), lagrgen_version=__version__,
         nonsmooth_definitions=[(e["name"], e["kind"], e["normal"])
                                for e in _nonsmooth().describe(spec)],
-        initial_state=spec.initial_state)
+        initial_state=spec.initial_state, coordinate_limits=spec.limits)
 
 
 def _nonsmooth():

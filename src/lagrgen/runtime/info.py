@@ -22,7 +22,8 @@ class ModelInfo:
     triples of the impacts and frictions (`lagrgen.nonsmooth`), normal None or (kind, index);
     `initial_state` the declared [q0, q̇0] (2n floats), or () when none was declared;
     `formulation` how q̈ and the Jacobian are computed: "dense" (Cholesky of M) or "recursive"
-    (over the kinematic tree, `lagrgen.tree`).
+    (over the kinematic tree, `lagrgen.tree`); `coordinate_limits` the declared limits
+    (`Model.limit`) as (coordinate, lower, upper, velocity, effort), None where absent.
     """
 
     name: str
@@ -41,6 +42,7 @@ class ModelInfo:
     nonsmooth_definitions: tuple = ()
     initial_state: tuple = ()
     formulation: str = "dense"
+    coordinate_limits: tuple = ()
 
     def __post_init__(self):
         for name in ("coordinates", "parameters", "inputs", "defaults", "output_names",
@@ -49,6 +51,8 @@ class ModelInfo:
         object.__setattr__(self, "event_definitions",
                            tuple(tuple(e) for e in self.event_definitions))
         object.__setattr__(self, "units", dict(self.units))
+        object.__setattr__(self, "coordinate_limits",
+                           tuple(tuple(entry) for entry in self.coordinate_limits))
         object.__setattr__(self, "nonsmooth_definitions", tuple(
             (name, kind, None if normal is None else tuple(normal))
             for name, kind, normal in self.nonsmooth_definitions))
@@ -56,6 +60,11 @@ class ModelInfo:
     @property
     def n_coordinates(self):
         return len(self.coordinates)
+
+    @property
+    def limits(self):
+        """{coordinate name: (lower, upper, velocity, effort)}, None where a limit is absent."""
+        return {name: tuple(values) for name, *values in self.coordinate_limits}
 
     @property
     def n_constraints(self):
@@ -96,4 +105,4 @@ class ModelInfo:
 INFO_ATTRIBUTES = ("name", "coordinates", "parameters", "inputs", "units", "output_names",
                    "constraint_names", "event_definitions", "explicit_time", "content_hash",
                    "lagrgen_version", "n_coordinates", "n_constraints", "dimensions",
-                   "nonsmooth_definitions", "formulation")
+                   "nonsmooth_definitions", "formulation", "limits")

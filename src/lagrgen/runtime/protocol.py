@@ -32,6 +32,7 @@ class BuiltModel(Protocol):
     nonsmooth_definitions: Tuple[tuple, ...]  # (name, "impact" | "friction", normal), §13
     explicit_time: bool           # M or F depends on t explicitly
     formulation: str              # "dense" (Cholesky of M) or "recursive" (over the kinematic tree)
+    limits: Dict[str, tuple]      # coordinate -> (lower, upper, velocity, effort), None if absent
     content_hash: str             # of the derived equations and lagrgen's generator
     lagrgen_version: str
     n_coordinates: int
