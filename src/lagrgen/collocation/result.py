@@ -55,7 +55,7 @@ class CollocationResult:
 
     @classmethod
     def from_solution(cls, problem, tr, x, info, iterations, seconds, hessian):
-        L, mod = problem.layout, problem.mod
+        L, mod = tr.layout, problem.mod
         Z = L.point_block(x)
         nodes = L.node_points
         T = float(L.duration(x)) if L.free else problem.duration_bounds[0]
