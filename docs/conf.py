@@ -100,8 +100,10 @@ API = [
     ("Vibration and stability", ["equilibrium", "linearize", "modes", "frequency_response",
                                  "eigenvalue_sweep", "vibration.Linearization", "vibration.Modes",
                                  "FrozenTimeWarning", "UnstableModeWarning"]),
-    ("Identification", ["fit", "fit_modes", "fit.FitResult", "fit.ModalUpdate"]),
-    ("Optimal motions", ["Collocation", "CollocationResult"]),
+    ("Identification", ["fit", "fit_modes", "fit.FitResult", "fit.ModalUpdate", "FitWarning",
+                        "IdentifiabilityWarning"]),
+    ("Optimal motions", ["Collocation", "CollocationResult", "collocation.refine.MeshRecord",
+                         "collocation.refine.DiscretizationWarning"]),
     ("Exceptions", ["LagrgenError", "ModelError", "UnknownNameError", "BuildError", "CompileError",
                     "MassMatrixError", "ConstraintError", "NonFiniteError"]),
 ]

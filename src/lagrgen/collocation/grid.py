@@ -20,6 +20,7 @@ a state is the cubic Hermite interpolant of its node values and rates, an accele
 linear (quadratic through the midpoint for Hermite–Simpson).
 """
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
@@ -100,10 +101,12 @@ class Layout:
     def T_index(self):
         return self.p_start + len(self.unknown) if self.free else None
 
-    @property
+    @cached_property
     def node_fractions(self):
-        """Each node's time as a fraction of the duration."""
-        return np.array(self.mesh) if self.mesh else np.linspace(0.0, 1.0, self.nodes)
+        """Each node's time as a fraction of the duration (read-only)."""
+        out = np.array(self.mesh) if self.mesh else np.linspace(0.0, 1.0, self.nodes)
+        out.setflags(write=False)
+        return out
 
     @property
     def steps(self):
@@ -140,11 +143,15 @@ class Layout:
         return k * self.stride if abs(nodes[k] - fraction) <= 1e-12 else None
 
     def interval_of(self, s, duration):
-        """(interval k, its length h, θ ∈ [0, 1]) of the time s ∈ [0, duration] after t0."""
+        """(interval k, its length h, θ ∈ [0, 1]) of the times s ∈ [0, duration] after t0 (a
+        number, or arrays for an array)."""
         times = duration * self.node_fractions
-        k = int(min(max(np.searchsorted(times, s, side="right") - 1, 0), self.nodes - 2))
+        k = np.clip(np.searchsorted(times, s, side="right") - 1, 0, self.nodes - 2)
         h = times[k + 1] - times[k]
-        return k, h, min(max((s - times[k]) / h, 0.0), 1.0)
+        theta = np.clip((s - times[k]) / h, 0.0, 1.0)
+        if np.ndim(s) == 0:
+            return int(k), float(h), float(theta)
+        return k, h, theta
 
     def index(self, point, kind, i):
         """The position in x of variable i of `kind` at `point`."""
@@ -255,23 +262,17 @@ def interpolation(layout, kind, i, s, duration):
 def interpolate_rows(values_at_points, layout, kind, times, duration, rates=None):
     """Evaluate the interpolant of `interpolation` for one variable's point values (and, for a
     state, its rate's point values `rates`) at `times`; both arrays have one value per point."""
-    out = np.empty(len(times))
-    stride = layout.stride
-    for j, s in enumerate(times):
-        k, h, theta = layout.interval_of(s, duration)
-        a, b = k * stride, (k + 1) * stride
-        if rates is not None:
-            th2, th3 = theta * theta, theta ** 3
-            out[j] = ((2 * th3 - 3 * th2 + 1) * values_at_points[a]
-                      + h * (th3 - 2 * th2 + theta) * rates[a]
-                      + (-2 * th3 + 3 * th2) * values_at_points[b] + h * (th3 - th2) * rates[b])
-        elif stride == 2:
-            out[j] = (2 * (theta - 0.5) * (theta - 1) * values_at_points[a]
-                      - 4 * theta * (theta - 1) * values_at_points[a + 1]
-                      + 2 * theta * (theta - 0.5) * values_at_points[b])
-        else:
-            out[j] = (1 - theta) * values_at_points[a] + theta * values_at_points[b]
-    return out
+    k, h, theta = layout.interval_of(np.asarray(times, dtype=float), duration)
+    a, b = k * layout.stride, (k + 1) * layout.stride
+    v = np.asarray(values_at_points)
+    if rates is not None:
+        th2, th3 = theta * theta, theta ** 3
+        return ((2 * th3 - 3 * th2 + 1) * v[a] + h * (th3 - 2 * th2 + theta) * rates[a]
+                + (-2 * th3 + 3 * th2) * v[b] + h * (th3 - th2) * rates[b])
+    if layout.stride == 2:
+        return (2 * (theta - 0.5) * (theta - 1) * v[a] - 4 * theta * (theta - 1) * v[a + 1]
+                + 2 * theta * (theta - 0.5) * v[b])
+    return (1 - theta) * v[a] + theta * v[b]
 
 
 @dataclass(frozen=True)

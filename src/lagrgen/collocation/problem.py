@@ -135,10 +135,7 @@ class Collocation:
         kind, i = self.variable(name)
         if kind == "T":
             raise LagrgenError("the duration's bounds are the constructor's duration=(lo, hi)")
-        lo, hi = _finite_or_inf(lo, f"the lower bound of {name!r}"), \
-            _finite_or_inf(hi, f"the upper bound of {name!r}")
-        if lo > hi:
-            raise LagrgenError(f"bound({name!r}, {lo}, {hi}): the lower bound exceeds the upper")
+        lo, hi = _interval(lo, hi, f"bound({name!r}, lo, hi)")
         self._bounds[(kind, i)] = (lo, hi)
         self._changed()
         return self
@@ -253,9 +250,7 @@ class Collocation:
     def path(self, expr, lo=-math.inf, hi=math.inf):
         """lo ≤ expr ≤ hi at every collocation point; `expr` in the model's symbols (coordinates,
         their first and second derivatives, parameters, inputs, t)."""
-        lo, hi = _finite_or_inf(lo, "path lo"), _finite_or_inf(hi, "path hi")
-        if lo > hi:
-            raise LagrgenError(f"path(..., {lo}, {hi}): the lower bound exceeds the upper")
+        lo, hi = _interval(lo, hi, "path(expr, lo, hi)")
         if lo == -math.inf and hi == math.inf:
             raise LagrgenError("path(expr) needs a bound: path(expr, lo, hi)")
         label = f"path constraint {len(self._path) + 1}"
@@ -299,7 +294,10 @@ class Collocation:
         data = np.asarray(data, dtype=float)
         if data.ndim == 1:
             data = data[None, :]
-        if t.ndim != 1 or data.shape != (len(names), t.size):
+        if t.ndim != 1:
+            raise LagrgenError(f"track: t must be a 1-D array of sample times, got shape "
+                               f"{t.shape}")
+        if data.shape != (len(names), t.size):
             raise LagrgenError(f"track: data must have shape (len(names), len(t)) = "
                                f"({len(names)}, {t.size}), got {data.shape}")
         if not np.all(np.isfinite(t)):
@@ -499,6 +497,18 @@ def _finite(value, what):
     if not math.isfinite(v):
         raise LagrgenError(f"{what} must be finite, got {v}")
     return v
+
+
+def _interval(lo, hi, what):
+    """(lo, hi) of a bound: numbers or ±inf (no bound on that side) with lo ≤ hi."""
+    lo, hi = _finite_or_inf(lo, f"{what}: lo"), _finite_or_inf(hi, f"{what}: hi")
+    if lo == math.inf or hi == -math.inf:
+        raise LagrgenError(f"{what} with lo = {lo}, hi = {hi}: a lower bound of +inf or an upper "
+                           "bound of -inf leaves no value; use -inf for no lower bound and +inf "
+                           "for no upper bound")
+    if lo > hi:
+        raise LagrgenError(f"{what} with lo = {lo}, hi = {hi}: the lower bound exceeds the upper")
+    return lo, hi
 
 
 def _finite_or_inf(value, what):

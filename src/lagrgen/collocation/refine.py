@@ -31,6 +31,8 @@ from .grid import ControlMesh
 DEFAULT_MESH_TOL = 1e-6
 #: The most pieces one interval is split into per mesh.
 MAX_PIECES = 8
+#: A mesh has at most MAX_GROWTH times the nodes of the last, and never more than MAX_NODES.
+MAX_GROWTH, MAX_NODES = 4, 20_000
 #: The order of the local error of Hermite–Simpson's states (e ∝ h^(ORDER + 1)).
 ORDER = 4
 #: An input within this share of its range from a bound counts as on the bound.
@@ -63,12 +65,13 @@ def solve_refined(problem, guess, settings, mesh_tol, max_meshes):
     layout, controls = problem.layout, None
     knots = tuple(problem.layout.node_fractions)
     degree = 2 if problem.scheme == "hermite-simpson" else 1
-    meshes, spent = [], 0.0
+    meshes, spent, callbacks, limit = [], 0.0, 0.0, None
     result = solve_mesh(problem, layout, controls, guess, settings)
     while True:
         began = time.perf_counter()
         errors = interval_errors(result, mesh_tol or DEFAULT_MESH_TOL)
         spent += result.seconds + time.perf_counter() - began
+        callbacks += result.callback_seconds
         meshes.append(MeshRecord(layout.nodes, result.iterations, float(errors.max()),
                                  result.objective, result.status, result.seconds))
         if settings.progress and mesh_tol is not None:
@@ -76,17 +79,28 @@ def solve_refined(problem, guess, settings, mesh_tol, max_meshes):
                   f"dynamics error {errors.max():.2e}", flush=True)
         if mesh_tol is None or not result.success or len(meshes) >= max_meshes:
             break
+        if not np.all(np.isfinite(errors)):
+            limit = (f"as the model's dynamics cannot be integrated from the solution on "
+                     f"{int(np.sum(~np.isfinite(errors)))} of its intervals (its rhs fails "
+                     "there: a mass matrix that is not positive definite at these states or "
+                     "parameters?)")
+            break
         switches = switch_knots(result, knots, problem, mesh_tol)
         if errors.max() <= mesh_tol and not switches:
+            break
+        if layout.nodes >= MAX_NODES:
+            limit = f"as the refinement reached its limit of {MAX_NODES} nodes"
             break
         knots = tuple(sorted(set(knots) | set(switches)))
         layout = refined_layout(layout, errors, mesh_tol, knots)
         controls = ControlMesh(knots, degree)
         result = solve_mesh(problem, layout, controls, result, settings)
-    return finished(result, errors, meshes, mesh_tol, spent)
+    result.callback_seconds = callbacks
+    result.estimate_errors(stacklevel=3)
+    return finished(result, errors, meshes, mesh_tol, spent, limit)
 
 
-def finished(result, errors, meshes, mesh_tol, seconds):
+def finished(result, errors, meshes, mesh_tol, seconds, limit=None):
     """`result` with its errors, mesh history, totals and the verdict on its error."""
     result.errors, result.error, result.meshes = errors, float(errors.max()), tuple(meshes)
     result.iterations = sum(m.iterations for m in meshes)
@@ -100,10 +114,11 @@ def finished(result, errors, meshes, mesh_tol, seconds):
                           "within that", DiscretizationWarning, stacklevel=4)
     elif result.success and result.error > mesh_tol:
         result.success = False
+        stop = limit or f"after {len(meshes)} meshes ({meshes[-1].nodes} nodes)"
         result.message = (f"IPOPT solved each mesh, but the dynamics error {result.error:.2e} "
-                          f"still exceeds mesh_tol={mesh_tol:g} after {len(meshes)} meshes "
-                          f"({meshes[-1].nodes} nodes): raise max_meshes, give more nodes or a "
-                          "larger mesh_tol")
+                          f"still exceeds mesh_tol={mesh_tol:g} {stop}: raise max_meshes, give "
+                          "more nodes or a larger mesh_tol (a motion that needs ever more nodes "
+                          "may be stiff or undetermined: look at res.errors)")
     return result
 
 
@@ -117,6 +132,7 @@ def refined_layout(layout, errors, mesh_tol, knots):
         wanted = np.ceil(ratio ** (1.0 / (ORDER + 1))) if layout.scheme == "hermite-simpson" \
             else 2          # another scheme's error says little of Hermite–Simpson's
         pieces = np.where(errors > mesh_tol, np.clip(wanted, 2, MAX_PIECES), 1)
+    pieces = within_budget(pieces, errors, min(MAX_GROWTH * layout.nodes, MAX_NODES))
     points = [nodes[:1]]
     for k, count in enumerate(pieces.astype(int)):
         inner = nodes[k] + (nodes[k + 1] - nodes[k]) * np.arange(1, count) / count
@@ -125,6 +141,24 @@ def refined_layout(layout, errors, mesh_tol, knots):
     extra = [k for k in knots if np.min(np.abs(merged - k)) > 1e-12]
     merged = np.sort(np.concatenate([merged, extra]))
     return replace(layout, nodes=merged.size, scheme="hermite-simpson", mesh=tuple(merged))
+
+
+def within_budget(pieces, errors, budget):
+    """`pieces` cut so that the mesh has at most `budget` nodes: the added nodes of each interval
+    scaled down alike, the worst intervals first when even one each is too many."""
+    pieces = pieces.astype(int)
+    added = pieces - 1
+    room = budget - 1 - pieces.size
+    if added.sum() <= room:
+        return pieces
+    scaled = np.floor(added * room / added.sum()).astype(int)
+    scaled[(added > 0) & (scaled == 0)] = 1
+    if scaled.sum() > room:
+        order = np.argsort(-np.where(added > 0, errors, -np.inf))
+        scaled = np.zeros_like(added)
+        scaled[order[:max(room, 0)]] = 1
+        scaled[added == 0] = 0
+    return 1 + scaled
 
 
 def switch_knots(result, knots, problem, mesh_tol):
