@@ -3,7 +3,7 @@ instance values with the inputs it needs, or the model's own motion), an earlier
 start on any grid), a simulation, or named values.
 
 The default start was chosen on the problems of the guide, the examples and
-benchmarks/collocation.py. Straight lines between the end values with the inputs at rest (what
+benchmarks/collocation.py (an identification starts its tracked coordinates on their data). Straight lines between the end values with the inputs at rest (what
 opty and this package used to start from) leave every residual violated; on opty's swing-up
 (|T| ≤ 2 N·m, 501 nodes, backward Euler) IPOPT stops at a local infeasibility, objective 39.9.
 A cubic between the end states (end rates as given, else the chord's slope) satisfies the defects
@@ -109,19 +109,29 @@ def default_guess(problem, tr):
 
 def smooth_motion(problem, tr):
     """(x, whether the inputs it needs exceed their bounds): each coordinate with end values on
-    the cubic through them (end rates as given, else the chord's slope), its rate and
-    acceleration the cubic's; the free inputs and the multipliers those of least squares on the
-    residual at each point, clipped to their bounds."""
-    L, mod = tr.layout, problem.mod
+    the cubic through them (end rates as given, else the chord's slope), a coordinate a track
+    samples on its data (linear between samples), rates and accelerations those of these
+    curves; then the free inputs and the multipliers that make it a motion of the model
+    (`needed_inputs`)."""
+    L = tr.layout
     x = base_guess(problem, tr)
     Z = L.point_block(x)
     T = L.duration(x) if L.free else problem.duration_bounds[0]
+    tracked = _tracked_coordinates(problem, T * L.fractions)
     for i in range(L.n):
         path = _cubic(problem, i, T, L.fractions)
+        if i in tracked:
+            path = _derivatives(tracked[i], T * L.fractions)
         if path is not None:
             for kind, values in zip(("q", "qd", "qdd"), path):
                 Z[:, L.offset(kind) + i] = values
-    x = np.clip(x, tr.lo, tr.hi)
+    return needed_inputs(problem, tr, np.clip(x, tr.lo, tr.hi), T)
+
+
+def needed_inputs(problem, tr, x, T):
+    """(x with its free inputs and multipliers those of least squares on the residual at each
+    point, clipped to their bounds; whether the least-squares values exceed the bounds)."""
+    L, mod = tr.layout, problem.mod
     Z = L.point_block(x)
     free = [L.offset("lam") + k for k in range(L.m)] + \
         [L.offset("u") + k for k in range(L.nu) if k not in problem._given]
@@ -145,6 +155,24 @@ def smooth_motion(problem, tr):
         exceeded |= bool(np.any((wanted < lo[j, free] - band) | (wanted > hi[j, free] + band)))
         Z[j, free] = np.clip(wanted, lo[j, free], hi[j, free])
     return x, exceeded
+
+
+def _tracked_coordinates(problem, times):
+    """{coordinate: its tracked samples interpolated linearly at `times` (after t0)}."""
+    out = {}
+    for sample_times, data, rows, _, present, _ in problem._tracks:
+        for r, (kind, i) in enumerate(rows):
+            keep = present[r]
+            if kind == "q" and i not in out and keep.sum() >= 2:
+                order = np.argsort(sample_times[keep])
+                out[i] = np.interp(times, sample_times[keep][order], data[r, keep][order])
+    return out
+
+
+def _derivatives(values, times):
+    """(values, rate, acceleration) of a curve sampled at `times`, by finite differences."""
+    rate = np.gradient(values, times)
+    return values, rate, np.gradient(rate, times)
 
 
 def _cubic(problem, i, T, tau):

@@ -20,7 +20,7 @@ trapezoidal or backward-Euler problem, whose errors say little of Hermite–Simp
 """
 import time
 import warnings
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -48,14 +48,17 @@ class DiscretizationWarning(UserWarning):
 
 @dataclass(frozen=True)
 class MeshRecord:
-    """One mesh of a solve: its nodes, IPOPT's iterations, status and objective there, and the
-    largest relative dynamics error of its intervals."""
+    """One mesh of a solve: its nodes, IPOPT's iterations, status and objective there, the
+    largest relative dynamics error of its intervals, and (for pictures) the node times and each
+    interval's error."""
     nodes: int
     iterations: int
     error: float
     objective: float
     status: int
     seconds: float
+    times: np.ndarray = field(default=None, repr=False, compare=False)
+    errors: np.ndarray = field(default=None, repr=False, compare=False)
 
 
 def solve_refined(problem, guess, settings, mesh_tol, max_meshes):
@@ -73,7 +76,8 @@ def solve_refined(problem, guess, settings, mesh_tol, max_meshes):
         spent += result.seconds + time.perf_counter() - began
         callbacks += result.callback_seconds
         meshes.append(MeshRecord(layout.nodes, result.iterations, float(errors.max()),
-                                 result.objective, result.status, result.seconds))
+                                 result.objective, result.status, result.seconds,
+                                 result.t.copy(), errors))
         if settings.progress and mesh_tol is not None:
             print(f"mesh {len(meshes)}: {layout.nodes} nodes, {result.iterations} iterations, "
                   f"dynamics error {errors.max():.2e}", flush=True)
@@ -96,8 +100,10 @@ def solve_refined(problem, guess, settings, mesh_tol, max_meshes):
         controls = ControlMesh(knots, degree)
         result = solve_mesh(problem, layout, controls, result, settings)
     result.callback_seconds = callbacks
-    result.estimate_errors(stacklevel=3)
-    return finished(result, errors, meshes, mesh_tol, spent, limit)
+    result = finished(result, errors, meshes, mesh_tol, spent, limit)
+    if result.success:
+        result.estimate_errors(stacklevel=3)
+    return result
 
 
 def finished(result, errors, meshes, mesh_tol, seconds, limit=None):

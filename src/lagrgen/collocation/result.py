@@ -41,7 +41,7 @@ class CollocationResult:
     t : (nodes,) node times; y : (2n, nodes) [q; q̇]; u : (n_inputs, nodes); qdd : (n, nodes)
     multipliers : (n_constraints, nodes) the constraints' λ (constrained models)
     params, stderr : {name: value} of the unknown parameters and their standard errors (from the
-        data term; NaN without data, inf for those the data do not determine)
+        data term; NaN without data or success, inf for those the data do not determine)
     cov : covariance of the unknown parameters (k, k), or None
     unidentified, unseen : the parameters the data do not determine, and the combinations
         (dicts name -> component) along which the fit does not change (an IdentifiabilityWarning
@@ -95,8 +95,8 @@ class CollocationResult:
 
     def estimate_errors(self, stacklevel=2):
         """Fill `stderr`, `cov`, `unidentified`, `unseen` and `at_bounds` from the data term at
-        the solution (`lagrgen.collocation.statistics`; NaN unless IPOPT solved a problem with
-        data and unknown parameters)."""
+        the solution (`lagrgen.collocation.statistics`; `solve` calls it for a successful
+        result of a problem with data and unknown parameters: NaN otherwise)."""
         tr = self._transcription
         if self.status not in (0, 1) or not tr.n_data or not self.params:
             return
@@ -198,6 +198,12 @@ class CollocationResult:
         matplotlib Figure (saved to `path` if given)."""
         from .plots import plot_result
         return plot_result(self, path, title)
+
+    def plot_errors(self, path=None, title=None):
+        """Each mesh's relative dynamics error per interval against time, with mesh_tol (log
+        scale); returns the matplotlib Figure (saved to `path` if given)."""
+        from .plots import plot_errors
+        return plot_errors(self, path, title)
 
     def animate(self, path=None, fps=20, max_frames=120, dpi=72, title=None):
         """The mechanism moving along the solution: a notebook animation, saved to `path` (GIF or

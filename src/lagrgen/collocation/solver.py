@@ -12,8 +12,11 @@ works).
 import importlib.util
 import math
 import numbers
+import os
 import sys
+import tempfile
 import time
+from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -159,6 +162,38 @@ class _Progress:
             print(self.pending, flush=True)
 
 
+def add_option(nlp, key, value):
+    """Set one IPOPT option; a LagrgenError with IPOPT's own words when it refuses the name or
+    the value (which IPOPT prints, with its documentation of the option, to the C stdout)."""
+    with _c_stdout() as printed:
+        try:
+            nlp.add_option(key, value)
+            refused = False
+        except TypeError:
+            refused = True
+    if refused:
+        said = " ".join(line.strip() for line in printed[0].splitlines()[:2] if line.strip())
+        raise LagrgenError(f"IPOPT refuses the option {key}={value!r}: {said or 'unknown name'} "
+                           "(IPOPT's options: https://coin-or.github.io/Ipopt/OPTIONS.html)")
+
+
+@contextmanager
+def _c_stdout():
+    """Catch what C code writes to the process's stdout (file descriptor 1): yields a list
+    that holds the text once the block ends."""
+    sys.stdout.flush()
+    saved, printed = os.dup(1), [""]
+    with tempfile.TemporaryFile() as caught:
+        os.dup2(caught.fileno(), 1)
+        try:
+            yield printed
+        finally:
+            os.dup2(saved, 1)
+            os.close(saved)
+            caught.seek(0)
+            printed[0] = caught.read().decode(errors="replace")
+
+
 def solve_mesh(problem, layout, controls, guess, settings):
     """The CollocationResult of one IPOPT solve of `problem` on the mesh `layout` (inputs tied
     to `controls`, a ControlMesh, or free) from `guess` (see `Collocation.solve`)."""
@@ -181,12 +216,7 @@ def solve_nlp(problem, tr, x0, settings):
     hessian = settings.hessian
     for key, value in solver_options(hessian, settings.tol, settings.max_iter,
                                      settings.options).items():
-        try:
-            nlp.add_option(key, value)
-        except TypeError:
-            raise LagrgenError(f"IPOPT has no option {key!r} taking a {type(value).__name__} "
-                               "(see IPOPT's list of options, "
-                               "https://coin-or.github.io/Ipopt/OPTIONS.html)") from None
+        add_option(nlp, key, value)
     x0 = np.clip(np.asarray(x0, dtype=float), tr.lo, tr.hi)
     try:
         x, info = nlp.solve(x0)

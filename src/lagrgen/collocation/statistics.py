@@ -4,9 +4,10 @@ At the solution the free variables move on the manifold of the active constraint
 data term Σ ω·(C·x − d)² is linear in x, so its Gauss–Newton Hessian is H = 2·CᵀΩC. What the data
 hold about the parameters θ once every other free variable (the motion, the initial state, ...) is
 fitted with them is the reduced Gauss–Newton matrix R = ([K⁻¹]_θθ)⁻¹/2 of the KKT matrix
-K = [[H + εI, Jᵀ], [J, 0]] (one sparse factorization, one solve per parameter): the ridge εI keeps
-K regular where neither data nor constraints hold a direction, and its direct share of R on the
-parameters, εI/2, is taken off again. R = AᵀA with A its k × k square root, read as `lagrgen.fit`
+K = [[H + εI, Jᵀ], [J, 0]] (one sparse factorization, one solve per parameter), formed with J's
+rows of unit norm and each parameter in units of its value: the ridge εI keeps K regular where
+neither data nor constraints hold a direction, and its direct share of R on the parameters, εI/2,
+is taken off again. R = AᵀA with A its k × k square root, read as `lagrgen.fit`
 reads its Jacobian (`lagrgen.identifiability`): a parameter in no equation is a column of zeros, a
 combination the data cannot tell apart (mass, stiffness and damping of a free vibration scaled
 together) a null direction; both get infinite standard errors and an `IdentifiabilityWarning`
@@ -37,8 +38,10 @@ def parameter_errors(tr, x, stacklevel=2):
     if not names or not tr.n_data:
         return {}, None, (), [], ()
     k = len(names)
-    columns, free, K, ridge = _kkt(tr, x)
-    R = _reduced_matrix(K, columns, ridge)
+    p = x[L.p_start:L.p_start + k]
+    scale = np.where(p != 0, np.abs(p), 1.0)      # the parameters in units of their values
+    columns, free, K, ridge = _kkt(tr, x, scale)
+    R = _reduced_matrix(K, columns, ridge) / np.outer(scale, scale)
     residual = tr.C.dot(x) - tr.d
     dof = tr.n_data - (free - (K.shape[0] - free))
     s2 = float(tr.omega @ residual ** 2) / dof if dof > 0 else np.nan
@@ -48,7 +51,6 @@ def parameter_errors(tr, x, stacklevel=2):
         warn_unseen(directions, rank, k, advice="List fewer names in unknown_params, give "
                     "known values with params={...}, or track more of the motion",
                     stacklevel=stacklevel + 2)
-    p = x[L.p_start:L.p_start + k]
     at_bounds = on_bounds(p, tr.lo[L.p_start:L.p_start + k], tr.hi[L.p_start:L.p_start + k],
                           names, stacklevel=stacklevel + 2)
     stderr = {name: float(np.sqrt(cov[i, i])) if cov[i, i] >= 0 else np.nan
@@ -56,18 +58,23 @@ def parameter_errors(tr, x, stacklevel=2):
     return stderr, cov, unidentified, directions, at_bounds
 
 
-def _kkt(tr, x):
-    """(the parameters' columns in K, the number of free variables, K, the ridge ε)."""
+def _kkt(tr, x, scale):
+    """(the parameters' columns in K, the number of free variables, K, the ridge ε), the
+    parameters' columns of the constraints multiplied by `scale` (each parameter in units of
+    its value, so that the ridge is small beside a small parameter's information)."""
     import scipy.sparse as sps
     L = tr.layout
-    scale = 1e-8 * (1.0 + np.abs(x))
-    at_bound = (tr.hi - tr.lo <= 0) | (x - tr.lo <= scale) | (tr.hi - x <= scale)
+    near = 1e-8 * (1.0 + np.abs(x))
+    at_bound = (tr.hi - tr.lo <= 0) | (x - tr.lo <= near) | (tr.hi - x <= near)
     at_bound[L.p_start:L.p_start + len(L.unknown)] = False     # parameters: flagged, not fixed
     free = np.flatnonzero(~at_bound)
     position = -np.ones(L.size, dtype=np.int64)
     position[free] = np.arange(free.size)
     g = tr.constraints(x)
     values = tr.jacobian(x)
+    parameter = tr.jac_cols - L.p_start
+    inside = (parameter >= 0) & (parameter < len(L.unknown))
+    values = np.where(inside, values * scale[np.clip(parameter, 0, len(scale) - 1)], values)
     tol = 1e-6 * (1.0 + np.abs(g))
     active = (tr.g_hi - tr.g_lo <= 0) | (np.abs(g - tr.g_lo) <= tol) | (np.abs(g - tr.g_hi) <= tol)
     rows = np.flatnonzero(active)
@@ -77,6 +84,9 @@ def _kkt(tr, x):
     J = sps.csr_matrix((values[keep], (row_position[tr.jac_rows[keep]],
                                        position[tr.jac_cols[keep]])),
                        shape=(rows.size, free.size))
+    norms = np.sqrt(np.asarray(J.multiply(J).sum(axis=1)).ravel())
+    J = sps.diags(1.0 / np.where(norms > 0, norms, 1.0)) @ J     # rows of unit norm: the same
+    # manifold, whatever the scale of a residual (its parameters shrunk together, say)
     C = sps.csr_matrix((tr.C.values, (tr.C.rows, tr.C.cols)), shape=tr.C.shape)[:, free]
     H = (C.T @ sps.diags(2.0 * tr.omega) @ C).tocsc()
     ridge = RIDGE * max(1.0, float(np.max(H.diagonal(), initial=0.0)))
