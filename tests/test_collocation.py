@@ -11,7 +11,7 @@ from numpy.testing import assert_allclose
 
 import lagrgen
 from lagrgen.errors import LagrgenError, UnknownNameError
-from conftest import example_model
+from conftest import damped_oscillator, double_integrator, example_model
 
 pytest.importorskip("cyipopt", reason="IPOPT (pip install 'lagrgen[optimize]') is not installed")
 
@@ -24,26 +24,14 @@ def out_dir(tmp_path_factory):
 @pytest.fixture(scope="module")
 def integrator(out_dir):
     """A unit mass pushed by a force F: ẍ = F."""
-    model = lagrgen.Model("colloc_integrator")
-    x, = model.coordinates("x")
-    m, = model.parameters(m=1.0)
-    F, = model.inputs("F")
-    model.particle(m, sp.Matrix([x]))
-    model.generalized_force(x, F)
+    model = double_integrator("colloc_integrator")
     return model, lagrgen.build(model, out_dir=out_dir)
 
 
 @pytest.fixture(scope="module")
 def oscillator(out_dir):
     """A damped oscillator m·ẍ + c·ẋ + k·x = F."""
-    model = lagrgen.Model("colloc_oscillator")
-    x, = model.coordinates("x")
-    m, k, c = model.parameters(m=1.0, k=4.0, c=0.3)
-    F, = model.inputs("F")
-    model.particle(m, sp.Matrix([x]))
-    model.spring(k, x)
-    model.damper(c, x)
-    model.generalized_force(x, F)
+    model = damped_oscillator("colloc_oscillator")
     return model, lagrgen.build(model, out_dir=out_dir)
 
 

@@ -15,6 +15,7 @@ import lagrgen
 from lagrgen.collocation.accuracy import interval_errors
 from lagrgen.collocation.refine import DiscretizationWarning
 from lagrgen.errors import LagrgenError, ModelError, UnknownNameError
+from conftest import damped_oscillator, double_integrator
 
 pytest.importorskip("cyipopt", reason="IPOPT (pip install 'lagrgen[optimize]') is not installed")
 
@@ -45,11 +46,7 @@ def bead(out_dir):
 @pytest.fixture(scope="module")
 def integrator(out_dir):
     """ẍ = F."""
-    model = lagrgen.Model("accuracy_integrator")
-    x, = model.coordinates("x")
-    F, = model.inputs("F")
-    model.particle(1, sp.Matrix([x]))
-    model.generalized_force(x, F)
+    model = double_integrator("accuracy_integrator")
     return model, lagrgen.build(model, out_dir=out_dir)
 
 
@@ -288,15 +285,8 @@ def test_limits_are_declared_kept_and_made_bounds(out_dir):
 # -- issue 37: standard errors, check(), arguments -------------------------------------------------
 @pytest.fixture(scope="module")
 def oscillator(out_dir):
-    """m·ẍ + c·ẋ + k·x = push, with a parameter `ghost` in no equation."""
-    model = lagrgen.Model("accuracy_oscillator")
-    x, = model.coordinates("x")
-    mass, k, c, _ = model.parameters(mass=1.0, k=4.0, c=0.3, ghost=1.0)
-    push, = model.inputs("push")
-    model.particle(mass, sp.Matrix([x]))
-    model.spring(k, x)
-    model.damper(c, x)
-    model.generalized_force(x, push)
+    """m·ẍ + c·ẋ + k·x = F, with a parameter `ghost` in no equation."""
+    model = damped_oscillator("accuracy_oscillator", ghost=1.0)
     return model, lagrgen.build(model, out_dir=out_dir)
 
 
@@ -304,22 +294,22 @@ def record(mod, forced, noise, seed=1):
     rng = np.random.default_rng(seed)
     t = np.sort(rng.uniform(0.0, 6.0, 120))
     shaker = lagrgen.Signal(np.linspace(0, 6, 61), np.sin(1.7 * np.linspace(0, 6, 61)))
-    inputs = {"push": shaker if forced else 0.0}
+    inputs = {"F": shaker if forced else 0.0}
     motion = lagrgen.simulate(mod, (0, 6), [0.5, 0.0], inputs=inputs, t_eval=t, rtol=1e-10,
                               atol=1e-12)
-    return t, motion.y[0] + noise * rng.standard_normal(t.size), inputs["push"]
+    return t, motion.y[0] + noise * rng.standard_normal(t.size), inputs["F"]
 
 
 def identification(mod, unknown, t, data, push, **params):
     prob = lagrgen.Collocation(mod, nodes=81, duration=6.0, unknown_params=unknown,
                                params=params)
-    prob.input("push", push)
+    prob.input("F", push)
     return prob.track(t, data, "x", weights=1 / 0.01 ** 2)
 
 
 def test_parameters_the_data_cannot_determine_get_infinite_standard_errors(oscillator):
     """`ghost` in no equation, from noise-free data: inf and named alone (it was 1 ± 0.0232);
-    a free vibration determines only k/m and c/m: mass, k and c scaled together is named, all
+    a free vibration determines only k/m and c/m: m, k and c scaled together is named, all
     three inf (a mass of 0.0055 ± 0.00086 came back); k alone keeps its finite error; an
     estimate on its bound is flagged."""
     _, mod = oscillator
@@ -331,15 +321,15 @@ def test_parameters_the_data_cannot_determine_get_infinite_standard_errors(oscil
     assert res.stderr["ghost"] == np.inf and 0 < res.stderr["k"] < 1e-4
     assert res.params["k"] == pytest.approx(4.0, rel=1e-5)
     t, data, push = record(mod, forced=False, noise=0.0)
-    free = identification(mod, ["mass", "k", "c"], t, data, push, k=3.0)
-    truth = {"params": {"mass": 1.0, "k": 4.0, "c": 0.3}}
-    with pytest.warns(lagrgen.IdentifiabilityWarning, match=r"δmass : δk : δc = 0\.25 : 1 : "
+    free = identification(mod, ["m", "k", "c"], t, data, push, k=3.0)
+    truth = {"params": {"m": 1.0, "k": 4.0, "c": 0.3}}
+    with pytest.warns(lagrgen.IdentifiabilityWarning, match=r"δm : δk : δc = 0\.25 : 1 : "
                                                             r"0\.075"):
         res = free.solve(progress=False, guess=truth)
-    assert res.success and set(res.unidentified) == {"mass", "k", "c"}
-    assert all(res.stderr[n] == np.inf for n in ("mass", "k", "c"))
+    assert res.success and set(res.unidentified) == {"m", "k", "c"}
+    assert all(res.stderr[n] == np.inf for n in ("m", "k", "c"))
     res = free.solve(progress=False)      # from the data alone: the scale collapses (θ → 0)
-    assert not res.success or all(res.stderr[n] == np.inf for n in ("mass", "k", "c"))
+    assert not res.success or all(res.stderr[n] == np.inf for n in ("m", "k", "c"))
     with warnings.catch_warnings():
         warnings.simplefilter("error", lagrgen.IdentifiabilityWarning)
         alone = identification(mod, ["k", "c"], t, data, push, k=3.0).solve(progress=False)

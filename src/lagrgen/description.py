@@ -463,17 +463,8 @@ class Description:
                                  f"{len(names)} numbers (one per coordinate {', '.join(names)}), "
                                  f"got {given!r}")
             items = dict(zip(names, values))
-        out = {}
-        for name, value in items.items():
-            try:
-                number = float(value)
-            except (TypeError, ValueError):
-                raise ModelError(f"initial_state {what}[{name!r}] must be a number, got "
-                                 f"{value!r}") from None
-            if not math.isfinite(number):
-                raise ModelError(f"initial_state {what}[{name!r}] must be finite, got {number}")
-            out[name] = number
-        return out
+        return {name: _finite_number(value, f"initial_state {what}[{name!r}]")
+                for name, value in items.items()}
 
     @property
     def initial_values(self):
@@ -722,14 +713,15 @@ def _frozen_spec(description):
 
 def _limit_value(value, what, name):
     """A limit as a float, or None when absent; a ModelError for anything but a finite number."""
-    if value is None:
-        return None
+    return None if value is None else _finite_number(value, f"limit({name!r}, {what}=...)")
+
+
+def _finite_number(value, what):
+    """`value` as a float; a ModelError naming `what` when it is not a finite number."""
     try:
         number = float(value)
     except (TypeError, ValueError):
-        raise ModelError(f"limit({name!r}, {what}=...) must be a number or None, got "
-                         f"{value!r}") from None
+        raise ModelError(f"{what} must be a number, got {value!r}") from None
     if not math.isfinite(number):
-        raise ModelError(f"limit({name!r}, {what}={number}): limits must be finite numbers (None "
-                         "leaves one out)")
+        raise ModelError(f"{what} must be finite, got {number}")
     return number
