@@ -15,7 +15,7 @@ from .checks import (as_vector, check_affine_in_velocities, check_coefficient,
                      check_static_coefficient, check_unit, split_names, split_units)
 from .errors import ModelError, UnknownNameError
 from .names import check_model_name, check_name
-from .numbers import is_zero
+from .numbers import finite_number, is_zero
 from .records import (AUTOMATIC_OUTPUTS, BAUMGARTE_DEFAULTS, ENERGY_OUTPUTS, Body3D, Constraint,
                       Damper, Dissipation, Event, ExternalEquations, Force, GeneralizedForce,
                       Friction, Impact, KineticEnergy, ModelSpec, Output, Particle, PlanarBody,
@@ -463,7 +463,7 @@ class Description:
                                  f"{len(names)} numbers (one per coordinate {', '.join(names)}), "
                                  f"got {given!r}")
             items = dict(zip(names, values))
-        return {name: _finite_number(value, f"initial_state {what}[{name!r}]")
+        return {name: finite_number(value, f"initial_state {what}[{name!r}]", ModelError)
                 for name, value in items.items()}
 
     @property
@@ -713,15 +713,5 @@ def _frozen_spec(description):
 
 def _limit_value(value, what, name):
     """A limit as a float, or None when absent; a ModelError for anything but a finite number."""
-    return None if value is None else _finite_number(value, f"limit({name!r}, {what}=...)")
-
-
-def _finite_number(value, what):
-    """`value` as a float; a ModelError naming `what` when it is not a finite number."""
-    try:
-        number = float(value)
-    except (TypeError, ValueError):
-        raise ModelError(f"{what} must be a number, got {value!r}") from None
-    if not math.isfinite(number):
-        raise ModelError(f"{what} must be finite, got {number}")
-    return number
+    return None if value is None else finite_number(value, f"limit({name!r}, {what}=...)",
+                                                    ModelError)

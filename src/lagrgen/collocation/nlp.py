@@ -455,7 +455,7 @@ class Transcription:
     def objective(self, x):
         self.evaluations["objective"] += 1
         state = self._at(x)
-        L, f = self.layout, 0.0
+        f = 0.0
         if self.problem._integrand is not None:
             f += state["T"] * float(self.quad @ self._integrand(state))
         if self.problem._minimize_time:

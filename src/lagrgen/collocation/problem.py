@@ -8,6 +8,7 @@ import numbers
 import numpy as np
 
 from ..errors import LagrgenError
+from ..numbers import finite_number
 from ..runtime.arguments import key_name, parameter_vector, unknown_name
 from .grid import Layout, scheme_name, variable_names
 from .symbolic import internal_expression
@@ -490,13 +491,7 @@ def _track_weights(weights, shape):
 
 
 def _finite(value, what):
-    try:
-        v = float(value)
-    except (TypeError, ValueError):
-        raise LagrgenError(f"{what} must be a number, got {value!r}") from None
-    if not math.isfinite(v):
-        raise LagrgenError(f"{what} must be finite, got {v}")
-    return v
+    return finite_number(value, what, LagrgenError)
 
 
 def _interval(lo, hi, what):
