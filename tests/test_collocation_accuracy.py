@@ -398,6 +398,7 @@ def test_bad_arguments_get_clear_errors(integrator):
             (dict(max_meshes=0), "max_meshes must be"), (dict(hessian="bfgs"), "hessian")):
         with pytest.raises(LagrgenError, match=match):
             ok.solve(progress=False, **kwargs)
+    assert ok.solve(progress=False, mesh_tol=None, options={"constr_mult_init_max": 0}).success
     t = np.linspace(0.0, 1.0, 5)
     with pytest.raises(LagrgenError, match=r"t must be a 1-D array of sample times, got shape "
                                            r"\(1, 5\)"):

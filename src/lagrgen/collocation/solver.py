@@ -163,14 +163,18 @@ class _Progress:
 
 
 def add_option(nlp, key, value):
-    """Set one IPOPT option; a LagrgenError with IPOPT's own words when it refuses the name or
-    the value (which IPOPT prints, with its documentation of the option, to the C stdout)."""
+    """Set one IPOPT option (an integer given for a real option as a real); a LagrgenError with
+    IPOPT's own words when it refuses the name or the value (which IPOPT prints, with its
+    documentation of the option, to the C stdout)."""
+    tries = [value, float(value)] if isinstance(value, numbers.Integral) else [value]
     with _c_stdout() as printed:
-        try:
-            nlp.add_option(key, value)
-            refused = False
-        except TypeError:
-            refused = True
+        for attempt in tries:
+            try:
+                nlp.add_option(key, attempt)
+                refused = False
+                break
+            except TypeError:
+                refused = True
     if refused:
         said = " ".join(line.strip() for line in printed[0].splitlines()[:2] if line.strip())
         raise LagrgenError(f"IPOPT refuses the option {key}={value!r}: {said or 'unknown name'} "
