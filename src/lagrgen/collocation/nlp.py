@@ -212,34 +212,24 @@ class Transcription:
         self.D1_cols = np.unique(cols[c1 != 0]) if L.free else np.zeros(0, dtype=np.int64)
 
     def _linear_rows(self):
-        """The periodic and between-node instance constraints E·x = e."""
+        """The linear rows E·x = e: periodicity, instance values between this mesh's nodes, and
+        the inputs tied to their control intervals (`controls`)."""
         L, problem = self.layout, self.problem
-        rows, cols, vals, rhs = [], [], [], []
-        for kind, i in problem._periodic:
-            r = len(rhs)
-            rows += [r, r]
-            cols += [L.index(L.points - 1, kind, i), L.index(0, kind, i)]
-            vals += [1.0, -1.0]
-            rhs.append(0.0)
         T = problem.duration_bounds[0]
-        for s, kind, i, value in problem._interpolated:
-            if L.node_at(s / T) is not None:
-                continue                    # a node of this mesh: a bound (`_variable_bounds`)
-            c, v = interpolation(L, kind, i, s, T)
-            r = len(rhs)
-            rows += [r] * len(c)
-            cols += list(c)
-            vals += list(v)
-            rhs.append(value)
+        entries = [([L.index(L.points - 1, kind, i), L.index(0, kind, i)], [1.0, -1.0], 0.0)
+                   for kind, i in problem._periodic]
+        entries += [(*interpolation(L, kind, i, s, T), value)
+                    for s, kind, i, value in problem._interpolated
+                    if L.node_at(s / T) is None]     # on a node: a bound (`_variable_bounds`)
         if self.controls is not None:
-            for c, v in self.controls.ties(L, [k for k in range(L.nu) if k not in problem._given]):
-                r = len(rhs)
-                rows += [r] * len(c)
-                cols += list(c)
-                vals += list(v)
-                rhs.append(0.0)
-        self.E = Linear(rows, cols, vals, (len(rhs), L.size))
-        self.e = np.array(rhs)
+            free = [k for k in range(L.nu) if k not in problem._given]
+            entries += [(c, v, 0.0) for c, v in self.controls.ties(L, free)]
+        counts = [len(c) for c, _, _ in entries]
+        self.E = Linear(np.repeat(np.arange(len(entries)), counts),
+                        np.concatenate([np.asarray(c) for c, _, _ in entries] or [[]]),
+                        np.concatenate([np.asarray(v, float) for _, v, _ in entries] or [[]]),
+                        (len(entries), L.size))
+        self.e = np.array([value for _, _, value in entries])
 
     def _data_term(self):
         """Σ ω·(C·x − d)² over every present sample of every track."""
