@@ -83,17 +83,8 @@ def solve_refined(problem, guess, settings, mesh_tol, max_meshes):
                   f"dynamics error {errors.max():.2e}", flush=True)
         if mesh_tol is None or not result.success or len(meshes) >= max_meshes:
             break
-        if not np.all(np.isfinite(errors)):
-            limit = (f"as the model's dynamics cannot be integrated from the solution on "
-                     f"{int(np.sum(~np.isfinite(errors)))} of its intervals (its rhs fails "
-                     "there: a mass matrix that is not positive definite at these states or "
-                     "parameters?)")
-            break
-        switches = switch_knots(result, knots, problem, mesh_tol)
-        if errors.max() <= mesh_tol and not switches:
-            break
-        if layout.nodes >= MAX_NODES:
-            limit = f"as the refinement reached its limit of {MAX_NODES} nodes"
+        switches, limit = next_knots(result, errors, knots, problem, mesh_tol)
+        if switches is None:
             break
         knots = tuple(sorted(set(knots) | set(switches)))
         layout = refined_layout(layout, errors, mesh_tol, knots)
@@ -104,6 +95,22 @@ def solve_refined(problem, guess, settings, mesh_tol, max_meshes):
     if result.success:
         result.estimate_errors(stacklevel=3)
     return result
+
+
+def next_knots(result, errors, knots, problem, mesh_tol):
+    """(the control knots a next mesh adds, None) when the refinement goes on; else (None, why
+    it stops short of the tolerance, or None when it is within it)."""
+    if not np.all(np.isfinite(errors)):
+        return None, (f"as the model's dynamics cannot be integrated from the solution on "
+                      f"{int(np.sum(~np.isfinite(errors)))} of its intervals (its rhs fails "
+                      "there: a mass matrix that is not positive definite at these states or "
+                      "parameters?)")
+    switches = switch_knots(result, knots, problem, mesh_tol)
+    if errors.max() <= mesh_tol and not switches:
+        return None, None
+    if result._layout.nodes >= MAX_NODES:
+        return None, f"as the refinement reached its limit of {MAX_NODES} nodes"
+    return switches, None
 
 
 def finished(result, errors, meshes, mesh_tol, seconds, limit=None):
