@@ -3,18 +3,19 @@ instance values with the inputs it needs, or the model's own motion), an earlier
 start on any grid), a simulation, or named values.
 
 The default start was chosen on the problems of the guide, the examples and
-benchmarks/collocation.py (an identification starts its tracked coordinates on their data). Straight lines between the end values with the inputs at rest (what
+benchmarks/collocation.py. Straight lines between the end values with the inputs at rest (what
 opty and this package used to start from) leave every residual violated; on opty's swing-up
 (|T| ≤ 2 N·m, 501 nodes, backward Euler) IPOPT stops at a local infeasibility, objective 39.9.
 A cubic between the end states (end rates as given, else the chord's slope) satisfies the defects
 of every scheme to its order, and the inputs that make it a motion of the model (least squares of
 the residual at each point, with the multipliers of a constrained model) satisfy the residual
-wherever the inputs can; on a chain of 10 links it reaches a lower optimum than the straight lines
-(1186 against 1305). When those inputs exceed their bounds the motion is one the inputs cannot
-produce, and IPOPT stalls far from feasible (the swing-up: 37.8); the model's own motion from the
-initial state, the inputs held at their middle (or 0), is then a motion that satisfies everything
-but the final values — on the swing-up the pendulum at rest, from which IPOPT finds opty's optimum
-15.641554 in 55 iterations.
+wherever the inputs can; on the benchmark's chain of 10 links (51 nodes) it reaches a lower
+optimum than the straight lines (1186 against 1305). When those inputs exceed their bounds the
+motion is one the inputs cannot produce, and IPOPT stalls far from feasible (the swing-up: 37.8);
+the model's own motion from the initial state, the inputs held at their middle (or 0), is then a
+motion that satisfies everything but the final values — on the swing-up the pendulum at rest,
+from which IPOPT finds opty's optimum 15.641554 in 55 iterations. An identification starts the
+coordinates its data sample on the data.
 """
 import warnings
 from types import SimpleNamespace
