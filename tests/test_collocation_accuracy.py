@@ -318,6 +318,7 @@ def test_parameters_the_data_cannot_determine_get_infinite_standard_errors(oscil
                                                             r"alone"):
         res = identification(mod, ["k", "ghost"], t, data, push, k=3.0).solve(progress=False)
     assert res.success and res.unidentified == ("ghost",)
+    assert "ghost = 1 (the data do not determine it)" in res.summary()
     assert res.stderr["ghost"] == np.inf and 0 < res.stderr["k"] < 1e-4
     assert res.params["k"] == pytest.approx(4.0, rel=1e-5)
     t, data, push = record(mod, forced=False, noise=0.0)
@@ -339,7 +340,7 @@ def test_parameters_the_data_cannot_determine_get_infinite_standard_errors(oscil
     bounded = identification(mod, ["k"], t, data, push, k=3.0).bound("k", 3.0, 3.5)
     with pytest.warns(lagrgen.FitWarning, match=r"on their bounds: k = 3\.5 \(upper bound\)"):
         res = bounded.solve(progress=False)
-    assert res.at_bounds == ("k",)
+    assert res.at_bounds == ("k",) and "(on a bound)" in res.summary()
 
 
 def test_check_stops_after_its_time_limit(pendulum):

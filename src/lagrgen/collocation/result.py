@@ -128,7 +128,10 @@ class CollocationResult:
                          f"{len(meshes)} mesh{'es' if len(meshes) > 1 else ''}: {nodes} nodes")
         for name, value in self.params.items():
             err = self.stderr.get(name, np.nan)
-            lines.append(f"  {name} = {value:.8g}" + (f" ± {err:.3g}" if np.isfinite(err) else ""))
+            note = f" ± {err:.3g}" if np.isfinite(err) else \
+                " (the data do not determine it)" if err == np.inf else ""
+            lines.append(f"  {name} = {value:.8g}{note}" +
+                         (" (on a bound)" if name in self.at_bounds else ""))
         return "\n".join(lines)
 
     # -- values between the nodes ------------------------------------------------------------
