@@ -108,7 +108,8 @@ API = [
                                            "exciting_trajectory", "inertial.BaseParameters",
                                            "inertial.InertialEstimate",
                                            "inertial.ExcitingTrajectory"]),
-    ("Optimal motions", ["Collocation", "CollocationResult"]),
+    ("Optimal motions", ["Collocation", "CollocationResult", "collocation.refine.MeshRecord",
+                         "collocation.refine.DiscretizationWarning"]),
     ("Exceptions", ["LagrgenError", "ModelError", "UnknownNameError", "BuildError", "CompileError",
                     "MassMatrixError", "ConstraintError", "NonFiniteError"]),
 ]

@@ -32,11 +32,12 @@ problem.bound("T", -2.0, 2.0)
 problem.initial(q=[0.0], qd=[0.0])
 problem.final(q=[np.pi], qd=[0.0])
 problem.minimize(integral=T ** 2)
-guess = {"theta": 0.0, "theta_dot": 0.0}          # start the search from the pendulum at rest
+# No guess: the torque cannot drive a direct path up, so the search starts from the pendulum's own
+# motion from rest (at rest), and the refinement makes the motion exact (dynamics error ≤ 1e-6).
 
 if __name__ == "__main__":
     from pathlib import Path
-    result = problem.solve(guess=guess)
+    result = problem.solve()
     print("re-simulated from the found torque: largest deviation", float(result.check()))
     docs = Path(__file__).resolve().parent.parent / "docs"
     result.plot(docs / "_static" / "collocation_swing_up.png",

@@ -60,6 +60,32 @@ def example_model(stem, attr="model"):
     return getattr(load_example(stem), attr)
 
 
+def double_integrator(name):
+    """A unit mass pushed by a force F: m·ẍ = F (m = 1)."""
+    model = lagrgen.Model(name)
+    x, = model.coordinates("x")
+    m, = model.parameters(m=1.0)
+    F, = model.inputs("F")
+    model.particle(m, sp.Matrix([x]))
+    model.generalized_force(x, F)
+    return model
+
+
+def damped_oscillator(name, **extra):
+    """m·ẍ + c·ẋ + k·x = F (m = 1, k = 4, c = 0.3), with the parameters `extra` in no equation."""
+    model = lagrgen.Model(name)
+    x, = model.coordinates("x")
+    m, k, c = model.parameters(m=1.0, k=4.0, c=0.3)
+    if extra:
+        model.parameters(**extra)
+    F, = model.inputs("F")
+    model.particle(m, sp.Matrix([x]))
+    model.spring(k, x)
+    model.damper(c, x)
+    model.generalized_force(x, F)
+    return model
+
+
 def example_id(entry):
     stem, attr = entry
     return stem if attr == "model" else f"{stem}.{attr}"

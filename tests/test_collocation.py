@@ -11,7 +11,7 @@ from numpy.testing import assert_allclose
 
 import lagrgen
 from lagrgen.errors import LagrgenError, UnknownNameError
-from conftest import example_model
+from conftest import damped_oscillator, double_integrator, example_model
 
 pytest.importorskip("cyipopt", reason="IPOPT (pip install 'lagrgen[optimize]') is not installed")
 
@@ -24,26 +24,14 @@ def out_dir(tmp_path_factory):
 @pytest.fixture(scope="module")
 def integrator(out_dir):
     """A unit mass pushed by a force F: ẍ = F."""
-    model = lagrgen.Model("colloc_integrator")
-    x, = model.coordinates("x")
-    m, = model.parameters(m=1.0)
-    F, = model.inputs("F")
-    model.particle(m, sp.Matrix([x]))
-    model.generalized_force(x, F)
+    model = double_integrator("colloc_integrator")
     return model, lagrgen.build(model, out_dir=out_dir)
 
 
 @pytest.fixture(scope="module")
 def oscillator(out_dir):
     """A damped oscillator m·ẍ + c·ẋ + k·x = F."""
-    model = lagrgen.Model("colloc_oscillator")
-    x, = model.coordinates("x")
-    m, k, c = model.parameters(m=1.0, k=4.0, c=0.3)
-    F, = model.inputs("F")
-    model.particle(m, sp.Matrix([x]))
-    model.spring(k, x)
-    model.damper(c, x)
-    model.generalized_force(x, F)
+    model = damped_oscillator("colloc_oscillator")
     return model, lagrgen.build(model, out_dir=out_dir)
 
 
@@ -121,7 +109,8 @@ def test_minimum_effort_double_integrator_is_the_closed_form(integrator):
     assert_allclose(res.u[0], 6 - 12 * res.t, atol=1e-8)
     assert_allclose(res.y[0], 3 * res.t ** 2 - 2 * res.t ** 3, atol=1e-10)
     assert res.check() < 1e-8
-    errors = [effort_problem(mod, F, N, "trapezoidal").solve(progress=False).objective - 12
+    errors = [effort_problem(mod, F, N, "trapezoidal").solve(progress=False,
+                                                              mesh_tol=None).objective - 12
               for N in (11, 21)]
     assert 3.5 < errors[0] / errors[1] < 4.5
 
@@ -131,8 +120,9 @@ def test_exact_hessian_and_quasi_newton_reach_the_same_optimum(integrator):
     F, = model.input_functions
     prob = effort_problem(mod, F, 15, "trapezoidal")
     prob.path(F, -5.5, 5.5)                      # active near both ends
-    exact = prob.solve(progress=False)
-    quasi = prob.solve(hessian="quasi-newton", progress=False)
+    start = {"x": 0.0, "F": 0.0}                   # not the optimum (the default start nearly is)
+    exact = prob.solve(guess=start, progress=False, mesh_tol=None)
+    quasi = prob.solve(guess=start, hessian="quasi-newton", progress=False, mesh_tol=None)
     assert exact.success and quasi.success
     assert exact.objective == pytest.approx(quasi.objective, rel=1e-7)
     assert exact.iterations < quasi.iterations
@@ -168,14 +158,13 @@ def test_warm_start_from_an_earlier_result_on_another_grid(integrator):
 def nlp_derivatives(prob, seed=0):
     """(J, J by central differences, H lower, H by differences of ∇L, gradient, its differences)
     of the problem's NLP at a random point with random multipliers."""
-    tr = prob.transcription("exact")
+    tr = prob.transcription("exact").bound(0.77)
     L = tr.layout
     rng = np.random.default_rng(seed)
     x = rng.uniform(-1, 1, L.size)
     if L.free:
         x[L.T_index] = 1.3
     x[L.p_start:L.p_start + len(L.unknown)] = rng.uniform(0.5, 1.5, len(L.unknown))
-    tr.defect_scale = 3.0
     eps = 1e-6
     E = np.eye(L.size)
     J = np.zeros((tr.n_constraints, L.size))
@@ -256,7 +245,7 @@ def test_a_constrained_model_gives_the_optimum_of_its_unconstrained_twin(pendulu
         else:
             prob.initial(q=[0.0, -1.0], qd=[0.0, 0.0])
             prob.final(q={"x": np.sin(target)}, qd={"x": 0.0})
-        results.append(prob.minimize(integral=F ** 2).solve(progress=False))
+        results.append(prob.minimize(integral=F ** 2).solve(progress=False, mesh_tol=None))
     a, c = results
     assert a.success and c.success
     assert c.objective == pytest.approx(a.objective, rel=1e-3)
@@ -346,7 +335,7 @@ def test_an_instance_constraint_between_nodes_holds_on_the_interpolant(integrato
     res = prob.solve(progress=False)
     assert res.success
     assert res.state_at(0.37)[0] == pytest.approx(0.8, abs=1e-9)
-    assert res.y[1, 5] == pytest.approx(1.0, abs=1e-9)
+    assert res.y[1, np.flatnonzero(np.isclose(res.t, 0.5))[0]] == pytest.approx(1.0, abs=1e-9)
     assert res.objective > 12.0
 
 
@@ -492,7 +481,7 @@ def test_check_converges_at_the_order_of_hermite_simpson(pendulums):
     for nodes in (11, 21):
         prob = lagrgen.Collocation(mod, nodes=nodes, duration=2.0)
         prob.initial(q=[0.0], qd=[0.0]).final(q=[0.8], qd=[0.0]).minimize(integral=F ** 2)
-        res = prob.solve(progress=False)
+        res = prob.solve(progress=False, mesh_tol=None)
         assert res.success
         deviations.append(float(res.check()))
         u = res.input_signals()["F"]

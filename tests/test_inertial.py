@@ -10,7 +10,7 @@ import sympy as sp
 import lagrgen
 from lagrgen import Model
 from lagrgen.errors import LagrgenError, UnknownNameError
-from lagrgen.fit import FitWarning, IdentifiabilityWarning
+from lagrgen import FitWarning, IdentifiabilityWarning
 from lagrgen.inertial import (base_parameters, exciting_trajectory, identify_inertial,
                               inertial_parameters_of, links_of, pseudo_inertia, regressor_of,
                               stacked_regressor)

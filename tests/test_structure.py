@@ -180,8 +180,8 @@ STAGES = [
     ("running", ["progress", "results", "solvers", "scipy_engine", "native", "sensitivity",
                  "simulate", "constraints", "ensemble", "ensemble_store",
                  "hybrid"]),
-    ("analysis", ["linearization", "vibration", "stability", "sweep", "bench", "fit", "inertial",
-                  "collocation"]),
+    ("analysis", ["linearization", "vibration", "stability", "sweep", "bench", "identifiability",
+                  "fit", "inertial", "collocation"]),
     ("face", ["model", "sympy_interop", "urdf", "expressions", "cli", "__main__", ""]),
 ]
 #: The package's sources in this checkout (the installed package has no .pyx files).

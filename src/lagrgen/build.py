@@ -166,7 +166,7 @@ def model_info(spec, equations, formulation=None):
         nonsmooth_definitions=[(e["name"], e["kind"], e["normal"])
                                for e in _nonsmooth().describe(spec)],
         inertial_parameters=inertial_parameters(spec),
-        initial_state=spec.initial_state)
+        initial_state=spec.initial_state, coordinate_limits=spec.limits)
 
 
 def _nonsmooth():

@@ -13,9 +13,9 @@ from .caching import once_per
 from .checks import (as_vector, check_affine_in_velocities, check_coefficient,
                      check_distinct_gap, check_expression, check_restitution,
                      check_static_coefficient, check_unit, split_names, split_units)
-from .errors import ModelError
+from .errors import ModelError, UnknownNameError
 from .names import check_model_name, check_name
-from .numbers import is_zero
+from .numbers import finite_number, is_zero
 from .records import (AUTOMATIC_OUTPUTS, BAUMGARTE_DEFAULTS, ENERGY_OUTPUTS, Body3D, Constraint,
                       Damper, Dissipation, Event, ExternalEquations, Force, GeneralizedForce,
                       Friction, Impact, KineticEnergy, ModelSpec, Output, Particle, PlanarBody,
@@ -52,6 +52,7 @@ class Description:
         self._events = []          # Event records: roots of g located by the solvers
         self._nonsmooth = []       # Impact / Friction records, in declaration order
         self._initial = None       # {coordinate name: (q0, q̇0)}: the declared initial state
+        self._limits = {}          # coordinate name -> (lower, upper, velocity, effort)
         self._stabilization = BAUMGARTE_DEFAULTS
         self._kinematics = {}      # orientation → bodies3d.Kinematics, computed once each
 
@@ -467,17 +468,8 @@ class Description:
                                  f"{len(names)} numbers (one per coordinate {', '.join(names)}), "
                                  f"got {given!r}")
             items = dict(zip(names, values))
-        out = {}
-        for name, value in items.items():
-            try:
-                number = float(value)
-            except (TypeError, ValueError):
-                raise ModelError(f"initial_state {what}[{name!r}] must be a number, got "
-                                 f"{value!r}") from None
-            if not math.isfinite(number):
-                raise ModelError(f"initial_state {what}[{name!r}] must be finite, got {number}")
-            out[name] = number
-        return out
+        return {name: finite_number(value, f"initial_state {what}[{name!r}]", ModelError)
+                for name, value in items.items()}
 
     @property
     def initial_values(self):
@@ -488,6 +480,49 @@ class Description:
         names = self.coordinate_names
         pairs = [self._initial.get(c, (0.0, 0.0)) for c in names]
         return tuple(q for q, _ in pairs) + tuple(qd for _, qd in pairs)
+
+    def limit(self, coordinate, lower=None, upper=None, velocity=None, effort=None):
+        """Declare a coordinate's limits: its range lower ≤ q ≤ upper, its largest speed
+        abs(q̇) ≤ velocity and the largest effort abs(tau_<coordinate>) ≤ effort of the input that
+        drives it (a URDF joint's <limit>); None leaves one out. Each call replaces that
+        coordinate's limits; `model.limits` lists them and a built model keeps them
+        (`mod.limits`), which `Collocation.bound_limits()` turns into bounds.
+
+        Parameters
+        ----------
+        coordinate : str or the function `model.coordinates` returned
+        lower, upper : float or None, lower ≤ upper
+        velocity, effort : float ≥ 0 or None
+        """
+        name = self._limited_coordinate(coordinate)
+        values = [_limit_value(v, what, name) for what, v in
+                  (("lower", lower), ("upper", upper), ("velocity", velocity), ("effort", effort))]
+        low, high, speed, force = values
+        if low is not None and high is not None and low > high:
+            raise ModelError(f"limit({name!r}, lower={low}, upper={high}): the lower limit exceeds "
+                             "the upper")
+        for what, v in (("velocity", speed), ("effort", force)):
+            if v is not None and v < 0:
+                raise ModelError(f"limit({name!r}, {what}={v}): a {what} limit bounds abs({what}) "
+                                 "and must not be negative")
+        self._limits[name] = tuple(values)
+        self._changed()
+
+    def _limited_coordinate(self, coordinate):
+        """The name of `coordinate` (a name or the function `coordinates` returned)."""
+        names = self.coordinate_names
+        name = coordinate if isinstance(coordinate, str) else getattr(
+            getattr(coordinate, "func", None), "__name__", None)
+        if name in names and (isinstance(coordinate, str) or coordinate in self._coordinates):
+            return name
+        raise UnknownNameError(f"limit: {coordinate!r} is not a coordinate of model "
+                               f"{self.name!r} (its coordinates are {', '.join(names) or 'none'})")
+
+    @property
+    def limits(self):
+        """{coordinate name: (lower, upper, velocity, effort)} of the coordinates with declared
+        limits (`limit`), in coordinate order; None where a limit is absent."""
+        return {c: self._limits[c] for c in self.coordinate_names if c in self._limits}
 
     def event(self, name, expr, terminal=False, direction=0):
         """Declare an event: a root of `expr` (a function of q, q̇, t, parameters, inputs) that
@@ -679,4 +714,11 @@ def _frozen_spec(description):
         constraints=d.constraints, velocity_constraints=d.velocity_constraints,
         constraint_names=d.constraint_names, stabilization=d._stabilization,
         events=tuple(d._events), nonsmooth=tuple(d._nonsmooth),
-        initial_state=d.initial_values)
+        initial_state=d.initial_values,
+        limits=tuple((name, *values) for name, values in d.limits.items()))
+
+
+def _limit_value(value, what, name):
+    """A limit as a float, or None when absent; a ModelError for anything but a finite number."""
+    return None if value is None else finite_number(value, f"limit({name!r}, {what}=...)",
+                                                    ModelError)

@@ -6,8 +6,9 @@ Jacobian the forward sensitivities ∂y/∂θ (`lagrgen.sensitivity`) — one si
 instead of 2k for finite differences; the covariance of the estimates is s²·(JᵀJ)⁻¹ with
 s² = Σr²/(m − rank J). A direction of the parameters that the Jacobian does not see (its singular
 value, columns scaled to unit norm, below the Jacobian's own accuracy) gets an infinite variance
-and a `FitWarning` naming it, never the zero variance of a pseudo-inverse; an estimate on its bound
-is flagged. `fit_modes` matches natural frequencies with the eigenvalue sensitivities
+and an `IdentifiabilityWarning` (a `FitWarning`) naming it, never the zero variance of a
+pseudo-inverse; an estimate on its bound is flagged (`lagrgen.identifiability`). `fit_modes`
+matches natural frequencies with the eigenvalue sensitivities
 ∂λ/∂p = φᵀ(∂K/∂p − λ·∂M/∂p)φ of mass-normalized modes φ (λ = ω²).
 """
 import warnings
@@ -17,26 +18,12 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from .errors import LagrgenError
+from .identifiability import (FitWarning, covariance, on_bounds, unseen_directions,  # noqa: F401
+                              warn_unseen)
 from .runtime.arguments import parameters_from, state_vector, unknown_name
 from .sensitivity import sensitivity_columns
 from .simulate import simulate
 from .vibration import equilibrium, linearize, modes
-
-
-#: Singular values of the column-normalized Jacobian below UNSEEN_FACTOR times the Jacobian's own
-#: accuracy (the solver's rtol for `fit`, the difference step for `fit_modes`), and never below
-#: UNSEEN_MAX, are taken as zero: the data do not see that direction.
-UNSEEN_FACTOR = 10.0
-UNSEEN_MAX = 1e-3
-
-
-class FitWarning(UserWarning):
-    """The data do not determine every fitted name, or an estimate sits on its bound."""
-
-
-class IdentifiabilityWarning(FitWarning):
-    """The data do not determine some estimated names: a direction of the estimates that the
-    data do not see (`fit`, `fit_modes`, `identify_inertial`)."""
 
 
 @dataclass
@@ -133,69 +120,6 @@ def sample_times(t):
     if t.ndim != 1 or t.size < 2 or not np.all(np.isfinite(t)) or np.any(np.diff(t) <= 0):
         raise ValueError("t must be a 1-D array of at least two finite, increasing sample times")
     return t
-
-
-def unseen_directions(J, names, accuracy):
-    """(rank, directions, Vt, s, scale) of the Jacobian J (m, k): with its columns scaled to
-    unit norm (`scale`), J/scale = U·diag(s)·Vt, singular values below UNSEEN_FACTOR·accuracy
-    taken as zero; `directions` are the null directions δθ = v/scale (dicts name -> component,
-    largest 1), a column of zeros its own direction."""
-    scale = np.linalg.norm(J, axis=0)
-    safe = np.where(scale > 0, scale, 1.0)
-    # Vt whole (k × k) without the m × m U of a tall J: full matrices only when J is wide
-    _, s, Vt = np.linalg.svd(J / safe, full_matrices=J.shape[0] < J.shape[1])
-    tol = min(UNSEEN_FACTOR * accuracy, UNSEEN_MAX) * max(1.0, s.max(initial=0.0))
-    rank = int(np.sum(s > tol))
-    directions = []
-    for v in Vt[rank:]:
-        involved = np.abs(v) > 1e-6
-        d = np.where(involved, v / safe, 0.0)
-        d = d / np.abs(d).max()
-        d = d * np.sign(d[np.argmax(involved)])
-        directions.append({n: float(c) for n, c, i in zip(names, d, involved) if i})
-    return rank, directions, Vt, s, scale
-
-
-def covariance(J, s2, names, accuracy):
-    """(cov, unidentified names, unseen directions): s²·(JᵀJ)⁻¹ on the directions J sees; a
-    name with a component along an unseen direction has variance inf (its covariances NaN)."""
-    k = len(names)
-    rank, directions, Vt, s, scale = unseen_directions(J, names, accuracy)
-    Vr, sr = Vt[:rank].T, s[:rank]
-    safe = np.where(scale > 0, scale, 1.0)
-    cov = (Vr / sr ** 2) @ Vr.T * s2 / np.outer(safe, safe)
-    involved = [i for i in range(k) if any(names[i] in d for d in directions)]
-    for i in involved:
-        cov[i, :] = cov[:, i] = np.nan
-        cov[i, i] = np.inf
-    return cov, tuple(names[i] for i in involved), directions
-
-
-def warn_unseen(directions, rank, k, consequence="their standard errors are reported as inf",
-                advice="Fit fewer names, fix some with params={...}, or measure more",
-                stacklevel=3):
-    """An IdentifiabilityWarning naming the directions the data do not see."""
-    combos = "; ".join(f"{next(iter(d))} alone" if len(d) == 1 else
-                       " : ".join(f"δ({n})" if " " in n else f"δ{n}" for n in d) + " = " +
-                       " : ".join(f"{c:.3g}" for c in d.values()) for d in directions)
-    which = [n for n in dict.fromkeys(n for d in directions for n in d)]
-    warnings.warn(f"the data do not determine {', '.join(which)} (the Jacobian has rank {rank} "
-                  f"of {k}): the fit does not change when the estimates move along {combos}; "
-                  f"{consequence}. {advice}",
-                  IdentifiabilityWarning, stacklevel=stacklevel)
-
-
-def on_bounds(x, low, high, names, stacklevel=3):
-    """The names whose estimate is on a finite bound, with a FitWarning naming them."""
-    tol = 1e-10 * np.maximum(1.0, np.abs(x))
-    hit = {n: f"{n} = {v:.6g} ({'lower' if v - lo <= tl else 'upper'} bound)"
-           for n, v, lo, hi, tl in zip(names, x, low, high, tol)
-           if v - lo <= tl or hi - v <= tl}
-    if hit:
-        warnings.warn(f"estimates on their bounds: {', '.join(hit.values())}; the data pull "
-                      "them past the bound, and their standard errors assume they are free",
-                      FitWarning, stacklevel=stacklevel)
-    return tuple(hit)
 
 
 def _output_derivatives(mod, t, y, p, u, k, columns, h=1e-7):

@@ -20,7 +20,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .errors import LagrgenError
-from .fit import covariance, sample_times, unseen_directions, warn_unseen
+from .fit import sample_times
+from .identifiability import covariance, unseen_directions, warn_unseen
 from .runtime.arguments import unknown_name
 
 #: The ten inertial parameters of a link, in Pinocchio's order: m_<link>, mx_<link>, ...

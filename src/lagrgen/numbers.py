@@ -8,6 +8,18 @@ is asked of the number itself (`is_zero`) rather than tested with `==`.
 import math
 
 
+def finite_number(value, what, error):
+    """`value` as a float; an `error` (an exception class) naming `what` when it is not a finite
+    number."""
+    try:
+        number = float(value)
+    except (TypeError, ValueError):
+        raise error(f"{what} must be a number, got {value!r}") from None
+    if not math.isfinite(number):
+        raise error(f"{what} must be finite, got {number}")
+    return number
+
+
 def fits_a_double(number):
     """True if `number` (int, Fraction, float, or a SymPy/SymEngine number) is zero or rounds to
     a finite nonzero double."""

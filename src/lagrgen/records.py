@@ -231,6 +231,7 @@ class ModelSpec:
     events: tuple = ()        # Event(name, g, terminal, direction)
     nonsmooth: tuple = ()     # Impact / Friction records, in declaration order
     initial_state: tuple = ()  # [q0, q̇0] as 2n floats, or () when none is declared
+    limits: tuple = ()        # (coordinate name, lower, upper, velocity, effort), None if absent
 
     @property
     def external(self):

@@ -19,7 +19,7 @@ import keyword
 import math
 import re
 import xml.etree.ElementTree as ET
-from dataclasses import dataclass, field
+from dataclasses import astuple, dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -595,7 +595,10 @@ def from_urdf(path, name=None, base="fixed", gravity=(0.0, 0.0, -9.81), joint_dy
     if joint_dynamics:
         _joint_dynamics(model, found, motion)
     model.urdf = robot
-    model.urdf_limits = {p.name: p.joint.limit for p in coordinate_parts if p.joint is not None}
+    for p in coordinate_parts:
+        limit = p.joint.limit if p.joint is not None else None
+        if limit is not None and any(v is not None for v in astuple(limit)):
+            model.limit(p.name, *astuple(limit))
     return model
 
 

@@ -72,3 +72,18 @@ def kernel_rows(size_t address, const double[::1] t, const double[:, ::1] Z,
             w = &W[j, 0] if weighted else ZERO
             f(t[j], &Z[j, 0], &Z[j, n], &Z[j, 2 * n], &p[0], u, w, &out[j, 0])
     return None
+
+
+def state_rows(size_t address, const double[::1] t, const double[:, ::1] Y, const double[::1] p,
+               const double[:, ::1] U, double[:, ::1] out):
+    """out[j] = f(t[j], Y[j], p, U[j]) for every row j, f a model function of the state
+    (`rhs`: ẏ). Returns the number of rows where it reported failure."""
+    cdef lg_function f = <lg_function>address
+    cdef Py_ssize_t B = Y.shape[0], j
+    cdef int failed = 0
+    cdef bint has_inputs = U.shape[1] > 0
+    with nogil:
+        for j in range(B):
+            if f(t[j], &Y[j, 0], &p[0], &U[j, 0] if has_inputs else ZERO, &out[j, 0]):
+                failed += 1
+    return failed

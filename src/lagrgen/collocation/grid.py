@@ -3,20 +3,24 @@ defects that tie neighbouring points, the quadrature of integrals, and interpola
 
 Every point j carries z_j = [q, q̇, q̈, λ, u] (the accelerations and multipliers are variables, so
 the defects are linear and all nonlinearity sits in the model's residual r(z) = 0 at each point);
-the decision vector is x = [z_0, …, z_{P−1}, unknown parameters, T (free duration only)]. With
-h = T/(nodes − 1) and x = (q, q̇), f = ẋ = (q̇, q̈) on the interval k:
+the decision vector is x = [z_0, …, z_{P−1}, unknown parameters, T (free duration only)]. The
+nodes sit at fractions τ_0 = 0 < τ_1 < … < τ_{N−1} = 1 of the duration T (equally spaced unless a
+refined mesh places them); with h_k = T·(τ_{k+1} − τ_k), x = (q, q̇) and f = ẋ = (q̇, q̈) on the
+interval k:
 
-    trapezoidal      x_{k+1} − x_k − h/2·(f_k + f_{k+1}) = 0                  points = nodes
-    backward-euler   x_{k+1} − x_k − h·f_{k+1} = 0                              points = nodes
-    hermite-simpson  x_e − x_s − h/6·(f_s + 4·f_m + f_e) = 0,                  points = nodes and
-                     x_m − (x_s + x_e)/2 − h/8·(f_s − f_e) = 0                  midpoints
+    trapezoidal      x_{k+1} − x_k − h_k/2·(f_k + f_{k+1}) = 0               points = nodes
+    backward-euler   x_{k+1} − x_k − h_k·f_{k+1} = 0                           points = nodes
+    hermite-simpson  x_e − x_s − h_k/6·(f_s + 4·f_m + f_e) = 0,               points = nodes and
+                     x_m − (x_s + x_e)/2 − h_k/8·(f_s − f_e) = 0               midpoints
 
-Each defect row is Σ c0·x_col + h·Σ c1·x_col: linear for a fixed duration, bilinear in (T, x) for
-a free one. Integrals are h·Σ_j w_j·L(z_j) with the scheme's weights (trapezoid; right endpoint;
-Simpson). Between nodes a state is the cubic Hermite interpolant of its node values and rates, an
-acceleration or input linear (quadratic through the midpoint for Hermite–Simpson).
+Each defect row is Σ c0·x_col + T·Σ c1·x_col (c1 holding the interval's fraction): linear for a
+fixed duration, bilinear in (T, x) for a free one. Integrals are T·Σ_j w_j·L(z_j) with the scheme's
+weights (trapezoid; right endpoint; Simpson), each holding its intervals' fractions. Between nodes
+a state is the cubic Hermite interpolant of its node values and rates, an acceleration or input
+linear (quadratic through the midpoint for Hermite–Simpson).
 """
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
@@ -27,6 +31,13 @@ _ALIASES = {"trapezoid": "trapezoidal", "hs": "hermite-simpson", "simpson": "her
             "euler": "backward-euler", "implicit-euler": "backward-euler"}
 #: The point variables in order, and what each is called in names.
 KINDS = ("q", "qd", "qdd", "lam", "u")
+
+
+def variable_names(mod):
+    """{kind: the names of its variables} of the built model `mod`."""
+    coords = list(mod.coordinates)
+    return {"q": coords, "qd": [f"{c}_dot" for c in coords], "qdd": [f"{c}_ddot" for c in coords],
+            "lam": list(mod.constraint_names), "u": list(mod.inputs)}
 
 
 def scheme_name(scheme):
@@ -56,6 +67,7 @@ class Layout:
     unknown: tuple
     free: bool
     T_scale: float = 1.0     # a free duration's variable is T/T_scale
+    mesh: tuple = ()         # the nodes' fractions of the duration (increasing, 0 to 1); (): equal
 
     @property
     def points(self):
@@ -89,10 +101,17 @@ class Layout:
     def T_index(self):
         return self.p_start + len(self.unknown) if self.free else None
 
+    @cached_property
+    def node_fractions(self):
+        """Each node's time as a fraction of the duration (read-only)."""
+        out = np.array(self.mesh) if self.mesh else np.linspace(0.0, 1.0, self.nodes)
+        out.setflags(write=False)
+        return out
+
     @property
-    def dh_dx(self):
-        """∂h/∂x_T of the node interval h = T/(nodes − 1) by the duration's variable."""
-        return self.T_scale / (self.nodes - 1)
+    def steps(self):
+        """Each interval's length as a fraction of the duration."""
+        return np.diff(self.node_fractions)
 
     def duration(self, x):
         """T at the decision vector x (a free duration's variable is T/T_scale)."""
@@ -110,7 +129,29 @@ class Layout:
     @property
     def fractions(self):
         """Each point's time as a fraction of the duration."""
-        return np.linspace(0.0, 1.0, self.points)
+        nodes = self.node_fractions
+        if self.stride == 1:
+            return nodes
+        out = np.empty(self.points)
+        out[0::2], out[1::2] = nodes, 0.5 * (nodes[:-1] + nodes[1:])
+        return out
+
+    def node_at(self, fraction):
+        """The point index of the node at `fraction` of the duration, or None if none is there."""
+        nodes = self.node_fractions
+        k = int(np.argmin(np.abs(nodes - fraction)))
+        return k * self.stride if abs(nodes[k] - fraction) <= 1e-12 else None
+
+    def interval_of(self, s, duration):
+        """(interval k, its length h, θ ∈ [0, 1]) of the times s ∈ [0, duration] after t0 (a
+        number, or arrays for an array)."""
+        times = duration * self.node_fractions
+        k = np.clip(np.searchsorted(times, s, side="right") - 1, 0, self.nodes - 2)
+        h = times[k + 1] - times[k]
+        theta = np.clip((s - times[k]) / h, 0.0, 1.0)
+        if np.ndim(s) == 0:
+            return int(k), float(h), float(theta)
+        return k, h, theta
 
     def index(self, point, kind, i):
         """The position in x of variable i of `kind` at `point`."""
@@ -122,12 +163,13 @@ class Layout:
 
 
 def defects(layout):
-    """The defect rows as triplets (rows, cols, c0, c1) and their count: row = Σ (c0 + h·c1)·x."""
+    """The defect rows as triplets (rows, cols, c0, c1) and their count: row = Σ (c0 + T·c1)·x
+    (c1 holds the interval's fraction of the duration)."""
     n, nz, N = layout.n, layout.nz, layout.nodes
     comp = np.arange(n)
     rows, cols, c0, c1 = [], [], [], []
+    per = defects_per_interval(layout)
     if layout.scheme == "hermite-simpson":
-        per = 4 * n
         start = np.arange(N - 1)[:, None] * 2                  # point of the interval's start
         base = np.arange(N - 1)[:, None] * per
         for block, (xk, fk) in enumerate((("q", "qd"), ("qd", "qdd"))):
@@ -145,7 +187,6 @@ def defects(layout):
                 rows.append(row), cols.append(col)
                 c0.append(np.full(row.shape, a)), c1.append(np.full(row.shape, b))
     else:
-        per = 2 * n
         k = np.arange(N - 1)[:, None]
         base = k * per
         for block, (xk, fk) in enumerate((("q", "qd"), ("qd", "qdd"))):
@@ -161,23 +202,34 @@ def defects(layout):
                 rows.append(row), cols.append(col)
                 c0.append(np.full(row.shape, a)), c1.append(np.full(row.shape, b))
     flat = [np.concatenate([a.ravel() for a in arrays]) for arrays in (rows, cols, c0, c1)]
-    return flat[0].astype(np.int64), flat[1].astype(np.int64), flat[2], flat[3], (N - 1) * per
+    rows = flat[0].astype(np.int64)
+    return rows, flat[1].astype(np.int64), flat[2], flat[3] * layout.steps[rows // per], \
+        (N - 1) * per
+
+
+def defect_intervals(layout):
+    """The interval of each defect row."""
+    return np.repeat(np.arange(layout.nodes - 1), defects_per_interval(layout))
+
+
+def defects_per_interval(layout):
+    """Defect rows per interval: x = (q, q̇) once (twice with the Hermite midpoint)."""
+    return (4 if layout.scheme == "hermite-simpson" else 2) * layout.n
 
 
 def quadrature(layout):
-    """The weights w_j with ∫ L dt ≈ h·Σ_j w_j·L(z_j) (h the node interval)."""
-    P = layout.points
+    """The weights w_j with ∫ L dt ≈ T·Σ_j w_j·L(z_j)."""
+    P, steps = layout.points, layout.steps
+    w = np.zeros(P)
     if layout.scheme == "trapezoidal":
-        w = np.ones(P)
-        w[[0, -1]] = 0.5
+        w[:-1] += steps / 2
+        w[1:] += steps / 2
     elif layout.scheme == "backward-euler":
-        w = np.ones(P)
-        w[0] = 0.0
+        w[1:] = steps
     else:
-        w = np.empty(P)
-        w[1::2] = 4 / 6
-        w[0::2] = 2 / 6
-        w[[0, -1]] = 1 / 6
+        w[0:-1:2] += steps / 6
+        w[1::2] = 4 * steps / 6
+        w[2::2] += steps / 6
     return w
 
 
@@ -187,9 +239,7 @@ def interpolation(layout, kind, i, s, duration):
     States (q, q̇) use the cubic Hermite interpolant of the two nodes' values and rates (the one
     Hermite–Simpson's midpoint defect imposes); accelerations and inputs are linear between nodes,
     quadratic through the midpoint for Hermite–Simpson."""
-    N, h = layout.nodes, duration / (layout.nodes - 1)
-    k = int(min(max(np.floor(s / h), 0), N - 2))
-    theta = min(max((s - k * h) / h, 0.0), 1.0)
+    k, h, theta = layout.interval_of(s, duration)
     stride = layout.stride
     start, end = k * stride, (k + 1) * stride
     if kind in ("q", "qd"):
@@ -212,22 +262,52 @@ def interpolation(layout, kind, i, s, duration):
 def interpolate_rows(values_at_points, layout, kind, times, duration, rates=None):
     """Evaluate the interpolant of `interpolation` for one variable's point values (and, for a
     state, its rate's point values `rates`) at `times`; both arrays have one value per point."""
-    out = np.empty(len(times))
-    h = duration / (layout.nodes - 1)
-    stride = layout.stride
-    for j, s in enumerate(times):
-        k = int(min(max(np.floor(s / h), 0), layout.nodes - 2))
-        theta = min(max((s - k * h) / h, 0.0), 1.0)
-        a, b = k * stride, (k + 1) * stride
-        if rates is not None:
-            th2, th3 = theta * theta, theta ** 3
-            out[j] = ((2 * th3 - 3 * th2 + 1) * values_at_points[a]
-                      + h * (th3 - 2 * th2 + theta) * rates[a]
-                      + (-2 * th3 + 3 * th2) * values_at_points[b] + h * (th3 - th2) * rates[b])
-        elif stride == 2:
-            out[j] = (2 * (theta - 0.5) * (theta - 1) * values_at_points[a]
-                      - 4 * theta * (theta - 1) * values_at_points[a + 1]
-                      + 2 * theta * (theta - 0.5) * values_at_points[b])
-        else:
-            out[j] = (1 - theta) * values_at_points[a] + theta * values_at_points[b]
-    return out
+    k, h, theta = layout.interval_of(np.asarray(times, dtype=float), duration)
+    a, b = k * layout.stride, (k + 1) * layout.stride
+    v = np.asarray(values_at_points)
+    if rates is not None:
+        th2, th3 = theta * theta, theta ** 3
+        return ((2 * th3 - 3 * th2 + 1) * v[a] + h * (th3 - 2 * th2 + theta) * rates[a]
+                + (-2 * th3 + 3 * th2) * v[b] + h * (th3 - th2) * rates[b])
+    if layout.stride == 2:
+        return (2 * (theta - 0.5) * (theta - 1) * v[a] - 4 * theta * (theta - 1) * v[a + 1]
+                + 2 * theta * (theta - 0.5) * v[b])
+    return (1 - theta) * v[a] + theta * v[b]
+
+
+@dataclass(frozen=True)
+class ControlMesh:
+    """The inputs' own intervals on a refined mesh: on each control interval [knots[c],
+    knots[c+1]] (fractions of the duration, each a node of the mesh) an input is one polynomial
+    of `degree` (1: linear, 2: quadratic), however many nodes of the states lie inside."""
+    knots: tuple
+    degree: int
+
+    def ties(self, layout, inputs):
+        """Rows [(cols, coefficients)] with Σ c·x = 0 that put every point's value of each input
+        in `inputs` (indices) on the polynomial of its control interval: the first and last
+        points of the interval (and, quadratic, the one nearest its middle) carry it, every
+        other point inside equals their Lagrange interpolant."""
+        fractions = layout.fractions
+        rows = []
+        for a, b in zip(self.knots[:-1], self.knots[1:]):
+            inside = np.flatnonzero((fractions >= a - 1e-12) & (fractions <= b + 1e-12))
+            carriers = [inside[0], inside[-1]]
+            if self.degree == 2:
+                middle = inside[1:-1][np.argmin(np.abs(fractions[inside[1:-1]] - (a + b) / 2))]
+                carriers.insert(1, middle)
+            for j in inside:
+                if j in carriers:
+                    continue
+                weights = lagrange_weights(fractions[carriers], fractions[j])
+                for k in inputs:
+                    cols = [layout.index(j, "u", k)] + [layout.index(c, "u", k) for c in carriers]
+                    rows.append((cols, [1.0] + [-w for w in weights]))
+        return rows
+
+
+def lagrange_weights(nodes, s):
+    """The weights w_i with p(s) = Σ w_i·p(nodes_i) for every polynomial p of degree
+    len(nodes) − 1."""
+    return [np.prod([(s - b) / (a - b) for j, b in enumerate(nodes) if j != i])
+            for i, a in enumerate(nodes)]

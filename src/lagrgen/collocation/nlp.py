@@ -17,7 +17,7 @@ import numpy as np
 from ..calculus import internal_symbols
 from ..errors import LagrgenError
 from ._points import kernel_rows, residual_rows
-from .grid import defects, interpolation, quadrature
+from .grid import defect_intervals, defects, interpolation, quadrature, variable_names
 from .symbolic import (consistency_derivatives, path_derivatives, point_variables_of,
                        residual_hessian, residual_jacobian_structure, residual_parameter_hessian,
                        scalar_derivatives, weights)
@@ -25,11 +25,13 @@ from .units import compiled_unit
 
 
 class Transcription:
-    """The NLP of a `Collocation` problem, with the callbacks IPOPT calls."""
+    """The NLP of a `Collocation` problem on one mesh (`layout`, default the problem's grid), with
+    the callbacks IPOPT calls; `controls` (a `ControlMesh`) ties the inputs of a refined mesh to
+    their polynomials on the control intervals."""
 
-    def __init__(self, problem, hessian_kind):
-        self.problem, self.hessian_kind = problem, hessian_kind
-        L = self.layout = problem.layout
+    def __init__(self, problem, hessian_kind, layout=None, controls=None):
+        self.problem, self.hessian_kind, self.controls = problem, hessian_kind, controls
+        L = self.layout = problem.layout if layout is None else layout
         self.mod = problem.mod
         self.quad = quadrature(L)
         self.n_path = len(problem._path)
@@ -47,18 +49,25 @@ class Transcription:
         if self.exact:
             self._hessian_structure()
         self._entry = None          # (x, the values at x): one tuple, read and replaced whole
-        self.defect_scale = 1.0
+        self.scale_defects(problem.duration_bounds[0])
         self.evaluations = {"constraints": 0, "jacobian": 0, "hessian": 0, "objective": 0}
 
-    def bound(self, defect_scale):
-        """A copy of this NLP for one solve, its defect rows scaled by `defect_scale` (1/h of the
-        starting point: rows Δx/h − f), with its own evaluation cache and counts; the structure
-        is shared (nothing of it is written after construction)."""
+    def bound(self, duration):
+        """A copy of this NLP for one solve, its defect rows scaled by 1/h_k at the starting
+        point's `duration` (rows Δx/h_k − f), with its own evaluation cache and counts; the
+        structure is shared (nothing of it is written after construction)."""
         other = copy.copy(self)
-        other.defect_scale = float(defect_scale)
+        other.scale_defects(duration)
         other._entry = None
         other.evaluations = dict.fromkeys(self.evaluations, 0)
         return other
+
+    def scale_defects(self, duration):
+        """Scale each defect row by 1/h_k, h_k its interval's length at `duration`."""
+        L = self.layout
+        h = max(float(duration), 1e-12) * L.steps[defect_intervals(L)]
+        self.defect_scale = 1.0 / h
+        self.defect_entry_scale = self.defect_scale[self.def_rows]
 
     # -- structure ---------------------------------------------------------------------------
     def _residual_structure(self):
@@ -203,25 +212,24 @@ class Transcription:
         self.D1_cols = np.unique(cols[c1 != 0]) if L.free else np.zeros(0, dtype=np.int64)
 
     def _linear_rows(self):
-        """The periodic and between-node instance constraints E·x = e."""
+        """The linear rows E·x = e: periodicity, instance values between this mesh's nodes, and
+        the inputs tied to their control intervals (`controls`)."""
         L, problem = self.layout, self.problem
-        rows, cols, vals, rhs = [], [], [], []
-        for kind, i in problem._periodic:
-            r = len(rhs)
-            rows += [r, r]
-            cols += [L.index(L.points - 1, kind, i), L.index(0, kind, i)]
-            vals += [1.0, -1.0]
-            rhs.append(0.0)
         T = problem.duration_bounds[0]
-        for s, kind, i, value in problem._interpolated:
-            c, v = interpolation(L, kind, i, s, T)
-            r = len(rhs)
-            rows += [r] * len(c)
-            cols += list(c)
-            vals += list(v)
-            rhs.append(value)
-        self.E = Linear(rows, cols, vals, (len(rhs), L.size))
-        self.e = np.array(rhs)
+        entries = [([L.index(L.points - 1, kind, i), L.index(0, kind, i)], [1.0, -1.0], 0.0)
+                   for kind, i in problem._periodic]
+        entries += [(*interpolation(L, kind, i, s, T), value)
+                    for s, kind, i, value in problem._interpolated
+                    if L.node_at(s / T) is None]     # on a node: a bound (`_variable_bounds`)
+        if self.controls is not None:
+            free = [k for k in range(L.nu) if k not in problem._given]
+            entries += [(c, v, 0.0) for c, v in self.controls.ties(L, free)]
+        counts = [len(c) for c, _, _ in entries]
+        self.E = Linear(np.repeat(np.arange(len(entries)), counts),
+                        np.concatenate([np.asarray(c) for c, _, _ in entries] or [[]]),
+                        np.concatenate([np.asarray(v, float) for _, v, _ in entries] or [[]]),
+                        (len(entries), L.size))
+        self.e = np.array([value for _, _, value in entries])
 
     def _data_term(self):
         """Σ ω·(C·x − d)² over every present sample of every track."""
@@ -257,20 +265,30 @@ class Transcription:
         times = self.point_times(problem.duration_bounds[0])
         for k, values in problem._given.items():
             col = L.offset("u") + k
-            v = _given_values(values, times, L, mod.inputs[k])
+            v = problem.given_values(k, times)
             if np.any(v < blo[:, col] - 1e-12) or np.any(v > bhi[:, col] + 1e-12):
                 raise LagrgenError(
                     f"the given values of input {mod.inputs[k]!r} (from {np.min(v):g} to "
                     f"{np.max(v):g}) lie outside its bounds [{blo[0, col]}, {bhi[0, col]}]: drop "
                     "the bound or the given values")
             blo[:, col], bhi[:, col] = v, v
-        names = _variable_names(L, mod)
-        for (point, kind, i), value in problem._fixed.items():
+        names = variable_names(mod)
+        T = problem.duration_bounds[0]
+        fixed = [((L.node_at(fraction), kind, i), value)
+                 for (fraction, kind, i), value in problem._fixed.items()]
+        fixed += [((L.node_at(s / T), kind, i), value) for s, kind, i, value
+                  in problem._interpolated if L.node_at(s / T) is not None]
+        given = {}
+        for (point, kind, i), value in fixed:
             j = L.index(point, kind, i)
+            where = f"{names[kind][i]} at t = {times[point]:.6g}"
+            if j in given and given[j] != value:
+                raise LagrgenError(f"the instance values {given[j]} and {value} of {where} "
+                                   "contradict each other: give one")
             if not lo[j] - 1e-12 <= value <= hi[j] + 1e-12:
-                raise LagrgenError(f"the instance value {value} of {names[kind][i]} at point "
-                                   f"{point} lies outside its bounds [{lo[j]}, {hi[j]}]")
-            lo[j] = hi[j] = value
+                raise LagrgenError(f"the instance value {value} of {where} lies outside its "
+                                   f"bounds [{lo[j]}, {hi[j]}]")
+            lo[j] = hi[j] = given[j] = value
         if L.free:
             lo[L.T_index], hi[L.T_index] = np.array(problem.duration_bounds) / L.T_scale
         self.lo, self.hi = lo, hi
@@ -360,14 +378,14 @@ class Transcription:
         return self.problem.t0 + T * self.layout.fractions
 
     def _state(self, x):
-        """(Z, p, T, t, h) at x."""
+        """(Z, p, T, t) at x."""
         L = self.layout
         Z = L.point_block(x)
         p = np.array(self.problem.params)
         if L.unknown:
             p[list(L.unknown)] = x[L.p_start:L.p_start + len(L.unknown)]
         T = L.duration(x) if L.free else self.problem.duration_bounds[0]
-        return Z, p, T, self.point_times(T), T / (L.nodes - 1)
+        return Z, p, T, self.point_times(T)
 
     def _at(self, x):
         """The residuals and their Jacobian entries at x (computed once per x)."""
@@ -375,7 +393,7 @@ class Transcription:
         if entry is not None and np.array_equal(x, entry[0]):
             return entry[1]
         L = self.layout
-        Z, p, T, t, h = self._state(x)
+        Z, p, T, t = self._state(x)
         Z = np.ascontiguousarray(Z)
         r = np.empty((L.points, L.ni))
         jac = np.empty((L.points, self.dyn_pick.size))
@@ -383,7 +401,7 @@ class Transcription:
                                        len(p), self.dyn_pick, r, jac)
         if failed:
             raise LagrgenError("the model's residual failed at a collocation point")
-        state = {"Z": Z, "p": p, "T": T, "t": t, "h": h, "r": r, "jac": jac}
+        state = {"Z": Z, "p": p, "T": T, "t": t, "r": r, "jac": jac}
         self._entry = (np.array(x), state)
         return state
 
@@ -427,9 +445,9 @@ class Transcription:
     def objective(self, x):
         self.evaluations["objective"] += 1
         state = self._at(x)
-        L, f = self.layout, 0.0
+        f = 0.0
         if self.problem._integrand is not None:
-            f += state["h"] * float(self.quad @ self._integrand(state))
+            f += state["T"] * float(self.quad @ self._integrand(state))
         if self.problem._minimize_time:
             f += state["T"]
         if self.n_data:
@@ -444,10 +462,10 @@ class Transcription:
         if self.problem._integrand is not None:
             dL = self._integrand_gradient(state)
             cols = self._columns(self.obj_grad)
-            g += np.bincount(cols.ravel(), (state["h"] * self.quad[:, None] * dL).ravel(),
+            g += np.bincount(cols.ravel(), (state["T"] * self.quad[:, None] * dL).ravel(),
                              minlength=L.size)
             if L.free:
-                g[L.T_index] += float(self.quad @ self._integrand(state)) * L.dh_dx
+                g[L.T_index] += float(self.quad @ self._integrand(state)) * L.T_scale
         if self.problem._minimize_time:
             g[L.T_index] += L.T_scale
         if self.n_data:
@@ -462,7 +480,7 @@ class Transcription:
             parts.append(self._path_values(state).ravel())
         if self.n_cons:
             parts.append(self._consistency_kernel("consistency", state, 0)[self.cons_keep])
-        parts.append(self.defect_scale * (self.D0.dot(x) + state["h"] * self.D1.dot(x)))
+        parts.append(self.defect_scale * (self.D0.dot(x) + state["T"] * self.D1.dot(x)))
         parts.append(self.E.dot(x))
         return np.concatenate(parts)
 
@@ -481,9 +499,9 @@ class Transcription:
         if self.n_cons:
             parts.append(self._consistency_kernel("consistency_jacobian", state,
                                                   1)[self.cons_jac_pick])
-        parts.append(self.defect_scale * (self.def_c0 + state["h"] * self.def_c1))
+        parts.append(self.defect_entry_scale * (self.def_c0 + state["T"] * self.def_c1))
         if L.free:
-            parts.append(self.defect_scale * L.dh_dx * self.D1.dot(x)[self.def_T_rows])
+            parts.append((self.defect_scale * L.T_scale * self.D1.dot(x))[self.def_T_rows])
         parts.append(self.E_values)
         return np.concatenate(parts)
 
@@ -507,15 +525,15 @@ class Transcription:
             W = mu[P * ni:P * (ni + self.n_path)].reshape(P, self.n_path)
             parts.append(self._kernel("path_hessian", state, len(self.path_hess), W).ravel())
         if self.unit is not None and self.problem._integrand is not None:
-            W = (obj_factor * state["h"] * self.quad)[:, None]
+            W = (obj_factor * state["T"] * self.quad)[:, None]
             parts.append(self._kernel("objective_hessian", state, len(self.obj_hess), W).ravel())
             if L.free:
-                parts.append((obj_factor * L.dh_dx * self.quad[:, None]
+                parts.append((obj_factor * L.T_scale * self.quad[:, None]
                               * self._integrand_gradient(state)).ravel())
         if L.free:
             base = self.defect_row
             mu_def = mu[base:base + self.n_defects]
-            parts.append(self.defect_scale * L.dh_dx * self.D1.tdot(mu_def)[self.D1_cols])
+            parts.append(L.T_scale * self.D1.tdot(self.defect_scale * mu_def)[self.D1_cols])
         if self.n_cons:
             weights_ = np.zeros(self.cons_sizes[0])
             start = P * (ni + self.n_path)
@@ -628,28 +646,3 @@ def _problem_unit(layout, path, integrand):
         structure["objective_hessian"] = [[r, c] for r, c, _ in hess]
     return "collocation problem: path constraints and objective integrand", kernels, structure
 
-
-def _given_values(values, times, layout, name):
-    if callable(values):
-        out = np.array([float(values(t)) for t in times])
-    else:
-        arr = np.asarray(values, dtype=float)
-        if arr.ndim == 0:
-            out = np.full(times.size, float(arr))
-        elif arr.shape == (layout.nodes,):
-            nodes = times[layout.node_points]
-            out = np.interp(times, nodes, arr)
-        elif arr.shape == (layout.points,):
-            out = arr
-        else:
-            raise LagrgenError(f"input({name!r}, values): give a number, a callable of t or one "
-                               f"value per node ({layout.nodes}), got shape {arr.shape}")
-    if not np.all(np.isfinite(out)):
-        raise LagrgenError(f"input({name!r}, ...): the values must be finite")
-    return out
-
-
-def _variable_names(layout, mod):
-    coords = list(mod.coordinates)
-    return {"q": coords, "qd": [f"{c}_dot" for c in coords], "qdd": [f"{c}_ddot" for c in coords],
-            "lam": list(mod.constraint_names), "u": list(mod.inputs)}

@@ -57,3 +57,24 @@ def _panel_of(name, result, axes):
     if name in result.inputs:
         return axes[2]
     return None
+
+
+def plot_errors(result, path=None, title=None):
+    """Each mesh's relative dynamics error per interval against time (a step at the interval's
+    place, log scale), with the tolerance; returns the matplotlib Figure (saved to `path`)."""
+    fig = new_figure(7, 3.4)
+    ax = fig.subplots()
+    floor = 1e-16
+    for number, mesh in enumerate(result.meshes, start=1):
+        errors = np.maximum(np.nan_to_num(mesh.errors, posinf=1e300), floor)
+        ax.stairs(errors, mesh.times, baseline=None,
+                  label=f"mesh {number}: {mesh.nodes} nodes, largest {mesh.error:.1e}")
+    if result.mesh_tol is not None:
+        ax.axhline(result.mesh_tol, color="k", ls="--", lw=1, label=f"mesh_tol {result.mesh_tol:g}")
+    ax.set_yscale("log")
+    ax.set_xlabel("t")
+    ax.set_ylabel("relative dynamics error")
+    ax.grid(True, which="major", alpha=0.3)
+    ax.legend(loc="best", fontsize="small")
+    ax.set_title(title or f"{result._problem.mod.name}: the dynamics error of each interval")
+    return finished(fig, path)

@@ -8,8 +8,9 @@ import numbers
 import numpy as np
 
 from ..errors import LagrgenError
+from ..numbers import finite_number
 from ..runtime.arguments import key_name, parameter_vector, unknown_name
-from .grid import Layout, scheme_name
+from .grid import Layout, scheme_name, variable_names
 from .symbolic import internal_expression
 
 
@@ -76,15 +77,15 @@ class Collocation:
                 f"model {self.mod.name!r} depends on t explicitly, which a free duration does not "
                 "allow (the node times move with the duration): fix the duration")
         self._bounds = {}         # (kind, i) -> (lo, hi)
-        self._fixed = {}          # (point, kind, i) -> value
-        self._interpolated = []   # (t, kind, i, value) of instance constraints between nodes
+        self._fixed = {}          # (fraction of the duration: 0 or 1, kind, i) -> value
+        self._interpolated = []   # (t − t0, kind, i, value) of instance constraints at(...)
         self._periodic = []       # (kind, i)
         self._path = []           # (label, internal expression, lo, hi)
         self._integrand = None    # internal expression of ∫ L dt
         self._integrand_text = None
         self._minimize_time = False
         self._tracks = []         # (times, data (k, m), [(kind, i)], weights (k, m), names)
-        self._given = {}          # input index -> values at the points
+        self._given = {}          # input index -> a number, a callable of t or (times, values)
         self._transcription = None
 
     def __repr__(self):
@@ -135,26 +136,43 @@ class Collocation:
         kind, i = self.variable(name)
         if kind == "T":
             raise LagrgenError("the duration's bounds are the constructor's duration=(lo, hi)")
-        lo, hi = _finite_or_inf(lo, f"the lower bound of {name!r}"), \
-            _finite_or_inf(hi, f"the upper bound of {name!r}")
-        if lo > hi:
-            raise LagrgenError(f"bound({name!r}, {lo}, {hi}): the lower bound exceeds the upper")
+        lo, hi = _interval(lo, hi, f"bound({name!r}, lo, hi)")
         self._bounds[(kind, i)] = (lo, hi)
         self._changed()
+        return self
+
+    def bound_limits(self):
+        """Bounds from the model's declared limits (`Model.limit`; a URDF's joint limits): each
+        limited coordinate within [lower, upper], its rate `<coordinate>_dot` within ±velocity and
+        the input `tau_<coordinate>` (when the model has one) within ±effort, replacing earlier
+        bounds of those names; an absent limit leaves its side unbounded. Returns the problem."""
+        limits = self.mod.limits
+        if not limits:
+            raise LagrgenError(f"model {self.mod.name!r} declares no limits: declare them with "
+                               "model.limit(coordinate, lower, upper, velocity, effort) before "
+                               "building it, or bound the variables with bound(name, lo, hi)")
+        for name, (lower, upper, velocity, effort) in limits.items():
+            if lower is not None or upper is not None:
+                self.bound(name, -math.inf if lower is None else lower,
+                           math.inf if upper is None else upper)
+            if velocity is not None:
+                self.bound(f"{name}_dot", -velocity, velocity)
+            if effort is not None and f"tau_{name}" in self.mod.inputs:
+                self.bound(f"tau_{name}", -effort, effort)
         return self
 
     def initial(self, q=None, qd=None, qdd=None, u=None):
         """Instance constraints at the first node: q, q̇, q̈ and u as dicts (name -> value) or
         arrays of all of them."""
-        self._instance(0, q, qd, qdd, u, "initial")
+        self._instance(0.0, q, qd, qdd, u, "initial")
         return self
 
     def final(self, q=None, qd=None, qdd=None, u=None):
         """Instance constraints at the last node (like `initial`)."""
-        self._instance(self.layout.points - 1, q, qd, qdd, u, "final")
+        self._instance(1.0, q, qd, qdd, u, "final")
         return self
 
-    def _instance(self, point, q, qd, qdd, u, what):
+    def _instance(self, fraction, q, qd, qdd, u, what):
         n, nu = self.layout.n, self.layout.nu
         for kind, values, size, names in (
                 ("q", q, n, self.mod.coordinates), ("qd", qd, n, self.mod.coordinates),
@@ -176,8 +194,19 @@ class Collocation:
                                        f"shape {arr.shape}")
                 items = list(enumerate(arr))
             for i, value in items:
-                self._fixed[(point, kind, i)] = _finite(value, f"{what} value of {kind}[{i}]")
+                self._fix(fraction, kind, i, _finite(value, f"{what} value of {kind}[{i}]"),
+                          what)
         self._changed()
+
+    def _fix(self, fraction, kind, i, value, what):
+        """Fix variable i of `kind` at the node at `fraction` of the duration (0 or 1)."""
+        if (fraction, kind, i) in self._fixed:
+            raise LagrgenError(
+                f"{what}(): the value of {variable_names(self.mod)[kind][i]} at t = "
+                f"{'t0' if fraction == 0 else 't0 + T'} is already given "
+                f"({self._fixed[(fraction, kind, i)]}); give each value once (a new Collocation "
+                "starts over)")
+        self._fixed[(fraction, kind, i)] = value
 
     def periodic(self, names=None):
         """x(T) = x(0) for the named states, accelerations or inputs (None: every q and q̇)."""
@@ -200,27 +229,29 @@ class Collocation:
             if abs(t) > 0:
                 raise LagrgenError("at(t, ...) with a free duration takes t = t0 only (the other "
                                    "node times move); use final(...) for the end")
-            self._fixed[(0, kind, i)] = value
-        else:
-            T = self.duration_bounds[0]
-            if not -1e-12 * T <= t <= T * (1 + 1e-12):
-                raise LagrgenError(f"at(t={t + self.t0}, ...) lies outside the problem's time span "
-                                   f"[{self.t0}, {self.t0 + T}]")
-            step = T / (self.layout.points - 1)
-            j = round(t / step)
-            if abs(j * step - t) <= 1e-9 * step:
-                self._fixed[(j, kind, i)] = value
-            else:
-                self._interpolated.append((t, kind, i, value))
+            self._fix(0.0, kind, i, value, "at")
+            self._changed()
+            return self
+        T = self.duration_bounds[0]
+        if not -1e-12 * T <= t <= T * (1 + 1e-12):
+            raise LagrgenError(f"at(t={t + self.t0}, ...) lies outside the problem's time span "
+                               f"[{self.t0}, {self.t0 + T}]")
+        t = min(max(t, 0.0), T)
+        step = T / (self.layout.nodes - 1)
+        if abs(round(t / step) * step - t) <= 1e-9 * step:
+            t = round(t / step) * step          # on a node of the grid: exactly there
+        if any(abs(s - t) <= 1e-12 * T and (k, j) == (kind, i)
+               for s, k, j, _ in self._interpolated):
+            raise LagrgenError(f"at({t + self.t0}, {name!r}, ...) is already given; give each "
+                               "value once")
+        self._interpolated.append((t, kind, i, value))
         self._changed()
         return self
 
     def path(self, expr, lo=-math.inf, hi=math.inf):
         """lo ≤ expr ≤ hi at every collocation point; `expr` in the model's symbols (coordinates,
         their first and second derivatives, parameters, inputs, t)."""
-        lo, hi = _finite_or_inf(lo, "path lo"), _finite_or_inf(hi, "path hi")
-        if lo > hi:
-            raise LagrgenError(f"path(..., {lo}, {hi}): the lower bound exceeds the upper")
+        lo, hi = _interval(lo, hi, "path(expr, lo, hi)")
         if lo == -math.inf and hi == math.inf:
             raise LagrgenError("path(expr) needs a bound: path(expr, lo, hi)")
         label = f"path constraint {len(self._path) + 1}"
@@ -264,7 +295,10 @@ class Collocation:
         data = np.asarray(data, dtype=float)
         if data.ndim == 1:
             data = data[None, :]
-        if t.ndim != 1 or data.shape != (len(names), t.size):
+        if t.ndim != 1:
+            raise LagrgenError(f"track: t must be a 1-D array of sample times, got shape "
+                               f"{t.shape}")
+        if data.shape != (len(names), t.size):
             raise LagrgenError(f"track: data must have shape (len(names), len(t)) = "
                                f"({len(names)}, {t.size}), got {data.shape}")
         if not np.all(np.isfinite(t)):
@@ -287,63 +321,121 @@ class Collocation:
 
     def input(self, name, values):
         """Make input `name` known (not a variable): a number, a callable of t (e.g. a
-        `lagrgen.Signal`), or one value per node."""
+        `lagrgen.Signal`), or one value per node (or per point) of the grid, linear between."""
         kind, k = self._point_variable(name, "input")
         if kind != "u":
             raise LagrgenError(f"input(): {name!r} is not an input of model {self.mod.name!r}")
         if self.free_duration and callable(values):
             raise LagrgenError("input(name, callable) needs a fixed duration")
+        if not callable(values):
+            values = self._input_table(name, values)
         self._given[k] = values
         self._changed()
         return self
+
+    def _input_table(self, name, values):
+        """(fractions of the duration, values) of an input given as numbers."""
+        L = self.layout
+        arr = np.asarray(values, dtype=float)
+        if arr.ndim == 0:
+            arr = np.full(2, float(arr))
+            fractions = np.array([0.0, 1.0])
+        elif arr.shape == (L.nodes,):
+            fractions = L.node_fractions
+        elif arr.shape == (L.points,):
+            fractions = L.fractions
+        else:
+            raise LagrgenError(f"input({name!r}, values): give a number, a callable of t or one "
+                               f"value per node ({L.nodes}), got shape {arr.shape}")
+        if not np.all(np.isfinite(arr)):
+            raise LagrgenError(f"input({name!r}, ...): the values must be finite")
+        return fractions, arr
+
+    def given_values(self, k, times):
+        """The values of the given input k at the absolute `times` (of one solve's points)."""
+        values = self._given[k]
+        if callable(values):
+            out = np.array([float(values(t)) for t in times])
+            if not np.all(np.isfinite(out)):
+                raise LagrgenError(f"input({self.mod.inputs[k]!r}, ...): the callable gave a "
+                                   "value that is not finite")
+            return out
+        fractions, table = values
+        span = times[-1] - times[0]
+        return np.interp((times - times[0]) / span if span > 0 else times * 0.0, fractions, table)
 
     def _changed(self):
         self._transcription = None
 
     # -- solving ---------------------------------------------------------------------------
     def solve(self, guess=None, hessian="exact", tol=1e-8, max_iter=3000, progress=True,
-              options=None):
-        """Solve the problem with IPOPT.
+              options=None, mesh_tol=1e-6, max_meshes=10):
+        """Solve the problem with IPOPT, refining the mesh until the motion is accurate.
 
         Parameters
         ----------
         guess : None, CollocationResult, simulation result, dict or array
-            The starting point: None interpolates between the initial and final values (or the
-            middle of the bounds); an earlier result warm-starts (any node count); a simulation
-            (`lagrgen.simulate`) gives the states; a dict maps names (and "params", "duration")
-            to values, arrays over the nodes or callables of t; an array is the decision vector.
+            The starting point. None: a smooth motion between the initial and final values
+            (cubic in each coordinate) with the inputs it needs, or, when those exceed the
+            inputs' bounds, the model's own motion from the initial state (see
+            `lagrgen.collocation.guess.default_guess`); an earlier result warm-starts (any node
+            count); a simulation (`lagrgen.simulate`) gives the states; a dict maps names (and
+            "params", "duration") to values, arrays over the nodes or callables of t; an array
+            is the decision vector.
         hessian : {"exact", "quasi-newton"}
             The exact Hessian of the Lagrangian (compiled second derivatives of the model), or
             IPOPT's limited-memory quasi-Newton approximation.
-        tol, max_iter : IPOPT's convergence tolerance and iteration limit
-        progress : print one line per iteration (throttled) and a summary
+        tol, max_iter : IPOPT's convergence tolerance and iteration limit (per mesh)
+        progress : print one line per iteration (throttled), one per mesh, and a summary
         options : dict of further IPOPT options (name -> value), replacing lagrgen's defaults
             (`lagrgen.collocation.solver`: with the exact Hessian mu_strategy="adaptive",
             mu_oracle="loqo", min_refinement_steps=0)
+        mesh_tol : float or None
+            The largest relative dynamics error allowed on any interval (`res.error`): the
+            mesh is refined until it holds (`lagrgen.collocation.refine`), and `res.success` is
+            False when it does not. None solves on the given grid alone (the error is still
+            measured, and warned about when above 1e-6).
+        max_meshes : int
+            The most meshes (solves) the refinement may use, the given grid included.
 
         Returns
         -------
         CollocationResult
         """
-        from .guess import initial_guess
-        from .solver import solve_nlp
-        if hessian not in ("exact", "quasi-newton"):
-            raise LagrgenError(f"hessian must be 'exact' or 'quasi-newton', got {hessian!r}")
+        from .refine import solve_refined
+        from .solver import settings
+        chosen = settings(hessian, tol, max_iter, progress, options)
+        mesh_tol, max_meshes = _refinement(mesh_tol, max_meshes)
         if self._integrand is None and not self._minimize_time and not self._tracks:
             raise LagrgenError("no objective: call minimize(integral=..., time=...) or track(...)")
-        transcription = self.transcription(hessian)
-        x0 = initial_guess(self, transcription, guess)
-        L = self.layout
-        T0 = L.duration(x0) if L.free else self.duration_bounds[0]
-        nlp = transcription.bound(defect_scale=(L.nodes - 1) / max(T0, 1e-12))
-        return solve_nlp(self, nlp, x0, hessian, tol, max_iter, progress, options or {})
+        result = solve_refined(self, guess, chosen, mesh_tol, max_meshes)
+        if progress:
+            print(result.summary(), flush=True)
+        return result
 
-    def transcription(self, hessian="exact"):
-        """The NLP of this problem (made once per declaration state and Hessian kind)."""
+    def transcription(self, hessian="exact", layout=None, controls=None):
+        """The NLP of this problem on its grid (made once per declaration state and Hessian
+        kind), or on the mesh `layout` with the inputs tied to `controls` (made anew)."""
         from .nlp import Transcription
+        if layout is not None and (layout != self.layout or controls is not None):
+            return Transcription(self, hessian, layout, controls)
         if self._transcription is None or self._transcription.hessian_kind != hessian:
             self._transcription = Transcription(self, hessian)
         return self._transcription
+
+
+def _refinement(mesh_tol, max_meshes):
+    """The checked (mesh_tol, max_meshes) of `solve`."""
+    if mesh_tol is not None:
+        if isinstance(mesh_tol, bool) or not isinstance(mesh_tol, numbers.Real) \
+                or not math.isfinite(mesh_tol) or mesh_tol <= 0:
+            raise LagrgenError(f"mesh_tol must be a positive number (the largest relative "
+                               f"dynamics error, e.g. 1e-6) or None, got {mesh_tol!r}")
+        mesh_tol = float(mesh_tol)
+    if isinstance(max_meshes, bool) or not isinstance(max_meshes, numbers.Integral) \
+            or max_meshes < 1:
+        raise LagrgenError(f"max_meshes must be an integer of at least 1, got {max_meshes!r}")
+    return mesh_tol, int(max_meshes)
 
 
 def _compiled_model(mod):
@@ -366,13 +458,21 @@ def _source_model(mod):
             f"Collocation needs the lagrgen.Model that {mod.name!r} was built from (its "
             "expressions and second derivatives are compiled from it): build it in this session "
             "with lagrgen.build(model) rather than loading the module")
-    from ..cache import content_digest
-    from ..lagrange import derived
-    spec = model.spec()
-    if content_digest(spec, lambda: derived(spec)) != mod.content_hash:
+    if not built_from(model, mod):
         raise LagrgenError(f"model {mod.name!r} was changed after it was built: build it again "
                            "(lagrgen.build(model)) before setting up a Collocation")
     return model
+
+
+def built_from(model, mod):
+    """Whether `mod` was built from `model` as it stands, with any formulation asked for (the
+    content hash of a build includes the formulation given to `lagrgen.build`, if any)."""
+    from ..build import content_digest
+    from ..lagrange import derived
+    from ..tree import FORMULATIONS
+    spec = model.spec()
+    return any(content_digest(spec, asked, lambda: derived(spec)) == mod.content_hash
+               for asked in (None,) + FORMULATIONS)
 
 
 def _track_weights(weights, shape):
@@ -391,13 +491,19 @@ def _track_weights(weights, shape):
 
 
 def _finite(value, what):
-    try:
-        v = float(value)
-    except (TypeError, ValueError):
-        raise LagrgenError(f"{what} must be a number, got {value!r}") from None
-    if not math.isfinite(v):
-        raise LagrgenError(f"{what} must be finite, got {v}")
-    return v
+    return finite_number(value, what, LagrgenError)
+
+
+def _interval(lo, hi, what):
+    """(lo, hi) of a bound: numbers or ±inf (no bound on that side) with lo ≤ hi."""
+    lo, hi = _finite_or_inf(lo, f"{what}: lo"), _finite_or_inf(hi, f"{what}: hi")
+    if lo == math.inf or hi == -math.inf:
+        raise LagrgenError(f"{what} with lo = {lo}, hi = {hi}: a lower bound of +inf or an upper "
+                           "bound of -inf leaves no value; use -inf for no lower bound and +inf "
+                           "for no upper bound")
+    if lo > hi:
+        raise LagrgenError(f"{what} with lo = {lo}, hi = {hi}: the lower bound exceeds the upper")
+    return lo, hi
 
 
 def _finite_or_inf(value, what):

@@ -17,12 +17,13 @@ IPOPT_STATUS = {
 
 
 class Deviation(float):
-    """The largest deviation abs(y_simulated − y_collocated) over the nodes and states (a float),
-    with `by_state` (name -> its largest deviation) and the `simulation` it came from."""
+    """The largest deviation abs(y_simulated − y_collocated) over the nodes and states (a float;
+    inf when the re-simulation stopped early), with `by_state` (name -> its largest deviation),
+    the `simulation` it came from and its `message` ("" when it reached the end)."""
 
-    def __new__(cls, value, by_state, simulation):
+    def __new__(cls, value, by_state, simulation, message=""):
         obj = super().__new__(cls, value)
-        obj.by_state, obj.simulation = by_state, simulation
+        obj.by_state, obj.simulation, obj.message = by_state, simulation, message
         return obj
 
     def __repr__(self):
@@ -40,12 +41,21 @@ class CollocationResult:
     t : (nodes,) node times; y : (2n, nodes) [q; q̇]; u : (n_inputs, nodes); qdd : (n, nodes)
     multipliers : (n_constraints, nodes) the constraints' λ (constrained models)
     params, stderr : {name: value} of the unknown parameters and their standard errors (from the
-        data term; NaN without data)
+        data term; NaN without data or success, inf for those the data do not determine)
     cov : covariance of the unknown parameters (k, k), or None
+    unidentified, unseen : the parameters the data do not determine, and the combinations
+        (dicts name -> component) along which the fit does not change (an IdentifiabilityWarning
+        names them)
+    at_bounds : the parameters whose estimate sits on a bound (flagged by a FitWarning)
     duration : T
     coordinates, inputs : names
     constraint_violation : the largest violation of any constraint (bounds included)
-    seconds : wall time of the solve (after the problem's units were made)
+    error : the largest relative dynamics error of an interval (`lagrgen.collocation.accuracy`)
+    errors : (intervals,) each interval's, on the final mesh
+    meshes : the refinement's history, one `MeshRecord` (nodes, iterations, error, objective,
+        status, seconds) per mesh
+    mesh_tol : the tolerance of the error the refinement worked to (None: the grid as given)
+    seconds : wall time of the solve over every mesh (after the problem's units were made)
     callback_seconds : the part of it spent evaluating the NLP (the rest is IPOPT's own)
     x : the decision vector (a warm start for another solve)
     """
@@ -55,7 +65,7 @@ class CollocationResult:
 
     @classmethod
     def from_solution(cls, problem, tr, x, info, iterations, seconds, hessian):
-        L, mod = problem.layout, problem.mod
+        L, mod = tr.layout, problem.mod
         Z = L.point_block(x)
         nodes = L.node_points
         T = float(L.duration(x)) if L.free else problem.duration_bounds[0]
@@ -65,11 +75,6 @@ class CollocationResult:
         g = tr.constraints(x)
         violation = max(float(np.max(np.maximum(tr.g_lo - g, g - tr.g_hi), initial=0.0)),
                         float(np.max(np.maximum(tr.lo - x, x - tr.hi), initial=0.0)))
-        stderr, cov = ({}, None)
-        if status in (0, 1) and tr.n_data and L.unknown:
-            from .statistics import parameter_errors
-            stderr, cov = parameter_errors(tr, x)
-        stderr = {name: stderr.get(name, np.nan) for name in params}
         full = np.array(problem.params)
         full[list(L.unknown)] = x[L.p_start:L.p_start + len(L.unknown)]
         message = info["status_msg"]
@@ -80,11 +85,25 @@ class CollocationResult:
             t=t_points[nodes], y=Z[nodes, :2 * L.n].T.copy(),
             u=Z[nodes, L.offset("u"):].T.copy(), qdd=Z[nodes, 2 * L.n:3 * L.n].T.copy(),
             multipliers=Z[nodes, 3 * L.n:3 * L.n + L.m].T.copy(),
-            params=params, stderr=stderr, cov=cov, duration=T,
+            params=params, stderr=dict.fromkeys(params, np.nan), cov=None, unidentified=(),
+            unseen=[], at_bounds=(), duration=T,
             coordinates=tuple(mod.coordinates), inputs=tuple(mod.inputs),
             constraint_violation=violation, seconds=seconds, x=np.array(x),
             hessian=hessian, scheme=L.scheme, t_points=t_points, _layout=L,
-            _problem=problem, _full_params=full, _evaluations=dict(tr.evaluations))
+            _problem=problem, _full_params=full, _evaluations=dict(tr.evaluations),
+            _transcription=tr)
+
+    def estimate_errors(self, stacklevel=2):
+        """Fill `stderr`, `cov`, `unidentified`, `unseen` and `at_bounds` from the data term at
+        the solution (`lagrgen.collocation.statistics`; `solve` calls it for a successful
+        result of a problem with data and unknown parameters: NaN otherwise)."""
+        tr = self._transcription
+        if self.status not in (0, 1) or not tr.n_data or not self.params:
+            return
+        from .statistics import parameter_errors
+        stderr, self.cov, self.unidentified, self.unseen, self.at_bounds = parameter_errors(
+            tr, self.x, stacklevel + 1)
+        self.stderr = {name: stderr.get(name, np.nan) for name in self.params}
 
     def __repr__(self):
         return (f"CollocationResult(success={self.success}, objective={self.objective:.10g}, "
@@ -99,9 +118,20 @@ class CollocationResult:
                  f"({self.seconds:.3g} s, {self.hessian} Hessian, {self.scheme})",
                  f"duration {self.duration:.6g}, largest constraint violation "
                  f"{self.constraint_violation:.2e}"]
+        meshes = getattr(self, "meshes", ())
+        if meshes:
+            tolerance = "the grid as given" if self.mesh_tol is None else \
+                f"mesh_tol {self.mesh_tol:g}"
+            nodes = " → ".join(str(m.nodes) for m in meshes)
+            lines.append(f"dynamics error {self.error:.2e} (relative, largest of "
+                         f"{self.errors.size} intervals; {tolerance}); "
+                         f"{len(meshes)} mesh{'es' if len(meshes) > 1 else ''}: {nodes} nodes")
         for name, value in self.params.items():
             err = self.stderr.get(name, np.nan)
-            lines.append(f"  {name} = {value:.8g}" + (f" ± {err:.3g}" if np.isfinite(err) else ""))
+            note = f" ± {err:.3g}" if np.isfinite(err) else \
+                " (the data do not determine it)" if err == np.inf else ""
+            lines.append(f"  {name} = {value:.8g}{note}" +
+                         (" (on a bound)" if name in self.at_bounds else ""))
         return "\n".join(lines)
 
     # -- values between the nodes ------------------------------------------------------------
@@ -143,20 +173,25 @@ class CollocationResult:
                 out[name] = Signal(self.t, held, kind="previous")
         return out
 
-    def check(self, method="DOP853", rtol=1e-10, atol=1e-12):
+    def check(self, method="DOP853", rtol=1e-10, atol=1e-12, max_wall_time=10.0, max_steps=None):
         """Re-simulate the model from the first node's state with the found inputs and parameters
         on the native engine; the largest deviation from the collocated states at the nodes
         (a `Deviation`: a float with `by_state` and `simulation`). An unstable motion (a pendulum
         held upright) departs even from an exact answer; a deviation that shrinks as the nodes
-        grow says the grid resolves the motion."""
+        grow says the grid resolves the motion.
+
+        The re-simulation stops after `max_wall_time` seconds or `max_steps` steps (None: no
+        limit), as a stiff or diverging motion can keep an explicit method busy for hours; the
+        deviation is then infinite and its `message` the simulation's (try method="Radau")."""
         from ..simulate import simulate
         mod = self._problem.mod
         sol = simulate(mod, (self.t[0], self.t[-1]), self.y[:, 0], method=method,
                        params=self._full_params, inputs=self.input_signals(), t_eval=self.t,
-                       rtol=rtol, atol=atol)
+                       rtol=rtol, atol=atol, max_wall_time=max_wall_time, max_steps=max_steps)
         names = list(self.coordinates) + [f"{c}_dot" for c in self.coordinates]
-        if sol.y.shape[1] != self.t.size:
-            return Deviation(np.inf, {name: np.inf for name in names}, sol)
+        if sol.y.shape[1] != self.t.size or not sol.success:
+            return Deviation(np.inf, {name: np.inf for name in names}, sol,
+                             f"check(): the re-simulation stopped early: {sol.message}")
         error = np.abs(sol.y - self.y).max(axis=1)
         return Deviation(float(error.max()), dict(zip(names, map(float, error))), sol)
 
@@ -166,6 +201,12 @@ class CollocationResult:
         matplotlib Figure (saved to `path` if given)."""
         from .plots import plot_result
         return plot_result(self, path, title)
+
+    def plot_errors(self, path=None, title=None):
+        """Each mesh's relative dynamics error per interval against time, with mesh_tol (log
+        scale); returns the matplotlib Figure (saved to `path` if given)."""
+        from .plots import plot_errors
+        return plot_errors(self, path, title)
 
     def animate(self, path=None, fps=20, max_frames=120, dpi=72, title=None):
         """The mechanism moving along the solution: a notebook animation, saved to `path` (GIF or
@@ -199,7 +240,8 @@ class CollocationResult:
             coords["constraint"] = list(names)
         attrs = {"objective": self.objective, "status": self.status, "message": self.message,
                  "iterations": self.iterations, "duration": self.duration,
-                 "scheme": self.scheme, "model": self._problem.mod.name}
+                 "scheme": self.scheme, "model": self._problem.mod.name,
+                 "error": getattr(self, "error", np.nan)}
         for name, value in self.params.items():
             attrs[f"param_{name}"] = value
             attrs[f"stderr_{name}"] = self.stderr[name]

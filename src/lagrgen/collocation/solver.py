@@ -10,8 +10,14 @@ wrapper alone lacks only the attribute `cyipopt.exceptions` (`from cyipopt.excep
 works).
 """
 import importlib.util
+import math
+import numbers
+import os
 import sys
+import tempfile
 import time
+from contextlib import contextmanager
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -20,6 +26,8 @@ from ..errors import LagrgenError
 
 #: IPOPT's return codes that mean a solution (Solve_Succeeded, Solved_To_Acceptable_Level).
 STATUS_SUCCESS = (0, 1)
+#: IPOPT's return code for an option value it refuses.
+INVALID_OPTION = -12
 #: The options every solve starts from (the caller's `options` replace them).
 BASE_OPTIONS = {"print_level": 0, "sb": "yes"}
 #: With the exact Hessian: the barrier parameter set at every iteration from the complementarity
@@ -30,6 +38,48 @@ BASE_OPTIONS = {"print_level": 0, "sb": "yes"}
 #: quasi-Newton Hessian IPOPT's defaults do better.
 EXACT_OPTIONS = {"mu_strategy": "adaptive", "mu_oracle": "loqo", "min_refinement_steps": 0}
 QUASI_NEWTON_OPTIONS = {"hessian_approximation": "limited-memory"}
+
+
+#: IPOPT counts iterations in a C int.
+MAX_ITERATIONS = 2**31 - 1
+
+
+@dataclass(frozen=True)
+class Settings:
+    """How each mesh of a solve runs IPOPT (checked by `settings`)."""
+    hessian: str
+    tol: float
+    max_iter: int
+    progress: bool
+    options: dict
+
+
+def settings(hessian, tol, max_iter, progress, options):
+    """The checked `Settings` of `Collocation.solve`'s arguments; a LagrgenError saying what is
+    wrong otherwise (before IPOPT, which would print its documentation and fail)."""
+    if hessian not in ("exact", "quasi-newton"):
+        raise LagrgenError(f"hessian must be 'exact' or 'quasi-newton', got {hessian!r}")
+    if isinstance(tol, bool) or not isinstance(tol, numbers.Real) or not math.isfinite(tol) \
+            or tol <= 0:
+        raise LagrgenError(f"tol must be a positive finite number (IPOPT's convergence "
+                           f"tolerance, e.g. 1e-8), got {tol!r}")
+    if isinstance(max_iter, bool) or not isinstance(max_iter, numbers.Integral) \
+            or not 0 <= max_iter <= MAX_ITERATIONS:
+        raise LagrgenError(f"max_iter must be an integer from 0 to {MAX_ITERATIONS} (IPOPT's "
+                           f"iteration limit), got {max_iter!r}")
+    if options is None:
+        options = {}
+    if not isinstance(options, dict):
+        raise LagrgenError(f"options must be a dict of IPOPT option names and values, got "
+                           f"{type(options).__name__}")
+    for name, value in options.items():
+        if not isinstance(name, str):
+            raise LagrgenError(f"options: IPOPT option names are strings, got {name!r}")
+        number = isinstance(value, numbers.Real) and not isinstance(value, bool)
+        if not (isinstance(value, str) or number) or (number and not math.isfinite(value)):
+            raise LagrgenError(f"options[{name!r}] must be a string or a finite number (IPOPT "
+                               f"takes no other values), got {value!r}")
+    return Settings(hessian, float(tol), int(max_iter), bool(progress), dict(options))
 
 
 def solver_options(hessian, tol, max_iter, options):
@@ -112,17 +162,65 @@ class _Progress:
             print(self.pending, flush=True)
 
 
-def solve_nlp(problem, tr, x0, hessian, tol, max_iter, progress, options):
+def add_option(nlp, key, value):
+    """Set one IPOPT option (an integer given for a real option as a real); a LagrgenError with
+    IPOPT's own words when it refuses the name or the value (which IPOPT prints, with its
+    documentation of the option, to the C stdout)."""
+    tries = [value, float(value)] if isinstance(value, numbers.Integral) else [value]
+    with _c_stdout() as printed:
+        for attempt in tries:
+            try:
+                nlp.add_option(key, attempt)
+                refused = False
+                break
+            except TypeError:
+                refused = True
+    if refused:
+        said = " ".join(line.strip() for line in printed[0].splitlines()[:2] if line.strip())
+        raise LagrgenError(f"IPOPT refuses the option {key}={value!r}: {said or 'unknown name'} "
+                           "(IPOPT's options: https://coin-or.github.io/Ipopt/OPTIONS.html)")
+
+
+@contextmanager
+def _c_stdout():
+    """Catch what C code writes to the process's stdout (file descriptor 1): yields a list
+    that holds the text once the block ends."""
+    sys.stdout.flush()
+    saved, printed = os.dup(1), [""]
+    with tempfile.TemporaryFile() as caught:
+        os.dup2(caught.fileno(), 1)
+        try:
+            yield printed
+        finally:
+            os.dup2(saved, 1)
+            os.close(saved)
+            caught.seek(0)
+            printed[0] = caught.read().decode(errors="replace")
+
+
+def solve_mesh(problem, layout, controls, guess, settings):
+    """The CollocationResult of one IPOPT solve of `problem` on the mesh `layout` (inputs tied
+    to `controls`, a ControlMesh, or free) from `guess` (see `Collocation.solve`)."""
+    from .guess import initial_guess
+    tr = problem.transcription(settings.hessian, layout, controls)
+    x0 = initial_guess(problem, tr, guess)
+    T0 = layout.duration(x0) if layout.free else problem.duration_bounds[0]
+    return solve_nlp(problem, tr.bound(T0), x0, settings)
+
+
+def solve_nlp(problem, tr, x0, settings):
     """Run IPOPT on the transcription from x0; the CollocationResult."""
     from .result import CollocationResult
     cyipopt = ipopt()
     start = time.perf_counter()
-    monitor = _Progress(progress)
+    monitor = _Progress(settings.progress)
     adapter = _Callbacks(tr, monitor)
     nlp = cyipopt.Problem(n=tr.layout.size, m=tr.n_constraints, problem_obj=adapter,
                           lb=tr.lo, ub=tr.hi, cl=tr.g_lo, cu=tr.g_hi)
-    for key, value in solver_options(hessian, tol, max_iter, options).items():
-        nlp.add_option(key, value)
+    hessian = settings.hessian
+    for key, value in solver_options(hessian, settings.tol, settings.max_iter,
+                                     settings.options).items():
+        add_option(nlp, key, value)
     x0 = np.clip(np.asarray(x0, dtype=float), tr.lo, tr.hi)
     try:
         x, info = nlp.solve(x0)
@@ -131,13 +229,15 @@ def solve_nlp(problem, tr, x0, hessian, tol, max_iter, progress, options):
             nlp.close()
     if adapter.interrupt is not None:
         raise KeyboardInterrupt
+    if int(info["status"]) == INVALID_OPTION:
+        raise LagrgenError(f"IPOPT refused an option's value (Invalid_Option): check options="
+                           f"{settings.options!r} against IPOPT's list of options "
+                           "(https://coin-or.github.io/Ipopt/OPTIONS.html)")
     monitor.finish()
     seconds = time.perf_counter() - start
     result = CollocationResult.from_solution(problem, tr, np.asarray(x), info,
                                              monitor.iterations, seconds, hessian)
     result.callback_seconds = adapter.seconds
-    if progress:
-        print(result.summary(), flush=True)
     return result
 
 

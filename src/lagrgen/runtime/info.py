@@ -24,7 +24,8 @@ class ModelInfo:
     `formulation` how q̈ and the Jacobian are computed: "dense" (Cholesky of M) or "recursive"
     (over the kinematic tree, `lagrgen.tree`); `inertial_parameters` the parameters that are the
     bodies' ten inertial parameters (m, m·c, I about the body frame's origin), ten per body, the
-    columns of the regressor.
+    columns of the regressor; `coordinate_limits` the declared limits (`Model.limit`) as
+    (coordinate, lower, upper, velocity, effort), None where absent.
     """
 
     name: str
@@ -44,6 +45,7 @@ class ModelInfo:
     initial_state: tuple = ()
     formulation: str = "dense"
     inertial_parameters: tuple = ()
+    coordinate_limits: tuple = ()
 
     def __post_init__(self):
         for name in ("coordinates", "parameters", "inputs", "defaults", "output_names",
@@ -52,6 +54,8 @@ class ModelInfo:
         object.__setattr__(self, "event_definitions",
                            tuple(tuple(e) for e in self.event_definitions))
         object.__setattr__(self, "units", dict(self.units))
+        object.__setattr__(self, "coordinate_limits",
+                           tuple(tuple(entry) for entry in self.coordinate_limits))
         object.__setattr__(self, "nonsmooth_definitions", tuple(
             (name, kind, None if normal is None else tuple(normal))
             for name, kind, normal in self.nonsmooth_definitions))
@@ -59,6 +63,11 @@ class ModelInfo:
     @property
     def n_coordinates(self):
         return len(self.coordinates)
+
+    @property
+    def limits(self):
+        """{coordinate name: (lower, upper, velocity, effort)}, None where a limit is absent."""
+        return {name: tuple(values) for name, *values in self.coordinate_limits}
 
     @property
     def n_constraints(self):
@@ -100,4 +109,5 @@ class ModelInfo:
 INFO_ATTRIBUTES = ("name", "coordinates", "parameters", "inputs", "units", "output_names",
                    "constraint_names", "event_definitions", "explicit_time", "content_hash",
                    "lagrgen_version", "n_coordinates", "n_constraints", "dimensions",
-                   "nonsmooth_definitions", "formulation", "inertial_parameters")
+                   "nonsmooth_definitions", "formulation", "inertial_parameters",
+                   "limits")

@@ -33,6 +33,7 @@ class BuiltModel(Protocol):
     explicit_time: bool           # M or F depends on t explicitly
     formulation: str              # "dense" (Cholesky of M) or "recursive" (over the kinematic tree)
     inertial_parameters: Tuple[str, ...]  # the bodies' inertial parameters π, 10 per body (§21)
+    limits: Dict[str, tuple]      # coordinate -> (lower, upper, velocity, effort), None if absent
     content_hash: str             # of the derived equations and lagrgen's generator
     lagrgen_version: str
     n_coordinates: int

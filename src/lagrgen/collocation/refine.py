@@ -1,0 +1,237 @@
+"""Mesh refinement: solve on the problem's grid, measure every interval's discretization error
+(`accuracy`), and, while it exceeds the tolerance, split the intervals where it does and solve
+again from the last solution, until the error is within the tolerance or the meshes run out.
+
+After the first mesh (the problem's grid and scheme as given) the states are collocated with
+Hermite–Simpson on the refined mesh, while each input stays one polynomial per interval of the
+problem's grid (quadratic for Hermite–Simpson, linear for the other schemes: `grid.ControlMesh`):
+the refinement makes the motion that the inputs produce exact, without giving the optimizer finer
+inputs to chatter with. A discretization coarser than the inputs is what a chattering optimum
+exploits (a brachistochrone by minimum time beats the cycloid with an input flipping between its
+bounds from point to point); with the states resolved inside each input's interval that gain is
+gone. Where an input switches between its bounds (a bang-bang optimum), the control intervals of
+the switch get knots around the switching time, narrowed each mesh until the switch spans at most
+√mesh_tol of the duration, so the switching time is located rather than smeared over an interval
+of the grid.
+
+An interval with error e > mesh_tol is split into ⌈(e/mesh_tol)^(1/5)⌉ pieces (Hermite–Simpson's
+local error falls as h⁵), at least 2 and at most MAX_PIECES per mesh; after the first mesh of a
+trapezoidal or backward-Euler problem, whose errors say little of Hermite–Simpson's, in halves.
+"""
+import time
+import warnings
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from .accuracy import interval_errors
+from .grid import ControlMesh
+
+#: The default tolerance of the relative dynamics error (`Collocation.solve(mesh_tol=...)`).
+DEFAULT_MESH_TOL = 1e-6
+#: The most pieces one interval is split into per mesh.
+MAX_PIECES = 8
+#: A mesh has at most MAX_GROWTH times the nodes of the last, and never more than MAX_NODES.
+MAX_GROWTH, MAX_NODES = 4, 20_000
+#: The order of the local error of Hermite–Simpson's states (e ∝ h^(ORDER + 1)).
+ORDER = 4
+#: An input within this share of its range from a bound counts as on the bound.
+ON_BOUND = 1e-3
+#: A switch is looked for between intervals saturated at opposite bounds at most this many
+#: control intervals apart.
+SWITCH_SPAN = 3
+
+
+class DiscretizationWarning(UserWarning):
+    """A solution's dynamics error is larger than the default tolerance."""
+
+
+@dataclass(frozen=True)
+class MeshRecord:
+    """One mesh of a solve: its nodes, IPOPT's iterations, status and objective there, the
+    largest relative dynamics error of its intervals, and (for pictures) the node times and each
+    interval's error."""
+    nodes: int
+    iterations: int
+    error: float
+    objective: float
+    status: int
+    seconds: float
+    times: np.ndarray = field(default=None, repr=False, compare=False)
+    errors: np.ndarray = field(default=None, repr=False, compare=False)
+
+
+def solve_refined(problem, guess, settings, mesh_tol, max_meshes):
+    """The CollocationResult of `problem` refined until its error is within `mesh_tol` (None:
+    the problem's grid alone), with `errors`, `error` and `meshes`."""
+    from .solver import solve_mesh
+    layout, controls = problem.layout, None
+    knots = tuple(problem.layout.node_fractions)
+    degree = 2 if problem.scheme == "hermite-simpson" else 1
+    meshes, spent, callbacks, limit = [], 0.0, 0.0, None
+    result = solve_mesh(problem, layout, controls, guess, settings)
+    while True:
+        began = time.perf_counter()
+        errors = interval_errors(result, mesh_tol or DEFAULT_MESH_TOL)
+        spent += result.seconds + time.perf_counter() - began
+        callbacks += result.callback_seconds
+        meshes.append(MeshRecord(layout.nodes, result.iterations, float(errors.max()),
+                                 result.objective, result.status, result.seconds,
+                                 result.t.copy(), errors))
+        if settings.progress and mesh_tol is not None:
+            print(f"mesh {len(meshes)}: {layout.nodes} nodes, {result.iterations} iterations, "
+                  f"dynamics error {errors.max():.2e}", flush=True)
+        if mesh_tol is None or not result.success or len(meshes) >= max_meshes:
+            break
+        switches, limit = next_knots(result, errors, knots, problem, mesh_tol)
+        if switches is None:
+            break
+        knots = tuple(sorted(set(knots) | set(switches)))
+        layout = refined_layout(layout, errors, mesh_tol, knots)
+        controls = ControlMesh(knots, degree)
+        result = solve_mesh(problem, layout, controls, result, settings)
+    result.callback_seconds = callbacks
+    result = finished(result, errors, meshes, mesh_tol, spent, limit)
+    if result.success:
+        result.estimate_errors(stacklevel=3)
+    return result
+
+
+def next_knots(result, errors, knots, problem, mesh_tol):
+    """(the control knots a next mesh adds, None) when the refinement goes on; else (None, why
+    it stops short of the tolerance, or None when it is within it)."""
+    if not np.all(np.isfinite(errors)):
+        return None, (f"as the model's dynamics cannot be integrated from the solution on "
+                      f"{int(np.sum(~np.isfinite(errors)))} of its intervals (its rhs fails "
+                      "there: a mass matrix that is not positive definite at these states or "
+                      "parameters?)")
+    switches = switch_knots(result, knots, problem, mesh_tol)
+    if errors.max() <= mesh_tol and not switches:
+        return None, None
+    if result._layout.nodes >= MAX_NODES:
+        return None, f"as the refinement reached its limit of {MAX_NODES} nodes"
+    return switches, None
+
+
+def finished(result, errors, meshes, mesh_tol, seconds, limit=None):
+    """`result` with its errors, mesh history, totals and the verdict on its error."""
+    result.errors, result.error, result.meshes = errors, float(errors.max()), tuple(meshes)
+    result.iterations = sum(m.iterations for m in meshes)
+    result.seconds = seconds
+    result.mesh_tol = mesh_tol
+    if mesh_tol is None:
+        if result.error > DEFAULT_MESH_TOL:
+            warnings.warn(f"the dynamics error of this solution is {result.error:.2g} (relative, "
+                          f"largest over its {errors.size} intervals): solve with mesh_tol="
+                          f"{DEFAULT_MESH_TOL:g} (the default) to refine the grid until it is "
+                          "within that", DiscretizationWarning, stacklevel=4)
+    elif result.success and result.error > mesh_tol:
+        result.success = False
+        stop = limit or f"after {len(meshes)} meshes ({meshes[-1].nodes} nodes)"
+        result.message = (f"IPOPT solved each mesh, but the dynamics error {result.error:.2e} "
+                          f"still exceeds mesh_tol={mesh_tol:g} {stop}: raise max_meshes, give "
+                          "more nodes or a larger mesh_tol (a motion that needs ever more nodes "
+                          "may be stiff or undetermined: look at res.errors)")
+    return result
+
+
+def refined_layout(layout, errors, mesh_tol, knots):
+    """The next mesh: each interval with error e > mesh_tol split into equal pieces (see the
+    module; in halves after a mesh of another scheme), the control knots added as nodes;
+    Hermite–Simpson."""
+    nodes = layout.node_fractions
+    ratio = np.maximum(errors, mesh_tol) / mesh_tol
+    with np.errstate(over="ignore"):
+        wanted = np.ceil(ratio ** (1.0 / (ORDER + 1))) if layout.scheme == "hermite-simpson" \
+            else 2          # another scheme's error says little of Hermite–Simpson's
+        pieces = np.where(errors > mesh_tol, np.clip(wanted, 2, MAX_PIECES), 1)
+    pieces = within_budget(pieces, errors, min(MAX_GROWTH * layout.nodes, MAX_NODES))
+    points = [nodes[:1]]
+    for k, count in enumerate(pieces.astype(int)):
+        inner = nodes[k] + (nodes[k + 1] - nodes[k]) * np.arange(1, count) / count
+        points += [inner, nodes[k + 1:k + 2]]
+    merged = np.concatenate(points)
+    extra = [k for k in knots if np.min(np.abs(merged - k)) > 1e-12]
+    merged = np.sort(np.concatenate([merged, extra]))
+    return replace(layout, nodes=merged.size, scheme="hermite-simpson", mesh=tuple(merged))
+
+
+def within_budget(pieces, errors, budget):
+    """`pieces` cut so that the mesh has at most `budget` nodes: the added nodes of each interval
+    scaled down alike, the worst intervals first when even one each is too many."""
+    pieces = pieces.astype(int)
+    added = pieces - 1
+    room = budget - 1 - pieces.size
+    if added.sum() <= room:
+        return pieces
+    scaled = np.floor(added * room / added.sum()).astype(int)
+    scaled[(added > 0) & (scaled == 0)] = 1
+    if scaled.sum() > room:
+        order = np.argsort(-np.where(added > 0, errors, -np.inf))
+        scaled = np.zeros_like(added)
+        scaled[order[:max(room, 0)]] = 1
+        scaled[added == 0] = 0
+    return 1 + scaled
+
+
+def switch_knots(result, knots, problem, mesh_tol):
+    """New control knots that narrow each input's switches between its bounds: where control
+    intervals saturated at opposite bounds are at most SWITCH_SPAN apart and the intervals
+    between them (the switch) span more than √mesh_tol of the duration, two knots around the
+    switching time (where the input crosses the middle of its range), a sixteenth of that span
+    (at least a quarter of √mesh_tol) on either side."""
+    L = result._layout
+    knots = np.asarray(knots)
+    fractions = L.fractions
+    shortest = np.sqrt(mesh_tol)
+    found = []
+    for k in range(L.nu):
+        lo, hi = problem._bounds.get(("u", k), (-np.inf, np.inf))
+        if k in problem._given or not (np.isfinite(lo) and np.isfinite(hi)) or hi <= lo:
+            continue
+        values = result._point_values("u", k)
+        side = _saturation(values, fractions, knots, lo, hi)
+        for first, last in _switches(side):
+            a, b = knots[first + 1], knots[last]
+            if b - a <= shortest:
+                continue
+            s = _crossing(values, fractions, a, b, 0.5 * (lo + hi))
+            half = max((b - a) / 16, shortest / 4)
+            found += [k for k in (s - half, s + half) if a < k < b]
+    return [k for k in found if np.min(np.abs(knots - k)) > 1e-12]
+
+
+def _saturation(values, fractions, knots, lo, hi):
+    """Per control interval: −1 (every value on the lower bound), +1 (upper) or 0."""
+    band = ON_BOUND * (hi - lo)
+    side = []
+    for a, b in zip(knots[:-1], knots[1:]):
+        inside = values[(fractions >= a - 1e-12) & (fractions <= b + 1e-12)]
+        side.append(-1 if np.all(inside <= lo + band) else
+                    1 if np.all(inside >= hi - band) else 0)
+    return side
+
+
+def _switches(side):
+    """(first, last) control intervals saturated at opposite bounds with 1 to SWITCH_SPAN
+    unsaturated intervals between them."""
+    out = []
+    saturated = [c for c, s in enumerate(side) if s]
+    for first, last in zip(saturated[:-1], saturated[1:]):
+        if side[first] == -side[last] and 1 <= last - first - 1 <= SWITCH_SPAN:
+            out.append((first, last))
+    return out
+
+
+def _crossing(values, fractions, a, b, level):
+    """Where the point values between the fractions a and b first cross `level` (linear
+    between points); the middle of [a, b] if they do not."""
+    inside = (fractions >= a - 1e-12) & (fractions <= b + 1e-12)
+    f, v = fractions[inside], values[inside] - level
+    change = np.flatnonzero(np.sign(v[:-1]) * np.sign(v[1:]) <= 0)
+    if not change.size:
+        return 0.5 * (a + b)
+    j = change[0]
+    if v[j] == v[j + 1]:
+        return f[j]
+    return f[j] + (f[j + 1] - f[j]) * v[j] / (v[j] - v[j + 1])
