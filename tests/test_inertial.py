@@ -483,3 +483,47 @@ def test_consistent_estimates_of_a_planar_arm_free_the_parameters_it_lacks(plana
     assert pi["m_link2"] > 0
     assert pi["Izz_link2"] >= (pi["mx_link2"] ** 2 + pi["my_link2"] ** 2) / pi["m_link2"] - 1e-9
     assert est.price > 0 and set(pi) == set(base.parameters)
+
+
+@pytest.fixture(scope="module")
+def arm7(tmp_path_factory):
+    """The seven-joint arm of examples/robots/arm7.urdf with its 70 inertial parameters, its
+    base parameters and an exciting trajectory within its URDF limits (10 rad/s² added)."""
+    from conftest import ROOT
+    robot = lagrgen.from_urdf(ROOT / "examples" / "robots" / "arm7.urdf", parameters="inertial",
+                              joint_dynamics=False, name="inertial_arm7")
+    mod = lagrgen.build(robot, out_dir=tmp_path_factory.mktemp("arm7"))
+    base = base_parameters(mod)
+    limits = {joint: (None, None, None, 10.0) for joint in mod.coordinates}
+    trajectory = exciting_trajectory(mod, 10.0, limits=limits, base=base, max_iterations=40)
+    return mod, base, trajectory
+
+
+def test_a_urdf_arms_standard_errors_are_honest_over_20_noise_seeds(arm7):
+    """The 43 base parameters of the seven-joint arm from 10 s of 1 kHz records of its exciting
+    trajectory (torques from the regressor at the file's values), positions with 1e-4 rad and
+    torques with 0.2 N·m of noise, 20 seeds: the errors divided by their standard errors are a
+    standard normal sample (860 of them: 99.7 % within 3, none beyond 4.5, unit spread, no
+    parameter biased), and noise-free records give the truth to a small share of one."""
+    mod, base, trajectory = arm7
+    assert len(base.names) == 43 and mod.limits["joint4"] == (-3.0718, -0.0698, 2.175, 87.0)
+    t = np.arange(10000) * 1e-3
+    q, qd, qdd = trajectory.q(t), trajectory.qd(t), trajectory.qdd(t)
+    assert np.all(np.abs(qd).max(axis=1) <= [v for *_, v, _ in mod.limits.values()])
+    truth = dict(zip(mod.parameters, mod.defaults))
+    pi = np.array([truth[name] for name in mod.inertial_parameters])
+    tau = np.array([mod.regressor(q[:, i], qd[:, i], qdd[:, i]) @ pi for i in range(t.size)]).T
+    expected = base.values(truth)
+    scaled = []
+    for seed in range(20):
+        rng = np.random.default_rng(seed)
+        est = identify_inertial(mod, t, q + 1e-4 * rng.standard_normal(q.shape),
+                                tau + 0.2 * rng.standard_normal(tau.shape), base=base)
+        scaled.append((values_of(est, base.names) - expected) / stderr_of(est, base.names))
+    scaled = np.array(scaled)
+    assert np.all(np.isfinite(scaled))
+    assert np.mean(np.abs(scaled) <= 3) >= 0.99 and np.abs(scaled).max() < 4.5
+    assert 0.85 < scaled.std() < 1.15 and np.abs(scaled.mean(axis=0)).max() < 1.0
+    exact = identify_inertial(mod, t, q, tau, base=base)
+    bias = (values_of(exact, base.names) - expected) / stderr_of(est, base.names)
+    assert np.abs(bias).max() < 0.05
