@@ -8,7 +8,7 @@ Pinocchio's `aba`, `crba` and `computeABADerivatives` at random states (largest 
 difference; the floating base against a Pinocchio model whose base is the same six 1-DOF joints,
 its Jacobian against central differences of lagrgen's rhs, since Pinocchio differentiates such a
 joint on its Lie group); then per call from Python,
-best of 7, in the same process: lagrgen's rhs, jacobian (2n×2n) and mass_matrix against `aba`,
+best of 3 rounds timing each call in turn, in the same process: lagrgen's rhs, jacobian (2n×2n) and mass_matrix against `aba`,
 `computeABADerivatives` and `crba` (Pinocchio's free-flyer model for the floating base).
 
     pip install ".[peers]" example-robot-data       # Pinocchio 4.1 and the robots (400 MB)
@@ -54,6 +54,16 @@ def best_per_call(f, repeats=7):
     timer = timeit.Timer(f)
     number, _ = timer.autorange()
     return min(timer.repeat(repeats, number)) / number
+
+
+def interleaved_best(calls, rounds=3):
+    """{name: seconds per call}: the best over `rounds` rounds that time every call in turn, so
+    that a burst of load on a shared machine does not fall on one side of a comparison alone."""
+    best = dict.fromkeys(calls, float("inf"))
+    for _ in range(rounds):
+        for name, call in calls.items():
+            best[name] = min(best[name], best_per_call(call, repeats=3))
+    return best
 
 
 def relative(a, b):
@@ -168,15 +178,15 @@ def robot_row(path, floating, out_dir, say):
         qp, vp = mapping.q(q, timed_model), mapping.v(v)
     tau = np.zeros(timed_model.nv)
     say(f"  {name}: n = {n}, timing ...")
-    times = {
-        "rhs": best_per_call(lambda: mod.rhs(0.0, y)),
-        "aba": best_per_call(lambda: pin.aba(timed_model, td, qp, vp, tau)),
-        "jacobian": best_per_call(lambda: mod.jacobian(0.0, y)),
-        "derivatives": best_per_call(
-            lambda: pin.computeABADerivatives(timed_model, td, qp, vp, tau)),
-        "mass_matrix": best_per_call(lambda: mod.mass_matrix(q)),
-        "crba": best_per_call(lambda: pin.crba(timed_model, td, qp)),
+    calls = {
+        "rhs": lambda: mod.rhs(0.0, y),
+        "aba": lambda: pin.aba(timed_model, td, qp, vp, tau),
+        "jacobian": lambda: mod.jacobian(0.0, y),
+        "derivatives": lambda: pin.computeABADerivatives(timed_model, td, qp, vp, tau),
+        "mass_matrix": lambda: mod.mass_matrix(q),
+        "crba": lambda: pin.crba(timed_model, td, qp),
     }
+    times = interleaved_best(calls)
     return {"robot": name, "n": n, "describe_s": described, "cold_build_s": cold,
             "formulation": mod.formulation, "agreement": worst,
             "us": {k: v * 1e6 for k, v in times.items()}}
@@ -256,7 +266,8 @@ def main(argv=None):
               f"{lagrgen.__version__}; load average {load[0]:.2f} {load[1]:.2f} {load[2]:.2f} "
               f"before, {after[0]:.2f} {after[1]:.2f} {after[2]:.2f} after (a shared machine: "
               "per-call figures up to ~2× high; the ratios were measured side by side).\n\n"
-              "Per call from Python in µs, best of 7; ratio = lagrgen ÷ Pinocchio (below 1: "
+              "Per call from Python in µs, the best of 3 rounds that time each call in turn; "
+              "ratio = lagrgen ÷ Pinocchio (below 1: "
               "lagrgen is faster). Fixed bases as `buildModelFromUrdf` reads them, mimic joints "
               "independent; Solo12 also with a floating base (lagrgen: base_x … base_yaw; "
               "Pinocchio timed with its free-flyer); joints that move no mass (romeo's hands) "
