@@ -237,6 +237,18 @@ def test_the_python_backend_identifies_alike(arms, example, trajectory):
                        rtol=1e-10, atol=1e-12)
 
 
+def errors_over_standard_errors(mod, base, t, q, tau, truth, seeds=20):
+    """((seeds, base parameters) of (estimate − truth)/stderr, the last estimate): positions
+    with 1e-4 rad and torques with 0.2 N·m of noise, one draw per seed."""
+    scaled = []
+    for seed in range(seeds):
+        rng = np.random.default_rng(seed)
+        est = identify_inertial(mod, t, q + 1e-4 * rng.standard_normal(q.shape),
+                                tau + 0.2 * rng.standard_normal(tau.shape), base=base)
+        scaled.append((values_of(est, base.names) - truth) / stderr_of(est, base.names))
+    return np.array(scaled), est
+
+
 def test_estimates_lie_within_three_standard_errors_over_20_noise_seeds(arm, base, example,
                                                                         records):
     """Positions with 1e-4 rad and torques with 0.2 N·m of noise; velocities and accelerations
@@ -244,13 +256,7 @@ def test_estimates_lie_within_three_standard_errors_over_20_noise_seeds(arm, bas
     standard errors, and the errors scaled by the standard errors have about unit spread."""
     t, q, _, _, tau = records
     truth = base.values(example.TRUTH)
-    scaled = []
-    for seed in range(20):
-        rng = np.random.default_rng(seed)
-        est = identify_inertial(arm, t, q + 1e-4 * rng.standard_normal(q.shape),
-                                tau + 0.2 * rng.standard_normal(tau.shape), base=base)
-        scaled.append((values_of(est, base.names) - truth) / stderr_of(est, base.names))
-    scaled = np.array(scaled)
+    scaled, est = errors_over_standard_errors(arm, base, t, q, tau, truth)
     assert np.abs(scaled).max() < 3
     assert 0.7 < scaled.std() < 1.3
     assert est.cutoff == pytest.approx(4.0, rel=0.5) and est.step > 1
@@ -514,13 +520,7 @@ def test_a_urdf_arms_standard_errors_are_honest_over_20_noise_seeds(arm7):
     pi = np.array([truth[name] for name in mod.inertial_parameters])
     tau = np.array([mod.regressor(q[:, i], qd[:, i], qdd[:, i]) @ pi for i in range(t.size)]).T
     expected = base.values(truth)
-    scaled = []
-    for seed in range(20):
-        rng = np.random.default_rng(seed)
-        est = identify_inertial(mod, t, q + 1e-4 * rng.standard_normal(q.shape),
-                                tau + 0.2 * rng.standard_normal(tau.shape), base=base)
-        scaled.append((values_of(est, base.names) - expected) / stderr_of(est, base.names))
-    scaled = np.array(scaled)
+    scaled, est = errors_over_standard_errors(mod, base, t, q, tau, expected)
     assert np.all(np.isfinite(scaled))
     assert np.mean(np.abs(scaled) <= 3) >= 0.99 and np.abs(scaled).max() < 4.5
     assert 0.85 < scaled.std() < 1.15 and np.abs(scaled.mean(axis=0)).max() < 1.0

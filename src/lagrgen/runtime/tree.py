@@ -258,7 +258,19 @@ _WIDTHS = {"S": "D", "kappa": "D", "mass": "D", "u": "D", "d": 1, "e": "D", "h":
            "g_qd": "D"}
 
 
-class RecursivePythonModel(PythonModel):
+class FactoredModel(PythonModel):
+    """A `PythonModel` whose q̈ comes from its recursion's `_factored(t, q, qd, p, u)`, a tuple
+    whose third entry is q̈ (the planar and the spatial recursions)."""
+
+    def _solved(self, t, q, qd, p, u):
+        M, _ = self._mf(t, q, qd, p, u)
+        return M, self._factored(t, q, qd, p, u)[2]
+
+    def _rhs(self, t, q, qd, p, u):
+        return np.concatenate([np.array(qd, dtype=np.float64), self._factored(t, q, qd, p, u)[2]])
+
+
+class RecursivePythonModel(FactoredModel):
     """A `PythonModel` of the recursive formulation (`build(..., formulation="recursive")`)."""
 
     def __init__(self, info, source):
@@ -293,13 +305,6 @@ class RecursivePythonModel(PythonModel):
             A = self._tree.accelerations(nodes, a)
         slopes, dQ, dQd = self._kernel("tree_slopes", t, q, qd, list(a), p, u)
         return self._tree.b(nodes, slopes.reshape(n, -1), dQ, dQd, np.asarray(a, dtype=float), A)
-
-    def _solved(self, t, q, qd, p, u):
-        M, _ = self._mf(t, q, qd, p, u)
-        return M, self._factored(t, q, qd, p, u)[2]
-
-    def _rhs(self, t, q, qd, p, u):
-        return np.concatenate([np.array(qd, dtype=np.float64), self._factored(t, q, qd, p, u)[2]])
 
     def _jacobian(self, t, q, qd, p, u):
         n = self.n_coordinates

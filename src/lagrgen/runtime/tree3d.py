@@ -6,7 +6,8 @@ built with formulation="recursive" whose tree is spatial (the recursions of
 import numpy as np
 
 from ..errors import MassMatrixError
-from .pymodel import PIVOT_TOL, PythonModel
+from .pymodel import PIVOT_TOL
+from .tree import FactoredModel
 
 
 def crm(v, m):
@@ -223,7 +224,7 @@ class SpatialRecursion:
         return dnodes
 
 
-class SpatialPythonModel(PythonModel):
+class SpatialPythonModel(FactoredModel):
     """A `PythonModel` of the recursive formulation over a three-dimensional tree."""
 
     def __init__(self, info, source):
@@ -259,13 +260,6 @@ class SpatialPythonModel(PythonModel):
         _, dQ, dQd = self._kernel("tree_slopes", t, q, qd, list(a), p, u)
         return self._tree.b(nodes, np.asarray(qd, dtype=float), np.asarray(a, dtype=float),
                             dQ, dQd)
-
-    def _solved(self, t, q, qd, p, u):
-        M, _ = self._mf(t, q, qd, p, u)
-        return M, self._factored(t, q, qd, p, u)[2]
-
-    def _rhs(self, t, q, qd, p, u):
-        return np.concatenate([np.array(qd, dtype=np.float64), self._factored(t, q, qd, p, u)[2]])
 
     def _jacobian(self, t, q, qd, p, u):
         n = self.n_coordinates
