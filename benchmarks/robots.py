@@ -13,7 +13,8 @@ best of 3 rounds timing each call in turn, in the same process: lagrgen's rhs, j
 
     pip install ".[peers]" example-robot-data       # Pinocchio 4.1 and the robots (400 MB)
     python benchmarks/robots.py                     # all robots up to 60 joints
-    python benchmarks/robots.py --robots ur5 panda talos_reduced solo12
+    python benchmarks/robots.py --robots ur5_robot panda talos_reduced solo12
+    python benchmarks/robots.py --robots talos_reduced --update   # measure again, replace its row
 
 Prints a markdown table and writes benchmarks/results/robots.md and robots.json. Builds go to
 --out (default: a folder in the system's temporary directory).
@@ -219,12 +220,21 @@ def joints_of(path):
     return sum(1 for j in robot.joints if j.kind in MOVING)
 
 
+def updated(old, new):
+    """The rows of `old` with those of the same robots replaced by `new`'s (new ones appended)."""
+    fresh = {row["robot"]: row for row in new}
+    rows = [fresh.pop(row["robot"], row) for row in old]
+    return rows + list(fresh.values())
+
+
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--robots", nargs="*", help="file stems (default: all)")
     parser.add_argument("--max-joints", type=int, default=60)
     parser.add_argument("--out", default=os.path.join(tempfile.gettempdir(), "lagrgen_robots"))
     parser.add_argument("--no-write", action="store_true", help="print only")
+    parser.add_argument("--update", action="store_true",
+                        help="measure the --robots again and replace their rows in the results")
     args = parser.parse_args(argv)
     import pinocchio
 
@@ -260,6 +270,8 @@ def main(argv=None):
             rows.append({"robot": path.stem, "error": f"{type(exc).__name__}: "
                          f"{str(exc).splitlines()[0][:120]}"})
     after = os.getloadavg()
+    if args.update:
+        rows = updated(json.loads((RESULTS / "robots.json").read_text()), rows)
     header = (f"# lagrgen against Pinocchio on example-robot-data\n\n"
               f"{time.strftime('%Y-%m-%d %H:%M')}, {platform.machine()}, Python "
               f"{platform.python_version()}, pin {pinocchio.__version__}, lagrgen "
@@ -274,6 +286,9 @@ def main(argv=None):
               "locked in both. Largest difference from Pinocchio, relative to the largest "
               "entry (absolute below 1), at three random states (the floating base's Jacobian: from central "
               "differences of the rhs, h = 1e-6).\n")
+    if args.update:
+        header += (f"The rows of {', '.join(args.robots)} were measured again at that time, "
+                   "the others earlier (robots.json keeps no date per row).\n")
     text = header + "\n" + table(rows) + "\n"
     print(text)
     if not args.no_write:
