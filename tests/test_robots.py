@@ -494,6 +494,31 @@ def test_a_robot_runs_natively_as_with_scipy_and_linearizes(arm):
     assert relative(lin.M, arm.mass_matrix(q0)) < 1e-14
 
 
+
+def test_a_robot_moves_between_two_poses_with_least_effort_within_its_limits(small_file,
+                                                                            tmp_path):
+    """Collocation on a URDF robot (issue 35 item 4): the motion rides the shoulder's velocity
+    limit and stays within the file's other limits; the refinement brings the dynamics error
+    within the default tolerance."""
+    model = lagrgen.from_urdf(small_file, joint_dynamics=False, name="small_move")
+    mod = lagrgen.build(model, out_dir=tmp_path, quiet=True)
+    shoulder, slide, wrist = model.input_functions
+    prob = lagrgen.Collocation(mod, nodes=21, duration=0.42).bound_limits()
+    goal = [1.0, 0.15, 1.5]
+    prob.initial(q=[0, 0, 0], qd=[0, 0, 0]).final(q=goal, qd=[0, 0, 0])
+    prob.minimize(integral=(shoulder / 40) ** 2 + (slide / 100) ** 2 + wrist ** 2)
+    res = prob.solve(progress=False)
+    assert res.success, res.message
+    assert res.error <= res.mesh_tol == 1e-6 and len(res.meshes) > 1
+    q, qd, slack = res.y[:3], res.y[3:], 1e-7
+    (lo0, hi0, v0, e0), (lo1, hi1, v1, e1) = mod.limits["shoulder"], mod.limits["slide"]
+    assert np.all((lo0 - slack <= q[0]) & (q[0] <= hi0 + slack) & (lo1 - slack <= q[1])
+                  & (q[1] <= hi1 + slack))
+    assert np.abs(qd[0]).max() == pytest.approx(v0, rel=1e-4) and np.all(np.abs(qd[1]) <= v1)
+    assert np.abs(res.u[0]).max() <= e0 + slack and np.abs(res.u[1]).max() <= e1 + slack
+    assert np.allclose(q[:, -1], goal, atol=1e-9) and np.allclose(qd[:, -1], 0, atol=1e-9)
+    assert res.check() < 1e-3                 # the found inputs, re-simulated open loop
+
 def test_a_fit_recovers_an_inertial_parameter_of_a_robot(small):
     mod = small["recursive", "c"]
     t = np.linspace(0.0, 0.4, 21)

@@ -282,13 +282,15 @@ class ControlMesh:
     of `degree` (1: linear, 2: quadratic), however many nodes of the states lie inside."""
     knots: tuple
     degree: int
+    tied: frozenset = None
 
     def ties(self, layout, inputs):
         """Rows [(cols, coefficients)] with Σ c·x = 0 that put every point's value of each input
-        in `inputs` (indices) on the polynomial of its control interval: the first and last
-        points of the interval (and, quadratic, the one nearest its middle) carry it, every
-        other point inside equals their Lagrange interpolant."""
+        in `inputs` (indices) that is `tied` (None: all) on the polynomial of its control
+        interval: the first and last points of the interval (and, quadratic, the one nearest its
+        middle) carry it, every other point inside equals their Lagrange interpolant."""
         fractions = layout.fractions
+        inputs = [k for k in inputs if self.tied is None or k in self.tied]
         rows = []
         for a, b in zip(self.knots[:-1], self.knots[1:]):
             inside = np.flatnonzero((fractions >= a - 1e-12) & (fractions <= b + 1e-12))

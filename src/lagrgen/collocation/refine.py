@@ -3,20 +3,25 @@
 again from the last solution, until the error is within the tolerance or the meshes run out.
 
 After the first mesh (the problem's grid and scheme as given) the states are collocated with
-Hermite–Simpson on the refined mesh, while each input stays one polynomial per interval of the
-problem's grid (quadratic for Hermite–Simpson, linear for the other schemes: `grid.ControlMesh`):
-the refinement makes the motion that the inputs produce exact, without giving the optimizer finer
-inputs to chatter with. A discretization coarser than the inputs is what a chattering optimum
-exploits (a brachistochrone by minimum time beats the cycloid with an input flipping between its
-bounds from point to point); with the states resolved inside each input's interval that gain is
-gone. Where an input switches between its bounds (a bang-bang optimum), the control intervals of
-the switch get knots around the switching time, narrowed each mesh until the switch spans at most
-√mesh_tol of the duration, so the switching time is located rather than smeared over an interval
-of the grid.
+Hermite–Simpson on the refined mesh. An input that has reached one of its bounds (on any mesh so
+far) stays one polynomial per interval of the problem's grid (quadratic for Hermite–Simpson,
+linear for the other schemes: `grid.ControlMesh`): the refinement makes the motion that the
+inputs produce exact, without giving the optimizer finer inputs to chatter with. A
+discretization coarser than the inputs is what a chattering optimum exploits (a brachistochrone
+by minimum time beats the cycloid with an input flipping between its bounds from point to
+point); with the states resolved inside each input's interval that gain is gone. Where such an
+input switches between its bounds (a bang-bang optimum), the control intervals of the switch get
+knots around the switching time, narrowed each mesh until the switch spans at most √mesh_tol of
+the duration, so the switching time is located rather than smeared over an interval of the grid.
+The other inputs are refined with the states (a quadratic per interval of the mesh): tied to a
+coarse grid, a smooth optimum (a robot's least-effort move riding its velocity limits) is a
+harder problem than it is, and IPOPT crawls on it.
 
-An interval with error e > mesh_tol is split into ⌈(e/mesh_tol)^(1/5)⌉ pieces (Hermite–Simpson's
-local error falls as h⁵), at least 2 and at most MAX_PIECES per mesh; after the first mesh of a
-trapezoidal or backward-Euler problem, whose errors say little of Hermite–Simpson's, in halves.
+An interval with error e > mesh_tol/MARGIN is split into ⌈(MARGIN·e/mesh_tol)^(1/5)⌉ pieces
+(Hermite–Simpson's local error falls as h⁵), at least 2 and at most MAX_PIECES per mesh; after the
+first mesh of a trapezoidal or backward-Euler problem, whose errors say little of
+Hermite–Simpson's, in halves. The margin keeps the intervals just below the tolerance from
+crossing it on the next solve one at a time (a mesh each).
 """
 import time
 import warnings
@@ -35,6 +40,8 @@ MAX_PIECES = 8
 MAX_GROWTH, MAX_NODES = 4, 20_000
 #: The order of the local error of Hermite–Simpson's states (e ∝ h^(ORDER + 1)).
 ORDER = 4
+#: Intervals within this factor of the tolerance are split too, and pieces aim that far below it.
+MARGIN = 4.0
 #: An input within this share of its range from a bound counts as on the bound.
 ON_BOUND = 1e-3
 #: A switch is looked for between intervals saturated at opposite bounds at most this many
@@ -68,7 +75,7 @@ def solve_refined(problem, guess, settings, mesh_tol, max_meshes):
     layout, controls = problem.layout, None
     knots = tuple(problem.layout.node_fractions)
     degree = 2 if problem.scheme == "hermite-simpson" else 1
-    meshes, spent, callbacks, limit = [], 0.0, 0.0, None
+    meshes, spent, callbacks, limit, tied = [], 0.0, 0.0, None, frozenset()
     result = solve_mesh(problem, layout, controls, guess, settings)
     while True:
         began = time.perf_counter()
@@ -88,8 +95,9 @@ def solve_refined(problem, guess, settings, mesh_tol, max_meshes):
             break
         knots = tuple(sorted(set(knots) | set(switches)))
         layout = refined_layout(layout, errors, mesh_tol, knots)
-        controls = ControlMesh(knots, degree)
-        result = solve_mesh(problem, layout, controls, result, settings)
+        tied = tied | inputs_on_bounds(result, problem)
+        controls = ControlMesh(knots, degree, tied)
+        result = solve_mesh(problem, layout, controls, result, settings, warm=True)
     result.callback_seconds = callbacks
     result = finished(result, errors, meshes, mesh_tol, spent, limit)
     if result.success:
@@ -136,15 +144,16 @@ def finished(result, errors, meshes, mesh_tol, seconds, limit=None):
 
 
 def refined_layout(layout, errors, mesh_tol, knots):
-    """The next mesh: each interval with error e > mesh_tol split into equal pieces (see the
-    module; in halves after a mesh of another scheme), the control knots added as nodes;
+    """The next mesh: each interval with error e > mesh_tol/MARGIN split into equal pieces (see
+    the module; in halves after a mesh of another scheme), the control knots added as nodes;
     Hermite–Simpson."""
     nodes = layout.node_fractions
-    ratio = np.maximum(errors, mesh_tol) / mesh_tol
+    target = mesh_tol / MARGIN
+    ratio = np.maximum(errors, target) / target
     with np.errstate(over="ignore"):
         wanted = np.ceil(ratio ** (1.0 / (ORDER + 1))) if layout.scheme == "hermite-simpson" \
             else 2          # another scheme's error says little of Hermite–Simpson's
-        pieces = np.where(errors > mesh_tol, np.clip(wanted, 2, MAX_PIECES), 1)
+        pieces = np.where(errors > target, np.clip(wanted, 2, MAX_PIECES), 1)
     pieces = within_budget(pieces, errors, min(MAX_GROWTH * layout.nodes, MAX_NODES))
     points = [nodes[:1]]
     for k, count in enumerate(pieces.astype(int)):
@@ -172,6 +181,19 @@ def within_budget(pieces, errors, budget):
         scaled[order[:max(room, 0)]] = 1
         scaled[added == 0] = 0
     return 1 + scaled
+
+
+def inputs_on_bounds(result, problem):
+    """The inputs (indices) with a point within ON_BOUND of their range from a finite bound."""
+    on = set()
+    for k in range(result._layout.nu):
+        lo, hi = problem._bounds.get(("u", k), (-np.inf, np.inf))
+        values = result._point_values("u", k)
+        band = ON_BOUND * (hi - lo) if np.isfinite(hi - lo) else ON_BOUND * max(
+            1.0, float(np.abs(values).max()))
+        if np.any(values <= lo + band) or np.any(values >= hi - band):
+            on.add(k)
+    return frozenset(on)
 
 
 def switch_knots(result, knots, problem, mesh_tol):
