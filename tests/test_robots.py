@@ -299,7 +299,7 @@ BAD = {
                                            joint("j", "revolute", "a", "b")),
                                      "triangle inequality"),
     "NaN": (robot(link("a", 1), link("b", 1, com="0 nan 0"), joint("j", "revolute", "a", "b")),
-            "finite number"),
+            "xyz must be finite, got nan"),
     "an unsupported joint": (robot(link("a", 1), link("b", 1), joint("j", "planar", "a", "b")),
                              "type 'planar'"),
     "an entity": ('<?xml version="1.0"?><!DOCTYPE r [<!ENTITY x "y">]><robot name="r"/>',

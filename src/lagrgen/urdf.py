@@ -26,6 +26,7 @@ import numpy as np
 
 from .errors import ModelError
 from .frames import rodrigues
+from .numbers import finite_number
 
 #: Joint types that carry a coordinate, and the fixed joint that merges two links.
 MOVING = ("revolute", "continuous", "prismatic")
@@ -155,13 +156,7 @@ def _attribute(element, key, what):
 
 
 def _number(text, what):
-    try:
-        value = float(text)
-    except (TypeError, ValueError):
-        raise URDFError(f"{what} is {text!r}, not a number") from None
-    if not math.isfinite(value):
-        raise URDFError(f"{what} is {text!r}: a URDF value must be a finite number")
-    return value
+    return finite_number(text, what, URDFError)
 
 
 def _vector(element, key, what, default=(0.0, 0.0, 0.0)):
