@@ -307,22 +307,19 @@ def _limit_arrays(mod, limits):
     """(lower, upper, velocity, acceleration), each (n,), inf where a joint has no such limit:
     from `limits` ({coordinate: (lower, upper, velocity, acceleration)}), each None there taken
     from the model's `limits` ({coordinate: (lower, upper, velocity, effort)}, the effort not used)."""
-    n = mod.n_coordinates
-    out = np.tile(np.array([[-np.inf], [np.inf], [np.inf], [np.inf]]), (1, n))
-    given = dict(getattr(mod, "limits", None) or {})
-    given = {c: tuple(v or (None,) * 4)[:3] + (None,) for c, v in given.items()}
+    merged = {c: tuple(entry[:3]) + (None,) for c, entry in mod.limits.items()}
     for coordinate, entry in (limits or {}).items():
         if coordinate not in mod.coordinates:
             raise unknown_name("coordinate", coordinate, tuple(mod.coordinates))
-        own = given.get(coordinate, (None,) * 4)
-        given[coordinate] = tuple(own[k] if value is None else value
-                                  for k, value in enumerate(_limit_entry(coordinate, entry)))
-    for coordinate, entry in given.items():
-        if coordinate in mod.coordinates:
-            j = mod.coordinates.index(coordinate)
-            for row, value in enumerate(entry):
-                if value is not None:
-                    out[row, j] = float(value)
+        own = merged.get(coordinate, (None,) * 4)
+        merged[coordinate] = tuple(o if value is None else value
+                                   for o, value in zip(own, _limit_entry(coordinate, entry)))
+    out = np.tile(np.array([[-np.inf], [np.inf], [np.inf], [np.inf]]), (1, mod.n_coordinates))
+    for coordinate, entry in merged.items():
+        j = mod.coordinates.index(coordinate)
+        for row, value in enumerate(entry):
+            if value is not None:
+                out[row, j] = float(value)
     lower, upper, velocity, acceleration = out
     bad = np.flatnonzero((lower >= upper) | (velocity <= 0) | (acceleration <= 0))
     if bad.size:
