@@ -166,7 +166,15 @@ def model_info(spec, equations, formulation=None):
         nonsmooth_definitions=[(e["name"], e["kind"], e["normal"])
                                for e in _nonsmooth().describe(spec)],
         inertial_parameters=inertial_parameters(spec),
-        initial_state=spec.initial_state, coordinate_limits=spec.limits)
+        initial_state=spec.initial_state, coordinate_limits=spec.limits,
+        tree_structure=_tree_structure(equations) if formulation == "recursive" else {})
+
+
+def _tree_structure(equations):
+    """`ModelInfo.tree_structure` of a spatial tree (its recursion's tables, see
+    `lagrgen.codegen.tree_code.structure`); empty for a planar one."""
+    from .codegen.tree_code import structure
+    return structure(equations)
 
 
 def _nonsmooth():
@@ -248,7 +256,7 @@ class Progress:
 # -- export: generated files without the cache -----------------------------------------------
 def export_c(model, out_dir):
     """Write just the standalone C model `<name>_model.h` and `<name>_model.c` into `out_dir`,
-    with every registered function (a build's own `<name>_model.c` holds those of the model's
+    with every exported function (a build's own `<name>_model.c` holds those of the model's
     module); return their paths."""
     from .codegen.c_model import standalone_files
     equations = derived(model.spec())

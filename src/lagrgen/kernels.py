@@ -35,7 +35,7 @@ from dataclasses import dataclass, field
 
 import symengine as se
 
-from . import nonsmooth, tree
+from . import hessians, nonsmooth, tree
 from .caching import once_per
 from .functions import Output
 from .tangents import linearize
@@ -57,6 +57,10 @@ class KernelSpec:
     arguments: tuple = KERNEL_ARGUMENTS   # its arguments: `t` a double, the others arrays
     lanes: tuple = ()    # arrays holding one entry per direction: in C the kernel runs several
                          # directions at once, entry i of lane b at [i·LG_LANES + b]
+    python: bool = True  # formed for the Python backend too (False: only a compiled unit's C
+                         # calls it, and the Python backend computes its function otherwise)
+    zeroed: tuple = ()   # outputs the caller fills with zeros first: their zero entries are
+                         # not stored (a sparse matrix written whole)
 
 
 @dataclass
@@ -118,6 +122,14 @@ def motion_program(eq):
 def motion_linearized(eq):
     """The forward-mode program (`lagrgen.tangents.Linearized`) of `motion_program`."""
     return linearize(*motion_program(eq), _seeds(eq))
+
+
+#: The arguments of a kernel of weighted sums: the kernel arguments and the weights mu.
+WEIGHTED_ARGUMENTS = KERNEL_ARGUMENTS + ("mu",)
+
+
+def _residual_hessian(eq):
+    return {"H": hessians.full_matrix(hessians.residual_hessian(eq), hessians.point_size(eq))}
 
 
 def _motion_tape(eq):
@@ -182,6 +194,10 @@ KERNELS = (
     KernelSpec("nonsmooth", "the impacts' and frictions' terms (layout in lagrgen.nonsmooth)",
                (Output("terms", ("n_hybrid",)),), lambda eq: {"terms": nonsmooth.terms(eq)},
                when=lambda eq: bool(eq.spec.nonsmooth)),
+    KernelSpec("residual_hessian", "H = ∇²_z(Σ mu_i·r_i) of the implicit form's residual "
+               "r = [M·q̈ − F − Aᵀλ; A·q̈ − γ], z = [q, q̇, q̈, λ, u] (symmetric, full)",
+               (Output("H", ("n_point", "n_point")),), _residual_hessian,
+               arguments=WEIGHTED_ARGUMENTS, python=False, zeroed=("H",)),
     KernelSpec("motion_tape", "M, F (and A, γ) as mf (and constraints) compute them, and the tape c "
                "of their forward-mode coefficients (lagrgen.tangents)",
                (Output("M", ("n", "n")), Output("F", ("n",)),
@@ -268,6 +284,17 @@ def _node_notes(output, slopes=False):
 
 
 @once_per
+def tree_q_hessian(eq):
+    """The nonzero lower entries [(row, col, expr)] of ∇²_z(Σ mu_i·Q_i) of a spatial tree's
+    generalized forces Q (`lagrgen.hessians.q_hessian`), once per Equations."""
+    return hessians.q_hessian(tree.analyse(eq).Q, eq)
+
+
+def _is_spatial_tree(eq):
+    return tree.analyse(eq).kind == "spatial"
+
+
+@once_per
 def tree_gradients(eq):
     """`lagrgen.tree.gradients` of the equations' tree, once per Equations."""
     return tree.gradients(tree.analyse(eq), eq)
@@ -296,6 +323,16 @@ TREE_KERNELS = (
                (Output("dnode", ("nnz_p",)), Output("dQp", ("nnz_qp",))),
                lambda eq: {"dnode": tree_parameter_gradients(eq)[0][1],
                            "dQp": tree_parameter_gradients(eq)[1][1]}),
+    KernelSpec("tree_q_hessian", "the nonzero lower entries of ∇²_z(Σ mu_i·Q_i) of the generalized "
+               "forces Q (a spatial tree: its inertia forces' part comes from the recursion)",
+               (Output("HQ", ("nnz_qh",)),),
+               lambda eq: {"HQ": [e for _, _, e in tree_q_hessian(eq)]},
+               when=_is_spatial_tree, arguments=WEIGHTED_ARGUMENTS),
+    KernelSpec("tree_residual_hessian", "H = ∇²_z(Σ mu_i·r_i) as the dense kernel residual_hessian "
+               "(a planar tree: no recursion of second derivatives)",
+               (Output("H", ("n_point", "n_point")),), _residual_hessian,
+               when=lambda eq: not _is_spatial_tree(eq), arguments=WEIGHTED_ARGUMENTS,
+               python=False, zeroed=("H",)),
 )
 #: The dense kernels the recursive formulation keeps (none of them needs M or F).
 _KEPT = ("outputs", "events", "nonsmooth")
@@ -311,7 +348,8 @@ TREE_REPLACES = {"mf": ("tree_nodes",),
                  "parameter_b": ("tree_nodes", "tree_parameters"),
                  "motion_tape": ("tree_nodes", "tree_slopes", "tree_parameters"),
                  "motion_tangent": (),
-                 "body_poses": ("tree_poses",)}
+                 "body_poses": ("tree_poses",),
+                 "residual_hessian": ("tree_nodes", "tree_q_hessian", "tree_residual_hessian")}
 
 
 @once_per
@@ -343,13 +381,14 @@ def kernel_names(names, formulation="dense"):
     return {r for k in names for r in TREE_REPLACES.get(k, (k,))}
 
 
-def model_kernels(eq, formulation="dense", names=None):
+def model_kernels(eq, formulation="dense", names=None, python=False):
     """The kernels a build of `eq` in `formulation` ("dense" or "recursive") generates, in order:
     those the model has, and only those computing the dense kernels `names` when given (the
-    others are not formed)."""
+    others are not formed); with `python`, only those the Python backend forms."""
     wanted = None if names is None else kernel_names(names, formulation)
     return [kernel(eq, k.name, formulation) for k in FORMULATION_KERNELS[formulation]
-            if (wanted is None or k.name in wanted) and (k.when is None or k.when(eq))]
+            if (wanted is None or k.name in wanted) and (k.python or not python)
+            and (k.when is None or k.when(eq))]
 
 
 def all_kernels(eq, names=None):

@@ -81,8 +81,11 @@ def kernel_statements(kernel):
 
     require([name for name in temps if name not in done] if not kernel.outputs else [])
     notes = getattr(kernel, "notes", {})
+    zeroed = kernel.spec.zeroed
     for name, exprs in kernel.outputs.items():
         for i, e in enumerate(exprs):
+            if name in zeroed and e == 0:
+                continue
             if (name, i) in notes:
                 stmts.append(Comment(notes[name, i]))
             require(sorted(needs(e), key=_index, reverse=True)[::-1])

@@ -5,7 +5,7 @@ and the same tables for the Python backend (`lagrgen.runtime.tree`, `lagrgen.run
 from string import Template
 
 from .. import tree as trees
-from ..kernels import tree_gradients, tree_parameter_gradients
+from ..kernels import tree_gradients, tree_parameter_gradients, tree_q_hessian
 
 #: The template of each kind of tree.
 TEMPLATES = {"planar": "tree.c.in", "spatial": "tree3d.c.in"}
@@ -43,10 +43,26 @@ def layout(equations):
         columns.append(start if values else -1)
         start += 10 if values else 0
     out["inertial_column"] = columns
+    if tree.kind == "spatial":
+        out["qh"] = [[r, c] for r, c, _ in tree_q_hessian(equations)]
     if tree.kind == "planar":
         out.update(D=tree.D, slope_width=trees.record_width(trees.SLOPE_FIELDS, tree.D),
                    slope_fields=trees.field_offsets(trees.SLOPE_FIELDS, tree.D))
     return out
+
+
+def structure(equations):
+    """What the sparsity of a spatial tree's residual derivatives follows from (`ModelInfo.
+    tree_structure`): the nodes' coordinate and parent, the nonzero entries of ∂Q/∂q, ∂Q/∂q̇,
+    ∂Q/∂u (coordinate, variable) and of ∇²(Σ mu_i·Q_i) (`qh`, point indices); {} for a planar
+    tree."""
+    tree = trees.analyse(equations)
+    if tree.kind != "spatial":
+        return {}
+    tables = layout(equations)
+    du = [[i, k] for i, row in enumerate(tree_gradients(equations)[2])
+          for k, e in enumerate(row) if e != 0]
+    return {key: tables[key] for key in ("coordinate", "parent", "dq", "dqd", "qh")} | {"du": du}
 
 
 def _nodes(pairs, tree):
@@ -74,8 +90,11 @@ def tree_c(equations, template, kernels=("tree_nodes", "tree_slopes", "tree_para
                for name, offset in tables["node_fields"].items()]
     offsets += [f"#define TREE_{name.upper()} {offset}"
                 for name, offset in tables.get("slope_fields", {}).items()]
+    qh = tables.get("qh", [])
     return Template(template).substitute(
         has_slopes=int("tree_slopes" in kernels),
+        has_hessian=int("tree_q_hessian" in kernels), nnz_qh=len(qh),
+        qh_index=_ints([i for rc in qh for i in rc]),
         has_parameters=int("tree_parameters" in kernels),
         has_poses=int("tree_poses" in kernels),
         inertial_columns=_ints(tables["inertial_column"]),

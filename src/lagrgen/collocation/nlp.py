@@ -16,11 +16,13 @@ import numpy as np
 
 from ..calculus import internal_symbols
 from ..errors import LagrgenError
-from ._points import kernel_rows, residual_rows
+from ._points import kernel_rows, residual_rows, weighted_rows
 from .grid import defect_intervals, defects, interpolation, quadrature, variable_names
-from .symbolic import (consistency_derivatives, path_derivatives, point_variables_of,
-                       residual_hessian, residual_jacobian_structure, residual_parameter_hessian,
-                       scalar_derivatives, weights)
+from ..hessians import (path_derivatives, point_variables_of, residual_hessian,
+                        residual_jacobian_structure, residual_parameter_hessian,
+                        scalar_derivatives, weights)
+from .symbolic import consistency_derivatives
+from .sparsity import hessian_entries, jacobian_structure
 from .units import compiled_unit
 
 
@@ -36,6 +38,10 @@ class Transcription:
         self.quad = quadrature(L)
         self.n_path = len(problem._path)
         self.exact = hessian_kind == "exact"
+        #: A spatial tree's residual derivatives by its recursion, their sparsity from its
+        #: structure (`.sparsity`): no symbolic equations (unknown parameters take the symbolic
+        #: path).
+        self.recursive = bool(self.mod.info.tree_structure) and not L.unknown
         if self.exact:
             self._hessian_units()
         self._residual_structure()
@@ -73,9 +79,13 @@ class Transcription:
     def _residual_structure(self):
         L, mod = self.layout, self.mod
         n, m, nu, ni, nz = L.n, L.m, L.nu, L.ni, L.nz
-        s = self.hessian_unit.structure["jacobian"] if self.exact else \
-            residual_jacobian_structure(_equations(self.problem.model))
         n_params = len(mod.parameters)
+        if self.recursive:
+            s = jacobian_structure(mod.info.tree_structure, n, nu, n_params)
+        elif self.exact:
+            s = self.hessian_unit.structure["jacobian"]
+        else:
+            s = residual_jacobian_structure(_equations(self.problem.model))
         size1 = ni + ni * 2 * n + ni * ni + ni * nu
         rows, cols, pick = [], [], []
         for i in range(ni):
@@ -178,6 +188,13 @@ class Transcription:
 
     def _hessian_units(self):
         L, model = self.layout, self.problem.model
+        if self.recursive:
+            self.hessian_function = self.mod.function_address("residual_hessian")
+            self.res_hess = hessian_entries(self.mod.info.tree_structure, L.n, L.nu)
+            width = L.nz
+            self.res_hess_pick = self.res_hess[:, 0] * width + self.res_hess[:, 1]
+            self.parameter_unit = None
+            return
         self.hessian_unit = compiled_unit(self.mod, "hessian", "",
                                           lambda: _hessian_unit(model))
         self.res_hess = np.array(self.hessian_unit.structure["entries"],
@@ -426,6 +443,18 @@ class Transcription:
                     first["p"], L.n, L.m, L.nu, W, out)
         return out[0]
 
+    def _residual_hessian(self, state, W):
+        """The residual's weighted Hessian entries at every point (flat), weights W (P, ni)."""
+        L = self.layout
+        if not self.recursive:
+            return self._kernel("residual_hessian", state, len(self.res_hess), W,
+                                self.hessian_unit).ravel()
+        out = np.empty((L.points, len(self.res_hess)))
+        if weighted_rows(self.hessian_function, state["t"], state["Z"], state["p"], L.n, L.m,
+                         L.nu, W, self.res_hess_pick, out):
+            raise LagrgenError("the model's residual Hessian failed at a collocation point")
+        return out.ravel()
+
     def _path_values(self, state):
         if "path" not in state:
             state["path"] = self._kernel("path_values", state, self.n_path)
@@ -514,8 +543,7 @@ class Transcription:
         L = self.layout
         P, ni = L.points, L.ni
         mu = np.asarray(lagrange)
-        parts = [self._kernel("residual_hessian", state, len(self.res_hess),
-                              mu[:P * ni].reshape(P, ni), self.hessian_unit).ravel()]
+        parts = [self._residual_hessian(state, np.ascontiguousarray(mu[:P * ni].reshape(P, ni)))]
         if self.parameter_unit is not None:
             full = self._kernel("residual_parameter_hessian", state,
                                 len(self.parameter_unit.structure["entries"]),

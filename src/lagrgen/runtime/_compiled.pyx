@@ -347,6 +347,24 @@ cdef class ImplicitFunction(BoundFunction):
         return self.evaluate(t, data(y), p, u)
 
 
+cdef class WeightedFunction(BoundFunction):
+    """f(q, qd, a, mu, t=0.0, p=None, u=None) with a = [q̈, λ] and mu the weights of the implicit
+    form's rows; new float64 arrays on every call."""
+
+    def __call__(self, q, qd, a, mu, double t=0.0, p=None, u=None):
+        cdef cnp.npy_intp n = self.model.n_coordinates
+        cdef cnp.npy_intp ni = n + self.model.n_constraints
+        cdef cnp.npy_intp size = 2 * n + 2 * ni
+        cdef cnp.ndarray y = <cnp.ndarray>cnp.PyArray_EMPTY(1, &size, cnp.NPY_DOUBLE, 0)
+        cdef double *yp = <double *>cnp.PyArray_DATA(y)
+        copy_into(yp, as_f64(q, n, "q"), n)
+        copy_into(yp + n, as_f64(qd, n, "qd"), n)
+        copy_into(yp + 2 * n,
+                  as_f64(a, ni, "a (the accelerations, then the constraint multipliers)"), ni)
+        copy_into(yp + 2 * n + ni, as_f64(mu, ni, "mu (a weight per row of the residual)"), ni)
+        return self.evaluate(t, data(y), p, u)
+
+
 cdef class DirectionsFunction:
     """f(t, y, dy, dp=None, p=None, u=None) -> (ẏ, the derivatives of ẏ along the directions):
     dy is one direction (2n,) or k of them (k, 2n), dp the matching parameter directions (n_params,)
@@ -398,7 +416,8 @@ cdef class DirectionsFunction:
 
 
 CALLABLES = {"state": StateFunction, "q": CoordinateFunction, "q_qd": StateArgumentsFunction,
-             "implicit": ImplicitFunction, "directions": DirectionsFunction}
+             "implicit": ImplicitFunction, "weighted": WeightedFunction,
+             "directions": DirectionsFunction}
 #: The functions not of the one signature lg_function.
 DIRECTION_FUNCTIONS = frozenset(f.name for f in FUNCTIONS if f.call == "directions")
 

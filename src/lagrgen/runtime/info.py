@@ -6,7 +6,7 @@ backends read every name, size and flag of a built model from it (`INFO_ATTRIBUT
 nothing heavy: a compiled model's module reads it at import.
 """
 import json
-from dataclasses import asdict, dataclass, fields
+from dataclasses import asdict, dataclass, field, fields
 
 from ..errors import BuildError
 from ..functions import HYBRID_FIELDS, POWER_TERMS
@@ -25,7 +25,12 @@ class ModelInfo:
     (over the kinematic tree, `lagrgen.tree`); `inertial_parameters` the parameters that are the
     bodies' ten inertial parameters (m, m·c, I about the body frame's origin), ten per body, the
     columns of the regressor; `coordinate_limits` the declared limits (`Model.limit`) as
-    (coordinate, lower, upper, velocity, effort), None where absent.
+    (coordinate, lower, upper, velocity, effort), None where absent; `tree_structure` of a
+    three-dimensional tree in the recursive formulation (else empty): its nodes' `coordinate` and
+    `parent` (−1: a root), and the nonzero entries (row, col) of its generalized forces' first
+    derivatives `dq`, `dqd`, `du` (coordinate, variable) and second derivatives `qh` (point
+    indices z = [q, q̇, q̈, λ, u], lower triangle): what the sparsity of its residual's
+    derivatives follows from (`lagrgen.collocation`).
     """
 
     name: str
@@ -46,6 +51,7 @@ class ModelInfo:
     formulation: str = "dense"
     inertial_parameters: tuple = ()
     coordinate_limits: tuple = ()
+    tree_structure: dict = field(default_factory=dict)
 
     def __post_init__(self):
         for name in ("coordinates", "parameters", "inputs", "defaults", "output_names",
@@ -54,6 +60,7 @@ class ModelInfo:
         object.__setattr__(self, "event_definitions",
                            tuple(tuple(e) for e in self.event_definitions))
         object.__setattr__(self, "units", dict(self.units))
+        object.__setattr__(self, "tree_structure", dict(self.tree_structure))
         object.__setattr__(self, "coordinate_limits",
                            tuple(tuple(entry) for entry in self.coordinate_limits))
         object.__setattr__(self, "nonsmooth_definitions", tuple(
@@ -81,7 +88,7 @@ class ModelInfo:
         return {"n": n, "2n": 2 * n, "n_params": len(self.parameters),
                 "n_inputs": len(self.inputs), "n_constraints": m,
                 "n_holonomic": self.n_holonomic, "n_residuals": self.n_holonomic + m,
-                "n_implicit": n + m,
+                "n_implicit": n + m, "n_point": 3 * n + m + len(self.inputs),
                 "n_events": len(self.event_definitions), "n_power": len(POWER_TERMS),
                 "n_outputs": len(self.output_names),
                 "n_inertial": len(self.inertial_parameters),

@@ -91,6 +91,9 @@ class BuiltModel(Protocol):
     def residual_terms(self, q, qd, a, t=0.0, p=None, u=None) -> tuple:
         """(r, ∂r/∂[q, q̇], ∂r/∂a, ∂r/∂u) of r = [M·q̈ − F − Aᵀλ; A·q̈ − γ], a = [q̈, λ]."""
 
+    def residual_hessian(self, q, qd, a, mu, t=0.0, p=None, u=None) -> np.ndarray:
+        """∇²_z(Σ mu_i·r_i), (n_point, n_point), z = [q, q̇, q̈, λ, u]: exact second derivatives."""
+
     def regressor(self, q, qd, a, t=0.0, p=None, u=None) -> np.ndarray:
         """Y, (n, len(inertial_parameters)), with M·q̈ − F = Y·π at q̈ = a (§21)."""
 

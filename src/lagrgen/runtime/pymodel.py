@@ -12,6 +12,7 @@ import numpy as np
 
 from ..errors import ConstraintError, MassMatrixError, NonFiniteError
 from ..functions import FUNCTIONS
+from . import dual
 from .arguments import (as_vector, defaults_array, initial_state_array, input_vector,
                         parameter_vector)
 from .describe import describe
@@ -58,8 +59,10 @@ class PythonModel:
         self.source = source
         code = compile(source, f"<lagrgen python backend: {self.name}>", "exec")
         self._kernels, self._ieee_kernels = dict(_NAMESPACE), dict(_IEEE_NAMESPACE)
+        self._dual_kernels = dict(dual.NAMESPACE)
         exec(code, self._kernels)
         exec(code, self._ieee_kernels)
+        exec(code, self._dual_kernels)
         for spec in FUNCTIONS:
             setattr(self, spec.name, _CALLERS[spec.call](self, getattr(self, f"_{spec.name}")))
 
@@ -285,6 +288,42 @@ class PythonModel:
             dr_da[n:, :n] = A
         return r, dr_dy, dr_da, dr_du
 
+    def _residual_hessian(self, t, q, qd, a, mu, p, u):
+        """∇²_z(Σ mu_i·r_i): the gradient of Σ mu_i·r_i from the first-derivative kernels (as
+        `_residual_terms` assembles them) evaluated on duals seeded with z = [q, q̇, a, u]."""
+        n, m, k = self.n_coordinates, self.n_constraints, len(self.inputs)
+        z = dual.seeded(list(q) + list(qd) + list(a) + list(u))
+        dq, dqd, da, du = z[:n], z[n:2 * n], z[2 * n:3 * n + m], z[3 * n + m:]
+        kernels = self._dual_kernels
+        M, F = kernels["mf"](t, dq, dqd, None, p, du)
+        B, = kernels["jacobian_b"](t, dq, dqd, da, p, du)
+        Fu, = kernels["dF_du"](t, dq, dqd, None, p, du)
+        w, nu = mu[:n], mu[n:]
+        g = [0.0] * len(z)
+        for i in range(n):
+            if not w[i]:
+                continue
+            for j in range(2 * n):
+                g[j] -= w[i] * B[i * 2 * n + j]
+            for j in range(n):
+                g[2 * n + j] += w[i] * M[i * n + j]
+            for c in range(k):
+                g[3 * n + m + c] -= w[i] * Fu[i * k + c]
+        if m:
+            A, _ = kernels["constraints"](t, dq, dqd, None, p, du)
+            H, G = kernels["constraint_jacobian"](t, dq, dqd, da, p, du)
+            for i in range(n):
+                for j in range(n):
+                    g[j] -= w[i] * H[i * n + j]
+                for c in range(m):
+                    g[2 * n + n + c] -= w[i] * A[c * n + i]
+            for c in range(m):
+                for j in range(2 * n):
+                    g[j] -= nu[c] * G[c * 2 * n + j]
+                for j in range(n):
+                    g[2 * n + j] += nu[c] * A[c * n + j]
+        return np.array([dual.gradient(x, len(z)) for x in g])
+
     def _residual_parameter_jacobian(self, t, q, qd, a, p, u):
         n, m, k = self.n_coordinates, self.n_constraints, len(self.parameters)
         out = np.zeros((n + m, k))
@@ -383,5 +422,18 @@ def _implicit_caller(model, impl):
     return call
 
 
+def _weighted_caller(model, impl):
+    n, m = model.n_coordinates, model.n_constraints
+
+    def call(q, qd, a, mu, t=0.0, p=None, u=None):
+        return impl(float(t), as_vector(q, n, "q").tolist(), as_vector(qd, n, "qd").tolist(),
+                    as_vector(a, n + m, "a (the accelerations, then the constraint "
+                              "multipliers)").tolist(),
+                    as_vector(mu, n + m, "mu (a weight per row of the residual)").tolist(),
+                    *model._arguments(p, u))
+    return call
+
+
 _CALLERS = {"state": _state_caller, "q": _coordinate_caller, "q_qd": _state_arguments_caller,
-            "directions": _directions_caller, "implicit": _implicit_caller}
+            "directions": _directions_caller, "implicit": _implicit_caller,
+            "weighted": _weighted_caller}

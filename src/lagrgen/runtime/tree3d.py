@@ -37,6 +37,29 @@ def inertia_apply(Y, m):
     return inertia_matrix(Y) @ m
 
 
+def cross_matrix(m):
+    """The 6×6 matrix of x ↦ m × x (motions)."""
+    w, v = skew(m[:3]), skew(m[3:])
+    return np.block([[w, np.zeros((3, 3))], [v, w]])
+
+
+def skew(x):
+    """The 3×3 matrix of y ↦ x × y."""
+    return np.array([[0.0, -x[2], x[1]], [x[2], 0.0, -x[0]], [-x[1], x[0], 0.0]])
+
+
+def force_cross_matrix(f):
+    """The 6×6 matrix of x ↦ x ×* f (a motion x on the force f)."""
+    n, l = skew(f[:3]), skew(f[3:])
+    return np.block([[-n, -l], [-l, np.zeros((3, 3))]])
+
+
+def variation(s, B):
+    """[s]×*·B − B·[s]×: the change of the operator B when its body turns with s."""
+    C = cross_matrix(s)
+    return -C.T @ B - B @ C
+
+
 def force_derivative(Y, v):
     """The 6×6 operator dY·ψ = v ×* (Y·ψ) − Y·(v × ψ) + ψ ×* (Y·v) (tree3d.c.in's
     lg_sv_force_derivative, as a full matrix)."""
@@ -66,6 +89,7 @@ class SpatialRecursion:
         self.dnode = np.array(tables["dnode"], dtype=np.intp).reshape(-1, 2)
         self.dnode_start = list(tables["dnode_start"])
         self.dQp = np.array(tables["dQp"], dtype=np.intp).reshape(-1, 2)
+        self.qh = [tuple(rc) for rc in tables.get("qh", [])]
         self.first = np.unique(self.coordinate, return_index=True)[1]
         self.path = []
         for k in range(self.n):
@@ -185,6 +209,98 @@ class SpatialRecursion:
             np.add.at(B, (self.dqd[:, 0], nc + self.dqd[:, 1]), dQd)
         return B
 
+    def hessian(self, nodes, qd, a, mu, size):
+        """Σ_c mu_c·∇²τ_c (coordinate order) in z = [q, q̇, q̈, …] (size × size, symmetric) at
+        q̈ = a: the second-order derivatives of the inverse dynamics contracted with mu
+        (tree3d.c.in's lg_tree_hessian, the same formulas, for the nodes k ≤ j ≤ i of a path)."""
+        n, nc = self.n, self.nc
+        s, Y, base, _ = self.split(nodes)
+        c = self.coordinate
+        v, acc = self.motion(nodes, qd, a)
+        psi, psidd = np.zeros((n, 6)), np.zeros((n, 6))
+        Yc = np.array([inertia_matrix(Y[k]) for k in range(n)])
+        BC, fc = np.zeros((n, 6, 6)), np.zeros((n, 6))
+        for k in range(n):
+            parent = self.parent[k]
+            vp = v[parent] if parent >= 0 else np.zeros(6)
+            ap = acc[parent] if parent >= 0 else base[k]
+            psi[k] = crm(vp, s[k])
+            psidd[k] = crm(ap, s[k]) + crm(vp, psi[k])
+            h = Yc[k] @ v[k]
+            fc[k] = Yc[k] @ acc[k] + crf(v[k], h)
+            BC[k] = variation(v[k], Yc[k]) + force_cross_matrix(h)
+        H = np.zeros((size, size))
+        Hqq, Hvv = H[:nc, :nc], H[nc:2 * nc, nc:2 * nc]
+        Hqv, Haq = H[:nc, nc:2 * nc], H[2 * nc:3 * nc, :nc]
+        for i in range(n - 1, -1, -1):
+            Si, ip = s[i], c[i]
+            r1 = variation(Si, Yc[i])
+            r0 = force_cross_matrix(Yc[i] @ Si)
+            Bic = r1 + r0
+            r2 = r0 - r1
+            r3 = (variation(psi[i], Yc[i]) + force_cross_matrix(Yc[i] @ psi[i])
+                  + variation(Si, BC[i]))
+            r4 = force_cross_matrix(BC[i].T @ Si)
+            r5 = force_cross_matrix(BC[i] @ psi[i] + crf(Si, fc[i]) + Yc[i] @ psidd[i])
+            r6 = r0 - cross_matrix(Si).T @ Yc[i]
+            r7 = force_cross_matrix(BC[i] @ Si + 2.0 * Yc[i] @ psi[i])
+            mi = mu[ip]
+            for j in self.path[i]:
+                Sj, jq, mj = s[j], c[j], mu[c[j]]
+                u1, u2 = r3.T @ Sj, r1.T @ Sj
+                u3 = r3 @ psi[j] + r1 @ psidd[j] + r5 @ Sj
+                u4, u5 = r6 @ Sj, r2 @ psi[j]
+                u6 = Bic @ psi[j] + r7 @ Sj
+                u7 = r3 @ Sj + 2.0 * r1 @ psi[j]
+                u8, u9, u10 = r4 @ Sj, r0 @ Sj, Bic @ Sj
+                u11, u12, u13 = Bic.T @ Sj, Bic.T @ psi[j], r1 @ Sj
+                for k in self.path[j]:
+                    Sk, kr, mk = s[k], c[k], mu[c[k]]
+                    p1 = u11 @ psi[k]
+                    p2 = u9 @ psidd[k] + (u8 - u12) @ psi[k]
+                    Hqq[jq, kr] += mi * p2
+                    Hqv[kr, jq] -= mi * p1
+                    if j != i:
+                        t = u1 @ psi[k] + u2 @ psidd[k]
+                        p3, p4 = u11 @ Sk, Sk @ u13
+                        Hqq[kr, ip] += mj * t
+                        Hqq[ip, kr] += mj * t
+                        Hqv[kr, ip] += mj * p1
+                        Hqv[ip, kr] += mj * (u1 @ Sk + 2.0 * u2 @ psi[k])
+                        Hvv[kr, ip] += mj * p3
+                        Hvv[ip, kr] += mj * p3
+                        Haq[jq, ip] += mk * p4
+                        if k != j:
+                            Haq[kr, ip] += mj * p4
+                    if k != j:
+                        p3, p5, t = -(u11 @ Sk), Sk @ u9, Sk @ u3
+                        Hqq[kr, jq] += mi * p2
+                        Hqq[ip, jq] += mk * t
+                        Hvv[jq, kr] += mi * p3
+                        Hvv[kr, jq] += mi * p3
+                        Hqv[jq, kr] += mi * (Sk @ (u5 + u8) + 2.0 * u9 @ psi[k])
+                        Hqv[jq, ip] += mk * (Sk @ u6)
+                        Haq[ip, jq] += mk * p5
+                        Haq[kr, jq] += mi * p5
+                        if j != i:
+                            p6 = Sk @ u10
+                            Hqq[jq, ip] += mk * t
+                            Hvv[ip, jq] += mk * p6
+                            Hvv[jq, ip] += mk * p6
+                            Hqv[ip, jq] += mk * (Sk @ u7)
+                        else:
+                            Hvv[jq, ip] += mk * (Sk @ u4)
+                    else:
+                        Hvv[jq, kr] -= mi * (u2 @ Sk)
+            parent = self.parent[i]
+            if parent >= 0:
+                Yc[parent] += Yc[i]
+                BC[parent] += BC[i]
+                fc[parent] += fc[i]
+        H[nc:2 * nc, :nc] = Hqv.T
+        H[:nc, 2 * nc:3 * nc] = Haq.T
+        return H
+
     def tangent(self, nodes, dnodes, qd, a):
         """δτ (coordinate order) of the inverse dynamics at q̈ = a when the node records change
         by `dnodes` (tree3d.c.in's lg_tree_tangent)."""
@@ -268,6 +384,21 @@ class SpatialPythonModel(FactoredModel):
         J[:n, n:] = np.eye(n)
         J[n:] = self._tree.solve(L, self._b(t, q, qd, qdd, p, u, nodes))
         return J
+
+    def _residual_hessian(self, t, q, qd, a, mu, p, u):
+        """∇²_z(Σ mu_i·r_i) = the recursion's second derivatives of τ minus those of the
+        generalized forces Q (the kernel tree_q_hessian)."""
+        n = self.n_coordinates
+        size = self.dimensions["n_point"]
+        nodes = self._nodes(t, q, qd, p, u)
+        H = self._tree.hessian(nodes, np.asarray(qd, dtype=float), np.asarray(a[:n], dtype=float),
+                               np.asarray(mu[:n], dtype=float), size)
+        HQ, = self._kernels["tree_q_hessian"](t, q, qd, a, p, u, mu)
+        for (r, c), value in zip(self._tree.qh, HQ):
+            H[r, c] -= value
+            if r != c:
+                H[c, r] -= value
+        return H
 
     def _parameter_b(self, t, q, qd, a, p, u, nodes=None):
         """P = ∂Q/∂p − ∂τ/∂p (n × n_params) at q̈ = a, by tangent sweeps."""
