@@ -385,6 +385,27 @@ def test_unexcited_parameters_get_an_identifiability_warning(arm, base, example,
     assert lagrgen.IdentifiabilityWarning is IdentifiabilityWarning
 
 
+def test_positions_only_with_a_joint_held_still_find_the_bandwidth_from_the_others(arm, base,
+                                                                                 example):
+    """Joint 1 held at 0.3 rad (its encoder's 1e-4 rad of noise the only motion), joints 2 and 3
+    moving, positions only: the filter's cut-off comes from the moving joints, and the directions
+    the still joint leaves unexcited get infinite standard errors and an IdentifiabilityWarning
+    (as with q̇ and q̈ given), never NumPy's error on an empty array."""
+    t = np.arange(8000) * 1e-3
+    rng = np.random.default_rng(11)
+    q = np.stack([np.full_like(t, 0.3), 0.5 * np.sin(1.3 * t), np.sin(t)])
+    qd = np.stack([np.zeros_like(t), 0.65 * np.cos(1.3 * t), np.cos(t)])
+    qdd = np.stack([np.zeros_like(t), -0.845 * np.sin(1.3 * t), -np.sin(t)])
+    tau = inverse_dynamics(arm, truth_vector(arm, example.TRUTH), q, qd, qdd)
+    with pytest.warns(IdentifiabilityWarning, match="exciting_trajectory"):
+        est = identify_inertial(arm, t, q + 1e-4 * rng.standard_normal(q.shape),
+                                tau + 0.01 * rng.standard_normal(tau.shape), base=base)
+    assert 5 * 1.3 / (2 * np.pi) <= est.cutoff < 10.0      # from joints 2 and 3's motion
+    assert base.names[0] in est.unidentified
+    assert all(np.isinf(est.stderr[n]) for n in est.unidentified)
+    assert np.isfinite(est.stderr["mx_link3"])
+
+
 def test_records_as_rows_per_sample_are_refused_with_the_fix(arm, records):
     t, q, qd, qdd, tau = records
     with pytest.raises(ValueError, match=r"q must have shape \(n, len\(t\)\).*q\.T"):

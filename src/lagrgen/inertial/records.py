@@ -43,23 +43,32 @@ def _joint_record(x, name, n, N):
 
 
 def motion_bandwidth(q, rate):
-    """The highest frequency (Hz) of the joints' motion: where the Hann-windowed periodogram of
-    the detrended positions last exceeds 1e-6 of its peak (the motion's content down to 1e-3 of
-    its largest amplitude) and 100 times the noise floor (the median over the upper half of the
-    band, where no motion is)."""
+    """The highest frequency (Hz) of the joints' motion: the largest of `joint_bandwidths`; a
+    ValueError when no joint moves."""
+    highest = float(joint_bandwidths(q, rate).max(initial=0.0))
+    if highest == 0.0:
+        raise ValueError("the positions do not move: identification needs a motion (see "
+                         "lagrgen.exciting_trajectory)")
+    return highest
+
+
+def joint_bandwidths(q, rate):
+    """Each joint's highest frequency of motion (Hz): where the Hann-windowed periodogram of its
+    detrended positions last exceeds 1e-6 of its peak (the motion's content down to 1e-3 of its
+    largest amplitude) and 100 times the noise floor (the median over the upper half of the
+    band, where no motion is); 0 for a joint whose spectrum never rises that far above its floor
+    (held still: its encoder's noise alone)."""
     from scipy.signal import detrend
     N = q.shape[1]
     power = np.abs(np.fft.rfft(detrend(q, axis=1) * np.hanning(N), axis=1)) ** 2
     freqs = np.fft.rfftfreq(N, 1.0 / rate)
     floor = np.median(power[:, freqs > rate / 4], axis=1) if N >= 8 else np.zeros(len(q))
-    highest = 0.0
-    for p, f0 in zip(power, floor):
-        if p.max() > 0:
-            highest = max(highest, freqs[np.flatnonzero(p > max(1e-6 * p.max(), 100 * f0))].max())
-    if highest == 0.0:
-        raise ValueError("the positions do not move: identification needs a motion (see "
-                         "lagrgen.exciting_trajectory)")
-    return float(highest)
+    highest = np.zeros(len(q))
+    for j, (p, f0) in enumerate(zip(power, floor)):
+        above = np.flatnonzero(p > max(1e-6 * p.max(), 100 * f0))
+        if p.max() > 0 and above.size:
+            highest[j] = freqs[above].max()
+    return highest
 
 
 def _uniform_rate(t):
@@ -108,9 +117,12 @@ def filtered_records(t, q, tau, cutoff=None):
     so the standard errors stay honest, with fewer regressor calls. The first and last
     EDGE_PERIODS/cutoff seconds are dropped: there the filter has no past or future, and its
     start-up transient (the records' ends reflected oddly) has not decayed below about 1e-4 of
-    the motion."""
+    the motion. A joint held still (no motion above its noise, `joint_bandwidths`) is recorded
+    at its mean position with q̇ = q̈ = 0, so that the directions only its motion would excite
+    are reported as the records' blind spots (as with q̇ and q̈ given), not fitted to noise."""
     from scipy.signal import butter, sosfiltfilt
     rate = _uniform_rate(t)
+    still = joint_bandwidths(q, rate) == 0.0
     cutoff = CUTOFF_FACTOR * motion_bandwidth(q, rate) if cutoff is None else float(cutoff)
     if not 0 < cutoff < 0.45 * rate:
         raise ValueError(f"the filter's cut-off must lie between 0 and 0.45 times the sampling "
@@ -121,6 +133,8 @@ def filtered_records(t, q, tau, cutoff=None):
     dt = 1.0 / rate
     qd = (qf[:, 2:] - qf[:, :-2]) / (2 * dt)
     qdd = (qf[:, 2:] - 2 * qf[:, 1:-1] + qf[:, :-2]) / dt ** 2
+    qf[still] = qf[still].mean(axis=1, keepdims=True)      # held still: its noise is no motion
+    qd[still] = qdd[still] = 0.0
     step = _uncorrelated_step(sos, int(math.ceil(2 * rate / cutoff)))
     edge = int(math.ceil(EDGE_PERIODS * rate / cutoff))
     keep = np.arange(edge, t.size - 2 - edge, step)
