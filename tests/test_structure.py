@@ -305,6 +305,24 @@ def test_the_package_has_no_import_cycle():
     assert import_cycles({"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": {"a"}}) == [{"a", "b", "c"}]
 
 
+def test_the_benchmark_modules_have_no_import_cycle():
+    """benchmarks/ imports its sibling modules one way (_peers and _pinocchio share _built)."""
+    import ast
+    folder = ROOT / "benchmarks"
+    names = {path.stem for path in folder.glob("*.py")}
+    graph = {}
+    for path in folder.glob("*.py"):
+        found = set()
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.Import):
+                found |= {a.name for a in node.names if a.name in names}
+            elif isinstance(node, ast.ImportFrom) and node.module in names:
+                found.add(node.module)
+        graph[path.stem] = found - {path.stem}
+    assert {"_peers", "_pinocchio", "_built"} <= set(graph)
+    assert import_cycles(graph) == []
+
+
 def test_the_import_graph_sees_an_import_inside_a_function(tmp_path):
     """The checker itself: a lazy import is an import (a later module reached from a function)."""
     modules = {"model": None, "outputs.display": None, "outputs": None}
