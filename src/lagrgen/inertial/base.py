@@ -98,8 +98,8 @@ def base_parameters(mod, samples=None, seed=0, tol=BASE_TOL):
 
     Parameters
     ----------
-    mod : a built model whose inertial parameters are parameters (`lagrgen.from_urdf(path,
-        parameters="inertial")`, or parameters named m_<link>, mx_<link>, ...)
+    mod : a built model whose inertial parameters are parameters (a URDF read with
+        parameters="inertial", or parameters named m_<link>, mx_<link>, ...)
     samples : the number of random states (None: enough for 4 times the rows needed)
     seed : the seed of the random states (reproducible results)
     tol : the relative size below which a column, or a QR diagonal entry, counts as zero

@@ -94,8 +94,8 @@ def identify_inertial(mod, t, q, tau, qd=None, qdd=None, consistent=False, frict
 
     Parameters
     ----------
-    mod : a built model whose inertial parameters are parameters (`lagrgen.from_urdf(path,
-        parameters="inertial")`, or parameters named m_<link>, mx_<link>, ...)
+    mod : a built model whose inertial parameters are parameters (a URDF read with
+        parameters="inertial", or parameters named m_<link>, mx_<link>, ...)
     t : (N,) increasing sample times
     q, tau : (n, N) joint positions and torques (one row per joint, as `sol.q`; (N, n) is
         refused with a ValueError saying to transpose)

@@ -89,8 +89,8 @@ def exciting_trajectory(mod, duration, harmonics=5, limits=None, q0=None, sample
 
     Parameters
     ----------
-    mod : a built model whose inertial parameters are parameters (`lagrgen.from_urdf(path,
-        parameters="inertial")`, or parameters named m_<link>, mx_<link>, ...)
+    mod : a built model whose inertial parameters are parameters (a URDF read with
+        parameters="inertial", or parameters named m_<link>, mx_<link>, ...)
     duration : the period of the motion (s)
     harmonics : the number of harmonics L
     limits : dict coordinate -> (lower, upper, velocity, acceleration), None where absent;
