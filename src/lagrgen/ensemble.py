@@ -411,7 +411,7 @@ def _one_run(mod, plan, part, i, out):
     if "sensitivities" in out:
         out["sensitivities"][i, :, :, :saved] = sol.sensitivities[:, :, :saved]
     transitions = getattr(sol, "transitions", None)
-    if transitions is not None:             # non-smooth models (API §13): one list per run
+    if transitions is not None:             # non-smooth models (impacts, friction): one list per run
         if out["transitions"] is None:
             out["transitions"] = [None] * len(part)
         out["transitions"][i] = list(transitions)
@@ -422,7 +422,7 @@ def _one_run(mod, plan, part, i, out):
 
 def batch_reason(mod, method, options, sensitivities=()):
     """Why the runs cannot go through the C batch (a str), or None when they can. The hook for
-    non-smooth models: a model with impacts or frictions (`nonsmooth_definitions`, API §13)
+    non-smooth models: a model with impacts or frictions (`nonsmooth_definitions`)
     runs per run, where `simulate` gives each run's transitions, until the batch collects them;
     so do runs with sensitivities (each on the native engine when it can run them)."""
     if options.get("engine") == "scipy":

@@ -357,7 +357,7 @@ FLOATING_BASE = (("base_x", "prismatic", (1.0, 0.0, 0.0)), ("base_y", "prismatic
                  ("base_pitch", "revolute", (0.0, 1.0, 0.0)),
                  ("base_roll", "revolute", (1.0, 0.0, 0.0)))
 FLOATING_ORDER = ("base_x", "base_y", "base_z", "base_roll", "base_pitch", "base_yaw")
-#: The ten inertial parameters of a body, in Pinocchio's order (API §21), and their units.
+#: The ten inertial parameters of a body, in Pinocchio's order, and their units.
 INERTIAL_NAMES = ("m", "mx", "my", "mz", "Ixx", "Ixy", "Iyy", "Ixz", "Iyz", "Izz")
 INERTIAL_UNITS = ("kg",) + ("kg*m",) * 3 + ("kg*m^2",) * 6
 
@@ -488,7 +488,7 @@ def _frozen_massless(robot, found, followers, massless):
 
 def from_urdf(path, name=None, base="fixed", gravity=(0.0, 0.0, -9.81), joint_dynamics=True,
               parameters=None, mimic=True, check_inertias=True, massless="error"):
-    """A `lagrgen.Model` of the robot in the URDF file `path` (API §19).
+    """A `lagrgen.Model` of the robot in the URDF file `path`.
 
     Parameters
     ----------

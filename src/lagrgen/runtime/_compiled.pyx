@@ -4,8 +4,8 @@
 
 Compiled once when lagrgen is installed. A generated model module holds only its equations (the
 plain-C model functions, listed in an `lg_model_t` table behind a capsule) and calls `bind_module`
-when imported, which makes the module itself the built model of API.md §3: one callable per entry
-of `lagrgen.functions.FUNCTIONS`.
+when imported, which makes the module itself a built model (`lagrgen.runtime.protocol.BuiltModel`):
+one callable per entry of `lagrgen.functions.FUNCTIONS`.
 
 Thread safety: nothing a call depends on is stored in a shared object. Converted arguments are
 locals of the call, which keeps them alive for as long as C (or a nogil loop) reads them.
