@@ -108,7 +108,7 @@ API = [
                                            "exciting_trajectory", "inertial.BaseParameters",
                                            "inertial.InertialEstimate",
                                            "inertial.ExcitingTrajectory"]),
-    ("Optimal motions", ["Collocation", "CollocationResult", "collocation.refine.MeshRecord",
+    ("Optimal motions", ["Collocation", "CollocationResult", "collocation.result.MeshRecord",
                          "collocation.refine.DiscretizationWarning"]),
     ("Exceptions", ["LagrgenError", "ModelError", "UnknownNameError", "BuildError", "CompileError",
                     "MassMatrixError", "ConstraintError", "NonFiniteError"]),

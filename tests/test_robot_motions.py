@@ -8,6 +8,7 @@ import sympy as sp
 
 import lagrgen
 from conftest import example_model, nlp_derivatives
+from lagrgen.collocation.refine import DiscretizationWarning
 from test_robots import ARM, QUADRUPED, SMALL
 
 
@@ -131,3 +132,107 @@ def test_the_arms_least_effort_move_never_forms_dense_equations(out_dir, monkeyp
     tol = 1e-7
     assert np.all(q >= lower[:, None] - tol) and np.all(q <= upper[:, None] + tol)
     assert np.all(np.abs(qd) <= velocity[:, None] + tol)
+
+
+# -- the structured SQP and re-planning ---------------------------------------------------------
+@pytest.fixture(scope="module")
+def swing(out_dir):
+    """opty's compound pendulum swung up by a torque too weak to lift it directly."""
+    model = lagrgen.Model("motions_swing")
+    th, = model.coordinates("theta")
+    m, g, d = model.parameters(m=1.0, g=9.81, d=1.0)
+    T, = model.inputs("T")
+    model.kinetic_energy(th.diff(model.t) ** 2 / 2)
+    model.potential_energy(-m * g * d * sp.cos(th))
+    model.torque(T, th)
+    return model, lagrgen.build(model, out_dir=out_dir)
+
+
+def swing_problem(mod, T, nodes=41, limit=6.0):
+    prob = lagrgen.Collocation(mod, nodes=nodes, duration=3.0)
+    prob.bound("T", -limit, limit).bound("theta_dot", -4.0, 4.0)
+    prob.initial(q=[0.0], qd=[0.0]).final(q=[np.pi], qd=[0.0])
+    return prob.minimize(integral=T ** 2)
+
+
+@pytest.mark.filterwarnings("ignore", category=DiscretizationWarning)
+def test_the_structured_qp_is_the_kkt_solution(swing):
+    """One QP of the SQP (accelerations eliminated point by point, states interval by interval,
+    the Riccati recursion, bounds by the active set) equals the solve of the whole KKT system
+    with the same bounds held, and its multipliers make the KKT conditions hold."""
+    import scipy.sparse as sps
+    import scipy.sparse.linalg as spla
+    from lagrgen.collocation import sqp
+    model, mod = swing
+    prob = swing_problem(mod, model.input_functions[0], nodes=9)
+    res = prob.solve(progress=False, mesh_tol=None, solver="ipopt")
+    tr = prob.transcription("exact").bound(3.0)
+    rng = np.random.default_rng(5)
+    x = np.clip(res.x + 1e-2 * rng.standard_normal(res.x.size), tr.lo, tr.hi)
+    stages = sqp.Stages.of(tr)
+    lam = res._lam * (1 + 0.1 * rng.standard_normal(res._lam.size))
+    lin = sqp.linearize(tr, x, lam, stages)
+    active = sqp.ActiveSet.start(lin, res._z[:tr.layout.p_start])
+    qp = sqp.solve_qp(tr, stages, lin, active)
+    L = tr.layout
+    N = L.p_start
+    on = np.flatnonzero(active.side != 0)
+    H = sps.block_diag(list(lin.W)).tocsr()
+    J = sps.coo_matrix((tr.jacobian(x), (tr.jac_rows, tr.jac_cols)),
+                       shape=(tr.n_constraints, L.size)).tocsr()[:, :N]
+    E = sps.coo_matrix((np.ones(on.size), (np.arange(on.size), on)), shape=(on.size, N))
+    A = sps.vstack([J, E]).tocsc()
+    K = sps.bmat([[H, A.T], [A, None]]).tocsc()
+    rhs = np.concatenate([-lin.g.ravel(), -tr.constraints(x), active.targets(lin)[on]])
+    reference = spla.spsolve(K, rhs)[:N]
+    assert np.abs(qp.dz.ravel() - reference).max() < 1e-7 * (1 + np.abs(reference).max())
+    lam_qp = sqp.constraint_multipliers(tr, qp)
+    z = np.zeros(L.size)
+    z[:N] = np.where(active.side != 0, active.z, 0.0)
+    stationarity = (lin.g.ravel() + (lin.W @ qp.dz[:, :, None])[:, :, 0].ravel()
+                    + np.bincount(tr.jac_cols, tr.jacobian(x) * lam_qp[tr.jac_rows],
+                                  minlength=L.size)[:N] + z[:N])
+    assert np.abs(stationarity).max() < 1e-6 * (1 + np.abs(lin.g).max())
+
+
+def test_refined_meshes_by_the_sqp_reach_ipopts_optimum(swing):
+    """The refinement's meshes after the first, started from the last solution, are solved by
+    the structured SQP (solver="auto": a torque that stays inside its bounds, the velocity
+    riding its own) to IPOPT's optimum on the same meshes."""
+    model, mod = swing
+    T, = model.input_functions
+    results = {solver: swing_problem(mod, T, limit=20.0).solve(progress=False, solver=solver)
+               for solver in ("auto", "ipopt")}
+    auto, ipopt = results["auto"], results["ipopt"]
+    assert auto.success and ipopt.success
+    assert auto.solver == "sqp" and ipopt.solver == "ipopt"
+    assert [m.nodes for m in auto.meshes] == [m.nodes for m in ipopt.meshes]
+    assert abs(auto.objective - ipopt.objective) < 1e-7 * ipopt.objective
+    assert auto.error <= 1e-6
+
+
+@pytest.mark.filterwarnings("ignore", category=DiscretizationWarning)
+def test_a_replan_equals_a_cold_solve_from_the_new_state(swing):
+    """resolve(warm, initial, shift): the plan from the state 0.3 s into the first one, warm-
+    started from its shifted motion, equals a cold solve of the same problem from that state;
+    the state read off the solution on its velocity bound (beyond it by the solver's tolerance)
+    is clipped with a note; a state clearly outside is refused."""
+    model, mod = swing
+    T, = model.input_functions
+    prob = swing_problem(mod, T)
+    first = prob.solve(progress=False, mesh_tol=None)
+    state = first.state_at(0.3)
+    again = prob.resolve(first, initial={"q": state[:1], "qd": state[1:]}, shift=0.3)
+    assert again.success and again.solver == "sqp" and again.solve_seconds > 0
+    cold = swing_problem(mod, T)
+    cold._fixed.clear()
+    cold.initial(q=state[:1], qd=np.clip(state[1:], -4.0, 4.0)).final(q=[np.pi], qd=[0.0])
+    reference = cold.solve(progress=False, mesh_tol=None, solver="ipopt")
+    assert abs(again.objective - reference.objective) < 1e-6 * reference.objective
+    assert np.abs(again.y - reference.y).max() < 1e-4
+    over = prob.resolve(again, initial={"qd": [4.0 + 1e-8]})
+    assert over.success and any("outside its bounds" in note for note in over.notes)
+    with pytest.raises(lagrgen.errors.LagrgenError, match="outside its bounds"):
+        prob.resolve(again, initial={"qd": [4.1]})
+    with pytest.raises(lagrgen.errors.LagrgenError, match="shift"):
+        prob.resolve(again, shift=5.0)

@@ -25,6 +25,11 @@ from .symbolic import consistency_derivatives
 from .sparsity import hessian_entries, jacobian_structure
 from .units import compiled_unit
 
+#: An instance value outside its bounds by at most this much (relative to max(1, the bound)) is
+#: clipped onto the bound, with a note: a state read off a solution that rides a limit exceeds
+#: it by the solver's bound tolerance (IPOPT's: 1e-8).
+BOUND_SLACK = 1e-6
+
 
 class Transcription:
     """The NLP of a `Collocation` problem on one mesh (`layout`, default the problem's grid), with
@@ -51,12 +56,19 @@ class Transcription:
         self._linear_rows()
         self._data_term()
         self._variable_bounds()
+        self.bounds_stamp = problem._values_stamp
         self._jacobian_structure()
         if self.exact:
             self._hessian_structure()
         self._entry = None          # (x, the values at x): one tuple, read and replaced whole
         self.scale_defects(problem.duration_bounds[0])
         self.evaluations = {"constraints": 0, "jacobian": 0, "hessian": 0, "objective": 0}
+
+    def refresh_bounds(self):
+        """The bounds again from the problem's instance values (changed by `resolve`; the
+        structure is the same)."""
+        self._variable_bounds()
+        self.bounds_stamp = self.problem._values_stamp
 
     def bound(self, duration):
         """A copy of this NLP for one solve, its defect rows scaled by 1/h_k at the starting
@@ -270,7 +282,10 @@ class Transcription:
             self.data_hess = self.C.weighted_gram(2.0 * self.omega)
 
     def _variable_bounds(self):
+        """lo ≤ x ≤ hi (the bounds, instance values as lo = hi, given inputs) and the
+        constraints' bounds g_lo, g_hi; `notes` of what was adjusted."""
         L, problem, mod = self.layout, self.problem, self.mod
+        self.notes = []
         lo, hi = np.full(L.size, -np.inf), np.full(L.size, np.inf)
         blo, bhi = lo[:L.p_start].reshape(L.points, L.nz), hi[:L.p_start].reshape(L.points, L.nz)
         for (kind, i), (a, b) in problem._bounds.items():
@@ -303,8 +318,14 @@ class Transcription:
                 raise LagrgenError(f"the instance values {given[j]} and {value} of {where} "
                                    "contradict each other: give one")
             if not lo[j] - 1e-12 <= value <= hi[j] + 1e-12:
-                raise LagrgenError(f"the instance value {value} of {where} lies outside its "
-                                   f"bounds [{lo[j]}, {hi[j]}]")
+                clipped = min(max(value, lo[j]), hi[j])
+                if abs(clipped - value) > BOUND_SLACK * max(1.0, abs(clipped)):
+                    raise LagrgenError(f"the instance value {value} of {where} lies outside "
+                                       f"its bounds [{lo[j]}, {hi[j]}]")
+                self.notes.append(f"the instance value {value!r} of {where} lies "
+                                  f"{abs(clipped - value):.2g} outside its bounds (a solver's "
+                                  f"tolerance): taken as {clipped!r}")
+                value = clipped
             lo[j] = hi[j] = given[j] = value
         if L.free:
             lo[L.T_index], hi[L.T_index] = np.array(problem.duration_bounds) / L.T_scale
@@ -572,6 +593,45 @@ class Transcription:
             parts.append(obj_factor * self.data_hess[2])
         values = np.concatenate(parts)
         return np.bincount(self.hess_map, values, minlength=self.hess_rows.size)
+
+
+    # -- per point (the stage-structured solver, `sqp`) -------------------------------------------
+    def point_hessians(self, x, lagrange):
+        """(points, nz, nz): each point's block of the Lagrangian's Hessian (objective factor 1)
+        at x, for a problem whose Hessian is block-diagonal by points (`sqp.unsupported`)."""
+        state = self._at(x)
+        L = self.layout
+        P, ni, nz = L.points, L.ni, L.nz
+        W = np.zeros((P, nz, nz))
+        mu = np.ascontiguousarray(np.asarray(lagrange)[:P * ni].reshape(P, ni))
+        values = self._residual_hessian(state, mu).reshape(P, -1)
+        np.add.at(W, (slice(None), self.res_hess[:, 0], self.res_hess[:, 1]), values)
+        if self.unit is not None and self.problem._integrand is not None:
+            local = self.obj_hess
+            values = self._kernel("objective_hessian", state, len(local),
+                                  (state["T"] * self.quad)[:, None])
+            np.add.at(W, (slice(None), local[:, 0], local[:, 1]), values)
+        upper = np.transpose(W, (0, 2, 1)).copy()
+        upper[:, np.arange(nz), np.arange(nz)] = 0.0
+        return W + upper
+
+    def point_gradients(self, x):
+        """(points, nz): each point's share of the objective's gradient."""
+        state = self._at(x)
+        L = self.layout
+        g = np.zeros((L.points, L.nz))
+        if self.problem._integrand is not None:
+            g[:, self.obj_grad] = state["T"] * self.quad[:, None] * \
+                self._integrand_gradient(state)
+        return g
+
+    def point_residuals(self, x):
+        """(r (points, ni), R (points, ni, nz)): each point's residual and its Jacobian."""
+        state = self._at(x)
+        L = self.layout
+        R = np.zeros((L.points, L.ni, L.nz))
+        R[:, self.dyn_rows, self.dyn_cols] = state["jac"]
+        return state["r"], R
 
 
 class Linear:
