@@ -161,7 +161,6 @@ def test_the_structured_qp_is_the_kkt_solution(swing):
     the Riccati recursion, bounds by the active set) equals the solve of the whole KKT system
     with the same bounds held, and its multipliers make the KKT conditions hold."""
     import scipy.sparse as sps
-    import scipy.sparse.linalg as spla
     from lagrgen.collocation import sqp
     model, mod = swing
     prob = swing_problem(mod, model.input_functions[0], nodes=9)
@@ -169,24 +168,32 @@ def test_the_structured_qp_is_the_kkt_solution(swing):
     tr = prob.transcription("exact").bound(3.0)
     rng = np.random.default_rng(5)
     x = np.clip(res.x + 1e-2 * rng.standard_normal(res.x.size), tr.lo, tr.hi)
-    stages = sqp.Stages.of(tr)
+    stages, rows = sqp.Stages.of(tr), sqp.Rows.of(tr)
     lam = res._lam * (1 + 0.1 * rng.standard_normal(res._lam.size))
-    lin = sqp.linearize(tr, x, lam, stages)
-    active = sqp.ActiveSet.start(lin, res._z[:tr.layout.p_start])
-    qp = sqp.solve_qp(tr, stages, lin, active)
+    lin = sqp.linearize(tr, x, lam, stages, rows)
+    row_z = res._lam[tr.defect_row + tr.n_defects + rows.index]
+    active = sqp.ActiveSet.start(lin, res._z[:tr.layout.p_start], row_z)
+    qp = sqp.solve_qp(tr, stages, rows, lin, active)
+    assert rows.index.size            # the torque's envelope between its points
     L = tr.layout
     N = L.p_start
     on = np.flatnonzero(active.side != 0)
+    row_on = np.flatnonzero(active.row_side != 0)
     H = sps.block_diag(list(lin.W)).tocsr()
+    equalities = tr.defect_row + tr.n_defects       # the residuals and defects
     J = sps.coo_matrix((tr.jacobian(x), (tr.jac_rows, tr.jac_cols)),
-                       shape=(tr.n_constraints, L.size)).tocsr()[:, :N]
-    E = sps.coo_matrix((np.ones(on.size), (np.arange(on.size), on)), shape=(on.size, N))
-    A = sps.vstack([J, E]).tocsc()
+                       shape=(tr.n_constraints, L.size)).tocsr()[:equalities, :N]
+    B = sps.coo_matrix((np.ones(on.size), (np.arange(on.size), on)), shape=(on.size, N))
+    E = sps.coo_matrix((tr.E.values, (tr.E.rows, tr.E.cols)),
+                       shape=tr.E.shape).tocsr()[row_on][:, :N]
+    A = sps.vstack([J, B, E]).tocsc()
     K = sps.bmat([[H, A.T], [A, None]]).tocsc()
-    rhs = np.concatenate([-lin.g.ravel(), -tr.constraints(x), active.targets(lin)[on]])
-    reference = spla.spsolve(K, rhs)[:N]
+    c = tr.constraints(x)[:equalities]
+    rhs = np.concatenate([-lin.g.ravel(), -c, active.targets(lin)[on],
+                          active.row_targets(lin)[row_on]])
+    reference = np.linalg.lstsq(K.toarray(), rhs, rcond=None)[0][:N]   # rows may repeat bounds
     assert np.abs(qp.dz.ravel() - reference).max() < 1e-7 * (1 + np.abs(reference).max())
-    lam_qp = sqp.constraint_multipliers(tr, qp)
+    lam_qp = sqp.constraint_multipliers(tr, qp, rows)
     z = np.zeros(L.size)
     z[:N] = np.where(active.side != 0, active.z, 0.0)
     stationarity = (lin.g.ravel() + (lin.W @ qp.dz[:, :, None])[:, :, 0].ravel()

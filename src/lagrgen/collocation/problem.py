@@ -14,6 +14,12 @@ from .grid import Layout, scheme_name, variable_names
 from .symbolic import internal_expression
 
 
+#: The weight of the term that picks one motion among those of the least time
+#: (`Collocation.minimize`): it moves the least time by far less than a solve's tolerance (the
+#: seven-joint arm: no change in eight digits) and makes the optimum unique.
+TIME_REGULARIZATION = 1e-6
+
+
 class Collocation:
     """An optimal motion or an identification of the built model `mod`, by direct collocation.
 
@@ -81,7 +87,9 @@ class Collocation:
         self._interpolated = []   # (t − t0, kind, i, value) of instance constraints at(...)
         self._periodic = []       # (kind, i)
         self._path = []           # (label, internal expression, lo, hi)
+        self._terminal = []       # (label, internal expression, lo, hi) at the last node
         self._integrand = None    # internal expression of ∫ L dt
+        self._terminal_cost = None  # internal expression of the cost on the last node
         self._integrand_text = None
         self._minimize_time = False
         self._tracks = []         # (times, data (k, m), [(kind, i)], weights (k, m), names)
@@ -267,17 +275,39 @@ class Collocation:
         self._changed()
         return self
 
-    def minimize(self, integral=None, time=False):
+    def terminal(self, expr, lo=-math.inf, hi=math.inf):
+        """lo ≤ expr ≤ hi at the last node (e.g. a link's position, `Model.link_position`);
+        `expr` in the model's symbols (coordinates, their rates, parameters; accelerations and
+        inputs of the last node too)."""
+        lo, hi = _interval(lo, hi, "terminal(expr, lo, hi)")
+        if lo == -math.inf and hi == math.inf:
+            raise LagrgenError("terminal(expr) needs a bound: terminal(expr, lo, hi)")
+        label = f"terminal constraint {len(self._terminal) + 1}"
+        internal = internal_expression(self.model, expr, label, allow_time=not self.free_duration)
+        self._terminal.append((label, internal, lo, hi))
+        self._changed()
+        return self
+
+    def minimize(self, integral=None, time=False, terminal=None):
         """The objective: ∫ integral dt over the motion (an expression in the model's symbols),
-        plus T when `time` (minimum time; needs a free duration). Replaces an earlier objective;
-        data terms (`track`) are added to it."""
-        if integral is None and not time:
-            raise LagrgenError("minimize() needs integral=expr and/or time=True")
+        plus T when `time` (minimum time; needs a free duration), plus `terminal` evaluated at
+        the last node (e.g. a squared distance of a link from a target). Replaces an earlier
+        objective; data terms (`track`) are added to it.
+
+        The least time alone is often reached by many motions (a joint with slack can take any
+        path that arrives in time): `solve` then picks the one of least
+        ∫Σ(u_k/ū_k)² dt (ū_k the half range of input k's bounds, or 1) by adding that term
+        weighted by TIME_REGULARIZATION, and says so in `res.notes`."""
+        if integral is None and not time and terminal is None:
+            raise LagrgenError("minimize() needs integral=expr, time=True and/or terminal=expr")
         if time and not self.free_duration:
             raise LagrgenError("minimize(time=True) needs a free duration: "
                                "Collocation(..., duration=(lo, hi))")
         self._integrand = None if integral is None else internal_expression(
             self.model, integral, "the objective's integrand", allow_time=not self.free_duration)
+        self._terminal_cost = None if terminal is None else internal_expression(
+            self.model, terminal, "the objective's terminal cost",
+            allow_time=not self.free_duration)
         self._minimize_time = bool(time)
         self._changed()
         return self
@@ -498,8 +528,31 @@ class Collocation:
             self._fixed[(0.0, kind, i)] = value
         self._changed(structure=False)
 
+    def _objective_integrand(self):
+        """The integrand the NLP minimizes: the user's, or with the least time alone
+        TIME_REGULARIZATION·Σ_k (u_k/ū_k)² over the free inputs (ū_k the half range of the input's
+        bounds, or 1), which picks one motion among those of the least time."""
+        if self._integrand is not None or not self._minimize_time:
+            return self._integrand
+        import symengine as se
+        terms = []
+        for k in range(self.layout.nu):
+            if k in self._given:
+                continue
+            lo, hi = self._bounds.get(("u", k), (-math.inf, math.inf))
+            scale = 0.5 * (hi - lo) if math.isfinite(hi - lo) and hi > lo else 1.0
+            terms.append((se.Symbol(f"u[{k}]") / scale) ** 2)
+        return TIME_REGULARIZATION * se.Add(*terms) if terms else None
+
+    def regularization_note(self):
+        """What `res.notes` says of the term that picks a motion of the least time."""
+        return ("the least time is reached by more than one motion: the one returned has the "
+                "least ∫Σ(u/ū)² dt among them (ū: each input's half range), chosen by a term of "
+                f"weight {TIME_REGULARIZATION:g} added to the objective")
+
     def _require_objective(self):
-        if self._integrand is None and not self._minimize_time and not self._tracks:
+        if self._integrand is None and not self._minimize_time and not self._tracks \
+                and self._terminal_cost is None:
             raise LagrgenError("no objective: call minimize(integral=..., time=...) or track(...)")
 
     def transcription(self, hessian="exact", layout=None, controls=None):
