@@ -95,7 +95,15 @@ class FreeBasePythonModel(SpatialPythonModel):
         cd[BLOCK] = chart.Dinv @ cd[BLOCK]
         return chart, cd, cd[self._chart_rows]
 
-    def _extended(self, chart, matrix_rows):
+    def _accelerations(self, chart, cd, a):
+        """(c̈ with r: n, the recursion's c̈: n − 1) at the model's q̈ = a:
+        c̈ = D⁻¹·(a − D²Φ[ċ, ċ]) in the block."""
+        a = np.asarray(a, dtype=float)[:self.n_coordinates]
+        cdd = a.copy()
+        cdd[BLOCK] = chart.Dinv @ (a[BLOCK] - chart.d2(cd[BLOCK], cd[BLOCK]))
+        return cdd, cdd[self._chart_rows]
+
+    def _extended(self, matrix_rows):
         """The recursion's n − 1 rows as the chart's n (r's row zero)."""
         out = np.zeros((self.n_coordinates,) + matrix_rows.shape[1:])
         out[self._chart_rows] = matrix_rows
@@ -109,7 +117,7 @@ class FreeBasePythonModel(SpatialPythonModel):
         M[6, 6] = self._radial
         return M
 
-    def _full(self, chart, block):
+    def _full(self, block):
         """The n×n identity with the 4×4 `block` at the quaternion."""
         out = np.eye(self.n_coordinates)
         out[BLOCK, BLOCK] = block
@@ -120,11 +128,11 @@ class FreeBasePythonModel(SpatialPythonModel):
         nodes = self._nodes(t, q, qd, p, u)
         chart, cd, ce = self._frame(q, qd)
         tau = self._inverse(nodes, ce, np.zeros(len(ce)))
-        F = self._extended(chart, self._tree.generalized_forces(nodes) - tau)
+        F = self._extended(self._tree.generalized_forces(nodes) - tau)
         M = self._mass_extended(nodes)
         bias = np.zeros(self.n_coordinates)
         bias[BLOCK] = chart.Dinv @ chart.d2(cd[BLOCK], cd[BLOCK])
-        Dinv = self._full(chart, chart.Dinv)
+        Dinv = self._full(chart.Dinv)
         return Dinv.T @ M @ Dinv, Dinv.T @ (F + M @ bias)
 
     def _factored(self, t, q, qd, p, u):
@@ -142,8 +150,9 @@ class FreeBasePythonModel(SpatialPythonModel):
         qdd[BLOCK] = chart.D @ cdd[BLOCK] + chart.d2(cd[BLOCK], cd[BLOCK])
         return nodes, L, qdd, chart, cd, cdd
 
-    def _solve(self, chart, L, X):
-        """M_q⁻¹·X = D·M̃_c⁻¹·Dᵀ·X (rows of X in coordinate order)."""
+    def _solve(self, factored, X):
+        """M_q⁻¹·X = D·M̃_c⁻¹·Dᵀ·X (rows of X in coordinate order), with `_factored`'s result."""
+        _, L, _, chart, _, _ = factored
         X = np.array(X, dtype=float)
         X[BLOCK] = chart.D.T @ X[BLOCK]
         X[self._chart_rows] = self._tree.solve(L, X[self._chart_rows])
@@ -160,19 +169,16 @@ class FreeBasePythonModel(SpatialPythonModel):
         if nodes is None:
             nodes = self._nodes(t, q, qd, p, u)
         chart, cd, ce = self._frame(q, qd)
-        a = np.asarray(a, dtype=float)[:n]
-        cdd = a.copy()
-        cdd[BLOCK] = chart.Dinv @ (a[BLOCK] - chart.d2(cd[BLOCK], cd[BLOCK]))
-        ca = cdd[self._chart_rows]
+        cdd, ca = self._accelerations(chart, cd, a)
         rows = self._chart_rows
         Bc = np.zeros((n, 2 * n))
         Bc[np.ix_(rows, np.r_[rows, n + rows])] = self._tree.b(nodes, ce, ca, [], [])
-        tau = self._extended(chart, self._inverse(nodes, ce, ca))
+        tau = self._extended(self._inverse(nodes, ce, ca))
         tau[6] = self._radial * cdd[6]
         M = self._mass_extended(nodes)
         x = chart.Dinv.T @ tau[BLOCK]
         cb, ab = cd[BLOCK], cdd[BLOCK]
-        Dinv = self._full(chart, chart.Dinv)
+        Dinv = self._full(chart.Dinv)
         K1 = chart.matrix(lambda e: chart.d2(cb, e))
         Tc = np.zeros((n, 2 * n))
         Tc[:, :n] = Dinv
@@ -194,51 +200,20 @@ class FreeBasePythonModel(SpatialPythonModel):
             np.add.at(B, (self._tree.dqd[:, 0], n + self._tree.dqd[:, 1]), dQd)
         return B
 
-    def _jacobian(self, t, q, qd, p, u):
-        n = self.n_coordinates
-        nodes, L, qdd, chart, _, _ = self._factored(t, q, qd, p, u)
-        J = np.zeros((2 * n, 2 * n))
-        J[:n, n:] = np.eye(n)
-        J[n:] = self._solve(chart, L, self._b(t, q, qd, qdd, p, u, nodes))
-        return J
-
     def _parameter_b(self, t, q, qd, a, p, u, nodes=None):
         """P = ∂Q/∂p − D⁻ᵀ·∂τ̃_c/∂p at q̈ = a (tangent sweeps of the recursion)."""
         n, k = self.n_coordinates, len(self.parameters)
         if nodes is None:
             nodes = self._nodes(t, q, qd, p, u)
         chart, cd, ce = self._frame(q, qd)
-        a = np.asarray(a, dtype=float)[:n]
-        cdd = a.copy()
-        cdd[BLOCK] = chart.Dinv @ (a[BLOCK] - chart.d2(cd[BLOCK], cd[BLOCK]))
-        ca = cdd[self._chart_rows]
+        cdd, ca = self._accelerations(chart, cd, a)
         dv, dQ = self._kernel("tree_parameters", t, q, qd, list(a), p, u)
         dnodes = self._tree.parameter_records(dv, k, nodes.shape[1])
         Pc = np.zeros((n, k))
         for j in range(k):
             if np.any(dnodes[j]):
                 Pc[self._chart_rows, j] = -self._tree.tangent(nodes, dnodes[j], ce, ca)
-        P = self._full(chart, chart.Dinv).T @ Pc
+        P = self._full(chart.Dinv).T @ Pc
         if len(dQ):
             np.add.at(P, (self._tree.dQp[:, 0], self._tree.dQp[:, 1]), dQ)
         return P
-
-    def _parameter_jacobian(self, t, q, qd, p, u):
-        n, k = self.n_coordinates, len(self.parameters)
-        out = np.zeros((2 * n, k))
-        if not k:
-            return out
-        nodes, L, qdd, chart, _, _ = self._factored(t, q, qd, p, u)
-        out[n:] = self._solve(chart, L, self._parameter_b(t, q, qd, qdd, p, u, nodes))
-        return out
-
-    def _directional_derivatives(self, t, q, qd, p, u, dy, dp):
-        n = self.n_coordinates
-        nodes, L, qdd, chart, _, _ = self._factored(t, q, qd, p, u)
-        R = self._b(t, q, qd, qdd, p, u, nodes) @ np.asarray(dy, dtype=float).T
-        if len(self.parameters) and np.any(dp):
-            R += self._parameter_b(t, q, qd, qdd, p, u, nodes) @ np.asarray(dp, dtype=float).T
-        out = np.empty((len(dy), 2 * n))
-        out[:, :n] = np.asarray(dy)[:, n:]
-        out[:, n:] = self._solve(chart, L, R).T
-        return np.concatenate([np.array(qd, dtype=np.float64), qdd]), out
