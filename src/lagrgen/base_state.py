@@ -13,6 +13,7 @@ import numpy as np
 
 from .errors import ModelError
 from .numbers import finite_number
+from .runtime.free_base import qmul as quaternion_product
 from .urdf import FLOATING_ORDER, FREE_BASE, rpy_matrix
 
 
@@ -93,12 +94,6 @@ def _joints(values, what, names, width):
             raise ModelError(f"base_state {what}[{name!r}] must be a number, got {value!r}")
         out[name] = finite_number(value, f"base_state {what}[{name!r}]", ModelError)
     return out
-
-
-def quaternion_product(a, b):
-    """a ⊗ b of quaternions (x, y, z, w)."""
-    return np.concatenate([a[3] * b[:3] + b[3] * a[:3] + np.cross(a[:3], b[:3]),
-                           [a[3] * b[3] - a[:3] @ b[:3]]])
 
 
 def quaternion_of(R):

@@ -25,7 +25,7 @@ from pathlib import Path
 import numpy as np
 
 from .errors import ModelError
-from .frames import rodrigues
+from .frames import quaternion_matrix, rodrigues
 from .numbers import finite_number
 
 #: Joint types that carry a coordinate, and the fixed joint that merges two links.
@@ -647,28 +647,18 @@ def _free_base(model, coordinates):
         model.generalized_force(coordinate, value)
     for coordinate, column in zip(z, (G.T * moment)):
         model.generalized_force(coordinate, column)
-    R = quaternion_matrix_sympy(z)
-    angles = rpy_of_matrix(R, sp)
-    for name, angle in zip(FREE_OUTPUTS, angles):
+    for name, angle in zip(FREE_OUTPUTS, _rpy_of_matrix(sp.Matrix(
+            quaternion_matrix(list(z), homogeneous=True)))):
         model.output(name, angle, units="rad")
     model.initial_state(q={"base_qw": 1.0})
 
 
-def quaternion_matrix_sympy(z):
-    """R_h(ζ), the rotation matrix of the quaternion (x, y, z, w) times |ζ|² (SymPy)."""
+def _rpy_of_matrix(R):
+    """URDF's (roll, pitch, yaw) of R = Rz(yaw)·Ry(pitch)·Rx(roll) given times any positive
+    number (SymPy): atan2 forms, pitch in [−π/2, π/2]."""
     import sympy as sp
-    x, y, zc, w = z
-    return sp.Matrix([[w**2 + x**2 - y**2 - zc**2, 2 * (x * y - w * zc), 2 * (x * zc + w * y)],
-                      [2 * (x * y + w * zc), w**2 - x**2 + y**2 - zc**2, 2 * (y * zc - w * x)],
-                      [2 * (x * zc - w * y), 2 * (y * zc + w * x), w**2 - x**2 - y**2 + zc**2]])
-
-
-def rpy_of_matrix(R, lib):
-    """URDF's (roll, pitch, yaw) of R = Rz(yaw)·Ry(pitch)·Rx(roll) (or of R times a positive
-    number): atan2 forms, pitch in [−π/2, π/2]; `lib` is math-like (SymPy or NumPy)."""
-    return (lib.atan2(R[2, 1], R[2, 2]),
-            lib.atan2(-R[2, 0], lib.sqrt(R[0, 0] ** 2 + R[1, 0] ** 2)),
-            lib.atan2(R[1, 0], R[0, 0]))
+    return (sp.atan2(R[2, 1], R[2, 2]), sp.atan2(-R[2, 0], sp.sqrt(R[0, 0] ** 2 + R[1, 0] ** 2)),
+            sp.atan2(R[1, 0], R[0, 0]))
 
 
 def _clean(array):
