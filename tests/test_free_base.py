@@ -179,7 +179,7 @@ def test_a_tumbling_brick_matches_an_independent_integration(brick):
     assert np.ptp(energy) < 1e-9 * abs(energy[0])
 
 
-# -- the recursion in the chart ---------------------------------------------------------------------
+# -- the recursion in the chart ----------------------------------------------------------------
 def random_state(mod, rng, scale=0.7):
     """A state with a quaternion of length ≠ 1 and rates off the sphere (the equations hold for
     any nonzero quaternion)."""
@@ -212,7 +212,8 @@ def test_the_recursion_equals_the_dense_lagrangian_of_a_free_brick(out):
                 ours = getattr(mod, name)(*args, u=u)
                 theirs = getattr(dense, name)(*args, u=u)
                 for x1, x2 in zip(*(r if isinstance(r, tuple) else (r,) for r in (ours, theirs))):
-                    assert np.allclose(x1, x2, rtol=1e-11, atol=1e-11 * max(1, np.abs(x2).max())), name
+                    scale = max(1.0, np.abs(x2).max())
+                    assert np.allclose(x1, x2, rtol=1e-11, atol=1e-11 * scale), name
 
 
 def test_the_free_quadrupeds_jacobians_equal_finite_differences(quadruped):
@@ -351,7 +352,7 @@ def test_a_tumbling_quadruped_keeps_its_energy_and_runs_as_an_ensemble(quadruped
         assert np.allclose(np.asarray(batch.y)[k, :, -1], sol.y[:, -1], atol=1e-12)
 
 
-# -- analysis, optimization, export --------------------------------------------------------------------
+# -- analysis, optimization, export ------------------------------------------------------------
 def test_linearize_about_a_hovering_quadruped(quadruped):
     """Held up by a force on its base and its joints' torques at rest, tilted: an equilibrium;
     A and B against finite differences of the rhs."""
@@ -410,10 +411,9 @@ def test_a_free_base_exports_warning_free_c_and_a_valid_fmu(tmp_path, brick):
     from fmpy.validation import validate_fmu
     fmu = lagrgen.export_fmu(lagrgen.from_urdf(BRICK, base="free"), tmp_path)
     assert validate_fmu(str(fmu)) == []
-    result = fmpy.simulate_fmu(str(fmu), stop_time=0.4, output_interval=0.1,
-                               start_values={"base_qx": 0.0, "base_qy": np.sin(0.7),
-                                             "base_qz": 0.0, "base_qw": np.cos(0.7),
-                                             "base_qy_dot": np.cos(0.7), "base_qw_dot": -np.sin(0.7)})
+    start = {"base_qx": 0.0, "base_qy": np.sin(0.7), "base_qz": 0.0, "base_qw": np.cos(0.7),
+             "base_qy_dot": np.cos(0.7), "base_qw_dot": -np.sin(0.7)}
+    result = fmpy.simulate_fmu(str(fmu), stop_time=0.4, output_interval=0.1, start_values=start)
     y0 = np.zeros(14)
     y0[3:7] = [0, np.sin(0.7), 0, np.cos(0.7)]
     y0[10:14] = [0, np.cos(0.7), 0, -np.sin(0.7)]
@@ -433,6 +433,7 @@ def test_the_command_line_shows_and_simulates_a_free_base(tmp_path):
     ran = run("simulate", BRICK, "--base", "free", "--t-end", "0.5", "--csv", "brick.csv")
     assert ran.returncode == 0, ran.stderr
     lines = (tmp_path / "brick.csv").read_text().splitlines()
-    last = dict(zip((h.split(" [")[0] for h in lines[0].split(",")), map(float, lines[-1].split(","))))
+    names = (h.split(" [")[0] for h in lines[0].split(","))
+    last = dict(zip(names, map(float, lines[-1].split(","))))
     assert last["base_z"] == pytest.approx(-9.81 / 8, rel=1e-6) and last["base_qw"] == 1.0
     assert last["base_pitch"] == 0.0

@@ -62,7 +62,7 @@ def free_tree(eq, record, Q, world, joint_nodes):
     base = world[0]
     z = [eq.q[j] for j in QUATERNION]
     Qz = [Q[j] for j in QUATERNION]
-    records, notes, poses, coordinate, parent = [], [], [], [], []
+    records, notes, poses = [], [], []
     identity = [se.Integer(int(i == j)) for i in range(3) for j in range(3)] + [zero] * 3
     for i, axis in enumerate(AXES):
         twist = [zero] * 3 + [se.Integer(a) for a in axis]

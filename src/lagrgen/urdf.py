@@ -570,9 +570,9 @@ def from_urdf(path, name=None, base="fixed", gravity=(0.0, 0.0, -9.81), joint_dy
     followers = {p.name: p.joint.mimic for p in found
                  if mimic and p.joint is not None and p.joint.mimic is not None}
     if base == "free" and followers:
-        name, (target, _, _) = next(iter(followers.items()))
-        raise ModelError(f"joint {name!r} of {robot.name!r} mimics {target!r}: the recursion of "
-                         "a free base takes no mimic joints yet; read the file with "
+        follower, (target, _, _) = next(iter(followers.items()))
+        raise ModelError(f"joint {follower!r} of {robot.name!r} mimics {target!r}: the "
+                         "recursion of a free base takes no mimic joints yet; read the file with "
                          "from_urdf(..., mimic=False) (the joints independent, as Pinocchio "
                          "reads them)")
     frozen = _frozen_massless(robot, found, followers, massless)
