@@ -81,23 +81,25 @@ def per_call(free, floating, pm):
     return {name: seconds * 1e6 for name, seconds in interleaved_best(calls).items()}
 
 
-def tumble(free, floating, pm, T=1.0):
-    """Rows of the tumble from pitch 1.57 against Pinocchio's free-flyer."""
+def tumble_start(joints):
+    """The arguments of `lagrgen.base_state` of the tumble from pitch 1.57 (joints at random)."""
+    rng = np.random.default_rng(0)
+    return dict(position=(0, 0, 0.3), rpy=(0.2, 1.57, -0.3), velocity=(0.3, 0, 1),
+                angular_velocity=(0.5, 3.0, -0.4),
+                q=dict(zip(joints, rng.uniform(-0.5, 0.5, len(joints)))),
+                qd=dict(zip(joints, rng.uniform(-1, 1, len(joints)))))
+
+
+def pinocchio_reference(pm, y0, T, tol=1e-12):
+    """Pinocchio's free-flyer from the free base's state y0 = [q, q̇] (the same q; its velocity
+    v = [Rᵀ·ṗ, ω in the base's axes, θ̇]) integrated for T s at `tol`: its aba and the
+    quaternion's kinematics ζ̇ = ½·ζ ⊗ (ω, 0), ṗ = R·v. Returns its final [q, v]."""
     import pinocchio as pin
     from scipy.integrate import solve_ivp
 
-    import lagrgen
     from lagrgen.base_state import quaternion_product
-    from lagrgen.urdf import rpy_matrix
     data = pm.createData()
-    joints = free.coordinates[7:]
-    rng = np.random.default_rng(0)
-    start = dict(position=(0, 0, 0.3), rpy=(0.2, 1.57, -0.3), velocity=(0.3, 0, 1),
-                 angular_velocity=(0.5, 3.0, -0.4),
-                 q=dict(zip(joints, rng.uniform(-0.5, 0.5, len(joints)))),
-                 qd=dict(zip(joints, rng.uniform(-1, 1, len(joints)))))
-    y0 = lagrgen.base_state(free, **start)
-    n = free.n_coordinates
+    n = pm.nq
 
     def rhs(t, x):
         q, v = x[:n].copy(), x[n:]
@@ -108,7 +110,16 @@ def tumble(free, floating, pm, T=1.0):
     R0 = quaternion_rotation(y0[3:7])
     omega = 2 * quaternion_product(y0[n + 3:n + 7], y0[3:7] * [-1, -1, -1, 1])[:3]
     x0 = np.concatenate([y0[:n], R0.T @ y0[n:n + 3], R0.T @ omega, y0[n + 7:]])
-    ref = solve_ivp(rhs, (0, T), x0, method="DOP853", rtol=1e-12, atol=1e-12).y[:, -1]
+    return solve_ivp(rhs, (0, T), x0, method="DOP853", rtol=tol, atol=tol).y[:, -1]
+
+
+def tumble(free, floating, pm, T=1.0):
+    """Rows of the tumble from pitch 1.57 against Pinocchio's free-flyer."""
+    import lagrgen
+    from lagrgen.urdf import rpy_matrix
+    start = tumble_start(free.coordinates[7:])
+    n = free.n_coordinates
+    ref = pinocchio_reference(pm, lagrgen.base_state(free, **start), T)
     rows = []
     for mod, kind in ((free, "free"), (floating, "floating")):
         y0 = lagrgen.base_state(mod, **start)

@@ -272,33 +272,27 @@ def test_the_free_quadruped_moves_as_the_floating_one_away_from_gimbal_lock(quad
     assert np.allclose(free.outputs(0.0, y)[:3], floating_of_free(y, 19)[3:6], atol=1e-12)
 
 
+def benchmark(name):
+    """A module of benchmarks/ (their Pinocchio comparison and robots' folder)."""
+    import importlib
+    import sys
+    sys.path.insert(0, str(ROOT / "benchmarks"))
+    try:
+        return importlib.import_module(name)
+    finally:
+        sys.path.pop(0)
+
+
 def pinocchio_tumble(path, mod, T=1.0):
     """(ours, Pinocchio's) final states of a robot tumbling from pitch 1.57: Pinocchio's
     free-flyer (its aba, the quaternion's kinematics with the local velocity) integrated at 1e-12,
     ours at 1e-11."""
     pin = pytest.importorskip("pinocchio")
-    from scipy.integrate import solve_ivp
+    free_base = benchmark("free_base")
     pm = pin.buildModelFromUrdf(str(path), pin.JointModelFreeFlyer())
-    data = pm.createData()
-    joints = list(pm.names[2:])
-    assert mod.coordinates[7:] == tuple(joints)
-    rng = np.random.default_rng(0)
-    y0 = lagrgen.base_state(mod, position=(0, 0, 0.3), rpy=(0.2, 1.57, -0.3),
-                            velocity=(0.3, 0, 1), angular_velocity=(0.5, 3.0, -0.4),
-                            q=dict(zip(joints, rng.uniform(-0.5, 0.5, len(joints)))),
-                            qd=dict(zip(joints, rng.uniform(-1, 1, len(joints)))))
-    n = mod.n_coordinates
-
-    def rhs(t, x):
-        q, v = x[:n].copy(), x[n:]
-        q[3:7] /= np.linalg.norm(q[3:7])
-        qdot = np.concatenate([rotation_of(q[3:7]) @ v[:3],
-                               0.5 * quaternion_product(q[3:7], np.r_[v[3:6], 0.0]), v[6:]])
-        return np.concatenate([qdot, pin.aba(pm, data, q, v, np.zeros(pm.nv))])
-    R0 = rotation_of(y0[3:7])
-    omega = 2 * quaternion_product(y0[n + 3:n + 7], y0[3:7] * [-1, -1, -1, 1])[:3]
-    x0 = np.concatenate([y0[:n], R0.T @ y0[n:n + 3], R0.T @ omega, y0[n + 7:]])
-    ref = solve_ivp(rhs, (0, T), x0, method="DOP853", rtol=1e-12, atol=1e-12).y[:, -1]
+    assert mod.coordinates[7:] == tuple(pm.names[2:])
+    y0 = lagrgen.base_state(mod, **free_base.tumble_start(mod.coordinates[7:]))
+    ref = free_base.pinocchio_reference(pm, y0, T)
     sol = lagrgen.simulate(mod, (0, T), y0, method="DOP853", rtol=1e-11, atol=1e-11)
     assert sol.success
     return sol.y[:, -1], ref
@@ -317,15 +311,10 @@ def test_the_quadruped_tumbling_from_pitch_157_equals_pinocchios_free_flyer(quad
 
 
 def test_solo12_tumbling_from_pitch_157_equals_pinocchios_free_flyer(out):
-    import sys
-    sys.path.insert(0, str(ROOT / "benchmarks"))
     try:
-        from robots import robots_dir
-        root = robots_dir()
-    except (ImportError, SystemExit):
+        root = benchmark("robots").robots_dir()
+    except SystemExit:
         pytest.skip("example-robot-data is not installed")
-    finally:
-        sys.path.pop(0)
     path = root / "solo_description" / "robots" / "solo12.urdf"
     mod = lagrgen.build(lagrgen.from_urdf(path, base="free", joint_dynamics=False),
                         out_dir=out, quiet=True)
