@@ -90,7 +90,8 @@ def guide_pages():
 #: does not exist is left out (see `existing`), so names of API.md that a branch is still adding
 #: (`eigenvalue_sweep`, `Collocation`) appear once they exist, with no edit here.
 API = [
-    ("Describing a model", ["Model", "rotation", "from_sympy", "from_urdf", "urdf.URDFError"]),
+    ("Describing a model", ["Model", "rotation", "from_sympy", "from_urdf", "base_state",
+                            "urdf.URDFError"]),
     ("Building, loading, exporting", ["build", "load", "export_fmu",
                                       "runtime.protocol.BuiltModel"]),
     ("Running", ["simulate", "results.SimulationResult", "Signal", "evaluate_outputs",

@@ -171,7 +171,7 @@ STAGES = [
               "options", "signals", "toolchain"]),
     ("description", ["rotation", "bodies3d", "records", "checks", "description"]),
     ("derivation", ["calculus", "terms", "frames", "contributions", "lagrange", "nonsmooth", "tree", "tree3d",
-                    "dimensions"]),
+                    "free_base", "dimensions"]),
     ("kernels", ["tangents", "hessians", "kernels"]),
     ("code", ["codegen"]),
     ("runtime", ["runtime"]),
@@ -182,7 +182,7 @@ STAGES = [
                  "hybrid"]),
     ("analysis", ["linearization", "vibration", "stability", "sweep", "bench", "identifiability",
                   "fit", "inertial", "collocation"]),
-    ("face", ["model", "sympy_interop", "urdf", "expressions", "cli", "__main__", ""]),
+    ("face", ["model", "sympy_interop", "urdf", "base_state", "expressions", "cli", "__main__", ""]),
 ]
 #: The package's sources in this checkout (the installed package has no .pyx files).
 PACKAGE = ROOT / "src" / "lagrgen"

@@ -56,14 +56,16 @@ def build(model, out_dir="generated", backend="c", **options):
         from .codegen.python_module import python_source
         from .runtime.pymodel import PythonModel
         from .runtime.tree import RecursivePythonModel
+        from .runtime.free_base import FreeBasePythonModel
         from .runtime.tree3d import SpatialPythonModel
         from .tree import analyse
         equations = derived(spec)
         info = model_info(spec, equations, formulation)
         kind = PythonModel
         if info.formulation == "recursive":
-            kind = SpatialPythonModel if analyse(equations).kind == "spatial" \
-                else RecursivePythonModel
+            tree = analyse(equations)
+            kind = RecursivePythonModel if tree.kind != "spatial" else \
+                FreeBasePythonModel if tree.free else SpatialPythonModel
         built = kind(info, python_source(equations, info.formulation))
         built.build_info = {"cache_hit": False, "seconds": time.perf_counter() - start}
         built._source_model = model

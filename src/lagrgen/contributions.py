@@ -111,7 +111,22 @@ def articulation(record, sums):
     for frame in world:
         sums.T += frames.kinetic_energy(frame)
         sums.V += frames.potential_energy(frame, gravity)
+    for segment in record.segments:
+        if segment.kind == "free" and segment.radial:
+            T = free_radial_energy(segment, sums)
+            sums.T += T
+            sums.general_T.append(T)
     sums.deferred.append(lambda: dense_articulation(record, world, sums))
+
+
+def free_radial_energy(segment, sums):
+    """½·J·(d|ζ|/dt)² = ½·J·(ζ·ζ̇)²/|ζ|² of a free segment's quaternion length (J its `radial`):
+    the length moves nothing, and this inertia makes it a coordinate of its own (M positive
+    definite) that keeps its rate."""
+    from . import frames
+    _, z, _, zd = frames.free_motion(segment, sums.convert, sums.q, sums.qd, sums.t)
+    dot = se.Add(*(a * b for a, b in zip(z, zd)))
+    return se.Float(segment.radial) * dot * dot / (2 * se.Add(*(a * a for a in z)))
 
 
 def dense_articulation(record, world, sums):

@@ -29,7 +29,7 @@ from dataclasses import dataclass, field
 
 import symengine as se
 
-from . import frames
+from . import frames, free_base
 from .contributions import APPLIED, generalized_forces
 from .errors import NotATree
 from .records import Articulation, Body3D, Particle, PotentialEnergy
@@ -47,7 +47,9 @@ class SpatialTree:
     one past the last node of its subtree; `records[k]` the node's FIELDS (SymEngine), `Q` the
     generalized forces in coordinate order; `poses[k]` the node's frame in the fixed one (R
     row-major, then its origin: 12 expressions), the frame its body's inertial parameters are
-    about.
+    about. A tree whose root is a free base (`lagrgen.free_base`) has nodes in the base's chart,
+    one coordinate fewer than the model (`coordinate` indexes the chart's), its Q in the model's
+    coordinates and `free` its `FreeBase`.
     """
     coordinate: tuple
     parent: tuple
@@ -56,6 +58,7 @@ class SpatialTree:
     Q: list
     notes: list = field(default_factory=list)
     poses: list = field(default_factory=list)
+    free: object = None
     kind = "spatial"
     fields = FIELDS
 
@@ -106,11 +109,13 @@ def spatial_tree(eq):
 
 
 def _from_articulation(eq, record, others):
-    """The tree of an Articulation: its segments in order, one coordinate each."""
+    """The tree of an Articulation: its segments in order, one coordinate each (a free base:
+    `lagrgen.free_base`)."""
     q, names = eq.q, eq.spec.coordinate_names
     convert = eq.collected.convert
     coordinate, multiplier = [], []
-    for segment in record.segments:
+    free = free_base.is_free(record)
+    for segment in record.segments[1:] if free else record.segments:
         motion = convert(segment.motion)
         used = [j for j, qj in enumerate(q) if qj in motion.free_symbols]
         scale = frames.diff(motion, q[used[0]]) if len(used) == 1 else None
@@ -119,13 +124,19 @@ def _from_articulation(eq, record, others):
                            "coordinate")
         coordinate.append(used[0])
         multiplier.append(scale)
-    if set(coordinate) != set(range(len(q))):
+    if set(coordinate) | set(free_base.POSITION + free_base.QUATERNION if free else ()) \
+            != set(range(len(q))):
         raise NotATree("a coordinate moves no joint")
+    world = frames.frames(record, convert, q, eq.qd, eq.t)
+    Q = generalized_forces(others, convert, q, eq.qd, eq.t)
+    if free:
+        nodes, parent, records, notes, poses = free_base.free_tree(
+            eq, record, Q, world, lambda k: (coordinate[k - 1], multiplier[k - 1]))
+        return SpatialTree(nodes, parent, _subtree_ends(parent), records, Q, notes, poses,
+                           free=free_base.FreeBase(float(record.segments[0].radial)))
     parent = tuple(s.parent for s in record.segments)
     end = _subtree_ends(parent)
-    world = frames.frames(record, convert, q, eq.qd, eq.t)
     gravity = [convert(g) for g in record.gravity]
-    Q = generalized_forces(others, convert, q, eq.qd, eq.t)
     zero = se.Integer(0)
     records, notes, poses = [], [], []
     for k, (segment, frame) in enumerate(zip(record.segments, world)):

@@ -25,7 +25,7 @@ from pathlib import Path
 import numpy as np
 
 from .errors import ModelError
-from .frames import rodrigues
+from .frames import quaternion_matrix, rodrigues
 from .numbers import finite_number
 
 #: Joint types that carry a coordinate, and the fixed joint that merges two links.
@@ -234,7 +234,7 @@ def _joint(element, links):
     if kind not in SUPPORTED:
         raise URDFError(f"{what} has type {kind!r}, which lagrgen does not support: use revolute, "
                         "continuous, prismatic or fixed (a floating base is "
-                        "from_urdf(..., base='floating'))")
+                        "from_urdf(..., base='free') or base='floating')")
     ends = {}
     for end in ("parent", "child"):
         tag = element.find(end)
@@ -357,6 +357,14 @@ FLOATING_BASE = (("base_x", "prismatic", (1.0, 0.0, 0.0)), ("base_y", "prismatic
                  ("base_pitch", "revolute", (0.0, 1.0, 0.0)),
                  ("base_roll", "revolute", (1.0, 0.0, 0.0)))
 FLOATING_ORDER = ("base_x", "base_y", "base_z", "base_roll", "base_pitch", "base_yaw")
+#: The free base's coordinates: its frame's origin and a quaternion (Pinocchio's order, scalar
+#: last) whose direction is its orientation (`lagrgen.frames`); its inputs: a force and a moment
+#: on the base frame's origin, in fixed axes.
+FREE_BASE = ("base_x", "base_y", "base_z", "base_qx", "base_qy", "base_qz", "base_qw")
+FREE_INPUTS = ("force_base_x", "force_base_y", "force_base_z",
+               "torque_base_x", "torque_base_y", "torque_base_z")
+#: The roll–pitch–yaw angles of the free base, outputs for people.
+FREE_OUTPUTS = ("base_roll", "base_pitch", "base_yaw")
 #: The ten inertial parameters of a body, in Pinocchio's order, and their units.
 INERTIAL_NAMES = ("m", "mx", "my", "mz", "Ixx", "Ixy", "Iyy", "Ixz", "Iyz", "Izz")
 INERTIAL_UNITS = ("kg",) + ("kg*m",) * 3 + ("kg*m^2",) * 6
@@ -388,6 +396,8 @@ def parts(robot, base="fixed", frozen=None):
         for name, kind, axis in FLOATING_BASE:
             out.append(Part(None, name, len(out) - 1, np.eye(3), np.zeros(3),
                             kind, axis))
+    elif base == "free":
+        out.append(Part(None, "base", -1, np.eye(3), np.zeros(3), "free", ()))
     owner0 = len(out) - 1
     stack = [(robot.root, owner0, np.eye(3), np.zeros(3))]
     if owner0 >= 0:
@@ -496,9 +506,14 @@ def from_urdf(path, name=None, base="fixed", gravity=(0.0, 0.0, -9.81), joint_dy
         The URDF file.
     name : str, optional
         The model's name (default: the robot's, made an identifier).
-    base : "fixed" or "floating"
+    base : "fixed", "floating" or "free"
         "floating": the root link moves freely, with the coordinates base_x, base_y, base_z,
-        base_roll, base_pitch, base_yaw first (orientation Rz(yaw)·Ry(pitch)·Rx(roll)).
+        base_roll, base_pitch, base_yaw first (orientation Rz(yaw)·Ry(pitch)·Rx(roll), singular
+        at pitch ±π/2). "free": the root link moves freely without singularity, with the
+        coordinates base_x, base_y, base_z, base_qx, base_qy, base_qz, base_qw first (its
+        origin and a quaternion, see the robots guide), the inputs force_base_x, ...,
+        torque_base_z (a force and a moment on its origin, fixed axes) and the outputs
+        base_roll, base_pitch, base_yaw; its initial state is upright at rest.
     gravity : 3 numbers or expressions
         The uniform gravity in the fixed frame, m/s².
     joint_dynamics : bool
@@ -530,8 +545,8 @@ def from_urdf(path, name=None, base="fixed", gravity=(0.0, 0.0, -9.81), joint_dy
 
     from .model import Model
     from .records import Articulation, Segment
-    if base not in ("fixed", "floating"):
-        raise ModelError(f"base must be 'fixed' or 'floating', got {base!r}")
+    if base not in ("fixed", "floating", "free"):
+        raise ModelError(f"base must be 'fixed', 'floating' or 'free', got {base!r}")
     if parameters not in (None, "inertial"):
         raise ModelError(f"parameters must be None or 'inertial', got {parameters!r}")
     try:
@@ -554,6 +569,12 @@ def from_urdf(path, name=None, base="fixed", gravity=(0.0, 0.0, -9.81), joint_dy
                         f"{sorted(clash)[0]!r}: rename one of them")
     followers = {p.name: p.joint.mimic for p in found
                  if mimic and p.joint is not None and p.joint.mimic is not None}
+    if base == "free" and followers:
+        follower, (target, _, _) = next(iter(followers.items()))
+        raise ModelError(f"joint {follower!r} of {robot.name!r} mimics {target!r}: the "
+                         "recursion of a free base takes no mimic joints yet; read the file with "
+                         "from_urdf(..., mimic=False) (the joints independent, as Pinocchio "
+                         "reads them)")
     frozen = _frozen_massless(robot, found, followers, massless)
     if frozen:
         found = parts(robot, base, frozen)
@@ -563,30 +584,38 @@ def from_urdf(path, name=None, base="fixed", gravity=(0.0, 0.0, -9.81), joint_dy
     if base == "floating":
         by_name = {p.name: p for p in coordinate_parts}
         coordinate_parts = [by_name[n] for n in FLOATING_ORDER] + coordinate_parts[6:]
+    joint_parts = coordinate_parts[1:] if base == "free" else coordinate_parts
     model = Model(name if name is not None else identifier(robot.name))
-    units = " ".join("m" if p.kind == "prismatic" else "rad" for p in coordinate_parts)
-    q = dict(zip((p.name for p in coordinate_parts),
-                 model.coordinates([p.name for p in coordinate_parts], units=units)))
+    units = " ".join("m" if p.kind == "prismatic" else "rad" for p in joint_parts)
+    names = [p.name for p in joint_parts]
+    if base == "free":
+        units, names = "m m m 1 1 1 1 " + units, list(FREE_BASE) + names
+    q = dict(zip(names, model.coordinates(names, units=units)))
     inertias = _inertias(model, found, parameters)
-    tau = model.inputs([f"tau_{p.name}" for p in coordinate_parts],
+    tau = model.inputs([f"tau_{p.name}" for p in joint_parts],
                        units=" ".join("N" if p.kind == "prismatic" else "N*m"
-                                      for p in coordinate_parts))
+                                      for p in joint_parts)) if joint_parts else ()
     motion = {}
     for p in found:
         if p.name in followers:
             target, multiplier, offset = followers[p.name]
             motion[p.name] = sp.Float(multiplier) * q[identifier(target)] + sp.Float(offset)
+        elif p.kind == "free":
+            motion[p.name] = sp.ImmutableMatrix([q[c] for c in FREE_BASE])
         else:
             motion[p.name] = q[p.name]
     segments = tuple(Segment(p.name, p.link, p.parent, p.kind, tuple(float(a) for a in p.axis),
                              _exact(_clean(p.rotation)), _exact(_clean(p.offset).reshape(3, 1)),
-                             motion[p.name], inertias[k])
+                             motion[p.name], inertias[k],
+                             _radial_inertia(p.body) if p.kind == "free" else 0.0)
                      for k, p in enumerate(found))
     record = Articulation(segments, sp.ImmutableMatrix(gravity))
     model._add(record)
     model._drawables.append(("robot", (record,)))
-    for p, u in zip(coordinate_parts, tau):
+    for p, u in zip(joint_parts, tau):
         model.generalized_force(q[p.name], u)
+    if base == "free":
+        _free_base(model, [q[c] for c in FREE_BASE])
     if joint_dynamics:
         _joint_dynamics(model, found, motion)
     model.urdf = robot
@@ -595,6 +624,41 @@ def from_urdf(path, name=None, base="fixed", gravity=(0.0, 0.0, -9.81), joint_dy
         if limit is not None and any(v is not None for v in astuple(limit)):
             model.limit(p.name, *astuple(limit))
     return model
+
+
+def _radial_inertia(body):
+    """The inertia J of a free base's quaternion length (`records.Segment.radial`): 4/3 of the
+    trace of the base body's inertia about its origin (so that M's quaternion block has the
+    scale of its rotation's, 4·I), 1 kg·m² for a base without inertia."""
+    trace = float(body[4] + body[6] + body[9])
+    return 4.0 * trace / 3.0 if trace > 0 else 1.0
+
+
+def _free_base(model, coordinates):
+    """A free base's inputs (a force and a moment on its origin, fixed axes: Q_p = f,
+    Q_ζ = Gᵀ·n with ω = G·ζ̇), its roll–pitch–yaw outputs and its initial state, upright at rest."""
+    import sympy as sp
+    p, z = coordinates[:3], sp.Matrix(coordinates[3:])
+    inputs = model.inputs(list(FREE_INPUTS), units="N N N N*m N*m N*m")
+    force, moment = sp.Matrix(inputs[:3]), sp.Matrix(inputs[3:])
+    x, y, zc, w = z
+    G = 2 * sp.Matrix([[w, -zc, y, -x], [zc, w, -x, -y], [-y, x, w, -zc]]) / (z.T * z)[0]
+    for coordinate, value in zip(p, force):
+        model.generalized_force(coordinate, value)
+    for coordinate, column in zip(z, (G.T * moment)):
+        model.generalized_force(coordinate, column)
+    for name, angle in zip(FREE_OUTPUTS, _rpy_of_matrix(sp.Matrix(
+            quaternion_matrix(list(z), homogeneous=True)))):
+        model.output(name, angle, units="rad")
+    model.initial_state(q={"base_qw": 1.0})
+
+
+def _rpy_of_matrix(R):
+    """URDF's (roll, pitch, yaw) of R = Rz(yaw)·Ry(pitch)·Rx(roll) given times any positive
+    number (SymPy): atan2 forms, pitch in [−π/2, π/2]."""
+    import sympy as sp
+    return (sp.atan2(R[2, 1], R[2, 2]), sp.atan2(-R[2, 0], sp.sqrt(R[0, 0] ** 2 + R[1, 0] ** 2)),
+            sp.atan2(R[1, 0], R[0, 0]))
 
 
 def _clean(array):
@@ -647,9 +711,10 @@ def tree_text(robot, base="fixed"):
     (type, axis, limits), its mass, and which links fixed joints merge into one body."""
     moving = sum(1 for j in robot.joints if j.kind in MOVING)
     mass = sum(link.mass for link in robot.links.values())
-    lines = [f"robot {robot.name}: {moving + (6 if base == 'floating' else 0)} coordinates, "
+    extra = {"floating": 6, "free": 7}.get(base, 0)
+    lines = [f"robot {robot.name}: {moving + extra} coordinates, "
              f"{len(robot.links)} links, {len(robot.joints)} joints, {mass:.4g} kg "
-             f"({'floating' if base == 'floating' else 'fixed'} base)"]
+             f"({base if base in ('floating', 'free') else 'fixed'} base)"]
 
     def joint_text(joint):
         if joint.kind == "fixed":
@@ -675,5 +740,8 @@ def tree_text(robot, base="fixed"):
     if base == "floating":
         lines.append("floating base: base_x, base_y, base_z, base_roll, base_pitch, base_yaw "
                      "(orientation Rz(yaw)·Ry(pitch)·Rx(roll))")
+    elif base == "free":
+        lines.append("free base: base_x, base_y, base_z, base_qx, base_qy, base_qz, base_qw "
+                     "(origin and orientation quaternion, no singularity)")
     visit(robot.root, "", True, None)
     return "\n".join(lines)

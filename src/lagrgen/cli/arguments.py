@@ -44,9 +44,10 @@ def add_model_file(parser):
                         "or a robot's URDF file (.urdf)")
     parser.add_argument("--model", action="append",
                         help="only the model of this name (may be repeated; default: all)")
-    parser.add_argument("--base", choices=("fixed", "floating"), default="fixed",
-                        help="a URDF file's root link: fixed (default) or floating (six "
-                        "coordinates base_x … base_yaw)")
+    parser.add_argument("--base", choices=("fixed", "floating", "free"), default="fixed",
+                        help="a URDF file's root link: fixed (default), floating (six "
+                        "coordinates base_x … base_yaw, singular at pitch ±π/2) or free (a "
+                        "quaternion: base_x … base_qw, no singularity)")
     parser.add_argument("--no-joint-dynamics", dest="joint_dynamics", action="store_false",
                         help="a URDF file: leave out its joints' <dynamics> damping and friction")
 

@@ -2,6 +2,7 @@
 tree, `lagrgen.tree`) or `templates/tree3d.c.in` (a three-dimensional one, `lagrgen.tree3d`)
 filled with one model's kinematic tree (its node tables, record layout and sparsity of ∂Q/∂y),
 and the same tables for the Python backend (`lagrgen.runtime.tree`, `lagrgen.runtime.tree3d`)."""
+from pathlib import Path
 from string import Template
 
 from .. import tree as trees
@@ -9,6 +10,8 @@ from ..kernels import tree_gradients, tree_parameter_gradients, tree_q_hessian
 
 #: The template of each kind of tree.
 TEMPLATES = {"planar": "tree.c.in", "spatial": "tree3d.c.in"}
+#: The transformation of a free base's recursion (in its chart) to the model's coordinates.
+FREE_BASE_TEMPLATE = Path(__file__).resolve().parent / "templates" / "free_base.c.in"
 
 
 def template_name(equations):
@@ -39,7 +42,11 @@ def layout(equations):
            "dnode": [[k, o] for k, o, _ in dnode], "dnode_start": start,
            "dQp": [list(ij) for ij in dQp]}
     columns, start = [], 0
-    for values in trees.tree3d.inertial_symbols(equations.spec) or [None] * len(tree.coordinate):
+    bodies = trees.tree3d.inertial_symbols(equations.spec) or [None] * len(tree.coordinate)
+    if tree.kind == "spatial" and tree.free:          # segment 0's body is on the sixth node
+        bodies = [None] * 5 + list(bodies)
+        out["free"] = {"radial": tree.free.radial}
+    for values in bodies:
         columns.append(start if values else -1)
         start += 10 if values else 0
     out["inertial_column"] = columns
@@ -78,8 +85,30 @@ def _ints(values):
 def tree_c(equations, template, kernels=("tree_nodes", "tree_slopes", "tree_parameters")):
     """`template` (the text of the tree's template, `template_name`) for the equations' tree, in
     a unit that has the `kernels` (names: the parts calling tree_slopes or tree_parameters are
-    compiled when they are among them)."""
+    compiled when they are among them); a free base's, in its chart within
+    `templates/free_base.c.in`."""
     tables = layout(equations)
+    if "free" in tables:
+        return free_base_c(equations, tables, template, kernels)
+    return _tree_c(equations, tables, template, kernels)
+
+
+def free_base_c(equations, tables, template, kernels):
+    """The recursion of a free base's tree in its chart (its own n − 1 coordinates, no slopes or
+    parameter derivatives of Q: those are the model's) within the transformation to the model's
+    coordinates (`templates/free_base.c.in`)."""
+    chart = dict(tables, dq=[], dqd=[], dQp=[])
+    return Template(FREE_BASE_TEMPLATE.read_text()).substitute(
+        n=len(equations.q), n_e=len(equations.q) - 1, radial=repr(float(tables["free"]["radial"])),
+        nnz_q=len(tables["dq"]), nnz_qd=len(tables["dqd"]), nnz_qp=len(tables["dQp"]),
+        dq_index=_ints([i for ij in tables["dq"] for i in ij]),
+        dqd_index=_ints([i for ij in tables["dqd"] for i in ij]),
+        dqp_index=_ints([i for ij in tables["dQp"] for i in ij]),
+        has_parameters=int("tree_parameters" in kernels),
+        tree=_tree_c(equations, chart, template, kernels))
+
+
+def _tree_c(equations, tables, template, kernels):
     n = len(tables["coordinate"])
     first, seen = [], set()
     for c in tables["coordinate"]:

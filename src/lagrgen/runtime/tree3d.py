@@ -377,12 +377,17 @@ class SpatialPythonModel(FactoredModel):
         return self._tree.b(nodes, np.asarray(qd, dtype=float), np.asarray(a, dtype=float),
                             dQ, dQd)
 
+    def _solve(self, factored, X):
+        """M⁻¹·X (rows in coordinate order) with the factor of `_factored`'s result."""
+        return self._tree.solve(factored[1], X)
+
     def _jacobian(self, t, q, qd, p, u):
         n = self.n_coordinates
-        nodes, L, qdd = self._factored(t, q, qd, p, u)
+        factored = self._factored(t, q, qd, p, u)
+        nodes, _, qdd = factored[:3]
         J = np.zeros((2 * n, 2 * n))
         J[:n, n:] = np.eye(n)
-        J[n:] = self._tree.solve(L, self._b(t, q, qd, qdd, p, u, nodes))
+        J[n:] = self._solve(factored, self._b(t, q, qd, qdd, p, u, nodes))
         return J
 
     def _residual_hessian(self, t, q, qd, a, mu, p, u):
@@ -421,17 +426,19 @@ class SpatialPythonModel(FactoredModel):
         out = np.zeros((2 * n, k))
         if not k:
             return out
-        nodes, L, qdd = self._factored(t, q, qd, p, u)
-        out[n:] = self._tree.solve(L, self._parameter_b(t, q, qd, qdd, p, u, nodes))
+        factored = self._factored(t, q, qd, p, u)
+        nodes, _, qdd = factored[:3]
+        out[n:] = self._solve(factored, self._parameter_b(t, q, qd, qdd, p, u, nodes))
         return out
 
     def _directional_derivatives(self, t, q, qd, p, u, dy, dp):
         n = self.n_coordinates
-        nodes, L, qdd = self._factored(t, q, qd, p, u)
+        factored = self._factored(t, q, qd, p, u)
+        nodes, _, qdd = factored[:3]
         R = self._b(t, q, qd, qdd, p, u, nodes) @ np.asarray(dy, dtype=float).T
         if len(self.parameters) and np.any(dp):
             R += self._parameter_b(t, q, qd, qdd, p, u, nodes) @ np.asarray(dp, dtype=float).T
         out = np.empty((len(dy), 2 * n))
         out[:, :n] = np.asarray(dy)[:, n:]
-        out[:, n:] = self._tree.solve(L, R).T
+        out[:, n:] = self._solve(factored, R).T
         return np.concatenate([np.array(qd, dtype=np.float64), qdd]), out
