@@ -291,7 +291,10 @@ def tree_q_hessian(eq):
 
 
 def _is_spatial_tree(eq):
-    return tree.analyse(eq).kind == "spatial"
+    """True for a three-dimensional tree whose residual's second derivatives come from its
+    recursion (not one with a free base: its recursion runs in the base's chart)."""
+    t = tree.analyse(eq)
+    return t.kind == "spatial" and not getattr(t, "free", None)
 
 
 @once_per
@@ -329,7 +332,7 @@ TREE_KERNELS = (
                lambda eq: {"HQ": [e for _, _, e in tree_q_hessian(eq)]},
                when=_is_spatial_tree, arguments=WEIGHTED_ARGUMENTS),
     KernelSpec("tree_residual_hessian", "H = ∇²_z(Σ mu_i·r_i) as the dense kernel residual_hessian "
-               "(a planar tree: no recursion of second derivatives)",
+               "(a planar tree or a free base: no recursion of second derivatives)",
                (Output("H", ("n_point", "n_point")),), _residual_hessian,
                when=lambda eq: not _is_spatial_tree(eq), arguments=WEIGHTED_ARGUMENTS,
                python=False, zeroed=("H",)),

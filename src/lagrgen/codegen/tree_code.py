@@ -50,7 +50,7 @@ def layout(equations):
         columns.append(start if values else -1)
         start += 10 if values else 0
     out["inertial_column"] = columns
-    if tree.kind == "spatial":
+    if tree.kind == "spatial" and not getattr(tree, "free", None):
         out["qh"] = [[r, c] for r, c, _ in tree_q_hessian(equations)]
     if tree.kind == "planar":
         out.update(D=tree.D, slope_width=trees.record_width(trees.SLOPE_FIELDS, tree.D),
@@ -62,9 +62,9 @@ def structure(equations):
     """What the sparsity of a spatial tree's residual derivatives follows from (`ModelInfo.
     tree_structure`): the nodes' coordinate and parent, the nonzero entries of ∂Q/∂q, ∂Q/∂q̇,
     ∂Q/∂u (coordinate, variable) and of ∇²(Σ mu_i·Q_i) (`qh`, point indices); {} for a planar
-    tree."""
+    tree and a free base (their residual's second derivatives are symbolic)."""
     tree = trees.analyse(equations)
-    if tree.kind != "spatial":
+    if tree.kind != "spatial" or getattr(tree, "free", None):
         return {}
     tables = layout(equations)
     du = [[i, k] for i, row in enumerate(tree_gradients(equations)[2])
@@ -122,7 +122,7 @@ def _tree_c(equations, tables, template, kernels):
     qh = tables.get("qh", [])
     return Template(template).substitute(
         has_slopes=int("tree_slopes" in kernels),
-        has_hessian=int("tree_q_hessian" in kernels), nnz_qh=len(qh),
+        has_hessian=int("tree_q_hessian" in kernels and "qh" in tables), nnz_qh=len(qh),
         qh_index=_ints([i for rc in qh for i in rc]),
         has_parameters=int("tree_parameters" in kernels),
         has_poses=int("tree_poses" in kernels),

@@ -13,7 +13,7 @@ at c = (0, |ζ|) its derivatives are quaternion products of ζ with those of h a
 """
 import numpy as np
 
-from ..errors import MassMatrixError
+from ..errors import LagrgenError, MassMatrixError
 from .tree3d import SpatialPythonModel, SpatialRecursion
 
 #: The model's index of the quaternion's first component, and the chart's block (e, r) there.
@@ -86,6 +86,12 @@ class FreeBasePythonModel(SpatialPythonModel):
         self._tree = SpatialRecursion(self._kernels["TREE"], n - 1)
         self._radial = self._kernels["TREE"]["free"]["radial"]
         self._chart_rows = np.r_[0:6, 7:n]    # the model's indices of the chart's coordinates
+
+    def _residual_hessian(self, t, q, qd, a, mu, p, u):
+        """Not on this backend: the chart's second derivatives are not carried to q here."""
+        raise LagrgenError(
+            f"the Python backend of model {self.name!r} (a free base) has no residual Hessian; "
+            "build it with the C backend (lagrgen.build(model)), whose Hessian is symbolic")
 
     # -- the chart -------------------------------------------------------------------------------
     def _frame(self, q, qd):

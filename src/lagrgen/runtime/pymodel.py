@@ -10,7 +10,7 @@ import math
 
 import numpy as np
 
-from ..errors import ConstraintError, MassMatrixError, NonFiniteError
+from ..errors import ConstraintError, LagrgenError, MassMatrixError, NonFiniteError
 from ..functions import FUNCTIONS
 from . import dual
 from .arguments import (as_vector, defaults_array, initial_state_array, input_vector,
@@ -292,6 +292,12 @@ class PythonModel:
         """∇²_z(Σ mu_i·r_i): the gradient of Σ mu_i·r_i from the first-derivative kernels (as
         `_residual_terms` assembles them) evaluated on duals seeded with z = [q, q̇, a, u]."""
         n, m, k = self.n_coordinates, self.n_constraints, len(self.inputs)
+        if "jacobian_b" not in self._dual_kernels:
+            raise LagrgenError(
+                f"the Python backend of model {self.name!r} ({self.formulation} formulation) "
+                "has no residual Hessian: its first derivatives come from a recursion, not from "
+                "kernels it could differentiate; build it with the C backend "
+                "(lagrgen.build(model)), whose Hessian is symbolic")
         z = dual.seeded(list(q) + list(qd) + list(a) + list(u))
         dq, dqd, da, du = z[:n], z[n:2 * n], z[2 * n:3 * n + m], z[3 * n + m:]
         kernels = self._dual_kernels
