@@ -82,6 +82,10 @@ def _parameter_b(eq):
                   for j in range(len(eq.p))]}
 
 
+def _split_outputs(outputs):
+    return {"out": list(outputs[:-2]), "power": list(outputs[-2:])}
+
+
 def _jacobian_b(eq):
     B = []
     for i in range(eq.n):
@@ -153,7 +157,7 @@ KERNELS = (
                lambda eq: {"dF_du": flatten(eq.dF_du)}),
     KernelSpec("outputs", "the user's outputs, then T, V, T + V; and Σ Q_j·q̇_j, R",
                (Output("out", ("n_outputs",)), Output("power", ("n_power",))),
-               lambda eq: {"out": list(eq.outputs[:-2]), "power": list(eq.outputs[-2:])}),
+               lambda eq: _split_outputs(eq.outputs)),
     KernelSpec("constraints", "A (m×n) and γ (m) of the constraints A·q̈ = γ (Baumgarte-stabilized)",
                (Output("A", ("n_constraints", "n")), Output("gamma", ("n_constraints",))),
                lambda eq: {"A": flatten(eq.A), "gamma": list(eq.gamma)}, lambda eq: eq.m > 0),
@@ -198,29 +202,43 @@ KERNELS_BY_NAME = {k.name: k for k in KERNELS}
 
 def _signed(expr, memo):
     """`expr` with every sum inside it written as ±S where S is the one of S, −S whose term with the
-    smallest hash has a positive coefficient (the same value), so that CSE sees X and −X as one."""
-    hit = memo.get(expr)
-    if hit is not None:
-        return hit
-    if not expr.args or isinstance(expr, se.Number):
-        out = expr
-    elif isinstance(expr, se.Add):
-        args = [_signed(a, memo) for a in expr.args]
-        lead = min(args, key=lambda a: hash(_strip_number(a)))
-        lead_negative = isinstance(lead, se.Number) and lead.is_negative or (
-            isinstance(lead, se.Mul) and isinstance(lead.args[0], se.Number)
-            and lead.args[0].is_negative)
-        out = -se.Add(*(-a for a in args)) if lead_negative else se.Add(*args)
-    else:
-        args = [_signed(a, memo) for a in expr.args]
-        out = expr
-        if any(a is not b for a, b in zip(args, expr.args)):
-            try:
-                out = expr.func(*args)
-            except (AttributeError, TypeError):   # relations, Piecewise: left as they are
-                out = expr
-    memo[expr] = out
-    return out
+    smallest hash has a positive coefficient (the same value), so that CSE sees X and −X as one.
+    Iterative (an explicit stack, children before parents): an expression nested deeper than
+    Python's recursion limit (the energies of a long chain) is walked like any other."""
+    stack = [(expr, False)]
+    while stack:
+        node, ready = stack.pop()
+        if node in memo:
+            continue
+        if not node.args or isinstance(node, se.Number):
+            memo[node] = node
+            continue
+        if not ready:
+            stack.append((node, True))
+            stack.extend((a, False) for a in node.args if a not in memo)
+            continue
+        args = [memo[a] for a in node.args]
+        memo[node] = _signed_sum(args) if isinstance(node, se.Add) else _rebuilt(node, args)
+    return memo[expr]
+
+
+def _signed_sum(args):
+    """The sum of the (already signed) terms `args`, as ±S with S's leading term positive."""
+    lead = min(args, key=lambda a: hash(_strip_number(a)))
+    lead_negative = isinstance(lead, se.Number) and lead.is_negative or (
+        isinstance(lead, se.Mul) and isinstance(lead.args[0], se.Number)
+        and lead.args[0].is_negative)
+    return -se.Add(*(-a for a in args)) if lead_negative else se.Add(*args)
+
+
+def _rebuilt(expr, args):
+    """`expr` with its arguments replaced by `args` (itself when none changed)."""
+    if all(a is b for a, b in zip(args, expr.args)):
+        return expr
+    try:
+        return expr.func(*args)
+    except (AttributeError, TypeError):   # relations, Piecewise: left as they are
+        return expr
 
 
 def _strip_number(term):
@@ -291,6 +309,11 @@ TREE_KERNELS = (
                lambda eq: {"poses": [x for pose in tree.analyse(eq).poses for x in pose]},
                when=lambda eq: tree.analyse(eq).kind == "spatial"
                and bool(tree.tree3d.inertial_parameters(eq.spec))),
+    KernelSpec("tree_outputs", "the user's outputs, then T, V, T + V; and Σ Q_j·q̇_j, R, without "
+               "the energies of an articulation's bodies (lg_outputs adds those from the node "
+               "records)", (Output("out", ("n_outputs",)), Output("power", ("n_power",))),
+               lambda eq: _split_outputs(eq.outputs_of(
+                   eq.collected.energies_beside_articulations))),
     KernelSpec("tree_parameters", "the nonzero derivatives of the node records and of Q by the "
                "parameters (lagrgen.tree.parameter_gradients)",
                (Output("dnode", ("nnz_p",)), Output("dQp", ("nnz_qp",))),
@@ -298,7 +321,7 @@ TREE_KERNELS = (
                            "dQp": tree_parameter_gradients(eq)[1][1]}),
 )
 #: The dense kernels the recursive formulation keeps (none of them needs M or F).
-_KEPT = ("outputs", "events", "nonsmooth")
+_KEPT = ("events", "nonsmooth")
 #: The kernels of each formulation, in the order they are generated.
 FORMULATION_KERNELS = {"dense": KERNELS,
                        "recursive": TREE_KERNELS + tuple(k for k in KERNELS if k.name in _KEPT)}
@@ -311,7 +334,8 @@ TREE_REPLACES = {"mf": ("tree_nodes",),
                  "parameter_b": ("tree_nodes", "tree_parameters"),
                  "motion_tape": ("tree_nodes", "tree_slopes", "tree_parameters"),
                  "motion_tangent": (),
-                 "body_poses": ("tree_poses",)}
+                 "body_poses": ("tree_poses",),
+                 "outputs": ("tree_nodes", "tree_outputs")}
 
 
 @once_per

@@ -56,6 +56,7 @@ class SpatialTree:
     Q: list
     notes: list = field(default_factory=list)
     poses: list = field(default_factory=list)
+    articulated: bool = False    # the bodies of an Articulation: energies from the records
     kind = "spatial"
     fields = FIELDS
 
@@ -137,7 +138,7 @@ def _from_articulation(eq, record, others):
                  else ", a root")
         notes.append(f"node {k}: {segment.kind} joint {names[coordinate[k]]}{above}; carries "
                      f"{('link ' + segment.link) if segment.link else 'no body'}")
-    return SpatialTree(tuple(coordinate), parent, end, records, Q, notes, poses)
+    return SpatialTree(tuple(coordinate), parent, end, records, Q, notes, poses, articulated=True)
 
 
 def inertial_symbols(spec):

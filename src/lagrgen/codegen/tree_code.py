@@ -43,6 +43,7 @@ def layout(equations):
         columns.append(start if values else -1)
         start += 10 if values else 0
     out["inertial_column"] = columns
+    out["energies"] = bool(getattr(tree, "articulated", False))
     if tree.kind == "planar":
         out.update(D=tree.D, slope_width=trees.record_width(trees.SLOPE_FIELDS, tree.D),
                    slope_fields=trees.field_offsets(trees.SLOPE_FIELDS, tree.D))
@@ -78,6 +79,8 @@ def tree_c(equations, template, kernels=("tree_nodes", "tree_slopes", "tree_para
         has_slopes=int("tree_slopes" in kernels),
         has_parameters=int("tree_parameters" in kernels),
         has_poses=int("tree_poses" in kernels),
+        has_outputs=int("tree_outputs" in kernels),
+        has_energies=int(tables.get("energies", False)),
         inertial_columns=_ints(tables["inertial_column"]),
         tree_d=tables.get("D", 0), node_width=tables["node_width"],
         slope_width=tables.get("slope_width", 0),

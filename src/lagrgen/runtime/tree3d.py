@@ -67,6 +67,7 @@ class SpatialRecursion:
         self.dnode_start = list(tables["dnode_start"])
         self.dQp = np.array(tables["dQp"], dtype=np.intp).reshape(-1, 2)
         self.first = np.unique(self.coordinate, return_index=True)[1]
+        self.energies = bool(tables.get("energies", False))
         self.path = []
         for k in range(self.n):
             up, i = [k], self.parent[k]
@@ -233,6 +234,20 @@ class SpatialPythonModel(FactoredModel):
 
     def _nodes(self, t, q, qd, p, u):
         return self._kernel("tree_nodes", t, q, qd, None, p, u)[0].reshape(self._tree.n, -1)
+
+    def _outputs(self, t, q, qd, p, u):
+        """tree_outputs', with an articulation's bodies' energies added from their records
+        (T = ½·Σ v_k·Y_k·v_k, V = −g·Σ h_k; tree3d.c.in's lg_outputs)."""
+        out = super()._outputs(t, q, qd, p, u)
+        if self._tree.energies:
+            nodes = self._nodes(t, q, qd, p, u)
+            s, Y, base, _ = self._tree.split(nodes)
+            v = self._tree.motion(nodes, np.asarray(qd, dtype=float),
+                                  np.zeros(self.n_coordinates))[0]
+            T = 0.5 * sum(v[k] @ inertia_apply(Y[k], v[k]) for k in range(self._tree.n))
+            V = float(base[0, 3:] @ Y[:, 1:4].sum(axis=0))
+            out[-3:] += [T, V, T + V]
+        return out
 
     def _inverse(self, nodes, qd, a):
         v, acc = self._tree.motion(nodes, np.asarray(qd, dtype=float), np.asarray(a, dtype=float))
