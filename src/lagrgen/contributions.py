@@ -88,9 +88,11 @@ class Sums:
         self.particles = []
 
     def add_virtual_work(self, vector, position):
-        """Q_j += vector · ∂position/∂q_j (internal symbols)."""
+        """Q_j += vector · ∂position/∂q_j (internal symbols; only for the q_j it holds)."""
+        free = set().union(*(rc.free_symbols for rc in position))
         for j, qj in enumerate(self.q):
-            self.Q[j] += sum(fc * diff(rc, qj) for fc, rc in zip(vector, position))
+            if qj in free:
+                self.Q[j] += sum(fc * diff(rc, qj) for fc, rc in zip(vector, position))
 
     @property
     def power(self):

@@ -291,11 +291,28 @@ def tree_gradients(eq):
     return tree.gradients(tree.analyse(eq), eq)
 
 
+def joint_tables(eq):
+    """The `lagrgen.tree3d.Joints` of the equations' tree, or None: an articulation whose joints
+    are numbers has its node records computed from them (in C by tree3d.c.in's lg_tree_nodes, in
+    Python by `lagrgen.runtime.tree3d`), with the kernel tree_loads for Q and g; any other tree
+    by the kernel tree_nodes."""
+    return getattr(tree.analyse(eq), "joints", None)
+
+
+def _tree_loads(eq):
+    t = tree.analyse(eq)
+    return {"Q": list(t.Q), "g": list(t.gravity)}
+
+
 TREE_KERNELS = (
     KernelSpec("tree_nodes", "each node's terms of the recursion over the kinematic tree "
                "(lagrgen.tree.NODE_FIELDS), in node order",
                (Output("nodes", ("n", "node_width")),), _tree_nodes,
-               notes=_node_notes("nodes")),
+               notes=_node_notes("nodes"), when=lambda eq: joint_tables(eq) is None),
+    KernelSpec("tree_loads", "the generalized forces Q (coordinate order) and the gravity g of "
+               "an articulation whose node records follow from its joints' numbers",
+               (Output("Q", ("n",)), Output("g", ("3",))), _tree_loads,
+               when=lambda eq: joint_tables(eq) is not None),
     KernelSpec("tree_slopes", "the node terms' derivatives by their own q_k, q̇_k at a given "
                "a = q̈ (lagrgen.tree.SLOPE_FIELDS), and the nonzero entries of ∂Q/∂q, ∂Q/∂q̇",
                (Output("slopes", ("n", "slope_width")), Output("dQ", ("nnz_q",)),
@@ -361,10 +378,12 @@ def kernel(eq, name, formulation="dense"):
 
 
 def kernel_names(names, formulation="dense"):
-    """The kernels of `formulation` that compute what the dense kernels `names` give."""
+    """The kernels of `formulation` that compute what the dense kernels `names` give (the node
+    records: tree_nodes, or tree_loads for an articulation's joints, whichever the model has)."""
     if formulation == "dense":
         return set(names)
-    return {r for k in names for r in TREE_REPLACES.get(k, (k,))}
+    out = {r for k in names for r in TREE_REPLACES.get(k, (k,))}
+    return out | {"tree_loads"} if "tree_nodes" in out else out
 
 
 def model_kernels(eq, formulation="dense", names=None):

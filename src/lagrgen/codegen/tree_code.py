@@ -16,15 +16,17 @@ def template_name(equations):
     return TEMPLATES[trees.analyse(equations).kind]
 
 
-def layout(equations):
+def layout(equations, parameters=True):
     """The tables of the equations' tree: {"kind", "node_width", "node_fields", "coordinate",
     "parent", "end", "dq", "dqd", "dnode", "dnode_start", "dQp", "inertial_column"}, and for a
     planar tree "D", "slope_width", "slope_fields" (plain Python values). The entries of ∂Q/∂y
     (dq, dqd) are pairs of nodes for a planar tree, of coordinates for a spatial one (whose
-    coordinates may have several nodes)."""
+    coordinates may have several nodes). Without `parameters` the tables of the derivatives by
+    the parameters are left empty (a unit without the kernel tree_parameters)."""
     tree = trees.analyse(equations)
     (dq, _), (dqd, _), _ = tree_gradients(equations)
-    (dnode, _), (dQp, _) = tree_parameter_gradients(equations)
+    (dnode, _), (dQp, _) = tree_parameter_gradients(equations) if parameters else (([], []),
+                                                                                   ([], []))
     n_params = len(equations.p)
     start = [0] * (n_params + 1)
     for _, _, j in dnode:
@@ -44,6 +46,9 @@ def layout(equations):
         start += 10 if values else 0
     out["inertial_column"] = columns
     out["energies"] = bool(getattr(tree, "articulated", False))
+    joints = getattr(tree, "joints", None)
+    if joints is not None:
+        out["joints"] = joints.table()
     if tree.kind == "planar":
         out.update(D=tree.D, slope_width=trees.record_width(trees.SLOPE_FIELDS, tree.D),
                    slope_fields=trees.field_offsets(trees.SLOPE_FIELDS, tree.D))
@@ -60,11 +65,37 @@ def _ints(values):
     return ", ".join(str(int(v)) for v in values) if values else "0"
 
 
+def _rows(rows, notes, number=repr):
+    """C initializer rows `{a, b, ...},` one per node, each after its note as a comment."""
+    return "\n".join(f"    /* {note} */\n    {{{', '.join(number(x) for x in row)}}},"
+                      for row, note in zip(rows, notes)) or "    {0}"
+
+
+def _joint_tables(tables, notes):
+    """The template's joint tables (`lagrgen.tree3d.Joints`), or placeholders when the tree has
+    none."""
+    joints = tables.get("joints")
+    if joints is None:
+        return dict(has_joints=0, has_joint_parameters=0, joint_placement="{0}",
+                    joint_axis="{0}", joint_motion="{0}", joint_inertia="{0}",
+                    joint_inertia_parameter="{0}")
+    real = lambda x: repr(float(x))            # noqa: E731
+    axis = [list(a) + [k] for a, k in zip(joints["axis"], joints["prismatic"])]
+    return dict(has_joints=1,
+                has_joint_parameters=int(any(j >= 0 for row in joints["inertia_parameter"]
+                                             for j in row)),
+                joint_placement=_rows(joints["placement"], notes, real),
+                joint_axis=_rows(axis, notes, real),
+                joint_motion=_rows(joints["motion"], notes, real),
+                joint_inertia=_rows(joints["inertia"], notes, real),
+                joint_inertia_parameter=_rows(joints["inertia_parameter"], notes, str))
+
+
 def tree_c(equations, template, kernels=("tree_nodes", "tree_slopes", "tree_parameters")):
     """`template` (the text of the tree's template, `template_name`) for the equations' tree, in
     a unit that has the `kernels` (names: the parts calling tree_slopes or tree_parameters are
     compiled when they are among them)."""
-    tables = layout(equations)
+    tables = layout(equations, "tree_parameters" in kernels)
     n = len(tables["coordinate"])
     first, seen = [], set()
     for c in tables["coordinate"]:
@@ -80,6 +111,7 @@ def tree_c(equations, template, kernels=("tree_nodes", "tree_slopes", "tree_para
         has_parameters=int("tree_parameters" in kernels),
         has_poses=int("tree_poses" in kernels),
         has_outputs=int("tree_outputs" in kernels),
+        **_joint_tables(tables, trees.analyse(equations).notes),
         has_energies=int(tables.get("energies", False)),
         inertial_columns=_ints(tables["inertial_column"]),
         tree_d=tables.get("D", 0), node_width=tables["node_width"],
