@@ -6,6 +6,7 @@ from string import Template
 
 from .. import tree as trees
 from ..kernels import tree_gradients, tree_parameter_gradients
+from ..lean3d import LEAN_MAX_JOINTS, trace_qdd
 
 #: The template of each kind of tree.
 TEMPLATES = {"planar": "tree.c.in", "spatial": "tree3d.c.in"}
@@ -71,6 +72,18 @@ def _rows(rows, notes, number=repr):
                       for row, note in zip(rows, notes)) or "    {0}"
 
 
+def _lean(equations, tables):
+    """The template's traced functions (`lagrgen.lean3d`) where the tree has them."""
+    joints, coordinate = trees.analyse(equations).joints if tables.get("joints") else None, \
+        tables["coordinate"]
+    if joints is None or len(coordinate) > LEAN_MAX_JOINTS or \
+            len(set(coordinate)) != len(coordinate):
+        return dict(has_lean_qdd=0, lean_qdd="", lean_loads=0)
+    tree = trees.analyse(equations)
+    traced = trace_qdd(joints, tables["parent"], coordinate, tree.notes, (tree.Q, tree.gravity))
+    return dict(has_lean_qdd=1, lean_qdd=traced.text, lean_loads=int(traced.loads))
+
+
 def _joint_tables(tables, notes):
     """The template's joint tables (`lagrgen.tree3d.Joints`), or placeholders when the tree has
     none."""
@@ -111,6 +124,7 @@ def tree_c(equations, template, kernels=("tree_nodes", "tree_slopes", "tree_para
         has_parameters=int("tree_parameters" in kernels),
         has_poses=int("tree_poses" in kernels),
         has_outputs=int("tree_outputs" in kernels),
+        **_lean(equations, tables),
         **_joint_tables(tables, trees.analyse(equations).notes),
         has_energies=int(tables.get("energies", False)),
         inertial_columns=_ints(tables["inertial_column"]),
