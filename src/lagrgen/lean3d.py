@@ -22,10 +22,19 @@ from dataclasses import dataclass
 
 from .trace import Printer, Tape
 
-#: A robot of at most this many joints gets its recursions traced into straight-line code; a
+#: A robot of at most this many joints may get its recursions traced into straight-line code; a
 #: larger one runs the generic loops of tree3d.c.in (the straight-line code grows like the robot,
-#: and its compile time with it).
+#: and its compile time with it: ~0.5 s of gcc per 1000 flops).
 LEAN_MAX_JOINTS = 64
+#: The flops of straight-line code a build accepts (q̈ first, then the node records): tiago's
+#: q̈ (48 joints, 13 400 flops) and records (6 600) compile in ~10 s of gcc at -O2.
+LEAN_MAX_FLOPS = 16000
+#: A traced q̈ of more flops per joint than this runs slower than the loops (measured: the 3-D
+#: chains of random placements, 690 flops per joint traced, are faster in the loops).
+LEAN_MAX_FLOPS_PER_JOINT = 450
+#: The same for the traced node records (placements of arbitrary rotations: 230 per joint, barely
+#: fewer than the loop's, at seconds of compile time).
+LEAN_MAX_NODE_FLOPS_PER_JOINT = 200
 
 
 @dataclass
@@ -342,3 +351,90 @@ def trace_qdd(joints, parent, coordinate, notes, loads=None, name="lg_lean_qdd")
             + "    (void)t, (void)q, (void)qd, (void)p, (void)u, (void)Q, (void)g;\n"
             + "\n".join(body) + "\n    return 0;\n}\n")
     return Traced(text, flops, traced)
+
+
+def world_records(tape, joints, parent, coordinate, Q, g, inputs=None):
+    """Each node's record (lagrgen.tree3d.FIELDS: s, Y, base, Q) in the fixed frame, on the tape:
+    the frames composed down the tree, R_k = R_λ·P_k·J(θ), o_k = o_λ + R_λ·(o + P·a·θ for a
+    prismatic joint); s = multiplier·[d; o_k × d] (revolute) or multiplier·[0; d], d = R_λ·P_k·a;
+    Y the body's inertia at the fixed origin (lagrgen.frames.world_inertia)."""
+    t = tape
+    inputs = inputs or {}
+    q = inputs.get("q", lambda i: t.leaf(f"q[{i}]"))
+    p = inputs.get("p", lambda j: t.leaf(f"p[{j}]"))
+    identity = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]]
+    frames, records = [], []
+    for k in range(len(parent)):
+        Rp, op = frames[parent[k]] if parent[k] >= 0 else (identity, [0.0] * 3)
+        P = joints.placement[k]
+        axis = [float(a) for a in joints.axis[k]]
+        mult, offset = (float(x) for x in joints.motion[k])
+        theta = t.add(t.mul(mult, q(coordinate[k])), offset)
+        PM = [[float(P[3 * i + j]) for j in range(3)] for i in range(3)]
+        RP = [[t.dot(Rp[i], (PM[0][j], PM[1][j], PM[2][j])) for j in range(3)] for i in range(3)]
+        d = [t.dot(row, axis) for row in RP]
+        o = [t.add(op[i], t.dot(Rp[i], [float(x) for x in P[9:]])) for i in range(3)]
+        if joints.prismatic[k]:
+            R = RP
+            o = [t.add(o[i], t.mul(d[i], theta)) for i in range(3)]
+            s = [0.0] * 3 + d
+        else:
+            J = joint_rotation(t, axis, t.sin(theta), t.cos(theta))
+            R = [[t.dot(RP[i], (J[0][j], J[1][j], J[2][j])) for j in range(3)] for i in range(3)]
+            s = d + Spatial(t).cross(o, d)
+        frames.append((R, o))
+        body = [p(j) if j >= 0 else float(x)
+                for x, j in zip(joints.inertia[k], joints.inertia_parameter[k])]
+        base = [0.0] * 3 + [t.neg(x) for x in g] if parent[k] < 0 else [0.0] * 6
+        records.append([t.mul(mult, x) for x in s] + _world_inertia(t, R, o, body) + base
+                       + [Q(coordinate[k])])
+    return records
+
+
+def _world_inertia(t, R, o, body):
+    """(m, h_w, Ī: xx, xy, yy, xz, yz, zz) of `body` (m, h, I_O about its frame) at the fixed
+    origin: h_w = m·o + R·h, Ī = R·I_O·Rᵀ + m·((o·o)·1 − o·oᵀ) + 2·(o·h')·1 − o·h'ᵀ − h'·oᵀ."""
+    m, h = body[0], body[1:4]
+    xx, xy, yy, xz, yz, zz = body[4:]
+    I = [[xx, xy, xz], [xy, yy, yz], [xz, yz, zz]]
+    hr = [t.dot(R[i], h) for i in range(3)]
+    RI = [[t.dot(R[i], (I[0][j], I[1][j], I[2][j])) for j in range(3)] for i in range(3)]
+    oo, oh = t.dot(o, o), t.mul(2.0, t.dot(o, hr))
+    diagonal = t.add(t.mul(m, oo), oh)
+    out = [m] + [t.add(t.mul(m, o[i]), hr[i]) for i in range(3)]
+    for i, j in ((0, 0), (0, 1), (1, 1), (0, 2), (1, 2), (2, 2)):
+        x = t.sub(t.dot(RI[i], R[j]), t.add(t.mul(t.mul(m, o[i]), o[j]),
+                                            t.add(t.mul(o[i], hr[j]), t.mul(hr[i], o[j]))))
+        out.append(t.add(x, diagonal) if i == j else x)
+    return out
+
+
+def trace_nodes(joints, parent, coordinate, notes, loads, name="lg_tree_nodes"):
+    """The kernel tree_nodes' function `int name(t, q, qd, a, p, u, nodes)` traced for the robot
+    (its loads traced too), or None when a load is not traceable."""
+    from .trace import NotTraceable, from_symengine
+    tape = Tape()
+    try:
+        memo = {}
+        Q = [from_symengine(tape, x, memo) for x in loads[0]]
+        g = [from_symengine(tape, x, memo) for x in loads[1]]
+    except NotTraceable:
+        return None
+    records = world_records(tape, joints, parent, coordinate, Q.__getitem__, g)
+    flat = [x for record in records for x in record]
+    nodes = tape.needed(flat)
+    printer = Printer(tape)
+    flops = tape.flops(nodes)
+    width = len(records[0])
+    body = printer.statements(nodes)
+    for k, record in enumerate(records):
+        body.append(f"    /* {notes[k]} */")
+        body += [f"    nodes[{k * width + i}] = {printer.ref(x)};" for i, x in enumerate(record)]
+    text = (f"/* Each node's record (lagrgen.tree3d.FIELDS) in the fixed frame, traced for the robot "
+            f"with its numbers\n * folded (lagrgen.lean3d.world_records): {flops} flops. */\n"
+            f"LG_FN static int {name}(double t, const double *q, const double *qd, "
+            f"const double *a, const double *p,\n{' ' * (len(name) + 22)}const double *u, "
+            f"double *nodes)\n{{\n"
+            + "    (void)t, (void)q, (void)qd, (void)a, (void)p, (void)u;\n"
+            + "\n".join(body) + "\n    return 0;\n}\n")
+    return Traced(text, flops, True)

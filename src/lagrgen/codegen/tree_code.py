@@ -6,7 +6,8 @@ from string import Template
 
 from .. import tree as trees
 from ..kernels import tree_gradients, tree_parameter_gradients
-from ..lean3d import LEAN_MAX_JOINTS, trace_qdd
+from ..lean3d import (LEAN_MAX_FLOPS, LEAN_MAX_FLOPS_PER_JOINT, LEAN_MAX_JOINTS,
+                      LEAN_MAX_NODE_FLOPS_PER_JOINT, trace_nodes, trace_qdd)
 
 #: The template of each kind of tree.
 TEMPLATES = {"planar": "tree.c.in", "spatial": "tree3d.c.in"}
@@ -62,6 +63,15 @@ def _nodes(pairs, tree):
     return [[node[i], node[j]] for i, j in pairs]
 
 
+def _runs(parent):
+    """Per node, the first node of the run of consecutive nodes ending at it, each the parent of
+    the next."""
+    run = []
+    for k, p in enumerate(parent):
+        run.append(run[k - 1] if k > 0 and p == k - 1 else k)
+    return run
+
+
 def _ints(values):
     return ", ".join(str(int(v)) for v in values) if values else "0"
 
@@ -73,15 +83,25 @@ def _rows(rows, notes, number=repr):
 
 
 def _lean(equations, tables):
-    """The template's traced functions (`lagrgen.lean3d`) where the tree has them."""
-    joints, coordinate = trees.analyse(equations).joints if tables.get("joints") else None, \
-        tables["coordinate"]
+    """The template's traced functions (`lagrgen.lean3d`) where the tree has them: q̈ when its
+    flops per joint and in all are within LEAN_MAX_FLOPS_PER_JOINT and LEAN_MAX_FLOPS, then the
+    node records when the flops left allow them."""
+    none = dict(has_lean_qdd=0, lean_qdd="", lean_loads=0, has_lean_nodes=0, lean_nodes="")
+    tree = trees.analyse(equations)
+    joints, coordinate = getattr(tree, "joints", None), tables["coordinate"]
     if joints is None or len(coordinate) > LEAN_MAX_JOINTS or \
             len(set(coordinate)) != len(coordinate):
-        return dict(has_lean_qdd=0, lean_qdd="", lean_loads=0)
-    tree = trees.analyse(equations)
-    traced = trace_qdd(joints, tables["parent"], coordinate, tree.notes, (tree.Q, tree.gravity))
-    return dict(has_lean_qdd=1, lean_qdd=traced.text, lean_loads=int(traced.loads))
+        return none
+    loads, budget, out = (tree.Q, tree.gravity), LEAN_MAX_FLOPS, dict(none)
+    qdd = trace_qdd(joints, tables["parent"], coordinate, tree.notes, loads)
+    if qdd.flops <= min(budget, LEAN_MAX_FLOPS_PER_JOINT * len(coordinate)):
+        budget -= qdd.flops
+        out.update(has_lean_qdd=1, lean_qdd=qdd.text, lean_loads=int(qdd.loads))
+    nodes = trace_nodes(joints, tables["parent"], coordinate, tree.notes, loads)
+    if nodes is not None and nodes.flops <= min(budget, LEAN_MAX_NODE_FLOPS_PER_JOINT
+                                                 * len(coordinate)):
+        out.update(has_lean_nodes=1, lean_nodes=nodes.text)
+    return out
 
 
 def _joint_tables(tables, notes):
@@ -133,6 +153,8 @@ def tree_c(equations, template, kernels=("tree_nodes", "tree_slopes", "tree_para
         nnz_q=len(tables["dq"]), nnz_qd=len(tables["dqd"]), field_offsets="\n".join(offsets),
         coordinates=_ints(tables["coordinate"]), parents=_ints(tables["parent"]),
         node_rows=_ints(range(n)), n_nodes=n, first_nodes=_ints(first),
+        runs=_ints(_runs(tables["parent"])),
+        in_order=int(list(tables["coordinate"]) == list(range(n))),
         ends=_ints(tables["end"]), dq_index=_ints([i for ij in tables["dq"] for i in ij]),
         dqd_index=_ints([i for ij in tables["dqd"] for i in ij]),
         columns=_ints(tables["coordinate"] + [len(equations.q) + j
