@@ -476,10 +476,14 @@ def test_a_robot_runs_natively_as_with_scipy_and_linearizes(arm):
     y0 = np.zeros(2 * n)
     y0[:n] = 0.3
     t = np.linspace(0.0, 0.5, 6)
-    native = lagrgen.simulate(arm, (0.0, 0.5), y0, method="Radau", t_eval=t)
-    scipy = lagrgen.simulate(arm, (0.0, 0.5), y0, method="Radau", t_eval=t, engine="scipy")
+    # accurate runs: their difference is bounded by the tolerance, not by whether a last-bit
+    # difference of the linear algebra flipped one step's acceptance at the default rtol
+    native = lagrgen.simulate(arm, (0.0, 0.5), y0, method="Radau", t_eval=t, rtol=1e-10,
+                              atol=1e-12)
+    scipy = lagrgen.simulate(arm, (0.0, 0.5), y0, method="Radau", t_eval=t, engine="scipy",
+                             rtol=1e-10, atol=1e-12)
     assert native.engine == "native" and native.success and scipy.success
-    assert np.abs(native.y - scipy.y).max() < 1e-9
+    assert np.abs(native.y - scipy.y).max() < 1e-8
     q0, qdd0 = np.full(n, 0.2), arm.rhs(0.0, np.concatenate([np.full(n, 0.2), np.zeros(n)]))[n:]
     with pytest.warns(lagrgen.NotAnEquilibriumWarning):
         lin = lagrgen.modes(arm, q0)
