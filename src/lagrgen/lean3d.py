@@ -334,23 +334,31 @@ def trace_qdd(joints, parent, coordinate, notes, loads=None, name="lg_lean_qdd")
     Q, g, traced = _loads(tape, loads)
     qdd, D = articulated_body(tape, robot, lambda i: tape.leaf(f"qd[{i}]"), Q, g)
     outputs = [qdd[i] for i in range(len(qdd))]
-    nodes = tape.needed(outputs + D)
     printer = Printer(tape)
-    flops = tape.flops(nodes)
     pivots = " && ".join(f"{printer.ref(d)} > 0.0" for d in D if not isinstance(d, float))
     legend = "\n".join(f" *   {note}" for note in notes)
-    body = printer.statements(nodes)
-    body.append(f"    if (!({pivots or '1'}))\n        return 1;")
-    body += [f"    qdd[{i}] = {printer.ref(x)};" for i, x in enumerate(outputs)]
-    text = (f"/* q̈ of the robot by the articulated-body algorithm in joint frames "
-            f"(lagrgen.lean3d), traced with its\n * numbers folded: {flops} flops "
-            f"({flops / max(len(parent), 1):.0f} per joint). Nodes:\n{legend}\n */\n"
-            f"LG_FN static int {name}(double t, const double *q, const double *qd, "
-            f"const double *p, const double *u,\n{' ' * (len(name) + 22)}const double *Q, "
-            f"const double *g, double *qdd)\n{{\n"
-            + "    (void)t, (void)q, (void)qd, (void)p, (void)u, (void)Q, (void)g;\n"
-            + "\n".join(body) + "\n    return 0;\n}\n")
-    return Traced(text, flops, traced)
+    stores = [f"    if (!({pivots or '1'}))\n        return 1;"]
+    stores += [f"    qdd[{i}] = {printer.ref(x)};" for i, x in enumerate(outputs)]
+    return _function(
+        tape, outputs + D, stores, name, "double t, const double *q, const double *qd, "
+        "const double *p, const double *u, const double *Q, const double *g, double *qdd",
+        "q̈ of the robot by the articulated-body algorithm in joint frames (lagrgen.lean3d), "
+        "traced with its\n * numbers folded: {flops} flops ({per_joint} per joint). "
+        f"Nodes:\n{legend}\n", len(parent), traced)
+
+
+def _function(tape, values, stores, name, parameters, comment, joints, loads):
+    """The `Traced` C function `int name(parameters)` computing the tape's `values` (the nodes
+    they need as `const double` temporaries), then the `stores`; `comment` (with {flops} and
+    {per_joint}) heads it."""
+    nodes = tape.needed(values)
+    flops = tape.flops(nodes)
+    names = [part.replace("*", " ").split()[-1] for part in parameters.split(",")]
+    head = comment.format(flops=flops, per_joint=f"{flops / max(joints, 1):.0f}")
+    text = (f"/* {head} */\nLG_FN static int {name}({parameters})\n{{\n    "
+            + ", ".join(f"(void){x}" for x in names[:-1]) + ";\n"
+            + "\n".join(Printer(tape).statements(nodes) + stores) + "\n    return 0;\n}\n")
+    return Traced(text, flops, loads)
 
 
 def world_records(tape, joints, parent, coordinate, Q, g, inputs=None):
@@ -421,20 +429,16 @@ def trace_nodes(joints, parent, coordinate, notes, loads, name="lg_tree_nodes"):
     except NotTraceable:
         return None
     records = world_records(tape, joints, parent, coordinate, Q.__getitem__, g)
-    flat = [x for record in records for x in record]
-    nodes = tape.needed(flat)
     printer = Printer(tape)
-    flops = tape.flops(nodes)
     width = len(records[0])
-    body = printer.statements(nodes)
+    stores = []
     for k, record in enumerate(records):
-        body.append(f"    /* {notes[k]} */")
-        body += [f"    nodes[{k * width + i}] = {printer.ref(x)};" for i, x in enumerate(record)]
-    text = (f"/* Each node's record (lagrgen.tree3d.FIELDS) in the fixed frame, traced for the robot "
-            f"with its numbers\n * folded (lagrgen.lean3d.world_records): {flops} flops. */\n"
-            f"LG_FN static int {name}(double t, const double *q, const double *qd, "
-            f"const double *a, const double *p,\n{' ' * (len(name) + 22)}const double *u, "
-            f"double *nodes)\n{{\n"
-            + "    (void)t, (void)q, (void)qd, (void)a, (void)p, (void)u;\n"
-            + "\n".join(body) + "\n    return 0;\n}\n")
-    return Traced(text, flops, True)
+        stores.append(f"    /* {notes[k]} */")
+        stores += [f"    nodes[{k * width + i}] = {printer.ref(x)};" for i, x in enumerate(record)]
+    return _function(
+        tape, [x for record in records for x in record], stores, name,
+        "double t, const double *q, const double *qd, const double *a, const double *p, "
+        "const double *u, double *nodes",
+        "Each node's record (lagrgen.tree3d.FIELDS) in the fixed frame, traced for the robot "
+        "with its numbers\n * folded (lagrgen.lean3d.world_records): {flops} flops "
+        "({per_joint} per joint).", len(parent), True)
