@@ -26,9 +26,10 @@ from .trace import Printer, Tape
 #: larger one runs the generic loops of tree3d.c.in (the straight-line code grows like the robot,
 #: and its compile time with it: ~0.5 s of gcc per 1000 flops).
 LEAN_MAX_JOINTS = 64
-#: The flops of straight-line code a build accepts (q̈ first, then the node records): tiago's
-#: q̈ (48 joints, 13 400 flops) and records (6 600) compile in ~10 s of gcc at -O2.
-LEAN_MAX_FLOPS = 16000
+#: The flops of straight-line code a build accepts (q̈ first, then the node records): gcc takes
+#: about 0.7 s per 1000 at -O2 (Talos' q̈, 8 800 flops: 5.8 s; cut into parts it takes longer,
+#: 20 s), so tiago's q̈ (13 400) and the records beside Talos' q̈ are left to the loops.
+LEAN_MAX_FLOPS = 10000
 #: A traced q̈ of more flops per joint than this runs slower than the loops (measured: the 3-D
 #: chains of random placements, 690 flops per joint traced, are faster in the loops).
 LEAN_MAX_FLOPS_PER_JOINT = 450
