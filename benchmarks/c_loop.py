@@ -420,7 +420,7 @@ def robot_rows(stem, folder, floating, work, pin_loop, repeats, say):
     trace_exe = compile_c([trace_loop, here / f"{name}_trace.c"], here / f"{name}_trace_loop",
                           extra=["-I", str(here)])
     trace_text = (here / f"{name}_trace.c").read_text()
-    lean = "lg_lean_qdd" in text
+    lean = "#define LG_LEAN_QDD 1" in text
     say(f"  {name}: timing ...")
     iterations = max(200, int(2e6 / max(n, 1) ** 1.5))
     pm.saveToBinary(str(here / f"{name}.pinocchio"))
