@@ -172,7 +172,7 @@ STAGES = [
     ("description", ["rotation", "bodies3d", "records", "checks", "description"]),
     ("derivation", ["calculus", "terms", "frames", "contributions", "lagrange", "nonsmooth", "tree", "tree3d",
                     "free_base", "dimensions"]),
-    ("kernels", ["tangents", "hessians", "kernels"]),
+    ("kernels", ["tangents", "hessians", "kernels", "trace", "lean3d"]),
     ("code", ["codegen"]),
     ("runtime", ["runtime"]),
     ("build", ["cache", "build", "units"]),

@@ -239,7 +239,7 @@ class Description:
             for c in self._coordinates:
                 if c.func.__name__ == coordinate:
                     return c
-        elif coordinate in self._coordinates:
+        elif coordinate in set(self._coordinates):     # hashed: SymPy's == is slow
             return coordinate
         raise ModelError(
             f"{coordinate!r} is not a generalized coordinate of model {self.name!r} "

@@ -86,6 +86,10 @@ def _parameter_b(eq):
                   for j in range(len(eq.p))]}
 
 
+def _split_outputs(outputs):
+    return {"out": list(outputs[:-2]), "power": list(outputs[-2:])}
+
+
 def _jacobian_b(eq):
     B = []
     for i in range(eq.n):
@@ -165,7 +169,7 @@ KERNELS = (
                lambda eq: {"dF_du": flatten(eq.dF_du)}),
     KernelSpec("outputs", "the user's outputs, then T, V, T + V; and Σ Q_j·q̇_j, R",
                (Output("out", ("n_outputs",)), Output("power", ("n_power",))),
-               lambda eq: {"out": list(eq.outputs[:-2]), "power": list(eq.outputs[-2:])}),
+               lambda eq: _split_outputs(eq.outputs)),
     KernelSpec("constraints", "A (m×n) and γ (m) of the constraints A·q̈ = γ (Baumgarte-stabilized)",
                (Output("A", ("n_constraints", "n")), Output("gamma", ("n_constraints",))),
                lambda eq: {"A": flatten(eq.A), "gamma": list(eq.gamma)}, lambda eq: eq.m > 0),
@@ -214,29 +218,43 @@ KERNELS_BY_NAME = {k.name: k for k in KERNELS}
 
 def _signed(expr, memo):
     """`expr` with every sum inside it written as ±S where S is the one of S, −S whose term with the
-    smallest hash has a positive coefficient (the same value), so that CSE sees X and −X as one."""
-    hit = memo.get(expr)
-    if hit is not None:
-        return hit
-    if not expr.args or isinstance(expr, se.Number):
-        out = expr
-    elif isinstance(expr, se.Add):
-        args = [_signed(a, memo) for a in expr.args]
-        lead = min(args, key=lambda a: hash(_strip_number(a)))
-        lead_negative = isinstance(lead, se.Number) and lead.is_negative or (
-            isinstance(lead, se.Mul) and isinstance(lead.args[0], se.Number)
-            and lead.args[0].is_negative)
-        out = -se.Add(*(-a for a in args)) if lead_negative else se.Add(*args)
-    else:
-        args = [_signed(a, memo) for a in expr.args]
-        out = expr
-        if any(a is not b for a, b in zip(args, expr.args)):
-            try:
-                out = expr.func(*args)
-            except (AttributeError, TypeError):   # relations, Piecewise: left as they are
-                out = expr
-    memo[expr] = out
-    return out
+    smallest hash has a positive coefficient (the same value), so that CSE sees X and −X as one.
+    Iterative (an explicit stack, children before parents): an expression nested deeper than
+    Python's recursion limit (the energies of a long chain) is walked like any other."""
+    stack = [(expr, False)]
+    while stack:
+        node, ready = stack.pop()
+        if node in memo:
+            continue
+        if not node.args or isinstance(node, se.Number):
+            memo[node] = node
+            continue
+        if not ready:
+            stack.append((node, True))
+            stack.extend((a, False) for a in node.args if a not in memo)
+            continue
+        args = [memo[a] for a in node.args]
+        memo[node] = _signed_sum(args) if isinstance(node, se.Add) else _rebuilt(node, args)
+    return memo[expr]
+
+
+def _signed_sum(args):
+    """The sum of the (already signed) terms `args`, as ±S with S's leading term positive."""
+    lead = min(args, key=lambda a: hash(_strip_number(a)))
+    lead_negative = isinstance(lead, se.Number) and lead.is_negative or (
+        isinstance(lead, se.Mul) and isinstance(lead.args[0], se.Number)
+        and lead.args[0].is_negative)
+    return -se.Add(*(-a for a in args)) if lead_negative else se.Add(*args)
+
+
+def _rebuilt(expr, args):
+    """`expr` with its arguments replaced by `args` (itself when none changed)."""
+    if all(a is b for a, b in zip(args, expr.args)):
+        return expr
+    try:
+        return expr.func(*args)
+    except (AttributeError, TypeError):   # relations, Piecewise: left as they are
+        return expr
 
 
 def _strip_number(term):
@@ -303,11 +321,28 @@ def tree_gradients(eq):
     return tree.gradients(tree.analyse(eq), eq)
 
 
+def joint_tables(eq):
+    """The `lagrgen.tree3d.Joints` of the equations' tree, or None: an articulation whose joints
+    are numbers has its node records computed from them (in C by tree3d.c.in's lg_tree_nodes, in
+    Python by `lagrgen.runtime.tree3d`), with the kernel tree_loads for Q and g; any other tree
+    by the kernel tree_nodes."""
+    return getattr(tree.analyse(eq), "joints", None)
+
+
+def _tree_loads(eq):
+    t = tree.analyse(eq)
+    return {"Q": list(t.Q), "g": list(t.gravity)}
+
+
 TREE_KERNELS = (
     KernelSpec("tree_nodes", "each node's terms of the recursion over the kinematic tree "
                "(lagrgen.tree.NODE_FIELDS), in node order",
                (Output("nodes", ("n", "node_width")),), _tree_nodes,
-               notes=_node_notes("nodes")),
+               notes=_node_notes("nodes"), when=lambda eq: joint_tables(eq) is None),
+    KernelSpec("tree_loads", "the generalized forces Q (coordinate order) and the gravity g of "
+               "an articulation whose node records follow from its joints' numbers",
+               (Output("Q", ("n",)), Output("g", ("3",))), _tree_loads,
+               when=lambda eq: joint_tables(eq) is not None),
     KernelSpec("tree_slopes", "the node terms' derivatives by their own q_k, q̇_k at a given "
                "a = q̈ (lagrgen.tree.SLOPE_FIELDS), and the nonzero entries of ∂Q/∂q, ∂Q/∂q̇",
                (Output("slopes", ("n", "slope_width")), Output("dQ", ("nnz_q",)),
@@ -321,6 +356,11 @@ TREE_KERNELS = (
                lambda eq: {"poses": [x for pose in tree.analyse(eq).poses for x in pose]},
                when=lambda eq: tree.analyse(eq).kind == "spatial"
                and bool(tree.tree3d.inertial_parameters(eq.spec))),
+    KernelSpec("tree_outputs", "the user's outputs, then T, V, T + V; and Σ Q_j·q̇_j, R, without "
+               "the energies of an articulation's bodies (lg_outputs adds those from the node "
+               "records)", (Output("out", ("n_outputs",)), Output("power", ("n_power",))),
+               lambda eq: _split_outputs(eq.outputs_of(
+                   eq.collected.energies_beside_articulations))),
     KernelSpec("tree_parameters", "the nonzero derivatives of the node records and of Q by the "
                "parameters (lagrgen.tree.parameter_gradients)",
                (Output("dnode", ("nnz_p",)), Output("dQp", ("nnz_qp",))),
@@ -338,7 +378,7 @@ TREE_KERNELS = (
                python=False, zeroed=("H",)),
 )
 #: The dense kernels the recursive formulation keeps (none of them needs M or F).
-_KEPT = ("outputs", "events", "nonsmooth")
+_KEPT = ("events", "nonsmooth")
 #: The kernels of each formulation, in the order they are generated.
 FORMULATION_KERNELS = {"dense": KERNELS,
                        "recursive": TREE_KERNELS + tuple(k for k in KERNELS if k.name in _KEPT)}
@@ -352,7 +392,8 @@ TREE_REPLACES = {"mf": ("tree_nodes",),
                  "motion_tape": ("tree_nodes", "tree_slopes", "tree_parameters"),
                  "motion_tangent": (),
                  "body_poses": ("tree_poses",),
-                 "residual_hessian": ("tree_nodes", "tree_q_hessian", "tree_residual_hessian")}
+                 "residual_hessian": ("tree_nodes", "tree_q_hessian", "tree_residual_hessian"),
+                 "outputs": ("tree_nodes", "tree_outputs")}
 
 
 @once_per
@@ -378,10 +419,12 @@ def kernel(eq, name, formulation="dense"):
 
 
 def kernel_names(names, formulation="dense"):
-    """The kernels of `formulation` that compute what the dense kernels `names` give."""
+    """The kernels of `formulation` that compute what the dense kernels `names` give (the node
+    records: tree_nodes, or tree_loads for an articulation's joints, whichever the model has)."""
     if formulation == "dense":
         return set(names)
-    return {r for k in names for r in TREE_REPLACES.get(k, (k,))}
+    out = {r for k in names for r in TREE_REPLACES.get(k, (k,))}
+    return out | {"tree_loads"} if "tree_nodes" in out else out
 
 
 def model_kernels(eq, formulation="dense", names=None, python=False):

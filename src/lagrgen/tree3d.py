@@ -26,6 +26,7 @@ the model to the dense formulation.
 """
 import math
 from dataclasses import dataclass, field
+from functools import cached_property
 
 import symengine as se
 
@@ -44,23 +45,40 @@ class SpatialTree:
 
     Nodes are in preorder (a parent before its children, every subtree contiguous):
     `coordinate[k]` is node k's coordinate, `parent[k]` its parent node (−1: a root), `end[k]`
-    one past the last node of its subtree; `records[k]` the node's FIELDS (SymEngine), `Q` the
-    generalized forces in coordinate order; `poses[k]` the node's frame in the fixed one (R
-    row-major, then its origin: 12 expressions), the frame its body's inertial parameters are
-    about. A tree whose root is a free base (`lagrgen.free_base`) has nodes in the base's chart,
-    one coordinate fewer than the model (`coordinate` indexes the chart's), its Q in the model's
+    one past the last node of its subtree; `Q` the generalized forces in coordinate order;
+    `terms()` gives (records, poses), formed on first use (`records`, `poses`): `records[k]` the
+    node's FIELDS (SymEngine), `poses[k]` the node's frame in the fixed one (R row-major, then
+    its origin: 12 expressions), the frame its body's inertial parameters are about. The tree of
+    an articulation (`articulated`) has its `joints` (`Joints`: the numbers the records follow
+    from, None when a segment's values are not numbers or parameters) and `gravity`.
+    A tree whose root is a free base (`lagrgen.free_base`) has nodes in the base's chart, one
+    coordinate fewer than the model (`coordinate` indexes the chart's), its Q in the model's
     coordinates and `free` its `FreeBase`.
     """
     coordinate: tuple
     parent: tuple
     end: tuple
-    records: list
+    terms: object
     Q: list
     notes: list = field(default_factory=list)
-    poses: list = field(default_factory=list)
+    articulated: bool = False    # the bodies of an Articulation: energies from the records
+    joints: object = None
+    gravity: list = field(default_factory=list)
     free: object = None
     kind = "spatial"
     fields = FIELDS
+
+    @cached_property
+    def _formed(self):
+        return self.terms()
+
+    @property
+    def records(self):
+        return self._formed[0]
+
+    @property
+    def poses(self):
+        return self._formed[1]
 
     @property
     def n(self):
@@ -81,6 +99,29 @@ class SpatialTree:
     def node_records(self):
         """The tree_nodes kernel's output: each node's record, in node order."""
         return [x for record in self.records for x in record]
+
+
+@dataclass(frozen=True)
+class Joints:
+    """The numbers of an articulation's joints, node by node, from which its node records follow
+    (`lagrgen/codegen/templates/tree3d.c.in`'s lg_tree_nodes, `lagrgen.runtime.tree3d`):
+    `prismatic` (0 or 1), the unit `axis` (3), the placement in the parent's frame
+    (`placement`: its rotation row-major, then its origin: 12), the joint's `motion`
+    (multiplier, offset: θ = multiplier·q + offset) and the body's ten inertial parameters about
+    the joint's frame (`inertia`: numbers, 0 where `inertia_parameter` names a parameter's index,
+    −1 elsewhere)."""
+    prismatic: tuple
+    axis: tuple
+    placement: tuple
+    motion: tuple
+    inertia: tuple
+    inertia_parameter: tuple
+
+    def table(self):
+        """The tables as plain Python values (lists; `lagrgen.codegen.tree_code.layout`)."""
+        return {name: [list(row) if isinstance(row, tuple) else row for row in getattr(self, name)]
+                for name in ("prismatic", "axis", "placement", "motion", "inertia",
+                             "inertia_parameter")}
 
 
 def is_spatial(spec):
@@ -127,28 +168,70 @@ def _from_articulation(eq, record, others):
     if set(coordinate) | set(free_base.POSITION + free_base.QUATERNION if free else ()) \
             != set(range(len(q))):
         raise NotATree("a coordinate moves no joint")
-    world = frames.frames(record, convert, q, eq.qd, eq.t)
-    Q = generalized_forces(others, convert, q, eq.qd, eq.t)
     if free:
+        world = frames.frames(record, convert, q, eq.qd, eq.t)
+        Q = generalized_forces(others, convert, q, eq.qd, eq.t)
         nodes, parent, records, notes, poses = free_base.free_tree(
             eq, record, Q, world, lambda k: (coordinate[k - 1], multiplier[k - 1]))
-        return SpatialTree(nodes, parent, _subtree_ends(parent), records, Q, notes, poses,
-                           free=free_base.FreeBase(float(record.segments[0].radial)))
+        return SpatialTree(nodes, parent, _subtree_ends(parent), lambda: (records, poses), Q,
+                           notes, free=free_base.FreeBase(float(record.segments[0].radial)))
     parent = tuple(s.parent for s in record.segments)
     end = _subtree_ends(parent)
     gravity = [convert(g) for g in record.gravity]
-    zero = se.Integer(0)
-    records, notes, poses = [], [], []
-    for k, (segment, frame) in enumerate(zip(record.segments, world)):
-        poses.append([x for row in frame.R for x in row] + list(frame.p))
-        base = [zero] * 3 + [-g for g in gravity] if parent[k] < 0 else [zero] * 6
-        records.append([multiplier[k] * x for x in frame.twist] + frames.world_inertia(frame)
-                       + base + [Q[coordinate[k]]])
+    Q = generalized_forces(others, convert, q, eq.qd, eq.t)
+    notes = []
+    for k, segment in enumerate(record.segments):
         above = (f", below {names[coordinate[parent[k]]]}" if parent[k] >= 0
                  else ", a root")
         notes.append(f"node {k}: {segment.kind} joint {names[coordinate[k]]}{above}; carries "
                      f"{('link ' + segment.link) if segment.link else 'no body'}")
-    return SpatialTree(tuple(coordinate), parent, end, records, Q, notes, poses)
+
+    def terms():
+        world = eq.collected.sums.frames_of(record)
+        zero = se.Integer(0)
+        records, poses = [], []
+        for k, frame in enumerate(world):
+            poses.append([x for row in frame.R for x in row] + list(frame.p))
+            base = [zero] * 3 + [-g for g in gravity] if parent[k] < 0 else [zero] * 6
+            records.append([multiplier[k] * x for x in frame.twist] + frames.world_inertia(frame)
+                           + base + [Q[coordinate[k]]])
+        return records, poses
+
+    joints = _joints(eq, record, coordinate, multiplier)
+    return SpatialTree(tuple(coordinate), parent, end, terms, Q, notes, articulated=True,
+                       joints=joints, gravity=gravity)
+
+
+def _joints(eq, record, coordinate, multiplier):
+    """The articulation's `Joints`, or None when a segment's motion offset or inertial values are
+    not numbers (or, for the inertial values, parameters)."""
+    convert, q = eq.collected.convert, eq.q
+    parameter_index = {p: j for j, p in enumerate(eq.p)}
+    prismatic, axis, placement, motion, inertia, inertia_parameter = [], [], [], [], [], []
+    for k, segment in enumerate(record.segments):
+        offset = convert(segment.motion).xreplace({q[coordinate[k]]: se.Integer(0)})
+        if not offset.is_Number or not multiplier[k].is_Number:
+            return None
+        values, index = [], []
+        for x in segment.inertia:
+            x = convert(x)
+            if x.is_Number:
+                values.append(float(x))
+                index.append(-1)
+            elif x in parameter_index:
+                values.append(0.0)
+                index.append(parameter_index[x])
+            else:
+                return None
+        prismatic.append(int(segment.kind == "prismatic"))
+        axis.append(tuple(float(a) for a in segment.axis))
+        placement.append(tuple(float(x) for x in segment.rotation) +
+                         tuple(float(x) for x in segment.offset))
+        motion.append((float(multiplier[k]), float(offset)))
+        inertia.append(tuple(values))
+        inertia_parameter.append(tuple(index))
+    return Joints(tuple(prismatic), tuple(axis), tuple(placement), tuple(motion), tuple(inertia),
+                  tuple(inertia_parameter))
 
 
 def inertial_symbols(spec):
@@ -190,7 +273,10 @@ def _subtree_ends(parent):
 
 
 def explicit_time(tree, eq):
-    """True if the node terms or Q depend on t."""
+    """True if the node terms or Q depend on t (an articulation's: its Q and gravity, when its
+    joints are numbers)."""
+    if tree.joints is not None:
+        return any(eq.t in x.free_symbols for x in list(tree.Q) + list(tree.gravity))
     return any(eq.t in x.free_symbols for x in tree.node_records())
 
 
@@ -312,7 +398,8 @@ def _from_bodies(eq):
         notes.append(f"node {k}: coordinate {names[j]}{above}; carries "
                      f"{len(carried) or 'no'} bod{'y' if len(carried) == 1 else 'ies'}")
     identity = [se.Integer(int(i == j)) for i in range(3) for j in range(3)] + [zero] * 3
-    return SpatialTree(coordinate, parent, end, records, Q, notes, [identity] * len(coordinate))
+    poses = [identity] * len(coordinate)
+    return SpatialTree(coordinate, parent, end, lambda: (records, poses), Q, notes)
 
 
 def _column(eq, body, j, reference=None):

@@ -7,6 +7,8 @@ from string import Template
 
 from .. import tree as trees
 from ..kernels import tree_gradients, tree_parameter_gradients, tree_q_hessian
+from ..lean3d import (LEAN_MAX_FLOPS, LEAN_MAX_FLOPS_PER_JOINT, LEAN_MAX_JOINTS,
+                      LEAN_MAX_NODE_FLOPS_PER_JOINT, trace_nodes, trace_qdd)
 
 #: The template of each kind of tree.
 TEMPLATES = {"planar": "tree.c.in", "spatial": "tree3d.c.in"}
@@ -19,15 +21,17 @@ def template_name(equations):
     return TEMPLATES[trees.analyse(equations).kind]
 
 
-def layout(equations):
+def layout(equations, parameters=True):
     """The tables of the equations' tree: {"kind", "node_width", "node_fields", "coordinate",
     "parent", "end", "dq", "dqd", "dnode", "dnode_start", "dQp", "inertial_column"}, and for a
     planar tree "D", "slope_width", "slope_fields" (plain Python values). The entries of ∂Q/∂y
     (dq, dqd) are pairs of nodes for a planar tree, of coordinates for a spatial one (whose
-    coordinates may have several nodes)."""
+    coordinates may have several nodes). Without `parameters` the tables of the derivatives by
+    the parameters are left empty (a unit without the kernel tree_parameters)."""
     tree = trees.analyse(equations)
     (dq, _), (dqd, _), _ = tree_gradients(equations)
-    (dnode, _), (dQp, _) = tree_parameter_gradients(equations)
+    (dnode, _), (dQp, _) = tree_parameter_gradients(equations) if parameters else (([], []),
+                                                                                   ([], []))
     n_params = len(equations.p)
     start = [0] * (n_params + 1)
     for _, _, j in dnode:
@@ -52,6 +56,10 @@ def layout(equations):
     out["inertial_column"] = columns
     if tree.kind == "spatial" and not getattr(tree, "free", None):
         out["qh"] = [[r, c] for r, c, _ in tree_q_hessian(equations)]
+    out["energies"] = bool(getattr(tree, "articulated", False))
+    joints = getattr(tree, "joints", None)
+    if joints is not None:
+        out["joints"] = joints.table()
     if tree.kind == "planar":
         out.update(D=tree.D, slope_width=trees.record_width(trees.SLOPE_FIELDS, tree.D),
                    slope_fields=trees.field_offsets(trees.SLOPE_FIELDS, tree.D))
@@ -78,8 +86,65 @@ def _nodes(pairs, tree):
     return [[node[i], node[j]] for i, j in pairs]
 
 
+def _runs(parent):
+    """Per node, the first node of the run of consecutive nodes ending at it, each the parent of
+    the next."""
+    run = []
+    for k, p in enumerate(parent):
+        run.append(run[k - 1] if k > 0 and p == k - 1 else k)
+    return run
+
+
 def _ints(values):
     return ", ".join(str(int(v)) for v in values) if values else "0"
+
+
+def _rows(rows, notes, number=repr):
+    """C initializer rows `{a, b, ...},` one per node, each after its note as a comment."""
+    return "\n".join(f"    /* {note} */\n    {{{', '.join(number(x) for x in row)}}},"
+                      for row, note in zip(rows, notes)) or "    {0}"
+
+
+def _lean(equations, tables):
+    """The template's traced functions (`lagrgen.lean3d`) where the tree has them: q̈ when its
+    flops per joint and in all are within LEAN_MAX_FLOPS_PER_JOINT and LEAN_MAX_FLOPS, then the
+    node records when the flops left allow them."""
+    none = dict(has_lean_qdd=0, lean_qdd="", lean_loads=0, has_lean_nodes=0, lean_nodes="")
+    tree = trees.analyse(equations)
+    joints, coordinate = getattr(tree, "joints", None), tables["coordinate"]
+    if joints is None or len(coordinate) > LEAN_MAX_JOINTS or \
+            len(set(coordinate)) != len(coordinate):
+        return none
+    loads, budget, out = (tree.Q, tree.gravity), LEAN_MAX_FLOPS, dict(none)
+    qdd = trace_qdd(joints, tables["parent"], coordinate, tree.notes, loads)
+    if qdd.flops <= min(budget, LEAN_MAX_FLOPS_PER_JOINT * len(coordinate)):
+        budget -= qdd.flops
+        out.update(has_lean_qdd=1, lean_qdd=qdd.text, lean_loads=int(qdd.loads))
+    nodes = trace_nodes(joints, tables["parent"], coordinate, tree.notes, loads)
+    if nodes is not None and nodes.flops <= min(budget, LEAN_MAX_NODE_FLOPS_PER_JOINT
+                                                 * len(coordinate)):
+        out.update(has_lean_nodes=1, lean_nodes=nodes.text)
+    return out
+
+
+def _joint_tables(tables, notes):
+    """The template's joint tables (`lagrgen.tree3d.Joints`), or placeholders when the tree has
+    none."""
+    joints = tables.get("joints")
+    if joints is None:
+        return dict(has_joints=0, has_joint_parameters=0, joint_placement="{0}",
+                    joint_axis="{0}", joint_motion="{0}", joint_inertia="{0}",
+                    joint_inertia_parameter="{0}")
+    real = lambda x: repr(float(x))            # noqa: E731
+    axis = [list(a) + [k] for a, k in zip(joints["axis"], joints["prismatic"])]
+    return dict(has_joints=1,
+                has_joint_parameters=int(any(j >= 0 for row in joints["inertia_parameter"]
+                                             for j in row)),
+                joint_placement=_rows(joints["placement"], notes, real),
+                joint_axis=_rows(axis, notes, real),
+                joint_motion=_rows(joints["motion"], notes, real),
+                joint_inertia=_rows(joints["inertia"], notes, real),
+                joint_inertia_parameter=_rows(joints["inertia_parameter"], notes, str))
 
 
 def tree_c(equations, template, kernels=("tree_nodes", "tree_slopes", "tree_parameters")):
@@ -87,7 +152,7 @@ def tree_c(equations, template, kernels=("tree_nodes", "tree_slopes", "tree_para
     a unit that has the `kernels` (names: the parts calling tree_slopes or tree_parameters are
     compiled when they are among them); a free base's, in its chart within
     `templates/free_base.c.in`."""
-    tables = layout(equations)
+    tables = layout(equations, "tree_parameters" in kernels)
     if "free" in tables:
         return free_base_c(equations, tables, template, kernels)
     return _tree_c(equations, tables, template, kernels)
@@ -126,12 +191,18 @@ def _tree_c(equations, tables, template, kernels):
         qh_index=_ints([i for rc in qh for i in rc]),
         has_parameters=int("tree_parameters" in kernels),
         has_poses=int("tree_poses" in kernels),
+        has_outputs=int("tree_outputs" in kernels),
+        **_lean(equations, tables),
+        **_joint_tables(tables, trees.analyse(equations).notes),
+        has_energies=int(tables.get("energies", False)),
         inertial_columns=_ints(tables["inertial_column"]),
         tree_d=tables.get("D", 0), node_width=tables["node_width"],
         slope_width=tables.get("slope_width", 0),
         nnz_q=len(tables["dq"]), nnz_qd=len(tables["dqd"]), field_offsets="\n".join(offsets),
         coordinates=_ints(tables["coordinate"]), parents=_ints(tables["parent"]),
         node_rows=_ints(range(n)), n_nodes=n, first_nodes=_ints(first),
+        runs=_ints(_runs(tables["parent"])),
+        in_order=int(list(tables["coordinate"]) == list(range(n))),
         ends=_ints(tables["end"]), dq_index=_ints([i for ij in tables["dq"] for i in ij]),
         dqd_index=_ints([i for ij in tables["dqd"] for i in ij]),
         columns=_ints(tables["coordinate"] + [len(equations.q) + j

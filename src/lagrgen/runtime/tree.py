@@ -269,6 +269,12 @@ class FactoredModel(PythonModel):
     def _rhs(self, t, q, qd, p, u):
         return np.concatenate([np.array(qd, dtype=np.float64), self._factored(t, q, qd, p, u)[2]])
 
+    def _outputs(self, t, q, qd, p, u):
+        return self._kernel("tree_outputs", t, q, qd, None, p, u)[0]
+
+    def _power_terms(self, t, q, qd, p, u):
+        return self._kernel("tree_outputs", t, q, qd, None, p, u)[1]
+
 
 class RecursivePythonModel(FactoredModel):
     """A `PythonModel` of the recursive formulation (`build(..., formulation="recursive")`)."""

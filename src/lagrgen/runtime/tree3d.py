@@ -73,6 +73,32 @@ def force_derivative(Y, v):
     return out
 
 
+def joint_frame(placement, axis, prismatic, parent, theta):
+    """(R, o, d) of a joint's frame from its parent's (R, o) (tree3d.c.in's lg_joint_frame):
+    R = Rp·P·J(θ) (Rodrigues; 1 for a prismatic joint), o = op + Rp·(o_P + P·a·θ for a
+    prismatic joint), d = Rp·P·a."""
+    Rp, op = parent
+    RP = Rp @ placement[:9].reshape(3, 3)
+    d = RP @ axis
+    o = op + Rp @ placement[9:]
+    if prismatic:
+        return RP, o + d * theta, d
+    x = np.cross(RP, axis)
+    return RP + np.sin(theta) * x + (1.0 - np.cos(theta)) * np.cross(x, axis), o, d
+
+
+def world_inertia(R, o, body):
+    """(m, h_w, Ī) at the fixed origin of a body of parameters (m, h, I_O) about its frame
+    (R, o) (lagrgen.frames.world_inertia)."""
+    m, h = body[0], R @ body[1:4]
+    xx, xy, yy, xz, yz, zz = body[4:]
+    W = R @ np.array([[xx, xy, xz], [xy, yy, yz], [xz, yz, zz]]) @ R.T
+    Ibar = W + (m * (o @ o) + 2.0 * (o @ h)) * np.eye(3) - m * np.outer(o, o) \
+        - np.outer(o, h) - np.outer(h, o)
+    return np.r_[m, m * o + h, Ibar[0, 0], Ibar[0, 1], Ibar[1, 1], Ibar[0, 2], Ibar[1, 2],
+                 Ibar[2, 2]]
+
+
 class SpatialRecursion:
     """The tables of one model's spatial tree (`TREE` of its Python source) and the recursions.
     Nodes are joints; a coordinate has one node or several (joints that follow it)."""
@@ -91,6 +117,9 @@ class SpatialRecursion:
         self.dQp = np.array(tables["dQp"], dtype=np.intp).reshape(-1, 2)
         self.qh = [tuple(rc) for rc in tables.get("qh", [])]
         self.first = np.unique(self.coordinate, return_index=True)[1]
+        self.energies = bool(tables.get("energies", False))
+        self.joints = tables.get("joints")
+        self.width = tables["node_width"]
         self.path = []
         for k in range(self.n):
             up, i = [k], self.parent[k]
@@ -98,6 +127,29 @@ class SpatialRecursion:
                 up.append(i)
                 i = self.parent[i]
             self.path.append(up)
+
+    def joint_records(self, q, p, Q, g):
+        """The node records (nodes × width) from the joints' numbers (`lagrgen.tree3d.Joints`),
+        the generalized forces Q and the gravity g (tree3d.c.in's lg_tree_joint_nodes)."""
+        J, o = self.joints, self.fields
+        nodes = np.zeros((self.n, self.width))
+        frames = []
+        for k in range(self.n):
+            parent = frames[self.parent[k]] if self.parent[k] >= 0 else (np.eye(3), np.zeros(3))
+            mult, offset = J["motion"][k]
+            prismatic = J["prismatic"][k]
+            R, origin, d = joint_frame(np.asarray(J["placement"][k]), np.asarray(J["axis"][k]),
+                                       prismatic, parent, mult * q[self.coordinate[k]] + offset)
+            frames.append((R, origin))
+            s = np.r_[np.zeros(3), d] if prismatic else np.r_[d, np.cross(origin, d)]
+            body = np.array([p[j] if j >= 0 else x for x, j in
+                             zip(J["inertia"][k], J["inertia_parameter"][k])], dtype=float)
+            nodes[k, o["s"]:o["s"] + 6] = mult * s
+            nodes[k, o["Y"]:o["Y"] + 10] = world_inertia(R, origin, body)
+            if self.parent[k] < 0:
+                nodes[k, o["base"] + 3:o["base"] + 6] = -np.asarray(g)
+            nodes[k, o["Q"]] = Q[self.coordinate[k]]
+        return nodes
 
     def split(self, nodes):
         """(s, Y, base, Q in node order) of the node records (nodes × width)."""
@@ -348,7 +400,25 @@ class SpatialPythonModel(FactoredModel):
         self._tree = SpatialRecursion(self._kernels["TREE"], self.n_coordinates)
 
     def _nodes(self, t, q, qd, p, u):
+        if self._tree.joints is not None:
+            Q, g = self._kernel("tree_loads", t, q, qd, None, p, u)
+            return self._tree.joint_records(np.asarray(q, dtype=float),
+                                            np.asarray(p, dtype=float), Q, g)
         return self._kernel("tree_nodes", t, q, qd, None, p, u)[0].reshape(self._tree.n, -1)
+
+    def _outputs(self, t, q, qd, p, u):
+        """tree_outputs', with an articulation's bodies' energies added from their records
+        (T = ½·Σ v_k·Y_k·v_k, V = −g·Σ h_k; tree3d.c.in's lg_outputs)."""
+        out = super()._outputs(t, q, qd, p, u)
+        if self._tree.energies:
+            nodes = self._nodes(t, q, qd, p, u)
+            s, Y, base, _ = self._tree.split(nodes)
+            v = self._tree.motion(nodes, np.asarray(qd, dtype=float),
+                                  np.zeros(self.n_coordinates))[0]
+            T = 0.5 * sum(v[k] @ inertia_apply(Y[k], v[k]) for k in range(self._tree.n))
+            V = float(base[0, 3:] @ Y[:, 1:4].sum(axis=0))
+            out[-3:] += [T, V, T + V]
+        return out
 
     def _inverse(self, nodes, qd, a):
         v, acc = self._tree.motion(nodes, np.asarray(qd, dtype=float), np.asarray(a, dtype=float))
