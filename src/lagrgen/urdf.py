@@ -116,15 +116,7 @@ def read(path, check_inertias=True):
 
 def parse(text, where="<string>", check_inertias=True):
     """The `Robot` of the URDF document `text` (bytes or str)."""
-    if isinstance(text, str):
-        text = text.encode("utf-8")
-    if re.search(rb"<!(DOCTYPE|ENTITY)", text[:4096 * 16]):
-        raise URDFError(f"{where}: the document declares a DOCTYPE or ENTITY; URDF files need "
-                        "none, and lagrgen expands none (remove the declaration)")
-    try:
-        root = ET.fromstring(text)
-    except ET.ParseError as exc:
-        raise URDFError(f"{where} is not well-formed XML: {exc}") from None
+    root = _element_tree(text, where)
     if root.tag != "robot":
         raise URDFError(f"{where}: the root element is <{root.tag}>, a URDF file has <robot>")
     name = root.get("name") or Path(where).stem
@@ -146,6 +138,35 @@ def parse(text, where="<string>", check_inertias=True):
     robot = Robot(name, links, joints)
     _check_tree(robot, where)
     return robot
+
+
+def _element_tree(text, where):
+    """The document's root element, built from expat's events as ElementTree builds it; a DOCTYPE
+    or entity declaration is refused at the parser's own event, wherever it stands and in whatever
+    encoding, before anything in it is declared or expanded."""
+    from xml.parsers import expat
+
+    def refuse(*_):
+        raise URDFError(f"{where}: the document declares a DOCTYPE or ENTITY; URDF files need "
+                        "none, and lagrgen expands none (remove the declaration)")
+
+    def qualified(name):
+        return "{" + name if "}" in name else name
+
+    builder = ET.TreeBuilder()
+    parser = expat.ParserCreate(namespace_separator="}")
+    parser.SetParamEntityParsing(expat.XML_PARAM_ENTITY_PARSING_NEVER)
+    parser.StartDoctypeDeclHandler = refuse
+    parser.EntityDeclHandler = refuse
+    parser.StartElementHandler = lambda tag, attributes: builder.start(
+        qualified(tag), {qualified(k): v for k, v in attributes.items()})
+    parser.EndElementHandler = lambda tag: builder.end(qualified(tag))
+    parser.CharacterDataHandler = builder.data
+    try:
+        parser.Parse(text, True)
+    except expat.ExpatError as exc:
+        raise URDFError(f"{where} is not well-formed XML: {exc}") from None
+    return builder.close()
 
 
 def _attribute(element, key, what):
