@@ -53,3 +53,30 @@ def test_namespaced_names_read_as_elementtree_reads_them():
     assert robot.name == "r"
     with pytest.raises(URDFError, match="root element is <{urn:x}robot>"):
         parse(document().replace('<robot name="r">', '<robot name="r" xmlns="urn:x">'))
+
+
+def test_an_axis_whose_squared_norm_overflows_keeps_its_direction(tmp_path):
+    for huge, unit in (("0 1e200 1e200", "0 1 1"), ("1.7e308 0 -1.7e308", "1 0 -1"),
+                       ("0 3e-9 3e-9", "0 1 1")):
+        axis = parse(document(joint_axis=huge)).joints[0].axis
+        assert np.allclose(axis, np.array(unit.split(), float) / np.sqrt(2), rtol=0, atol=1e-15)
+    rhs = []
+    for k, axis in enumerate(("0 1e200 1e200", "0 1 1")):
+        path = tmp_path / f"axis{k}.urdf"
+        path.write_text(document(joint_axis=axis))
+        mod = lagrgen.build(lagrgen.from_urdf(path), backend="python")
+        rhs.append(mod.rhs(0.0, [0.3, 0.2]))
+    assert abs(rhs[0][1]) > 0.1 and np.allclose(rhs[0], rhs[1], rtol=1e-14, atol=0)
+    for zero in ("0 0 0", "1e-13 0 -1e-13"):
+        with pytest.raises(URDFError, match="axis> of joint 'j' is zero"):
+            parse(document(joint_axis=zero))
+
+
+@pytest.mark.parametrize("links", [
+    LINKS.replace('"0.5"', '"1e10"').replace('xyz="0 0 -0.1"', 'xyz="1e150 0 0"'),
+    LINKS.replace('"0.5"', '"1e300"').replace('xyz="0 0 -0.1"', 'xyz="0 1e5 0"')])
+def test_an_inertia_that_overflows_is_an_error_naming_its_link(links, tmp_path):
+    path = tmp_path / "huge.urdf"
+    path.write_text(document(links=links))
+    with pytest.raises(URDFError, match="inertia of link 'b' .* overflows a double"):
+        lagrgen.from_urdf(path)

@@ -269,12 +269,8 @@ def _joint(element, links):
     xyz = _vector(origin, "xyz", f"the <origin> of {what}")
     rotation = rpy_matrix(_vector(origin, "rpy", f"the <origin> of {what}"))
     axis = _vector(element.find("axis"), "xyz", f"the <axis> of {what}", (1.0, 0.0, 0.0))
-    norm = math.sqrt(sum(a * a for a in axis))
     if kind in MOVING:
-        if norm < 1e-12:
-            raise URDFError(f"the <axis> of {what} is zero: give the direction it moves about "
-                            "or along")
-        axis = tuple(a / norm for a in axis)
+        axis = _unit_axis(axis, what)
     limit = _limit(element.find("limit"), what, kind)
     dynamics = element.find("dynamics")
     damping = _number(dynamics.get("damping", "0"), f"the damping of {what}") \
@@ -292,6 +288,18 @@ def _joint(element, links):
         mimic = None
     return Joint(name, kind, ends["parent"], ends["child"], xyz, rotation, axis, limit, damping,
                  friction, mimic)
+
+
+def _unit_axis(axis, what):
+    """The unit vector along `axis`, scaled by its largest component first (its squared norm
+    overflows from about 1e154 and underflows below 1e-154)."""
+    largest = max(abs(a) for a in axis)
+    if largest * math.sqrt(3) < 1e-12:
+        raise URDFError(f"the <axis> of {what} is zero: give the direction it moves about or "
+                        "along")
+    scaled = [a / largest for a in axis]
+    norm = math.hypot(*scaled)
+    return tuple(a / norm for a in scaled)
 
 
 def _limit(element, what, kind):
@@ -416,7 +424,7 @@ def parts(robot, base="fixed", frozen=None):
     while stack:
         link, owner, R, p = stack.pop()
         if owner >= 0:
-            out[owner].body = out[owner].body + _placed(robot.links[link], R, p)
+            out[owner].body = _merged(out[owner].body, robot.links[link], R, p, link)
         pending = []
         for joint in robot.children[link]:
             Rj, pj = R @ np.array(joint.rotation), p + R @ np.array(joint.xyz)
@@ -455,6 +463,20 @@ def _parents_first(out):
         part.parent = index[part.parent] if part.parent >= 0 else -1
         result.append(part)
     return result
+
+
+def _merged(body, inertial, R, p, link):
+    """`body` with the link placed at (R, p) added; URDFError naming the link when the sum
+    overflows a double (a mass times its squared distance from the joint's frame beyond 1.8e308)."""
+    with np.errstate(over="ignore", invalid="ignore"):
+        total = body + _placed(inertial, R, p)
+    if not np.isfinite(total).all():
+        with np.errstate(over="ignore"):
+            distance = np.linalg.norm(p + R @ np.array(inertial.com))
+        raise URDFError(f"the inertia of link {link!r} about its joint's frame overflows a double "
+                        f"(mass {inertial.mass:g} kg with its centre {distance:g} m from the "
+                        "frame): give the file's masses in kg and lengths in m")
+    return total
 
 
 def _placed(inertial, R, p):
