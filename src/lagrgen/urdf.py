@@ -38,7 +38,19 @@ INERTIA_ATOL = 1e-12
 
 
 class URDFError(ModelError):
-    """A URDF file cannot be read as a robot: the message names the element and what is wrong."""
+    """A URDF file cannot be read as a robot: the message names the element and what is wrong.
+
+    `option` is the from_urdf option (name, value) the message suggests, spelled in it as
+    `suggestion(name, value)` (the command line names its flag instead), or None."""
+
+    def __init__(self, message, option=None):
+        super().__init__(message)
+        self.option = option
+
+
+def suggestion(option, value):
+    """How a message suggests the from_urdf option `option` = `value`."""
+    return f"from_urdf(..., {option}={value!r})"
 
 
 class URDFWarning(UserWarning):
@@ -244,7 +256,8 @@ def check_inertia(I, what, strict=True):
         return
     if strict:
         raise URDFError(f"the inertia of {what} {problem}; correct the file's <inertia>, or read "
-                        "it as it is with from_urdf(..., check_inertias=False)")
+                        f"it as it is with {suggestion('check_inertias', False)}",
+                        ("check_inertias", False))
     warnings.warn(f"the inertia of {what} {problem}; taken as it is", URDFWarning, stacklevel=4)
 
 
@@ -363,10 +376,13 @@ def _check_mimics(robot):
         target = moving.get(joint.mimic[0])
         if target is None:
             raise URDFError(f"joint {joint.name!r} mimics {joint.mimic[0]!r}, which is not a "
-                            "moving joint of the file")
+                            "moving joint of the file: correct its <mimic>, or read every joint "
+                            f"as independent with {suggestion('mimic', False)}", ("mimic", False))
         if target.mimic is not None:
             raise URDFError(f"joint {joint.name!r} mimics {target.name!r}, which itself mimics "
-                            f"{target.mimic[0]!r}: mimic the joint that moves")
+                            f"{target.mimic[0]!r}: mimic the joint that moves, or read every "
+                            f"joint as independent with {suggestion('mimic', False)}",
+                            ("mimic", False))
 
 
 def identifier(name):
@@ -516,7 +532,8 @@ def _frozen_massless(robot, found, followers, massless):
         raise URDFError(f"{what} of {robot.name!r} moves no mass or inertia (every link below "
                         "it, and below the joints that follow it, is massless), so the motion it "
                         "allows has no inertia: give a link below it an <inertial>, make the "
-                        "joint fixed, or read the file with from_urdf(..., massless='fixed')")
+                        f"joint fixed, or read the file with {suggestion('massless', 'fixed')}",
+                        ("massless", "fixed"))
     import warnings
     names = {p.joint.name for p in empty if p.joint is not None}
     frozen = {name: 0.0 for name in names}
@@ -603,6 +620,10 @@ def from_urdf(path, name=None, base="fixed", gravity=(0.0, 0.0, -9.81), joint_dy
         followers = {name: f for name, f in followers.items()
                      if any(p.name == name for p in found)}
     coordinate_parts = [p for p in found if p.name not in followers]
+    if not coordinate_parts:
+        raise URDFError(f"robot {robot.name!r} has no moving joint (every joint is fixed), so a "
+                        "fixed base leaves it nothing to move: let it move freely with "
+                        f"{suggestion('base', 'floating')}", ("base", "floating"))
     if base == "floating":
         by_name = {p.name: p for p in coordinate_parts}
         coordinate_parts = [by_name[n] for n in FLOATING_ORDER] + coordinate_parts[6:]
