@@ -58,6 +58,17 @@ def urdf_files(root):
     return sorted(root.glob("*/*/*.urdf"))
 
 
+def row_name(path, root):
+    """A robot's row: its file's path under the robots folder, without .urdf (two files share
+    the stem anymal)."""
+    return Path(path).relative_to(root).with_suffix("").as_posix()
+
+
+def without_root(text, root):
+    """`text` with the robots folder's absolute path left out (results name no machine's path)."""
+    return str(text).replace(str(root) + os.sep, "").replace(str(root), "robots")
+
+
 def best_per_call(f, repeats=7):
     timer = timeit.Timer(f)
     number, _ = timer.autorange()
@@ -137,12 +148,12 @@ def _identifier(name):
     return identifier(name)
 
 
-def robot_row(path, floating, out_dir, say):
+def robot_row(path, root, floating, out_dir, say):
     """Build, cross-check and time one robot; its record."""
     import pinocchio as pin
 
     import lagrgen
-    name = path.stem + ("" if not floating else " (floating base)")
+    name = row_name(path, root) + ("" if not floating else " (floating base)")
     start = time.perf_counter()
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", lagrgen.URDFWarning)
@@ -343,7 +354,9 @@ def updated(old, new):
 
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--robots", nargs="*", help="file stems (default: all)")
+    parser.add_argument("--robots", nargs="*",
+                        help="file stems, or paths under the robots folder without .urdf "
+                        "(default: all)")
     parser.add_argument("--max-joints", type=int, default=60)
     parser.add_argument("--out", default=os.path.join(tempfile.gettempdir(), "lagrgen_robots"))
     parser.add_argument("--no-write", action="store_true", help="print only")
@@ -361,17 +374,17 @@ def main(argv=None):
     root = robots_dir()
     files = urdf_files(root)
     if args.robots:
-        files = [f for f in files if f.stem in args.robots]
+        files = [f for f in files if f.stem in args.robots or row_name(f, root) in args.robots]
     chosen = []
     for f in files:
         try:
             count = joints_of(f)
         except lagrgen.LagrgenError as exc:
-            chosen.append((f, False, str(exc).splitlines()[0][:120]))
+            chosen.append((f, False, without_root(str(exc).splitlines()[0], root)[:120]))
             continue
         if 0 < count <= args.max_joints:
             chosen.append((f, False, None))
-    if not args.robots or "solo12" in args.robots:
+    if not args.robots or {"solo12", "solo_description/robots/solo12"} & set(args.robots):
         solo = next((f for f in files if f.stem == "solo12"), None)
         if solo:
             chosen.append((solo, True, None))
@@ -381,13 +394,14 @@ def main(argv=None):
     rows = []
     for path, floating, error in chosen:
         if error:
-            rows.append({"robot": path.stem, "error": f"not read: {error}"})
+            rows.append({"robot": row_name(path, root), "error": f"not read: {error}"})
             continue
         try:
-            rows.append(robot_row(path, floating, args.out, lambda s: print(s, file=sys.stderr)))
+            rows.append(robot_row(path, root, floating, args.out,
+                                  lambda s: print(s, file=sys.stderr)))
         except Exception as exc:            # a robot lagrgen or Pinocchio cannot take: say so
-            rows.append({"robot": path.stem, "error": f"{type(exc).__name__}: "
-                         f"{str(exc).splitlines()[0][:120]}"})
+            first = without_root(str(exc).splitlines()[0], root)[:120]
+            rows.append({"robot": row_name(path, root), "error": f"{type(exc).__name__}: {first}"})
     say = lambda text: print(text, file=sys.stderr)      # noqa: E731
     chains = chain_rows(args.chains, args.out, say)
     planar = None if args.no_planar else planar_row(args.out)

@@ -59,8 +59,6 @@ class KernelSpec:
                          # directions at once, entry i of lane b at [i·LG_LANES + b]
     python: bool = True  # formed for the Python backend too (False: only a compiled unit's C
                          # calls it, and the Python backend computes its function otherwise)
-    zeroed: tuple = ()   # outputs the caller fills with zeros first: their zero entries are
-                         # not stored (a sparse matrix written whole)
 
 
 @dataclass
@@ -201,7 +199,7 @@ KERNELS = (
     KernelSpec("residual_hessian", "H = ∇²_z(Σ mu_i·r_i) of the implicit form's residual "
                "r = [M·q̈ − F − Aᵀλ; A·q̈ − γ], z = [q, q̇, q̈, λ, u] (symmetric, full)",
                (Output("H", ("n_point", "n_point")),), _residual_hessian,
-               arguments=WEIGHTED_ARGUMENTS, python=False, zeroed=("H",)),
+               arguments=WEIGHTED_ARGUMENTS, python=False),
     KernelSpec("motion_tape", "M, F (and A, γ) as mf (and constraints) compute them, and the tape c "
                "of their forward-mode coefficients (lagrgen.tangents)",
                (Output("M", ("n", "n")), Output("F", ("n",)),
@@ -375,7 +373,7 @@ TREE_KERNELS = (
                "(a planar tree or a free base: no recursion of second derivatives)",
                (Output("H", ("n_point", "n_point")),), _residual_hessian,
                when=lambda eq: not _is_spatial_tree(eq), arguments=WEIGHTED_ARGUMENTS,
-               python=False, zeroed=("H",)),
+               python=False),
 )
 #: The dense kernels the recursive formulation keeps (none of them needs M or F).
 _KEPT = ("events", "nonsmooth")

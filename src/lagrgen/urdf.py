@@ -38,7 +38,19 @@ INERTIA_ATOL = 1e-12
 
 
 class URDFError(ModelError):
-    """A URDF file cannot be read as a robot: the message names the element and what is wrong."""
+    """A URDF file cannot be read as a robot: the message names the element and what is wrong.
+
+    `option` is the from_urdf option (name, value) the message suggests, spelled in it as
+    `suggestion(name, value)` (the command line names its flag instead), or None."""
+
+    def __init__(self, message, option=None):
+        super().__init__(message)
+        self.option = option
+
+
+def suggestion(option, value):
+    """How a message suggests the from_urdf option `option` = `value`."""
+    return f"from_urdf(..., {option}={value!r})"
 
 
 class URDFWarning(UserWarning):
@@ -116,15 +128,7 @@ def read(path, check_inertias=True):
 
 def parse(text, where="<string>", check_inertias=True):
     """The `Robot` of the URDF document `text` (bytes or str)."""
-    if isinstance(text, str):
-        text = text.encode("utf-8")
-    if re.search(rb"<!(DOCTYPE|ENTITY)", text[:4096 * 16]):
-        raise URDFError(f"{where}: the document declares a DOCTYPE or ENTITY; URDF files need "
-                        "none, and lagrgen expands none (remove the declaration)")
-    try:
-        root = ET.fromstring(text)
-    except ET.ParseError as exc:
-        raise URDFError(f"{where} is not well-formed XML: {exc}") from None
+    root = _element_tree(text, where)
     if root.tag != "robot":
         raise URDFError(f"{where}: the root element is <{root.tag}>, a URDF file has <robot>")
     name = root.get("name") or Path(where).stem
@@ -146,6 +150,35 @@ def parse(text, where="<string>", check_inertias=True):
     robot = Robot(name, links, joints)
     _check_tree(robot, where)
     return robot
+
+
+def _element_tree(text, where):
+    """The document's root element, built from expat's events as ElementTree builds it; a DOCTYPE
+    or entity declaration is refused at the parser's own event, wherever it stands and in whatever
+    encoding, before anything in it is declared or expanded."""
+    from xml.parsers import expat
+
+    def refuse(*_):
+        raise URDFError(f"{where}: the document declares a DOCTYPE or ENTITY; URDF files need "
+                        "none, and lagrgen expands none (remove the declaration)")
+
+    def qualified(name):
+        return "{" + name if "}" in name else name
+
+    builder = ET.TreeBuilder()
+    parser = expat.ParserCreate(namespace_separator="}")
+    parser.SetParamEntityParsing(expat.XML_PARAM_ENTITY_PARSING_NEVER)
+    parser.StartDoctypeDeclHandler = refuse
+    parser.EntityDeclHandler = refuse
+    parser.StartElementHandler = lambda tag, attributes: builder.start(
+        qualified(tag), {qualified(k): v for k, v in attributes.items()})
+    parser.EndElementHandler = lambda tag: builder.end(qualified(tag))
+    parser.CharacterDataHandler = builder.data
+    try:
+        parser.Parse(text, True)
+    except expat.ExpatError as exc:
+        raise URDFError(f"{where} is not well-formed XML: {exc}") from None
+    return builder.close()
 
 
 def _attribute(element, key, what):
@@ -223,7 +256,8 @@ def check_inertia(I, what, strict=True):
         return
     if strict:
         raise URDFError(f"the inertia of {what} {problem}; correct the file's <inertia>, or read "
-                        "it as it is with from_urdf(..., check_inertias=False)")
+                        f"it as it is with {suggestion('check_inertias', False)}",
+                        ("check_inertias", False))
     warnings.warn(f"the inertia of {what} {problem}; taken as it is", URDFWarning, stacklevel=4)
 
 
@@ -248,12 +282,8 @@ def _joint(element, links):
     xyz = _vector(origin, "xyz", f"the <origin> of {what}")
     rotation = rpy_matrix(_vector(origin, "rpy", f"the <origin> of {what}"))
     axis = _vector(element.find("axis"), "xyz", f"the <axis> of {what}", (1.0, 0.0, 0.0))
-    norm = math.sqrt(sum(a * a for a in axis))
     if kind in MOVING:
-        if norm < 1e-12:
-            raise URDFError(f"the <axis> of {what} is zero: give the direction it moves about "
-                            "or along")
-        axis = tuple(a / norm for a in axis)
+        axis = _unit_axis(axis, what)
     limit = _limit(element.find("limit"), what, kind)
     dynamics = element.find("dynamics")
     damping = _number(dynamics.get("damping", "0"), f"the damping of {what}") \
@@ -271,6 +301,18 @@ def _joint(element, links):
         mimic = None
     return Joint(name, kind, ends["parent"], ends["child"], xyz, rotation, axis, limit, damping,
                  friction, mimic)
+
+
+def _unit_axis(axis, what):
+    """The unit vector along `axis`, scaled by its largest component first (its squared norm
+    overflows from about 1e154 and underflows below 1e-154)."""
+    largest = max(abs(a) for a in axis)
+    if largest * math.sqrt(3) < 1e-12:
+        raise URDFError(f"the <axis> of {what} is zero: give the direction it moves about or "
+                        "along")
+    scaled = [a / largest for a in axis]
+    norm = math.hypot(*scaled)
+    return tuple(a / norm for a in scaled)
 
 
 def _limit(element, what, kind):
@@ -334,10 +376,13 @@ def _check_mimics(robot):
         target = moving.get(joint.mimic[0])
         if target is None:
             raise URDFError(f"joint {joint.name!r} mimics {joint.mimic[0]!r}, which is not a "
-                            "moving joint of the file")
+                            "moving joint of the file: correct its <mimic>, or read every joint "
+                            f"as independent with {suggestion('mimic', False)}", ("mimic", False))
         if target.mimic is not None:
             raise URDFError(f"joint {joint.name!r} mimics {target.name!r}, which itself mimics "
-                            f"{target.mimic[0]!r}: mimic the joint that moves")
+                            f"{target.mimic[0]!r}: mimic the joint that moves, or read every "
+                            f"joint as independent with {suggestion('mimic', False)}",
+                            ("mimic", False))
 
 
 def identifier(name):
@@ -405,7 +450,7 @@ def parts(robot, base="fixed", frozen=None):
     while stack:
         link, owner, R, p = stack.pop()
         if owner >= 0:
-            out[owner].body = out[owner].body + _placed(robot.links[link], R, p)
+            out[owner].body = _merged(out[owner].body, robot.links[link], R, p, link)
         pending = []
         for joint in robot.children[link]:
             Rj, pj = R @ np.array(joint.rotation), p + R @ np.array(joint.xyz)
@@ -446,6 +491,20 @@ def _parents_first(out):
     return result
 
 
+def _merged(body, inertial, R, p, link):
+    """`body` with the link placed at (R, p) added; URDFError naming the link when the sum
+    overflows a double (a mass times its squared distance from the joint's frame beyond 1.8e308)."""
+    with np.errstate(over="ignore", invalid="ignore"):
+        total = body + _placed(inertial, R, p)
+    if not np.isfinite(total).all():
+        with np.errstate(over="ignore"):
+            distance = np.linalg.norm(p + R @ np.array(inertial.com))
+        raise URDFError(f"the inertia of link {link!r} about its joint's frame overflows a double "
+                        f"(mass {inertial.mass:g} kg with its centre {distance:g} m from the "
+                        "frame): give the file's masses in kg and lengths in m")
+    return total
+
+
 def _placed(inertial, R, p):
     """A link's 10 parameters about the origin of the frame it is placed in at (R, p)."""
     m = inertial.mass
@@ -483,7 +542,8 @@ def _frozen_massless(robot, found, followers, massless):
         raise URDFError(f"{what} of {robot.name!r} moves no mass or inertia (every link below "
                         "it, and below the joints that follow it, is massless), so the motion it "
                         "allows has no inertia: give a link below it an <inertial>, make the "
-                        "joint fixed, or read the file with from_urdf(..., massless='fixed')")
+                        f"joint fixed, or read the file with {suggestion('massless', 'fixed')}",
+                        ("massless", "fixed"))
     import warnings
     names = {p.joint.name for p in empty if p.joint is not None}
     frozen = {name: 0.0 for name in names}
@@ -581,6 +641,10 @@ def from_urdf(path, name=None, base="fixed", gravity=(0.0, 0.0, -9.81), joint_dy
         followers = {name: f for name, f in followers.items()
                      if any(p.name == name for p in found)}
     coordinate_parts = [p for p in found if p.name not in followers]
+    if not coordinate_parts:
+        raise URDFError(f"robot {robot.name!r} has no moving joint (every joint is fixed), so a "
+                        "fixed base leaves it nothing to move: let it move freely with "
+                        f"{suggestion('base', 'floating')}", ("base", "floating"))
     if base == "floating":
         by_name = {p.name: p for p in coordinate_parts}
         coordinate_parts = [by_name[n] for n in FLOATING_ORDER] + coordinate_parts[6:]

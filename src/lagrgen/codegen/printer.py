@@ -95,15 +95,12 @@ def kernel_statements(kernel):
 
     require([name for name in temps if name not in done] if not kernel.outputs else [])
     notes = getattr(kernel, "notes", {})
-    zeroed = kernel.spec.zeroed
     for name, exprs in kernel.outputs.items():
         zeroed = not getattr(kernel.spec, "lanes", ()) and \
             sum(1 for e in exprs if e == 0) >= ZEROS_AT_ONCE
         if zeroed:
             stmts.append(Zeros(name, len(exprs)))
         for i, e in enumerate(exprs):
-            if name in zeroed and e == 0:
-                continue
             if (name, i) in notes:
                 stmts.append(Comment(notes[name, i]))
             if zeroed and e == 0:

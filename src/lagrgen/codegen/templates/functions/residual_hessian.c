@@ -2,8 +2,8 @@
      * y = [q, q̇, a, mu], a = [q̈, λ]. A spatial tree: the second-order derivatives of its inverse
      * dynamics τ contracted with mu (lg_tree_hessian: the blocks qq, q̇q̇, q q̇ and q̈ q, mirrored
      * here), minus ∇²(Σ mu_i·Q_i) of its other forces (tree_q_hessian); otherwise the symbolic
-     * second derivatives (residual_hessian, or tree_residual_hessian of a planar tree: their
-     * nonzero entries, the rest zeroed here). */
+     * second derivatives (residual_hessian, or tree_residual_hessian of a planar tree or a free
+     * base). */
     enum { NP = 3 * N + N_CONSTRAINTS + N_INPUTS };
     const double *q = y, *qd = y + N, *a = y + 2 * N, *mu = a + N + N_CONSTRAINTS;
 #if LG_RECURSIVE && LG_TREE_HESSIAN
@@ -29,11 +29,9 @@
 #elif LG_RECURSIVE
 #define LG_RESIDUAL_HESSIAN_WORK 0
     (void)work;
-    memset(out, 0, (size_t)NP * NP * sizeof(double));
     return lg_tree_residual_hessian(t, q, qd, a, p, u, mu, out);
 #else
 #define LG_RESIDUAL_HESSIAN_WORK 0
     (void)work;
-    memset(out, 0, (size_t)NP * NP * sizeof(double));
     return lg_residual_hessian(t, q, qd, a, p, u, mu, out);
 #endif
