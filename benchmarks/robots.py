@@ -48,7 +48,11 @@ FIRST = ("ur5_robot", "panda", "talos_reduced", "solo12")
 def robots_dir():
     """The robots folder of the example-robot-data package."""
     import importlib.metadata
-    for f in importlib.metadata.files("example-robot-data") or ():
+    try:
+        files = importlib.metadata.files("example-robot-data") or ()
+    except importlib.metadata.PackageNotFoundError:
+        files = ()
+    for f in files:
         if str(f).endswith("robots/ur_description/urdf/ur5_robot.urdf"):
             return Path(f.locate()).parents[2]
     raise SystemExit("example-robot-data is not installed: pip install example-robot-data")

@@ -56,7 +56,7 @@ def layout(equations, parameters=True):
     out["inertial_column"] = columns
     if tree.kind == "spatial" and not getattr(tree, "free", None):
         out["qh"] = [[r, c] for r, c, _ in tree_q_hessian(equations)]
-    out["energies"] = bool(getattr(tree, "articulated", False))
+    out["energies"] = bool(getattr(tree, "articulated", False) or getattr(tree, "free", None))
     joints = getattr(tree, "joints", None)
     if joints is not None:
         out["joints"] = joints.table()

@@ -130,6 +130,14 @@ class FreeBasePythonModel(SpatialPythonModel):
         return out
 
     # -- the model's functions -------------------------------------------------------------------
+    def _outputs(self, t, q, qd, p, u):
+        """tree_outputs' (½·J·ṙ² of ζ's length among its energies), with the bodies' T and V
+        from the records at the chart's rates."""
+        out = super(SpatialPythonModel, self)._outputs(t, q, qd, p, u)
+        T, V = self._record_energies(self._nodes(t, q, qd, p, u), self._frame(q, qd)[2])
+        out[-3:] += [T, V, T + V]
+        return out
+
     def _mf(self, t, q, qd, p, u):
         nodes = self._nodes(t, q, qd, p, u)
         chart, cd, ce = self._frame(q, qd)

@@ -411,14 +411,17 @@ class SpatialPythonModel(FactoredModel):
         (T = ½·Σ v_k·Y_k·v_k, V = −g·Σ h_k; tree3d.c.in's lg_outputs)."""
         out = super()._outputs(t, q, qd, p, u)
         if self._tree.energies:
-            nodes = self._nodes(t, q, qd, p, u)
-            s, Y, base, _ = self._tree.split(nodes)
-            v = self._tree.motion(nodes, np.asarray(qd, dtype=float),
-                                  np.zeros(self.n_coordinates))[0]
-            T = 0.5 * sum(v[k] @ inertia_apply(Y[k], v[k]) for k in range(self._tree.n))
-            V = float(base[0, 3:] @ Y[:, 1:4].sum(axis=0))
+            T, V = self._record_energies(self._nodes(t, q, qd, p, u), qd)
             out[-3:] += [T, V, T + V]
         return out
+
+    def _record_energies(self, nodes, rates):
+        """(T, V) of the nodes' bodies from their records at the recursion's `rates`:
+        T = ½·Σ v_k·Y_k·v_k, V = −g·Σ h_k."""
+        _, Y, base, _ = self._tree.split(nodes)
+        v = self._tree.motion(nodes, np.asarray(rates, dtype=float), np.zeros(len(rates)))[0]
+        T = 0.5 * sum(v[k] @ inertia_apply(Y[k], v[k]) for k in range(self._tree.n))
+        return T, float(base[0, 3:] @ Y[:, 1:4].sum(axis=0))
 
     def _inverse(self, nodes, qd, a):
         v, acc = self._tree.motion(nodes, np.asarray(qd, dtype=float), np.asarray(a, dtype=float))
