@@ -626,5 +626,11 @@ def test_a_run_through_a_near_singular_mass_matrix_warns(tmp_path_factory, backe
         assert_allclose(sol.y[:3, -1], [W, 0.3, 0.0], atol=1e-8)
         assert mod.pivot_record() == 1.0              # each run read and reset its record
     near = np.array([0.0, np.pi / 2 - 1e-6, 0.0, W, 0.0, 0.0])
+    if backend == "c":                                # the C batch of simulate_many, per run
+        y0 = np.array([[0.0, 0.3, 0.0, W, 0.0, 0.0], near, [0.0, -0.5, 0.0, W, 0.0, 0.0]])
+        with pytest.warns(lagrgen.NearSingularMassMatrixWarning, match=r"^run 1 of model"):
+            ens = lagrgen.simulate_many(mod, (0, 1), y0, t_eval=np.linspace(0, 1, 3),
+                                        rtol=1e-9, atol=1e-12, workers=1)
+        assert ens.success.all()
     mod.rhs(0.0, near)
     assert 1e-14 < mod.pivot_record() < 1e-11 and mod.pivot_record() == 1.0

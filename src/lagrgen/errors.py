@@ -38,10 +38,14 @@ class NearSingularMassMatrixWarning(RuntimeWarning):
     `rigid_body_3d` or a floating base) near gimbal lock, pitch = ±π/2."""
 
     @classmethod
-    def message(cls, name, least):
-        """The warning's text for model `name` whose least relative pivot was `least`."""
+    def message(cls, name, least, runs=None):
+        """The warning's text for model `name` whose least relative pivot was `least` (in the
+        runs `runs` of an ensemble, if given)."""
         lost = max(0.0, -np.log10(max(least, 1e-300)))
-        return (f"a run of model {name!r} passed where its mass matrix is nearly singular: the "
+        which = "a run" if runs is None else (
+            f"run{'s' if len(runs) > 1 else ''} {', '.join(map(str, runs[:10]))}"
+            f"{' …' if len(runs) > 10 else ''}")
+        return (f"{which} of model {name!r} passed where its mass matrix is nearly singular: the "
                 f"least pivot of M reached {least:.2g} of its diagonal entry, so about {lost:.0f} "
                 "of the 16 digits of q̈ = M⁻¹·F were lost there and the result may be inaccurate "
                 "beyond the tolerances. Euler angles near gimbal lock (pitch = ±π/2) do this: "
@@ -52,16 +56,20 @@ class NearSingularMassMatrixWarning(RuntimeWarning):
 NEAR_SINGULAR = 1e-8
 
 
-def warn_near_singular(mod, least, rtol=None):
-    """Warn (NearSingularMassMatrixWarning) when the least relative pivot `least` a run's
-    factorizations of M reached is below NEAR_SINGULAR, or below eps/rtol (the digits lost then
-    exceed those the tolerance asks for)."""
-    import warnings
-    limit = NEAR_SINGULAR
+def near_singular_limit(rtol=None):
+    """The relative pivot of M below which a run warns: NEAR_SINGULAR, or eps/rtol when that is
+    larger (the digits lost then exceed those the tolerance asks for)."""
     if rtol is not None and np.ndim(rtol) == 0 and rtol > 0:
-        limit = max(limit, np.finfo(float).eps / float(rtol))
-    if least < limit:
-        warnings.warn(NearSingularMassMatrixWarning.message(mod.name, least),
+        return max(NEAR_SINGULAR, np.finfo(float).eps / float(rtol))
+    return NEAR_SINGULAR
+
+
+def warn_near_singular(mod, least, rtol=None, runs=None):
+    """Warn (NearSingularMassMatrixWarning) when the least relative pivot `least` a run's
+    factorizations of M reached is below `near_singular_limit(rtol)`."""
+    import warnings
+    if least < near_singular_limit(rtol):
+        warnings.warn(NearSingularMassMatrixWarning.message(mod.name, least, runs),
                       NearSingularMassMatrixWarning, stacklevel=3)
 
 
