@@ -184,7 +184,7 @@ cdef class CompiledModel:
     def pivot_record(self):
         """The least Cholesky (or articulated-body) pivot of M relative to its diagonal entry
         that the factorizations of M on this thread reached since the previous call (1.0 when
-        none did, or for a model compiled without the record); resets the record."""
+        none fell below 1e-3, or for a model compiled without the record); resets the record."""
         cdef double value = 1.0
         cdef lg_function fn
         address = self._addresses.get("pivot_record")

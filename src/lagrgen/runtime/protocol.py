@@ -44,7 +44,8 @@ class BuiltModel(Protocol):
     def pivot_record(self) -> float:
         """The least pivot of M relative to its diagonal entry (1 for a diagonal M, tending to
         0 near a singular one) that the factorizations of M on this thread reached since the
-        previous call; resets the record (the engines read it around each solve)."""
+        previous call, or 1.0 when none fell below 1e-3; resets the record (the engines read it
+        around each solve)."""
 
     # -- one callable per entry of lagrgen.functions.FUNCTIONS --------------------------------
     def mass_matrix(self, q, t=0.0, p=None, u=None) -> np.ndarray:

@@ -35,18 +35,23 @@ _IEEE_NAMESPACE = {name: getattr(np, _NUMPY_NAMES.get(name, name)) for name in _
 _IEEE_NAMESPACE["_sign"] = np.sign
 _IEEE_NAMESPACE["abs"] = np.abs
 _IEEE_NAMESPACE["_nan"] = np.nan
-#: Per thread, {id(model): the least relative pivot of M its factorizations reached} (the C
-#: module's thread-local lg_least_pivot).
+#: A relative pivot of M below this is noted for `pivot_record` (LG_PIVOT_NOTE in C).
+PIVOT_NOTE = 1e-3
+#: Per thread, {id(model): the least relative pivot of M below PIVOT_NOTE its factorizations
+#: reached} (the C module's thread-local lg_least_pivot).
 _PIVOTS = threading.local()
 
 
 def watch_pivots(model, pivots, diagonal):
-    """Record min(pivots/diagonal) of one factorization of M of `model` on this thread."""
+    """Note min(pivots/diagonal) of one factorization of M of `model` on this thread when it
+    is below PIVOT_NOTE."""
+    with np.errstate(all="ignore"):
+        least = float(np.min(np.asarray(pivots) / np.asarray(diagonal), initial=1.0))
+    if not least < PIVOT_NOTE:
+        return
     record = getattr(_PIVOTS, "least", None)
     if record is None:
         record = _PIVOTS.least = {}
-    with np.errstate(all="ignore"):
-        least = float(np.min(np.asarray(pivots) / np.asarray(diagonal), initial=1.0))
     if least < record.get(id(model), 1.0):
         record[id(model)] = least
 
@@ -114,7 +119,8 @@ class PythonModel:
 
     def pivot_record(self):
         """The least pivot of M relative to its diagonal entry that this model's factorizations
-        of M on this thread reached since the previous call (1.0 when none); resets it."""
+        of M on this thread reached since the previous call (1.0 when none fell below
+        PIVOT_NOTE = 1e-3); resets it."""
         record = getattr(_PIVOTS, "least", None)
         return 1.0 if record is None else record.pop(id(self), 1.0)
 
