@@ -416,6 +416,9 @@ def test_a_dropped_block_bounces_rests_and_slides_only_when_pushed(built):
         assert sol.transitions[-2][0] == pytest.approx(zeno, abs=1e-5)
         assert sol.transitions[-1][0] == pytest.approx(stop, abs=1e-5)
         assert sol.y[0, -1] == pytest.approx(v0 * zeno + v0 ** 2 / (2 * mu * G), rel=1e-5)
+    python = lagrgen.build(dropped_block(), backend="python")      # the Python backend alike
+    on_python = lagrgen.simulate(python, (0, 0.5), {"y": h, "x_dot": v0}, **TOL)
+    assert [tr[1:] for tr in on_python.transitions] == [tr[1:] for tr in sol.transitions]
     y0 = np.array([[0, h, 0, 0], [0, 2 * h, v0, 0]])
     t_eval = np.linspace(0, 0.5, 26)
     ens = lagrgen.simulate_many(mod, (0, 0.5), y0, t_eval=t_eval, **TOL)
