@@ -11,8 +11,8 @@ import types
 
 from ._version import __version__
 from .errors import (BuildError, CompileError, ConstraintError, ContactError, LagrgenError,
-                     MassMatrixError, ModelError, NonFiniteError, StoreError, StoreWarning,
-                     UnknownNameError)
+                     MassMatrixError, ModelError, NearSingularMassMatrixWarning,
+                     NonFiniteError, StoreError, StoreWarning, UnknownNameError)
 
 #: Public name -> the module that defines it.
 _LAZY = {
@@ -48,7 +48,7 @@ __all__ = ["Model", "build", "load", "simulate", "evaluate_outputs", "output_eve
            "from_sympy", "from_urdf", "base_state", "URDFError", "URDFWarning", "export_fmu", "rotation", "Collocation", "CollocationResult",
            "LagrgenError", "ConstraintError", "ModelError", "UnknownNameError", "MassMatrixError",
            "BuildError", "CompileError", "NonFiniteError", "ContactError", "StoreError", "StoreWarning",
-           "__version__"]
+           "NearSingularMassMatrixWarning", "__version__"]
 
 
 class _Package(types.ModuleType):

@@ -24,6 +24,9 @@ limit (μ_s·|N| − |λ| ↓ 0). Then:
   sticking force is within μ_s·|N|, else slip on in the direction −sign(λ) ("slip"); a sticking
   contact slips when its force reaches μ_s·|N|. The mode is made consistent (forces ≥ 0, sticking
   forces within their cones) before the next segment; `max_transitions` bounds chattering.
+* A friction whose normal force is an impact's multiplier is inactive while that contact is open
+  (N = 0: no force, no sticking row, an event value of 1, mode "open"); when the contact is held
+  at a switch, it sticks or slips by the rules above (`Switching._engage`, recorded).
 * Tolerances. A gap counts as closed within `gap_tol` (default 1e-9), and its speed as zero at the
   start within the speed of a fall through gap_tol; a slip velocity counts as zero within
   1000·gap_tol (at the start, and for frictions stopping together with the one whose event
@@ -114,7 +117,7 @@ class HybridSystem:
                 rows.append(imp[i, 4:])
                 rhs.append(imp[i, 2])
         for j in range(self.nf):
-            if slip[j] == 0:
+            if slip[j] == 0 and self.active(j, contact):
                 friction_row[j] = len(rows)
                 rows.append(fr[j, 5:])
                 rhs.append(fr[j, 1])
@@ -173,6 +176,12 @@ class HybridSystem:
                  for j in range(self.nf)]
         return np.concatenate([lam_m, lam_i, along])
 
+    def active(self, j, contact):
+        """Whether friction j acts in a mode with these contacts: not while its normal force is
+        the multiplier of an open contact (N = 0: no force, no sticking, no events)."""
+        ref = self.normal[j]
+        return ref is None or ref[0] != "impact" or bool(contact[ref[1]])
+
     def _normal_row(self, j, impact_row):
         """The row of R whose multiplier is friction j's normal force, or None."""
         ref = self.normal[j]
@@ -190,13 +199,15 @@ class HybridSystem:
 
     def events(self, t, y, contact, slip):
         """The event values of the mode, all falling through zero at a switch: g (open), λ
-        (contact), s·v (slipping), μ_s·|N| − |λ| (sticking)."""
+        (contact), s·v (slipping), μ_s·|N| − |λ| (sticking); 1 for a friction whose contact is
+        open (it has none)."""
         _, lam_i, lam_f, normal, (_, _, imp, fr) = self.solve(t, y, contact, slip)
         values = np.empty(self.n_events)
         for i in range(self.ni):
             values[i] = lam_i[i] if contact[i] else imp[i, 0]
         for j in range(self.nf):
-            values[self.ni + j] = (fr[j, 3] * normal[j] - abs(lam_f[j]) if slip[j] == 0
+            values[self.ni + j] = (1.0 if not self.active(j, contact)
+                                   else fr[j, 3] * normal[j] - abs(lam_f[j]) if slip[j] == 0
                                    else slip[j] * fr[j, 0])
         return values
 
@@ -247,6 +258,15 @@ class HybridSystem:
         return np.sqrt(2.0 * gap_tol * np.abs(imp[:, 4:] @ qdd - imp[:, 2]))
 
 
+def mode_names(system, contact, slip):
+    """{name: "open" | "contact" | "stick" | "slip"} of the mode (contact, slip); a friction whose
+    contact is open is "open"."""
+    out = {d[0]: CONTACT if c else OPEN for d, c in zip(system.impacts, contact)}
+    out.update({d[0]: OPEN if not system.active(j, contact) else STICK if v == 0 else SLIP
+                for j, (d, v) in enumerate(zip(system.frictions, slip))})
+    return out
+
+
 def projected_gauss_seidel(D, before, target, sweeps=PGS_SWEEPS):
     """Λ ≥ 0 with after = before + D·Λ ≥ target, Λ_i·(after_i − target_i) = 0 (an LCP), by
     projected Gauss–Seidel sweeps; exact in one sweep for one contact."""
@@ -285,11 +305,9 @@ class Switching:
         self.transitions = []
 
     def mode(self):
-        """{name: "open" | "contact" | "stick" | "slip"}."""
-        s = self.system
-        out = {d[0]: CONTACT if c else OPEN for d, c in zip(s.impacts, self.contact)}
-        out.update({d[0]: STICK if v == 0 else SLIP for d, v in zip(s.frictions, self.slip)})
-        return out
+        """{name: "open" | "contact" | "stick" | "slip"} (a friction whose contact is open:
+        "open")."""
+        return mode_names(self.system, self.contact, self.slip)
 
     def _record(self, t, k, kind):
         self.transitions.append((float(t), self.system.names[k], kind))
@@ -349,6 +367,8 @@ class Switching:
                                and self.slip[j] != 0 and abs(fr[j, 0]) <= 1e3 * self.gap_tol]
         for k in fired:
             j = k - s.ni
+            if j >= 0 and not s.active(j, self.contact):
+                continue
             if j >= 0 and self.slip[j] == 0:
                 lam = s.solve(t, y, self.contact, self.slip)[2][j]
                 self.slip[j] = -1 if lam > 0 else 1
@@ -372,16 +392,44 @@ class Switching:
                 e[i] = 0.0
                 resting.append(i)
         y, _ = s.impact(t, y, self.contact, closing, e)
+        held = []
         for i in closing:
             if i in resting:
                 self.contact[i] = True
+                self._classify_frictions(t, y, [i])
                 if s.solve(t, y, self.contact, self.slip)[1][i] >= 0:
                     self._record(t, i, CONTACT)
+                    held.append(i)
                     continue
                 self.contact[i] = False
             self._record(t, i, "impact")
             self.bounced.append(i)
+        for i in held:
+            self._engage(t, y, i)
         return y
+
+    def _on(self, contacts):
+        """The frictions whose normal force is the multiplier of one of the impacts `contacts`."""
+        return [j for j, ref in enumerate(self.system.normal)
+                if ref is not None and ref[0] == "impact" and ref[1] in contacts]
+
+    def _classify_frictions(self, t, y, contacts):
+        """Slip direction sign(v), or 0 (v = 0 within 1000·gap_tol), for the frictions on the
+        impacts `contacts` (inactive while those were open)."""
+        fr = self.system.terms(t, y)[5]
+        for j in self._on(contacts):
+            v = fr[j, 0]
+            self.slip[j] = 0 if abs(v) <= 1e3 * self.gap_tol else (1 if v > 0 else -1)
+
+    def _engage(self, t, y, i):
+        """The frictions on impact i, just held, start acting: those at v = 0 stick or slip by
+        the holding force (`_try_stick`), the others slip (recorded)."""
+        self._classify_frictions(t, y, [i])
+        for j in self._on([i]):
+            if self.slip[j] == 0:
+                self._try_stick(t, y, j)
+            else:
+                self._record(t, self.system.ni + j, SLIP)
 
     def _try_stick(self, t, y, j):
         """Friction j reached v = 0: stick if the holding force is within μ_s·|N|, else slip on
@@ -411,7 +459,7 @@ class Switching:
                     if record:
                         self._record(t, i, "release")
             for j in range(s.nf):
-                if self.slip[j] != 0:
+                if self.slip[j] != 0 or not s.active(j, self.contact):
                     continue
                 v = fr[j, 0]
                 if abs(v) > 1e3 * self.gap_tol or abs(lam_f[j]) > fr[j, 3] * normal[j]:
@@ -656,12 +704,17 @@ def stall_step(t0, tf):
 
 def stall_message(t, least, transitions):
     """Why a hybrid solve stopped making progress at t."""
-    last = ", ".join(f"{kind} {name!r}" for _, name, kind in transitions[-3:]) or "none"
-    return (f"the hybrid solve made no progress: {STALL_SEGMENTS} segments in a row ended within "
-            f"{least:.3g} s of their start, at t = {t:.9g} (last transitions: {last}). Impacts "
-            "that never come to rest (rest_velocity too small: the default is 1e-6 times the "
-            "fastest impact) or contacts that hold a body from both sides keep switching "
-            "without advancing: raise rest_velocity or check the impacts")
+    recent = transitions[-3:]
+    last = ", ".join(f"{kind} {name!r}" for _, name, kind in recent) or "none"
+    head = (f"the hybrid solve made no progress: {STALL_SEGMENTS} segments in a row ended within "
+            f"{least:.3g} s of their start, at t = {t:.9g} (last transitions: {last}). ")
+    if recent and all(kind in (STICK, SLIP) for *_, kind in recent):
+        return head + ("Frictions that toggle between stick and slip at one instant keep "
+                       "switching without advancing: check their slip velocities and normal "
+                       "forces (a normal force of 0 gives no friction)")
+    return head + ("Impacts that never come to rest (rest_velocity too small: the default is "
+                   "1e-6 times the fastest impact) or contacts that hold a body from both sides "
+                   "keep switching without advancing: raise rest_velocity or check the impacts")
 
 
 class _EventValues:
@@ -725,8 +778,7 @@ def solve_hybrid_native(mod, t_span, y0, method, p, u_spec, rtol, atol, t_eval=N
                    for t, k, kind in out["transitions"]]
     message = native_failure_message(mod, system, out, transitions, float(gap_tol), t0, tf,
                                      np.asarray(y0, dtype=float))
-    mode = {d[0]: CONTACT if c else OPEN for d, c in zip(system.impacts, out["contact"])}
-    mode.update({d[0]: STICK if s == 0 else SLIP for d, s in zip(system.frictions, out["slip"])})
+    mode = mode_names(system, out["contact"], out["slip"])
     return dict(t=out["t"], y=out["y"].T.copy(), forces=out["forces"].T.copy(),
                 transitions=transitions, mode=mode,
                 nfev=out["nfev"], status=out["status"], message=message,

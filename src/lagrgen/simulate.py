@@ -6,6 +6,7 @@ The engines are `lagrgen.native.engine` (the whole solve in C) and `lagrgen.scip
 """
 import numpy as np
 
+from .errors import warn_near_singular
 from .functions import POWER_TERMS
 from .methods import METHODS
 from .native.engine import native_reason, simulate_native
@@ -107,6 +108,7 @@ def simulate(mod, t_span, y0=None, method="RK45", params=None, inputs=None, rtol
     bar = ProgressBar(*t_span, show=progress) if progress else None
     run = dict(t_eval=t_eval, dense_output=dense_output, max_steps=max_steps,
                max_wall_time=max_wall_time, progress=bar, **options)
+    mod.pivot_record()                   # the record of this thread starts with the solve
     try:
         if engine != "scipy" and why_not is None:
             sol = simulate_native(mod, t_span, y0, method, p, inputs, u_at, rtol, atol, **run)
@@ -119,6 +121,7 @@ def simulate(mod, t_span, y0=None, method="RK45", params=None, inputs=None, rtol
     finally:
         if bar is not None:
             bar.close()
+    warn_near_singular(mod, mod.pivot_record(), rtol)
     return finished_result(mod, sol, p, u_at, method)
 
 

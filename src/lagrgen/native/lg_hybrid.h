@@ -38,7 +38,8 @@ typedef struct {
     double gap_tol;              /* a gap within it is closed; a slip velocity within 1000× is 0 */
     long max_transitions;
     int *contact;                /* ni, in/out: 1 held */
-    int *slip;                   /* nf, in/out: +1/-1 slipping that way, 0 sticking */
+    int *slip;                   /* nf, in/out: +1/-1 slipping that way, 0 sticking (a friction
+                                  * on an open contact is inactive: N = 0, no force, no event) */
 } lg_hybrid_t;
 
 typedef struct {

@@ -181,6 +181,19 @@ cdef class CompiledModel:
                              "p, u, out)")
         return <lg_function><size_t>self.address(name)
 
+    def pivot_record(self):
+        """The least Cholesky (or articulated-body) pivot of M relative to its diagonal entry
+        that the factorizations of M on this thread reached since the previous call (1.0 when
+        none fell below 1e-3, or for a model compiled without the record); resets the record."""
+        cdef double value = 1.0
+        cdef lg_function fn
+        address = self._addresses.get("pivot_record")
+        if address is None:
+            return 1.0
+        fn = <lg_function><size_t>address
+        fn(0.0, NULL, NULL, NULL, &value)
+        return value
+
     def function_address(self, str name):
         """The address of the C function `name` (for native solvers that call it without Python;
         a function of call style "directions" has the signature lg_directions_fn), compiling its
@@ -433,6 +446,7 @@ def bind_module(module, capsule):
     module.initial_state = initial_state_array(model.info)
     module.time_in_c = model.time_in_c
     module.function_address = model.function_address
+    module.pivot_record = model.pivot_record
     module.backend = "c"
     module.build_info = {}
     for spec in FUNCTIONS:

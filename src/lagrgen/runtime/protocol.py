@@ -41,6 +41,12 @@ class BuiltModel(Protocol):
     dimensions: Dict[str, int]    # sizes the output shapes refer to ("n", "2n", "n_inputs", ...)
     build_info: dict              # how the build went: cache_hit, seconds (and step times for C)
 
+    def pivot_record(self) -> float:
+        """The least pivot of M relative to its diagonal entry (1 for a diagonal M, tending to
+        0 near a singular one) that the factorizations of M on this thread reached since the
+        previous call, or 1.0 when none fell below 1e-3; resets the record (the engines read it
+        around each solve)."""
+
     # -- one callable per entry of lagrgen.functions.FUNCTIONS --------------------------------
     def mass_matrix(self, q, t=0.0, p=None, u=None) -> np.ndarray:
         """M(q, t), (n, n)."""

@@ -7,6 +7,7 @@ below, `_<name>(t, q, qd, p, u)` (`_<name>(t, q, qd, a, p, u)` for the implicit 
 called with the arguments of its call style.
 """
 import math
+import threading
 
 import numpy as np
 
@@ -34,6 +35,25 @@ _IEEE_NAMESPACE = {name: getattr(np, _NUMPY_NAMES.get(name, name)) for name in _
 _IEEE_NAMESPACE["_sign"] = np.sign
 _IEEE_NAMESPACE["abs"] = np.abs
 _IEEE_NAMESPACE["_nan"] = np.nan
+#: A relative pivot of M below this is noted for `pivot_record` (LG_PIVOT_NOTE in C).
+PIVOT_NOTE = 1e-3
+#: Per thread, {id(model): the least relative pivot of M below PIVOT_NOTE its factorizations
+#: reached} (the C module's thread-local lg_least_pivot).
+_PIVOTS = threading.local()
+
+
+def watch_pivots(model, pivots, diagonal):
+    """Note min(pivots/diagonal) of one factorization of M of `model` on this thread when it
+    is below PIVOT_NOTE."""
+    with np.errstate(all="ignore"):
+        least = float(np.min(np.asarray(pivots) / np.asarray(diagonal), initial=1.0))
+    if not least < PIVOT_NOTE:
+        return
+    record = getattr(_PIVOTS, "least", None)
+    if record is None:
+        record = _PIVOTS.least = {}
+    if least < record.get(id(model), 1.0):
+        record[id(model)] = least
 
 
 class PythonModel:
@@ -94,7 +114,15 @@ class PythonModel:
             raise MassMatrixError.at(self.name, t, q) from None
         if np.any(np.diagonal(L) ** 2 <= PIVOT_TOL * np.diagonal(M)):
             raise MassMatrixError.at(self.name, t, q)
+        watch_pivots(self, np.diagonal(L) ** 2, np.diagonal(M))
         return L
+
+    def pivot_record(self):
+        """The least pivot of M relative to its diagonal entry that this model's factorizations
+        of M on this thread reached since the previous call (1.0 when none fell below
+        PIVOT_NOTE = 1e-3); resets it."""
+        record = getattr(_PIVOTS, "least", None)
+        return 1.0 if record is None else record.pop(id(self), 1.0)
 
     def _kernel(self, name, t, q, qd, a, p, u):
         """The outputs of kernel `name` as float64 arrays, in IEEE arithmetic like the C code."""

@@ -10,7 +10,7 @@ from the kinematic tree: the node records of the `tree_nodes` kernel and their s
 import numpy as np
 
 from ..errors import MassMatrixError
-from .pymodel import PIVOT_TOL, PythonModel
+from .pymodel import PIVOT_TOL, PythonModel, watch_pivots
 
 
 class Recursion:
@@ -293,6 +293,8 @@ class RecursivePythonModel(FactoredModel):
         factor = self._tree.factor(nodes)
         if factor is None:
             raise MassMatrixError.at(self.name, t, q)
+        S, d = self._tree.fields(nodes, self._tree.node_fields, ("S", "d"))
+        watch_pivots(self, 1.0 / factor[1], d + np.sum(S * factor[3] * S, axis=1))   # D_k, M_kk
         qdd, A = self._tree.accelerate(nodes, factor)
         return nodes, factor, qdd, A
 

@@ -6,7 +6,7 @@ built with formulation="recursive" whose tree is spatial (the recursions of
 import numpy as np
 
 from ..errors import MassMatrixError
-from .pymodel import PIVOT_TOL
+from .pymodel import PIVOT_TOL, watch_pivots
 from .tree import FactoredModel
 
 
@@ -436,9 +436,11 @@ class SpatialPythonModel(FactoredModel):
         """(node records, the node-order factor of M, q̈); MassMatrixError when M is not
         positive definite."""
         nodes = self._nodes(t, q, qd, p, u)
-        L = self._tree.factor(self._tree.mass_matrix(nodes))
+        M = self._tree.mass_matrix(nodes)
+        L = self._tree.factor(M)
         if L is None:
             raise MassMatrixError.at(self.name, t, q)
+        watch_pivots(self, np.diagonal(L) ** 2, np.diagonal(M))
         Q = self._tree.generalized_forces(nodes)
         qdd = self._tree.solve(L, Q - self._inverse(nodes, qd, np.zeros(self.n_coordinates)))
         return nodes, L, qdd
