@@ -59,6 +59,16 @@ ACTIVE_PASSES, IPM_ITERATIONS = 8, 60
 DEBUG = False
 
 
+def scatter_add(target, index, values):
+    """target[index[r]] += values[r] for every r, repeated indices summed (np.add.at's result,
+    by segments of the sorted indices: np.add.at is slow on blocks)."""
+    order = np.argsort(index, kind="stable")
+    ordered = index[order]
+    heads = np.flatnonzero(np.r_[True, ordered[1:] != ordered[:-1]]) if ordered.size else ordered
+    if ordered.size:
+        target[ordered[heads]] += np.add.reduceat(values[order], heads, axis=0)
+
+
 class Unsupported(LagrgenError):
     """The problem has a part the stage-structured SQP does not cover (said in the message)."""
 
@@ -363,9 +373,10 @@ class StructuredQP:
             Qvv += E.transpose(0, 2, 1) @ GE
         if row_weights is not None and np.any(row_weights):
             k, w = self.rows.interval, row_weights
-            np.add.at(Qxx, k, w[:, None, None] * self.alpha[:, :, None] * self.alpha[:, None, :])
-            np.add.at(Qxv, k, w[:, None, None] * self.alpha[:, :, None] * self.beta[:, None, :])
-            np.add.at(Qvv, k, w[:, None, None] * self.beta[:, :, None] * self.beta[:, None, :])
+            wa = w[:, None] * self.alpha
+            scatter_add(Qxx, k, wa[:, :, None] * self.alpha[:, None, :])
+            scatter_add(Qxv, k, wa[:, :, None] * self.beta[:, None, :])
+            scatter_add(Qvv, k, (w[:, None] * self.beta)[:, :, None] * self.beta[:, None, :])
         self.P = np.zeros((count + 1, ny, ny))
         self.Hxv = np.zeros((count, ny, nv))
         self.chol = np.zeros((count, nv, nv))
@@ -388,8 +399,8 @@ class StructuredQP:
             qx += (C.transpose(0, 2, 1) @ lin[:, :, None])[:, :, 0]
             qv += (E.transpose(0, 2, 1) @ lin[:, :, None])[:, :, 0]
         if row_gradients is not None and np.any(row_gradients):
-            np.add.at(qx, self.rows.interval, row_gradients[:, None] * self.alpha)
-            np.add.at(qv, self.rows.interval, row_gradients[:, None] * self.beta)
+            scatter_add(qx, self.rows.interval, row_gradients[:, None] * self.alpha)
+            scatter_add(qv, self.rows.interval, row_gradients[:, None] * self.beta)
         count = pts.shape[0]
         self.p = np.zeros((count + 1, self.ny))
         self.ff = np.zeros((count, self.nv))
@@ -438,7 +449,7 @@ class StructuredQP:
         count = pts.shape[0]
         rows_z = np.zeros((count, pts.shape[1], L.nz))            # Σ_r ζ_r·a_r per place
         if row_z is not None and row_z.size:
-            np.add.at(rows_z, self.rows.interval, row_z[:, None, None] * self.rows.coef)
+            scatter_add(rows_z, self.rows.interval, row_z[:, None, None] * self.rows.coef)
         rows_y = (self.T[pts].transpose(0, 1, 3, 2) @ rows_z[..., None])[..., 0]
         grad_y = (self.G @ y[:, :, None])[:, :, 0] + self.gamma   # ∂(cost)/∂y at the point
         later = []
@@ -452,7 +463,7 @@ class StructuredQP:
         nu_ = -np.linalg.solve(self.K.transpose(0, 2, 1), rhs[:, :, None])[:, :, 0]
         # μ from each point's acceleration rows: (W·dz + g + Dᵀν + z + Σζ·a)_a + R_aᵀ·μ = 0
         grad_z = (W @ dz[:, :, None])[:, :, 0] + g + zb
-        np.add.at(grad_z, pts.ravel(),
+        scatter_add(grad_z, pts.ravel(),
                   (st.D.transpose(0, 1, 3, 2) @ nu_[:, None, :, None])[..., 0].reshape(-1, L.nz)
                   + rows_z.reshape(-1, L.nz))
         rhs_a = grad_z[:, 2 * n:3 * n]
