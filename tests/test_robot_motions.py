@@ -204,13 +204,13 @@ def test_the_structured_qp_is_the_kkt_solution(swing):
 
 def test_refined_meshes_by_the_sqp_reach_ipopts_optimum(swing):
     """The refinement's meshes after the first, started from the last solution, are solved by
-    the structured SQP (solver="auto": a torque that stays inside its bounds, the velocity
-    riding its own) to IPOPT's optimum on the same meshes."""
+    the structured SQP (solver="sqp": a torque that stays inside its bounds, the velocity
+    riding its own) to IPOPT's optimum on the same meshes; "auto" is IPOPT."""
     model, mod = swing
     T, = model.input_functions
     results = {solver: swing_problem(mod, T, limit=20.0).solve(progress=False, solver=solver)
-               for solver in ("auto", "ipopt")}
-    auto, ipopt = results["auto"], results["ipopt"]
+               for solver in ("sqp", "auto")}
+    auto, ipopt = results["sqp"], results["auto"]
     assert auto.success and ipopt.success
     assert auto.solver == "sqp" and ipopt.solver == "ipopt"
     assert [m.nodes for m in auto.meshes] == [m.nodes for m in ipopt.meshes]
@@ -229,8 +229,12 @@ def test_a_replan_equals_a_cold_solve_from_the_new_state(swing):
     prob = swing_problem(mod, T)
     first = prob.solve(progress=False, mesh_tol=None)
     state = first.state_at(0.3)
-    again = prob.resolve(first, initial={"q": state[:1], "qd": state[1:]}, shift=0.3)
+    again = prob.resolve(first, initial={"q": state[:1], "qd": state[1:]}, shift=0.3,
+                         solver="sqp")
     assert again.success and again.solver == "sqp" and again.solve_seconds > 0
+    by_ipopt = prob.resolve(first, initial={"q": state[:1], "qd": state[1:]}, shift=0.3)
+    assert by_ipopt.success and by_ipopt.solver == "ipopt"
+    assert abs(by_ipopt.objective - again.objective) < 1e-6 * again.objective
     cold = swing_problem(mod, T)
     cold._fixed.clear()
     cold.initial(q=state[:1], qd=np.clip(state[1:], -4.0, 4.0)).final(q=[np.pi], qd=[0.0])

@@ -50,9 +50,10 @@ WARM_OPTIONS = {"bound_push": 1e-8, "bound_frac": 1e-8, "mu_init": 1e-6,
 MAX_ITERATIONS = 2**31 - 1
 
 
-#: The solvers `Collocation.solve` may use: "auto" (IPOPT from a cold start, the structured SQP
-#: from a warm one — a refined mesh, a re-plan — where the problem has its structure, IPOPT
-#: otherwise), "ipopt", or "sqp" (the structured SQP always, an error where it does not apply).
+#: The solvers `Collocation.solve` may use: "auto" (IPOPT, warm-started from a refined mesh's or
+#: a re-plan's start: measured faster than the structured SQP on robots, benchmarks/
+#: robot_motions.py), "ipopt", or "sqp" (the structured SQP from a warm start, an error where it
+#: does not apply).
 SOLVERS = ("auto", "ipopt", "sqp")
 
 
@@ -221,25 +222,21 @@ def solve_mesh(problem, layout, controls, guess, settings, warm=False, shift=0.0
     """The CollocationResult of one solve of `problem` on the mesh `layout` (inputs tied to
     `controls`, a ControlMesh, or free) from `guess` (see `Collocation.solve`; `shift` seconds
     of an earlier result dropped, its end held); `warm`: the guess is an earlier solution (a
-    refined mesh's start, a re-plan), which the structured SQP takes where it applies
-    (`settings.solver`), IPOPT with `WARM_OPTIONS` otherwise."""
+    refined mesh's start, a re-plan), which IPOPT takes with `WARM_OPTIONS`; the structured SQP
+    (with the guess's multipliers) solves instead when `settings.solver` is "sqp"."""
     from .guess import initial_guess, warm_multipliers
     tr = problem.transcription(settings.hessian, layout, controls)
     x0 = initial_guess(problem, tr, guess, shift)
     T0 = layout.duration(x0) if layout.free else problem.duration_bounds[0]
     bound = tr.bound(T0)
-    if (warm and settings.solver == "auto") or settings.solver == "sqp":
+    if settings.solver == "sqp":
         from .sqp import Unsupported
         try:
             return solve_structured(problem, bound, x0, *warm_multipliers(bound, guess, shift),
                                     settings)
         except Unsupported as exc:
-            if settings.solver == "sqp":
-                raise LagrgenError(f"solver='sqp' cannot solve this problem: {exc}; solve it "
-                                   "with solver='auto' or 'ipopt'") from None
-            if settings.progress:
-                print(f"(the structured SQP does not apply: {exc}; IPOPT solves this mesh)",
-                      flush=True)
+            raise LagrgenError(f"solver='sqp' cannot solve this problem: {exc}; solve it "
+                               "with solver='auto' or 'ipopt'") from None
     return solve_nlp(problem, bound, x0, settings, warm)
 
 
