@@ -247,3 +247,22 @@ def test_a_replan_equals_a_cold_solve_from_the_new_state(swing):
         prob.resolve(again, initial={"qd": [4.1]})
     with pytest.raises(lagrgen.errors.LagrgenError, match="shift"):
         prob.resolve(again, shift=5.0)
+
+
+@pytest.mark.filterwarnings("ignore", category=DiscretizationWarning)
+def test_a_state_that_leaves_its_bound_between_the_points_is_said(swing):
+    """Issue 45 item 4 (states): collocation bounds q̇ at its points; where the velocity rides its
+    bound, the interpolant between points goes beyond it, and the result says by how much
+    (bound_excursions, a note), as a dense sampling of state_at finds it."""
+    model, mod = swing
+    T, = model.input_functions
+    res = swing_problem(mod, T, limit=20.0).solve(progress=False, mesh_tol=None)
+    found = res.bound_excursions()
+    assert set(found) == {"theta_dot"}
+    excess, when = found["theta_dot"]
+    dense = np.abs(res.state_at(np.linspace(0.0, res.duration, 20001))[1]) - 4.0
+    assert 0.0 < excess and abs(excess - dense.max()) < 0.05 * dense.max()
+    assert any("theta_dot leaves its bound" in note for note in res.notes)
+    free = lagrgen.Collocation(mod, nodes=21, duration=3.0)
+    free.initial(q=[0.0], qd=[0.0]).final(q=[np.pi], qd=[0.0]).minimize(integral=T ** 2)
+    assert free.solve(progress=False, mesh_tol=None).bound_excursions() == {}

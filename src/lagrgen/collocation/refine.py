@@ -122,6 +122,10 @@ def finished(result, errors, meshes, mesh_tol, seconds, limit=None):
     result.iterations = sum(m.iterations for m in meshes)
     result.seconds = seconds
     result.mesh_tol = mesh_tol
+    for name, (excess, when) in result.bound_excursions().items():
+        result.notes.append(f"between the points the interpolated {name} leaves its bound by "
+                            f"{excess:.2g} (largest near t = {when:.4g} s): collocation bounds "
+                            "the states at its points only; a finer mesh shrinks it")
     if mesh_tol is None:
         if result.error > DEFAULT_MESH_TOL:
             warnings.warn(f"the dynamics error of this solution is {result.error:.2g} (relative, "

@@ -76,7 +76,8 @@ class CollocationResult:
     callback_seconds : the part of it spent evaluating the NLP (the rest is the solver's own)
     solve_seconds : wall time of the last mesh's solve (of `Collocation.resolve`: the re-plan)
     solver : "ipopt" or "sqp", the solver of the last mesh (`Collocation.solve`'s solver=)
-    notes : what the solve adjusted and says so (an initial value on a bound clipped, ...)
+    notes : what the solve adjusted and says so (an initial value on a bound clipped, a state
+        whose interpolant leaves its bound between the points: `bound_excursions`, ...)
     x : the decision vector (a warm start for another solve)
     """
 
@@ -174,6 +175,33 @@ class CollocationResult:
     def _point_values(self, kind, i):
         L = self._layout
         return L.point_block(self.x)[:, L.offset(kind) + i]
+
+    def bound_excursions(self, samples=16):
+        """{state name: (excursion, t)}: how far each state's interpolant (`state_at`) leaves
+        its bounds between the points, where collocation does not bound it, largest over
+        `samples` instants per interval, for the states that leave them by more than 1e-6 of
+        max(1, |bound|) (names: the coordinates and <coordinate>_dot). An interval's bound is
+        the loosest of its points' (instance values do not bound the states between)."""
+        L, tr = self._layout, self._transcription
+        lo, hi = (L.point_block(b)[:, :2 * L.n] for b in (tr.lo, tr.hi))
+        if not (np.isfinite(lo).any() or np.isfinite(hi).any()):
+            return {}
+        names = list(self.coordinates) + [f"{c}_dot" for c in self.coordinates]
+        fractions = (np.arange(samples) + 0.5) / samples
+        out = {}
+        for k in range(len(self.t) - 1):
+            inside = L.node_points[k] + np.arange(L.node_points[k + 1] - L.node_points[k] + 1)
+            low, high = lo[inside].min(axis=0), hi[inside].max(axis=0)
+            times = self.t[k] + fractions * (self.t[k + 1] - self.t[k])
+            values = self.state_at(times)
+            excess = np.maximum(low[:, None] - values, values - high[:, None])
+            for i in np.flatnonzero(excess.max(axis=1) > 0):
+                j = int(np.argmax(excess[i]))
+                bound = low[i] if values[i, j] < low[i] else high[i]
+                if excess[i, j] > 1e-6 * max(1.0, abs(bound)) and \
+                        excess[i, j] > out.get(names[i], (0.0,))[0]:
+                    out[names[i]] = (float(excess[i, j]), float(times[j]))
+        return out
 
     def state_at(self, times):
         """[q; q̇] at `times` (a number or an array), on the collocation's interpolant: (2n,) or
