@@ -424,9 +424,10 @@ def worker_chain(folder, links, warm):
     out = {"build": built - began, "units": units - built}
     with MeshLog() as log:
         out["cold"] = timed_solve(lambda: prob.solve(progress=False, mesh_tol=1e-6), log)[1]
+        out["first_motion"] = out["build"] + out["units"] + out["cold"]["wall"]
+        emit(out)
         out["warm"] = [timed_solve(lambda: prob.solve(progress=False, mesh_tol=1e-6), log)[1]
                        for _ in range(warm)]
-    out["first_motion"] = out["build"] + out["units"] + out["cold"]["wall"]
     return out
 
 
@@ -798,7 +799,7 @@ def measure(args, tmp, say):
     if not args.quick:
         say("20-link chain refined ...")
         out["chain"] = spawn("chain", {"folder": str(tmp / "chain"), "links": 20,
-                                       "warm": repeat})
+                                       "warm": repeat}, timeout=args.chain_timeout)
     out["casadi"] = None
     if casadi_available():
         say("CasADi + IPOPT ...")
@@ -1037,11 +1038,13 @@ def chain_table(chain):
              f"| solve ({meshes_text(c['meshes'])} nodes, {solvers_text(c['log'])}) | "
              f"{fmt(c['wall'])} | {fmt(c.get('cpu'))} |",
              f"| **first motion** | {fmt(chain['first_motion'])} | — |"]
-    for k, w in enumerate(chain["warm"], 1):
+    for k, w in enumerate(chain.get("warm", []), 1):
         lines.append(f"| warm solve {k} ({solvers_text(w['log'])}) | {fmt(w['wall'])} | "
                      f"{fmt(w.get('cpu'))} |")
     lines.append(f"\nError {c['error']:.2g}, objective {c['objective']:.10g}, success "
                  f"{c['success']}.")
+    if chain.get("stopped"):
+        lines.append(f"The warm solves: {chain['stopped']}.")
     return "\n".join(lines) + "\n"
 
 
@@ -1106,6 +1109,8 @@ def main(argv=None):
                         help="seconds a Talos process may take")
     parser.add_argument("--mintime-timeout", type=float, default=600,
                         help="seconds the minimum-time process may take")
+    parser.add_argument("--chain-timeout", type=float, default=1200,
+                        help="seconds the 20-link chain's process may take")
     parser.add_argument("--croc-python", help="the interpreter of Crocoddyl's environment")
     parser.add_argument("--worker", nargs=2, help=argparse.SUPPRESS)
     args = parser.parse_args(argv)
@@ -1124,6 +1129,9 @@ def main(argv=None):
     out["versions"] = versions(next((r["version"] for r in ok(out["crocoddyl"] or [])),
                                     "not run"))
     out["load"] = load
+    given = sys.argv[1:] if argv is None else argv
+    if given:
+        out["header_note"] = f"Run as `python benchmarks/robot_motions.py {' '.join(given)}`."
     text = report(out, load, args.quick)
     print(text)
     RESULTS.mkdir(exist_ok=True)
