@@ -118,6 +118,44 @@ def _spd_inverse(ca, D):
     return ca.mtimes(Linv.T, Linv)
 
 
+def motion_transform(ca, R, p):
+    """The 6×6 motion transform parent -> child of the placement (R, p) (spatial vectors
+    [ω; v])."""
+    Rt = R.T
+    return ca.vertcat(ca.horzcat(Rt, ca.SX.zeros(3, 3)),
+                      ca.horzcat(-ca.mtimes(Rt, _skew(ca, p)), Rt))
+
+
+def motion_cross(ca, x):
+    """The 6×6 matrix of x× on motion vectors [ω; v] (its negated transpose acts on forces)."""
+    w, u = x[0:3], x[3:6]
+    return ca.vertcat(ca.horzcat(_skew(ca, w), ca.SX.zeros(3, 3)),
+                      ca.horzcat(_skew(ca, u), _skew(ca, w)))
+
+
+def spatial_inertia(ca, Y):
+    """The 6×6 spatial inertia at a joint's origin of Pinocchio's Inertia Y ([ω; v] order)."""
+    m, lever = Y.mass, ca.DM(Y.lever)
+    Cx = _skew(ca, lever)
+    IO = ca.DM(Y.inertia) - m * ca.mtimes(Cx, Cx)
+    return ca.vertcat(ca.horzcat(IO, m * Cx), ca.horzcat(m * Cx.T, m * ca.DM.eye(3)))
+
+
+def joint_link(ca, pm, i, q):
+    """(X, S) of joint i of the Pinocchio model `pm` at q: the motion transform from its parent's
+    frame (liMi = placement·M_J(q)) and its motion subspace."""
+    RJ, pJ, S = _joint(ca, pm.joints[i], q, None)
+    M = pm.jointPlacements[i]
+    R = ca.mtimes(ca.DM(M.rotation), RJ)
+    p = ca.DM(M.translation) + ca.mtimes(ca.DM(M.rotation), pJ)
+    return motion_transform(ca, R, p), S
+
+
+def gravity_acceleration(ca, pm):
+    """The base's fictitious acceleration −g as a spatial vector [0; −g]."""
+    return ca.DM(list(np.zeros(3)) + list(-pm.gravity.linear))
+
+
 def casadi_aba(pm):
     """casadi.Function aba(q, v, tau) -> q̈ of the Pinocchio model `pm` (LOCAL convention: each
     joint's frame; spatial vectors [ω; v] at its origin; liMi = placement·M_J(q))."""
@@ -126,35 +164,16 @@ def casadi_aba(pm):
     nj = pm.njoints
     X, S, vel, c, IA, pA = [None] * nj, [None] * nj, [None] * nj, [None] * nj, [None] * nj, \
         [None] * nj
-
-    def action(R, p):       # the motion transform parent -> child of liMi = (R, p)
-        Rt = R.T
-        return ca.vertcat(ca.horzcat(Rt, ca.SX.zeros(3, 3)),
-                          ca.horzcat(-ca.mtimes(Rt, _skew(ca, p)), Rt))
-
-    def crm(x):
-        w, u = x[0:3], x[3:6]
-        return ca.vertcat(ca.horzcat(_skew(ca, w), ca.SX.zeros(3, 3)),
-                          ca.horzcat(_skew(ca, u), _skew(ca, w)))
-
     for i in range(1, nj):
         jm, parent = pm.joints[i], pm.parents[i]
-        RJ, pJ, S[i] = _joint(ca, jm, q, v)
-        M = pm.jointPlacements[i]
-        R = ca.mtimes(ca.DM(M.rotation), RJ)
-        p = ca.DM(M.translation) + ca.mtimes(ca.DM(M.rotation), pJ)
-        X[i] = action(R, p)
+        X[i], S[i] = joint_link(ca, pm, i, q)
         vJ = ca.mtimes(S[i], v[jm.idx_v:jm.idx_v + jm.nv])
         vp = ca.mtimes(X[i], vel[parent]) if parent > 0 else ca.SX.zeros(6, 1)
         vel[i] = vp + vJ
-        c[i] = ca.mtimes(crm(vel[i]), vJ)
-        Y = pm.inertias[i]
-        m, lever = Y.mass, ca.DM(Y.lever)
-        Cx = _skew(ca, lever)
-        IO = ca.DM(Y.inertia) - m * ca.mtimes(Cx, Cx)
-        IA[i] = ca.vertcat(ca.horzcat(IO, m * Cx), ca.horzcat(m * Cx.T, m * ca.DM.eye(3)))
+        c[i] = ca.mtimes(motion_cross(ca, vel[i]), vJ)
+        IA[i] = spatial_inertia(ca, pm.inertias[i])
         h = ca.mtimes(IA[i], vel[i])
-        pA[i] = -ca.mtimes(crm(vel[i]).T, h)       # v ×* (I·v)
+        pA[i] = -ca.mtimes(motion_cross(ca, vel[i]).T, h)       # v ×* (I·v)
     U, Dinv, u = [None] * nj, [None] * nj, [None] * nj
     for i in range(nj - 1, 0, -1):
         jm, parent = pm.joints[i], pm.parents[i]
@@ -168,7 +187,7 @@ def casadi_aba(pm):
             IA[parent] = IA[parent] + ca.mtimes(ca.mtimes(X[i].T, Ia), X[i])
             pA[parent] = pA[parent] + ca.mtimes(X[i].T, pa)
     acc, qdd = [None] * nj, [None] * (pm.nv)
-    g = ca.DM(list(np.zeros(3)) + list(-pm.gravity.linear))
+    g = gravity_acceleration(ca, pm)
     for i in range(1, nj):
         jm, parent = pm.joints[i], pm.parents[i]
         ap = ca.mtimes(X[i], acc[parent] if parent > 0 else g) + c[i]
@@ -179,17 +198,24 @@ def casadi_aba(pm):
     return ca.Function("aba", [q, v, tau], [ca.vertcat(*qdd)])
 
 
+def check_against(f, reference, pm, spans=(1.0, 1.0), seed=1, states=3):
+    """The largest relative difference of f(q, x, y) from Pinocchio's reference(pm, data, q, x,
+    y) at random states (x, y uniform within ±spans)."""
+    import pinocchio as pin
+    data, rng, worst = pm.createData(), np.random.default_rng(seed), 0.0
+    for _ in range(states):
+        q = pin.randomConfiguration(pm, -np.ones(pm.nq), np.ones(pm.nq))
+        x, y = (rng.uniform(-span, span, pm.nv) for span in spans)
+        a = reference(pm, data, q, x, y)
+        b = np.array(f(q, x, y)).ravel()
+        worst = max(worst, float(np.abs(a - b).max() / max(np.abs(a).max(), 1.0)))
+    return worst
+
+
 def check_trace(f, pm, states=3):
     """The largest relative difference of the trace from pin.aba at random states."""
     import pinocchio as pin
-    data, rng, worst = pm.createData(), np.random.default_rng(1), 0.0
-    for _ in range(states):
-        q = pin.randomConfiguration(pm, -np.ones(pm.nq), np.ones(pm.nq))
-        v, tau = rng.uniform(-1, 1, pm.nv), rng.uniform(-1, 1, pm.nv)
-        a = pin.aba(pm, data, q, v, tau)
-        b = np.array(f(q, v, tau)).ravel()
-        worst = max(worst, float(np.abs(a - b).max() / max(np.abs(a).max(), 1.0)))
-    return worst
+    return check_against(f, pin.aba, pm, states=states)
 
 
 # -- C loops ---------------------------------------------------------------------------------------
