@@ -266,3 +266,38 @@ def test_a_state_that_leaves_its_bound_between_the_points_is_said(swing):
     free = lagrgen.Collocation(mod, nodes=21, duration=3.0)
     free.initial(q=[0.0], qd=[0.0]).final(q=[np.pi], qd=[0.0]).minimize(integral=T ** 2)
     assert free.solve(progress=False, mesh_tol=None).bound_excursions() == {}
+
+
+@pytest.mark.filterwarnings("ignore", category=DiscretizationWarning)
+def test_terminal_constraints_and_costs(swing):
+    """prob.terminal(expr, lo, hi) holds expr at the last node (the same optimum as the final
+    value it states); minimize(terminal=cost) adds the cost of the last node: the motion it
+    finds is the optimum of the fixed end it reaches, its objective that one's plus the cost.
+    The SQP says it does not take them."""
+    model, mod = swing
+    T, = model.input_functions
+    theta = model.q[0]
+
+    def problem():
+        prob = lagrgen.Collocation(mod, nodes=31, duration=3.0).bound("T", -20.0, 20.0)
+        return prob.initial(q=[0.0], qd=[0.0])
+
+    fixed = problem().final(q=[np.pi], qd=[0.0]).minimize(integral=T ** 2)
+    reference = fixed.solve(progress=False, mesh_tol=None)
+    stated = problem().final(qd=[0.0])
+    stated.terminal(sp.cos(theta), -1.0, -1.0).terminal(theta, 0.0, 4.0)
+    res = stated.minimize(integral=T ** 2).solve(progress=False, mesh_tol=None)
+    assert res.success and abs(res.y[0, -1] - np.pi) < 1e-6
+    assert abs(res.objective - reference.objective) < 1e-6 * reference.objective
+    w = 20.0
+    costed = problem().final(qd=[0.0]).minimize(integral=T ** 2,
+                                                 terminal=w * (theta - np.pi) ** 2)
+    soft = costed.solve(progress=False, mesh_tol=None)
+    end = soft.y[0, -1]
+    assert soft.success and 1.0 < end < np.pi - 1e-3
+    same_end = problem().final(q=[end], qd=[0.0]).minimize(integral=T ** 2)
+    hard = same_end.solve(progress=False, mesh_tol=None)
+    assert abs(soft.objective - (hard.objective + w * (end - np.pi) ** 2)) \
+        < 1e-6 * soft.objective
+    with pytest.raises(lagrgen.errors.LagrgenError, match="terminal"):
+        stated.solve(progress=False, mesh_tol=None, solver="sqp")

@@ -90,6 +90,8 @@ def unsupported(tr):
         return "linear rows across intervals (periodicity, inputs tied to a coarser grid)"
     if tr.n_cons:
         return "consistency rows"
+    if tr.n_term or tr.problem._terminal_cost is not None:
+        return "terminal constraints or a terminal cost"
     if not tr.recursive and not tr.exact:
         return "no exact Hessian"
     return None
