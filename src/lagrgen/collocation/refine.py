@@ -69,7 +69,7 @@ def solve_refined(problem, guess, settings, mesh_tol, max_meshes, start=None):
     meshes, spent, callbacks, limit = [], 0.0, 0.0, None
     tied = frozenset() if controls is None else frozenset(controls.tied or ())
     result = solve_mesh(problem, layout, controls, guess, settings, warm=start is not None,
-                        shift=shift)
+                        shift=shift, replan=start is not None)
     if start is not None and mesh_tol is None:
         return result
     while True:
