@@ -166,7 +166,16 @@ def model_info(spec, equations, formulation=None):
         nonsmooth_definitions=[(e["name"], e["kind"], e["normal"])
                                for e in _nonsmooth().describe(spec)],
         inertial_parameters=inertial_parameters(spec),
-        initial_state=spec.initial_state, coordinate_limits=spec.limits)
+        initial_state=spec.initial_state, coordinate_limits=spec.limits,
+        link_names=tree_links(equations))
+
+
+def tree_links(equations):
+    """The names of the links of a three-dimensional tree (none for any other model)."""
+    from .kernels import has_links
+    from .tree import analysed
+    return tuple(name for name, _, _ in analysed(equations)[0].links) \
+        if has_links(equations) else ()
 
 
 def _nonsmooth():

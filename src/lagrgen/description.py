@@ -293,7 +293,7 @@ class Description:
         return (shape[0],) + tuple(self._check(v, f"{shape[0]} size", velocities=False,
                                                inputs=False) for v in shape[1:])
 
-    def rigid_body_3d(self, mass, inertia, position, orientation):
+    def rigid_body_3d(self, mass, inertia, position, orientation, name=None):
         """Rigid body in space: T += ½·mass·ṙ·ṙ + ½·ωᵀ·I·ω, with ω the body-frame angular velocity
         (ω̃ = Rᵀ·Ṙ) of the orientation R.
 
@@ -305,8 +305,15 @@ class Description:
         position : 3 components, the centre of mass in the fixed frame (coordinates, t).
         orientation : 3×3 rotation matrix R(q, t) mapping body-frame components to fixed-frame
             ones, best built from `lagrgen.rotation` (``rotation.z(psi) * rotation.x(theta)``).
+        name : str, optional, the body's name as a link (`link_position`; default body<k>, k
+            counting the 3-D bodies in declaration order).
         """
         from .bodies3d import body_inertia
+        if name is not None:
+            check_name(name, "rigid_body_3d name")
+            if name in self.link_names:
+                raise ModelError(f"rigid_body_3d: model {self.name!r} already has a link "
+                                 f"{name!r}")
         mass = self._check(mass, "rigid body mass", velocities=False, inputs=False)
         inertia = body_inertia(self, inertia)
         position = self._check(as_vector(position, "rigid body position"), "rigid body position",
@@ -317,7 +324,50 @@ class Description:
         kin = self._orientation(orientation, "rigid_body_3d orientation")
         self._drawables.append(("body3d", (position, kin.R)))
         self._add(Body3D(mass, frozen(position), frozen(inertia), frozen(kin.omega), frozen(kin.R),
-                          frozen(kin.omega_fixed)))
+                          frozen(kin.omega_fixed), name))
+
+    @property
+    def link_names(self):
+        """The model's links: a URDF robot's links, then its `rigid_body_3d` bodies (named, or
+        body<k>), in order."""
+        from .links import link_names
+        return link_names(self._physics)
+
+    def link_position(self, link, point=(0, 0, 0)):
+        """The position in the fixed frame of a point fixed in a link (API §22).
+
+        Parameters
+        ----------
+        link : str, one of `link_names` (a URDF link, or a rigid_body_3d's name)
+        point : 3 numbers or parameter expressions, the point in the link's frame (a URDF
+            link's frame; a rigid_body_3d's frame is at its centre of mass, along its body axes)
+
+        Returns
+        -------
+        sympy.Matrix (3×1): p_link + R_link·point in the model's symbols
+        """
+        from .links import pose
+        R, p = pose(self._physics, link, self.name)
+        return p + R * self._link_point(point)
+
+    def link_rotation(self, link):
+        """The orientation of a link's frame in the fixed frame: the 3×3 SymPy Matrix R with
+        x_fixed = R·x_link (API §22)."""
+        from .links import pose
+        return pose(self._physics, link, self.name)[0]
+
+    def _link_point(self, point):
+        """`point` as a 3×1 Matrix of constants (numbers and parameters)."""
+        where = "link point"
+        point = self._check(as_vector(point, where), where, velocities=False, inputs=False,
+                            vector=True)
+        if len(point) != 3:
+            raise ModelError(f"a {where} has 3 components (x, y, z in the link's frame), got "
+                             f"{len(point)}")
+        if any(point.has(c) for c in self._coordinates):
+            raise ModelError(f"a {where} is fixed in its link: it must not depend on the "
+                             "coordinates")
+        return point
 
     def torque_3d(self, moment, orientation):
         """A moment acting on the body of orientation R: Q_j += moment · ∂ω_fixed/∂q̇_j.

@@ -23,6 +23,8 @@ CALL_STYLES = {
     "state": ("t", "y"),        # f(t, y, p=None, u=None)
     "directions": ("t", "y", "dy", "dp"),   # f(t, y, dy, dp=None, p=None, u=None)
     "implicit": ("q", "qd", "a", "t"),   # f(q, qd, a, t=0.0, p=None, u=None), a = [q̈, λ]
+    "link": ("link", "q", "point"),      # f(link, q, point=(0, 0, 0), p=None); in C
+                                         # y = [q, point, the link's index]
 }
 
 
@@ -140,6 +142,14 @@ FUNCTIONS = (
                   "Y(q, q̇, q̈) with M·q̈ − F = Y·π for the bodies' inertial parameters π "
                   "(inertial_parameters; forces of inputs, springs and dampers left out): "
                   "∂(M·q̈ − F)/∂π", ("parameter_b", "body_poses"), "regressor"),
+    ModelFunction("link_pose", "link", (Output("position", ("3",)), Output("rotation", ("3", "3"))),
+                  "the world position p + R·point of a point fixed in a link and the link's "
+                  "rotation R (x_world = R·x_link), from the tree's link frames",
+                  ("link_frames",), "links"),
+    ModelFunction("link_jacobian", "link", (Output("J", ("6", "n")),),
+                  "J with [velocity of the point; angular velocity of the link] = J·q̇, world "
+                  "axes: the columns of the joints above the link, [v_j + ω_j × x; ω_j] from "
+                  "their twists [ω_j; v_j]", ("link_frames",), "links"),
     ModelFunction("residual_parameter_jacobian", "implicit",
                   (Output("dr_dp", ("n_implicit", "n_params")),),
                   "∂r/∂p of r = [M·q̈ − F − Aᵀλ; A·q̈ − γ] at a given a = [q̈, λ]",

@@ -57,6 +57,7 @@ class Body3D:
     omega: sp.ImmutableMatrix
     orientation: sp.ImmutableMatrix = None
     omega_fixed: sp.ImmutableMatrix = None
+    name: str = None                # the link it is (`Model.link_position`); None: body<k>
 
 
 @dataclass(frozen=True)
@@ -85,9 +86,21 @@ class Segment:
 class Articulation:
     """A tree of rigid bodies joined by revolute and prismatic joints (`lagrgen.from_urdf`):
     T of every segment's body, V = −Σ m·g·c of a uniform gravity `gravity` (3, fixed frame).
-    Segments come parents first."""
+    Segments come parents first; `links` (`LinkFrame`s) says where each link's frame is."""
     segments: tuple
     gravity: sp.ImmutableMatrix
+    links: tuple = ()
+
+
+@dataclass(frozen=True)
+class LinkFrame:
+    """Where a link's frame is: fixed in the frame of segment `segment` (−1: the fixed frame) at
+    `offset` (3×1), rotated by `rotation` (3×3), numbers; links that fixed joints merge into a
+    body keep their own frames."""
+    name: str
+    segment: int
+    rotation: sp.ImmutableMatrix
+    offset: sp.ImmutableMatrix
 
 
 @dataclass(frozen=True)

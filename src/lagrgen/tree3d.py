@@ -47,7 +47,8 @@ class SpatialTree:
     one past the last node of its subtree; `records[k]` the node's FIELDS (SymEngine), `Q` the
     generalized forces in coordinate order; `poses[k]` the node's frame in the fixed one (R
     row-major, then its origin: 12 expressions), the frame its body's inertial parameters are
-    about.
+    about; `links` the model's links (`lagrgen.links`) as (name, the node whose body carries it
+    or −1 for the fixed frame, its frame: R row-major then origin, 12 expressions).
     """
     coordinate: tuple
     parent: tuple
@@ -56,6 +57,7 @@ class SpatialTree:
     Q: list
     notes: list = field(default_factory=list)
     poses: list = field(default_factory=list)
+    links: list = field(default_factory=list)
     kind = "spatial"
     fields = FIELDS
 
@@ -137,7 +139,21 @@ def _from_articulation(eq, record, others):
                  else ", a root")
         notes.append(f"node {k}: {segment.kind} joint {names[coordinate[k]]}{above}; carries "
                      f"{('link ' + segment.link) if segment.link else 'no body'}")
-    return SpatialTree(tuple(coordinate), parent, end, records, Q, notes, poses)
+    links = [(frame.name, frame.segment, _placed_pose(world, frame, convert))
+             for frame in record.links]
+    return SpatialTree(tuple(coordinate), parent, end, records, Q, notes, poses, links)
+
+
+def _placed_pose(world, frame, convert):
+    """The 12 pose expressions (R row-major, origin) of a link fixed in a segment's frame."""
+    R0 = [[convert(x) for x in row] for row in frame.rotation.tolist()]
+    o = [convert(x) for x in frame.offset]
+    if frame.segment < 0:
+        return [x for row in R0 for x in row] + o
+    carrier = world[frame.segment]
+    R = frames.matmul(carrier.R, R0)
+    p = [a + b for a, b in zip(carrier.p, frames.apply(carrier.R, o))]
+    return [x for row in R for x in row] + p
 
 
 def inertial_symbols(spec):
@@ -213,6 +229,7 @@ class Body:
     inertia: list = None
     omega: list = None
     coordinates: frozenset = frozenset()
+    name: str = None
 
 
 def _from_bodies(eq):
@@ -230,10 +247,12 @@ def _from_bodies(eq):
         if isinstance(record, Body3D):
             if record.orientation is None or record.omega_fixed is None:
                 raise NotATree("a 3-D body has no orientation recorded")
+            name = record.name if record.name is not None else \
+                f"body{sum(b.R is not None for b in bodies)}"
             bodies.append(Body(convert(record.mass), [convert(x) for x in record.position],
                                [[convert(x) for x in row] for row in record.orientation.tolist()],
                                [[convert(x) for x in row] for row in record.inertia.tolist()],
-                               [convert(x) for x in record.omega_fixed]))
+                               [convert(x) for x in record.omega_fixed], name=name))
         elif isinstance(record, Particle) and len(record.position) == 3:
             bodies.append(Body(convert(record.mass), [convert(x) for x in record.position]))
         elif isinstance(record, APPLIED):
@@ -248,6 +267,7 @@ def _from_bodies(eq):
                 x.free_symbols & moving for row in body.inertia or [] for x in row):
             raise NotATree("a body moves with t, or its mass or inertia varies")
         body.coordinates = frozenset(index[s] for s in free if s in index)
+    rigid = [b for b in bodies if b.R is not None]
     bodies = [b for b in bodies if b.coordinates]
     n = len(q)
     moved = [frozenset(b for b, body in enumerate(bodies) if j in body.coordinates)
@@ -301,7 +321,11 @@ def _from_bodies(eq):
         notes.append(f"node {k}: coordinate {names[j]}{above}; carries "
                      f"{len(carried) or 'no'} bod{'y' if len(carried) == 1 else 'ies'}")
     identity = [se.Integer(int(i == j)) for i in range(3) for j in range(3)] + [zero] * 3
-    return SpatialTree(coordinate, parent, end, records, Q, notes, [identity] * len(coordinate))
+    carrier = {id(body): node_of[own] for body, own in zip(bodies, leaf)}
+    links = [(body.name, carrier.get(id(body), -1), [x for row in body.R for x in row] + body.p)
+             for body in rigid]
+    return SpatialTree(coordinate, parent, end, records, Q, notes, [identity] * len(coordinate),
+                       links)
 
 
 def _column(eq, body, j, reference=None):

@@ -378,11 +378,13 @@ class Part:
     body: np.ndarray = field(default_factory=lambda: np.zeros(10))
 
 
-def parts(robot, base="fixed", frozen=None):
+def parts(robot, base="fixed", frozen=None, frames=None):
     """The robot's moving joints as `Part`s, parents first (depth first from the root link, in
     file order), with the links that fixed joints join merged into the body before them; the
-    joints of `frozen` ({name: position}) are fixed at that position."""
+    joints of `frozen` ({name: position}) are fixed at that position. `frames`, a dict, receives
+    {link: (the Part whose frame it is fixed in, or None for the fixed frame, R, p)}."""
     frozen = frozen or {}
+    frames = {} if frames is None else frames
     out = []
     if base == "floating":
         for name, kind, axis in FLOATING_BASE:
@@ -394,6 +396,7 @@ def parts(robot, base="fixed", frozen=None):
         out[owner0].link = robot.root
     while stack:
         link, owner, R, p = stack.pop()
+        frames[link] = (out[owner] if owner >= 0 else None, R, p)
         if owner >= 0:
             out[owner].body = out[owner].body + _placed(robot.links[link], R, p)
         pending = []
@@ -546,7 +549,8 @@ def from_urdf(path, name=None, base="fixed", gravity=(0.0, 0.0, -9.81), joint_dy
         _check_mimics(robot)
     if massless not in ("error", "fixed"):
         raise ModelError(f"massless must be 'error' or 'fixed', got {massless!r}")
-    found = parts(robot, base)
+    frames = {}
+    found = parts(robot, base, frames=frames)
     names = [p.name for p in found]
     clash = {n for n in names if names.count(n) > 1}
     if clash:
@@ -556,7 +560,7 @@ def from_urdf(path, name=None, base="fixed", gravity=(0.0, 0.0, -9.81), joint_dy
                  if mimic and p.joint is not None and p.joint.mimic is not None}
     frozen = _frozen_massless(robot, found, followers, massless)
     if frozen:
-        found = parts(robot, base, frozen)
+        found = parts(robot, base, frozen, frames)
         followers = {name: f for name, f in followers.items()
                      if any(p.name == name for p in found)}
     coordinate_parts = [p for p in found if p.name not in followers]
@@ -582,7 +586,7 @@ def from_urdf(path, name=None, base="fixed", gravity=(0.0, 0.0, -9.81), joint_dy
                              _exact(_clean(p.rotation)), _exact(_clean(p.offset).reshape(3, 1)),
                              motion[p.name], inertias[k])
                      for k, p in enumerate(found))
-    record = Articulation(segments, sp.ImmutableMatrix(gravity))
+    record = Articulation(segments, sp.ImmutableMatrix(gravity), _link_frames(frames, found))
     model._add(record)
     model._drawables.append(("robot", (record,)))
     for p, u in zip(coordinate_parts, tau):
@@ -595,6 +599,15 @@ def from_urdf(path, name=None, base="fixed", gravity=(0.0, 0.0, -9.81), joint_dy
         if limit is not None and any(v is not None for v in astuple(limit)):
             model.limit(p.name, *astuple(limit))
     return model
+
+
+def _link_frames(frames, found):
+    """The `LinkFrame` of every link, in the order of the file's links met depth first."""
+    from .records import LinkFrame
+    index = {id(part): k for k, part in enumerate(found)}
+    return tuple(LinkFrame(link, -1 if owner is None else index[id(owner)], _exact(_clean(R)),
+                           _exact(_clean(p).reshape(3, 1)))
+                 for link, (owner, R, p) in frames.items())
 
 
 def _clean(array):

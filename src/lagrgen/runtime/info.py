@@ -25,7 +25,8 @@ class ModelInfo:
     (over the kinematic tree, `lagrgen.tree`); `inertial_parameters` the parameters that are the
     bodies' ten inertial parameters (m, m·c, I about the body frame's origin), ten per body, the
     columns of the regressor; `coordinate_limits` the declared limits (`Model.limit`) as
-    (coordinate, lower, upper, velocity, effort), None where absent.
+    (coordinate, lower, upper, velocity, effort), None where absent; `link_names` the names of
+    the links of a three-dimensional tree (`link_pose`, `link_jacobian`), in order.
     """
 
     name: str
@@ -46,10 +47,12 @@ class ModelInfo:
     formulation: str = "dense"
     inertial_parameters: tuple = ()
     coordinate_limits: tuple = ()
+    link_names: tuple = ()
 
     def __post_init__(self):
         for name in ("coordinates", "parameters", "inputs", "defaults", "output_names",
-                     "constraint_names", "initial_state", "inertial_parameters"):
+                     "constraint_names", "initial_state", "inertial_parameters",
+                     "link_names"):
             object.__setattr__(self, name, tuple(getattr(self, name)))
         object.__setattr__(self, "event_definitions",
                            tuple(tuple(e) for e in self.event_definitions))
@@ -84,7 +87,8 @@ class ModelInfo:
                 "n_implicit": n + m,
                 "n_events": len(self.event_definitions), "n_power": len(POWER_TERMS),
                 "n_outputs": len(self.output_names),
-                "n_inertial": len(self.inertial_parameters),
+                "n_inertial": len(self.inertial_parameters), "n_links": len(self.link_names),
+                "3": 3, "6": 6,
                 "n_hybrid": sum(HYBRID_FIELDS[kind] + n for _, kind, _ in
                                 self.nonsmooth_definitions)}
 
@@ -110,4 +114,4 @@ INFO_ATTRIBUTES = ("name", "coordinates", "parameters", "inputs", "units", "outp
                    "constraint_names", "event_definitions", "explicit_time", "content_hash",
                    "lagrgen_version", "n_coordinates", "n_constraints", "dimensions",
                    "nonsmooth_definitions", "formulation", "inertial_parameters",
-                   "limits")
+                   "limits", "link_names")
