@@ -170,7 +170,8 @@ def functions_of(unit):
 #: scleronomic model with R quadratic in q̇.
 POWER_TERMS = ("input_power", "rayleigh_dissipation")
 
-#: Entries of `hybrid_terms`' `terms` per impact and per friction, beside the n of its gradient
-#: (the layout is in `lagrgen.nonsmooth`).
-HYBRID_FIELDS = {"impact": 4, "friction": 5}
+#: Entries of `hybrid_terms`' `terms` per impact and per friction, beside the n of each of its
+#: HYBRID_GRADIENTS gradients (the layout is in `lagrgen.nonsmooth`).
+HYBRID_FIELDS = {"impact": 4, "friction": 5, "planar_friction": 7}
+HYBRID_GRADIENTS = {"impact": 1, "friction": 1, "planar_friction": 2}
 

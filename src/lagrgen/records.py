@@ -191,12 +191,17 @@ class Impact:
 class Friction:
     """Coulomb friction with sticking on v(q, q̇, t) = w(q, t)·q̇ + b(q, t) (`Model.friction`);
     `normal_force` an expression, or the name (str) of a constraint or impact whose multiplier
-    is the normal force."""
+    is the normal force. A `slip_velocity` of two components (a 2×1 matrix) is isotropic
+    friction in a plane (`planar`)."""
     name: str
     slip_velocity: sp.Expr
     normal_force: object
     mu: sp.Expr
     mu_static: sp.Expr
+
+    @property
+    def planar(self):
+        return isinstance(self.slip_velocity, sp.MatrixBase)
 
 
 class Event(NamedTuple):
@@ -245,6 +250,7 @@ class ModelSpec:
     nonsmooth: tuple = ()     # Impact / Friction records, in declaration order
     initial_state: tuple = ()  # [q0, q̇0] as 2n floats, or () when none is declared
     limits: tuple = ()        # (coordinate name, lower, upper, velocity, effort), None if absent
+    stops: tuple = ()         # (coordinate name, restitution): limits enforced in simulations
 
     @property
     def external(self):

@@ -490,7 +490,8 @@ def _frozen_massless(robot, found, followers, massless):
 
 
 def from_urdf(path, name=None, base="fixed", gravity=(0.0, 0.0, -9.81), joint_dynamics=True,
-              parameters=None, mimic=True, check_inertias=True, massless="error"):
+              parameters=None, mimic=True, check_inertias=True, massless="error", limits=True,
+              limit_restitution=0.0):
     """A `lagrgen.Model` of the robot in the URDF file `path` (API §19).
 
     Parameters
@@ -521,6 +522,12 @@ def from_urdf(path, name=None, base="fixed", gravity=(0.0, 0.0, -9.81), joint_dy
     massless : "error" or "fixed"
         A joint that moves no mass or inertia (every link below it massless: its row of M would
         be zero): a URDFError, or ("fixed") the joint held fixed at 0 with a URDFWarning.
+    limits : bool
+        True: the joints' position limits act in simulations as unilateral contacts, stops
+        <joint>_lower and <joint>_upper (`Model.limit(..., enforce=True)`); False: declared
+        (`model.limits`, collocation bounds), not enforced.
+    limit_restitution : float in [0, 1]
+        The stops' coefficient of restitution (0: inelastic).
 
     Returns
     -------
@@ -597,7 +604,8 @@ def from_urdf(path, name=None, base="fixed", gravity=(0.0, 0.0, -9.81), joint_dy
     for p in coordinate_parts:
         limit = p.joint.limit if p.joint is not None else None
         if limit is not None and any(v is not None for v in astuple(limit)):
-            model.limit(p.name, *astuple(limit))
+            model.limit(p.name, *astuple(limit), enforce=bool(limits),
+                        restitution=limit_restitution)
     return model
 
 

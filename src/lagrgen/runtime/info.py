@@ -9,7 +9,7 @@ import json
 from dataclasses import asdict, dataclass, fields
 
 from ..errors import BuildError
-from ..functions import HYBRID_FIELDS, POWER_TERMS
+from ..functions import HYBRID_FIELDS, HYBRID_GRADIENTS, POWER_TERMS
 
 
 @dataclass(frozen=True)
@@ -26,7 +26,10 @@ class ModelInfo:
     bodies' ten inertial parameters (m, m·c, I about the body frame's origin), ten per body, the
     columns of the regressor; `coordinate_limits` the declared limits (`Model.limit`) as
     (coordinate, lower, upper, velocity, effort), None where absent; `link_names` the names of
-    the links of a three-dimensional tree (`link_pose`, `link_jacobian`), in order.
+    the links of a three-dimensional tree (`link_pose`, `link_jacobian`), in order;
+    `limit_stops` the enforced limits (`Model.limit(..., enforce=True)`), unilateral contacts of
+    the hybrid solves, as (name, coordinate index, sign, bound, restitution): gap
+    sign·(q − bound) ≥ 0.
     """
 
     name: str
@@ -48,6 +51,7 @@ class ModelInfo:
     inertial_parameters: tuple = ()
     coordinate_limits: tuple = ()
     link_names: tuple = ()
+    limit_stops: tuple = ()
 
     def __post_init__(self):
         for name in ("coordinates", "parameters", "inputs", "defaults", "output_names",
@@ -59,6 +63,7 @@ class ModelInfo:
         object.__setattr__(self, "units", dict(self.units))
         object.__setattr__(self, "coordinate_limits",
                            tuple(tuple(entry) for entry in self.coordinate_limits))
+        object.__setattr__(self, "limit_stops", tuple(tuple(entry) for entry in self.limit_stops))
         object.__setattr__(self, "nonsmooth_definitions", tuple(
             (name, kind, None if normal is None else tuple(normal))
             for name, kind, normal in self.nonsmooth_definitions))
@@ -89,8 +94,8 @@ class ModelInfo:
                 "n_outputs": len(self.output_names),
                 "n_inertial": len(self.inertial_parameters), "n_links": len(self.link_names),
                 "3": 3, "6": 6,
-                "n_hybrid": sum(HYBRID_FIELDS[kind] + n for _, kind, _ in
-                                self.nonsmooth_definitions)}
+                "n_hybrid": sum(HYBRID_FIELDS[kind] + HYBRID_GRADIENTS[kind] * n
+                                for _, kind, _ in self.nonsmooth_definitions)}
 
     def to_json(self):
         """The record as JSON (with its dimensions, for readers of the C metadata)."""
