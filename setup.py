@@ -36,6 +36,15 @@ collocation = Extension(
     extra_compile_args=["-O2"],
 )
 
+# The stage-structured QP solver's Riccati recursion (lagrgen/collocation/_riccati.pyx).
+riccati = Extension(
+    "lagrgen.collocation._riccati",
+    ["src/lagrgen/collocation/_riccati.pyx"],
+    include_dirs=[numpy.get_include()],
+    define_macros=[("NPY_NO_DEPRECATED_API", "NPY_1_7_API_VERSION")],
+    extra_compile_args=["-O3", "-fno-math-errno"],
+)
+
 setup(
     packages=find_packages("src") + TEMPLATE_PACKAGES,
     package_dir={"": "src"},
@@ -46,7 +55,7 @@ setup(
                   "lagrgen.runtime": ["*.pxd"],
                   "lagrgen.native": ["*.c", "*.h", "*.pxd", "LICENSE.scipy", "README.md"],
                   "lagrgen.collocation": ["*.pyx"]},
-    ext_modules=cythonize([runtime, native, collocation], compiler_directives={"language_level": "3"},
+    ext_modules=cythonize([runtime, native, collocation, riccati], compiler_directives={"language_level": "3"},
                           quiet=True, include_path=["src"]),
     zip_safe=False,
 )

@@ -175,12 +175,12 @@ def humanoid_lagrgen(name="humanoid", g=G):
 
 # -- as a peer of benchmarks/nlink.py --------------------------------------------------------------
 def build(n, work, deadline):
-    """The chain as an `_peers.Built`: rhs and Jacobian in lagrgen's absolute coordinates (aba and
+    """The chain as a `_built.Built`: rhs and Jacobian in lagrgen's absolute coordinates (aba and
     computeABADerivatives with the states converted, which adds two small products per call)."""
     import time
 
     import pinocchio as pin
-    from _peers import Built
+    from _built import Built
     start = time.perf_counter()
     model = chain(n)
     data = model.createData()

@@ -384,7 +384,18 @@ def machine_meta(cfg):
             "numpy": package_version("numpy"), "scipy": package_version("scipy"),
             "sympy": package_version("sympy"), "symengine": package_version("symengine"),
             "peers": _peers.versions(), "gcc": command_output(["gcc", "--version"]).split("\n")[0],
-            "config": {k: v for k, v in cfg.items() if not k.startswith("reference")}}
+            "config": {k: shown_path(v) if k == "model_file" else v for k, v in cfg.items()
+                       if not k.startswith("reference")}}
+
+
+def shown_path(path):
+    """A file as the results name it: its path in the repository, else its name alone (results
+    hold no machine's absolute path)."""
+    path = Path(path).resolve()
+    try:
+        return path.relative_to(HERE.parent.resolve()).as_posix()
+    except ValueError:
+        return path.name
 
 
 def to_json(obj):

@@ -11,10 +11,17 @@ joint on its Lie group); then per call from Python,
 best of 3 rounds timing each call in turn, in the same process: lagrgen's rhs, jacobian (2n×2n) and mass_matrix against `aba`,
 `computeABADerivatives` and `crba` (Pinocchio's free-flyer model for the floating base).
 
+Then 3-D serial chains of --chains joints (benchmarks/_chains.py: random placements, axes
+cycling through z, y, x) measured the same way; the planar 20-link chain's Jacobian
+(examples/nlink_pendulum.py, the issue-43 floor: ≤ 5 µs); and the cold `from_urdf` + build of
+chains of --builds joints and of tiago_dual, each in a fresh process with a fresh folder, with
+the growth exponent of the build time (the slope of log time against log n).
+
     pip install ".[peers]" example-robot-data       # Pinocchio 4.1 and the robots (400 MB)
     python benchmarks/robots.py                     # all robots up to 60 joints
     python benchmarks/robots.py --robots ur5_robot panda talos_reduced solo12
     python benchmarks/robots.py --robots talos_reduced --update   # measure again, replace its row
+    python benchmarks/robots.py --robots none --chains 50 100 200 --builds 100 200 500
 
 Prints a markdown table and writes benchmarks/results/robots.md and robots.json. Builds go to
 --out (default: a folder in the system's temporary directory).
@@ -41,7 +48,11 @@ FIRST = ("ur5_robot", "panda", "talos_reduced", "solo12")
 def robots_dir():
     """The robots folder of the example-robot-data package."""
     import importlib.metadata
-    for f in importlib.metadata.files("example-robot-data") or ():
+    try:
+        files = importlib.metadata.files("example-robot-data") or ()
+    except importlib.metadata.PackageNotFoundError:
+        files = ()
+    for f in files:
         if str(f).endswith("robots/ur_description/urdf/ur5_robot.urdf"):
             return Path(f.locate()).parents[2]
     raise SystemExit("example-robot-data is not installed: pip install example-robot-data")
@@ -49,6 +60,17 @@ def robots_dir():
 
 def urdf_files(root):
     return sorted(root.glob("*/*/*.urdf"))
+
+
+def row_name(path, root):
+    """A robot's row: its file's path under the robots folder, without .urdf (two files share
+    the stem anymal)."""
+    return Path(path).relative_to(root).with_suffix("").as_posix()
+
+
+def without_root(text, root):
+    """`text` with the robots folder's absolute path left out (results name no machine's path)."""
+    return str(text).replace(str(root) + os.sep, "").replace(str(root), "robots")
 
 
 def best_per_call(f, repeats=7):
@@ -130,12 +152,12 @@ def _identifier(name):
     return identifier(name)
 
 
-def robot_row(path, floating, out_dir, say):
+def robot_row(path, root, floating, out_dir, say):
     """Build, cross-check and time one robot; its record."""
     import pinocchio as pin
 
     import lagrgen
-    name = path.stem + ("" if not floating else " (floating base)")
+    name = row_name(path, root) + ("" if not floating else " (floating base)")
     start = time.perf_counter()
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", lagrgen.URDFWarning)
@@ -212,6 +234,113 @@ def table(rows):
     return "\n".join(lines)
 
 
+def chain_rows(sizes, out_dir, say):
+    """The rows of 3-D serial chains of `sizes` joints (benchmarks/_chains.py)."""
+    from _chains import chain_urdf
+    rows = []
+    folder = Path(tempfile.mkdtemp(prefix="lagrgen_chains_"))
+    for n in sizes:
+        path = folder / f"chain{n}.urdf"
+        path.write_text(chain_urdf(n))
+        say(f"  chain{n} ...")
+        rows.append(robot_row(path, False, out_dir, say))
+    return rows
+
+
+def planar_row(out_dir):
+    """The planar 20-link chain's Jacobian per call from Python (µs), against Pinocchio's."""
+    import pinocchio as pin
+
+    import _pinocchio
+    import lagrgen
+    sys.path.insert(0, str(HERE.parent))
+    from examples.nlink_pendulum import make
+    n = 20
+    mod = lagrgen.build(make(n), out_dir=out_dir, quiet=True)
+    pm = _pinocchio.chain(n)
+    data = pm.createData()
+    state = _pinocchio.ChainState.of(np.random.default_rng(120).uniform(-1.0, 1.0, 2 * n))
+    tau = np.zeros(n)
+    times = interleaved_best({
+        "jacobian": lambda: mod.jacobian(0.0, state.y),
+        "derivatives": lambda: pin.computeABADerivatives(pm, data, state.q, state.v, tau)})
+    return {"n": n, "formulation": mod.formulation, "us": {k: v * 1e6 for k, v in times.items()}}
+
+
+BUILD_SCRIPT = """
+import sys, tempfile, time, warnings
+start = time.perf_counter()
+import lagrgen
+with warnings.catch_warnings():
+    warnings.simplefilter("ignore")
+    model = lagrgen.from_urdf(sys.argv[1], joint_dynamics=False, mimic=False,
+                              check_inertias=False, massless="fixed", name=sys.argv[2])
+mod = lagrgen.build(model, out_dir=tempfile.mkdtemp(), quiet=True, force=True)
+print(time.perf_counter() - start, mod.n_coordinates,
+      " ".join(f"{k}={v:.2f}" for k, v in mod.build_info.items() if k != "cache_hit"))
+"""
+
+
+def build_rows(sizes, robots_root, say):
+    """Cold `import lagrgen` + `from_urdf` + build, each in a fresh process and folder: chains of
+    `sizes` joints, then tiago_dual; and the growth exponent over the chains."""
+    import subprocess
+
+    from _chains import chain_urdf
+    folder = Path(tempfile.mkdtemp(prefix="lagrgen_builds_"))
+    cases = []
+    for n in sizes:
+        path = folder / f"chain{n}.urdf"
+        path.write_text(chain_urdf(n))
+        cases.append((f"chain{n}", path))
+    dual = next(iter(sorted(robots_root.glob("*/*/tiago_dual.urdf"))), None)
+    if dual is not None:
+        cases.append(("tiago_dual", dual))
+    rows = []
+    for name, path in cases:
+        say(f"  cold build of {name} ...")
+        done = subprocess.run([sys.executable, "-c", BUILD_SCRIPT, str(path), name],
+                              capture_output=True, text=True)
+        if done.returncode:
+            rows.append({"robot": name, "error": done.stderr.strip().splitlines()[-1][:160]})
+            continue
+        seconds, n, stages = done.stdout.split(maxsplit=2)
+        rows.append({"robot": name, "n": int(n), "seconds": float(seconds),
+                     "stages": stages.strip()})
+    chains = [r for r in rows if r["robot"].startswith("chain") and "seconds" in r]
+    exponent = None
+    if len(chains) > 1:
+        exponent = float(np.polyfit(np.log([r["n"] for r in chains]),
+                                    np.log([r["seconds"] for r in chains]), 1)[0])
+    return rows, exponent
+
+
+def extras_text(chains, planar, builds, exponent):
+    """The markdown of the chains' table, the planar row and the build times."""
+    parts = []
+    if chains:
+        parts += ["## 3-D serial chains (benchmarks/_chains.py)", "", table(chains), ""]
+    if planar:
+        t = planar["us"]
+        parts += ["## The planar 20-link chain (examples/nlink_pendulum.py)", "",
+                  f"Jacobian per call from Python: {t['jacobian']:.2f} µs ({planar['formulation']}"
+                  f" formulation; target ≤ 5 µs), Pinocchio's `computeABADerivatives` "
+                  f"{t['derivatives']:.2f} µs: {t['jacobian'] / t['derivatives']:.2f}×.", ""]
+    if builds:
+        parts += ["## Cold `from_urdf` + build (a fresh process each, `import lagrgen` included)",
+                  "", "| robot | n | seconds | stages (s) |", "| :-- | --: | --: | :-- |"]
+        for r in builds:
+            if "error" in r:
+                parts.append(f"| {r['robot']} | | {r['error']} | |")
+            else:
+                parts.append(f"| {r['robot']} | {r['n']} | {r['seconds']:.1f} | {r['stages']} |")
+        if exponent is not None:
+            parts += ["", f"Growth exponent of the chains' build time: {exponent:.2f} "
+                      "(the slope of log seconds against log n)."]
+        parts.append("")
+    return "\n".join(parts)
+
+
 def joints_of(path):
     from lagrgen.urdf import MOVING, read
     with warnings.catch_warnings():
@@ -229,12 +358,19 @@ def updated(old, new):
 
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--robots", nargs="*", help="file stems (default: all)")
+    parser.add_argument("--robots", nargs="*",
+                        help="file stems, or paths under the robots folder without .urdf "
+                        "(default: all)")
     parser.add_argument("--max-joints", type=int, default=60)
     parser.add_argument("--out", default=os.path.join(tempfile.gettempdir(), "lagrgen_robots"))
     parser.add_argument("--no-write", action="store_true", help="print only")
     parser.add_argument("--update", action="store_true",
                         help="measure the --robots again and replace their rows in the results")
+    parser.add_argument("--chains", nargs="*", type=int, default=[50, 100, 200],
+                        help="3-D serial chains measured like the robots")
+    parser.add_argument("--builds", nargs="*", type=int, default=[100, 200, 500],
+                        help="chains whose cold from_urdf + build is timed (and tiago_dual)")
+    parser.add_argument("--no-planar", action="store_true")
     args = parser.parse_args(argv)
     import pinocchio
 
@@ -242,17 +378,17 @@ def main(argv=None):
     root = robots_dir()
     files = urdf_files(root)
     if args.robots:
-        files = [f for f in files if f.stem in args.robots]
+        files = [f for f in files if f.stem in args.robots or row_name(f, root) in args.robots]
     chosen = []
     for f in files:
         try:
             count = joints_of(f)
         except lagrgen.LagrgenError as exc:
-            chosen.append((f, False, str(exc).splitlines()[0][:120]))
+            chosen.append((f, False, without_root(str(exc).splitlines()[0], root)[:120]))
             continue
         if 0 < count <= args.max_joints:
             chosen.append((f, False, None))
-    if not args.robots or "solo12" in args.robots:
+    if not args.robots or {"solo12", "solo_description/robots/solo12"} & set(args.robots):
         solo = next((f for f in files if f.stem == "solo12"), None)
         if solo:
             chosen.append((solo, True, None))
@@ -262,13 +398,18 @@ def main(argv=None):
     rows = []
     for path, floating, error in chosen:
         if error:
-            rows.append({"robot": path.stem, "error": f"not read: {error}"})
+            rows.append({"robot": row_name(path, root), "error": f"not read: {error}"})
             continue
         try:
-            rows.append(robot_row(path, floating, args.out, lambda s: print(s, file=sys.stderr)))
+            rows.append(robot_row(path, root, floating, args.out,
+                                  lambda s: print(s, file=sys.stderr)))
         except Exception as exc:            # a robot lagrgen or Pinocchio cannot take: say so
-            rows.append({"robot": path.stem, "error": f"{type(exc).__name__}: "
-                         f"{str(exc).splitlines()[0][:120]}"})
+            first = without_root(str(exc).splitlines()[0], root)[:120]
+            rows.append({"robot": row_name(path, root), "error": f"{type(exc).__name__}: {first}"})
+    say = lambda text: print(text, file=sys.stderr)      # noqa: E731
+    chains = chain_rows(args.chains, args.out, say)
+    planar = None if args.no_planar else planar_row(args.out)
+    builds, exponent = build_rows(args.builds, root, say) if args.builds else ([], None)
     after = os.getloadavg()
     if args.update:
         rows = updated(json.loads((RESULTS / "robots.json").read_text()), rows)
@@ -289,12 +430,15 @@ def main(argv=None):
     if args.update:
         header += (f"The rows of {', '.join(args.robots)} were measured again at that time, "
                    "the others earlier (robots.json keeps no date per row).\n")
-    text = header + "\n" + table(rows) + "\n"
+    text = header + "\n" + table(rows) + "\n\n" + extras_text(chains, planar, builds, exponent)
     print(text)
     if not args.no_write:
         RESULTS.mkdir(exist_ok=True)
         (RESULTS / "robots.md").write_text(text)
         (RESULTS / "robots.json").write_text(json.dumps(rows, indent=1))
+        (RESULTS / "robots_scaling.json").write_text(json.dumps(
+            {"chains": chains, "planar": planar, "builds": builds,
+             "build_exponent": exponent}, indent=1))
     return 0
 
 

@@ -90,11 +90,13 @@ def guide_pages():
 #: does not exist is left out (see `existing`), so names of API.md that a branch is still adding
 #: (`eigenvalue_sweep`, `Collocation`) appear once they exist, with no edit here.
 API = [
-    ("Describing a model", ["Model", "rotation", "from_sympy", "from_urdf", "urdf.URDFError"]),
+    ("Describing a model", ["Model", "rotation", "from_sympy", "from_urdf", "base_state",
+                            "urdf.URDFError"]),
     ("Building, loading, exporting", ["build", "load", "export_fmu",
                                       "runtime.protocol.BuiltModel"]),
     ("Running", ["simulate", "results.SimulationResult", "Signal", "evaluate_outputs",
-                 "output_event", "consistent_state", "methods.Method"]),
+                 "output_event", "consistent_state", "methods.Method",
+                 "NearSingularMassMatrixWarning"]),
     ("Ensembles and sweeps", ["simulate_many", "EnsembleResult", "open_ensemble", "sweep",
                               "sweep.SweepResult"]),
     ("Vibration and stability", ["equilibrium", "linearize", "modes", "frequency_response",
@@ -108,7 +110,7 @@ API = [
                                            "exciting_trajectory", "inertial.BaseParameters",
                                            "inertial.InertialEstimate",
                                            "inertial.ExcitingTrajectory"]),
-    ("Optimal motions", ["Collocation", "CollocationResult", "collocation.refine.MeshRecord",
+    ("Optimal motions", ["Collocation", "CollocationResult", "collocation.result.MeshRecord",
                          "collocation.refine.DiscretizationWarning"]),
     ("Exceptions", ["LagrgenError", "ModelError", "UnknownNameError", "BuildError", "CompileError",
                     "MassMatrixError", "ConstraintError", "NonFiniteError"]),

@@ -2,7 +2,7 @@
 
 Joint 1 turns about the vertical z axis, joints 2 and 3 about their links' y axes (a shoulder and
 an elbow); link 2 is `a2` long along its x axis, and joint 2 sits `d1` above the base. Each link i
-has the ten inertial parameters of API §21 as parameters: m_i, (mx_i, my_i, mz_i) = m_i·c_i (c_i
+has the ten inertial parameters of `lagrgen.identify_inertial` as parameters: m_i, (mx_i, my_i, mz_i) = m_i·c_i (c_i
 the centre of mass in the link frame) and the inertia about the link frame's origin
 (Ixx_i, Ixy_i, Iyy_i, Ixz_i, Iyz_i, Izz_i), so the equations are linear in them:
 

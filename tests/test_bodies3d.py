@@ -6,6 +6,7 @@ precession of the heavy top, intermediate-axis instability), conservation laws, 
 `rigid_body`, finite differences of the analytic Jacobian, and the two backends against each other.
 """
 import functools
+import warnings
 
 import numpy as np
 import pytest
@@ -585,3 +586,51 @@ def test_pendulum3d_example_conserves_energy(built):
     E = [0.5 * y[6:] @ mod.mass_matrix(y[:6]) @ y[6:] + V(y[:6]) for y in sol.y.T]
     assert np.ptp(E) < 1e-8 * np.abs(E).max()
     assert np.ptp(sol.y[4]) > 0.1
+
+
+# -- near-singular M: Euler angles at gimbal lock (issue 45 item 6) ---------------------------------
+def brick_model():
+    """A free brick in roll–pitch–yaw angles, R = Rz(yaw)·Ry(pitch)·Rx(roll), body x its major
+    axis: M is singular at pitch = ±π/2 (roll and yaw turn about one axis there)."""
+    model = Model("brick_rpy")
+    roll, pitch, yaw = model.coordinates("roll pitch yaw")
+    model.rigid_body_3d(1.0, (3.0, 2.0, 1.0), [0, 0, 0],
+                        rotation.z(yaw) * rotation.y(pitch) * rotation.x(roll))
+    return model
+
+
+BRICK = brick_model()
+
+
+@pytest.mark.parametrize("backend, formulation", [("c", "dense"), ("c", "recursive"),
+                                                  ("python", "dense"), ("python", "recursive")])
+def test_a_run_through_a_near_singular_mass_matrix_warns(tmp_path_factory, backend, formulation):
+    """Spun about its major axis, tilted 1e-6 rad from pitch = π/2 (M's least relative pivot
+    ~3e-13), the brick warns on every engine, backend and formulation; the same spin at pitch 0.3
+    does not (and keeps its steady rotation: roll = Ω·t, pitch and yaw fixed)."""
+    out = tmp_path_factory.mktemp(f"brick_{backend}_{formulation}")
+    mod = lagrgen.build(BRICK, backend=backend, out_dir=out, formulation=formulation)
+    assert mod.formulation == formulation
+    engines = ("native", "scipy") if backend == "c" else ("scipy",)
+    W = 2.0
+    for engine in engines:
+        with pytest.warns(lagrgen.NearSingularMassMatrixWarning,
+                          match=r"nearly singular: the least pivot of M reached [0-9.]+e-1[23] "
+                                r".*gimbal lock"):
+            lagrgen.simulate(mod, (0, 1), {"pitch": np.pi / 2 - 1e-6, "roll_dot": W},
+                             rtol=1e-9, atol=1e-12, engine=engine)
+        with warnings.catch_warnings():
+            warnings.simplefilter("error", lagrgen.NearSingularMassMatrixWarning)
+            sol = lagrgen.simulate(mod, (0, 1), {"pitch": 0.3, "roll_dot": W}, rtol=1e-9,
+                                   atol=1e-12, engine=engine)
+        assert_allclose(sol.y[:3, -1], [W, 0.3, 0.0], atol=1e-8)
+        assert mod.pivot_record() == 1.0              # each run read and reset its record
+    near = np.array([0.0, np.pi / 2 - 1e-6, 0.0, W, 0.0, 0.0])
+    if backend == "c":                                # the C batch of simulate_many, per run
+        y0 = np.array([[0.0, 0.3, 0.0, W, 0.0, 0.0], near, [0.0, -0.5, 0.0, W, 0.0, 0.0]])
+        with pytest.warns(lagrgen.NearSingularMassMatrixWarning, match=r"^run 1 of model"):
+            ens = lagrgen.simulate_many(mod, (0, 1), y0, t_eval=np.linspace(0, 1, 3),
+                                        rtol=1e-9, atol=1e-12, workers=1)
+        assert ens.success.all()
+    mod.rhs(0.0, near)
+    assert 1e-14 < mod.pivot_record() < 1e-11 and mod.pivot_record() == 1.0

@@ -11,7 +11,7 @@ from numpy.testing import assert_allclose
 
 import lagrgen
 from lagrgen.errors import LagrgenError, UnknownNameError
-from conftest import damped_oscillator, double_integrator, example_model
+from conftest import damped_oscillator, double_integrator, example_model, nlp_derivatives
 
 pytest.importorskip("cyipopt", reason="IPOPT (pip install 'lagrgen[optimize]') is not installed")
 
@@ -155,38 +155,6 @@ def test_warm_start_from_an_earlier_result_on_another_grid(integrator):
 
 
 # -- derivatives against finite differences --------------------------------------------------------
-def nlp_derivatives(prob, seed=0):
-    """(J, J by central differences, H lower, H by differences of ∇L, gradient, its differences)
-    of the problem's NLP at a random point with random multipliers."""
-    tr = prob.transcription("exact").bound(0.77)
-    L = tr.layout
-    rng = np.random.default_rng(seed)
-    x = rng.uniform(-1, 1, L.size)
-    if L.free:
-        x[L.T_index] = 1.3
-    x[L.p_start:L.p_start + len(L.unknown)] = rng.uniform(0.5, 1.5, len(L.unknown))
-    eps = 1e-6
-    E = np.eye(L.size)
-    J = np.zeros((tr.n_constraints, L.size))
-    np.add.at(J, (tr.jac_rows, tr.jac_cols), tr.jacobian(x))
-    Jn = np.array([(tr.constraints(x + eps * e) - tr.constraints(x - eps * e)) / (2 * eps)
-                   for e in E]).T
-    lam, sigma = rng.uniform(-1, 1, tr.n_constraints), 0.7
-
-    def lagrangian_gradient(z):
-        jac = tr.jacobian(z)
-        return sigma * tr.gradient(z) + np.bincount(tr.jac_cols, jac * lam[tr.jac_rows],
-                                                    minlength=L.size)
-    H = np.zeros((L.size, L.size))
-    np.add.at(H, (tr.hess_rows, tr.hess_cols), tr.hessian(x, lam, sigma))
-    Hn = np.array([(lagrangian_gradient(x + eps * e) - lagrangian_gradient(x - eps * e))
-                   / (2 * eps) for e in E]).T
-    g = tr.gradient(x)
-    gn = np.array([(tr.objective(x + eps * e) - tr.objective(x - eps * e)) / (2 * eps)
-                   for e in E])
-    return J, Jn, H, np.tril(Hn), g, gn
-
-
 @pytest.mark.parametrize("scheme", ["trapezoidal", "hermite-simpson", "backward-euler"])
 @pytest.mark.parametrize("duration", [1.0, (0.5, 2.0)], ids=["fixed", "free"])
 def test_jacobian_and_lagrangian_hessian_match_finite_differences(cart, scheme, duration):

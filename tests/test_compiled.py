@@ -321,3 +321,11 @@ def test_generated_c_is_readable(out_dir, pendulum):
     assert "const double x0 = " in source
     for function in ("mass_matrix", "forcing", "rhs", "jacobian", "linear_terms"):
         assert f"LG_FN int double_pendulum_{function}(double t, const double *y" in source
+
+
+def test_a_relative_out_dir_named_like_a_compiler_option_is_a_folder(tmp_path, monkeypatch):
+    """The compiler is given absolute paths: a folder "-O3" is not an option to it."""
+    monkeypatch.chdir(tmp_path)
+    mod = lagrgen.build(spring_mass("dash_folder", 4.0), out_dir="-O3")
+    assert (tmp_path / "-O3" / "dash_folder_model.c").is_file()
+    assert mod.rhs(0.0, [0.1, 0.0])[1] == pytest.approx(-0.2)     # -k·x/m

@@ -1,4 +1,4 @@
-"""Inertial identification (API §21): base parameters, the regressor, identification from joint
+"""Inertial identification: base parameters, the regressor, identification from joint
 records (weighted least squares, friction, physically consistent estimates) and exciting
 trajectories, on hand-written arms whose parameters are the links' inertial parameters."""
 import types
@@ -338,7 +338,9 @@ def test_consistent_estimates_of_an_inconsistent_truth_pay_a_price(arm, base, ex
     wrong = dict(example.TRUTH, Iyy_link3=-0.05)
     tau = inverse_dynamics(arm, truth_vector(arm, wrong), q, qd, qdd)
     tau = tau + 0.01 * np.random.default_rng(2).standard_normal(tau.shape)
-    est = identify_inertial(arm, t, q, tau, qd, qdd, consistent=True, base=base)
+    with pytest.warns(FitWarning, match="no physically consistent set of links"):
+        est = identify_inertial(arm, t, q, tau, qd, qdd, consistent=True, base=base)
+    assert est.success and "noise explains" in est.message
     assert est.unconstrained["Iyy_link3"] < 0 and est.values["Iyy_link3"] > 0
     assert est.price > 0.01
     for smallest, mass, moments in consistent_links(est.inertial, base.parameters):
@@ -381,6 +383,27 @@ def test_unexcited_parameters_get_an_identifiability_warning(arm, base, example,
         assert name not in est.unidentified and np.isfinite(est.stderr[name])
     assert issubclass(IdentifiabilityWarning, FitWarning)
     assert lagrgen.IdentifiabilityWarning is IdentifiabilityWarning
+
+
+def test_positions_only_with_a_joint_held_still_find_the_bandwidth_from_the_others(arm, base,
+                                                                                 example):
+    """Joint 1 held at 0.3 rad (its encoder's 1e-4 rad of noise the only motion), joints 2 and 3
+    moving, positions only: the filter's cut-off comes from the moving joints, and the directions
+    the still joint leaves unexcited get infinite standard errors and an IdentifiabilityWarning
+    (as with q̇ and q̈ given), never NumPy's error on an empty array."""
+    t = np.arange(8000) * 1e-3
+    rng = np.random.default_rng(11)
+    q = np.stack([np.full_like(t, 0.3), 0.5 * np.sin(1.3 * t), np.sin(t)])
+    qd = np.stack([np.zeros_like(t), 0.65 * np.cos(1.3 * t), np.cos(t)])
+    qdd = np.stack([np.zeros_like(t), -0.845 * np.sin(1.3 * t), -np.sin(t)])
+    tau = inverse_dynamics(arm, truth_vector(arm, example.TRUTH), q, qd, qdd)
+    with pytest.warns(IdentifiabilityWarning, match="exciting_trajectory"):
+        est = identify_inertial(arm, t, q + 1e-4 * rng.standard_normal(q.shape),
+                                tau + 0.01 * rng.standard_normal(tau.shape), base=base)
+    assert 5 * 1.3 / (2 * np.pi) <= est.cutoff < 10.0      # from joints 2 and 3's motion
+    assert base.names[0] in est.unidentified
+    assert all(np.isinf(est.stderr[n]) for n in est.unidentified)
+    assert np.isfinite(est.stderr["mx_link3"])
 
 
 def test_records_as_rows_per_sample_are_refused_with_the_fix(arm, records):
@@ -483,7 +506,8 @@ def test_consistent_estimates_of_a_planar_arm_free_the_parameters_it_lacks(plana
     qdd = np.stack([-1.21 * np.sin(1.1 * t), -0.588 * np.sin(0.7 * t + 1)])
     tau = inverse_dynamics(mod, wrong, q, qd, qdd)
     tau = tau + 1e-3 * np.random.default_rng(0).standard_normal(tau.shape)
-    est = identify_inertial(mod, t, q, tau, qd, qdd, consistent=True, base=base)
+    with pytest.warns(FitWarning, match="no physically consistent set of links"):
+        est = identify_inertial(mod, t, q, tau, qd, qdd, consistent=True, base=base)
     assert est.unconstrained["Izz_link2"] == pytest.approx(0.05, abs=1e-3)
     pi = est.inertial
     assert pi["m_link2"] > 0

@@ -118,6 +118,21 @@ def slope_model():
     return model
 
 
+def dropped_block():
+    """The guide's block on a floor: a particle (x, y) with a floor contact and friction on it
+    whose normal force is the contact's multiplier, pushed along x by an input force F."""
+    model = Model("dropped_block")
+    x, y = model.coordinates("x y")
+    F, = model.inputs("F")
+    m, mu = model.parameters(m=1.0, mu=0.3)
+    model.particle(m, sp.Matrix([x, y]))
+    model.potential_energy(m * G * y)
+    model.generalized_force(x, F)
+    model.impact("ground", y, restitution=0.5)
+    model.friction("slide", x.diff(model.t), "ground", mu)
+    return model
+
+
 def lifted_ball():
     """A ball resting on the floor, pulled up by an input force F."""
     model = Model("lifted_ball")
@@ -361,6 +376,57 @@ def test_block_on_a_slope_sticks_below_the_friction_angle_and_slides_above(built
         assert sol.mode == {"slide": "slip"}
         s = sol.y[0, -1] * np.cos(a) - sol.y[1, -1] * np.sin(a)
         assert s == pytest.approx(accel / 2, rel=1e-8)         # y = −x·tan α falls with x
+
+
+def test_a_dropped_block_bounces_rests_and_slides_only_when_pushed(built):
+    """Issue 45 item 5: a friction whose normal force is an open contact's multiplier (N = 0) is
+    inactive: no stick/slip toggling in the air, where it used to stall at t = 0."""
+    mod = built(dropped_block)
+    m, mu, h = 1.0, 0.3, 0.01
+    t1 = np.sqrt(2 * h / G)
+    zeno = 3 * t1                                  # t1 + 2·e·v1/(g·(1 − e)) with e = 0.5
+    for sol in both(mod, (0, 0.03), {"y": h}):     # in the air: nothing switches
+        assert sol.transitions == [] and sol.mode == {"ground": "open", "slide": "open"}
+        assert_allclose(sol.y[1, -1], h - G * 0.03 ** 2 / 2, rtol=1e-9)
+        assert np.all(sol.contact_forces == 0)
+    for sol in both(mod, (0, 0.5), {"y": h}):
+        kinds = [(name, kind) for _, name, kind in sol.transitions]
+        assert set(kinds[:-2]) == {("ground", "impact")} and len(kinds) > 10
+        assert kinds[-2:] == [("ground", "contact"), ("slide", "stick")]
+        assert sol.transitions[0][0] == pytest.approx(t1, rel=1e-9)
+        assert sol.transitions[-1][0] == pytest.approx(zeno, abs=1e-5)
+        assert np.all(sol.y[0] == 0) and np.all(sol.y[2] == 0)     # never slides
+        assert abs(sol.y[1, -1]) < 1e-9 and sol.mode == {"ground": "contact", "slide": "stick"}
+        assert_allclose(sol.contact_forces[0, -1], m * G, rtol=1e-9)
+    push = lagrgen.Signal([0.3, 1.3], [0, 2 * mu * m * G])     # reaches mu·m·g at t = 0.8
+    for sol in both(mod, (0, 1.3), {"y": h}, inputs={"F": push}, t_eval=np.linspace(0, 1.3, 131)):
+        assert sol.transitions[-1][1:] == ("slide", "slip")
+        assert sol.transitions[-1][0] == pytest.approx(0.8, rel=1e-8)
+        assert np.all(np.abs(sol.y[0, sol.t <= 0.8]) < 1e-30)    # held (the switch: 0.8 ± 1 ulp)
+        # then m·ẍ = F(t) − mu·m·g: ẋ(1.3) = ∫ (2·mu·g·(t − 0.3) − mu·g) dt over [0.8, 1.3]
+        assert sol.y[2, -1] == pytest.approx(mu * G * 0.25, rel=1e-7)
+        assert sol.mode == {"ground": "contact", "slide": "slip"}
+    held = lagrgen.Signal([0.3, 0.4], [0, 0.9 * mu * m * G])   # below the limit: held
+    for sol in both(mod, (0, 1.0), {"y": h}, inputs={"F": held}):
+        assert sol.transitions[-1][1:] == ("slide", "stick") and np.all(sol.y[0] == 0)
+    v0 = 0.3                                       # landing while sliding: slip, then stick
+    stop = zeno + v0 / (mu * G)
+    for sol in both(mod, (0, 0.5), {"y": h, "x_dot": v0}):
+        assert [kind for *_, name, kind in sol.transitions if name == "slide"] == ["slip", "stick"]
+        assert sol.transitions[-2][0] == pytest.approx(zeno, abs=1e-5)
+        assert sol.transitions[-1][0] == pytest.approx(stop, abs=1e-5)
+        assert sol.y[0, -1] == pytest.approx(v0 * zeno + v0 ** 2 / (2 * mu * G), rel=1e-5)
+    python = lagrgen.build(dropped_block(), backend="python")      # the Python backend alike
+    on_python = lagrgen.simulate(python, (0, 0.5), {"y": h, "x_dot": v0}, **TOL)
+    assert [tr[1:] for tr in on_python.transitions] == [tr[1:] for tr in sol.transitions]
+    y0 = np.array([[0, h, 0, 0], [0, 2 * h, v0, 0]])
+    t_eval = np.linspace(0, 0.5, 26)
+    ens = lagrgen.simulate_many(mod, (0, 0.5), y0, t_eval=t_eval, **TOL)
+    assert ens.success.all() and np.isfinite(ens.y).all()
+    for k in range(2):
+        one = lagrgen.simulate(mod, (0, 0.5), y0[k], t_eval=t_eval, **TOL)
+        assert_allclose(ens.y[k], one.y, rtol=1e-12, atol=1e-14)
+        assert ens.transitions[k] == one.transitions
 
 
 def test_chattering_is_bounded_by_max_transitions(built):

@@ -82,7 +82,8 @@ def test_every_registered_function_exists_on_both_backends_with_its_shapes(both)
             continue
         a = np.full(n + both.n_constraints, 0.7)
         args = {"state": (0.0, y), "q": (q, 0.0), "q_qd": (q, qd, 0.0),
-                "directions": (0.0, y, np.ones((3, 2 * n))), "implicit": (q, qd, a, 0.0)}[f.call]
+                "directions": (0.0, y, np.ones((3, 2 * n))), "implicit": (q, qd, a, 0.0),
+                "weighted": (q, qd, a, np.full(n + both.n_constraints, -0.4), 0.0)}[f.call]
         out = fn(*args)
         outs = out if isinstance(out, tuple) else (out,)
         assert [o.shape for o in outs] == f.shapes({**dims, "k": 3}), f.name
@@ -102,7 +103,8 @@ def test_backends_agree_on_every_registered_function(compile_once):
             args = {"state": (0.4, y), "q": (y[:2], 0.4), "q_qd": (y[:2], y[2:], 0.4),
                     "directions": (0.4, y, rng.uniform(-1, 1, (2, 4)),
                                    rng.uniform(-1, 1, (2, 5))),
-                    "implicit": (y[:2], y[2:], y[::-1][:2], 0.4)}[f.call]
+                    "implicit": (y[:2], y[2:], y[::-1][:2], 0.4),
+                    "weighted": (y[:2], y[2:], y[::-1][:2], y[1:3], 0.4)}[f.call]
             a, b = getattr(c, f.name)(*args, p, u), getattr(py, f.name)(*args, p, u)
             for x, z in zip(a if isinstance(a, tuple) else (a,), b if isinstance(b, tuple) else (b,)):
                 assert_allclose(x, z, rtol=1e-12, atol=1e-12)

@@ -171,8 +171,8 @@ STAGES = [
               "options", "signals", "toolchain"]),
     ("description", ["rotation", "bodies3d", "records", "links", "checks", "description"]),
     ("derivation", ["calculus", "terms", "frames", "contributions", "lagrange", "nonsmooth", "tree", "tree3d",
-                    "dimensions"]),
-    ("kernels", ["tangents", "kernels"]),
+                    "free_base", "dimensions"]),
+    ("kernels", ["tangents", "hessians", "kernels", "trace", "lean3d"]),
     ("code", ["codegen"]),
     ("runtime", ["runtime"]),
     ("build", ["cache", "build", "units"]),
@@ -182,7 +182,7 @@ STAGES = [
                  "hybrid"]),
     ("analysis", ["linearization", "vibration", "stability", "sweep", "bench", "identifiability",
                   "fit", "inertial", "collocation"]),
-    ("face", ["model", "sympy_interop", "urdf", "expressions", "cli", "__main__", ""]),
+    ("face", ["model", "sympy_interop", "urdf", "base_state", "expressions", "cli", "__main__", ""]),
 ]
 #: The package's sources in this checkout (the installed package has no .pyx files).
 PACKAGE = ROOT / "src" / "lagrgen"
@@ -305,6 +305,24 @@ def test_the_package_has_no_import_cycle():
     assert import_cycles({"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": {"a"}}) == [{"a", "b", "c"}]
 
 
+def test_the_benchmark_modules_have_no_import_cycle():
+    """benchmarks/ imports its sibling modules one way (_peers and _pinocchio share _built)."""
+    import ast
+    folder = ROOT / "benchmarks"
+    names = {path.stem for path in folder.glob("*.py")}
+    graph = {}
+    for path in folder.glob("*.py"):
+        found = set()
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.Import):
+                found |= {a.name for a in node.names if a.name in names}
+            elif isinstance(node, ast.ImportFrom) and node.module in names:
+                found.add(node.module)
+        graph[path.stem] = found - {path.stem}
+    assert {"_peers", "_pinocchio", "_built"} <= set(graph)
+    assert import_cycles(graph) == []
+
+
 def test_the_import_graph_sees_an_import_inside_a_function(tmp_path):
     """The checker itself: a lazy import is an import (a later module reached from a function)."""
     modules = {"model": None, "outputs.display": None, "outputs": None}
@@ -313,6 +331,38 @@ def test_the_import_graph_sees_an_import_inside_a_function(tmp_path):
     assert imported_modules("model", path, modules) == {"outputs.display"}
     path.write_text("from lagrgen.outputs import display\n")
     assert imported_modules("model", path, modules) == {"outputs", "outputs.display"}
+
+
+#: The stages of inertial identification (ARCHITECTURE.md), each importing only those before it.
+INERTIAL_STAGES = ["regressor", "limits", "base", "records", "consistency", "estimation",
+                   "trajectories"]
+
+
+def test_the_inertial_package_imports_its_stages_one_way():
+    """lagrgen.inertial is its stages, each importing only earlier ones, and its face keeps
+    every public name of the module it was (from lagrgen.inertial import ... as before)."""
+    import lagrgen.inertial as inertial
+    graph = import_graph()
+    inside = sorted(name for name in graph if name.startswith("inertial."))
+    assert inside == sorted(f"inertial.{stage}" for stage in INERTIAL_STAGES)
+    for i, stage in enumerate(INERTIAL_STAGES):
+        within = {b.partition(".")[2] for b in graph[f"inertial.{stage}"]
+                  if b.startswith("inertial.")}
+        assert within <= set(INERTIAL_STAGES[:i]), stage
+    for name in ("identify_inertial", "base_parameters", "exciting_trajectory",
+                 "InertialEstimate", "BaseParameters", "ExcitingTrajectory", "filtered_records",
+                 "motion_bandwidth", "pseudo_inertia", "regressor_of", "stacked_regressor",
+                 "links_of", "inertial_parameters_of", "FIELDS"):
+        assert name in inertial.__all__ and getattr(inertial, name) is not None
+
+
+def test_user_facing_text_cites_no_section_of_the_contract():
+    """Messages, docstrings and examples never cite "API §..." (a document users do not have)."""
+    roots = [PACKAGE, ROOT / "examples", ROOT / "docs" / "guide"]
+    cited = [str(path.relative_to(ROOT)) for root in roots for path in sorted(root.rglob("*"))
+             if path.suffix in (".py", ".pyx", ".in", ".md", ".h") and path.is_file()
+             and any(mark in path.read_text() for mark in ("API §", "API.md §"))]
+    assert cited == []
 
 
 def test_architecture_md_lists_the_stages_of_the_import_check():

@@ -68,6 +68,16 @@ def free_pair_model():
     return model
 
 
+def duffing_model():
+    """m·ẍ + k·x + β·x³ = f: a hardening spring, ω² = (k + 3β·x²)/m about x."""
+    model = lagrgen.Model("vib_duffing")
+    x, = model.coordinates("x")
+    m, k, beta, f = model.parameters(m=1.0, k=1.0, beta=1.0, f=0.0)
+    model.particle(m, x)
+    model.potential_energy(k * x**2 / 2 + beta * x**4 / 4 - f * x)
+    return model
+
+
 def rotating_frame_model():
     """A mass on isotropic springs seen in a frame turning at Ω: gyroscopic coupling, no damping."""
     model = lagrgen.Model("vib_rotating")
@@ -98,6 +108,7 @@ OSCILLATOR = oscillator_model()
 DOUBLE = example_model("double_pendulum")
 FREE_PAIR = free_pair_model()
 PULLED = pulled_cart_pendulum()
+DUFFING = duffing_model()
 EQUAL_PENDULUM = {"m1": 1.3, "m2": 1.3, "L1": 0.7, "L2": 0.7, "g": 9.81}
 
 
@@ -430,6 +441,32 @@ def test_modes_away_from_an_equilibrium_warn(built):
             lagrgen.modes(mod, [np.pi, np.pi])                  # an equilibrium, unstable
         free = built(FREE_PAIR)
         lagrgen.modes(free, [0.0, 0.0], qd0=[0.5, 0.5])         # drifting: a steady motion
+
+
+def test_the_off_equilibrium_warning_does_not_depend_on_the_units(built):
+    """Issue 45 item 13: a micro-scale Duffing oscillator at 1 µm (ω = 2 there, 1 at its
+    equilibrium) is warned about alike with lengths in micrometres and in metres (the old
+    absolute threshold let it pass in metres); its equilibria, at the origin or pushed off it,
+    are not warned about at any scale."""
+    mod = built(DUFFING)
+    for unit in (1.0, 1e-6):                        # 1 µm in micrometres, then in metres
+        p = {"beta": 1 / unit**2}                   # 3·β·x² = 3 at x = 1 µm
+        with pytest.warns(lagrgen.NotAnEquilibriumWarning,
+                          match=r"accelerations are not zero \(x_ddot = -2(e-06)?\)"):
+            res = lagrgen.modes(mod, [unit], p=p)
+        assert_allclose(res.omega, [2.0], rtol=1e-12)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", lagrgen.NotAnEquilibriumWarning)
+        for unit in (1e-12, 1e-9, 1e-6, 1.0, 1e3, 1e6):
+            p = {"beta": 1 / unit**2}
+            assert_allclose(lagrgen.modes(mod, [0.0], p=p).omega, [1.0], rtol=1e-12)
+            pushed = {**p, "f": 2 * unit}           # k·x + β·x³ = f at x = 1 unit: ω = 2
+            assert_allclose(lagrgen.modes(mod, [unit], p=pushed).omega, [2.0], rtol=1e-12)
+        for unit in (1e-6, 1.0):                   # an equilibrium found, not given
+            p = {"beta": 1 / unit**2, "f": 2 * unit}
+            q = lagrgen.equilibrium(mod, [0.5 * unit], p=p)
+            assert_allclose(q, [unit], rtol=1e-9)
+            lagrgen.modes(mod, q, p=p)
 
 
 def test_modes_take_the_dependent_coordinates(built):

@@ -52,9 +52,15 @@ def chain(tmp_path_factory):
     mod = lagrgen.build(spring_chain(N_CHAIN, "big_chain"), out_dir=out, opt_level="-O0",
                         quiet=True)
     assert mod.formulation == "recursive"
-    for function in FUNCTIONS:
+    for function in LARGE:
         mod.compiled_model.address(function.name)
     return out
+
+
+#: The functions called on the chain: all but the residual's Hessian, a dense (3n)² matrix for
+#: collocation (13 million entries here) from a planar tree's symbolic second derivatives, and the
+#: link functions (the chain has no links).
+LARGE = [f for f in FUNCTIONS if f.name != "residual_hessian" and f.call != "link"]
 
 
 #: Run in a fresh process: every function of the chain at one state, on the main thread and on a
@@ -141,7 +147,7 @@ CALLS = textwrap.dedent("""
 
 
 def test_every_function_of_a_large_model_runs_on_a_small_stack(chain):
-    names = [f.name for f in FUNCTIONS if f.call != "link"]    # the chain has no links
+    names = [f.name for f in LARGE]
     run = subprocess.run([sys.executable, "-c", CALLS, str(chain), *names], capture_output=True,
                          text=True, timeout=600)
     lines = [json.loads(line) for line in run.stdout.splitlines()]
@@ -214,7 +220,7 @@ def cart_pendulum(name):
 
 def driver_source(info, point, k=2):
     """A C program calling every function of the standalone model `info.name` at `point` (t, y of
-    3n + n_constraints values, p, u, dy, dp), each into an output of exactly its size on the
+    4n + 2·n_constraints values [q, q̇, a, mu], p, u, dy, dp), each into an output of exactly its size on the
     heap, printing the status and the outputs; then every function once more at a state of NaN
     (the early returns of a failed factorization)."""
     name, dims = info.name, {**info.dimensions, "k": k}
@@ -253,10 +259,11 @@ def module_outputs(mod, point, k=2):
     """{function: its outputs concatenated} of the built model `mod` at `point`."""
     t, y, p, u, dy, dp = point
     n, m = mod.n_coordinates, mod.n_constraints
-    q, qd, a = y[:n], y[n:2 * n], y[2 * n:3 * n + m]
+    q, qd, a, mu = y[:n], y[n:2 * n], y[2 * n:3 * n + m], y[3 * n + m:4 * n + 2 * m]
     calls = {"q": lambda f: f(q, t, p, u), "q_qd": lambda f: f(q, qd, t, p, u),
              "state": lambda f: f(t, y[:2 * n], p, u),
              "implicit": lambda f: f(q, qd, a, t, p, u),
+             "weighted": lambda f: f(q, qd, a, mu, t, p, u),
              "directions": lambda f: f(t, y[:2 * n], dy, dp, p, u),
              "link": lambda f: f(mod.link_names[-1], q, y[n:n + 3], p)}
     out = {}
@@ -316,11 +323,11 @@ def test_workspaces_on_the_stack_and_on_the_heap_give_the_same_numbers(tmp_path,
     equations = derived(model.spec())
     info = model_info(model.spec(), equations, formulation)
     assert info.formulation == formulation
-    for file_name, text in standalone_files(info, equations).items():
+    for file_name, text in standalone_files(info, equations, FUNCTIONS).items():
         (tmp_path / file_name).write_text(text)
     rng = np.random.default_rng(3)
     n, m = mod.n_coordinates, mod.n_constraints
-    point = (0.3, rng.uniform(-0.8, 0.8, 3 * n + m), np.asarray(mod.defaults),
+    point = (0.3, rng.uniform(-0.8, 0.8, 4 * n + 2 * m), np.asarray(mod.defaults),
              rng.uniform(-1, 1, len(mod.inputs)), rng.normal(size=(2, 2 * n)),
              rng.normal(size=(2, len(mod.parameters))))
     (tmp_path / "driver.c").write_text(driver_source(info, point))

@@ -11,8 +11,8 @@ import types
 
 from ._version import __version__
 from .errors import (BuildError, CompileError, ConstraintError, ContactError, LagrgenError,
-                     MassMatrixError, ModelError, NonFiniteError, StoreError, StoreWarning,
-                     UnknownNameError)
+                     MassMatrixError, ModelError, NearSingularMassMatrixWarning,
+                     NonFiniteError, StoreError, StoreWarning, UnknownNameError)
 
 #: Public name -> the module that defines it.
 _LAZY = {
@@ -32,7 +32,7 @@ _LAZY = {
     "UnstableModeWarning": "vibration", "NotAnEquilibriumWarning": "vibration",
     "eigenvalue_sweep": "stability",
     "consistent_state": "constraints",
-    "from_sympy": "sympy_interop", "from_urdf": "urdf",
+    "from_sympy": "sympy_interop", "from_urdf": "urdf", "base_state": "base_state",
     "URDFError": "urdf", "URDFWarning": "urdf",
     "export_fmu": "build",
     "Collocation": "collocation", "CollocationResult": "collocation",
@@ -45,10 +45,10 @@ __all__ = ["Model", "build", "load", "simulate", "evaluate_outputs", "output_eve
            "frequency_response", "FrozenTimeWarning", "UnstableModeWarning", "NotAnEquilibriumWarning",
            "FitWarning", "IdentifiabilityWarning", "base_parameters", "identify_inertial",
            "exciting_trajectory", "consistent_state",
-           "from_sympy", "from_urdf", "URDFError", "URDFWarning", "export_fmu", "rotation", "Collocation", "CollocationResult",
+           "from_sympy", "from_urdf", "base_state", "URDFError", "URDFWarning", "export_fmu", "rotation", "Collocation", "CollocationResult",
            "LagrgenError", "ConstraintError", "ModelError", "UnknownNameError", "MassMatrixError",
            "BuildError", "CompileError", "NonFiniteError", "ContactError", "StoreError", "StoreWarning",
-           "__version__"]
+           "NearSingularMassMatrixWarning", "__version__"]
 
 
 class _Package(types.ModuleType):

@@ -56,14 +56,16 @@ def build(model, out_dir="generated", backend="c", **options):
         from .codegen.python_module import python_source
         from .runtime.pymodel import PythonModel
         from .runtime.tree import RecursivePythonModel
+        from .runtime.free_base import FreeBasePythonModel
         from .runtime.tree3d import SpatialPythonModel
         from .tree import analyse
         equations = derived(spec)
         info = model_info(spec, equations, formulation)
         kind = PythonModel
         if info.formulation == "recursive":
-            kind = SpatialPythonModel if analyse(equations).kind == "spatial" \
-                else RecursivePythonModel
+            tree = analyse(equations)
+            kind = RecursivePythonModel if tree.kind != "spatial" else \
+                FreeBasePythonModel if tree.free else SpatialPythonModel
         built = kind(info, python_source(equations, info.formulation))
         built.build_info = {"cache_hit": False, "seconds": time.perf_counter() - start}
         built._source_model = model
@@ -167,7 +169,8 @@ def model_info(spec, equations, formulation=None):
                                for e in _nonsmooth().describe(spec)],
         inertial_parameters=inertial_parameters(spec),
         initial_state=spec.initial_state, coordinate_limits=spec.limits,
-        link_names=tree_links(equations), limit_stops=limit_stops(spec))
+        link_names=tree_links(equations), limit_stops=limit_stops(spec),
+        tree_structure=_tree_structure(equations) if formulation == "recursive" else {})
 
 
 def limit_stops(spec):
@@ -187,8 +190,15 @@ def tree_links(equations):
     """The names of the links of a three-dimensional tree (none for any other model)."""
     from .kernels import has_links
     from .tree import analysed
-    return tuple(name for name, _, _ in analysed(equations)[0].links) \
+    return tuple(name for name, _ in analysed(equations)[0].links) \
         if has_links(equations) else ()
+
+
+def _tree_structure(equations):
+    """`ModelInfo.tree_structure` of a spatial tree (its recursion's tables, see
+    `lagrgen.codegen.tree_code.structure`); empty for a planar one."""
+    from .codegen.tree_code import structure
+    return structure(equations)
 
 
 def _nonsmooth():
@@ -270,7 +280,7 @@ class Progress:
 # -- export: generated files without the cache -----------------------------------------------
 def export_c(model, out_dir):
     """Write just the standalone C model `<name>_model.h` and `<name>_model.c` into `out_dir`,
-    with every registered function (a build's own `<name>_model.c` holds those of the model's
+    with every exported function (a build's own `<name>_model.c` holds those of the model's
     module); return their paths."""
     from .codegen.c_model import standalone_files
     equations = derived(model.spec())

@@ -69,7 +69,8 @@ CACHE_DIR = "__lagrgen__"
 PACKAGE = Path(__file__).resolve().parent
 #: The sources that determine generated code: a change to any of them changes every key.
 GENERATOR_SOURCES = ("_version.py", "functions.py", "calculus.py", "terms.py", "contributions.py",
-                     "lagrange.py", "nonsmooth.py", "tree.py", "kernels.py", "dimensions.py",
+                     "lagrange.py", "nonsmooth.py", "tree.py", "tree3d.py", "frames.py",
+                     "kernels.py", "trace.py", "lean3d.py", "dimensions.py",
                      "runtime/info.py",
                      "codegen/*.py", "codegen/templates/*", "codegen/templates/functions/*")
 #: Imported extension modules by resolved path: a file is imported once per process.

@@ -47,6 +47,28 @@ class Sums:
         self.deferred = []      # what adds its kinetic terms to M and F only when they are formed
         self.T = self.V = self.R = se.Integer(0)
         self.Q = [se.Integer(0)] * n
+        self.articulations = []   # Articulation records: their energies formed on first use
+        self._frames = {}
+
+    def frames_of(self, record):
+        """The world frames of the Articulation `record`'s segments (`lagrgen.frames`), once."""
+        from . import frames
+        if id(record) not in self._frames:
+            self._frames[id(record)] = frames.frames(record, self.convert, self.q, self.qd,
+                                                     self.t)
+        return self._frames[id(record)]
+
+    def tree_energies(self):
+        """(T, V) of the articulations' bodies: the sums of each body's kinetic and potential
+        energy (`lagrgen.frames`), each sum formed once."""
+        from . import frames
+        T, V = [], []
+        for record in self.articulations:
+            gravity = [self.convert(g) for g in record.gravity]
+            for frame in self.frames_of(record):
+                T.append(frames.kinetic_energy(frame))
+                V.append(frames.potential_energy(frame, gravity))
+        return se.Add(*T), se.Add(*V)
 
     def add_mass(self, mass, position):
         """T += ½·mass·ṙ·ṙ for a mass at `position` (internal symbols)."""
@@ -66,9 +88,11 @@ class Sums:
         self.particles = []
 
     def add_virtual_work(self, vector, position):
-        """Q_j += vector · ∂position/∂q_j (internal symbols)."""
+        """Q_j += vector · ∂position/∂q_j (internal symbols; only for the q_j it holds)."""
+        free = set().union(*(rc.free_symbols for rc in position))
         for j, qj in enumerate(self.q):
-            self.Q[j] += sum(fc * diff(rc, qj) for fc, rc in zip(vector, position))
+            if qj in free:
+                self.Q[j] += sum(fc * diff(rc, qj) for fc, rc in zip(vector, position))
 
     @property
     def power(self):
@@ -101,17 +125,27 @@ def body_3d(record, sums):
 
 
 def articulation(record, sums):
-    """T and V of every segment's body (`lagrgen.frames`); their terms of M and F are added only
-    when the dense equations are formed (`dense_articulation`): the recursive formulation needs
-    none of them."""
+    """Nothing formed now: T and V of every segment's body (`Sums.tree_energies`, for the
+    outputs), and their terms of M and F (`dense_articulation`, when the dense equations are
+    formed), are formed on first use; the recursive formulation forms each body's terms itself
+    (`lagrgen.tree3d`), and a long chain's nested world frames are never built for it."""
+    sums.articulations.append(record)
+    for segment in record.segments:
+        if segment.kind == "free" and segment.radial:
+            T = free_radial_energy(segment, sums)
+            sums.T += T
+            sums.general_T.append(T)
+    sums.deferred.append(lambda: dense_articulation(record, sums.frames_of(record), sums))
+
+
+def free_radial_energy(segment, sums):
+    """½·J·(d|ζ|/dt)² = ½·J·(ζ·ζ̇)²/|ζ|² of a free segment's quaternion length (J its `radial`):
+    the length moves nothing, and this inertia makes it a coordinate of its own (M positive
+    definite) that keeps its rate."""
     from . import frames
-    c = sums.convert
-    world = frames.frames(record, c, sums.q, sums.qd, sums.t)
-    gravity = [c(g) for g in record.gravity]
-    for frame in world:
-        sums.T += frames.kinetic_energy(frame)
-        sums.V += frames.potential_energy(frame, gravity)
-    sums.deferred.append(lambda: dense_articulation(record, world, sums))
+    _, z, _, zd = frames.free_motion(segment, sums.convert, sums.q, sums.qd, sums.t)
+    dot = se.Add(*(a * b for a, b in zip(z, zd)))
+    return se.Float(segment.radial) * dot * dot / (2 * se.Add(*(a * a for a in z)))
 
 
 def dense_articulation(record, world, sums):

@@ -240,7 +240,7 @@ class Description:
             for c in self._coordinates:
                 if c.func.__name__ == coordinate:
                     return c
-        elif coordinate in self._coordinates:
+        elif coordinate in set(self._coordinates):     # hashed: SymPy's == is slow
             return coordinate
         raise ModelError(
             f"{coordinate!r} is not a generalized coordinate of model {self.name!r} "
@@ -335,7 +335,7 @@ class Description:
         return link_names(self._physics)
 
     def link_position(self, link, point=(0, 0, 0)):
-        """The position in the fixed frame of a point fixed in a link (API §22).
+        """The position in the fixed frame of a point fixed in a link.
 
         Parameters
         ----------
@@ -353,7 +353,7 @@ class Description:
 
     def link_rotation(self, link):
         """The orientation of a link's frame in the fixed frame: the 3×3 SymPy Matrix R with
-        x_fixed = R·x_link (API §22)."""
+        x_fixed = R·x_link."""
         from .links import pose
         return pose(self._physics, link, self.name)[0]
 
@@ -682,7 +682,7 @@ class Description:
 
     def ground_contact(self, name, link, point=(0, 0, 0), mu=1.0, restitution=0.0, height=0.0,
                        normal=(0, 0, 1)):
-        """A point fixed in a link against the plane normal·x = height (API §22): the impact
+        """A point fixed in a link against the plane normal·x = height: the impact
         `name` on the gap normal·x − height (x = `link_position(link, point)`, the normal made a
         unit vector) with the `restitution`, and, when mu is not 0, isotropic Coulomb friction in
         the plane, the friction `<name>_friction` on the point's velocity along two unit tangents

@@ -201,10 +201,12 @@ def energy_units(equations):
 def energy_unit(equations):
     """The label of the energies of `equations` (`lagrgen.lagrange.Equations`), or None."""
     spec = equations.spec
-    if equations.energies is None or spec.external is not None:
+    if spec.external is not None:
         return None
     if any(isinstance(r, Articulation) for r in spec.physics):
         return "J"      # a robot of a URDF file: SI by the format's definition
+    if equations.energies is None:
+        return None
     labels = dict(spec.units)
     names = spec.coordinate_names + spec.parameter_names + spec.input_names
     if all(unit_quantity(labels.get(name)) in (None, 1) for name in names):

@@ -22,7 +22,7 @@ from typing import Optional
 
 import numpy as np
 
-from .errors import LagrgenError
+from .errors import LagrgenError, near_singular_limit, warn_near_singular
 from .hybrid import force_names, is_hybrid
 from .methods import BY_NAME
 from .native.engine import _event_arrays, _tolerances, native_events, native_reason
@@ -334,6 +334,7 @@ def _solve_batch(mod, plan, part, out, stop):
         extras.append((cm.function_address("outputs"), plan.n_outputs, out["outputs"]))
     P = part.P if part.P.shape[1] else np.zeros((len(part), 1))
     redo = _inconsistent_starts(mod, plan, part)
+    pivots = np.ones(len(part))
     _native.solve_batch(plan.method, cm.function_address("rhs"), jac, plan.dim,
                         np.ascontiguousarray(part.Y0), np.ascontiguousarray(P), plan.specs,
                         np.ascontiguousarray(part.inputs), float(plan.t_span[0]),
@@ -342,8 +343,19 @@ def _solve_batch(mod, plan, part, out, stop):
                         float(plan.options.get("first_step") or 0.0), plan.t_eval, ev_addr,
                         ev_max, ev_dir, True, extras, out["y"], out["status"], out["nfev"], stop,
                         int(plan.options.get("max_steps") or 0),
-                        float(plan.options.get("max_wall_time") or 0.0))
+                        float(plan.options.get("max_wall_time") or 0.0),
+                        cm.function_address("pivot_record"), pivots)
+    warn_near_singular_runs(mod, part, pivots, plan.rtol)
     return sorted(set(redo) | set(np.flatnonzero(out["status"] == -1).tolist()))
+
+
+def warn_near_singular_runs(mod, part, pivots, rtol):
+    """One NearSingularMassMatrixWarning naming the runs of the chunk `part` whose least relative
+    pivot of M (`pivots`, per run) is below `near_singular_limit(rtol)`."""
+    low = np.flatnonzero(pivots < near_singular_limit(rtol))
+    if len(low):
+        warn_near_singular(mod, float(pivots[low].min()), rtol,
+                           runs=[part.start + int(i) for i in low])
 
 
 def _inconsistent_starts(mod, plan, part):
@@ -412,7 +424,7 @@ def _one_run(mod, plan, part, i, out):
     if "sensitivities" in out:
         out["sensitivities"][i, :, :, :saved] = sol.sensitivities[:, :, :saved]
     transitions = getattr(sol, "transitions", None)
-    if transitions is not None:             # non-smooth models (API §13): one list per run
+    if transitions is not None:             # non-smooth models (impacts, friction): one list per run
         if out["transitions"] is None:
             out["transitions"] = [None] * len(part)
         out["transitions"][i] = list(transitions)
@@ -423,7 +435,7 @@ def _one_run(mod, plan, part, i, out):
 
 def batch_reason(mod, method, options, sensitivities=()):
     """Why the runs cannot go through the C batch (a str), or None when they can. The hook for
-    non-smooth models: a model with impacts or frictions (`nonsmooth_definitions`, API §13)
+    non-smooth models: a model with impacts or frictions (`nonsmooth_definitions`)
     runs per run, where `simulate` gives each run's transitions, until the batch collects them;
     so do runs with sensitivities (each on the native engine when it can run them)."""
     if options.get("engine") == "scipy":

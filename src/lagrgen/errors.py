@@ -31,6 +31,48 @@ class MassMatrixError(LagrgenError, np.linalg.LinAlgError):
                    f"q={np.array2string(q, precision=6)}: {hint}")
 
 
+class NearSingularMassMatrixWarning(RuntimeWarning):
+    """A run passed where the mass matrix M is nearly singular: a pivot of its factorization fell
+    below `NEAR_SINGULAR` (1e-8) of its diagonal entry, or below eps/rtol, so q̈ = M⁻¹·F lost
+    about that many of its digits there, e.g. Euler angles (roll–pitch–yaw coordinates of a
+    `rigid_body_3d` or a floating base) near gimbal lock, pitch = ±π/2."""
+
+    @classmethod
+    def message(cls, name, least, runs=None):
+        """The warning's text for model `name` whose least relative pivot was `least` (in the
+        runs `runs` of an ensemble, if given)."""
+        lost = max(0.0, -np.log10(max(least, 1e-300)))
+        which = "a run" if runs is None else (
+            f"run{'s' if len(runs) > 1 else ''} {', '.join(map(str, runs[:10]))}"
+            f"{' …' if len(runs) > 10 else ''}")
+        return (f"{which} of model {name!r} passed where its mass matrix is nearly singular: the "
+                f"least pivot of M reached {least:.2g} of its diagonal entry, so about {lost:.0f} "
+                "of the 16 digits of q̈ = M⁻¹·F were lost there and the result may be inaccurate "
+                "beyond the tolerances. Euler angles near gimbal lock (pitch = ±π/2) do this: "
+                "choose other angles for this motion, or start it elsewhere")
+
+
+#: The relative pivot of M below which a run warns (NearSingularMassMatrixWarning).
+NEAR_SINGULAR = 1e-8
+
+
+def near_singular_limit(rtol=None):
+    """The relative pivot of M below which a run warns: NEAR_SINGULAR, or eps/rtol when that is
+    larger (the digits lost then exceed those the tolerance asks for)."""
+    if rtol is not None and np.ndim(rtol) == 0 and rtol > 0:
+        return max(NEAR_SINGULAR, np.finfo(float).eps / float(rtol))
+    return NEAR_SINGULAR
+
+
+def warn_near_singular(mod, least, rtol=None, runs=None):
+    """Warn (NearSingularMassMatrixWarning) when the least relative pivot `least` a run's
+    factorizations of M reached is below `near_singular_limit(rtol)`."""
+    import warnings
+    if least < near_singular_limit(rtol):
+        warnings.warn(NearSingularMassMatrixWarning.message(mod.name, least, runs),
+                      NearSingularMassMatrixWarning, stacklevel=3)
+
+
 class ConstraintError(LagrgenError, np.linalg.LinAlgError):
     """The constraints are dependent (A·M⁻¹·Aᵀ singular) or cannot be satisfied at a state."""
 

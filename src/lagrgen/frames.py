@@ -13,12 +13,19 @@ A body of dynamic parameters (m, h = m·c, I_O) about its frame's origin, in its
 fixed axes the parameters (m, h_w, Ī) with h_w = m·p + R·h and
 Ī = R·I_O·Rᵀ + m·((p·p)·1 − p·pᵀ) + 2·(p·h')·1 − p·h'ᵀ − h'·pᵀ (h' = R·h): the spatial inertia
 [[Ī, [h_w]×], [[h_w]×ᵀ, m·1]].
+
+A "free" segment (a floating base without singularity) is placed by its coordinates
+(x, y, z, q_x, q_y, q_z, q_w): the origin p = (x, y, z) and the quaternion ζ = (q_x, q_y, q_z, q_w)
+of any nonzero length, whose direction is the orientation: R = R_h(ζ)/|ζ|² with R_h the rotation
+matrix of a unit quaternion written homogeneously (degree 2), and ω = 2·vec(ζ̇ ⊗ ζ*)/|ζ|² in
+fixed axes, 2·vec(ζ* ⊗ ζ̇)/|ζ|² in its own (Hamilton's product, `quaternion_product`).
 """
 from dataclasses import dataclass
 
 import symengine as se
 
 from .calculus import rate
+from .rotation import quaternion_matrix
 
 ZERO = se.Integer(0)
 
@@ -93,12 +100,45 @@ def rodrigues(axis, theta):
     return np.eye(3) + np.sin(theta) * K + (1 - np.cos(theta)) * (K @ K)
 
 
+def quaternion_product(a, b):
+    """a ⊗ b of two quaternions (x, y, z, w) (4-lists): [a_w·b_v + b_w·a_v + a_v × b_v;
+    a_w·b_w − a_v·b_v]."""
+    c = cross(a[:3], b[:3])
+    return [a[3] * y + b[3] * x + z for x, y, z in zip(a[:3], b[:3], c)] + \
+        [a[3] * b[3] - se.Add(*(x * y for x, y in zip(a[:3], b[:3])))]
+
+
+def conjugate(a):
+    """ζ* = (−x, −y, −z, w)."""
+    return [-a[0], -a[1], -a[2], a[3]]
+
+
+def quaternion_rate(z, zd, body=False):
+    """The angular velocity of the direction of ζ moving at ζ̇: 2·vec(ζ̇ ⊗ ζ*)/|ζ|² in fixed axes,
+    2·vec(ζ* ⊗ ζ̇)/|ζ|² in its own (`body`)."""
+    n2 = se.Add(*(x * x for x in z))
+    product = quaternion_product(conjugate(z), zd) if body else \
+        quaternion_product(zd, conjugate(z))
+    return [2 * e / n2 for e in product[:3]]
+
+
+def free_motion(segment, convert, q, qd, t):
+    """(p, ζ, ṗ, ζ̇) of a free segment's coordinates (internal symbols)."""
+    x = [convert(e) for e in segment.motion]
+    return x[:3], x[3:], [rate(e, q, qd, t) for e in x[:3]], [rate(e, q, qd, t) for e in x[3:]]
+
+
 def frames(record, convert, q, qd, t):
     """The `Frame` of every segment of the Articulation `record`, in segment order."""
     out = []
     eye = [[se.Integer(int(i == j)) for j in range(3)] for i in range(3)]
     zero3 = [ZERO] * 3
     for segment in record.segments:
+        if segment.kind == "free":
+            p, z, pd, zd = free_motion(segment, convert, q, qd, t)
+            out.append(Frame(quaternion_matrix(z), p, quaternion_rate(z, zd), pd, None, None,
+                             [convert(x) for x in segment.inertia]))
+            continue
         parent = out[segment.parent] if segment.parent >= 0 else \
             Frame(eye, zero3, zero3, zero3, None, None, None)
         P = [[convert(x) for x in row] for row in segment.rotation.tolist()]
@@ -199,6 +239,10 @@ def body_omega(record, convert, q, qd, t):
     """Each segment's angular velocity in its own axes, ω_k = (P_k·J_k)ᵀ·ω_λ + a·θ̇_k (revolute)."""
     out = []
     for segment in record.segments:
+        if segment.kind == "free":
+            _, z, _, zd = free_motion(segment, convert, q, qd, t)
+            out.append(quaternion_rate(z, zd, body=True))
+            continue
         parent = out[segment.parent] if segment.parent >= 0 else [ZERO] * 3
         P = [[convert(x) for x in row] for row in segment.rotation.tolist()]
         theta = convert(segment.motion)

@@ -25,6 +25,8 @@ CALL_STYLES = {
     "implicit": ("q", "qd", "a", "t"),   # f(q, qd, a, t=0.0, p=None, u=None), a = [q̈, λ]
     "link": ("link", "q", "point"),      # f(link, q, point=(0, 0, 0), p=None); in C
                                          # y = [q, point, the link's index]
+    "weighted": ("q", "qd", "a", "mu", "t"),   # f(q, qd, a, mu, t=0.0, p=None, u=None): weights
+                                               # mu of the implicit form's rows; y = [q, q̇, a, mu]
 }
 
 
@@ -38,7 +40,8 @@ class Output:
 #: The compiled units of a built model. "model" is its module, what running it needs; any other
 #: label is a unit compiled on first use into its own module, `<model>_<label>` (lagrgen.units):
 #: "parameters" (the parameter Jacobian), "directions" (the directional derivatives of the
-#: sensitivities), "manifold" (the constraint residuals' Jacobian of the linearization).
+#: sensitivities), "manifold" (the constraint residuals' Jacobian of the linearization), "hessian"
+#: (the residual's second derivatives, for collocation).
 MODEL_UNIT = "model"
 
 
@@ -53,6 +56,8 @@ class ModelFunction:
     formula: str
     kernels: tuple = ()
     unit: str = MODEL_UNIT
+    exported: bool = True   # in the standalone C model export_c writes (False: only compiled
+                            # on first use, where its unit's derivation may take long)
 
     def shapes(self, dims):
         """The output shapes as tuples of ints, for the dimensions `dims` (name -> size)."""
@@ -138,6 +143,11 @@ FUNCTIONS = (
                   "r = [M·q̈ − F − Aᵀλ; A·q̈ − γ] of the implicit form at a given a = [q̈, λ], "
                   "and its derivatives ∂r/∂[q, q̇], ∂r/∂a, ∂r/∂u",
                   ("mf", "constraints", "jacobian_b", "dF_du", "constraint_jacobian")),
+    ModelFunction("residual_hessian", "weighted", (Output("H", ("n_point", "n_point")),),
+                  "∇²_z(Σ mu_i·r_i) of r = [M·q̈ − F − Aᵀλ; A·q̈ − γ], z = [q, q̇, q̈, λ, u] "
+                  "(symmetric): for a three-dimensional tree by the second-order derivatives "
+                  "of its recursion, otherwise from the symbolic second derivatives",
+                  ("residual_hessian",), "hessian", exported=False),
     ModelFunction("regressor", "implicit", (Output("Y", ("n", "n_inertial")),),
                   "Y(q, q̇, q̈) with M·q̈ − F = Y·π for the bodies' inertial parameters π "
                   "(inertial_parameters; forces of inputs, springs and dampers left out): "
@@ -157,6 +167,8 @@ FUNCTIONS = (
 )
 
 BY_NAME = {f.name: f for f in FUNCTIONS}
+#: The functions of the standalone C model (`lagrgen.export_c`): all but the second derivatives.
+EXPORTED = tuple(f for f in FUNCTIONS if f.exported)
 #: The unit labels, the model's first.
 UNITS = tuple(dict.fromkeys([MODEL_UNIT] + [f.unit for f in FUNCTIONS]))
 

@@ -24,6 +24,9 @@ limit (μ_s·|N| − |λ| ↓ 0). Then:
   sticking force is within μ_s·|N|, else slip on in the direction −sign(λ) ("slip"); a sticking
   contact slips when its force reaches μ_s·|N|. The mode is made consistent (forces ≥ 0, sticking
   forces within their cones) before the next segment; `max_transitions` bounds chattering.
+* A friction whose normal force is an impact's multiplier is inactive while that contact is open
+  (N = 0: no force, no sticking row, an event value of 1, mode "open"); when the contact is held
+  at a switch, it sticks or slips by the rules above (`Switching._engage`, recorded).
 * Tolerances. A gap counts as closed within `gap_tol` (default 1e-9), and its speed as zero at the
   start within the speed of a fall through gap_tol; a slip velocity counts as zero within
   1000·gap_tol (at the start, and for frictions stopping together with the one whose event
@@ -147,7 +150,7 @@ class HybridSystem:
                 rows.append(imp[i, 4:])
                 rhs.append(imp[i, 2])
         for j in range(self.nf):
-            if slip[j] == 0:
+            if slip[j] == 0 and self.active(j, contact):
                 friction_row[j] = len(rows)
                 rows.append(fr[j, 5:])
                 rhs.append(fr[j, 1])
@@ -225,6 +228,14 @@ class HybridSystem:
                  for j in range(self.nf)]
         return np.concatenate([lam_m, lam_i, along, out.planar_force.ravel()])
 
+    def active(self, j, contact):
+        """Whether friction j acts in a mode with these contacts (`acts`)."""
+        return acts(self.normal[j], contact)
+
+    def planar_active(self, k, contact):
+        """Whether planar friction k acts in a mode with these contacts (`acts`)."""
+        return acts(self.planar_normal[k], contact)
+
     def _normal_row(self, ref, impact_row):
         """The row of R whose multiplier is a friction's normal force (`ref`), or None."""
         if ref is None:
@@ -242,12 +253,6 @@ class HybridSystem:
             return abs(lam[row])
         return abs(expression) if ref is None else 0.0
 
-    def planar_active(self, k, contact):
-        """True if planar friction k acts: its normal force is an expression or a constraint's,
-        or its impact is held."""
-        ref = self.planar_normal[k]
-        return ref is None or ref[0] == "constraint" or bool(contact[ref[1]])
-
     def rhs(self, t, y, contact, slip, planar=None):
         """ẏ = [q̇, q̈] in the mode."""
         qdd = self.solve(t, y, contact, slip, planar=planar)[0]
@@ -257,7 +262,8 @@ class HybridSystem:
         """The event values of the mode, all falling through zero at a switch: g (open; g plus
         its offset for a contact left open at rest at its surface, see `Switching._touching`),
         λ (contact), s·v (slipping), μ_s·|N| − |λ| (sticking); for a planar friction
-        μ_s·|N| − ‖λ‖ (sticking), d·v (slipping along its anchor d), 1 (inactive)."""
+        μ_s·|N| − ‖λ‖ (sticking), d·v (slipping along its anchor d); 1 for a friction
+        of either kind whose contact is open (it has none)."""
         out = self.solve(t, y, contact, slip, planar=planar)
         _, lam_i, lam_f, normal, (_, _, imp, fr) = out
         values = np.empty(self.n_events)
@@ -265,7 +271,8 @@ class HybridSystem:
             values[i] = lam_i[i] if contact[i] else imp[i, 0] + (
                 0.0 if offsets is None else offsets[i])
         for j in range(self.nf):
-            values[self.ni + j] = (fr[j, 3] * normal[j] - abs(lam_f[j]) if slip[j] == 0
+            values[self.ni + j] = (1.0 if not self.active(j, contact)
+                                   else fr[j, 3] * normal[j] - abs(lam_f[j]) if slip[j] == 0
                                    else slip[j] * fr[j, 0])
         pmode, anchor = planar if planar is not None else ((-1,) * self.npf, None)
         for k in range(self.npf):
@@ -400,6 +407,27 @@ def regularized_solve(D, b, regularized=None):
     return lam
 
 
+def acts(ref, contact):
+    """Whether a friction whose normal force is `ref` (None: an expression; (kind, index): a
+    constraint's or an impact's multiplier) acts with these contacts: not while it is the
+    multiplier of an open contact (N = 0: no force, no sticking row, no events). One rule for
+    the frictions and the planar frictions."""
+    return ref is None or ref[0] != "impact" or bool(contact[ref[1]])
+
+
+def mode_names(system, contact, slip, pmode=None):
+    """{name: "open" | "contact" | "stick" | "slip"} of the mode (contact, slip, and the planar
+    frictions' pmode: −1 inactive, 0 stick, 1 slip); a friction of either kind whose contact is
+    open is "open"."""
+    out = {d[0]: CONTACT if c else OPEN for d, c in zip(system.impacts, contact)}
+    out.update({d[0]: OPEN if not system.active(j, contact) else STICK if v == 0 else SLIP
+                for j, (d, v) in enumerate(zip(system.frictions, slip))})
+    pmode = (-1,) * system.npf if pmode is None else pmode
+    out.update({d[0]: OPEN if not system.planar_active(k, contact) else (OPEN, STICK, SLIP)[
+        int(v) + 1] for k, (d, v) in enumerate(zip(system.planars, pmode))})
+    return out
+
+
 def projected_gauss_seidel(D, before, target, sweeps=PGS_SWEEPS, cones=()):
     """Λ with after = before + D·Λ: Λ_i ≥ 0, after_i ≥ target_i, Λ_i·(after_i − target_i) = 0
     (an LCP) for every row but the friction rows of `cones` ((normal row, t1 row, t2 row, μ)),
@@ -482,13 +510,9 @@ class Switching:
         return tuple(self.pmode), tuple(self.anchor)
 
     def mode(self):
-        """{name: "open" | "contact" | "stick" | "slip"} (a planar friction whose contact is
-        open: "open")."""
-        s = self.system
-        out = {d[0]: CONTACT if c else OPEN for d, c in zip(s.impacts, self.contact)}
-        out.update({d[0]: STICK if v == 0 else SLIP for d, v in zip(s.frictions, self.slip)})
-        out.update({d[0]: (OPEN, STICK, SLIP)[v + 1] for d, v in zip(s.planars, self.pmode)})
-        return out
+        """{name: "open" | "contact" | "stick" | "slip"} (a friction whose contact is open:
+        "open")."""
+        return mode_names(self.system, self.contact, self.slip, self.pmode)
 
     def _record(self, t, k, kind):
         self.transitions.append((float(t), self.system.names[k], kind))
@@ -552,6 +576,8 @@ class Switching:
             j = k - s.ni
             if j >= s.nf:
                 self._planar_event(t, y, j - s.nf, pf[j - s.nf, :2])
+            elif j >= 0 and not s.active(j, self.contact):
+                continue
             elif j >= 0 and self.slip[j] == 0:
                 lam = s.solve(t, y, self.contact, self.slip, planar=self.planar)[2][j]
                 self.slip[j] = -1 if lam > 0 else 1
@@ -612,16 +638,44 @@ class Switching:
                 self.contact[i] = False
                 self._record(t, i, "release")
                 self.bounced.append(i)
+        held = []
         for i in closing:
             if i in resting:
                 self.contact[i] = True
+                self._classify_frictions(t, y, [i])
                 if s.solve(t, y, self.contact, self.slip, planar=self.planar)[1][i] >= 0:
                     self._record(t, i, CONTACT)
+                    held.append(i)
                     continue
                 self.contact[i] = False
             self._record(t, i, "impact")
             self.bounced.append(i)
+        for i in held:
+            self._engage(t, y, i)
         return y
+
+    def _on(self, contacts):
+        """The frictions whose normal force is the multiplier of one of the impacts `contacts`."""
+        return [j for j, ref in enumerate(self.system.normal)
+                if ref is not None and ref[0] == "impact" and ref[1] in contacts]
+
+    def _classify_frictions(self, t, y, contacts):
+        """Slip direction sign(v), or 0 (v = 0 within 1000·gap_tol), for the frictions on the
+        impacts `contacts` (inactive while those were open)."""
+        fr = self.system.terms(t, y)[5]
+        for j in self._on(contacts):
+            v = fr[j, 0]
+            self.slip[j] = 0 if abs(v) <= 1e3 * self.gap_tol else (1 if v > 0 else -1)
+
+    def _engage(self, t, y, i):
+        """The frictions on impact i, just held, start acting: those at v = 0 stick or slip by
+        the holding force (`_try_stick`), the others slip (recorded)."""
+        self._classify_frictions(t, y, [i])
+        for j in self._on([i]):
+            if self.slip[j] == 0:
+                self._try_stick(t, y, j)
+            else:
+                self._record(t, self.system.ni + j, SLIP)
 
     def _try_stick(self, t, y, j):
         """Friction j reached v = 0: stick if the holding force is within μ_s·|N|, else slip on
@@ -665,7 +719,7 @@ class Switching:
                     y = s.hold(t, y, [i for i in range(s.ni) if self.contact[i]])
                 changed = True
             for j in range(s.nf):
-                if self.slip[j] != 0:
+                if self.slip[j] != 0 or not s.active(j, self.contact):
                     continue
                 v = fr[j, 0]
                 if abs(v) > 1e3 * self.gap_tol or abs(lam_f[j]) > fr[j, 3] * normal[j]:
@@ -697,11 +751,14 @@ class Switching:
         """The open contacts at rest at their surface (g ≤ gap_tol, ġ² ≤ 2·gap_tol·abs(g̈); not
         one that has just bounced) that the mode drives into it (g̈ < −1000·gap_tol): a contact
         released while another held kept it closed, or one found closed at the start beside
-        others."""
+        others. A `rest_velocity` given holds only those whose rebound e·abs(ġ) is at most it
+        (0: contacts never rest)."""
         return [i for i in range(self.system.ni) if not self.contact[i]
                 and i not in self.bounced
                 and imp[i, 0] <= self.gap_tol and gdd[i] < -1e3 * self.gap_tol
-                and imp[i, 1] ** 2 <= 2 * self.gap_tol * abs(gdd[i])]
+                and imp[i, 1] ** 2 <= 2 * self.gap_tol * abs(gdd[i])
+                and (self.rest_velocity is None
+                     or imp[i, 3] * abs(imp[i, 1]) <= self.rest_velocity)]
 
     def _settle_planar(self, out, activated, tried, stuck):
         """The planar frictions' part of `settle` on the solution `out` of the mode: inactive
@@ -988,12 +1045,17 @@ def stall_step(t0, tf):
 
 def stall_message(t, least, transitions):
     """Why a hybrid solve stopped making progress at t."""
-    last = ", ".join(f"{kind} {name!r}" for _, name, kind in transitions[-3:]) or "none"
-    return (f"the hybrid solve made no progress: {STALL_SEGMENTS} segments in a row ended within "
-            f"{least:.3g} s of their start, at t = {t:.9g} (last transitions: {last}). Impacts "
-            "that never come to rest (rest_velocity too small: the default is 1e-6 times the "
-            "fastest impact) or contacts that hold a body from both sides keep switching "
-            "without advancing: raise rest_velocity or check the impacts")
+    recent = transitions[-3:]
+    last = ", ".join(f"{kind} {name!r}" for _, name, kind in recent) or "none"
+    head = (f"the hybrid solve made no progress: {STALL_SEGMENTS} segments in a row ended within "
+            f"{least:.3g} s of their start, at t = {t:.9g} (last transitions: {last}). ")
+    if recent and all(kind in (STICK, SLIP) for *_, kind in recent):
+        return head + ("Frictions that toggle between stick and slip at one instant keep "
+                       "switching without advancing: check their slip velocities and normal "
+                       "forces (a normal force of 0 gives no friction)")
+    return head + ("Impacts that never come to rest (rest_velocity too small: the default is "
+                   "1e-6 times the fastest impact) or contacts that hold a body from both sides "
+                   "keep switching without advancing: raise rest_velocity or check the impacts")
 
 
 class _EventValues:
@@ -1022,6 +1084,20 @@ def _event(values, k):
 def is_hybrid(mod):
     """True if `mod` runs as a hybrid solve: it has impacts, frictions or enforced limits."""
     return bool(mod.nonsmooth_definitions or mod.info.limit_stops)
+
+
+def check_within_stops(mod, y, gap_tol=GAP_TOL):
+    """ValueError when a state of `y` (2n × k) puts a coordinate beyond an enforced limit
+    (a stop's gap below −gap_tol): a smooth run, such as one with sensitivities, is the hybrid
+    one only while no stop is reached."""
+    for name, j, sign, bound, _ in mod.info.limit_stops:
+        gaps = sign * (np.asarray(y)[j] - bound)
+        if gaps.size and gaps.min() < -gap_tol:
+            raise ValueError(
+                f"the run reached stop {name!r} ({mod.coordinates[j]} = "
+                f"{np.asarray(y)[j][np.argmin(gaps)]:.6g}, limit {bound:g}): sensitivities are "
+                "computed for smooth runs and do not cross switches; run within the limits, or "
+                "build the model with its limits not enforced (from_urdf(..., limits=False))")
 
 
 def force_names(mod):
@@ -1078,10 +1154,7 @@ def solve_hybrid_native(mod, t_span, y0, method, p, u_spec, rtol, atol, t_eval=N
                    for t, k, kind in out["transitions"]]
     message = native_failure_message(mod, system, out, transitions, float(gap_tol), t0, tf,
                                      np.asarray(y0, dtype=float))
-    mode = {d[0]: CONTACT if c else OPEN for d, c in zip(system.impacts, out["contact"])}
-    mode.update({d[0]: STICK if s == 0 else SLIP for d, s in zip(system.frictions, out["slip"])})
-    mode.update({d[0]: (OPEN, STICK, SLIP)[int(v) + 1]
-                 for d, v in zip(system.planars, out["pmode"])})
+    mode = mode_names(system, out["contact"], out["slip"], out["pmode"])
     return dict(t=out["t"], y=out["y"].T.copy(), forces=out["forces"].T.copy(),
                 transitions=transitions, mode=mode,
                 nfev=out["nfev"], status=out["status"], message=message,

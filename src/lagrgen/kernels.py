@@ -35,7 +35,7 @@ from dataclasses import dataclass, field
 
 import symengine as se
 
-from . import nonsmooth, tree
+from . import hessians, nonsmooth, tree
 from .caching import once_per
 from .functions import Output
 from .tangents import linearize
@@ -57,6 +57,8 @@ class KernelSpec:
     arguments: tuple = KERNEL_ARGUMENTS   # its arguments: `t` a double, the others arrays
     lanes: tuple = ()    # arrays holding one entry per direction: in C the kernel runs several
                          # directions at once, entry i of lane b at [i·LG_LANES + b]
+    python: bool = True  # formed for the Python backend too (False: only a compiled unit's C
+                         # calls it, and the Python backend computes its function otherwise)
 
 
 @dataclass
@@ -81,7 +83,7 @@ def has_links(eq):
 
 def link_frames(spatial):
     """The link_frames kernel's outputs of a `SpatialTree`: the links' poses, the nodes' twists."""
-    return {"poses": [x for _, _, pose in spatial.links for x in pose],
+    return {"poses": [x for pose in spatial.link_poses for x in pose],
             "twists": [x for record in spatial.records for x in record[:6]]}
 
 
@@ -93,6 +95,10 @@ def flatten(matrix):
 def _parameter_b(eq):
     return {"P": [eq.dF_dp[i][j] - eq.dMa_dp[i][j] for i in range(eq.n)
                   for j in range(len(eq.p))]}
+
+
+def _split_outputs(outputs):
+    return {"out": list(outputs[:-2]), "power": list(outputs[-2:])}
 
 
 def _jacobian_b(eq):
@@ -133,6 +139,14 @@ def motion_linearized(eq):
     return linearize(*motion_program(eq), _seeds(eq))
 
 
+#: The arguments of a kernel of weighted sums: the kernel arguments and the weights mu.
+WEIGHTED_ARGUMENTS = KERNEL_ARGUMENTS + ("mu",)
+
+
+def _residual_hessian(eq):
+    return {"H": hessians.full_matrix(hessians.residual_hessian(eq), hessians.point_size(eq))}
+
+
 def _motion_tape(eq):
     lin, values = motion_linearized(eq), motion_program(eq)[1]
     outputs = {key: values.get(key, []) for key in ("M", "F", "A", "gamma")}
@@ -166,7 +180,7 @@ KERNELS = (
                lambda eq: {"dF_du": flatten(eq.dF_du)}),
     KernelSpec("outputs", "the user's outputs, then T, V, T + V; and Σ Q_j·q̇_j, R",
                (Output("out", ("n_outputs",)), Output("power", ("n_power",))),
-               lambda eq: {"out": list(eq.outputs[:-2]), "power": list(eq.outputs[-2:])}),
+               lambda eq: _split_outputs(eq.outputs)),
     KernelSpec("constraints", "A (m×n) and γ (m) of the constraints A·q̈ = γ (Baumgarte-stabilized)",
                (Output("A", ("n_constraints", "n")), Output("gamma", ("n_constraints",))),
                lambda eq: {"A": flatten(eq.A), "gamma": list(eq.gamma)}, lambda eq: eq.m > 0),
@@ -199,6 +213,10 @@ KERNELS = (
     KernelSpec("nonsmooth", "the impacts' and frictions' terms (layout in lagrgen.nonsmooth)",
                (Output("terms", ("n_hybrid",)),), lambda eq: {"terms": nonsmooth.terms(eq)},
                when=lambda eq: bool(eq.spec.nonsmooth)),
+    KernelSpec("residual_hessian", "H = ∇²_z(Σ mu_i·r_i) of the implicit form's residual "
+               "r = [M·q̈ − F − Aᵀλ; A·q̈ − γ], z = [q, q̇, q̈, λ, u] (symmetric, full)",
+               (Output("H", ("n_point", "n_point")),), _residual_hessian,
+               arguments=WEIGHTED_ARGUMENTS, python=False),
     KernelSpec("motion_tape", "M, F (and A, γ) as mf (and constraints) compute them, and the tape c "
                "of their forward-mode coefficients (lagrgen.tangents)",
                (Output("M", ("n", "n")), Output("F", ("n",)),
@@ -215,29 +233,43 @@ KERNELS_BY_NAME = {k.name: k for k in KERNELS}
 
 def _signed(expr, memo):
     """`expr` with every sum inside it written as ±S where S is the one of S, −S whose term with the
-    smallest hash has a positive coefficient (the same value), so that CSE sees X and −X as one."""
-    hit = memo.get(expr)
-    if hit is not None:
-        return hit
-    if not expr.args or isinstance(expr, se.Number):
-        out = expr
-    elif isinstance(expr, se.Add):
-        args = [_signed(a, memo) for a in expr.args]
-        lead = min(args, key=lambda a: hash(_strip_number(a)))
-        lead_negative = isinstance(lead, se.Number) and lead.is_negative or (
-            isinstance(lead, se.Mul) and isinstance(lead.args[0], se.Number)
-            and lead.args[0].is_negative)
-        out = -se.Add(*(-a for a in args)) if lead_negative else se.Add(*args)
-    else:
-        args = [_signed(a, memo) for a in expr.args]
-        out = expr
-        if any(a is not b for a, b in zip(args, expr.args)):
-            try:
-                out = expr.func(*args)
-            except (AttributeError, TypeError):   # relations, Piecewise: left as they are
-                out = expr
-    memo[expr] = out
-    return out
+    smallest hash has a positive coefficient (the same value), so that CSE sees X and −X as one.
+    Iterative (an explicit stack, children before parents): an expression nested deeper than
+    Python's recursion limit (the energies of a long chain) is walked like any other."""
+    stack = [(expr, False)]
+    while stack:
+        node, ready = stack.pop()
+        if node in memo:
+            continue
+        if not node.args or isinstance(node, se.Number):
+            memo[node] = node
+            continue
+        if not ready:
+            stack.append((node, True))
+            stack.extend((a, False) for a in node.args if a not in memo)
+            continue
+        args = [memo[a] for a in node.args]
+        memo[node] = _signed_sum(args) if isinstance(node, se.Add) else _rebuilt(node, args)
+    return memo[expr]
+
+
+def _signed_sum(args):
+    """The sum of the (already signed) terms `args`, as ±S with S's leading term positive."""
+    lead = min(args, key=lambda a: hash(_strip_number(a)))
+    lead_negative = isinstance(lead, se.Number) and lead.is_negative or (
+        isinstance(lead, se.Mul) and isinstance(lead.args[0], se.Number)
+        and lead.args[0].is_negative)
+    return -se.Add(*(-a for a in args)) if lead_negative else se.Add(*args)
+
+
+def _rebuilt(expr, args):
+    """`expr` with its arguments replaced by `args` (itself when none changed)."""
+    if all(a is b for a, b in zip(args, expr.args)):
+        return expr
+    try:
+        return expr.func(*args)
+    except (AttributeError, TypeError):   # relations, Piecewise: left as they are
+        return expr
 
 
 def _strip_number(term):
@@ -285,16 +317,47 @@ def _node_notes(output, slopes=False):
 
 
 @once_per
+def tree_q_hessian(eq):
+    """The nonzero lower entries [(row, col, expr)] of ∇²_z(Σ mu_i·Q_i) of a spatial tree's
+    generalized forces Q (`lagrgen.hessians.q_hessian`), once per Equations."""
+    return hessians.q_hessian(tree.analyse(eq).Q, eq)
+
+
+def _is_spatial_tree(eq):
+    """True for a three-dimensional tree whose residual's second derivatives come from its
+    recursion (not one with a free base: its recursion runs in the base's chart)."""
+    t = tree.analyse(eq)
+    return t.kind == "spatial" and not getattr(t, "free", None)
+
+
+@once_per
 def tree_gradients(eq):
     """`lagrgen.tree.gradients` of the equations' tree, once per Equations."""
     return tree.gradients(tree.analyse(eq), eq)
+
+
+def joint_tables(eq):
+    """The `lagrgen.tree3d.Joints` of the equations' tree, or None: an articulation whose joints
+    are numbers has its node records computed from them (in C by tree3d.c.in's lg_tree_nodes, in
+    Python by `lagrgen.runtime.tree3d`), with the kernel tree_loads for Q and g; any other tree
+    by the kernel tree_nodes."""
+    return getattr(tree.analyse(eq), "joints", None)
+
+
+def _tree_loads(eq):
+    t = tree.analyse(eq)
+    return {"Q": list(t.Q), "g": list(t.gravity)}
 
 
 TREE_KERNELS = (
     KernelSpec("tree_nodes", "each node's terms of the recursion over the kinematic tree "
                "(lagrgen.tree.NODE_FIELDS), in node order",
                (Output("nodes", ("n", "node_width")),), _tree_nodes,
-               notes=_node_notes("nodes")),
+               notes=_node_notes("nodes"), when=lambda eq: joint_tables(eq) is None),
+    KernelSpec("tree_loads", "the generalized forces Q (coordinate order) and the gravity g of "
+               "an articulation whose node records follow from its joints' numbers",
+               (Output("Q", ("n",)), Output("g", ("3",))), _tree_loads,
+               when=lambda eq: joint_tables(eq) is not None),
     KernelSpec("tree_slopes", "the node terms' derivatives by their own q_k, q̇_k at a given "
                "a = q̈ (lagrgen.tree.SLOPE_FIELDS), and the nonzero entries of ∂Q/∂q, ∂Q/∂q̇",
                (Output("slopes", ("n", "slope_width")), Output("dQ", ("nnz_q",)),
@@ -308,14 +371,29 @@ TREE_KERNELS = (
                lambda eq: {"poses": [x for pose in tree.analyse(eq).poses for x in pose]},
                when=lambda eq: tree.analyse(eq).kind == "spatial"
                and bool(tree.tree3d.inertial_parameters(eq.spec))),
+    KernelSpec("tree_outputs", "the user's outputs, then T, V, T + V; and Σ Q_j·q̇_j, R, without "
+               "the energies of an articulation's bodies (lg_outputs adds those from the node "
+               "records)", (Output("out", ("n_outputs",)), Output("power", ("n_power",))),
+               lambda eq: _split_outputs(eq.outputs_of(
+                   eq.collected.energies_beside_articulations))),
     KernelSpec("tree_parameters", "the nonzero derivatives of the node records and of Q by the "
                "parameters (lagrgen.tree.parameter_gradients)",
                (Output("dnode", ("nnz_p",)), Output("dQp", ("nnz_qp",))),
                lambda eq: {"dnode": tree_parameter_gradients(eq)[0][1],
                            "dQp": tree_parameter_gradients(eq)[1][1]}),
+    KernelSpec("tree_q_hessian", "the nonzero lower entries of ∇²_z(Σ mu_i·Q_i) of the generalized "
+               "forces Q (a spatial tree: its inertia forces' part comes from the recursion)",
+               (Output("HQ", ("nnz_qh",)),),
+               lambda eq: {"HQ": [e for _, _, e in tree_q_hessian(eq)]},
+               when=_is_spatial_tree, arguments=WEIGHTED_ARGUMENTS),
+    KernelSpec("tree_residual_hessian", "H = ∇²_z(Σ mu_i·r_i) as the dense kernel residual_hessian "
+               "(a planar tree or a free base: no recursion of second derivatives)",
+               (Output("H", ("n_point", "n_point")),), _residual_hessian,
+               when=lambda eq: not _is_spatial_tree(eq), arguments=WEIGHTED_ARGUMENTS,
+               python=False),
 )
 #: The dense kernels the recursive formulation keeps (none of them needs M or F).
-_KEPT = ("outputs", "events", "nonsmooth", "link_frames")
+_KEPT = ("events", "nonsmooth", "link_frames")
 #: The kernels of each formulation, in the order they are generated.
 FORMULATION_KERNELS = {"dense": KERNELS,
                        "recursive": TREE_KERNELS + tuple(k for k in KERNELS if k.name in _KEPT)}
@@ -328,7 +406,9 @@ TREE_REPLACES = {"mf": ("tree_nodes",),
                  "parameter_b": ("tree_nodes", "tree_parameters"),
                  "motion_tape": ("tree_nodes", "tree_slopes", "tree_parameters"),
                  "motion_tangent": (),
-                 "body_poses": ("tree_poses",)}
+                 "body_poses": ("tree_poses",),
+                 "residual_hessian": ("tree_nodes", "tree_q_hessian", "tree_residual_hessian"),
+                 "outputs": ("tree_nodes", "tree_outputs")}
 
 
 @once_per
@@ -354,19 +434,22 @@ def kernel(eq, name, formulation="dense"):
 
 
 def kernel_names(names, formulation="dense"):
-    """The kernels of `formulation` that compute what the dense kernels `names` give."""
+    """The kernels of `formulation` that compute what the dense kernels `names` give (the node
+    records: tree_nodes, or tree_loads for an articulation's joints, whichever the model has)."""
     if formulation == "dense":
         return set(names)
-    return {r for k in names for r in TREE_REPLACES.get(k, (k,))}
+    out = {r for k in names for r in TREE_REPLACES.get(k, (k,))}
+    return out | {"tree_loads"} if "tree_nodes" in out else out
 
 
-def model_kernels(eq, formulation="dense", names=None):
+def model_kernels(eq, formulation="dense", names=None, python=False):
     """The kernels a build of `eq` in `formulation` ("dense" or "recursive") generates, in order:
     those the model has, and only those computing the dense kernels `names` when given (the
-    others are not formed)."""
+    others are not formed); with `python`, only those the Python backend forms."""
     wanted = None if names is None else kernel_names(names, formulation)
     return [kernel(eq, k.name, formulation) for k in FORMULATION_KERNELS[formulation]
-            if (wanted is None or k.name in wanted) and (k.when is None or k.when(eq))]
+            if (wanted is None or k.name in wanted) and (k.python or not python)
+            and (k.when is None or k.when(eq))]
 
 
 def all_kernels(eq, names=None):

@@ -32,7 +32,6 @@ class Equations:
     def __init__(self, spec, collected, symbols, constraints=None, events=()):
         self.spec = spec
         self.collected = collected
-        self.energies = collected.energies
         self.events = list(events)
         self.n = len(symbols[0])
         self.q, self.qd, self.a, self.p, self.u, self.t = symbols
@@ -199,16 +198,27 @@ class Equations:
                         out[i][j] += d * self.a[k]
         return out
 
+    @property
+    def energies(self):
+        """(T, V, Σ Q_j·q̇_j, R) of the whole model (`Collected.energies`)."""
+        return self.collected.energies
+
     @cached_property
     def outputs(self):
         """The output expressions, in `spec.output_names` order: the user's, then T, V, T + V,
         the input power Σ Q_j·q̇_j and the Rayleigh function R. A model with external equations
         (from_sympy) has NaN for those five: its energies are not known to lagrgen."""
+        if self.spec.external is not None or self.energies is None:
+            return self.outputs_of(None)
+        return self.outputs_of(self.energies)
+
+    def outputs_of(self, energies):
+        """The user's outputs, then T, V, T + V, power and R of `energies` (None: NaN)."""
         convert = _Converter(self.spec)
         user = [convert(expr) for _, expr in self.spec.outputs]
-        if self.spec.external is not None or self.energies is None:
+        if self.spec.external is not None or energies is None:
             return user + [se.nan] * 5
-        T, V, power, R = self.energies
+        T, V, power, R = energies
         return user + [T, V, T + V, power, R]
 
     @cached_property
@@ -295,7 +305,21 @@ class Collected:
         self.sums = sums
         self.convert = convert
         self.particles = tuple(sums.particles)
-        self.energies = (sums.T, sums.V, sums.power, sums.R)
+
+    @cached_property
+    def energies(self):
+        """(T, V, Σ Q_j·q̇_j, R) for the outputs, the articulations' bodies included (formed on
+        first use: `Sums.tree_energies`)."""
+        T, V = self.sums.tree_energies()
+        sums = self.sums
+        return (sums.T + T, sums.V + V, sums.power, sums.R)
+
+    @property
+    def energies_beside_articulations(self):
+        """(T, V, Σ Q_j·q̇_j, R) without the articulations' bodies (what the recursive
+        formulation adds from each body's terms)."""
+        sums = self.sums
+        return (sums.T, sums.V, sums.power, sums.R)
 
 
 def collect(spec, symbols):
@@ -343,8 +367,9 @@ def dense_equations(spec, collected):
     M, F = sums.M, sums.F
     if sums.general_T:
         add_kinetic_energy(M, F, sum(sums.general_T), q, qd, t)
+    V = sums.V + sums.tree_energies()[1]
     for i in range(n):
-        F[i] -= diff(sums.V, q[i]) + diff(sums.R, qd[i])
+        F[i] -= diff(V, q[i]) + diff(sums.R, qd[i])
         F[i] += sums.Q[i]
 
     M = [[M[i][j].expr() if j <= i else None for j in range(n)] for i in range(n)]

@@ -94,6 +94,8 @@ class Linearization:
     model_coordinates: tuple = ()
     constraint_forces: np.ndarray = None   # λ0 at the operating point (constrained models)
     qdd0: np.ndarray = None    # q̈ at the operating point: 0 at an equilibrium or a steady motion
+    M_full: np.ndarray = None  # M(q0) in all the model's coordinates (n×n)
+    F_full: np.ndarray = None  # F(q0, q̇0) in all the model's coordinates (n)
     second_order: SecondOrderForm = field(default=None, repr=False)
     why_not_second_order: str = ""
 
@@ -242,7 +244,8 @@ def linearize(mod, q0, qd0=None, t=0.0, p=None, u=None, dependent=None):
     M, _, dF_dqd, dF_du = mod.linear_terms(q0, qd0, t, p, u)
     check_positive_definite(mod.name, M, t, q0)
     J = mod.jacobian(t, y0, p, u)
-    base = dict(q0=q0, qd0=qd0, qdd0=mod.rhs(t, y0, p, u)[n:], t=t, p=p, u=u,
+    base = dict(q0=q0, qd0=qd0, qdd0=mod.rhs(t, y0, p, u)[n:], M_full=M,
+                F_full=mod.forcing(q0, qd0, t, p, u), t=t, p=p, u=u,
                 inputs=tuple(mod.inputs), name=mod.name,
                 model_coordinates=tuple(mod.coordinates))
     rates = tuple(f"{c}_dot" for c in mod.coordinates)

@@ -5,7 +5,8 @@ A robot read from a URDF file (an `Articulation`) has one link per `<link>` of t
 frame is R_k = R_λ·P_k·J_k (P_k its placement's rotation, J_k the rotation of a revolute joint by its
 motion θ about its unit axis a; the identity for a prismatic one), its origin
 p_k = p_λ + R_λ·(o_k + P_k·a·θ) (the last term for a prismatic joint only), and a link fixed in
-segment k at (R_l, o_l) has the frame (R_k·R_l, p_k + R_k·o_l). A hand-written `rigid_body_3d` is a
+segment k at (R_l, o_l) has the frame (R_k·R_l, p_k + R_k·o_l); a free base is placed by its
+coordinates, its origin and the direction of its quaternion ζ (R = R_h(ζ)/|ζ|², `frames`). A hand-written `rigid_body_3d` is a
 link whose frame is its own: its orientation at its centre of mass, named by `name=` or `body<k>`
 (k counting the 3-D bodies in declaration order). The expressions stay nested (not expanded), as
 the composition gives them.
@@ -14,6 +15,7 @@ import sympy as sp
 
 from .errors import UnknownNameError
 from .records import Articulation, Body3D
+from .rotation import quaternion_matrix
 
 _AXES = {(1.0, 0.0, 0.0): "x", (0.0, 1.0, 0.0): "y", (0.0, 0.0, 1.0): "z"}
 
@@ -66,7 +68,10 @@ def segment_pose(segments, k):
     R, p = sp.eye(3), sp.zeros(3, 1)
     for segment in reversed(chain):
         P, o = sp.Matrix(segment.rotation), sp.Matrix(segment.offset)
-        if segment.kind == "revolute":
+        if segment.kind == "free":
+            position, quaternion = list(segment.motion[:3]), list(segment.motion[3:])
+            R, p = sp.Matrix(quaternion_matrix(quaternion)), sp.Matrix(position)
+        elif segment.kind == "revolute":
             R, p = R * P * axis_rotation(segment.axis, segment.motion), p + R * o
         else:
             direction = P * sp.Matrix([_number(a) for a in segment.axis])

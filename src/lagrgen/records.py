@@ -70,7 +70,12 @@ class Segment:
     the joint's coordinate q(t), or multiplier·q(t) + offset of the coordinate a mimic joint
     follows. `inertia` is its body's (m, m·c_x, m·c_y, m·c_z, I_xx, I_xy, I_yy, I_xz, I_yz, I_zz)
     about the segment frame's origin in its axes (SymPy numbers or parameter expressions; all
-    zero for a massless frame); `name` the joint's, `link` the body's (empty for none)."""
+    zero for a massless frame); `name` the joint's, `link` the body's (empty for none).
+
+    A "free" segment (a floating base without singularity, `lagrgen.frames`) is a root whose
+    `motion` is the 7×1 matrix of its coordinates (x, y, z, q_x, q_y, q_z, q_w): the position of
+    its frame and a quaternion ζ of any nonzero length whose direction is its orientation;
+    `radial` is the inertia of ζ's length, T += ½·radial·(d|ζ|/dt)², which moves nothing else."""
     name: str
     link: str
     parent: int
@@ -80,6 +85,7 @@ class Segment:
     offset: sp.ImmutableMatrix
     motion: sp.Expr
     inertia: tuple
+    radial: float = 0.0
 
 
 @dataclass(frozen=True)

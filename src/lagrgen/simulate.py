@@ -6,8 +6,9 @@ The engines are `lagrgen.native.engine` (the whole solve in C) and `lagrgen.scip
 """
 import numpy as np
 
+from .errors import warn_near_singular
 from .functions import POWER_TERMS
-from .hybrid import is_hybrid
+from .hybrid import check_within_stops, is_hybrid
 from .methods import METHODS
 from .native.engine import native_reason, simulate_native
 from .options import SWITCHING_OPTIONS, check_run_options as checked_options
@@ -86,6 +87,8 @@ def simulate(mod, t_span, y0=None, method="RK45", params=None, inputs=None, rtol
     p = parameters_from(mod, params)
     u_at = input_function(mod, inputs)
     if sensitivities is not None:
+        if is_hybrid(mod):
+            check_within_stops(mod, np.reshape(y0, (-1, 1)))
         return finished_result(mod, run_sensitivities(mod, t_span, y0, method, p, u_at, rtol,
                                                       atol, sensitivities, events, max_steps,
                                                       max_wall_time, inputs=inputs, engine=engine,
@@ -108,6 +111,7 @@ def simulate(mod, t_span, y0=None, method="RK45", params=None, inputs=None, rtol
     bar = ProgressBar(*t_span, show=progress) if progress else None
     run = dict(t_eval=t_eval, dense_output=dense_output, max_steps=max_steps,
                max_wall_time=max_wall_time, progress=bar, **options)
+    mod.pivot_record()                   # the record of this thread starts with the solve
     try:
         if engine != "scipy" and why_not is None:
             sol = simulate_native(mod, t_span, y0, method, p, inputs, u_at, rtol, atol, **run)
@@ -120,6 +124,7 @@ def simulate(mod, t_span, y0=None, method="RK45", params=None, inputs=None, rtol
     finally:
         if bar is not None:
             bar.close()
+    warn_near_singular(mod, mod.pivot_record(), rtol)
     return finished_result(mod, sol, p, u_at, method)
 
 
@@ -184,7 +189,9 @@ def finished_result(mod, sol, p, u_at, method=None):
             sol.constraint_forces = sol.hybrid_constraint_forces
         sol.constraint_names = tuple(mod.constraint_names)
         sol.multipliers = dict(zip(sol.constraint_names, sol.constraint_forces))
-    if is_hybrid(mod):
+    if is_hybrid(mod) and "contact_names" not in sol:     # a smooth run with sensitivities
+        check_within_stops(mod, sol.y)
+    elif is_hybrid(mod):
         sol.multipliers = {**(sol.multipliers if mod.n_constraints else {}),
                            **dict(zip(sol.contact_names, sol.contact_forces))}
     return sol

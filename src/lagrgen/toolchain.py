@@ -82,7 +82,7 @@ def compile_units(sources, output_path, flags, unit_flags=None):
         own = unit_flags(source) if unit_flags else flags
         obj = source.with_suffix(".o")
         run_compiler([*compiler_command(), "-c", *own, "-I", include, "-I", templates,
-                      str(source), "-o", str(obj)], source)
+                      _path_argument(source), "-o", _path_argument(obj)], source)
         return obj
 
     # longest first, so the last job to start is a short one
@@ -90,8 +90,14 @@ def compile_units(sources, output_path, flags, unit_flags=None):
     with ThreadPoolExecutor(max_workers=min(compile_jobs(), len(order))) as pool:
         objects = dict(zip(order, pool.map(compile_one, order)))
     run_compiler([*compiler_command(), "-shared", *link_flags(flags),
-                  *(str(objects[path]) for path in sources), "-o", str(output_path)],
-                 output_path)
+                  *(_path_argument(objects[path]) for path in sources), "-o",
+                  _path_argument(output_path)], output_path)
+
+
+def _path_argument(path):
+    """`path` absolute, so that a folder named like an option (``-O3``, ``--x``) is read as a
+    file by the compiler."""
+    return os.path.abspath(path)
 
 
 # -- files -----------------------------------------------------------------------------------

@@ -516,6 +516,8 @@ def parameter_gradients(tree, eq):
     """(([(node, offset, parameter)], [∂record/∂p]), ([(coordinate, parameter)], [∂Q/∂p])): the
     nonzero derivatives of the node records (offset within a record) and of Q by the parameters,
     the first sorted by parameter."""
+    if not eq.p:
+        return ([], []), ([], [])
     width = tree.width
     records = tree.node_records()
     entries = []

@@ -26,10 +26,11 @@ the model to the dense formulation.
 """
 import math
 from dataclasses import dataclass, field
+from functools import cached_property
 
 import symengine as se
 
-from . import frames
+from . import frames, free_base
 from .contributions import APPLIED, generalized_forces
 from .errors import NotATree
 from .records import Articulation, Body3D, Particle, PotentialEnergy
@@ -44,22 +45,49 @@ class SpatialTree:
 
     Nodes are in preorder (a parent before its children, every subtree contiguous):
     `coordinate[k]` is node k's coordinate, `parent[k]` its parent node (−1: a root), `end[k]`
-    one past the last node of its subtree; `records[k]` the node's FIELDS (SymEngine), `Q` the
-    generalized forces in coordinate order; `poses[k]` the node's frame in the fixed one (R
-    row-major, then its origin: 12 expressions), the frame its body's inertial parameters are
-    about; `links` the model's links (`lagrgen.links`) as (name, the node whose body carries it
-    or −1 for the fixed frame, its frame: R row-major then origin, 12 expressions).
+    one past the last node of its subtree; `Q` the generalized forces in coordinate order;
+    `terms()` gives (records, poses), formed on first use (`records`, `poses`): `records[k]` the
+    node's FIELDS (SymEngine), `poses[k]` the node's frame in the fixed one (R row-major, then
+    its origin: 12 expressions), the frame its body's inertial parameters are about. The tree of
+    an articulation (`articulated`) has its `joints` (`Joints`: the numbers the records follow
+    from, None when a segment's values are not numbers or parameters) and `gravity`.
+    A tree whose root is a free base (`lagrgen.free_base`) has nodes in the base's chart, one
+    coordinate fewer than the model (`coordinate` indexes the chart's), its Q in the model's
+    coordinates and `free` its `FreeBase`. `links` are the model's links (`lagrgen.links`) as
+    (name, the node whose body carries it or −1 for the fixed frame), `link_poses` their
+    frames (R row-major then origin, 12 expressions each), formed on first use
+    (`link_terms()`); a free base has none yet.
     """
     coordinate: tuple
     parent: tuple
     end: tuple
-    records: list
+    terms: object
     Q: list
     notes: list = field(default_factory=list)
-    poses: list = field(default_factory=list)
-    links: list = field(default_factory=list)
+    articulated: bool = False    # the bodies of an Articulation: energies from the records
+    joints: object = None
+    gravity: list = field(default_factory=list)
+    free: object = None
+    links: tuple = ()
+    link_terms: object = tuple
     kind = "spatial"
     fields = FIELDS
+
+    @cached_property
+    def _formed(self):
+        return self.terms()
+
+    @property
+    def records(self):
+        return self._formed[0]
+
+    @property
+    def poses(self):
+        return self._formed[1]
+
+    @cached_property
+    def link_poses(self):
+        return self.link_terms()
 
     @property
     def n(self):
@@ -80,6 +108,29 @@ class SpatialTree:
     def node_records(self):
         """The tree_nodes kernel's output: each node's record, in node order."""
         return [x for record in self.records for x in record]
+
+
+@dataclass(frozen=True)
+class Joints:
+    """The numbers of an articulation's joints, node by node, from which its node records follow
+    (`lagrgen/codegen/templates/tree3d.c.in`'s lg_tree_nodes, `lagrgen.runtime.tree3d`):
+    `prismatic` (0 or 1), the unit `axis` (3), the placement in the parent's frame
+    (`placement`: its rotation row-major, then its origin: 12), the joint's `motion`
+    (multiplier, offset: θ = multiplier·q + offset) and the body's ten inertial parameters about
+    the joint's frame (`inertia`: numbers, 0 where `inertia_parameter` names a parameter's index,
+    −1 elsewhere)."""
+    prismatic: tuple
+    axis: tuple
+    placement: tuple
+    motion: tuple
+    inertia: tuple
+    inertia_parameter: tuple
+
+    def table(self):
+        """The tables as plain Python values (lists; `lagrgen.codegen.tree_code.layout`)."""
+        return {name: [list(row) if isinstance(row, tuple) else row for row in getattr(self, name)]
+                for name in ("prismatic", "axis", "placement", "motion", "inertia",
+                             "inertia_parameter")}
 
 
 def is_spatial(spec):
@@ -108,11 +159,13 @@ def spatial_tree(eq):
 
 
 def _from_articulation(eq, record, others):
-    """The tree of an Articulation: its segments in order, one coordinate each."""
+    """The tree of an Articulation: its segments in order, one coordinate each (a free base:
+    `lagrgen.free_base`)."""
     q, names = eq.q, eq.spec.coordinate_names
     convert = eq.collected.convert
     coordinate, multiplier = [], []
-    for segment in record.segments:
+    free = free_base.is_free(record)
+    for segment in record.segments[1:] if free else record.segments:
         motion = convert(segment.motion)
         used = [j for j, qj in enumerate(q) if qj in motion.free_symbols]
         scale = frames.diff(motion, q[used[0]]) if len(used) == 1 else None
@@ -121,27 +174,79 @@ def _from_articulation(eq, record, others):
                            "coordinate")
         coordinate.append(used[0])
         multiplier.append(scale)
-    if set(coordinate) != set(range(len(q))):
+    if set(coordinate) | set(free_base.POSITION + free_base.QUATERNION if free else ()) \
+            != set(range(len(q))):
         raise NotATree("a coordinate moves no joint")
+    if free:
+        world = frames.frames(record, convert, q, eq.qd, eq.t)
+        Q = generalized_forces(others, convert, q, eq.qd, eq.t)
+        nodes, parent, records, notes, poses = free_base.free_tree(
+            eq, record, Q, world, lambda k: (coordinate[k - 1], multiplier[k - 1]))
+        return SpatialTree(nodes, parent, _subtree_ends(parent), lambda: (records, poses), Q,
+                           notes, free=free_base.FreeBase(float(record.segments[0].radial)))
     parent = tuple(s.parent for s in record.segments)
     end = _subtree_ends(parent)
-    world = frames.frames(record, convert, q, eq.qd, eq.t)
     gravity = [convert(g) for g in record.gravity]
     Q = generalized_forces(others, convert, q, eq.qd, eq.t)
-    zero = se.Integer(0)
-    records, notes, poses = [], [], []
-    for k, (segment, frame) in enumerate(zip(record.segments, world)):
-        poses.append([x for row in frame.R for x in row] + list(frame.p))
-        base = [zero] * 3 + [-g for g in gravity] if parent[k] < 0 else [zero] * 6
-        records.append([multiplier[k] * x for x in frame.twist] + frames.world_inertia(frame)
-                       + base + [Q[coordinate[k]]])
+    notes = []
+    for k, segment in enumerate(record.segments):
         above = (f", below {names[coordinate[parent[k]]]}" if parent[k] >= 0
                  else ", a root")
         notes.append(f"node {k}: {segment.kind} joint {names[coordinate[k]]}{above}; carries "
                      f"{('link ' + segment.link) if segment.link else 'no body'}")
-    links = [(frame.name, frame.segment, _placed_pose(world, frame, convert))
-             for frame in record.links]
-    return SpatialTree(tuple(coordinate), parent, end, records, Q, notes, poses, links)
+
+    def terms():
+        world = eq.collected.sums.frames_of(record)
+        zero = se.Integer(0)
+        records, poses = [], []
+        for k, frame in enumerate(world):
+            poses.append([x for row in frame.R for x in row] + list(frame.p))
+            base = [zero] * 3 + [-g for g in gravity] if parent[k] < 0 else [zero] * 6
+            records.append([multiplier[k] * x for x in frame.twist] + frames.world_inertia(frame)
+                           + base + [Q[coordinate[k]]])
+        return records, poses
+
+    joints = _joints(eq, record, coordinate, multiplier)
+    def link_terms():
+        world = eq.collected.sums.frames_of(record)
+        return [_placed_pose(world, frame, convert) for frame in record.links]
+
+    return SpatialTree(tuple(coordinate), parent, end, terms, Q, notes, articulated=True,
+                       joints=joints, gravity=gravity,
+                       links=tuple((frame.name, frame.segment) for frame in record.links),
+                       link_terms=link_terms)
+
+
+def _joints(eq, record, coordinate, multiplier):
+    """The articulation's `Joints`, or None when a segment's motion offset or inertial values are
+    not numbers (or, for the inertial values, parameters)."""
+    convert, q = eq.collected.convert, eq.q
+    parameter_index = {p: j for j, p in enumerate(eq.p)}
+    prismatic, axis, placement, motion, inertia, inertia_parameter = [], [], [], [], [], []
+    for k, segment in enumerate(record.segments):
+        offset = convert(segment.motion).xreplace({q[coordinate[k]]: se.Integer(0)})
+        if not offset.is_Number or not multiplier[k].is_Number:
+            return None
+        values, index = [], []
+        for x in segment.inertia:
+            x = convert(x)
+            if x.is_Number:
+                values.append(float(x))
+                index.append(-1)
+            elif x in parameter_index:
+                values.append(0.0)
+                index.append(parameter_index[x])
+            else:
+                return None
+        prismatic.append(int(segment.kind == "prismatic"))
+        axis.append(tuple(float(a) for a in segment.axis))
+        placement.append(tuple(float(x) for x in segment.rotation) +
+                         tuple(float(x) for x in segment.offset))
+        motion.append((float(multiplier[k]), float(offset)))
+        inertia.append(tuple(values))
+        inertia_parameter.append(tuple(index))
+    return Joints(tuple(prismatic), tuple(axis), tuple(placement), tuple(motion), tuple(inertia),
+                  tuple(inertia_parameter))
 
 
 def _placed_pose(world, frame, convert):
@@ -195,7 +300,10 @@ def _subtree_ends(parent):
 
 
 def explicit_time(tree, eq):
-    """True if the node terms or Q depend on t."""
+    """True if the node terms or Q depend on t (an articulation's: its Q and gravity, when its
+    joints are numbers)."""
+    if tree.joints is not None:
+        return any(eq.t in x.free_symbols for x in list(tree.Q) + list(tree.gravity))
     return any(eq.t in x.free_symbols for x in tree.node_records())
 
 
@@ -321,11 +429,12 @@ def _from_bodies(eq):
         notes.append(f"node {k}: coordinate {names[j]}{above}; carries "
                      f"{len(carried) or 'no'} bod{'y' if len(carried) == 1 else 'ies'}")
     identity = [se.Integer(int(i == j)) for i in range(3) for j in range(3)] + [zero] * 3
+    poses = [identity] * len(coordinate)
     carrier = {id(body): node_of[own] for body, own in zip(bodies, leaf)}
-    links = [(body.name, carrier.get(id(body), -1), [x for row in body.R for x in row] + body.p)
-             for body in rigid]
-    return SpatialTree(coordinate, parent, end, records, Q, notes, [identity] * len(coordinate),
-                       links)
+    links = tuple((body.name, carrier.get(id(body), -1)) for body in rigid)
+    link_poses = [[x for row in body.R for x in row] + body.p for body in rigid]
+    return SpatialTree(coordinate, parent, end, lambda: (records, poses), Q, notes, links=links,
+                       link_terms=lambda: link_poses)
 
 
 def _column(eq, body, j, reference=None):

@@ -25,7 +25,7 @@ from pathlib import Path
 import numpy as np
 
 from .errors import ModelError
-from .frames import rodrigues
+from .frames import quaternion_matrix, rodrigues
 from .numbers import finite_number
 
 #: Joint types that carry a coordinate, and the fixed joint that merges two links.
@@ -38,7 +38,19 @@ INERTIA_ATOL = 1e-12
 
 
 class URDFError(ModelError):
-    """A URDF file cannot be read as a robot: the message names the element and what is wrong."""
+    """A URDF file cannot be read as a robot: the message names the element and what is wrong.
+
+    `option` is the from_urdf option (name, value) the message suggests, spelled in it as
+    `suggestion(name, value)` (the command line names its flag instead), or None."""
+
+    def __init__(self, message, option=None):
+        super().__init__(message)
+        self.option = option
+
+
+def suggestion(option, value):
+    """How a message suggests the from_urdf option `option` = `value`."""
+    return f"from_urdf(..., {option}={value!r})"
 
 
 class URDFWarning(UserWarning):
@@ -116,15 +128,7 @@ def read(path, check_inertias=True):
 
 def parse(text, where="<string>", check_inertias=True):
     """The `Robot` of the URDF document `text` (bytes or str)."""
-    if isinstance(text, str):
-        text = text.encode("utf-8")
-    if re.search(rb"<!(DOCTYPE|ENTITY)", text[:4096 * 16]):
-        raise URDFError(f"{where}: the document declares a DOCTYPE or ENTITY; URDF files need "
-                        "none, and lagrgen expands none (remove the declaration)")
-    try:
-        root = ET.fromstring(text)
-    except ET.ParseError as exc:
-        raise URDFError(f"{where} is not well-formed XML: {exc}") from None
+    root = _element_tree(text, where)
     if root.tag != "robot":
         raise URDFError(f"{where}: the root element is <{root.tag}>, a URDF file has <robot>")
     name = root.get("name") or Path(where).stem
@@ -146,6 +150,35 @@ def parse(text, where="<string>", check_inertias=True):
     robot = Robot(name, links, joints)
     _check_tree(robot, where)
     return robot
+
+
+def _element_tree(text, where):
+    """The document's root element, built from expat's events as ElementTree builds it; a DOCTYPE
+    or entity declaration is refused at the parser's own event, wherever it stands and in whatever
+    encoding, before anything in it is declared or expanded."""
+    from xml.parsers import expat
+
+    def refuse(*_):
+        raise URDFError(f"{where}: the document declares a DOCTYPE or ENTITY; URDF files need "
+                        "none, and lagrgen expands none (remove the declaration)")
+
+    def qualified(name):
+        return "{" + name if "}" in name else name
+
+    builder = ET.TreeBuilder()
+    parser = expat.ParserCreate(namespace_separator="}")
+    parser.SetParamEntityParsing(expat.XML_PARAM_ENTITY_PARSING_NEVER)
+    parser.StartDoctypeDeclHandler = refuse
+    parser.EntityDeclHandler = refuse
+    parser.StartElementHandler = lambda tag, attributes: builder.start(
+        qualified(tag), {qualified(k): v for k, v in attributes.items()})
+    parser.EndElementHandler = lambda tag: builder.end(qualified(tag))
+    parser.CharacterDataHandler = builder.data
+    try:
+        parser.Parse(text, True)
+    except expat.ExpatError as exc:
+        raise URDFError(f"{where} is not well-formed XML: {exc}") from None
+    return builder.close()
 
 
 def _attribute(element, key, what):
@@ -223,7 +256,8 @@ def check_inertia(I, what, strict=True):
         return
     if strict:
         raise URDFError(f"the inertia of {what} {problem}; correct the file's <inertia>, or read "
-                        "it as it is with from_urdf(..., check_inertias=False)")
+                        f"it as it is with {suggestion('check_inertias', False)}",
+                        ("check_inertias", False))
     warnings.warn(f"the inertia of {what} {problem}; taken as it is", URDFWarning, stacklevel=4)
 
 
@@ -234,7 +268,7 @@ def _joint(element, links):
     if kind not in SUPPORTED:
         raise URDFError(f"{what} has type {kind!r}, which lagrgen does not support: use revolute, "
                         "continuous, prismatic or fixed (a floating base is "
-                        "from_urdf(..., base='floating'))")
+                        "from_urdf(..., base='free') or base='floating')")
     ends = {}
     for end in ("parent", "child"):
         tag = element.find(end)
@@ -248,12 +282,8 @@ def _joint(element, links):
     xyz = _vector(origin, "xyz", f"the <origin> of {what}")
     rotation = rpy_matrix(_vector(origin, "rpy", f"the <origin> of {what}"))
     axis = _vector(element.find("axis"), "xyz", f"the <axis> of {what}", (1.0, 0.0, 0.0))
-    norm = math.sqrt(sum(a * a for a in axis))
     if kind in MOVING:
-        if norm < 1e-12:
-            raise URDFError(f"the <axis> of {what} is zero: give the direction it moves about "
-                            "or along")
-        axis = tuple(a / norm for a in axis)
+        axis = _unit_axis(axis, what)
     limit = _limit(element.find("limit"), what, kind)
     dynamics = element.find("dynamics")
     damping = _number(dynamics.get("damping", "0"), f"the damping of {what}") \
@@ -271,6 +301,18 @@ def _joint(element, links):
         mimic = None
     return Joint(name, kind, ends["parent"], ends["child"], xyz, rotation, axis, limit, damping,
                  friction, mimic)
+
+
+def _unit_axis(axis, what):
+    """The unit vector along `axis`, scaled by its largest component first (its squared norm
+    overflows from about 1e154 and underflows below 1e-154)."""
+    largest = max(abs(a) for a in axis)
+    if largest * math.sqrt(3) < 1e-12:
+        raise URDFError(f"the <axis> of {what} is zero: give the direction it moves about or "
+                        "along")
+    scaled = [a / largest for a in axis]
+    norm = math.hypot(*scaled)
+    return tuple(a / norm for a in scaled)
 
 
 def _limit(element, what, kind):
@@ -334,10 +376,13 @@ def _check_mimics(robot):
         target = moving.get(joint.mimic[0])
         if target is None:
             raise URDFError(f"joint {joint.name!r} mimics {joint.mimic[0]!r}, which is not a "
-                            "moving joint of the file")
+                            "moving joint of the file: correct its <mimic>, or read every joint "
+                            f"as independent with {suggestion('mimic', False)}", ("mimic", False))
         if target.mimic is not None:
             raise URDFError(f"joint {joint.name!r} mimics {target.name!r}, which itself mimics "
-                            f"{target.mimic[0]!r}: mimic the joint that moves")
+                            f"{target.mimic[0]!r}: mimic the joint that moves, or read every "
+                            f"joint as independent with {suggestion('mimic', False)}",
+                            ("mimic", False))
 
 
 def identifier(name):
@@ -357,7 +402,15 @@ FLOATING_BASE = (("base_x", "prismatic", (1.0, 0.0, 0.0)), ("base_y", "prismatic
                  ("base_pitch", "revolute", (0.0, 1.0, 0.0)),
                  ("base_roll", "revolute", (1.0, 0.0, 0.0)))
 FLOATING_ORDER = ("base_x", "base_y", "base_z", "base_roll", "base_pitch", "base_yaw")
-#: The ten inertial parameters of a body, in Pinocchio's order (API §21), and their units.
+#: The free base's coordinates: its frame's origin and a quaternion (Pinocchio's order, scalar
+#: last) whose direction is its orientation (`lagrgen.frames`); its inputs: a force and a moment
+#: on the base frame's origin, in fixed axes.
+FREE_BASE = ("base_x", "base_y", "base_z", "base_qx", "base_qy", "base_qz", "base_qw")
+FREE_INPUTS = ("force_base_x", "force_base_y", "force_base_z",
+               "torque_base_x", "torque_base_y", "torque_base_z")
+#: The roll–pitch–yaw angles of the free base, outputs for people.
+FREE_OUTPUTS = ("base_roll", "base_pitch", "base_yaw")
+#: The ten inertial parameters of a body, in Pinocchio's order, and their units.
 INERTIAL_NAMES = ("m", "mx", "my", "mz", "Ixx", "Ixy", "Iyy", "Ixz", "Iyz", "Izz")
 INERTIAL_UNITS = ("kg",) + ("kg*m",) * 3 + ("kg*m^2",) * 6
 
@@ -390,6 +443,8 @@ def parts(robot, base="fixed", frozen=None, frames=None):
         for name, kind, axis in FLOATING_BASE:
             out.append(Part(None, name, len(out) - 1, np.eye(3), np.zeros(3),
                             kind, axis))
+    elif base == "free":
+        out.append(Part(None, "base", -1, np.eye(3), np.zeros(3), "free", ()))
     owner0 = len(out) - 1
     stack = [(robot.root, owner0, np.eye(3), np.zeros(3))]
     if owner0 >= 0:
@@ -398,7 +453,7 @@ def parts(robot, base="fixed", frozen=None, frames=None):
         link, owner, R, p = stack.pop()
         frames[link] = (out[owner] if owner >= 0 else None, R, p)
         if owner >= 0:
-            out[owner].body = out[owner].body + _placed(robot.links[link], R, p)
+            out[owner].body = _merged(out[owner].body, robot.links[link], R, p, link)
         pending = []
         for joint in robot.children[link]:
             Rj, pj = R @ np.array(joint.rotation), p + R @ np.array(joint.xyz)
@@ -439,6 +494,20 @@ def _parents_first(out):
     return result
 
 
+def _merged(body, inertial, R, p, link):
+    """`body` with the link placed at (R, p) added; URDFError naming the link when the sum
+    overflows a double (a mass times its squared distance from the joint's frame beyond 1.8e308)."""
+    with np.errstate(over="ignore", invalid="ignore"):
+        total = body + _placed(inertial, R, p)
+    if not np.isfinite(total).all():
+        with np.errstate(over="ignore"):
+            distance = np.linalg.norm(p + R @ np.array(inertial.com))
+        raise URDFError(f"the inertia of link {link!r} about its joint's frame overflows a double "
+                        f"(mass {inertial.mass:g} kg with its centre {distance:g} m from the "
+                        "frame): give the file's masses in kg and lengths in m")
+    return total
+
+
 def _placed(inertial, R, p):
     """A link's 10 parameters about the origin of the frame it is placed in at (R, p)."""
     m = inertial.mass
@@ -476,7 +545,8 @@ def _frozen_massless(robot, found, followers, massless):
         raise URDFError(f"{what} of {robot.name!r} moves no mass or inertia (every link below "
                         "it, and below the joints that follow it, is massless), so the motion it "
                         "allows has no inertia: give a link below it an <inertial>, make the "
-                        "joint fixed, or read the file with from_urdf(..., massless='fixed')")
+                        f"joint fixed, or read the file with {suggestion('massless', 'fixed')}",
+                        ("massless", "fixed"))
     import warnings
     names = {p.joint.name for p in empty if p.joint is not None}
     frozen = {name: 0.0 for name in names}
@@ -492,7 +562,7 @@ def _frozen_massless(robot, found, followers, massless):
 def from_urdf(path, name=None, base="fixed", gravity=(0.0, 0.0, -9.81), joint_dynamics=True,
               parameters=None, mimic=True, check_inertias=True, massless="error", limits=True,
               limit_restitution=0.0):
-    """A `lagrgen.Model` of the robot in the URDF file `path` (API §19).
+    """A `lagrgen.Model` of the robot in the URDF file `path`.
 
     Parameters
     ----------
@@ -500,9 +570,14 @@ def from_urdf(path, name=None, base="fixed", gravity=(0.0, 0.0, -9.81), joint_dy
         The URDF file.
     name : str, optional
         The model's name (default: the robot's, made an identifier).
-    base : "fixed" or "floating"
+    base : "fixed", "floating" or "free"
         "floating": the root link moves freely, with the coordinates base_x, base_y, base_z,
-        base_roll, base_pitch, base_yaw first (orientation Rz(yaw)·Ry(pitch)·Rx(roll)).
+        base_roll, base_pitch, base_yaw first (orientation Rz(yaw)·Ry(pitch)·Rx(roll), singular
+        at pitch ±π/2). "free": the root link moves freely without singularity, with the
+        coordinates base_x, base_y, base_z, base_qx, base_qy, base_qz, base_qw first (its
+        origin and a quaternion, see the robots guide), the inputs force_base_x, ...,
+        torque_base_z (a force and a moment on its origin, fixed axes) and the outputs
+        base_roll, base_pitch, base_yaw; its initial state is upright.
     gravity : 3 numbers or expressions
         The uniform gravity in the fixed frame, m/s².
     joint_dynamics : bool
@@ -534,14 +609,15 @@ def from_urdf(path, name=None, base="fixed", gravity=(0.0, 0.0, -9.81), joint_dy
     lagrgen.Model
         One coordinate per moving joint (revolute, continuous: an angle in rad; prismatic: a
         displacement in m), named as the joint, and one input `tau_<joint>` each; the joints'
-        limits in `model.limits`.
+        limits in `model.limits`. Its initial state is at rest with every joint at 0, or, where
+        enforced limits exclude 0, at the limit nearest 0.
     """
     import sympy as sp
 
     from .model import Model
     from .records import Articulation, Segment
-    if base not in ("fixed", "floating"):
-        raise ModelError(f"base must be 'fixed' or 'floating', got {base!r}")
+    if base not in ("fixed", "floating", "free"):
+        raise ModelError(f"base must be 'fixed', 'floating' or 'free', got {base!r}")
     if parameters not in (None, "inertial"):
         raise ModelError(f"parameters must be None or 'inertial', got {parameters!r}")
     try:
@@ -565,48 +641,80 @@ def from_urdf(path, name=None, base="fixed", gravity=(0.0, 0.0, -9.81), joint_dy
                         f"{sorted(clash)[0]!r}: rename one of them")
     followers = {p.name: p.joint.mimic for p in found
                  if mimic and p.joint is not None and p.joint.mimic is not None}
+    if base == "free" and followers:
+        follower, (target, _, _) = next(iter(followers.items()))
+        raise ModelError(f"joint {follower!r} of {robot.name!r} mimics {target!r}: the "
+                         "recursion of a free base takes no mimic joints yet; read the file with "
+                         "from_urdf(..., mimic=False) (the joints independent, as Pinocchio "
+                         "reads them)")
     frozen = _frozen_massless(robot, found, followers, massless)
     if frozen:
         found = parts(robot, base, frozen, frames)
         followers = {name: f for name, f in followers.items()
                      if any(p.name == name for p in found)}
     coordinate_parts = [p for p in found if p.name not in followers]
+    if not coordinate_parts:
+        raise URDFError(f"robot {robot.name!r} has no moving joint (every joint is fixed), so a "
+                        "fixed base leaves it nothing to move: let it move freely with "
+                        f"{suggestion('base', 'floating')}", ("base", "floating"))
     if base == "floating":
         by_name = {p.name: p for p in coordinate_parts}
         coordinate_parts = [by_name[n] for n in FLOATING_ORDER] + coordinate_parts[6:]
+    joint_parts = coordinate_parts[1:] if base == "free" else coordinate_parts
     model = Model(name if name is not None else identifier(robot.name))
-    units = " ".join("m" if p.kind == "prismatic" else "rad" for p in coordinate_parts)
-    q = dict(zip((p.name for p in coordinate_parts),
-                 model.coordinates([p.name for p in coordinate_parts], units=units)))
+    units = " ".join("m" if p.kind == "prismatic" else "rad" for p in joint_parts)
+    names = [p.name for p in joint_parts]
+    if base == "free":
+        units, names = "m m m 1 1 1 1 " + units, list(FREE_BASE) + names
+    q = dict(zip(names, model.coordinates(names, units=units)))
     inertias = _inertias(model, found, parameters)
-    tau = model.inputs([f"tau_{p.name}" for p in coordinate_parts],
+    tau = model.inputs([f"tau_{p.name}" for p in joint_parts],
                        units=" ".join("N" if p.kind == "prismatic" else "N*m"
-                                      for p in coordinate_parts))
+                                      for p in joint_parts)) if joint_parts else ()
     motion = {}
     for p in found:
         if p.name in followers:
             target, multiplier, offset = followers[p.name]
             motion[p.name] = sp.Float(multiplier) * q[identifier(target)] + sp.Float(offset)
+        elif p.kind == "free":
+            motion[p.name] = sp.ImmutableMatrix([q[c] for c in FREE_BASE])
         else:
             motion[p.name] = q[p.name]
     segments = tuple(Segment(p.name, p.link, p.parent, p.kind, tuple(float(a) for a in p.axis),
                              _exact(_clean(p.rotation)), _exact(_clean(p.offset).reshape(3, 1)),
-                             motion[p.name], inertias[k])
+                             motion[p.name], inertias[k],
+                             _radial_inertia(p.body) if p.kind == "free" else 0.0)
                      for k, p in enumerate(found))
     record = Articulation(segments, sp.ImmutableMatrix(gravity), _link_frames(frames, found))
     model._add(record)
     model._drawables.append(("robot", (record,)))
-    for p, u in zip(coordinate_parts, tau):
+    for p, u in zip(joint_parts, tau):
         model.generalized_force(q[p.name], u)
+    if base == "free":
+        _free_base(model, [q[c] for c in FREE_BASE])
     if joint_dynamics:
         _joint_dynamics(model, found, motion)
     model.urdf = robot
+    start = {"base_qw": 1.0} if base == "free" else {}
     for p in coordinate_parts:
         limit = p.joint.limit if p.joint is not None else None
         if limit is not None and any(v is not None for v in astuple(limit)):
             model.limit(p.name, *astuple(limit), enforce=bool(limits),
                         restitution=limit_restitution)
+            if limits:
+                start.update(_within(p.name, limit.lower, limit.upper))
+    if start:
+        model.initial_state(q=start)
     return model
+
+
+def _within(name, lower, upper):
+    """{name: the bound nearest 0} for a joint whose enforced limits exclude 0, else {}."""
+    if lower is not None and lower > 0:
+        return {name: float(lower)}
+    if upper is not None and upper < 0:
+        return {name: float(upper)}
+    return {}
 
 
 def _link_frames(frames, found):
@@ -616,6 +724,40 @@ def _link_frames(frames, found):
     return tuple(LinkFrame(link, -1 if owner is None else index[id(owner)], _exact(_clean(R)),
                            _exact(_clean(p).reshape(3, 1)))
                  for link, (owner, R, p) in frames.items())
+
+
+def _radial_inertia(body):
+    """The inertia J of a free base's quaternion length (`records.Segment.radial`): 4/3 of the
+    trace of the base body's inertia about its origin (so that M's quaternion block has the
+    scale of its rotation's, 4·I), 1 kg·m² for a base without inertia."""
+    trace = float(body[4] + body[6] + body[9])
+    return 4.0 * trace / 3.0 if trace > 0 else 1.0
+
+
+def _free_base(model, coordinates):
+    """A free base's inputs (a force and a moment on its origin, fixed axes: Q_p = f,
+    Q_ζ = Gᵀ·n with ω = G·ζ̇), its roll–pitch–yaw outputs and its initial state, upright at rest."""
+    import sympy as sp
+    p, z = coordinates[:3], sp.Matrix(coordinates[3:])
+    inputs = model.inputs(list(FREE_INPUTS), units="N N N N*m N*m N*m")
+    force, moment = sp.Matrix(inputs[:3]), sp.Matrix(inputs[3:])
+    x, y, zc, w = z
+    G = 2 * sp.Matrix([[w, -zc, y, -x], [zc, w, -x, -y], [-y, x, w, -zc]]) / (z.T * z)[0]
+    for coordinate, value in zip(p, force):
+        model.generalized_force(coordinate, value)
+    for coordinate, column in zip(z, (G.T * moment)):
+        model.generalized_force(coordinate, column)
+    for name, angle in zip(FREE_OUTPUTS, _rpy_of_matrix(sp.Matrix(
+            quaternion_matrix(list(z), homogeneous=True)))):
+        model.output(name, angle, units="rad")
+
+
+def _rpy_of_matrix(R):
+    """URDF's (roll, pitch, yaw) of R = Rz(yaw)·Ry(pitch)·Rx(roll) given times any positive
+    number (SymPy): atan2 forms, pitch in [−π/2, π/2]."""
+    import sympy as sp
+    return (sp.atan2(R[2, 1], R[2, 2]), sp.atan2(-R[2, 0], sp.sqrt(R[0, 0] ** 2 + R[1, 0] ** 2)),
+            sp.atan2(R[1, 0], R[0, 0]))
 
 
 def _clean(array):
@@ -668,9 +810,10 @@ def tree_text(robot, base="fixed"):
     (type, axis, limits), its mass, and which links fixed joints merge into one body."""
     moving = sum(1 for j in robot.joints if j.kind in MOVING)
     mass = sum(link.mass for link in robot.links.values())
-    lines = [f"robot {robot.name}: {moving + (6 if base == 'floating' else 0)} coordinates, "
+    extra = {"floating": 6, "free": 7}.get(base, 0)
+    lines = [f"robot {robot.name}: {moving + extra} coordinates, "
              f"{len(robot.links)} links, {len(robot.joints)} joints, {mass:.4g} kg "
-             f"({'floating' if base == 'floating' else 'fixed'} base)"]
+             f"({base if base in ('floating', 'free') else 'fixed'} base)"]
 
     def joint_text(joint):
         if joint.kind == "fixed":
@@ -696,5 +839,8 @@ def tree_text(robot, base="fixed"):
     if base == "floating":
         lines.append("floating base: base_x, base_y, base_z, base_roll, base_pitch, base_yaw "
                      "(orientation Rz(yaw)·Ry(pitch)·Rx(roll))")
+    elif base == "free":
+        lines.append("free base: base_x, base_y, base_z, base_qx, base_qy, base_qz, base_qw "
+                     "(origin and orientation quaternion, no singularity)")
     visit(robot.root, "", True, None)
     return "\n".join(lines)

@@ -212,24 +212,67 @@ class NotAnEquilibriumWarning(UserWarning):
     about the motion (which leaves the point)."""
 
 
-#: Relative size (of the largest entry of A, at least 1) above which an acceleration at the
-#: operating point, or its change along the rates, is not zero.
+#: Relative size, against what the model's linear terms produce at the operating point
+#: (`acceleration_yardstick`), above which an acceleration there, or its change along the rates,
+#: is not zero.
 STEADY_TOL = 1e-6
+
+
+def state_values(lin):
+    """The operating point in the independent states of `lin`: q0 of each coordinate state,
+    q̇0 of each rate state."""
+    names = list(lin.model_coordinates)
+    return np.array([lin.q0[names.index(x)] if x in names else lin.qd0[names.index(x[:-4])]
+                     for x in lin.states])
+
+
+def acceleration_yardstick(lin):
+    """Per coordinate, the size of the accelerations the model's terms produce at the operating
+    point: abs(M⁻¹·F) (the accelerations without constraint forces) + abs(A)·abs(x0) +
+    abs(B)·abs(u) mapped by the basis (ω²·abs(q0) for one oscillator). A change of a
+    coordinate's unit scales it as it scales q̈0."""
+    n = len(lin.model_coordinates)
+    size = np.abs(lin.A) @ np.abs(state_values(lin))
+    if lin.u is not None and np.size(lin.u) and np.size(lin.B_state):
+        size = size + np.abs(lin.B_state) @ np.abs(np.asarray(lin.u, dtype=float))
+    out = (np.abs(lin.basis) @ size)[n:]
+    if lin.M_full is not None and lin.F_full is not None:
+        out = out + np.abs(np.linalg.solve(lin.M_full, lin.F_full))
+    return out
+
+
+def significant(values, yardstick, weights):
+    """The entries of `values` (one per coordinate) that are not zero against `yardstick`: none
+    when their kinetic-energy norm √(Σ M_ii·v_i²) is within STEADY_TOL times the yardstick's,
+    else those whose own term is beyond it. The norm weighs every coordinate in the same unit
+    (M_ii carries the inverse square of its unit), so no choice of units changes the answer."""
+    bound = STEADY_TOL * np.sqrt(weights @ yardstick ** 2)
+    if not np.sqrt(weights @ values ** 2) > bound:
+        return np.zeros(len(values), dtype=bool)
+    return np.sqrt(weights) * np.abs(values) > bound
 
 
 def unsteady_reasons(lin):
     """Why the operating point of `lin` is neither an equilibrium nor a steady motion, as text
     (empty when it is one): accelerations q̈0 ≠ 0, or rates along which the accelerations change
     (A·[q̇0, 0] ≠ 0 in the independent states). A steady motion y0 + t·[q̇0, 0] solves the
-    linearized equations: a wheel's spin, a heading, a free body drifting."""
-    scale = STEADY_TOL * max(1.0, np.abs(lin.A).max(initial=0.0))
+    linearized equations: a wheel's spin, a heading, a free body drifting. Both are measured
+    against the model's own terms (`acceleration_yardstick`, and abs(A)·abs([q̇0, 0])) in the
+    kinetic-energy norm (`significant`), so that no choice of units changes the answer."""
     names = lin.model_coordinates
+    n = len(names)
+    weights = np.ones(n) if lin.M_full is None else np.abs(np.diag(lin.M_full))
     reasons = []
-    if lin.qdd0 is not None and np.abs(lin.qdd0).max(initial=0.0) > scale:
-        reasons.append("its accelerations are not zero (" + ", ".join(
-            f"{c}_ddot = {a:.4g}" for c, a in zip(names, lin.qdd0) if abs(a) > scale) + ")")
+    if lin.qdd0 is not None:
+        off = significant(lin.qdd0, acceleration_yardstick(lin), weights)
+        if off.any():
+            reasons.append("its accelerations are not zero (" + ", ".join(
+                f"{c}_ddot = {a:.4g}" for c, a, o in zip(names, lin.qdd0, off) if o) + ")")
     rates = np.array([lin.qd0[names.index(x)] if x in names else 0.0 for x in lin.states])
-    if np.abs(lin.A @ rates).max(initial=0.0) > scale * max(1.0, np.abs(rates).max(initial=0.0)):
+    change = lin.basis @ (lin.A @ rates)
+    size = np.abs(lin.basis) @ (np.abs(lin.A) @ np.abs(rates))
+    if any(significant(change[half], size[half], weights).any()
+           for half in (slice(0, n), slice(n, 2 * n))):
         reasons.append("the accelerations change along its rates (" + ", ".join(
             f"{c}_dot = {v:.4g}" for c, v in zip(names, lin.qd0) if v) + ")")
     return " and ".join(reasons)

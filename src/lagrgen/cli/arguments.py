@@ -44,11 +44,21 @@ def add_model_file(parser):
                         "or a robot's URDF file (.urdf)")
     parser.add_argument("--model", action="append",
                         help="only the model of this name (may be repeated; default: all)")
-    parser.add_argument("--base", choices=("fixed", "floating"), default="fixed",
-                        help="a URDF file's root link: fixed (default) or floating (six "
-                        "coordinates base_x … base_yaw)")
+    parser.add_argument("--base", choices=("fixed", "floating", "free"), default="fixed",
+                        help="a URDF file's root link: fixed (default), floating (six "
+                        "coordinates base_x … base_yaw, singular at pitch ±π/2) or free (a "
+                        "quaternion: base_x … base_qw, no singularity)")
     parser.add_argument("--no-joint-dynamics", dest="joint_dynamics", action="store_false",
                         help="a URDF file: leave out its joints' <dynamics> damping and friction")
+    parser.add_argument("--no-check-inertias", dest="check_inertias", action="store_false",
+                        help="a URDF file: take an inertia no mass distribution has (not positive "
+                        "semi-definite, or breaking the triangle inequality) as it is, with a "
+                        "warning")
+    parser.add_argument("--no-mimic", dest="mimic", action="store_false",
+                        help="a URDF file: read <mimic> joints as independent joints")
+    parser.add_argument("--massless", choices=("error", "fixed"), default="error",
+                        help="a URDF file's joints that move no mass: an error (default) or held "
+                        "fixed at 0")
 
 
 def add_common(parser):
@@ -117,10 +127,33 @@ def is_urdf(path):
     return Path(path).suffix.lower() == ".urdf"
 
 
+#: The flag of each from_urdf option a URDFError may suggest: {(option, value): flag}.
+URDF_FLAGS = {("check_inertias", False): "--no-check-inertias", ("mimic", False): "--no-mimic",
+              ("massless", "fixed"): "--massless fixed", ("base", "floating"): "--base floating"}
+
+
 def urdf_options(args):
     """The from_urdf options of a command's arguments (`add_model_file`)."""
     return {"base": getattr(args, "base", "fixed"),
-            "joint_dynamics": getattr(args, "joint_dynamics", True)}
+            "joint_dynamics": getattr(args, "joint_dynamics", True),
+            "check_inertias": getattr(args, "check_inertias", True),
+            "mimic": getattr(args, "mimic", True),
+            "massless": getattr(args, "massless", "error")}
+
+
+def read_urdf(path, reader, **options):
+    """`reader(path, **options)` (from_urdf, or urdf.read), its URDFError's suggestion of a
+    from_urdf option spelled as the command line's flag."""
+    from ..urdf import URDFError, suggestion
+    if not Path(path).is_file():
+        raise LagrgenError(f"no URDF file {str(path)!r}")
+    try:
+        return reader(path, **options)
+    except URDFError as exc:
+        if exc.option not in URDF_FLAGS:
+            raise
+        raise URDFError(str(exc).replace(suggestion(*exc.option), URDF_FLAGS[exc.option]),
+                        exc.option) from None
 
 
 def models_in(path, names=None, urdf=None):
@@ -129,9 +162,7 @@ def models_in(path, names=None, urdf=None):
     from ..model import Model
     if is_urdf(path):
         from ..urdf import from_urdf
-        if not Path(path).is_file():
-            raise LagrgenError(f"no URDF file {str(path)!r}")
-        found = [from_urdf(path, **(urdf or {}))]
+        found = [read_urdf(path, from_urdf, **(urdf or {}))]
     else:
         namespace = run_file(path, "model")
         found, seen = [], set()

@@ -1,5 +1,6 @@
 """`python -m lagrgen show MODEL.py`: the equations of motion as text or LaTeX."""
-from .arguments import add_model_file, command_parser, is_urdf, models_in, urdf_options
+from .arguments import (add_model_file, command_parser, is_urdf, models_in, read_urdf,
+                        urdf_options)
 
 
 def add(sub):
@@ -20,7 +21,8 @@ def run(args):
     from ..outputs.display import render
     if is_urdf(args.model_file):
         from ..urdf import read, tree_text
-        print(tree_text(read(args.model_file), args.base))
+        robot = read_urdf(args.model_file, read, check_inertias=args.check_inertias)
+        print(tree_text(robot, args.base))
         return 0
     texts = [render(model, latex=args.latex, matrices=args.matrices, simplify=not args.raw)
              for model in models_in(args.model_file, args.model, urdf_options(args))]

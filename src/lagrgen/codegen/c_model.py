@@ -3,7 +3,7 @@ Python) and the thin Python module glue (`<name>_module.c`) that includes it."""
 from pathlib import Path
 from string import Template
 
-from ..functions import DIRECTIONS_SIGNATURE, FUNCTIONS
+from ..functions import DIRECTIONS_SIGNATURE, EXPORTED
 from ..kernels import KERNELS, kernel_names, model_kernels
 from .printer import c_function, in_lanes, kernel_statements
 from .tree_code import link_layout, template_name, tree_c
@@ -162,7 +162,7 @@ def signature(function):
     return DIRECTIONS_SIGNATURE if function.call == "directions" else SIGNATURE
 
 
-def model_functions(name, functions=FUNCTIONS):
+def model_functions(name, functions=EXPORTED):
     """The C definitions of the registered `functions`, `<name>_<function>`.
 
     A body that works in arrays defines `LG_<FUNCTION>_WORK`, their length in doubles, and uses
@@ -191,7 +191,7 @@ def argument_names(function):
     return ", ".join(part.replace("*", " ").split()[-1] for part in signature(function).split(","))
 
 
-def prototypes(name, functions=FUNCTIONS):
+def prototypes(name, functions=EXPORTED):
     return "\n".join(f"/* {f.formula} */\nLG_FN int {name}_{f.name}({signature(f)});"
                      for f in functions)
 
@@ -214,14 +214,14 @@ def substitutions(info):
                 **{f"{key}_or_1": max(value, 1) for key, value in sizes.items()})
 
 
-def model_header(info, functions=FUNCTIONS):
+def model_header(info, functions=EXPORTED):
     """`<name>_model.h`: the standalone model's interface (its `functions`)."""
     return Template(read_template("model.h.in")).substitute(
         substitutions(info), guard=f"LAGRGEN_{info.name.upper()}_MODEL_H",
         prototypes=prototypes(info.name, functions))
 
 
-def model_source(info, equations, max_statements=400, functions=FUNCTIONS):
+def model_source(info, equations, max_statements=400, functions=EXPORTED):
     """`<name>_model.c`: the kernels the registered `functions` call, linear algebra, the
     functions and metadata in plain C."""
     defaults = info.defaults or [0.0]
@@ -265,7 +265,7 @@ def link_tables(equations):
             f"{{{rows(map(str, layout['coordinate']))}}};\n")
 
 
-def module_source(info, units=0, functions=FUNCTIONS, template="module.c.in"):
+def module_source(info, units=0, functions=EXPORTED, template="module.c.in"):
     """`<name>_module.c`: the Python extension glue that includes `<name>_model.c` (as unit 0 of
     a model whose kernel parts are compiled as `units` separate units, see `unit_sources`) and
     lists its `functions`. The glue of a unit compiled on first use is `unit_module.c.in`: its
@@ -286,7 +286,7 @@ def unit_sources(name, units):
             f'#define LG_TU {k}\n#include "{name}_model.c"\n' for k in range(1, units + 1)}
 
 
-def standalone_files(info, equations, functions=FUNCTIONS):
+def standalone_files(info, equations, functions=EXPORTED):
     """{file name: text} of the standalone C model with the registered `functions` (all of
     them: `export_c`; the model unit's: what `build` compiles and publishes)."""
     name = info.name

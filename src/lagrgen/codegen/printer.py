@@ -49,6 +49,20 @@ class Store:
     expr: object
 
 
+@dataclass
+class Zeros:
+    """An output's first `count` entries set to zero (C: one memset; Python's output lists start
+    as zeros), so that its zero entries need no statement each."""
+    array: str
+    count: int
+    expr: object = se.Integer(0)
+
+
+#: An output with at least this many zero entries is zeroed at once (`Zeros`) and only its other
+#: entries stored: ∂Q/∂u of a robot, n × n_inputs with n nonzeros, would otherwise be n² stores.
+ZEROS_AT_ONCE = 8
+
+
 def kernel_statements(kernel):
     """The statements of a kernel: every output entry in order, each preceded by the CSE
     temporaries it needs that are not defined yet (so a temporary sits next to its first use, and a
@@ -82,9 +96,15 @@ def kernel_statements(kernel):
     require([name for name in temps if name not in done] if not kernel.outputs else [])
     notes = getattr(kernel, "notes", {})
     for name, exprs in kernel.outputs.items():
+        zeroed = not getattr(kernel.spec, "lanes", ()) and \
+            sum(1 for e in exprs if e == 0) >= ZEROS_AT_ONCE
+        if zeroed:
+            stmts.append(Zeros(name, len(exprs)))
         for i, e in enumerate(exprs):
             if (name, i) in notes:
                 stmts.append(Comment(notes[name, i]))
+            if zeroed and e == 0:
+                continue
             require(sorted(needs(e), key=_index, reverse=True)[::-1])
             stmts.append(Store(name, i, e))
     return stmts
@@ -262,6 +282,8 @@ class CPrinter(ExpressionPrinter):
     def statement(self, stmt):
         if isinstance(stmt, Comment):
             return "/* " + stmt.text.replace("*/", "* /") + " */"
+        if isinstance(stmt, Zeros):
+            return f"memset({stmt.array}, 0, {stmt.count} * sizeof(double));"
         if isinstance(stmt, Declare):
             return f"const double {stmt.name} = {self.doprint(stmt.expr)};"
         return f"{stmt.array}[{stmt.index}] = {self.doprint(stmt.expr)};"
@@ -290,6 +312,8 @@ class PythonPrinter(ExpressionPrinter):
     def statement(self, stmt):
         if isinstance(stmt, Comment):
             return "# " + stmt.text.replace("\n", " ")
+        if isinstance(stmt, Zeros):
+            return f"# {stmt.array}: zeros but where set below"
         if isinstance(stmt, Declare):
             return f"{stmt.name} = {self.doprint(stmt.expr)}"
         return f"{stmt.array}[{stmt.index}] = {self.doprint(stmt.expr)}"

@@ -10,7 +10,7 @@ def python_source(equations, formulation="dense"):
     `formulation`."""
     printer = PythonPrinter()
     chunks = []
-    for kernel in model_kernels(equations, formulation):
+    for kernel in model_kernels(equations, formulation, python=True):
         lines = [f"def {kernel.name}({', '.join(kernel.spec.arguments)}):"]
         lines += [f"    {name} = [0.0] * {len(exprs)}" for name, exprs in kernel.outputs.items()]
         body = print_statements(printer, kernel_statements(kernel))

@@ -87,3 +87,38 @@ def state_rows(size_t address, const double[::1] t, const double[:, ::1] Y, cons
             if f(t[j], &Y[j, 0], &p[0], &U[j, 0] if has_inputs else ZERO, &out[j, 0]):
                 failed += 1
     return failed
+
+
+def weighted_rows(size_t function, const double[::1] t, const double[:, ::1] Z,
+                  const double[::1] p, int n, int m, int nu, const double[:, ::1] W,
+                  const cnp.int64_t[::1] pick, double[:, ::1] out):
+    """out[j, k] = entry pick[k] of f(t[j], [q, q̇, a, W[j]], p, u) at every point j, f a model
+    function of the call style "weighted" (`residual_hessian`: a full (3n + m + nu)² matrix).
+    Returns the number of points where it reported failure."""
+    cdef lg_function f = <lg_function>function
+    cdef int ni = n + m, width = 3 * n + m + nu
+    cdef Py_ssize_t P = Z.shape[0], K = pick.shape[0], j, k
+    cdef int failed = 0
+    cdef const double *u
+    cdef double *y = <double *>malloc((2 * n + 2 * ni) * sizeof(double))
+    cdef double *buf = <double *>malloc(max(width * width, 1) * sizeof(double))
+    if y == NULL or buf == NULL:
+        free(y)
+        free(buf)
+        raise MemoryError()
+    try:
+        with nogil:
+            for j in range(P):
+                for k in range(2 * n + ni):
+                    y[k] = Z[j, k]
+                for k in range(ni):
+                    y[2 * n + ni + k] = W[j, k]
+                u = &Z[j, 3 * n + m] if nu else ZERO
+                if f(t[j], y, &p[0], u, buf):
+                    failed += 1
+                for k in range(K):
+                    out[j, k] = buf[pick[k]]
+    finally:
+        free(y)
+        free(buf)
+    return failed

@@ -27,14 +27,15 @@ from ..runtime.arguments import key_name
 from .grid import KINDS, interpolate_rows
 
 
-def initial_guess(problem, tr, guess):
-    """The decision vector to start IPOPT from (see `Collocation.solve`)."""
+def initial_guess(problem, tr, guess, shift=0.0):
+    """The decision vector to start from (see `Collocation.solve`); an earlier result shifted by
+    `shift` seconds (its first `shift` dropped, its end held: `Collocation.resolve`)."""
     from .result import CollocationResult
     L = tr.layout
     if guess is None:
         return default_guess(problem, tr)
     if isinstance(guess, CollocationResult):
-        return from_result(problem, tr, guess)
+        return from_result(problem, tr, guess, shift)
     if hasattr(guess, "t") and hasattr(guess, "y"):    # a simulation (an OdeResult is a dict)
         return from_simulation(problem, tr, guess)
     if isinstance(guess, dict):
@@ -129,9 +130,10 @@ def smooth_motion(problem, tr):
     return needed_inputs(problem, tr, np.clip(x, tr.lo, tr.hi), T)
 
 
-def needed_inputs(problem, tr, x, T):
+def needed_inputs(problem, tr, x, T, points=None):
     """(x with its free inputs and multipliers those of least squares on the residual at each
-    point, clipped to their bounds; whether the least-squares values exceed the bounds)."""
+    point (of `points`, default all), clipped to their bounds; whether the least-squares values
+    exceed the bounds)."""
     L, mod = tr.layout, problem.mod
     Z = L.point_block(x)
     free = [L.offset("lam") + k for k in range(L.m)] + \
@@ -142,7 +144,7 @@ def needed_inputs(problem, tr, x, T):
     p = tr._state(x)[1]
     lo, hi = L.point_block(tr.lo), L.point_block(tr.hi)
     exceeded = False
-    for j in range(L.points):
+    for j in range(L.points) if points is None else points:
         q, qd, a = Z[j, :L.n], Z[j, L.n:2 * L.n], Z[j, 2 * L.n:3 * L.n + L.m]
         u = Z[j, L.offset("u"):]
         try:
@@ -235,33 +237,84 @@ def _count(L, kind):
     return {"q": L.n, "qd": L.n, "qdd": L.n, "lam": L.m, "u": L.nu}[kind]
 
 
-def from_result(problem, tr, result):
+def from_result(problem, tr, result, shift=0.0):
     """An earlier result on this grid or another: its point values interpolated (states by their
-    Hermite interpolant) at this problem's points, its duration and parameter estimates."""
+    Hermite interpolant) at this problem's points (`shift` seconds later, the end held), its
+    duration and parameter estimates."""
     L, old = tr.layout, result._layout
     if (old.n, old.m, old.nu) != (L.n, L.m, L.nu):
         raise LagrgenError("guess: the result is of a model with other sizes")
     x = base_guess(problem, tr)
-    if old == L and result.x.size == L.size:
+    if old == L and result.x.size == L.size and not shift:
         x = np.array(result.x)
     else:
         Zold = old.point_block(result.x)
         T = result.duration
         if L.free:
             x[L.T_index] = T / L.T_scale
-        times = L.fractions * T          # the same fractions of the earlier duration
+        times = L.fractions * T + shift    # the same fractions of the earlier duration
         Z = L.point_block(x)
         for kind in KINDS:
             rate = {"q": "qd", "qd": "qdd"}.get(kind)
             for i in range(_count(L, kind)):
                 values = Zold[:, old.offset(kind) + i]
                 rates = Zold[:, old.offset(rate) + i] if rate else None
-                Z[:, L.offset(kind) + i] = interpolate_rows(values, old, kind, times, T, rates)
+                Z[:, L.offset(kind) + i] = interpolate_rows(values, old, kind,
+                                                            np.minimum(times, T), T, rates)
+        beyond = np.flatnonzero(times > T * (1 + 1e-12))
+        if beyond.size:
+            x = _held_end(problem, tr, x, T, beyond, times[beyond] - T, Zold[-1])
         names = list(problem.mod.parameters)
         for k, j in enumerate(L.unknown):
             if names[j] in result.params:
                 x[L.p_start + k] = result.params[names[j]]
     return np.clip(x, tr.lo, tr.hi)
+
+
+def _held_end(problem, tr, x, T, points, after, end):
+    """x with the `points` that lie `after` seconds past the end of the motion it continues
+    (whose last point's variables are `end`) moving on at the end's rates (q̈ = 0: at rest when
+    the end is) with the inputs that make that a motion of the model."""
+    L = tr.layout
+    Z = L.point_block(x)
+    n = L.n
+    Z[points, :n] = end[:n] + np.outer(after, end[n:2 * n])
+    Z[points, n:2 * n] = end[n:2 * n]
+    Z[points, 2 * n:3 * n] = 0.0
+    return needed_inputs(problem, tr, x, T, points)[0]
+
+
+def warm_multipliers(tr, guess, shift=0.0):
+    """(λ, z) of an earlier result on the same mesh (its constraints' and bounds' multipliers,
+    `shift` seconds later: nodes from nodes, midpoints from midpoints, defects from intervals),
+    else (None, None)."""
+    from .result import CollocationResult
+    L = tr.layout
+    if not isinstance(guess, CollocationResult) or guess._layout != L \
+            or guess._lam.size != tr.n_constraints or guess._z.size != L.size:
+        return None, None
+    lam, z = np.array(guess._lam), np.array(guess._z)
+    if not shift:
+        return lam, z
+    T = guess.duration
+    P, ni = L.points, L.ni
+    times = L.fractions * T
+    later = np.minimum(times + shift, T)
+    point_rows = lam[:P * ni].reshape(P, ni)
+    zp = z[:L.p_start].reshape(P, L.nz)
+    for kind in range(L.stride):           # nodes, then midpoints
+        own = np.arange(kind, P, L.stride)
+        for block in (point_rows, zp):
+            block[own] = np.array([np.interp(later[own], times[own], column)
+                                   for column in block[own].T]).T
+    lam[:P * ni] = point_rows.ravel()
+    z[:L.p_start] = zp.ravel()
+    base, per = tr.defect_row, tr.n_defects // (L.nodes - 1)
+    middles = 0.5 * (L.node_fractions[:-1] + L.node_fractions[1:]) * T
+    rows = lam[base:base + tr.n_defects].reshape(-1, per)
+    lam[base:base + tr.n_defects] = np.array(
+        [np.interp(np.minimum(middles + shift, T), middles, column) for column in rows.T]).T.ravel()
+    return lam, z
 
 
 def from_simulation(problem, tr, sol):

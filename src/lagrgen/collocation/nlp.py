@@ -16,12 +16,19 @@ import numpy as np
 
 from ..calculus import internal_symbols
 from ..errors import LagrgenError
-from ._points import kernel_rows, residual_rows
+from ._points import kernel_rows, residual_rows, weighted_rows
 from .grid import defect_intervals, defects, interpolation, quadrature, variable_names
-from .symbolic import (consistency_derivatives, path_derivatives, point_variables_of,
-                       residual_hessian, residual_jacobian_structure, residual_parameter_hessian,
-                       scalar_derivatives, weights)
+from ..hessians import (path_derivatives, point_variables_of, residual_hessian,
+                        residual_jacobian_structure, residual_parameter_hessian,
+                        scalar_derivatives, weights)
+from .symbolic import consistency_derivatives
+from .sparsity import hessian_entries, jacobian_structure
 from .units import compiled_unit
+
+#: An instance value outside its bounds by at most this much (relative to max(1, the bound)) is
+#: clipped onto the bound, with a note: a state read off a solution that rides a limit exceeds
+#: it by the solver's bound tolerance (IPOPT's: 1e-8).
+BOUND_SLACK = 1e-6
 
 
 class Transcription:
@@ -35,7 +42,13 @@ class Transcription:
         self.mod = problem.mod
         self.quad = quadrature(L)
         self.n_path = len(problem._path)
+        self.n_term = len(problem._terminal)
+        self.integrand = problem._objective_integrand()
         self.exact = hessian_kind == "exact"
+        #: A spatial tree's residual derivatives by its recursion, their sparsity from its
+        #: structure (`.sparsity`): no symbolic equations (unknown parameters take the symbolic
+        #: path).
+        self.recursive = bool(self.mod.info.tree_structure) and not L.unknown
         if self.exact:
             self._hessian_units()
         self._residual_structure()
@@ -45,12 +58,19 @@ class Transcription:
         self._linear_rows()
         self._data_term()
         self._variable_bounds()
+        self.bounds_stamp = problem._values_stamp
         self._jacobian_structure()
         if self.exact:
             self._hessian_structure()
         self._entry = None          # (x, the values at x): one tuple, read and replaced whole
         self.scale_defects(problem.duration_bounds[0])
         self.evaluations = {"constraints": 0, "jacobian": 0, "hessian": 0, "objective": 0}
+
+    def refresh_bounds(self):
+        """The bounds again from the problem's instance values (changed by `resolve`; the
+        structure is the same)."""
+        self._variable_bounds()
+        self.bounds_stamp = self.problem._values_stamp
 
     def bound(self, duration):
         """A copy of this NLP for one solve, its defect rows scaled by 1/h_k at the starting
@@ -73,9 +93,13 @@ class Transcription:
     def _residual_structure(self):
         L, mod = self.layout, self.mod
         n, m, nu, ni, nz = L.n, L.m, L.nu, L.ni, L.nz
-        s = self.hessian_unit.structure["jacobian"] if self.exact else \
-            residual_jacobian_structure(_equations(self.problem.model))
         n_params = len(mod.parameters)
+        if self.recursive:
+            s = jacobian_structure(mod.info.tree_structure, n, nu, n_params)
+        elif self.exact:
+            s = self.hessian_unit.structure["jacobian"]
+        else:
+            s = residual_jacobian_structure(_equations(self.problem.model))
         size1 = ni + ni * 2 * n + ni * ni + ni * nu
         rows, cols, pick = [], [], []
         for i in range(ni):
@@ -101,21 +125,29 @@ class Transcription:
             if L.unknown else 0
 
     def _problem_unit(self):
-        """The compiled path constraints and objective integrand (None when there are neither)."""
+        """The compiled path and terminal constraints, objective integrand and terminal cost
+        (None when there are none)."""
         problem, L = self.problem, self.layout
         exprs = [e for _, e, _, _ in problem._path]
-        integrand = problem._integrand
+        terminal = [e for _, e, _, _ in problem._terminal]
+        integrand, cost = problem._objective_integrand(), problem._terminal_cost
         self.unit = None
-        if not exprs and integrand is None:
+        if not exprs and integrand is None and not terminal and cost is None:
             return
-        key = repr((L.n, L.m, L.nu, L.unknown, [str(e) for e in exprs], str(integrand)))
+        key = repr((L.n, L.m, L.nu, L.unknown, [str(e) for e in exprs], str(integrand),
+                    [str(e) for e in terminal], str(cost)))
         self.unit = compiled_unit(self.mod, "problem", key,
-                                  lambda: _problem_unit(L, exprs, integrand))
+                                  lambda: _problem_unit(L, exprs, integrand, terminal, cost))
         s = self.unit.structure
-        self.path_jac = np.array(s["path_jacobian"], dtype=np.int64).reshape(-1, 2)
-        self.path_hess = np.array(s["path_hessian"], dtype=np.int64).reshape(-1, 2)
+        pairs = {k: np.array(s.get(k, []), dtype=np.int64).reshape(-1, 2)
+                 for k in ("path_jacobian", "path_hessian", "objective_hessian",
+                           "terminal_jacobian", "terminal_hessian", "terminal_cost_hessian")}
+        self.path_jac, self.path_hess = pairs["path_jacobian"], pairs["path_hessian"]
         self.obj_grad = np.array(s["objective_gradient"], dtype=np.int64)
-        self.obj_hess = np.array(s["objective_hessian"], dtype=np.int64).reshape(-1, 2)
+        self.obj_hess = pairs["objective_hessian"]
+        self.term_jac, self.term_hess = pairs["terminal_jacobian"], pairs["terminal_hessian"]
+        self.cost_grad = np.array(s.get("terminal_cost_gradient", []), dtype=np.int64)
+        self.cost_hess = pairs["terminal_cost_hessian"]
 
     def _consistency(self):
         """The constraints' position and velocity levels at the first node (the acceleration
@@ -178,6 +210,13 @@ class Transcription:
 
     def _hessian_units(self):
         L, model = self.layout, self.problem.model
+        if self.recursive:
+            self.hessian_function = self.mod.function_address("residual_hessian")
+            self.res_hess = hessian_entries(self.mod.info.tree_structure, L.n, L.nu)
+            width = L.nz
+            self.res_hess_pick = self.res_hess[:, 0] * width + self.res_hess[:, 1]
+            self.parameter_unit = None
+            return
         self.hessian_unit = compiled_unit(self.mod, "hessian", "",
                                           lambda: _hessian_unit(model))
         self.res_hess = np.array(self.hessian_unit.structure["entries"],
@@ -212,24 +251,31 @@ class Transcription:
         self.D1_cols = np.unique(cols[c1 != 0]) if L.free else np.zeros(0, dtype=np.int64)
 
     def _linear_rows(self):
-        """The linear rows E·x = e: periodicity, instance values between this mesh's nodes, and
-        the inputs tied to their control intervals (`controls`)."""
+        """The linear rows e_lo ≤ E·x ≤ e_hi: periodicity, instance values between this mesh's
+        nodes, the inputs tied to their control intervals (`controls`), all equalities; and
+        each bounded input's envelope on each Hermite–Simpson interval (`envelope_rows`)."""
         L, problem = self.layout, self.problem
         T = problem.duration_bounds[0]
-        entries = [([L.index(L.points - 1, kind, i), L.index(0, kind, i)], [1.0, -1.0], 0.0)
-                   for kind, i in problem._periodic]
-        entries += [(*interpolation(L, kind, i, s, T), value)
+        entries = [([L.index(L.points - 1, kind, i), L.index(0, kind, i)], [1.0, -1.0], 0.0,
+                    0.0) for kind, i in problem._periodic]
+        entries += [(*interpolation(L, kind, i, s, T), value, value)
                     for s, kind, i, value in problem._interpolated
                     if L.node_at(s / T) is None]     # on a node: a bound (`_variable_bounds`)
         if self.controls is not None:
             free = [k for k in range(L.nu) if k not in problem._given]
-            entries += [(c, v, 0.0) for c, v in self.controls.ties(L, free)]
-        counts = [len(c) for c, _, _ in entries]
+            entries += [(c, v, 0.0, 0.0) for c, v in self.controls.ties(L, free)]
+        self.n_envelope = 0
+        if L.stride == 2:
+            envelope = envelope_rows(L, problem)
+            self.n_envelope = len(envelope)
+            entries += envelope
+        counts = [len(c) for c, _, _, _ in entries]
         self.E = Linear(np.repeat(np.arange(len(entries)), counts),
-                        np.concatenate([np.asarray(c) for c, _, _ in entries] or [[]]),
-                        np.concatenate([np.asarray(v, float) for _, v, _ in entries] or [[]]),
+                        np.concatenate([np.asarray(c) for c, _, _, _ in entries] or [[]]),
+                        np.concatenate([np.asarray(v, float) for _, v, _, _ in entries] or [[]]),
                         (len(entries), L.size))
-        self.e = np.array([value for _, _, value in entries])
+        self.e_lo = np.array([lo for _, _, lo, _ in entries])
+        self.e_hi = np.array([hi for _, _, _, hi in entries])
 
     def _data_term(self):
         """Σ ω·(C·x − d)² over every present sample of every track."""
@@ -253,7 +299,12 @@ class Transcription:
             self.data_hess = self.C.weighted_gram(2.0 * self.omega)
 
     def _variable_bounds(self):
+        """lo ≤ x ≤ hi (the bounds, instance values as lo = hi, given inputs) and the
+        constraints' bounds g_lo, g_hi; `notes` of what was adjusted."""
         L, problem, mod = self.layout, self.problem, self.mod
+        self.notes = []
+        if problem._integrand is None and self.integrand is not None:
+            self.notes.append(problem.regularization_note())
         lo, hi = np.full(L.size, -np.inf), np.full(L.size, np.inf)
         blo, bhi = lo[:L.p_start].reshape(L.points, L.nz), hi[:L.p_start].reshape(L.points, L.nz)
         for (kind, i), (a, b) in problem._bounds.items():
@@ -286,18 +337,28 @@ class Transcription:
                 raise LagrgenError(f"the instance values {given[j]} and {value} of {where} "
                                    "contradict each other: give one")
             if not lo[j] - 1e-12 <= value <= hi[j] + 1e-12:
-                raise LagrgenError(f"the instance value {value} of {where} lies outside its "
-                                   f"bounds [{lo[j]}, {hi[j]}]")
+                clipped = min(max(value, lo[j]), hi[j])
+                if abs(clipped - value) > BOUND_SLACK * max(1.0, abs(clipped)):
+                    raise LagrgenError(f"the instance value {value} of {where} lies outside "
+                                       f"its bounds [{lo[j]}, {hi[j]}]")
+                self.notes.append(f"the instance value {value!r} of {where} lies "
+                                  f"{abs(clipped - value):.2g} outside its bounds (a solver's "
+                                  f"tolerance): taken as {clipped!r}")
+                value = clipped
             lo[j] = hi[j] = given[j] = value
         if L.free:
             lo[L.T_index], hi[L.T_index] = np.array(problem.duration_bounds) / L.T_scale
         self.lo, self.hi = lo, hi
         self.g_lo = np.concatenate([np.zeros(L.points * L.ni),
                                     np.tile([lo_ for _, _, lo_, _ in problem._path], L.points),
-                                    np.zeros(self.n_cons + self.n_defects), self.e])
+                                    np.zeros(self.n_cons),
+                                    [lo_ for _, _, lo_, _ in problem._terminal],
+                                    np.zeros(self.n_defects), self.e_lo])
         self.g_hi = np.concatenate([np.zeros(L.points * L.ni),
                                     np.tile([hi_ for _, _, _, hi_ in problem._path], L.points),
-                                    np.zeros(self.n_cons + self.n_defects), self.e])
+                                    np.zeros(self.n_cons),
+                                    [hi_ for _, _, _, hi_ in problem._terminal],
+                                    np.zeros(self.n_defects), self.e_hi])
 
     def _columns(self, local):
         """Global columns of per-point local columns (local < nz: the point's own variables,
@@ -311,8 +372,17 @@ class Transcription:
     def defect_row(self):
         """The first defect row."""
         L = self.layout
+        return L.points * (L.ni + self.n_path) + self.n_cons + self.n_term
+
+    @property
+    def terminal_row(self):
+        """The first terminal constraint's row."""
+        L = self.layout
         return L.points * (L.ni + self.n_path) + self.n_cons
 
+    def _last_columns(self, local):
+        """Global columns of the last point's local columns (or unknown parameters')."""
+        return self._columns(local)[-1]
     def _jacobian_structure(self):
         L = self.layout
         P, ni = L.points, L.ni
@@ -326,6 +396,9 @@ class Transcription:
             rows.append(P * (ni + self.n_path) + self.cons_jac[:, 0])
             cols.append(np.where(self.cons_jac[:, 1] < L.nz, self.cons_jac[:, 1],
                                  L.p_start + self.cons_jac[:, 1] - L.nz))
+        if self.n_term:
+            rows.append(self.terminal_row + self.term_jac[:, 0])
+            cols.append(self._last_columns(self.term_jac[:, 1]))
         base = self.defect_row
         rows.append(base + self.def_rows), cols.append(self.def_cols)
         if L.free:
@@ -353,7 +426,7 @@ class Transcription:
             per_point(self.par_hess)
         if self.unit is not None and self.n_path:
             per_point(self.path_hess)
-        if self.unit is not None and self.problem._integrand is not None:
+        if self.unit is not None and self.integrand is not None:
             per_point(self.obj_hess)
             if L.free:
                 c = self._columns(self.obj_grad).ravel()
@@ -366,6 +439,10 @@ class Transcription:
             parts.append((first[:, 0], first[:, 1]))
         if self.n_data:
             parts.append(self.data_hess[:2])
+        for local in ((self.term_hess if self.n_term else None),
+                      (self.cost_hess if self.problem._terminal_cost is not None else None)):
+            if local is not None:
+                parts.append((self._last_columns(local[:, 0]), self._last_columns(local[:, 1])))
         rows = np.concatenate([np.maximum(r, c) for r, c in parts]).astype(np.int64)
         cols = np.concatenate([np.minimum(r, c) for r, c in parts]).astype(np.int64)
         key = rows * L.size + cols
@@ -426,6 +503,35 @@ class Transcription:
                     first["p"], L.n, L.m, L.nu, W, out)
         return out[0]
 
+    def _residual_hessian(self, state, W):
+        """The residual's weighted Hessian entries at every point (flat), weights W (P, ni)."""
+        L = self.layout
+        if not self.recursive:
+            return self._kernel("residual_hessian", state, len(self.res_hess), W,
+                                self.hessian_unit).ravel()
+        out = np.empty((L.points, len(self.res_hess)))
+        if weighted_rows(self.hessian_function, state["t"], state["Z"], state["p"], L.n, L.m,
+                         L.nu, W, self.res_hess_pick, out):
+            raise LagrgenError("the model's residual Hessian failed at a collocation point")
+        return out.ravel()
+
+    def _last(self, name, state, width, W=None):
+        """Kernel `name` of the problem's unit at the last point (weights W (width_w,))."""
+        last = {"t": state["t"][-1:], "Z": np.ascontiguousarray(state["Z"][-1:]),
+                "p": state["p"]}
+        return self._kernel(name, last, width, None if W is None else
+                            np.asarray(W, dtype=float)[None, :])[0]
+
+    def _terminal_values(self, state):
+        if "terminal" not in state:
+            state["terminal"] = self._last("terminal_values", state, self.n_term)
+        return state["terminal"]
+
+    def _terminal_cost(self, state):
+        if "cost" not in state:
+            state["cost"] = float(self._last("terminal_cost", state, 1)[0])
+        return state["cost"]
+
     def _path_values(self, state):
         if "path" not in state:
             state["path"] = self._kernel("path_values", state, self.n_path)
@@ -446,10 +552,12 @@ class Transcription:
         self.evaluations["objective"] += 1
         state = self._at(x)
         f = 0.0
-        if self.problem._integrand is not None:
+        if self.integrand is not None:
             f += state["T"] * float(self.quad @ self._integrand(state))
         if self.problem._minimize_time:
             f += state["T"]
+        if self.problem._terminal_cost is not None:
+            f += self._terminal_cost(state)
         if self.n_data:
             res = self.C.dot(x) - self.d
             f += float(self.omega @ (res * res))
@@ -459,7 +567,7 @@ class Transcription:
         state = self._at(x)
         L = self.layout
         g = np.zeros(L.size)
-        if self.problem._integrand is not None:
+        if self.integrand is not None:
             dL = self._integrand_gradient(state)
             cols = self._columns(self.obj_grad)
             g += np.bincount(cols.ravel(), (state["T"] * self.quad[:, None] * dL).ravel(),
@@ -468,6 +576,9 @@ class Transcription:
                 g[L.T_index] += float(self.quad @ self._integrand(state)) * L.T_scale
         if self.problem._minimize_time:
             g[L.T_index] += L.T_scale
+        if self.problem._terminal_cost is not None:
+            np.add.at(g, self._last_columns(self.cost_grad),
+                      self._last("terminal_cost_gradient", state, self.cost_grad.size))
         if self.n_data:
             g += 2.0 * self.C.tdot(self.omega * (self.C.dot(x) - self.d))
         return g
@@ -480,6 +591,8 @@ class Transcription:
             parts.append(self._path_values(state).ravel())
         if self.n_cons:
             parts.append(self._consistency_kernel("consistency", state, 0)[self.cons_keep])
+        if self.n_term:
+            parts.append(self._terminal_values(state))
         parts.append(self.defect_scale * (self.D0.dot(x) + state["T"] * self.D1.dot(x)))
         parts.append(self.E.dot(x))
         return np.concatenate(parts)
@@ -499,6 +612,8 @@ class Transcription:
         if self.n_cons:
             parts.append(self._consistency_kernel("consistency_jacobian", state,
                                                   1)[self.cons_jac_pick])
+        if self.n_term:
+            parts.append(self._last("terminal_jacobian", state, len(self.term_jac)))
         parts.append(self.defect_entry_scale * (self.def_c0 + state["T"] * self.def_c1))
         if L.free:
             parts.append((self.defect_scale * L.T_scale * self.D1.dot(x))[self.def_T_rows])
@@ -514,8 +629,7 @@ class Transcription:
         L = self.layout
         P, ni = L.points, L.ni
         mu = np.asarray(lagrange)
-        parts = [self._kernel("residual_hessian", state, len(self.res_hess),
-                              mu[:P * ni].reshape(P, ni), self.hessian_unit).ravel()]
+        parts = [self._residual_hessian(state, np.ascontiguousarray(mu[:P * ni].reshape(P, ni)))]
         if self.parameter_unit is not None:
             full = self._kernel("residual_parameter_hessian", state,
                                 len(self.parameter_unit.structure["entries"]),
@@ -524,7 +638,7 @@ class Transcription:
         if self.unit is not None and self.n_path:
             W = mu[P * ni:P * (ni + self.n_path)].reshape(P, self.n_path)
             parts.append(self._kernel("path_hessian", state, len(self.path_hess), W).ravel())
-        if self.unit is not None and self.problem._integrand is not None:
+        if self.unit is not None and self.integrand is not None:
             W = (obj_factor * state["T"] * self.quad)[:, None]
             parts.append(self._kernel("objective_hessian", state, len(self.obj_hess), W).ravel())
             if L.free:
@@ -542,8 +656,73 @@ class Transcription:
                                                   weights_)[self.cons_hess_pick])
         if self.n_data:
             parts.append(obj_factor * self.data_hess[2])
+        if self.n_term:
+            start = self.terminal_row
+            parts.append(self._last("terminal_hessian", state, len(self.term_hess),
+                                    mu[start:start + self.n_term]))
+        if self.problem._terminal_cost is not None:
+            parts.append(self._last("terminal_cost_hessian", state, len(self.cost_hess),
+                                    [obj_factor]))
         values = np.concatenate(parts)
         return np.bincount(self.hess_map, values, minlength=self.hess_rows.size)
+
+
+    # -- per point (the stage-structured solver, `sqp`) -------------------------------------------
+    def point_hessians(self, x, lagrange):
+        """(points, nz, nz): each point's block of the Lagrangian's Hessian (objective factor 1)
+        at x, for a problem whose Hessian is block-diagonal by points (`sqp.unsupported`)."""
+        state = self._at(x)
+        L = self.layout
+        P, ni, nz = L.points, L.ni, L.nz
+        W = np.zeros((P, nz, nz))
+        mu = np.ascontiguousarray(np.asarray(lagrange)[:P * ni].reshape(P, ni))
+        values = self._residual_hessian(state, mu).reshape(P, -1)
+        np.add.at(W, (slice(None), self.res_hess[:, 0], self.res_hess[:, 1]), values)
+        if self.unit is not None and self.integrand is not None:
+            local = self.obj_hess
+            values = self._kernel("objective_hessian", state, len(local),
+                                  (state["T"] * self.quad)[:, None])
+            np.add.at(W, (slice(None), local[:, 0], local[:, 1]), values)
+        upper = np.transpose(W, (0, 2, 1)).copy()
+        upper[:, np.arange(nz), np.arange(nz)] = 0.0
+        return W + upper
+
+    def point_gradients(self, x):
+        """(points, nz): each point's share of the objective's gradient."""
+        state = self._at(x)
+        L = self.layout
+        g = np.zeros((L.points, L.nz))
+        if self.integrand is not None:
+            g[:, self.obj_grad] = state["T"] * self.quad[:, None] * \
+                self._integrand_gradient(state)
+        return g
+
+    def point_residuals(self, x):
+        """(r (points, ni), R (points, ni, nz)): each point's residual and its Jacobian."""
+        state = self._at(x)
+        L = self.layout
+        R = np.zeros((L.points, L.ni, L.nz))
+        R[:, self.dyn_rows, self.dyn_cols] = state["jac"]
+        return state["r"], R
+
+
+def envelope_rows(layout, problem):
+    """Rows (cols, coefficients, lo, hi) holding each bounded input within its bounds between
+    the points of each Hermite–Simpson interval: its quadratic through (u_s, u_m, u_e) lies in
+    the hull of its Bernstein coefficients u_s, 2·u_m − (u_s + u_e)/2, u_e, so with the points'
+    bounds lo ≤ 2·u_m − (u_s + u_e)/2 ≤ hi keeps all of it within [lo, hi] (a condition that
+    only excludes a quadratic overshooting between the points)."""
+    L = layout
+    rows = []
+    for k in range(L.nu):
+        lo, hi = problem._bounds.get(("u", k), (-np.inf, np.inf))
+        if k in problem._given or not (np.isfinite(lo) or np.isfinite(hi)):
+            continue
+        for interval in range(L.nodes - 1):
+            s = 2 * interval
+            rows.append(([L.index(s, "u", k), L.index(s + 1, "u", k), L.index(s + 2, "u", k)],
+                         [-0.5, 2.0, -0.5], lo, hi))
+    return rows
 
 
 class Linear:
@@ -622,9 +801,10 @@ def _parameter_hessian_unit(model):
             {"entries": [[r, c] for r, c, _ in entries]})
 
 
-def _problem_unit(layout, path, integrand):
+def _problem_unit(layout, path, integrand, terminal=(), cost=None):
     """The path constraints' values, Jacobian and weighted Hessian, and the integrand's value,
-    gradient and Hessian, in the variables z (per point) and the unknown parameters."""
+    gradient and Hessian, in the variables z (per point) and the unknown parameters; the same of
+    the terminal constraints and the terminal cost (evaluated at the last point)."""
     variables = point_variables_of(layout.n, layout.m, layout.nu) + \
         [internal_symbols("p", max(layout.unknown) + 1)[j] for j in layout.unknown]
     kernels, structure = [], {"path_jacobian": [], "path_hessian": [],
@@ -644,5 +824,24 @@ def _problem_unit(layout, path, integrand):
                     ("objective_hessian", "w·∇²L, lower entries", [w * e for _, _, e in hess])]
         structure["objective_gradient"] = [c for c, _ in grad]
         structure["objective_hessian"] = [[r, c] for r, c, _ in hess]
-    return "collocation problem: path constraints and objective integrand", kernels, structure
+    if terminal:
+        jac, hess = path_derivatives(terminal, variables, weights(len(terminal)))
+        kernels += [("terminal_values", "the terminal constraints", terminal),
+                    ("terminal_jacobian", "their Jacobian's nonzero entries",
+                     [e for _, _, e in jac]),
+                    ("terminal_hessian", "Σ w_k·∇²h_k, lower entries", [e for _, _, e in hess])]
+        structure["terminal_jacobian"] = [[r, c] for r, c, _ in jac]
+        structure["terminal_hessian"] = [[r, c] for r, c, _ in hess]
+    if cost is not None:
+        grad, hess = scalar_derivatives(cost, variables)
+        w = weights(1)[0]
+        kernels += [("terminal_cost", "the terminal cost", [cost]),
+                    ("terminal_cost_gradient", "its gradient's nonzero entries",
+                     [e for _, e in grad]),
+                    ("terminal_cost_hessian", "w·its Hessian, lower entries",
+                     [w * e for _, _, e in hess])]
+        structure["terminal_cost_gradient"] = [c for c, _ in grad]
+        structure["terminal_cost_hessian"] = [[r, c] for r, c, _ in hess]
+    return ("collocation problem: path and terminal constraints, objective integrand and "
+            "terminal cost", kernels, structure)
 

@@ -3,60 +3,52 @@ unit; the samples of the data terms as dots on their curves' panels."""
 import numpy as np
 
 from ..outputs.figures import finished, new_figure
-from ..outputs.plotting import label, rate_unit
+from ..outputs.plotting import label, legend_beside, panel_groups, rate_unit
 
 
 def plot_result(result, path=None, title=None):
-    """Panels q(t), q̇(t) and u(t) (when the model has inputs) of `result`; the Figure."""
+    """Panels q(t), q̇(t) and u(t) (when the model has inputs) of `result`, each of at most
+    LINES_PER_PANEL curves of distinct colours with its legend beside it; the Figure."""
     mod = result._problem.mod
     units = dict(getattr(mod, "units", {}) or {})
     units.update({f"{c}_dot": rate_unit(units.get(c)) for c in result.coordinates
                   if units.get(c)})
-    panels = [("coordinates", list(result.coordinates), result.y[:len(result.coordinates)]),
-              ("rates", [f"{c}_dot" for c in result.coordinates],
-               result.y[len(result.coordinates):])]
+    n = len(result.coordinates)
+    dense = np.linspace(result.t[0], result.t[-1], max(400, 4 * result.t.size))
+    states = result.state_at(dense)
+    names = list(result.coordinates) + [f"{c}_dot" for c in result.coordinates]
+    curves = [(dense, states[i]) for i in range(2 * n)]
+    groups = [("coordinates", list(range(n))), ("rates", list(range(n, 2 * n)))]
     if result.inputs:
         L = result._layout
         points = L.point_block(result.x)[:, L.offset("u"):L.offset("u") + L.nu].T
-        panels.append(("inputs", list(result.inputs), points))
-    fig = new_figure(7, 2.3 * len(panels) + 0.8)
+        groups.append(("inputs", list(range(2 * n, 2 * n + len(result.inputs)))))
+        names += list(result.inputs)
+        curves += [(result.t_points, row) for row in points]
+    panels = panel_groups(groups)
+    fig = new_figure(7.5 + 0.07 * max(len(label(name, units)) for name in names),
+                     2.3 * len(panels) + 0.8)
     axes = fig.subplots(len(panels), 1, sharex=True, squeeze=False)[:, 0]
-    dense = np.linspace(result.t[0], result.t[-1], max(400, 4 * result.t.size))
-    states = result.state_at(dense)
-    colours = {}
-    for ax, (what, names, rows) in zip(axes, panels):
-        for i, (name, row) in enumerate(zip(names, rows)):
-            if what == "inputs":
-                line, = ax.plot(result.t_points, row, label=label(name, units))
-            else:
-                offset = 0 if what == "coordinates" else len(result.coordinates)
-                line, = ax.plot(dense, states[offset + i], label=label(name, units))
-            colours[name] = line.get_color()
+    placed = {}
+    for ax, (what, members) in zip(axes, panels):
+        for k, i in enumerate(members):
+            ax.plot(*curves[i], label=label(names[i], units), color=f"C{k}")
+            placed[names[i]] = (ax, f"C{k}")
         ax.set_ylabel(what)
         ax.grid(True, alpha=0.3)
-        ax.legend(loc="upper right", fontsize="small")
-    for times, data, _, _, present, names in result._problem._tracks:
-        for r, name in enumerate(names):
-            ax = _panel_of(name, result, axes)
-            if ax is None:
+    for times, data, _, _, present, tracked in result._problem._tracks:
+        for r, name in enumerate(tracked):
+            if name not in placed:
                 continue
+            ax, colour = placed[name]
             keep = present[r]
             ax.plot(times[keep] + result.t[0], data[r, keep], ".", ms=3, alpha=0.6,
-                    color=colours.get(name, "k"), label=f"{name} (data)")
-            ax.legend(loc="upper right", fontsize="small")
+                    color=colour, label=f"{name} (data)")
+    for ax in axes:
+        legend_beside(ax)
     axes[-1].set_xlabel("t [s]" if units else "t")
     axes[0].set_title(title or f"{mod.name}: {result.scheme}, objective {result.objective:.6g}")
     return finished(fig, path)
-
-
-def _panel_of(name, result, axes):
-    if name in result.coordinates:
-        return axes[0]
-    if name.endswith("_dot") and name[:-4] in result.coordinates:
-        return axes[1]
-    if name in result.inputs:
-        return axes[2]
-    return None
 
 
 def plot_errors(result, path=None, title=None):

@@ -14,6 +14,12 @@ from .grid import Layout, scheme_name, variable_names
 from .symbolic import internal_expression
 
 
+#: The weight of the term that picks one motion among those of the least time
+#: (`Collocation.minimize`): it moves the least time by far less than a solve's tolerance (the
+#: seven-joint arm: no change in eight digits) and makes the optimum unique.
+TIME_REGULARIZATION = 1e-6
+
+
 class Collocation:
     """An optimal motion or an identification of the built model `mod`, by direct collocation.
 
@@ -81,12 +87,15 @@ class Collocation:
         self._interpolated = []   # (t − t0, kind, i, value) of instance constraints at(...)
         self._periodic = []       # (kind, i)
         self._path = []           # (label, internal expression, lo, hi)
+        self._terminal = []       # (label, internal expression, lo, hi) at the last node
         self._integrand = None    # internal expression of ∫ L dt
+        self._terminal_cost = None  # internal expression of the cost on the last node
         self._integrand_text = None
         self._minimize_time = False
         self._tracks = []         # (times, data (k, m), [(kind, i)], weights (k, m), names)
         self._given = {}          # input index -> a number, a callable of t or (times, values)
-        self._transcription = None
+        self._transcriptions = {}  # (hessian, layout, controls) -> Transcription
+        self._values_stamp = 0    # counts changes of instance values alone (resolve)
 
     def __repr__(self):
         duration = self.duration_bounds if self.free_duration else self.duration_bounds[0]
@@ -172,8 +181,15 @@ class Collocation:
         self._instance(1.0, q, qd, qdd, u, "final")
         return self
 
-    def _instance(self, fraction, q, qd, qdd, u, what):
+    def _instance(self, fraction, q, qd, qdd, u, what, structure=True):
+        for kind, i, value in self._instance_items(q, qd, qdd, u, what):
+            self._fix(fraction, kind, i, value, what)
+        self._changed(structure)
+
+    def _instance_items(self, q, qd, qdd, u, what):
+        """[(kind, i, value)] of instance values given as dicts (name -> value) or arrays."""
         n, nu = self.layout.n, self.layout.nu
+        out = []
         for kind, values, size, names in (
                 ("q", q, n, self.mod.coordinates), ("qd", qd, n, self.mod.coordinates),
                 ("qdd", qdd, n, self.mod.coordinates), ("u", u, nu, self.mod.inputs)):
@@ -193,10 +209,9 @@ class Collocation:
                     raise LagrgenError(f"{what}({kind}=...) takes a dict or {size} values, got "
                                        f"shape {arr.shape}")
                 items = list(enumerate(arr))
-            for i, value in items:
-                self._fix(fraction, kind, i, _finite(value, f"{what} value of {kind}[{i}]"),
-                          what)
-        self._changed()
+            out += [(kind, i, _finite(value, f"{what} value of {kind}[{i}]"))
+                    for i, value in items]
+        return out
 
     def _fix(self, fraction, kind, i, value, what):
         """Fix variable i of `kind` at the node at `fraction` of the duration (0 or 1)."""
@@ -260,17 +275,39 @@ class Collocation:
         self._changed()
         return self
 
-    def minimize(self, integral=None, time=False):
+    def terminal(self, expr, lo=-math.inf, hi=math.inf):
+        """lo ≤ expr ≤ hi at the last node (e.g. a link's position, `Model.link_position`);
+        `expr` in the model's symbols (coordinates, their rates, parameters; accelerations and
+        inputs of the last node too)."""
+        lo, hi = _interval(lo, hi, "terminal(expr, lo, hi)")
+        if lo == -math.inf and hi == math.inf:
+            raise LagrgenError("terminal(expr) needs a bound: terminal(expr, lo, hi)")
+        label = f"terminal constraint {len(self._terminal) + 1}"
+        internal = internal_expression(self.model, expr, label, allow_time=not self.free_duration)
+        self._terminal.append((label, internal, lo, hi))
+        self._changed()
+        return self
+
+    def minimize(self, integral=None, time=False, terminal=None):
         """The objective: ∫ integral dt over the motion (an expression in the model's symbols),
-        plus T when `time` (minimum time; needs a free duration). Replaces an earlier objective;
-        data terms (`track`) are added to it."""
-        if integral is None and not time:
-            raise LagrgenError("minimize() needs integral=expr and/or time=True")
+        plus T when `time` (minimum time; needs a free duration), plus `terminal` evaluated at
+        the last node (e.g. a squared distance of a link from a target). Replaces an earlier
+        objective; data terms (`track`) are added to it.
+
+        The least time alone is often reached by many motions (a joint with slack can take any
+        path that arrives in time): `solve` then picks the one of least
+        ∫Σ(u_k/ū_k)² dt (ū_k the half range of input k's bounds, or 1) by adding that term
+        weighted by TIME_REGULARIZATION, and says so in `res.notes`."""
+        if integral is None and not time and terminal is None:
+            raise LagrgenError("minimize() needs integral=expr, time=True and/or terminal=expr")
         if time and not self.free_duration:
             raise LagrgenError("minimize(time=True) needs a free duration: "
                                "Collocation(..., duration=(lo, hi))")
         self._integrand = None if integral is None else internal_expression(
             self.model, integral, "the objective's integrand", allow_time=not self.free_duration)
+        self._terminal_cost = None if terminal is None else internal_expression(
+            self.model, terminal, "the objective's terminal cost",
+            allow_time=not self.free_duration)
         self._minimize_time = bool(time)
         self._changed()
         return self
@@ -364,13 +401,17 @@ class Collocation:
         span = times[-1] - times[0]
         return np.interp((times - times[0]) / span if span > 0 else times * 0.0, fractions, table)
 
-    def _changed(self):
-        self._transcription = None
+    def _changed(self, structure=True):
+        """A declaration changed: the NLPs are made anew; or (structure False: instance values
+        at the first node alone, `resolve`) their bounds are refreshed."""
+        if structure or self.layout.m:
+            self._transcriptions = {}
+        self._values_stamp += 1
 
     # -- solving ---------------------------------------------------------------------------
     def solve(self, guess=None, hessian="exact", tol=1e-8, max_iter=3000, progress=True,
-              options=None, mesh_tol=1e-6, max_meshes=10):
-        """Solve the problem with IPOPT, refining the mesh until the motion is accurate.
+              options=None, mesh_tol=1e-6, max_meshes=10, solver="auto"):
+        """Solve the problem, refining the mesh until the motion is accurate.
 
         Parameters
         ----------
@@ -397,6 +438,11 @@ class Collocation:
             measured, and warned about when above 1e-6).
         max_meshes : int
             The most meshes (solves) the refinement may use, the given grid included.
+        solver : {"auto", "ipopt", "sqp"}
+            "auto": IPOPT from a cold start, and from a warm one (a refined mesh) the SQP on the
+            problem's stage structure (`lagrgen.collocation.sqp`) where it applies (a fixed
+            duration, no unknown parameters, path constraints, data, ties between nodes or
+            constrained model), IPOPT otherwise; "ipopt" or "sqp" for every mesh.
 
         Returns
         -------
@@ -404,24 +450,126 @@ class Collocation:
         """
         from .refine import solve_refined
         from .solver import settings
-        chosen = settings(hessian, tol, max_iter, progress, options)
+        chosen = settings(hessian, tol, max_iter, progress, options, solver)
         mesh_tol, max_meshes = _refinement(mesh_tol, max_meshes)
-        if self._integrand is None and not self._minimize_time and not self._tracks:
-            raise LagrgenError("no objective: call minimize(integral=..., time=...) or track(...)")
+        self._require_objective()
         result = solve_refined(self, guess, chosen, mesh_tol, max_meshes)
         if progress:
             print(result.summary(), flush=True)
         return result
 
+    def resolve(self, warm, initial=None, shift=0.0, **solve_options):
+        """Solve the problem again from an earlier solution `warm`: re-planning (model-predictive
+        control). The NLP of warm's mesh (its compiled units and sparsity) is reused, and the
+        SQP on the problem's stage structure starts from warm's motion and multipliers, where
+        an interior point would walk its barrier path again.
+
+        Parameters
+        ----------
+        warm : CollocationResult
+            An earlier solution of this problem: the start, and its (final) mesh the grid.
+        initial : dict, optional
+            A new initial state, {"q": ..., "qd": ...} as `initial` takes them (also "qdd",
+            "u"), replacing the earlier initial values of those variables. A value outside its
+            bounds by no more than a solver's tolerance (1e-6 relative) is clipped onto the
+            bound, with a note in `res.notes`.
+        shift : float
+            Seconds dropped from the start of warm's motion, its end held: the start of the
+            plan that continues it (0: warm as it is).
+        **solve_options
+            As `solve` (hessian, tol, max_iter, progress, options, solver, mesh_tol,
+            max_meshes), with progress=False and mesh_tol=None by default: the solve keeps
+            warm's grid (the dynamics error is measured when `res.error` is first read).
+
+        Returns
+        -------
+        CollocationResult
+            With `solve_seconds`, the wall time of this solve.
+        """
+        from .refine import solve_refined
+        from .result import CollocationResult
+        from .solver import settings
+        if not isinstance(warm, CollocationResult) or warm._problem is not self:
+            raise LagrgenError("resolve(warm=...) takes a result of this problem's solve or "
+                               "resolve")
+        shift = _finite(shift, "resolve(shift=...)")
+        if not 0.0 <= shift < warm.duration:
+            raise LagrgenError(f"resolve(shift={shift}) must lie in [0, the duration "
+                               f"{warm.duration:g})")
+        unknown = set(solve_options) - {"hessian", "tol", "max_iter", "progress", "options",
+                                        "solver", "mesh_tol", "max_meshes"}
+        if unknown:
+            raise LagrgenError(f"resolve() got unexpected options {sorted(unknown)}: it takes "
+                               "those of solve")
+        if initial is not None:
+            self._replace_initial(initial)
+        opts = {"hessian": "exact", "tol": 1e-8, "max_iter": 3000, "progress": False,
+                "options": None, "solver": "auto", "mesh_tol": None, "max_meshes": 10}
+        opts.update(solve_options)
+        chosen = settings(opts["hessian"], opts["tol"], opts["max_iter"], opts["progress"],
+                          opts["options"], opts["solver"])
+        mesh_tol, max_meshes = _refinement(opts["mesh_tol"], opts["max_meshes"])
+        self._require_objective()
+        return solve_refined(self, warm, chosen, mesh_tol, max_meshes,
+                             start=(warm._layout, warm._controls, shift))
+
+    def _replace_initial(self, initial):
+        """Set new initial values (resolve's `initial`): those given replace the earlier ones;
+        the structure of the problem is kept (only its bounds are refreshed)."""
+        if not isinstance(initial, dict):
+            raise LagrgenError("resolve(initial=...) takes a dict {'q': ..., 'qd': ...}")
+        extra = set(initial) - {"q", "qd", "qdd", "u"}
+        if extra:
+            raise LagrgenError(f"resolve(initial=...) takes the keys q, qd, qdd and u, got "
+                               f"{sorted(extra)}")
+        items = self._instance_items(*(initial.get(k) for k in ("q", "qd", "qdd", "u")),
+                                     "resolve")
+        for kind, i, value in items:
+            self._fixed[(0.0, kind, i)] = value
+        self._changed(structure=False)
+
+    def _objective_integrand(self):
+        """The integrand the NLP minimizes: the user's, or with the least time alone
+        TIME_REGULARIZATION·Σ_k (u_k/ū_k)² over the free inputs (ū_k the half range of the input's
+        bounds, or 1), which picks one motion among those of the least time."""
+        if self._integrand is not None or not self._minimize_time:
+            return self._integrand
+        import symengine as se
+        terms = []
+        for k in range(self.layout.nu):
+            if k in self._given:
+                continue
+            lo, hi = self._bounds.get(("u", k), (-math.inf, math.inf))
+            scale = 0.5 * (hi - lo) if math.isfinite(hi - lo) and hi > lo else 1.0
+            terms.append((se.Symbol(f"u[{k}]") / scale) ** 2)
+        return TIME_REGULARIZATION * se.Add(*terms) if terms else None
+
+    def regularization_note(self):
+        """What `res.notes` says of the term that picks a motion of the least time."""
+        return ("the least time is reached by more than one motion: the one returned has the "
+                "least ∫Σ(u/ū)² dt among them (ū: each input's half range), chosen by a term of "
+                f"weight {TIME_REGULARIZATION:g} added to the objective")
+
+    def _require_objective(self):
+        if self._integrand is None and not self._minimize_time and not self._tracks \
+                and self._terminal_cost is None:
+            raise LagrgenError("no objective: call minimize(integral=..., time=...) or track(...)")
+
     def transcription(self, hessian="exact", layout=None, controls=None):
-        """The NLP of this problem on its grid (made once per declaration state and Hessian
-        kind), or on the mesh `layout` with the inputs tied to `controls` (made anew)."""
+        """The NLP of this problem on its grid, or on the mesh `layout` with the inputs tied to
+        `controls`: made once per declaration state, Hessian kind and mesh (instance values
+        changed by `resolve` refresh its bounds alone)."""
         from .nlp import Transcription
-        if layout is not None and (layout != self.layout or controls is not None):
-            return Transcription(self, hessian, layout, controls)
-        if self._transcription is None or self._transcription.hessian_kind != hessian:
-            self._transcription = Transcription(self, hessian)
-        return self._transcription
+        layout = self.layout if layout is None else layout
+        key = (hessian, layout, controls)
+        tr = self._transcriptions.get(key)
+        if tr is None:
+            if len(self._transcriptions) >= 8:
+                self._transcriptions.clear()
+            tr = self._transcriptions[key] = Transcription(self, hessian, layout, controls)
+        elif tr.bounds_stamp != self._values_stamp:
+            tr.refresh_bounds()
+        return tr
 
 
 def _refinement(mesh_tol, max_meshes):

@@ -25,12 +25,13 @@ crossing it on the next solve one at a time (a mesh each).
 """
 import time
 import warnings
-from dataclasses import dataclass, field, replace
+from dataclasses import replace
 
 import numpy as np
 
 from .accuracy import interval_errors
 from .grid import ControlMesh
+from .result import MeshRecord
 
 #: The default tolerance of the relative dynamics error (`Collocation.solve(mesh_tol=...)`).
 DEFAULT_MESH_TOL = 1e-6
@@ -53,30 +54,24 @@ class DiscretizationWarning(UserWarning):
     """A solution's dynamics error is larger than the default tolerance."""
 
 
-@dataclass(frozen=True)
-class MeshRecord:
-    """One mesh of a solve: its nodes, IPOPT's iterations, status and objective there, the
-    largest relative dynamics error of its intervals, and (for pictures) the node times and each
-    interval's error."""
-    nodes: int
-    iterations: int
-    error: float
-    objective: float
-    status: int
-    seconds: float
-    times: np.ndarray = field(default=None, repr=False, compare=False)
-    errors: np.ndarray = field(default=None, repr=False, compare=False)
-
-
-def solve_refined(problem, guess, settings, mesh_tol, max_meshes):
+def solve_refined(problem, guess, settings, mesh_tol, max_meshes, start=None):
     """The CollocationResult of `problem` refined until its error is within `mesh_tol` (None:
-    the problem's grid alone), with `errors`, `error` and `meshes`."""
+    the problem's grid alone), with `errors`, `error` and `meshes`; from `start` = (the mesh, its
+    ControlMesh or None, a shift in seconds) of the result `guess` when given (`resolve`: a warm
+    start; with mesh_tol None the error is measured when first read)."""
     from .solver import solve_mesh
-    layout, controls = problem.layout, None
-    knots = tuple(problem.layout.node_fractions)
+    if start is None:
+        layout, controls, shift = problem.layout, None, 0.0
+    else:
+        layout, controls, shift = start
+    knots = tuple(controls.knots if controls is not None else layout.node_fractions)
     degree = 2 if problem.scheme == "hermite-simpson" else 1
-    meshes, spent, callbacks, limit, tied = [], 0.0, 0.0, None, frozenset()
-    result = solve_mesh(problem, layout, controls, guess, settings)
+    meshes, spent, callbacks, limit = [], 0.0, 0.0, None
+    tied = frozenset() if controls is None else frozenset(controls.tied or ())
+    result = solve_mesh(problem, layout, controls, guess, settings, warm=start is not None,
+                        shift=shift)
+    if start is not None and mesh_tol is None:
+        return result
     while True:
         began = time.perf_counter()
         errors = interval_errors(result, mesh_tol or DEFAULT_MESH_TOL)

@@ -1,5 +1,7 @@
 """What `Collocation.solve` returns: the motion at the nodes, the estimates, the solver's report,
 and the ways to look at it (plot, animation, xarray) and to check it (a re-simulation)."""
+from dataclasses import dataclass, field
+
 import numpy as np
 
 from .grid import interpolate_rows
@@ -14,6 +16,21 @@ IPOPT_STATUS = {
     -11: "Invalid_Problem_Definition", -12: "Invalid_Option", -13: "Invalid_Number_Detected",
     -100: "Unrecoverable_Exception", -101: "NonIpopt_Exception_Thrown", -102: "Insufficient_Memory",
     -199: "Internal_Error"}
+
+
+@dataclass(frozen=True)
+class MeshRecord:
+    """One mesh of a solve: its nodes, IPOPT's iterations, status and objective there, the
+    largest relative dynamics error of its intervals, and (for pictures) the node times and each
+    interval's error."""
+    nodes: int
+    iterations: int
+    error: float
+    objective: float
+    status: int
+    seconds: float
+    times: np.ndarray = field(default=None, repr=False, compare=False)
+    errors: np.ndarray = field(default=None, repr=False, compare=False)
 
 
 class Deviation(float):
@@ -56,12 +73,28 @@ class CollocationResult:
         status, seconds) per mesh
     mesh_tol : the tolerance of the error the refinement worked to (None: the grid as given)
     seconds : wall time of the solve over every mesh (after the problem's units were made)
-    callback_seconds : the part of it spent evaluating the NLP (the rest is IPOPT's own)
+    callback_seconds : the part of it spent evaluating the NLP (the rest is the solver's own)
+    solve_seconds : wall time of the last mesh's solve (of `Collocation.resolve`: the re-plan)
+    solver : "ipopt" or "sqp", the solver of the last mesh (`Collocation.solve`'s solver=)
+    notes : what the solve adjusted and says so (an initial value on a bound clipped, ...)
     x : the decision vector (a warm start for another solve)
     """
 
     def __init__(self, **fields):
         self.__dict__.update(fields)
+
+    def __getattr__(self, name):
+        """`errors`, `error`, `meshes` and `mesh_tol` of a re-plan (`Collocation.resolve`
+        without mesh_tol), measured when first read."""
+        if name in ("errors", "error", "meshes", "mesh_tol") and "x" in self.__dict__:
+            from .accuracy import interval_errors
+            errors = interval_errors(self)
+            self.errors, self.error, self.mesh_tol = errors, float(errors.max()), None
+            self.meshes = (MeshRecord(self._layout.nodes, self.iterations, self.error,
+                                      self.objective, self.status, self.seconds,
+                                      self.t.copy(), errors),)
+            return self.__dict__[name]
+        raise AttributeError(f"{type(self).__name__!r} object has no attribute {name!r}")
 
     @classmethod
     def from_solution(cls, problem, tr, x, info, iterations, seconds, hessian):
@@ -91,7 +124,10 @@ class CollocationResult:
             constraint_violation=violation, seconds=seconds, x=np.array(x),
             hessian=hessian, scheme=L.scheme, t_points=t_points, _layout=L,
             _problem=problem, _full_params=full, _evaluations=dict(tr.evaluations),
-            _transcription=tr)
+            _transcription=tr, _controls=tr.controls,
+            _lam=np.asarray(info.get("mult_g", np.zeros(0)), dtype=float),
+            _z=np.asarray(info.get("mult_z", np.zeros(0)), dtype=float),
+            notes=list(getattr(tr, "notes", ())), solve_seconds=seconds, solver="ipopt")
 
     def estimate_errors(self, stacklevel=2):
         """Fill `stderr`, `cov`, `unidentified`, `unseen` and `at_bounds` from the data term at

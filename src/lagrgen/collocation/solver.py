@@ -50,21 +50,33 @@ WARM_OPTIONS = {"bound_push": 1e-8, "bound_frac": 1e-8, "mu_init": 1e-6,
 MAX_ITERATIONS = 2**31 - 1
 
 
+#: The solvers `Collocation.solve` may use: "auto" (IPOPT from a cold start, the structured SQP
+#: from a warm one — a refined mesh, a re-plan — where the problem has its structure, IPOPT
+#: otherwise), "ipopt", or "sqp" (the structured SQP always, an error where it does not apply).
+SOLVERS = ("auto", "ipopt", "sqp")
+
+
 @dataclass(frozen=True)
 class Settings:
-    """How each mesh of a solve runs IPOPT (checked by `settings`)."""
+    """How each mesh of a solve runs (checked by `settings`)."""
     hessian: str
     tol: float
     max_iter: int
     progress: bool
     options: dict
+    solver: str = "auto"
 
 
-def settings(hessian, tol, max_iter, progress, options):
+def settings(hessian, tol, max_iter, progress, options, solver="auto"):
     """The checked `Settings` of `Collocation.solve`'s arguments; a LagrgenError saying what is
     wrong otherwise (before IPOPT, which would print its documentation and fail)."""
     if hessian not in ("exact", "quasi-newton"):
         raise LagrgenError(f"hessian must be 'exact' or 'quasi-newton', got {hessian!r}")
+    if solver not in SOLVERS:
+        raise LagrgenError(f"solver must be one of {', '.join(map(repr, SOLVERS))}, got "
+                           f"{solver!r}")
+    if solver == "sqp" and hessian != "exact":
+        raise LagrgenError("solver='sqp' needs the exact Hessian (hessian='exact')")
     if isinstance(tol, bool) or not isinstance(tol, numbers.Real) or not math.isfinite(tol) \
             or tol <= 0:
         raise LagrgenError(f"tol must be a positive finite number (IPOPT's convergence "
@@ -85,7 +97,7 @@ def settings(hessian, tol, max_iter, progress, options):
         if not (isinstance(value, str) or number) or (number and not math.isfinite(value)):
             raise LagrgenError(f"options[{name!r}] must be a string or a finite number (IPOPT "
                                f"takes no other values), got {value!r}")
-    return Settings(hessian, float(tol), int(max_iter), bool(progress), dict(options))
+    return Settings(hessian, float(tol), int(max_iter), bool(progress), dict(options), solver)
 
 
 def solver_options(hessian, tol, max_iter, options, warm=False):
@@ -205,15 +217,68 @@ def _c_stdout():
             printed[0] = caught.read().decode(errors="replace")
 
 
-def solve_mesh(problem, layout, controls, guess, settings, warm=False):
-    """The CollocationResult of one IPOPT solve of `problem` on the mesh `layout` (inputs tied
-    to `controls`, a ControlMesh, or free) from `guess` (see `Collocation.solve`); `warm`: the
-    guess is the last mesh's solution (`WARM_OPTIONS`)."""
-    from .guess import initial_guess
+def solve_mesh(problem, layout, controls, guess, settings, warm=False, shift=0.0):
+    """The CollocationResult of one solve of `problem` on the mesh `layout` (inputs tied to
+    `controls`, a ControlMesh, or free) from `guess` (see `Collocation.solve`; `shift` seconds
+    of an earlier result dropped, its end held); `warm`: the guess is an earlier solution (a
+    refined mesh's start, a re-plan), which the structured SQP takes where it applies
+    (`settings.solver`), IPOPT with `WARM_OPTIONS` otherwise."""
+    from .guess import initial_guess, warm_multipliers
     tr = problem.transcription(settings.hessian, layout, controls)
-    x0 = initial_guess(problem, tr, guess)
+    x0 = initial_guess(problem, tr, guess, shift)
     T0 = layout.duration(x0) if layout.free else problem.duration_bounds[0]
-    return solve_nlp(problem, tr.bound(T0), x0, settings, warm)
+    bound = tr.bound(T0)
+    if (warm and settings.solver == "auto") or settings.solver == "sqp":
+        from .sqp import Unsupported
+        try:
+            return solve_structured(problem, bound, x0, *warm_multipliers(bound, guess, shift),
+                                    settings)
+        except Unsupported as exc:
+            if settings.solver == "sqp":
+                raise LagrgenError(f"solver='sqp' cannot solve this problem: {exc}; solve it "
+                                   "with solver='auto' or 'ipopt'") from None
+            if settings.progress:
+                print(f"(the structured SQP does not apply: {exc}; IPOPT solves this mesh)",
+                      flush=True)
+    return solve_nlp(problem, bound, x0, settings, warm)
+
+
+def solve_structured(problem, tr, x0, lam0, z0, settings):
+    """The CollocationResult of the structured SQP (`lagrgen.collocation.sqp`) on the
+    transcription `tr` from (x0, lam0, z0); sqp.Unsupported where it does not apply or a step
+    fails."""
+    from .result import CollocationResult
+    from .sqp import SQP_ITERATIONS, solve
+    start = time.perf_counter()
+    monitor = _SQPProgress(settings.progress)
+    outcome = solve(tr, x0, lam0, z0, settings.tol, min(settings.max_iter, SQP_ITERATIONS),
+                    monitor)
+    seconds = time.perf_counter() - start
+    status = 0 if outcome.converged else -1
+    message = ("SQP converged to the tolerance" if outcome.converged
+               else f"SQP stopped: {outcome.message}")
+    info = {"status": status, "status_msg": message, "obj_val": tr.objective(outcome.x),
+            "mult_g": outcome.lam, "mult_z": outcome.z}
+    result = CollocationResult.from_solution(problem, tr, outcome.x, info, outcome.iterations,
+                                             seconds, settings.hessian)
+    result.callback_seconds = seconds
+    result.solver = "sqp"
+    return result
+
+
+class _SQPProgress:
+    """One line per SQP iteration when enabled."""
+
+    def __init__(self, enabled):
+        self.enabled = enabled
+
+    def __call__(self, iteration, objective, primal, dual, alpha):
+        if not self.enabled:
+            return
+        if iteration == 1:
+            print(" iter   objective        inf_pr    inf_du    alpha (SQP)", flush=True)
+        print(f"{iteration:5d}  {objective: .8e}  {primal:.2e}  {dual:.2e}  {alpha:.2e}",
+              flush=True)
 
 
 def solve_nlp(problem, tr, x0, settings, warm=False):
@@ -243,9 +308,11 @@ def solve_nlp(problem, tr, x0, settings, warm=False):
                            "(https://coin-or.github.io/Ipopt/OPTIONS.html)")
     monitor.finish()
     seconds = time.perf_counter() - start
+    info["mult_z"] = np.asarray(info["mult_x_U"]) - np.asarray(info["mult_x_L"])
     result = CollocationResult.from_solution(problem, tr, np.asarray(x), info,
                                              monitor.iterations, seconds, hessian)
     result.callback_seconds = adapter.seconds
+    result.solver = "ipopt"
     return result
 
 

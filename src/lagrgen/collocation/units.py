@@ -40,7 +40,7 @@ PROLOGUE = "    (void)t; (void)q; (void)qd; (void)a; (void)p; (void)u; (void)mu;
 PACKAGE = Path(__file__).resolve().parent.parent
 #: What determines a unit's C besides lagrgen's generator: a change to any of these changes every
 #: unit's digest.
-SOURCES = ("collocation/symbolic.py", "collocation/units.py")
+SOURCES = ("hessians.py", "collocation/symbolic.py", "collocation/units.py")
 #: Optimization level of the units: their kernels are long straight-line code, where -O1 keeps
 #: most of the speed of -O2 at a fraction of its compile time.
 OPT_LEVEL = "-O1"

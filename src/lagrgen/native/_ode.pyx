@@ -331,7 +331,7 @@ def solve_batch(str method, uintptr_t rhs, uintptr_t jacobian, int dim, const do
                 const double[::1] t_eval, uintptr_t events, event_max, event_direction,
                 bint stop_on_nonfinite, list extras, double[:, :, ::1] y_out,
                 int[::1] status, long[::1] nfev, int[::1] stop, long max_steps=0,
-                double max_wall_time=0.0):
+                double max_wall_time=0.0, uintptr_t pivot_record=0, double[::1] pivots=None):
     """Solve runs i = 0..len(Y0)-1 one after another in C, without the GIL and without Python
     between runs, each from Y0[i] with parameters P[i], saving its states at t_eval.
 
@@ -353,6 +353,9 @@ def solve_batch(str method, uintptr_t rhs, uintptr_t jacobian, int dim, const do
     stop : (1,) a flag read before every run and about every 0.05 s within one: nonzero stops the
         batch (set it from another thread; the run under way ends with status -2)
     max_steps, max_wall_time : per-run guards (0: none); a guarded run ends with status -1
+    pivot_record, pivots : the model's `pivot_record` function (0: none) and (runs,) the least
+        relative pivot of M each run's factorizations reached (read and reset around each run,
+        on the thread that runs the batch)
 
     Returns
     -------
@@ -391,6 +394,13 @@ def solve_batch(str method, uintptr_t rhs, uintptr_t jacobian, int dim, const do
     cdef lg_result_t res
     cdef int rc = 0, ok = 1
     cdef int *stop_flag = &stop[0]
+    cdef lg_state_fn record = <lg_state_fn>pivot_record
+    cdef double *least = NULL
+    cdef double scratch = 1.0
+    if record != NULL:
+        if pivots is None or pivots.shape[0] != runs:
+            raise ValueError("solve_batch: pivots must have one entry per run")
+        least = &pivots[0]
     try:
         if not (shared and sig and fns and widths and outs and u and tmp):
             raise MemoryError()
@@ -432,7 +442,11 @@ def solve_batch(str method, uintptr_t rhs, uintptr_t jacobian, int dim, const do
                 pb.p = &P[i, 0]
                 op.y0 = &Y0[i, 0]
                 memset(&res, 0, sizeof(res))
+                if record != NULL:
+                    record(t0, NULL, NULL, NULL, &scratch)
                 rc = lg_solve(&pb, &op, &res)
+                if record != NULL:
+                    record(t0, NULL, NULL, NULL, &least[i])
                 if rc < 0:
                     lg_result_free(&res)
                     ok = 0

@@ -228,11 +228,22 @@ static int hy_normal_row(const hy_ctx *c, int j)
     return hy_row_of(c, c->h->normal_kind[j], c->h->normal_index[j]);
 }
 
-/* 1 if planar friction k acts in the mode `contact`: its normal force is an expression or a
- * constraint's, or its impact is held. */
+/* Whether a friction whose normal force is (kind, index) acts in a mode with these contacts: not
+ * while it is the multiplier of an open contact (N = 0: no force, no sticking, no events); one
+ * rule for the frictions and the planar frictions (lagrgen.hybrid.acts). */
+static int hy_acts(int kind, int index, const int *contact)
+{
+    return kind != LG_NORMAL_IMPACT || contact[index];
+}
+
+static int hy_active(const hy_ctx *c, int j, const int *contact)
+{
+    return hy_acts(c->h->normal_kind[j], c->h->normal_index[j], contact);
+}
+
 static int hy_planar_active(const hy_ctx *c, int k, const int *contact)
 {
-    return c->h->planar_kind[k] != LG_NORMAL_IMPACT || contact[c->h->planar_index[k]];
+    return hy_acts(c->h->planar_kind[k], c->h->planar_index[k], contact);
 }
 
 /* The unit slip direction (v + b·d)/‖v + b·d‖ of planar friction k (b = PLANAR_BLEND). */
@@ -319,7 +330,7 @@ static int hy_solve(hy_ctx *c, double t, const double *y, const double *u, const
     }
     for (int j = 0; j < c->nf; ++j) {
         c->row_of_friction[j] = -1;
-        if (slip[j] == 0) {
+        if (slip[j] == 0 && hy_active(c, j, contact)) {
             c->row_of_friction[j] = r;
             memcpy(c->R + (size_t)r * n, FR(c, j) + FRICTION_FIELDS, n * sizeof(double));
             c->reg[r] = 1;
@@ -464,8 +475,9 @@ static void hy_event_values(hy_ctx *c, const int *contact, const int *slip, cons
     for (int i = 0; i < c->ni; ++i)
         values[i] = contact[i] ? c->lam_i[i] : IMP(c, i)[0] + c->gap_offset[i];
     for (int j = 0; j < c->nf; ++j)
-        values[c->ni + j] = slip[j] == 0 ? FR(c, j)[3] * c->normal[j] - fabs(c->lam_f[j])
-                                         : slip[j] * FR(c, j)[0];
+        values[c->ni + j] = !hy_active(c, j, contact) ? 1.0
+                            : slip[j] == 0 ? FR(c, j)[3] * c->normal[j] - fabs(c->lam_f[j])
+                                           : slip[j] * FR(c, j)[0];
     for (int k = 0; k < c->npf; ++k) {
         const double *pf = PF(c, k);
         values[c->ni + c->nf + k] =
@@ -823,7 +835,8 @@ static int hy_settle(hy_ctx *c, double t, double *y, int record)
             double gdd = -imp[2];
             for (int b = 0; b < c->n; ++b)
                 gdd += imp[IMPACT_FIELDS + b] * c->qdd[b];
-            if (gdd < -1e3 * h->gap_tol && imp[1] * imp[1] <= 2 * h->gap_tol * fabs(gdd))
+            if (gdd < -1e3 * h->gap_tol && imp[1] * imp[1] <= 2 * h->gap_tol * fabs(gdd)
+                && (h->rest_velocity < 0 || imp[3] * fabs(imp[1]) <= h->rest_velocity))
                 c->closing[npressed++] = i;
         }
         for (int a = 0; a < npressed; ++a) {
@@ -842,7 +855,7 @@ static int hy_settle(hy_ctx *c, double t, double *y, int record)
                 return err;
         }
         for (int j = 0; j < c->nf; ++j) {
-            if (h->slip[j] != 0)
+            if (h->slip[j] != 0 || !hy_active(c, j, h->contact))
                 continue;
             double v = FR(c, j)[0];
             int moving = fabs(v) > 1e3 * h->gap_tol;
@@ -983,6 +996,40 @@ static int hy_start(hy_ctx *c, double t, double *y)
     return hy_settle(c, t, y, 0);
 }
 
+static int hy_try_stick(hy_ctx *c, double t, const double *y, int j);
+
+/* Slip direction sign(v), or 0 (|v| <= 1000·gap_tol), for the frictions on impact i (inactive
+ * while it was open); terms at the state in c->terms. */
+static void hy_classify_frictions(hy_ctx *c, int i)
+{
+    for (int j = 0; j < c->nf; ++j)
+        if (c->h->normal_kind[j] == LG_NORMAL_IMPACT && c->h->normal_index[j] == i) {
+            double v = FR(c, j)[0];
+            c->h->slip[j] = fabs(v) <= 1e3 * c->h->gap_tol ? 0 : (v > 0 ? 1 : -1);
+        }
+}
+
+/* The frictions on impact i, just held, start acting: those at v = 0 stick or slip by the
+ * holding force (hy_try_stick), the others slip (recorded). */
+static int hy_engage(hy_ctx *c, double t, const double *y, int i)
+{
+    int err;
+    if (hy_terms(c, t, y, c->u))
+        return 1;
+    hy_classify_frictions(c, i);
+    for (int j = 0; j < c->nf; ++j) {
+        if (c->h->normal_kind[j] != LG_NORMAL_IMPACT || c->h->normal_index[j] != i)
+            continue;
+        if (c->h->slip[j] == 0) {
+            if ((err = hy_try_stick(c, t, y, j)))
+                return err;
+        } else if (hy_record(c, t, c->ni + j, LG_SLIP)) {
+            return -1;
+        }
+    }
+    return 0;
+}
+
 static int hy_impacts(hy_ctx *c, double t, double *y, int nc)
 {
     lg_hybrid_t *h = c->h;
@@ -1013,6 +1060,9 @@ static int hy_impacts(hy_ctx *c, double t, double *y, int nc)
         int i = c->closing[a];
         if (c->resting[a]) {
             h->contact[i] = 1;
+            if (hy_terms(c, t, y, c->u))
+                return 1;
+            hy_classify_frictions(c, i);
             if (hy_solve_mode(c, t, y))
                 return 1;
             if (c->lam_i[i] >= 0) {
@@ -1021,11 +1071,15 @@ static int hy_impacts(hy_ctx *c, double t, double *y, int nc)
                 continue;
             }
             h->contact[i] = 0;
+            c->resting[a] = 0;
         }
         if (hy_record(c, t, i, LG_IMPACT))
             return -1;
         c->bounced[c->n_bounced++] = i;
     }
+    for (int a = 0, err; a < nc; ++a)
+        if (c->resting[a] && (err = hy_engage(c, t, y, c->closing[a])))
+            return err;
     return 0;
 }
 
@@ -1113,7 +1167,7 @@ static int hy_switch(hy_ctx *c, double t, double *y, int *fired, int nfired)
     }
     for (int a = 0; a < nfired; ++a) {
         int j = fired[a] - c->ni;
-        if (j < 0)
+        if (j < 0 || !hy_active(c, j, h->contact))
             continue;
         if (j >= c->nf) {
             int k = j - c->nf;

@@ -42,6 +42,11 @@ def robot_frames(model, record, p, t, q):
     origins, rotations = [], []
     frames = np.shape(t)[0]
     for segment in record.segments:
+        if segment.kind == "free":        # the origin and the direction of the quaternion
+            x = np.stack([numeric_function(model, e, p)(t, q) for e in segment.motion], axis=-1)
+            origins.append(x[:, :3])
+            rotations.append(quaternion_rotations(x[:, 3:]))
+            continue
         theta = numeric_function(model, segment.motion, p)(t, q)
         P = np.array(segment.rotation.tolist(), dtype=float)
         o = np.array(segment.offset, dtype=float).reshape(3)
@@ -60,6 +65,18 @@ def robot_frames(model, record, p, t, q):
     return origins, rotations
 
 
+def quaternion_rotations(z):
+    """The rotation matrices (frames, 3, 3) of the directions of the quaternions z (frames, 4:
+    x, y, z, w)."""
+    x, y, w_, w = (z / np.linalg.norm(z, axis=-1, keepdims=True)).T
+    return np.stack([np.stack([1 - 2 * (y * y + w_ * w_), 2 * (x * y - w * w_),
+                               2 * (x * w_ + w * y)], axis=-1),
+                     np.stack([2 * (x * y + w * w_), 1 - 2 * (x * x + w_ * w_),
+                               2 * (y * w_ - w * x)], axis=-1),
+                     np.stack([2 * (x * w_ - w * y), 2 * (y * w_ + w * x),
+                               1 - 2 * (x * x + y * y)], axis=-1)], axis=-2)
+
+
 def robot_tracks(model, record, p, t, q):
     """Line tracks from each link-carrying segment's origin to its parent link's (or to the
     fixed origin for a root of a fixed base) and on to its body's centre of mass, a point there."""
@@ -73,7 +90,7 @@ def robot_tracks(model, record, p, t, q):
             parent = record.segments[parent].parent
         if parent >= 0:
             tracks.append(("line", [origins[parent], origins[k]]))
-        elif segment.parent < 0:
+        elif segment.parent < 0 and segment.kind != "free":
             tracks.append(("line", [np.zeros_like(origins[k]), origins[k]]))
         mass = float(numeric_function(model, segment.inertia[0], p)(t[:1], q[:, :1])[0])
         if mass <= 0.0:

@@ -35,9 +35,53 @@ def rate_unit(unit):
     return f"({unit})/s" if "/" in unit else f"{unit}/s"
 
 
+#: Lines drawn in one panel at most: each its own colour (matplotlib's ten "tab" colours) and an
+#: entry of the panel's legend, beside the panel; more lines of one unit take more panels.
+LINES_PER_PANEL = 8
+
+
+def panel_groups(groups):
+    """[(label, [indices])] with each group of `groups` cut into panels of at most
+    LINES_PER_PANEL lines, of nearly equal sizes, in order."""
+    out = []
+    for name, members in groups:
+        count = -(-len(members) // LINES_PER_PANEL)
+        out.extend((name, [int(i) for i in part]) for part in np.array_split(members, count))
+    return out
+
+
+def legend_beside(ax):
+    """The axes' legend outside it, to the right of its top (covering no curve)."""
+    ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0, fontsize="small")
+
+
+def plot_panels(t, rows, names, groups, path=None, title=None, xlabel="t", transitions=None):
+    """Lines of `rows` against t in panels sharing the t axis: each group of `groups`
+    ([(y label, [indices])]) in panels of at most LINES_PER_PANEL lines of distinct colours, each
+    panel's legend beside it; the matplotlib Figure, saved to `path` if given."""
+    rows = np.atleast_2d(np.asarray(rows, dtype=float))
+    panels = panel_groups(groups)
+    widest = max((len(names[i]) for _, members in panels for i in members), default=0)
+    height = max(0.19 * max(len(members) for _, members in panels) + 0.8, 2.0)
+    fig = new_figure(7.1 + 0.07 * widest, max(height * len(panels) + 0.8, 3.5))
+    axes = fig.subplots(len(panels), 1, sharex=True, squeeze=False)[:, 0]
+    for ax, (ylabel, members) in zip(axes, panels):
+        for k, i in enumerate(members):
+            ax.plot(t, rows[i], label=names[i], color=f"C{k}")
+        ax.set_ylabel(ylabel)
+        ax.grid(True, alpha=0.3)
+        legend_beside(ax)
+    axes[-1].set_xlabel(xlabel)
+    if title:
+        axes[0].set_title(title)
+    mark_transitions(axes, transitions)
+    return finished(fig, path)
+
+
 def plot_series(t, rows, names, units=None, path=None, title=None, time_unit="s",
                 transitions=None):
-    """One panel per unit group (a quantity with its unit on each y axis), sharing the t axis.
+    """One panel per unit group (a quantity with its unit on each y axis; a group of more than
+    LINES_PER_PANEL lines in several panels), sharing the t axis, the legends beside the panels.
 
     Parameters
     ----------
@@ -49,41 +93,31 @@ def plot_series(t, rows, names, units=None, path=None, title=None, time_unit="s"
     -------
     The matplotlib Figure.
     """
-    rows = np.atleast_2d(np.asarray(rows, dtype=float))
-    groups = unit_groups(names, units)
-    fig = new_figure(7, max(2.2 * len(groups) + 0.8, 3.5))
-    axes = fig.subplots(len(groups), 1, sharex=True, squeeze=False)[:, 0]
-    for ax, (unit, members) in zip(axes, groups):
-        for i in members:
-            ax.plot(t, rows[i], label=names[i])
-        ax.set_ylabel(f"[{unit}]" if unit else "(no unit)")
-        ax.grid(True, alpha=0.3)
-        ax.legend(loc="upper right", fontsize="small")
-    axes[-1].set_xlabel(f"t [{time_unit}]" if units else "t")
-    if title:
-        axes[0].set_title(title)
-    mark_transitions(axes, transitions)
-    return finished(fig, path)
+    groups = [(f"[{unit}]" if unit else "(no unit)", members)
+              for unit, members in unit_groups(names, units)]
+    return plot_panels(t, rows, names, groups, path, title,
+                       f"t [{time_unit}]" if units else "t", transitions)
 
 
-#: Marker colours of the transition kinds of a hybrid solve.
-TRANSITION_COLOURS = {"impact": "tab:red", "contact": "tab:purple", "release": "tab:orange",
-                      "stick": "tab:green", "slip": "tab:gray"}
+#: Marker styles (colour, dashes) of the transition kinds of a hybrid solve: black and grey, so
+#: that no marker takes the colour of a curve.
+TRANSITION_STYLES = {"impact": ("k", ":"), "contact": ("k", "--"), "release": ("k", "-."),
+                     "stick": ("0.3", "--"), "slip": ("0.3", ":")}
 
 
 def mark_transitions(axes, transitions, limit=200):
-    """Thin vertical lines at the switching times (coloured by kind, one legend entry per kind);
+    """Thin vertical lines at the switching times (styled by kind, one legend entry per kind);
     the first `limit` only."""
     if not transitions:
         return
     seen = set()
     for t, _, kind in list(transitions)[:limit]:
+        colour, dashes = TRANSITION_STYLES.get(kind, ("k", ":"))
         for k, ax in enumerate(axes):
             label = kind if k == 0 and kind not in seen else None
-            ax.axvline(t, color=TRANSITION_COLOURS.get(kind, "k"), lw=0.6, ls=":", alpha=0.8,
-                       label=label)
+            ax.axvline(t, color=colour, ls=dashes, lw=0.6, alpha=0.8, label=label)
         seen.add(kind)
-    axes[0].legend(loc="upper right", fontsize="small")
+    legend_beside(axes[0])
 
 
 def plot_fit(t, measured, fitted, names, path=None, title=None, units=None):
@@ -130,23 +164,15 @@ def plot_time_history(sol, coordinates, path=None, velocities=True, title=None, 
                     rate_units[f"{c}'"] = rate_unit(units.get(c))
         return plot_series(t, rows, names, {**units, **rate_units}, path, title,
                            transitions=getattr(sol, "transitions", None))
-    fig = new_figure(7, 5.5 if velocities else 3.5)
-    axes = fig.subplots(2 if velocities else 1, 1, sharex=True, squeeze=False)[:, 0]
-    for i, name in enumerate(coordinates):
-        axes[0].plot(t, y[i], label=name)
-        if velocities:
-            axes[1].plot(t, y[n + i], label=f"{name}'")
-    axes[0].set_ylabel("q")
+    rows = [y[i] for i in range(n)]
+    groups = [("q", list(range(n)))]
+    names = list(coordinates)
     if velocities:
-        axes[1].set_ylabel("dq/dt")
-    axes[-1].set_xlabel("t")
-    for ax in axes:
-        ax.grid(True, alpha=0.3)
-        ax.legend(loc="upper right", fontsize="small")
-    if title:
-        axes[0].set_title(title)
-    mark_transitions(axes, getattr(sol, "transitions", None))
-    return finished(fig, path)
+        rows += [y[n + i] for i in range(n)]
+        groups.append(("dq/dt", list(range(n, 2 * n))))
+        names += [f"{c}'" for c in coordinates]
+    return plot_panels(t, rows, names, groups, path, title,
+                       transitions=getattr(sol, "transitions", None))
 
 
 def plot_modes(result, coordinates, path=None, title=None):

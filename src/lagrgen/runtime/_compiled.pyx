@@ -4,8 +4,8 @@
 
 Compiled once when lagrgen is installed. A generated model module holds only its equations (the
 plain-C model functions, listed in an `lg_model_t` table behind a capsule) and calls `bind_module`
-when imported, which makes the module itself the built model of API.md §3: one callable per entry
-of `lagrgen.functions.FUNCTIONS`.
+when imported, which makes the module itself a built model (`lagrgen.runtime.protocol.BuiltModel`):
+one callable per entry of `lagrgen.functions.FUNCTIONS`.
 
 Thread safety: nothing a call depends on is stored in a shared object. Converted arguments are
 locals of the call, which keeps them alive for as long as C (or a nogil loop) reads them.
@@ -181,6 +181,19 @@ cdef class CompiledModel:
                              "p, u, out)")
         return <lg_function><size_t>self.address(name)
 
+    def pivot_record(self):
+        """The least Cholesky (or articulated-body) pivot of M relative to its diagonal entry
+        that the factorizations of M on this thread reached since the previous call (1.0 when
+        none fell below 1e-3, or for a model compiled without the record); resets the record."""
+        cdef double value = 1.0
+        cdef lg_function fn
+        address = self._addresses.get("pivot_record")
+        if address is None:
+            return 1.0
+        fn = <lg_function><size_t>address
+        fn(0.0, NULL, NULL, NULL, &value)
+        return value
+
     def function_address(self, str name):
         """The address of the C function `name` (for native solvers that call it without Python;
         a function of call style "directions" has the signature lg_directions_fn), compiling its
@@ -347,6 +360,24 @@ cdef class ImplicitFunction(BoundFunction):
         return self.evaluate(t, data(y), p, u)
 
 
+cdef class WeightedFunction(BoundFunction):
+    """f(q, qd, a, mu, t=0.0, p=None, u=None) with a = [q̈, λ] and mu the weights of the implicit
+    form's rows; new float64 arrays on every call."""
+
+    def __call__(self, q, qd, a, mu, double t=0.0, p=None, u=None):
+        cdef cnp.npy_intp n = self.model.n_coordinates
+        cdef cnp.npy_intp ni = n + self.model.n_constraints
+        cdef cnp.npy_intp size = 2 * n + 2 * ni
+        cdef cnp.ndarray y = <cnp.ndarray>cnp.PyArray_EMPTY(1, &size, cnp.NPY_DOUBLE, 0)
+        cdef double *yp = <double *>cnp.PyArray_DATA(y)
+        copy_into(yp, as_f64(q, n, "q"), n)
+        copy_into(yp + n, as_f64(qd, n, "qd"), n)
+        copy_into(yp + 2 * n,
+                  as_f64(a, ni, "a (the accelerations, then the constraint multipliers)"), ni)
+        copy_into(yp + 2 * n + ni, as_f64(mu, ni, "mu (a weight per row of the residual)"), ni)
+        return self.evaluate(t, data(y), p, u)
+
+
 cdef class DirectionsFunction:
     """f(t, y, dy, dp=None, p=None, u=None) -> (ẏ, the derivatives of ẏ along the directions):
     dy is one direction (2n,) or k of them (k, 2n), dp the matching parameter directions (n_params,)
@@ -470,8 +501,8 @@ cdef class LinkFunction(BoundFunction):
 
 
 CALLABLES = {"state": StateFunction, "q": CoordinateFunction, "q_qd": StateArgumentsFunction,
-             "implicit": ImplicitFunction, "directions": DirectionsFunction,
-             "link": LinkFunction}
+             "implicit": ImplicitFunction, "weighted": WeightedFunction,
+             "directions": DirectionsFunction, "link": LinkFunction}
 #: The functions not of the one signature lg_function.
 DIRECTION_FUNCTIONS = frozenset(f.name for f in FUNCTIONS if f.call == "directions")
 
@@ -487,6 +518,7 @@ def bind_module(module, capsule):
     module.initial_state = initial_state_array(model.info)
     module.time_in_c = model.time_in_c
     module.function_address = model.function_address
+    module.pivot_record = model.pivot_record
     module.backend = "c"
     module.build_info = {}
     for spec in FUNCTIONS:

@@ -6,7 +6,7 @@ backends read every name, size and flag of a built model from it (`INFO_ATTRIBUT
 nothing heavy: a compiled model's module reads it at import.
 """
 import json
-from dataclasses import asdict, dataclass, fields
+from dataclasses import asdict, dataclass, field, fields
 
 from ..errors import BuildError
 from ..functions import HYBRID_FIELDS, HYBRID_GRADIENTS, POWER_TERMS
@@ -29,7 +29,12 @@ class ModelInfo:
     the links of a three-dimensional tree (`link_pose`, `link_jacobian`), in order;
     `limit_stops` the enforced limits (`Model.limit(..., enforce=True)`), unilateral contacts of
     the hybrid solves, as (name, coordinate index, sign, bound, restitution): gap
-    sign·(q − bound) ≥ 0.
+    sign·(q − bound) ≥ 0; `tree_structure` of a
+    three-dimensional tree in the recursive formulation (else empty): its nodes' `coordinate` and
+    `parent` (−1: a root), and the nonzero entries (row, col) of its generalized forces' first
+    derivatives `dq`, `dqd`, `du` (coordinate, variable) and second derivatives `qh` (point
+    indices z = [q, q̇, q̈, λ, u], lower triangle): what the sparsity of its residual's
+    derivatives follows from (`lagrgen.collocation`).
     """
 
     name: str
@@ -52,6 +57,7 @@ class ModelInfo:
     coordinate_limits: tuple = ()
     link_names: tuple = ()
     limit_stops: tuple = ()
+    tree_structure: dict = field(default_factory=dict)
 
     def __post_init__(self):
         for name in ("coordinates", "parameters", "inputs", "defaults", "output_names",
@@ -61,6 +67,7 @@ class ModelInfo:
         object.__setattr__(self, "event_definitions",
                            tuple(tuple(e) for e in self.event_definitions))
         object.__setattr__(self, "units", dict(self.units))
+        object.__setattr__(self, "tree_structure", dict(self.tree_structure))
         object.__setattr__(self, "coordinate_limits",
                            tuple(tuple(entry) for entry in self.coordinate_limits))
         object.__setattr__(self, "limit_stops", tuple(tuple(entry) for entry in self.limit_stops))
@@ -89,7 +96,7 @@ class ModelInfo:
         return {"n": n, "2n": 2 * n, "n_params": len(self.parameters),
                 "n_inputs": len(self.inputs), "n_constraints": m,
                 "n_holonomic": self.n_holonomic, "n_residuals": self.n_holonomic + m,
-                "n_implicit": n + m,
+                "n_implicit": n + m, "n_point": 3 * n + m + len(self.inputs),
                 "n_events": len(self.event_definitions), "n_power": len(POWER_TERMS),
                 "n_outputs": len(self.output_names),
                 "n_inertial": len(self.inertial_parameters), "n_links": len(self.link_names),

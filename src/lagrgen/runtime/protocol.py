@@ -42,6 +42,12 @@ class BuiltModel(Protocol):
     dimensions: Dict[str, int]    # sizes the output shapes refer to ("n", "2n", "n_inputs", ...)
     build_info: dict              # how the build went: cache_hit, seconds (and step times for C)
 
+    def pivot_record(self) -> float:
+        """The least pivot of M relative to its diagonal entry (1 for a diagonal M, tending to
+        0 near a singular one) that the factorizations of M on this thread reached since the
+        previous call, or 1.0 when none fell below 1e-3; resets the record (the engines read it
+        around each solve)."""
+
     # -- one callable per entry of lagrgen.functions.FUNCTIONS --------------------------------
     def mass_matrix(self, q, t=0.0, p=None, u=None) -> np.ndarray:
         """M(q, t), (n, n)."""
@@ -91,6 +97,9 @@ class BuiltModel(Protocol):
 
     def residual_terms(self, q, qd, a, t=0.0, p=None, u=None) -> tuple:
         """(r, ∂r/∂[q, q̇], ∂r/∂a, ∂r/∂u) of r = [M·q̈ − F − Aᵀλ; A·q̈ − γ], a = [q̈, λ]."""
+
+    def residual_hessian(self, q, qd, a, mu, t=0.0, p=None, u=None) -> np.ndarray:
+        """∇²_z(Σ mu_i·r_i), (n_point, n_point), z = [q, q̇, q̈, λ, u]: exact second derivatives."""
 
     def regressor(self, q, qd, a, t=0.0, p=None, u=None) -> np.ndarray:
         """Y, (n, len(inertial_parameters)), with M·q̈ − F = Y·π at q̈ = a (§21)."""

@@ -7,11 +7,13 @@ below, `_<name>(t, q, qd, p, u)` (`_<name>(t, q, qd, a, p, u)` for the implicit 
 called with the arguments of its call style.
 """
 import math
+import threading
 
 import numpy as np
 
-from ..errors import ConstraintError, MassMatrixError, NonFiniteError
+from ..errors import ConstraintError, LagrgenError, MassMatrixError, NonFiniteError
 from ..functions import FUNCTIONS
+from . import dual
 from .arguments import (as_vector, defaults_array, initial_state_array, input_vector,
                         link_index, link_point, parameter_vector)
 from .describe import describe
@@ -33,6 +35,25 @@ _IEEE_NAMESPACE = {name: getattr(np, _NUMPY_NAMES.get(name, name)) for name in _
 _IEEE_NAMESPACE["_sign"] = np.sign
 _IEEE_NAMESPACE["abs"] = np.abs
 _IEEE_NAMESPACE["_nan"] = np.nan
+#: A relative pivot of M below this is noted for `pivot_record` (LG_PIVOT_NOTE in C).
+PIVOT_NOTE = 1e-3
+#: Per thread, {id(model): the least relative pivot of M below PIVOT_NOTE its factorizations
+#: reached} (the C module's thread-local lg_least_pivot).
+_PIVOTS = threading.local()
+
+
+def watch_pivots(model, pivots, diagonal):
+    """Note min(pivots/diagonal) of one factorization of M of `model` on this thread when it
+    is below PIVOT_NOTE."""
+    with np.errstate(all="ignore"):
+        least = float(np.min(np.asarray(pivots) / np.asarray(diagonal), initial=1.0))
+    if not least < PIVOT_NOTE:
+        return
+    record = getattr(_PIVOTS, "least", None)
+    if record is None:
+        record = _PIVOTS.least = {}
+    if least < record.get(id(model), 1.0):
+        record[id(model)] = least
 
 
 class PythonModel:
@@ -58,8 +79,10 @@ class PythonModel:
         self.source = source
         code = compile(source, f"<lagrgen python backend: {self.name}>", "exec")
         self._kernels, self._ieee_kernels = dict(_NAMESPACE), dict(_IEEE_NAMESPACE)
+        self._dual_kernels = dict(dual.NAMESPACE)
         exec(code, self._kernels)
         exec(code, self._ieee_kernels)
+        exec(code, self._dual_kernels)
         for spec in FUNCTIONS:
             setattr(self, spec.name, _CALLERS[spec.call](self, getattr(self, f"_{spec.name}")))
 
@@ -91,7 +114,15 @@ class PythonModel:
             raise MassMatrixError.at(self.name, t, q) from None
         if np.any(np.diagonal(L) ** 2 <= PIVOT_TOL * np.diagonal(M)):
             raise MassMatrixError.at(self.name, t, q)
+        watch_pivots(self, np.diagonal(L) ** 2, np.diagonal(M))
         return L
+
+    def pivot_record(self):
+        """The least pivot of M relative to its diagonal entry that this model's factorizations
+        of M on this thread reached since the previous call (1.0 when none fell below
+        PIVOT_NOTE = 1e-3); resets it."""
+        record = getattr(_PIVOTS, "least", None)
+        return 1.0 if record is None else record.pop(id(self), 1.0)
 
     def _kernel(self, name, t, q, qd, a, p, u):
         """The outputs of kernel `name` as float64 arrays, in IEEE arithmetic like the C code."""
@@ -285,6 +316,48 @@ class PythonModel:
             dr_da[n:, :n] = A
         return r, dr_dy, dr_da, dr_du
 
+    def _residual_hessian(self, t, q, qd, a, mu, p, u):
+        """∇²_z(Σ mu_i·r_i): the gradient of Σ mu_i·r_i from the first-derivative kernels (as
+        `_residual_terms` assembles them) evaluated on duals seeded with z = [q, q̇, a, u]."""
+        n, m, k = self.n_coordinates, self.n_constraints, len(self.inputs)
+        if "jacobian_b" not in self._dual_kernels:
+            raise LagrgenError(
+                f"the Python backend of model {self.name!r} ({self.formulation} formulation) "
+                "has no residual Hessian: its first derivatives come from a recursion, not from "
+                "kernels it could differentiate; build it with the C backend "
+                "(lagrgen.build(model)), whose Hessian is symbolic")
+        z = dual.seeded(list(q) + list(qd) + list(a) + list(u))
+        dq, dqd, da, du = z[:n], z[n:2 * n], z[2 * n:3 * n + m], z[3 * n + m:]
+        kernels = self._dual_kernels
+        M, F = kernels["mf"](t, dq, dqd, None, p, du)
+        B, = kernels["jacobian_b"](t, dq, dqd, da, p, du)
+        Fu, = kernels["dF_du"](t, dq, dqd, None, p, du)
+        w, nu = mu[:n], mu[n:]
+        g = [0.0] * len(z)
+        for i in range(n):
+            if not w[i]:
+                continue
+            for j in range(2 * n):
+                g[j] -= w[i] * B[i * 2 * n + j]
+            for j in range(n):
+                g[2 * n + j] += w[i] * M[i * n + j]
+            for c in range(k):
+                g[3 * n + m + c] -= w[i] * Fu[i * k + c]
+        if m:
+            A, _ = kernels["constraints"](t, dq, dqd, None, p, du)
+            H, G = kernels["constraint_jacobian"](t, dq, dqd, da, p, du)
+            for i in range(n):
+                for j in range(n):
+                    g[j] -= w[i] * H[i * n + j]
+                for c in range(m):
+                    g[2 * n + n + c] -= w[i] * A[c * n + i]
+            for c in range(m):
+                for j in range(2 * n):
+                    g[j] -= nu[c] * G[c * 2 * n + j]
+                for j in range(n):
+                    g[2 * n + j] += nu[c] * A[c * n + j]
+        return np.array([dual.gradient(x, len(z)) for x in g])
+
     def _residual_parameter_jacobian(self, t, q, qd, a, p, u):
         n, m, k = self.n_coordinates, self.n_constraints, len(self.parameters)
         out = np.zeros((n + m, k))
@@ -422,6 +495,18 @@ def _link_caller(model, impl):
     return call
 
 
+def _weighted_caller(model, impl):
+    n, m = model.n_coordinates, model.n_constraints
+
+    def call(q, qd, a, mu, t=0.0, p=None, u=None):
+        return impl(float(t), as_vector(q, n, "q").tolist(), as_vector(qd, n, "qd").tolist(),
+                    as_vector(a, n + m, "a (the accelerations, then the constraint "
+                              "multipliers)").tolist(),
+                    as_vector(mu, n + m, "mu (a weight per row of the residual)").tolist(),
+                    *model._arguments(p, u))
+    return call
+
+
 _CALLERS = {"state": _state_caller, "q": _coordinate_caller, "q_qd": _state_arguments_caller,
             "directions": _directions_caller, "implicit": _implicit_caller,
-            "link": _link_caller}
+            "weighted": _weighted_caller, "link": _link_caller}

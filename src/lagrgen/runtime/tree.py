@@ -10,7 +10,7 @@ from the kinematic tree: the node records of the `tree_nodes` kernel and their s
 import numpy as np
 
 from ..errors import MassMatrixError
-from .pymodel import PIVOT_TOL, PythonModel
+from .pymodel import PIVOT_TOL, PythonModel, watch_pivots
 
 
 class Recursion:
@@ -269,6 +269,12 @@ class FactoredModel(PythonModel):
     def _rhs(self, t, q, qd, p, u):
         return np.concatenate([np.array(qd, dtype=np.float64), self._factored(t, q, qd, p, u)[2]])
 
+    def _outputs(self, t, q, qd, p, u):
+        return self._kernel("tree_outputs", t, q, qd, None, p, u)[0]
+
+    def _power_terms(self, t, q, qd, p, u):
+        return self._kernel("tree_outputs", t, q, qd, None, p, u)[1]
+
 
 class RecursivePythonModel(FactoredModel):
     """A `PythonModel` of the recursive formulation (`build(..., formulation="recursive")`)."""
@@ -287,6 +293,8 @@ class RecursivePythonModel(FactoredModel):
         factor = self._tree.factor(nodes)
         if factor is None:
             raise MassMatrixError.at(self.name, t, q)
+        S, d = self._tree.fields(nodes, self._tree.node_fields, ("S", "d"))
+        watch_pivots(self, 1.0 / factor[1], d + np.sum(S * factor[3] * S, axis=1))   # D_k, M_kk
         qdd, A = self._tree.accelerate(nodes, factor)
         return nodes, factor, qdd, A
 

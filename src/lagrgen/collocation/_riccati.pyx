@@ -1,0 +1,220 @@
+# cython: language_level=3, boundscheck=False, wraparound=False, initializedcheck=False
+# cython: cdivision=True, embedsignature=True
+"""The Riccati recursion of a discrete-time optimal control QP, in C: the stage-structured solver
+of `lagrgen.collocation.sqp`.
+
+The QP over the stage variables X_k (k = 0 … K) and inputs v_k (k < K) is
+
+    min Σ_k [½·[X; v]ᵀ·[[Qxx, Qxv], [Qxvᵀ, Qvv]]·[X; v] + qxᵀ·X + qvᵀ·v] + ½·X_Kᵀ·P_K·X_K + p_Kᵀ·X_K
+    s.t. X_{k+1} = A_k·X_k + B_k·v_k + b_k
+
+with the cost-to-go V_k(X) = ½·Xᵀ·P_k·X + p_kᵀ·X computed backwards: H = Q + [A B]ᵀ·P_{k+1}·[A B],
+v_k = gain_k·X + ff_k with gain = −Hvv⁻¹·Hvx, ff = −Hvv⁻¹·hv (Hvv by its Cholesky factor: the
+QP must be convex along the inputs), P_k = Hxx + Hxv·gain, p_k = hx + Hxv·ff. The matrices'
+pass (`factor`) is separate from the vectors' (`vectors`): a QP whose gradient alone changed
+reuses the factor. Stacked arrays, C-contiguous float64, stage first.
+"""
+import numpy as np
+cimport numpy as cnp
+from libc.math cimport sqrt
+from libc.stdlib cimport free, malloc
+
+cnp.import_array()
+
+
+cdef inline void matmul(const double *A, const double *B, double *C, int m, int k, int n,
+                        bint ta, bint tb, bint add) noexcept nogil:
+    """C (m×n) = op(A)·op(B) (op: transpose when ta/tb; A is m×k or k×m, B k×n or n×k), or
+    C += it when add. The inner loops run along rows of C and B (contiguous: vectorized)."""
+    cdef int i, j, l
+    cdef double a, s
+    if not add:
+        for i in range(m * n):
+            C[i] = 0.0
+    if tb:
+        for i in range(m):
+            for j in range(n):
+                s = 0.0
+                if ta:
+                    for l in range(k):
+                        s += A[l * m + i] * B[j * k + l]
+                else:
+                    for l in range(k):
+                        s += A[i * k + l] * B[j * k + l]
+                C[i * n + j] += s
+        return
+    if ta:
+        for l in range(k):
+            for i in range(m):
+                a = A[l * m + i]
+                for j in range(n):
+                    C[i * n + j] += a * B[l * n + j]
+    else:
+        for i in range(m):
+            for l in range(k):
+                a = A[i * k + l]
+                for j in range(n):
+                    C[i * n + j] += a * B[l * n + j]
+
+
+cdef inline int cholesky(double *L, int n) noexcept nogil:
+    """L (n×n, symmetric) := its lower Cholesky factor in place (upper part zeroed); 1 when not
+    positive definite."""
+    cdef int i, j, l
+    cdef double s
+    for j in range(n):
+        s = L[j * n + j]
+        for l in range(j):
+            s -= L[j * n + l] * L[j * n + l]
+        if not (s > 1e-14 * (1.0 + abs(L[j * n + j]))):
+            return 1
+        s = sqrt(s)
+        L[j * n + j] = s
+        for i in range(j + 1, n):
+            L[i * n + j] = (L[i * n + j] - _dot(&L[i * n], &L[j * n], j)) / s
+        for i in range(j):
+            L[i * n + j] = 0.0
+    return 0
+
+
+cdef inline double _dot(const double *x, const double *y, int n) noexcept nogil:
+    cdef double s = 0.0
+    cdef int i
+    for i in range(n):
+        s += x[i] * y[i]
+    return s
+
+
+cdef inline void cho_solve(const double *L, double *X, int n, int ncols) noexcept nogil:
+    """X (n×ncols) := (L·Lᵀ)⁻¹·X."""
+    cdef int i, l, c
+    cdef double s
+    for c in range(ncols):
+        for i in range(n):
+            s = X[i * ncols + c]
+            for l in range(i):
+                s -= L[i * n + l] * X[l * ncols + c]
+            X[i * ncols + c] = s / L[i * n + i]
+        for i in range(n - 1, -1, -1):
+            s = X[i * ncols + c]
+            for l in range(i + 1, n):
+                s -= L[l * n + i] * X[l * ncols + c]
+            X[i * ncols + c] = s / L[i * n + i]
+
+
+def factor(const double[:, :, ::1] Qxx, const double[:, :, ::1] Qxv,
+           const double[:, :, ::1] Qvv, const double[:, :, ::1] A, const double[:, :, ::1] B,
+           const double[:, ::1] P_end, double regularize, double[:, :, ::1] P,
+           double[:, :, ::1] Hxv, double[:, :, ::1] chol, double[:, :, ::1] gain):
+    """The backward pass of the matrices: P (K+1, nx, nx), and per stage Hxv (K, nx, nv), the
+    Cholesky factor of Hvv (K, nv, nv) and gain (K, nv, nx). Returns 0, or k + 1 when stage k's
+    Hvv (+ regularize·1) is not positive definite."""
+    cdef int K = Qxx.shape[0], nx = Qxx.shape[1], nv = Qvv.shape[1], k, i, j
+    cdef double *PA = <double *>malloc(nx * nx * sizeof(double))
+    cdef double *PB = <double *>malloc(nx * nv * sizeof(double))
+    cdef double *Hxx = <double *>malloc(nx * nx * sizeof(double))
+    cdef double *T = <double *>malloc(nv * nx * sizeof(double))
+    cdef int status = 0
+    if PA == NULL or PB == NULL or Hxx == NULL or T == NULL:
+        free(PA)
+        free(PB)
+        free(Hxx)
+        free(T)
+        raise MemoryError()
+    with nogil:
+        for i in range(nx):
+            for j in range(nx):
+                P[K, i, j] = P_end[i, j]
+        for k in range(K - 1, -1, -1):
+            matmul(&P[k + 1, 0, 0], &A[k, 0, 0], PA, nx, nx, nx, False, False, False)
+            matmul(&P[k + 1, 0, 0], &B[k, 0, 0], PB, nx, nx, nv, False, False, False)
+            for i in range(nx):
+                for j in range(nx):
+                    Hxx[i * nx + j] = Qxx[k, i, j]
+            matmul(&A[k, 0, 0], PA, Hxx, nx, nx, nx, True, False, True)
+            for i in range(nx):
+                for j in range(nv):
+                    Hxv[k, i, j] = Qxv[k, i, j]
+            matmul(&A[k, 0, 0], PB, &Hxv[k, 0, 0], nx, nx, nv, True, False, True)
+            for i in range(nv):
+                for j in range(nv):
+                    chol[k, i, j] = Qvv[k, i, j]
+            matmul(&B[k, 0, 0], PB, &chol[k, 0, 0], nv, nx, nv, True, False, True)
+            for i in range(nv):
+                for j in range(i):
+                    chol[k, i, j] = 0.5 * (chol[k, i, j] + chol[k, j, i])
+                    chol[k, j, i] = chol[k, i, j]
+                chol[k, i, i] += regularize
+            if cholesky(&chol[k, 0, 0], nv):
+                status = k + 1
+                break
+            for i in range(nv):
+                for j in range(nx):
+                    T[i * nx + j] = -Hxv[k, j, i]
+            cho_solve(&chol[k, 0, 0], T, nv, nx)
+            for i in range(nv * nx):
+                gain[k, i // nx, i % nx] = T[i]
+            matmul(&Hxv[k, 0, 0], T, Hxx, nx, nv, nx, False, False, True)
+            for i in range(nx):
+                for j in range(nx):
+                    P[k, i, j] = 0.5 * (Hxx[i * nx + j] + Hxx[j * nx + i])
+    free(PA)
+    free(PB)
+    free(Hxx)
+    free(T)
+    return status
+
+
+def vectors(const double[:, ::1] qx, const double[:, ::1] qv, const double[:, :, ::1] A,
+            const double[:, :, ::1] B, const double[:, ::1] b, const double[::1] p_end,
+            const double[:, :, ::1] P, const double[:, :, ::1] Hxv,
+            const double[:, :, ::1] chol, double[:, ::1] p, double[:, ::1] ff):
+    """The backward pass of the vectors after `factor`: p (K+1, nx), ff (K, nv)."""
+    cdef int K = qx.shape[0], nx = qx.shape[1], nv = qv.shape[1], k, i
+    cdef double *lin = <double *>malloc(nx * sizeof(double))
+    cdef double *h = <double *>malloc((nx + nv) * sizeof(double))
+    if lin == NULL or h == NULL:
+        free(lin)
+        free(h)
+        raise MemoryError()
+    with nogil:
+        for i in range(nx):
+            p[K, i] = p_end[i]
+        for k in range(K - 1, -1, -1):
+            matmul(&P[k + 1, 0, 0], &b[k, 0], lin, nx, nx, 1, False, False, False)
+            for i in range(nx):
+                lin[i] += p[k + 1, i]
+            for i in range(nx):
+                h[i] = qx[k, i]
+            for i in range(nv):
+                h[nx + i] = qv[k, i]
+            matmul(&A[k, 0, 0], lin, h, nx, nx, 1, True, False, True)
+            matmul(&B[k, 0, 0], lin, h + nx, nv, nx, 1, True, False, True)
+            for i in range(nv):
+                ff[k, i] = -h[nx + i]
+            cho_solve(&chol[k, 0, 0], &ff[k, 0], nv, 1)
+            matmul(&Hxv[k, 0, 0], &ff[k, 0], h, nx, nv, 1, False, False, True)
+            for i in range(nx):
+                p[k, i] = h[i]
+    free(lin)
+    free(h)
+    return None
+
+
+def forward(const double[::1] X0, const double[:, :, ::1] A, const double[:, :, ::1] B,
+            const double[:, ::1] b, const double[:, :, ::1] gain, const double[:, ::1] ff,
+            double[:, ::1] X, double[:, ::1] v):
+    """The forward pass from X_0: v_k = gain_k·X_k + ff_k, X_{k+1} = A_k·X_k + B_k·v_k + b_k."""
+    cdef int K = A.shape[0], nx = A.shape[1], nv = B.shape[2], k, i
+    with nogil:
+        for i in range(nx):
+            X[0, i] = X0[i]
+        for k in range(K):
+            for i in range(nv):
+                v[k, i] = ff[k, i]
+            matmul(&gain[k, 0, 0], &X[k, 0], &v[k, 0], nv, nx, 1, False, False, True)
+            for i in range(nx):
+                X[k + 1, i] = b[k, i]
+            matmul(&A[k, 0, 0], &X[k, 0], &X[k + 1, 0], nx, nx, 1, False, False, True)
+            matmul(&B[k, 0, 0], &v[k, 0], &X[k + 1, 0], nx, nv, 1, False, False, True)
+    return None

@@ -1,0 +1,869 @@
+"""Sequential quadratic programming on a collocation NLP's stage structure: the solver that profits
+from a warm start (re-planning, refined meshes), where IPOPT's interior point walks its barrier
+path again.
+
+The NLP of a fixed-duration problem without unknown parameters is stage-structured: every point
+j has its variables z_j = [x_j, a_j, u_j] (x = [q, q̇], a = q̈), its residual r(z_j) = 0 and its
+Lagrangian Hessian block W_j; the defects of interval k tie its start s, its midpoint m (if any)
+and its end e linearly. Each SQP step solves the QP
+
+    min ½·dᵀ·W·d + ∇fᵀ·d   s.t.   c(x) + J·d = 0,   lo ≤ x + d ≤ hi
+
+by eliminating, per point, the accelerations with the linearized residual (a block pivot with the
+mass matrix: da = −R_a⁻¹·(r + R_x·dx + R_u·du), so y_j = [dx_j, du_j] remain), then, per
+interval, the states of its midpoint and end with its defect rows (a square system: they are
+affine in the start's y_s and the inputs v_k = [u_m, u_e]), which leaves a discrete-time optimal
+control problem in X_k = y_s, solved by a Riccati recursion (backward: the quadratic cost-to-go
+V_k(X) = ½·Xᵀ·P_k·X + p_kᵀ·X; forward: the steps). Bounds are held by a primal-dual active set:
+each active bound is an augmented-Lagrangian term ½·ρ·(d_i − δ_i)² + z_i·(d_i − δ_i) in its
+point's block, its multiplier z_i updated from the violation with the factorization kept, the set
+updated from the multipliers' signs and the steps' violations; the linear rows confined to one
+interval (an input's envelope between its points, a value between nodes) are affine in that
+interval's X_k and v_k and held alike, their terms added to its stage. When the set does not
+settle, a primal-dual interior point on the same recursion solves the QP (Mehrotra's
+predictor-corrector, the barrier's Hessian on the same diagonals and stages). The defects' and
+residuals' multipliers come back from the recursion (the costates), in the NLP's sign convention
+(∇f + Jᵀλ + z = 0, W = ∇²f + Σ λ_i·∇²c_i), for the next step's Hessian. A step is accepted by
+a line search on the ℓ1 merit function; anything the structure does not cover, or a step that
+fails, is reported so the caller can fall back to IPOPT.
+"""
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..errors import LagrgenError
+from ._riccati import factor as riccati_factor, forward as riccati_forward, \
+    vectors as riccati_vectors
+
+#: An active bound's penalty ρ relative to its point's Hessian scale: the augmented Lagrangian
+#: converges by about this factor per pass, and the recursion stays well conditioned.
+PENALTY = 1e4
+#: The interior point's penalty on fixed variables (no multiplier updates there: the SQP's step
+#: is clipped onto them, and the next linearization corrects what is left).
+PIN_PENALTY = 1e8
+#: Multiplier updates that put the fixed variables onto their values after the interior point.
+PIN_UPDATES = 6
+#: A full step that changes the objective by at most STALL (relative) on a feasible point whose
+#: stationarity residual is below STALL_DUAL ends the iterations: the motion moves along a flat
+#: valley of the objective (an optimum that is not unique to the last digits), where the
+#: residual, quadratic in the step, does not fall further.
+STALL, STALL_DUAL = 1e-10, 1e-2
+#: The constraints are met to FEASIBLE·tol (a motion whose residual is off by tol drifts from
+#: the one its inputs produce: an unstable one visibly; Newton's steps make the extra digits
+#: cheap).
+FEASIBLE = 1e-3
+#: SQP iterations by default.
+SQP_ITERATIONS = 30
+#: Passes of the active set before the QP turns to the interior point; its iterations.
+ACTIVE_PASSES, IPM_ITERATIONS = 8, 60
+DEBUG = False
+
+
+class Unsupported(LagrgenError):
+    """The problem has a part the stage-structured SQP does not cover (said in the message)."""
+
+
+def unsupported(tr):
+    """Why the SQP cannot solve the transcription `tr` (None when it can)."""
+    L, problem = tr.layout, tr.problem
+    if L.m:
+        return "a constrained model"
+    if L.unknown:
+        return "unknown parameters"
+    if L.free:
+        return "a free duration"
+    if tr.n_path:
+        return "path constraints"
+    if tr.n_data:
+        return "data to track"
+    if tr.E.shape[0] and Rows.spanning(tr):
+        return "linear rows across intervals (periodicity, inputs tied to a coarser grid)"
+    if tr.n_cons:
+        return "consistency rows"
+    if not tr.recursive and not tr.exact:
+        return "no exact Hessian"
+    return None
+
+
+@dataclass
+class Stages:
+    """The defect blocks of every interval, from the transcription's (scaled) defect rows:
+    D[k, p] (per × nz) the coefficients of the interval's p-th point (0: start, then the
+    midpoint, last: the end), `points[k, p]` their point indices."""
+    D: np.ndarray
+    points: np.ndarray
+    per: int
+
+    @classmethod
+    def of(cls, tr):
+        L = tr.layout
+        intervals, stride, nz = L.nodes - 1, L.stride, L.nz
+        per = tr.n_defects // intervals
+        rows, cols = tr.def_rows, tr.def_cols
+        values = tr.def_c0 * tr.defect_entry_scale + 1.0 * tr.def_c1 * \
+            tr.defect_entry_scale * tr.problem.duration_bounds[0]
+        k = rows // per
+        point = cols // nz
+        D = np.zeros((intervals, stride + 1, per, nz))
+        np.add.at(D, (k, point - k * stride, rows % per, cols % nz), values)
+        points = np.arange(intervals)[:, None] * stride + np.arange(stride + 1)[None, :]
+        return cls(D, points, per)
+
+
+@dataclass
+class Rows:
+    """The linear rows of the NLP (tr.E) confined to one interval: `interval` (R,), their
+    coefficients per point of it `coef` (R, points of an interval, nz), their bounds lo, hi on
+    E·x (R,), and `index` their rows in E."""
+    interval: np.ndarray
+    coef: np.ndarray
+    lo: np.ndarray
+    hi: np.ndarray
+    index: np.ndarray
+
+    @staticmethod
+    def spanning(tr):
+        """True if a row of tr.E involves the points of more than one interval."""
+        return Rows._places(tr) is None
+
+    @staticmethod
+    def _places(tr):
+        """(interval of each row, position within it of each entry) or None."""
+        L, E = tr.layout, tr.E
+        if not E.shape[0]:
+            return np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64)
+        point = E.cols // L.nz
+        if np.any(E.cols >= L.p_start):
+            return None
+        stride = L.stride
+        lowest = np.full(E.shape[0], np.iinfo(np.int64).max)
+        highest = np.full(E.shape[0], -1)
+        np.minimum.at(lowest, E.rows, point)
+        np.maximum.at(highest, E.rows, point)
+        interval = np.minimum(lowest // stride, L.nodes - 2)
+        if np.any(highest > (interval + 1) * stride) or np.any(lowest < interval * stride):
+            return None
+        return interval, point - interval[E.rows] * stride
+
+    @classmethod
+    def of(cls, tr):
+        L, E = tr.layout, tr.E
+        interval, position = cls._places(tr)
+        coef = np.zeros((E.shape[0], L.stride + 1, L.nz))
+        np.add.at(coef, (E.rows, position, E.cols % L.nz), E.values)
+        return cls(interval, coef, tr.e_lo, tr.e_hi, np.arange(E.shape[0]))
+
+
+@dataclass
+class Linearization:
+    """The QP's data at x: per point the Hessian block W (P, nz, nz), the objective's gradient g
+    (P, nz), the residual r (P, n) and its Jacobian R (P, n, nz); the defects' values d
+    (intervals, per); the bounds as steps lo, hi (P, nz); the rows' bounds on E·d, row_lo and
+    row_hi (R,)."""
+    W: np.ndarray
+    g: np.ndarray
+    r: np.ndarray
+    R: np.ndarray
+    d: np.ndarray
+    lo: np.ndarray
+    hi: np.ndarray
+    row_lo: np.ndarray
+    row_hi: np.ndarray
+
+
+def linearize(tr, x, lam, stages, rows):
+    """The `Linearization` of the transcription's NLP at x with the constraints' multipliers
+    lam (the Hessian's weights)."""
+    L = tr.layout
+    P, nz, n = L.points, L.nz, L.n
+    W = tr.point_hessians(x, lam)
+    g = tr.point_gradients(x)
+    r, R = tr.point_residuals(x)
+    c = tr.constraints(x)
+    base = tr.defect_row
+    d = c[base:base + tr.n_defects].reshape(-1, stages.per)
+    lo = (tr.lo[:L.p_start] - x[:L.p_start]).reshape(P, nz)
+    hi = (tr.hi[:L.p_start] - x[:L.p_start]).reshape(P, nz)
+    Ex = tr.E.dot(x) if rows.index.size else np.zeros(0)
+    return Linearization(W, g, r, R, d, lo, hi, rows.lo - Ex, rows.hi - Ex)
+
+
+@dataclass
+class ActiveSet:
+    """Active bounds: flat indices into (P, nz), their sides (−1 lower, +1 upper) and
+    multipliers z (> 0 at an upper bound, < 0 at a lower one: ∇f + Jᵀλ + z = 0); the same of
+    the rows (row_side, row_z, row_fixed: equalities)."""
+    side: np.ndarray             # (P·nz,) 0 inactive, ±1 active
+    z: np.ndarray                # (P·nz,)
+    fixed: np.ndarray            # (P·nz,) bool: lo == hi, never released
+    row_side: np.ndarray         # (R,)
+    row_z: np.ndarray            # (R,)
+    row_fixed: np.ndarray        # (R,)
+
+    @classmethod
+    def start(cls, lin, z0=None, row_z0=None, tol=1e-9):
+        """The set of a warm start: with its multipliers z0 (row_z0), the bounds (rows) whose
+        multiplier is not negligible (on the side of its sign); without, those the point sits
+        on (within tol of their scale); and every fixed variable and equality row."""
+        side, z, fixed = _start_sides(lin.lo.ravel(), lin.hi.ravel(), z0, tol)
+        row_side, row_z, row_fixed = _start_sides(lin.row_lo, lin.row_hi, row_z0, tol)
+        return cls(side, z, fixed, row_side, row_z, row_fixed)
+
+    def targets(self, lin):
+        """δ_i: the step that puts each variable on its active bound."""
+        return np.where(self.side > 0, lin.hi.ravel(), lin.lo.ravel())
+
+    def row_targets(self, lin):
+        """The value of E·d that puts each row on its active bound."""
+        return np.where(self.row_side > 0, lin.row_hi, lin.row_lo)
+
+    def reset(self):
+        """Only the fixed variables and equality rows active."""
+        self.side[:] = np.where(self.fixed, 1, 0)
+        self.z[~self.fixed] = 0.0
+        self.row_side[:] = np.where(self.row_fixed, 1, 0)
+        self.row_z[~self.row_fixed] = 0.0
+
+
+def _start_sides(lo, hi, z0, tol):
+    """(sides, multipliers, fixed) of constraints lo ≤ · ≤ hi at a start (see ActiveSet.start)."""
+    finite = np.isfinite(lo) & np.isfinite(hi)
+    scale = np.where(finite, np.maximum(1.0, np.minimum(np.abs(lo), np.abs(hi))), 1.0)
+    fixed = finite & ((hi - lo) <= 1e-14 * scale)
+    side = np.zeros(lo.size, dtype=np.int8)
+    if z0 is None:
+        z = np.zeros(lo.size)
+        side[hi <= tol * scale] = 1
+        side[lo >= -tol * scale] = -1
+    else:
+        z = np.array(z0, dtype=float)
+        significant = np.abs(z) > 1e-6 * max(1.0, float(np.max(np.abs(z), initial=0.0)))
+        side[significant & (z > 0) & np.isfinite(hi)] = 1
+        side[significant & (z < 0) & np.isfinite(lo)] = -1
+    side[fixed & (side == 0)] = 1
+    z[side == 0] = 0.0
+    return side, z, fixed
+
+
+class StructuredQP:
+    """The QP of one SQP step, eliminated point by point and interval by interval, solved by a
+    Riccati recursion for a given set of penalized bounds."""
+
+    def __init__(self, tr, stages, rows, lin):
+        L = tr.layout
+        self.L, self.stages, self.rows, self.lin = L, stages, rows, lin
+        n, nu = L.n, L.nu
+        self.nx, self.ny = 2 * n, 2 * n + nu
+        self._eliminate_accelerations()
+        self.interval_maps()
+        self.row_maps()
+
+    # -- per point: the accelerations -----------------------------------------------------------
+    def _eliminate_accelerations(self):
+        """T (P, nz, ny), t (P, nz): dz = T·y + t on the linearized residual, y = [dx, du]."""
+        L, lin = self.L, self.lin
+        n, nu, P = L.n, L.nu, L.points
+        R = lin.R
+        Ra = R[:, :, 2 * n:3 * n]
+        Rxu = np.concatenate([R[:, :, :2 * n], R[:, :, 3 * n:]], axis=2)
+        try:
+            sol = np.linalg.solve(Ra, np.concatenate([Rxu, lin.r[:, :, None]], axis=2))
+        except np.linalg.LinAlgError:
+            raise Unsupported("a mass matrix is singular at a collocation point") from None
+        T = np.zeros((P, L.nz, self.ny))
+        T[:, :2 * n, :2 * n] = np.eye(2 * n)
+        T[:, 2 * n:3 * n, :] = -sol[:, :, :-1]
+        T[:, 3 * n:, 2 * n:] = np.eye(nu)
+        self.T, self.t = T, np.zeros((P, L.nz))
+        self.t[:, 2 * n:3 * n] = -sol[:, :, -1]
+        self.Ra = Ra
+
+    def point_costs(self, W, g):
+        """(G, γ): each point's cost ½·yᵀ·G·y + γᵀ·y in y from its block W and gradient g."""
+        Tt = self.T.transpose(0, 2, 1)
+        TW = Tt @ W
+        G = TW @ self.T
+        gamma = (TW @ self.t[:, :, None])[:, :, 0] + (Tt @ g[:, :, None])[:, :, 0]
+        return G, gamma
+
+    # -- per interval: the states of its inner points and end -------------------------------------
+    def interval_maps(self):
+        """The states of each interval's inner points and end as affine maps of X = y_s and the
+        inputs v = [u of the inner points, u_e]: `maps`, one (C, E, e) per point after the start
+        (y = C·X + E·v + e; the last is the end: the transition A, B, b), and K, the defects'
+        Jacobian in those states (for the costates)."""
+        L, st, lin = self.L, self.stages, self.lin
+        nx, ny, nu = self.nx, self.ny, L.nu
+        later = st.points.shape[1] - 1
+        pts = st.points
+        Dhat = st.D @ self.T[pts]                                     # (k, p, per, ny)
+        rho = lin.d + (st.D @ self.t[pts][:, :, :, None])[:, :, :, 0].sum(axis=1)
+        K = np.concatenate([Dhat[:, p, :, :nx] for p in range(1, later + 1)], axis=2)
+        rhs = np.concatenate([Dhat[:, 0]] + [Dhat[:, p, :, nx:] for p in range(1, later + 1)]
+                             + [rho[:, :, None]], axis=2)
+        try:
+            solved = -np.linalg.solve(K, rhs)
+        except np.linalg.LinAlgError:
+            raise Unsupported("an interval's defects do not determine its states") from None
+        self.K, self.later, self.nv = K, later, later * nu
+        count = pts.shape[0]
+        maps = []
+        for p in range(later):
+            rows = slice(p * nx, (p + 1) * nx)
+            C = np.zeros((count, ny, ny))
+            E = np.zeros((count, ny, self.nv))
+            e = np.zeros((count, ny))
+            C[:, :nx] = solved[:, rows, :ny]
+            E[:, :nx] = solved[:, rows, ny:ny + self.nv]
+            E[:, nx:, p * nu:(p + 1) * nu] = np.eye(nu)
+            e[:, :nx] = solved[:, rows, -1]
+            maps.append((C, E, e))
+        self.maps = maps
+        A, B, b = maps[-1]
+        self.A, self.B, self.b = (np.ascontiguousarray(M) for M in (A, B, b))
+
+    def row_maps(self):
+        """Each row's E·d = α·X_k + β·v_k + c on its interval k: alpha (R, ny), beta (R, nv),
+        const (R,)."""
+        rows, pts = self.rows, self.stages.points
+        R = rows.index.size
+        self.alpha, self.beta = np.zeros((R, self.ny)), np.zeros((R, self.nv))
+        self.const = np.zeros(R)
+        if not R:
+            return
+        k = rows.interval
+        for p in range(pts.shape[1]):
+            point = pts[k, p]
+            a = rows.coef[:, p]                                           # (R, nz)
+            hat = (self.T[point].transpose(0, 2, 1) @ a[:, :, None])[:, :, 0]
+            self.const += np.einsum("ri,ri->r", a, self.t[point])
+            if p == 0:
+                self.alpha += hat
+                continue
+            C, E, e = self.maps[p - 1]
+            self.alpha += (C[k].transpose(0, 2, 1) @ hat[:, :, None])[:, :, 0]
+            self.beta += (E[k].transpose(0, 2, 1) @ hat[:, :, None])[:, :, 0]
+            self.const += np.einsum("ri,ri->r", hat, e[k])
+
+    # -- the recursion ------------------------------------------------------------------------------
+    def factor(self, G, regularize=0.0, row_weights=None):
+        """The backward Riccati pass of the matrices for the point Hessians G (`_riccati.factor`)
+        and the rows' terms w_r·[α; β]·[α; β]ᵀ in their stages. Returns 0, or the regularization
+        of the inputs' Hessians to try when one is not positive definite (the QP not convex
+        along them)."""
+        pts = self.stages.points
+        count, ny, nv = pts.shape[0], self.ny, self.nv
+        Qxx, Qxv, Qvv = G[pts[:, 0]].copy(), np.zeros((count, ny, nv)), np.zeros((count, nv, nv))
+        for p, (C, E, _) in enumerate(self.maps[:-1]):
+            Gp = G[pts[:, p + 1]]
+            Ct = C.transpose(0, 2, 1)
+            GE = Gp @ E
+            Qxx += Ct @ Gp @ C
+            Qxv += Ct @ GE
+            Qvv += E.transpose(0, 2, 1) @ GE
+        if row_weights is not None and np.any(row_weights):
+            k, w = self.rows.interval, row_weights
+            np.add.at(Qxx, k, w[:, None, None] * self.alpha[:, :, None] * self.alpha[:, None, :])
+            np.add.at(Qxv, k, w[:, None, None] * self.alpha[:, :, None] * self.beta[:, None, :])
+            np.add.at(Qvv, k, w[:, None, None] * self.beta[:, :, None] * self.beta[:, None, :])
+        self.P = np.zeros((count + 1, ny, ny))
+        self.Hxv = np.zeros((count, ny, nv))
+        self.chol = np.zeros((count, nv, nv))
+        self.gain = np.zeros((count, nv, ny))
+        status = riccati_factor(Qxx, Qxv, Qvv, self.A, self.B,
+                                np.ascontiguousarray(G[pts[-1, -1]]), float(regularize),
+                                 self.P, self.Hxv, self.chol, self.gain)
+        if status:
+            return max(1e-8, 10 * regularize)
+        self.G = G
+        return 0.0
+
+    def vectors(self, gamma, row_gradients=None):
+        """The backward pass of the affine parts for the point gradients γ and the rows' terms
+        g_r·[α; β] in their stages (after `factor`)."""
+        pts, G = self.stages.points, self.G
+        qx, qv = gamma[pts[:, 0]].copy(), np.zeros((pts.shape[0], self.nv))
+        for p, (C, E, e) in enumerate(self.maps[:-1]):
+            lin = (G[pts[:, p + 1]] @ e[:, :, None])[:, :, 0] + gamma[pts[:, p + 1]]
+            qx += (C.transpose(0, 2, 1) @ lin[:, :, None])[:, :, 0]
+            qv += (E.transpose(0, 2, 1) @ lin[:, :, None])[:, :, 0]
+        if row_gradients is not None and np.any(row_gradients):
+            np.add.at(qx, self.rows.interval, row_gradients[:, None] * self.alpha)
+            np.add.at(qv, self.rows.interval, row_gradients[:, None] * self.beta)
+        count = pts.shape[0]
+        self.p = np.zeros((count + 1, self.ny))
+        self.ff = np.zeros((count, self.nv))
+        riccati_vectors(qx, qv, self.A, self.B, self.b,
+                         np.ascontiguousarray(gamma[pts[-1, -1]]), self.P, self.Hxv, self.chol,
+                         self.p, self.ff)
+        self.gamma = gamma
+
+    def solve(self):
+        """The steps y of every point (P, ny) after `factor` and `vectors`: X_0 minimizes V_0;
+        then each interval's inputs by its gain and feedforward."""
+        try:
+            X0 = -np.linalg.solve(self.P[0], self.p[0])
+        except np.linalg.LinAlgError:
+            raise Unsupported("the first node's cost-to-go is singular") from None
+        pts = self.stages.points
+        count = pts.shape[0]
+        X, v = np.zeros((count + 1, self.ny)), np.zeros((count, self.nv))
+        riccati_forward(np.ascontiguousarray(X0), self.A, self.B, self.b, self.gain, self.ff,
+                        X, v)
+        self.X, self.v = X, v
+        y = np.zeros((self.L.points, self.ny))
+        y[pts[:, 0]] = X[:-1]
+        y[pts[-1, -1]] = X[-1]
+        for p, (C, E, e) in enumerate(self.maps[:-1]):
+            y[pts[:, p + 1]] = (C @ X[:-1, :, None] + E @ v[:, :, None])[:, :, 0] + e
+        return y
+
+    def row_values(self):
+        """E·d of each row at the last `solve`."""
+        k = self.rows.interval
+        return (np.einsum("ri,ri->r", self.alpha, self.X[k])
+                + np.einsum("ri,ri->r", self.beta, self.v[k]) + self.const)
+
+    def steps(self, y):
+        """dz (P, nz) from y."""
+        return (self.T @ y[:, :, None])[:, :, 0] + self.t
+
+    def multipliers(self, y, dz, W, g, zb, row_z=None):
+        """(μ (P, n), ν (intervals, per)): the residuals' and defects' multipliers of the QP's
+        solution (the NLP's convention: ∇f + Jᵀλ + z = 0), from the recursion's costates; zb
+        the bounds' multipliers (P, nz), row_z the rows' (R,)."""
+        L, st = self.L, self.stages
+        n, nx = L.n, self.nx
+        pts = st.points
+        count = pts.shape[0]
+        rows_z = np.zeros((count, pts.shape[1], L.nz))            # Σ_r ζ_r·a_r per place
+        if row_z is not None and row_z.size:
+            np.add.at(rows_z, self.rows.interval, row_z[:, None, None] * self.rows.coef)
+        rows_y = (self.T[pts].transpose(0, 1, 3, 2) @ rows_z[..., None])[..., 0]
+        grad_y = (self.G @ y[:, :, None])[:, :, 0] + self.gamma   # ∂(cost)/∂y at the point
+        later = []
+        for p in range(1, self.later + 1):
+            if p < self.later:
+                later.append(grad_y[pts[:, p], :nx] + rows_y[:, p, :nx])
+            else:
+                costate = (self.P[1:] @ y[pts[:, -1]][:, :, None])[:, :, 0] + self.p[1:]
+                later.append(costate[:, :nx] + rows_y[:, p, :nx])
+        rhs = np.concatenate(later, axis=1)                         # (k, later·nx)
+        nu_ = -np.linalg.solve(self.K.transpose(0, 2, 1), rhs[:, :, None])[:, :, 0]
+        # μ from each point's acceleration rows: (W·dz + g + Dᵀν + z + Σζ·a)_a + R_aᵀ·μ = 0
+        grad_z = (W @ dz[:, :, None])[:, :, 0] + g + zb
+        np.add.at(grad_z, pts.ravel(),
+                  (st.D.transpose(0, 1, 3, 2) @ nu_[:, None, :, None])[..., 0].reshape(-1, L.nz)
+                  + rows_z.reshape(-1, L.nz))
+        rhs_a = grad_z[:, 2 * n:3 * n]
+        mu = -np.linalg.solve(self.Ra.transpose(0, 2, 1), rhs_a[:, :, None])[:, :, 0]
+        return mu, nu_
+
+
+@dataclass
+class QPResult:
+    dz: np.ndarray          # (P, nz) the step
+    mu: np.ndarray          # (P, n) residual multipliers
+    nu: np.ndarray          # (intervals, per) defect multipliers
+    active: ActiveSet
+    passes: int
+    regularization: float
+
+
+def solve_qp(tr, stages, rows, lin, active, tol=1e-10):
+    """The QP of `lin`: by the active set when it settles within ACTIVE_PASSES (a warm start's
+    set, updated in place), else by the interior point (`solve_qp_interior`). `QPResult`."""
+    qp = StructuredQP(tr, stages, rows, lin)
+    try:
+        return solve_qp_active(qp, lin, active, tol)
+    except Unsupported:
+        if DEBUG:
+            print("    the active set did not settle: interior point")
+        active.reset()
+        return solve_qp_interior(qp, lin, active)
+
+
+def _penalties(lin):
+    """ρ per variable: PENALTY times its point's Hessian scale (at least 1)."""
+    P, nz = lin.W.shape[:2]
+    return np.repeat(PENALTY * _point_scale(lin), nz)
+
+
+def _point_scale(lin):
+    return np.maximum(1.0, np.abs(np.diagonal(lin.W, axis1=1, axis2=2)).max(axis=1))
+
+
+def _row_penalties(qp, lin):
+    """ρ per row: PENALTY times the Hessian scale of its interval's start."""
+    start = qp.stages.points[qp.rows.interval, 0]
+    return PENALTY * _point_scale(lin)[start]
+
+
+def _factored(qp, W, g, regularization=0.0, row_weights=None):
+    """qp factored for the point blocks W and the rows' weights (the inputs' Hessians
+    regularized until positive definite, up to a limit) and its cost gradients for g; the
+    regularization used."""
+    G, gamma = qp.point_costs(W, g)
+    while True:
+        need = qp.factor(G, regularization, row_weights)
+        if not need:
+            return gamma, regularization
+        regularization = need
+        if regularization > 1e4:
+            raise Unsupported("the QP is not convex along its inputs (inertia)")
+
+
+def _with_diagonal(W, add):
+    """W (P, nz, nz) plus the diagonal `add` (P·nz,)."""
+    P, nz = W.shape[:2]
+    out = W.reshape(P, nz * nz).copy()
+    out[:, np.arange(nz) * (nz + 1)] += add.reshape(P, nz)
+    return out.reshape(P, nz, nz)
+
+
+def _set_changes(on, side, z, fixed, value, lo, hi, tol):
+    """(release, cross_hi, cross_lo) of a primal-dual active set's pass."""
+    release = on & ~fixed & (side * z < 0)
+    cross_hi = ~on & (value > hi + tol * np.maximum(1.0, np.abs(hi)))
+    cross_lo = ~on & (value < lo - tol * np.maximum(1.0, np.abs(lo)))
+    return release, cross_hi, cross_lo
+
+
+def _apply_changes(side, z, release, cross_hi, cross_lo):
+    side[release] = 0
+    z[release] = 0.0
+    side[cross_hi] = 1
+    side[cross_lo] = -1
+
+
+def solve_qp_active(qp, lin, active, tol=1e-10, passes=None):
+    """The QP by a primal-dual active set with augmented-Lagrangian terms for the active bounds
+    and rows (the factor kept while only their multipliers change); Unsupported when the set
+    does not settle within `passes` (default ACTIVE_PASSES)."""
+    P, nz = lin.W.shape[:2]
+    rho, row_rho = _penalties(lin), _row_penalties(qp, lin)
+    regularization, refactor = 0.0, True
+    lo, hi = lin.lo.ravel(), lin.hi.ravel()
+    for count in range(1, (passes or ACTIVE_PASSES) + 1):
+        delta, row_delta = active.targets(lin), active.row_targets(lin)
+        on, row_on = active.side != 0, active.row_side != 0
+        g = (lin.g.ravel() + np.where(on, active.z - rho * delta, 0.0)).reshape(P, nz)
+        row_g = np.where(row_on, active.row_z + row_rho * (qp.const - row_delta), 0.0)
+        if refactor:
+            W = _with_diagonal(lin.W, np.where(on, rho, 0.0))
+            gamma, regularization = _factored(qp, W, g, regularization,
+                                              np.where(row_on, row_rho, 0.0))
+            refactor = False
+        else:
+            gamma = qp.point_costs(W, g)[1]
+        qp.vectors(gamma, row_g)
+        y = qp.solve()
+        dz = qp.steps(y)
+        flat, row_value = dz.ravel(), qp.row_values()
+        violation = np.where(on, flat - delta, 0.0)
+        row_violation = np.where(row_on, row_value - row_delta, 0.0)
+        active.z = np.where(on, active.z + rho * violation, 0.0)
+        active.row_z = np.where(row_on, active.row_z + row_rho * row_violation, 0.0)
+        changes = _set_changes(on, active.side, active.z, active.fixed, flat, lo, hi, tol)
+        row_changes = _set_changes(row_on, active.row_side, active.row_z, active.row_fixed,
+                                   row_value, lin.row_lo, lin.row_hi, tol)
+        if DEBUG:
+            print(f"    pass {count}: active {int(on.sum())}+{int(row_on.sum())} changes "
+                  f"{sum(int(c.sum()) for c in changes + row_changes)} violation "
+                  f"{np.max(np.abs(violation), initial=0):.2e} |dz| {np.max(np.abs(flat)):.2e}")
+        if any(c.any() for c in changes + row_changes):
+            _apply_changes(active.side, active.z, *changes)
+            _apply_changes(active.row_side, active.row_z, *row_changes)
+            refactor = True
+            continue
+        scale = max(1.0, np.max(np.abs(flat)))
+        if max(np.max(np.abs(violation), initial=0.0),
+               np.max(np.abs(row_violation), initial=0.0)) <= tol * scale:
+            zb = np.where(on, active.z, 0.0).reshape(P, nz)
+            mu, nu_ = qp.multipliers(y, dz, lin.W, lin.g, zb, active.row_z)
+            return QPResult(dz, mu, nu_, active, count, regularization)
+    raise Unsupported(f"the QP's active set did not settle in {passes or ACTIVE_PASSES} passes")
+
+
+class _Barrier:
+    """The interior point's side of constraints lo ≤ value ≤ hi that are not fixed: slacks
+    s_l = value − lo, s_u = hi − value and their multipliers y_l, y_u (> 0)."""
+
+    def __init__(self, lo, hi, fixed, value):
+        self.has_lo = np.isfinite(lo) & ~fixed
+        self.has_hi = np.isfinite(hi) & ~fixed
+        self.lo, self.hi = lo, hi
+        self.s_l = np.where(self.has_lo, value - lo, 1.0)
+        self.s_u = np.where(self.has_hi, hi - value, 1.0)
+        self.y_l = self.has_lo.astype(float)
+        self.y_u = self.has_hi.astype(float)
+        self.count = int(self.has_lo.sum() + self.has_hi.sum())
+
+    @staticmethod
+    def start_values(lo, hi, fixed, value):
+        """`value` moved inside its bounds by a margin (the interior point's start)."""
+        has_lo, has_hi = np.isfinite(lo) & ~fixed, np.isfinite(hi) & ~fixed
+        width = np.where(has_lo & has_hi, hi - lo, np.inf)
+        margin = np.minimum(1e-2 * np.maximum(1.0, np.minimum(np.abs(lo), np.abs(hi))),
+                            0.25 * width)
+        margin = np.where(np.isfinite(margin), margin, 1e-2)
+        value = np.where(has_lo, np.maximum(value, lo + margin), value)
+        return np.where(has_hi, np.minimum(value, hi - margin), value)
+
+    def gap_sum(self, s_l=None, y_l=None, s_u=None, y_u=None):
+        s_l = self.s_l if s_l is None else s_l
+        y_l = self.y_l if y_l is None else y_l
+        s_u = self.s_u if s_u is None else s_u
+        y_u = self.y_u if y_u is None else y_u
+        return float(np.sum(s_l * y_l * self.has_lo) + np.sum(s_u * y_u * self.has_hi))
+
+    def weights(self):
+        """Σ = y_l/s_l + y_u/s_u."""
+        return (np.where(self.has_lo, self.y_l / self.s_l, 0.0)
+                + np.where(self.has_hi, self.y_u / self.s_u, 0.0))
+
+    def gradient(self, value, t_l, t_u):
+        """The barrier's linear term at `value` for complementarity targets t_l, t_u."""
+        return (-self.weights() * value - np.where(self.has_lo, t_l / self.s_l, 0.0)
+                + np.where(self.has_hi, t_u / self.s_u, 0.0))
+
+    def duals(self, step, t_l, t_u):
+        """(Δy_l, Δy_u) of a step of the values."""
+        dy_l = np.where(self.has_lo, t_l / self.s_l - self.y_l / self.s_l * step - self.y_l, 0.0)
+        dy_u = np.where(self.has_hi, t_u / self.s_u + self.y_u / self.s_u * step - self.y_u, 0.0)
+        return dy_l, dy_u
+
+    def targets(self, sigma_mu, step, dy_l, dy_u):
+        """Mehrotra's corrector targets."""
+        return (np.where(self.has_lo, sigma_mu - step * dy_l, 0.0),
+                np.where(self.has_hi, sigma_mu + step * dy_u, 0.0))
+
+    def move(self, a_p, a_d, step, dy_l, dy_u):
+        self.s_l = np.where(self.has_lo, self.s_l + a_p * step, 1.0)
+        self.s_u = np.where(self.has_hi, self.s_u - a_p * step, 1.0)
+        self.y_l = np.where(self.has_lo, self.y_l + a_d * dy_l, 0.0)
+        self.y_u = np.where(self.has_hi, self.y_u + a_d * dy_u, 0.0)
+
+    def max_steps(self, step, dy_l, dy_u, fraction):
+        return (_fraction_to_boundary(self.s_l, step, self.has_lo, self.s_u, -step,
+                                      self.has_hi, fraction),
+                _fraction_to_boundary(self.y_l, dy_l, self.has_lo, self.y_u, dy_u,
+                                      self.has_hi, fraction))
+
+
+def solve_qp_interior(qp, lin, active, tol=1e-9, iterations=IPM_ITERATIONS):
+    """The QP by a primal-dual interior point (Mehrotra's predictor-corrector) on the bounds and
+    rows that are not fixed, the fixed ones (variables, equality rows) held by a penalty made
+    exact at the end by multiplier updates; each iteration one factor of the recursion with the
+    barrier's Σ = y_l/s_l + y_u/s_u on the diagonals and stages, and two solves. The active set
+    is set from the solution (the constraints whose multiplier is not negligible)."""
+    P, nz = lin.W.shape[:2]
+    lo, hi = lin.lo.ravel(), lin.hi.ravel()
+    fixed, row_fixed = active.fixed, active.row_fixed
+    pin = np.where(fixed, PIN_PENALTY * _penalties(lin) / PENALTY, 0.0)
+    row_pin = np.where(row_fixed, PIN_PENALTY * _row_penalties(qp, lin) / PENALTY, 0.0)
+    target, row_target = np.where(fixed, lo, 0.0), np.where(row_fixed, lin.row_lo, 0.0)
+    d = _Barrier.start_values(lo, hi, fixed, np.zeros(P * nz))
+    w = _Barrier.start_values(lin.row_lo, lin.row_hi, row_fixed, qp.const.copy())
+    bounds = _Barrier(lo, hi, fixed, d)
+    rows = _Barrier(lin.row_lo, lin.row_hi, row_fixed, w)
+    count = max(bounds.count + rows.count, 1)
+    zeros, row_zeros = np.zeros(P * nz), np.zeros(rows.has_lo.size)
+
+    def gap(*states):
+        return sum(b.gap_sum(*st) for b, st in zip((bounds, rows), states)) / count
+
+    def system(pins, row_pins):
+        """The solve of the barrier's Newton system about the current point for complementarity
+        targets (t_l, t_u) of the bounds and of the rows, after factoring."""
+        W = _with_diagonal(lin.W, bounds.weights() + pin)
+        row_w = rows.weights() + row_pin
+        factored = [False]
+
+        def solve(targets, row_targets, extra=zeros, row_extra=row_zeros):
+            g = (lin.g.ravel() + bounds.gradient(d, *targets) - pin * target + pins
+                 + extra).reshape(P, nz)
+            row_g = (rows.gradient(w, *row_targets) + rows.weights() * qp.const
+                     + row_pin * (qp.const - row_target) + row_pins + row_extra)
+            if not factored[0]:
+                gamma = _factored(qp, W, g, 0.0, row_w)[0]
+                factored[0] = True
+            else:
+                gamma = qp.point_costs(W, g)[1]
+            qp.vectors(gamma, row_g)
+            y = qp.solve()
+            dz, value = qp.steps(y).ravel(), qp.row_values()
+            step, row_step = dz - d, value - w
+            return (y, dz, value, step, bounds.duals(step, *targets), row_step,
+                    rows.duals(row_step, *row_targets))
+        return solve
+
+    first_gap = max(gap((), ()), 1.0)
+    for iteration in range(1, iterations + 1):
+        mu_gap = gap((), ())
+        solve = system(zeros, row_zeros)
+        none = (zeros, zeros)
+        _, _, _, step, (dy_l, dy_u), row_step, (ry_l, ry_u) = solve(none, (row_zeros, row_zeros))
+        a_p, a_d = bounds.max_steps(step, dy_l, dy_u, 1.0)
+        r_p, r_d = rows.max_steps(row_step, ry_l, ry_u, 1.0)
+        a_p, a_d = min(a_p, r_p), min(a_d, r_d)
+        gap_aff = gap((bounds.s_l + a_p * step, bounds.y_l + a_d * dy_l,
+                       bounds.s_u - a_p * step, bounds.y_u + a_d * dy_u),
+                      (rows.s_l + a_p * row_step, rows.y_l + a_d * ry_l,
+                       rows.s_u - a_p * row_step, rows.y_u + a_d * ry_u))
+        sigma_mu = min(1.0, (gap_aff / max(mu_gap, 1e-300)) ** 3) * mu_gap
+        targets = bounds.targets(sigma_mu, step, dy_l, dy_u)
+        row_targets = rows.targets(sigma_mu, row_step, ry_l, ry_u)
+        _, _, _, step, (dy_l, dy_u), row_step, (ry_l, ry_u) = solve(targets, row_targets)
+        a_p, a_d = bounds.max_steps(step, dy_l, dy_u, 0.995)
+        r_p, r_d = rows.max_steps(row_step, ry_l, ry_u, 0.995)
+        a_p, a_d = min(a_p, r_p), min(a_d, r_d)
+        d, w = d + a_p * step, w + a_p * row_step
+        bounds.move(a_p, a_d, step, dy_l, dy_u)
+        rows.move(a_p, a_d, row_step, ry_l, ry_u)
+        now = gap((), ())
+        if DEBUG:
+            print(f"    interior {iteration}: gap {now:.2e} steps {a_p:.2f} {a_d:.2f} "
+                  f"|d| {np.max(np.abs(d)):.2e}")
+        if now <= tol * first_gap and a_p > 0.5:
+            break
+    else:
+        if not now <= 1e-6 * first_gap:
+            raise Unsupported(f"the QP's interior point did not converge in {iterations} "
+                              "iterations")
+    # the fixed variables and equality rows onto their values: Newton steps of the barrier
+    # system about the solution, the penalty's multipliers updated with one factor
+    zp, row_zp = pin * (d - target), row_pin * (w - row_target)
+    solve = system(zp, row_zp)
+    targets = (bounds.s_l * bounds.y_l * bounds.has_lo, bounds.s_u * bounds.y_u * bounds.has_hi)
+    row_targets = (rows.s_l * rows.y_l * rows.has_lo, rows.s_u * rows.y_u * rows.has_hi)
+    extra, row_extra = zeros, row_zeros
+    for _ in range(PIN_UPDATES):
+        y, dz, value, _, (dy_l, dy_u), _, (ry_l, ry_u) = solve(targets, row_targets, extra,
+                                                               row_extra)
+        extra = extra + pin * (dz - target)
+        row_extra = row_extra + row_pin * (value - row_target)
+        off = max(np.max(np.abs(np.where(fixed, dz - target, 0.0)), initial=0.0),
+                  np.max(np.abs(np.where(row_fixed, value - row_target, 0.0)), initial=0.0))
+        if off <= 1e-12 * max(1.0, float(np.max(np.abs(dz)))):
+            break
+    z = np.where(fixed, zp + extra, (bounds.y_u + dy_u) - (bounds.y_l + dy_l))
+    row_z = np.where(row_fixed, row_zp + row_extra, (rows.y_u + ry_u) - (rows.y_l + ry_l))
+    for side, mult, fix, values in ((active.side, active.z, fixed, z),
+                                    (active.row_side, active.row_z, row_fixed, row_z)):
+        significant = np.abs(values) > 1e-6 * max(1.0, float(np.max(np.abs(values),
+                                                                    initial=0.0)))
+        side[:] = np.where(fix, 1, np.where(significant, np.sign(values), 0)).astype(np.int8)
+        mult[:] = np.where(side != 0, values, 0.0)
+    dz = dz.reshape(P, nz)
+    mu, nu_ = qp.multipliers(y, dz, lin.W, lin.g, z.reshape(P, nz), row_z)
+    return QPResult(dz, mu, nu_, active, iteration, 0.0)
+
+
+def _fraction_to_boundary(a, da, has_a, b, db, has_b, fraction):
+    """The largest step in (0, 1] keeping a + α·da and b + α·db positive (by `fraction`)."""
+    alpha = 1.0
+    for v, dv, has in ((a, da, has_a), (b, db, has_b)):
+        shrinking = has & (dv < 0)
+        if shrinking.any():
+            alpha = min(alpha, float(np.min(-fraction * v[shrinking] / dv[shrinking])))
+    return alpha
+
+
+@dataclass
+class Outcome:
+    """An SQP solve: the solution x, the constraints' multipliers lam and the bounds' z (the
+    NLP's convention), the iterations, whether it converged, why it stopped, the QP passes."""
+    x: np.ndarray
+    lam: np.ndarray
+    z: np.ndarray
+    iterations: int
+    converged: bool
+    message: str
+    passes: int
+
+
+def constraint_multipliers(tr, qp, rows):
+    """The multipliers of every constraint row of `tr` from a QP's residual, defect and row
+    ones."""
+    lam = np.zeros(tr.n_constraints)
+    L = tr.layout
+    lam[:L.points * L.ni] = qp.mu.ravel()
+    base = tr.defect_row
+    lam[base:base + tr.n_defects] = qp.nu.ravel()
+    lam[base + tr.n_defects + rows.index] = qp.active.row_z
+    return lam
+
+
+def violation(tr, c):
+    """Each constraint's violation of its bounds (0 within them)."""
+    return np.maximum(np.maximum(tr.g_lo - c, c - tr.g_hi), 0.0)
+
+
+def kkt_error(tr, x, lam, z):
+    """(the largest constraint violation, the largest stationarity residual scaled like IPOPT's
+    by the multipliers' size)."""
+    primal = float(np.max(violation(tr, tr.constraints(x)), initial=0.0))
+    grad = tr.gradient(x)
+    jt = np.bincount(tr.jac_cols, tr.jacobian(x) * lam[tr.jac_rows], minlength=x.size)
+    dual = np.max(np.abs(grad + jt + z), initial=0.0)
+    scale = max(100.0, (np.sum(np.abs(lam)) + np.sum(np.abs(z))) / max(1, lam.size + x.size))
+    return primal, float(dual) / (scale / 100.0)
+
+
+def solve(tr, x0, lam0=None, z0=None, tol=1e-8, max_iter=SQP_ITERATIONS, monitor=None):
+    """SQP from (x0, lam0, z0) on the transcription `tr` (its `bound` copy): an `Outcome`;
+    Unsupported when the problem has a part the structure does not cover, or a step fails
+    (the caller then solves with IPOPT)."""
+    reason = unsupported(tr)
+    if reason:
+        raise Unsupported(f"the SQP does not handle {reason}")
+    L = tr.layout
+    stages, rows = Stages.of(tr), Rows.of(tr)
+    x = np.clip(np.asarray(x0, dtype=float), tr.lo, tr.hi)
+    lam = np.zeros(tr.n_constraints) if lam0 is None else np.array(lam0, dtype=float)
+    P, nz = L.points, L.nz
+    lin = linearize(tr, x, lam, stages, rows)
+    row_z0 = None if lam0 is None else lam[tr.defect_row + tr.n_defects + rows.index]
+    active = ActiveSet.start(lin, None if z0 is None else np.asarray(z0)[:P * nz], row_z0)
+    penalty, passes = 0.0, 0
+    primal_now, dual_now, z_now = np.inf, np.inf, np.zeros(L.size)
+    for iteration in range(1, max_iter + 1):
+        qp = solve_qp(tr, stages, rows, lin, active)
+        passes += qp.passes
+        step = np.zeros(L.size)
+        step[:P * nz] = qp.dz.ravel()
+        lam_qp = constraint_multipliers(tr, qp, rows)
+        z = np.zeros(L.size)
+        z[:P * nz] = np.where(active.side != 0, active.z, 0.0)
+        f, c, grad = tr.objective(x), tr.constraints(x), tr.gradient(x)
+        penalty = max(penalty, 1.1 * float(np.max(np.abs(lam_qp), initial=0.0)), 1e-6)
+        infeasibility = np.sum(violation(tr, c))
+        merit = f + penalty * infeasibility
+        slope = float(grad @ step) - penalty * infeasibility
+        alpha = 1.0
+        while True:
+            trial = np.clip(x + alpha * step, tr.lo, tr.hi)
+            value = tr.objective(trial) + penalty * np.sum(violation(tr, tr.constraints(trial)))
+            if value <= merit + 1e-4 * alpha * min(slope, 0.0) + 1e-14 * abs(merit):
+                break
+            alpha *= 0.5
+            if alpha < 1e-3:
+                if primal_now <= FEASIBLE * tol and dual_now <= STALL_DUAL:
+                    return Outcome(x, lam, z_now, iteration - 1, True,
+                                   "converged (no step lowers the merit function further)",
+                                   passes)
+                raise Unsupported("the SQP's line search failed")
+        x = trial
+        lam = lam + alpha * (lam_qp - lam)
+        primal, dual = kkt_error(tr, x, lam, z)
+        primal_now, dual_now, z_now = primal, dual, z
+        value = tr.objective(x)
+        if monitor is not None:
+            monitor(iteration, value, primal, dual, alpha)
+        settled = alpha == 1.0 and abs(value - f) <= STALL * max(1.0, abs(f))
+        if primal <= FEASIBLE * tol and (dual <= tol or (settled and dual <= STALL_DUAL)):
+            return Outcome(x, lam, z, iteration, True, "converged", passes)
+        lin = linearize(tr, x, lam, stages, rows)
+    return Outcome(x, lam, z, max_iter, False,
+                   f"not converged in {max_iter} iterations", passes)

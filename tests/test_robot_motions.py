@@ -1,0 +1,245 @@
+"""Optimal motions of robots (issue 42): the residual's exact second derivatives from the recursion
+of a three-dimensional tree (and from duals on the Python backend), against finite differences of
+its first derivatives and between the backends; the collocation NLP of a URDF robot laid out from
+its structure alone, its Hessian against finite differences."""
+import numpy as np
+import pytest
+import sympy as sp
+
+import lagrgen
+from conftest import example_model, nlp_derivatives
+from lagrgen.collocation.refine import DiscretizationWarning
+from test_robots import ARM, QUADRUPED, SMALL
+
+
+@pytest.fixture(scope="module")
+def out_dir(tmp_path_factory):
+    return tmp_path_factory.mktemp("robot_motions")
+
+
+@pytest.fixture(scope="module")
+def small(out_dir, tmp_path_factory):
+    """A three-joint robot with a skew revolute joint, a prismatic and a continuous one, joint
+    damping, and a floating quadruped: both backends of each."""
+    path = tmp_path_factory.mktemp("urdf") / "small.urdf"
+    path.write_text(SMALL)
+    built = {}
+    for key, model in (("small", lagrgen.from_urdf(path, name="motions_small")),
+                       ("quadruped", lagrgen.from_urdf(QUADRUPED, name="motions_quadruped",
+                                                       base="floating"))):
+        built[key] = (model, lagrgen.build(model, out_dir=out_dir),
+                      lagrgen.build(model, backend="python"))
+    return built
+
+
+def residual_gradient(mod, z, mu):
+    """∇_z(Σ mu_i·r_i) from the model's exact first derivatives (residual_terms)."""
+    n, m = mod.n_coordinates, mod.n_constraints
+    q, qd, a, u = z[:n], z[n:2 * n], z[2 * n:3 * n + m], z[3 * n + m:]
+    _, dr_dy, dr_da, dr_du = mod.residual_terms(q, qd, a, 0.2, None, u)
+    return np.concatenate([mu @ dr_dy, mu @ dr_da, mu @ dr_du])
+
+
+def point(mod, seed):
+    n, m, k = mod.n_coordinates, mod.n_constraints, len(mod.inputs)
+    rng = np.random.default_rng(seed)
+    return rng.uniform(-1, 1, 3 * n + m + k), rng.uniform(-1, 1, n + m)
+
+
+def hessian_at(mod, z, mu):
+    n, m = mod.n_coordinates, mod.n_constraints
+    return mod.residual_hessian(z[:n], z[n:2 * n], z[2 * n:3 * n + m], mu, 0.2, None,
+                                z[3 * n + m:])
+
+
+def differenced(mod, z, mu, eps=1e-6):
+    return np.array([(residual_gradient(mod, z + eps * e, mu)
+                      - residual_gradient(mod, z - eps * e, mu)) / (2 * eps)
+                     for e in np.eye(z.size)]).T
+
+
+@pytest.mark.parametrize("key", ["small", "quadruped"])
+def test_the_recursions_second_derivatives_are_exact(small, key):
+    """The second-order derivatives of the inverse dynamics (contracted with the weights) plus the
+    joint dampers' equal the differences of the exact first derivatives, on a skew, prismatic and
+    continuous joint and on an 18-coordinate floating quadruped; C and NumPy agree to round-off."""
+    model, mod, py = small[key]
+    assert mod.formulation == py.formulation == "recursive"
+    for seed in range(2):
+        z, mu = point(mod, seed)
+        H = hessian_at(mod, z, mu)
+        assert H.shape == (z.size, z.size)
+        assert np.array_equal(H, H.T)
+        Hn = differenced(mod, z, mu)
+        assert np.abs(H - Hn).max() < 1e-7 * (1 + np.abs(Hn).max())
+        assert np.abs(hessian_at(py, z, mu) - H).max() < 1e-12 * (1 + np.abs(H).max())
+
+
+@pytest.mark.parametrize("backend", ["c", "python"])
+def test_dense_second_derivatives_are_exact_with_constraints(out_dir, backend):
+    """A constrained model (the pendulum in Cartesian coordinates with its rod a constraint):
+    the symbolic kernel (C) and the duals over the first-derivative kernels (Python) give the
+    Hessian of the residual's rows and constraint rows."""
+    model = example_model("cartesian_pendulum")
+    mod = lagrgen.build(model, out_dir=out_dir, backend=backend)
+    assert mod.n_constraints
+    z, mu = point(mod, 3)
+    H = hessian_at(mod, z, mu)
+    Hn = differenced(mod, z, mu)
+    assert np.abs(H - Hn).max() < 1e-7 * (1 + np.abs(Hn).max())
+
+
+def test_a_robots_collocation_hessian_matches_finite_differences(small):
+    """The NLP of a URDF robot's move within its limits, with an effort integrand: its structure
+    from the tree alone (no symbolic equations), its Jacobian and Lagrangian Hessian against
+    differences, every nonzero inside the structure."""
+    model, mod, _ = small["small"]
+    prob = lagrgen.Collocation(mod, nodes=3, duration=1.0, scheme="hermite-simpson")
+    prob.minimize(integral=sum(u ** 2 for u in model.input_functions)
+                  + model.q[0].diff(model.t) ** 2 * sp.cos(model.q[1]))
+    tr = prob.transcription("exact")
+    assert tr.recursive
+    J, Jn, H, Hn, grad, gradn = nlp_derivatives(prob, seed=2)
+    assert np.abs(J - Jn).max() < 1e-7 * (1 + np.abs(Jn).max())
+    assert np.abs(Jn[J == 0]).max(initial=0) < 1e-7
+    assert np.abs(H - Hn).max() < 1e-6 * (1 + np.abs(Hn).max())
+    assert np.abs(Hn[H == 0]).max(initial=0) < 1e-6
+    assert np.abs(grad - gradn).max() < 1e-7 * (1 + np.abs(gradn).max())
+
+
+def test_the_arms_least_effort_move_never_forms_dense_equations(out_dir, monkeypatch):
+    """The seven-joint arm from rest to rest within its limits, refined to the default mesh_tol,
+    with the exact Hessian from the recursion: no step forms the dense symbolic equations (they
+    would take minutes), the answer is within its tolerance and limits."""
+    model = lagrgen.from_urdf(ARM, name="motions_arm", joint_dynamics=False)
+    mod = lagrgen.build(model, out_dir=out_dir)
+
+    def refuse(*args):
+        raise AssertionError("dense symbolic equations formed for a recursive model")
+    monkeypatch.setattr(lagrgen.lagrange, "dense_equations", refuse)
+    n = mod.n_coordinates
+    lower, upper, velocity = (np.array([mod.limits[c][i] for c in mod.coordinates])
+                              for i in (0, 1, 2))
+    middle, half = (lower + upper) / 2, (upper - lower) / 2
+    prob = lagrgen.Collocation(mod, nodes=21, duration=1.5).bound_limits()
+    prob.initial(q=middle, qd=np.zeros(n))
+    prob.final(q=middle + 0.3 * half * np.linspace(1, -1, n), qd=np.zeros(n))
+    prob.minimize(integral=sum(u ** 2 for u in model.input_functions))
+    res = prob.solve(progress=False)
+    assert res.success, res.message
+    assert res.error <= 1e-6
+    q, qd = res.y[:n], res.y[n:]
+    tol = 1e-7
+    assert np.all(q >= lower[:, None] - tol) and np.all(q <= upper[:, None] + tol)
+    assert np.all(np.abs(qd) <= velocity[:, None] + tol)
+
+
+# -- the structured SQP and re-planning ---------------------------------------------------------
+@pytest.fixture(scope="module")
+def swing(out_dir):
+    """opty's compound pendulum swung up by a torque too weak to lift it directly."""
+    model = lagrgen.Model("motions_swing")
+    th, = model.coordinates("theta")
+    m, g, d = model.parameters(m=1.0, g=9.81, d=1.0)
+    T, = model.inputs("T")
+    model.kinetic_energy(th.diff(model.t) ** 2 / 2)
+    model.potential_energy(-m * g * d * sp.cos(th))
+    model.torque(T, th)
+    return model, lagrgen.build(model, out_dir=out_dir)
+
+
+def swing_problem(mod, T, nodes=41, limit=6.0):
+    prob = lagrgen.Collocation(mod, nodes=nodes, duration=3.0)
+    prob.bound("T", -limit, limit).bound("theta_dot", -4.0, 4.0)
+    prob.initial(q=[0.0], qd=[0.0]).final(q=[np.pi], qd=[0.0])
+    return prob.minimize(integral=T ** 2)
+
+
+@pytest.mark.filterwarnings("ignore", category=DiscretizationWarning)
+def test_the_structured_qp_is_the_kkt_solution(swing):
+    """One QP of the SQP (accelerations eliminated point by point, states interval by interval,
+    the Riccati recursion, bounds by the active set) equals the solve of the whole KKT system
+    with the same bounds held, and its multipliers make the KKT conditions hold."""
+    import scipy.sparse as sps
+    from lagrgen.collocation import sqp
+    model, mod = swing
+    prob = swing_problem(mod, model.input_functions[0], nodes=9)
+    res = prob.solve(progress=False, mesh_tol=None, solver="ipopt")
+    tr = prob.transcription("exact").bound(3.0)
+    rng = np.random.default_rng(5)
+    x = np.clip(res.x + 1e-2 * rng.standard_normal(res.x.size), tr.lo, tr.hi)
+    stages, rows = sqp.Stages.of(tr), sqp.Rows.of(tr)
+    lam = res._lam * (1 + 0.1 * rng.standard_normal(res._lam.size))
+    lin = sqp.linearize(tr, x, lam, stages, rows)
+    row_z = res._lam[tr.defect_row + tr.n_defects + rows.index]
+    active = sqp.ActiveSet.start(lin, res._z[:tr.layout.p_start], row_z)
+    qp = sqp.solve_qp(tr, stages, rows, lin, active)
+    assert rows.index.size            # the torque's envelope between its points
+    L = tr.layout
+    N = L.p_start
+    on = np.flatnonzero(active.side != 0)
+    row_on = np.flatnonzero(active.row_side != 0)
+    H = sps.block_diag(list(lin.W)).tocsr()
+    equalities = tr.defect_row + tr.n_defects       # the residuals and defects
+    J = sps.coo_matrix((tr.jacobian(x), (tr.jac_rows, tr.jac_cols)),
+                       shape=(tr.n_constraints, L.size)).tocsr()[:equalities, :N]
+    B = sps.coo_matrix((np.ones(on.size), (np.arange(on.size), on)), shape=(on.size, N))
+    E = sps.coo_matrix((tr.E.values, (tr.E.rows, tr.E.cols)),
+                       shape=tr.E.shape).tocsr()[row_on][:, :N]
+    A = sps.vstack([J, B, E]).tocsc()
+    K = sps.bmat([[H, A.T], [A, None]]).tocsc()
+    c = tr.constraints(x)[:equalities]
+    rhs = np.concatenate([-lin.g.ravel(), -c, active.targets(lin)[on],
+                          active.row_targets(lin)[row_on]])
+    reference = np.linalg.lstsq(K.toarray(), rhs, rcond=None)[0][:N]   # rows may repeat bounds
+    assert np.abs(qp.dz.ravel() - reference).max() < 1e-7 * (1 + np.abs(reference).max())
+    lam_qp = sqp.constraint_multipliers(tr, qp, rows)
+    z = np.zeros(L.size)
+    z[:N] = np.where(active.side != 0, active.z, 0.0)
+    stationarity = (lin.g.ravel() + (lin.W @ qp.dz[:, :, None])[:, :, 0].ravel()
+                    + np.bincount(tr.jac_cols, tr.jacobian(x) * lam_qp[tr.jac_rows],
+                                  minlength=L.size)[:N] + z[:N])
+    assert np.abs(stationarity).max() < 1e-6 * (1 + np.abs(lin.g).max())
+
+
+def test_refined_meshes_by_the_sqp_reach_ipopts_optimum(swing):
+    """The refinement's meshes after the first, started from the last solution, are solved by
+    the structured SQP (solver="auto": a torque that stays inside its bounds, the velocity
+    riding its own) to IPOPT's optimum on the same meshes."""
+    model, mod = swing
+    T, = model.input_functions
+    results = {solver: swing_problem(mod, T, limit=20.0).solve(progress=False, solver=solver)
+               for solver in ("auto", "ipopt")}
+    auto, ipopt = results["auto"], results["ipopt"]
+    assert auto.success and ipopt.success
+    assert auto.solver == "sqp" and ipopt.solver == "ipopt"
+    assert [m.nodes for m in auto.meshes] == [m.nodes for m in ipopt.meshes]
+    assert abs(auto.objective - ipopt.objective) < 1e-7 * ipopt.objective
+    assert auto.error <= 1e-6
+
+
+@pytest.mark.filterwarnings("ignore", category=DiscretizationWarning)
+def test_a_replan_equals_a_cold_solve_from_the_new_state(swing):
+    """resolve(warm, initial, shift): the plan from the state 0.3 s into the first one, warm-
+    started from its shifted motion, equals a cold solve of the same problem from that state;
+    the state read off the solution on its velocity bound (beyond it by the solver's tolerance)
+    is clipped with a note; a state clearly outside is refused."""
+    model, mod = swing
+    T, = model.input_functions
+    prob = swing_problem(mod, T)
+    first = prob.solve(progress=False, mesh_tol=None)
+    state = first.state_at(0.3)
+    again = prob.resolve(first, initial={"q": state[:1], "qd": state[1:]}, shift=0.3)
+    assert again.success and again.solver == "sqp" and again.solve_seconds > 0
+    cold = swing_problem(mod, T)
+    cold._fixed.clear()
+    cold.initial(q=state[:1], qd=np.clip(state[1:], -4.0, 4.0)).final(q=[np.pi], qd=[0.0])
+    reference = cold.solve(progress=False, mesh_tol=None, solver="ipopt")
+    assert abs(again.objective - reference.objective) < 1e-6 * reference.objective
+    assert np.abs(again.y - reference.y).max() < 1e-4
+    over = prob.resolve(again, initial={"qd": [4.0 + 1e-8]})
+    assert over.success and any("outside its bounds" in note for note in over.notes)
+    with pytest.raises(lagrgen.errors.LagrgenError, match="outside its bounds"):
+        prob.resolve(again, initial={"qd": [4.1]})
+    with pytest.raises(lagrgen.errors.LagrgenError, match="shift"):
+        prob.resolve(again, shift=5.0)
