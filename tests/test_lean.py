@@ -191,3 +191,22 @@ def test_the_long_chain_equals_pinocchio(long_chain):
     assert relative(mod.rhs(0.0, y)[n:], pin.aba(pm, data, y[:n], y[n:], np.zeros(n))) < 1e-10
     M = pin.crba(pm, data, y[:n])
     assert relative(mod.mass_matrix(y[:n]), np.triu(M) + np.triu(M, 1).T) < 1e-10
+
+
+@pytest.mark.parametrize("path, base", [(ARM, "fixed"), (QUADRUPED, "floating")])
+def test_the_bounds_of_the_diagonal_of_m_hold_everywhere(path, base):
+    """lean3d.diagonal_bounds: the traced q̈ compares each pivot with 1e-3 of a bound of M_kk over
+    every q to decide whether M's pivots are noted (NearSingularMassMatrixWarning): the bound
+    must hold at any q, and be finite for the joints of a robot's revolute chains."""
+    from lagrgen import tree
+    from lagrgen.lagrange import derived
+    model = lagrgen.from_urdf(path, base=base, name=f"bounds_{base}")
+    structure = tree.analyse(derived(model.spec()))
+    bounds = np.array(lean3d.diagonal_bounds(structure.joints, structure.parent))
+    assert np.all(np.isfinite(bounds)) and np.all(bounds > 0)
+    mod = lagrgen.build(model, backend="python")
+    rng = np.random.default_rng(8)
+    order = list(structure.coordinate)
+    for _ in range(20):
+        M = mod.mass_matrix(rng.uniform(-np.pi, np.pi, mod.n_coordinates))
+        assert np.all(np.diag(M)[order] <= bounds * (1 + 1e-12))

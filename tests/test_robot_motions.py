@@ -108,8 +108,8 @@ def test_a_robots_collocation_hessian_matches_finite_differences(small):
 
 
 def test_the_arms_least_effort_move_never_forms_dense_equations(out_dir, monkeypatch):
-    """The seven-joint arm from rest to rest within its limits, refined to the default mesh_tol,
-    with the exact Hessian from the recursion: no step forms the dense symbolic equations (they
+    """The seven-joint arm from rest to rest within its limits, refined to mesh_tol 1e-5 (four
+    meshes; the default 1e-6 takes five and ~40 s), with the exact Hessian from the recursion: no step forms the dense symbolic equations (they
     would take minutes), the answer is within its tolerance and limits."""
     model = lagrgen.from_urdf(ARM, name="motions_arm", joint_dynamics=False)
     mod = lagrgen.build(model, out_dir=out_dir)
@@ -125,9 +125,9 @@ def test_the_arms_least_effort_move_never_forms_dense_equations(out_dir, monkeyp
     prob.initial(q=middle, qd=np.zeros(n))
     prob.final(q=middle + 0.3 * half * np.linspace(1, -1, n), qd=np.zeros(n))
     prob.minimize(integral=sum(u ** 2 for u in model.input_functions))
-    res = prob.solve(progress=False)
+    res = prob.solve(progress=False, mesh_tol=1e-5)
     assert res.success, res.message
-    assert res.error <= 1e-6
+    assert res.error <= 1e-5 and len(res.meshes) > 1
     q, qd = res.y[:n], res.y[n:]
     tol = 1e-7
     assert np.all(q >= lower[:, None] - tol) and np.all(q <= upper[:, None] + tol)

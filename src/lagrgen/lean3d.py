@@ -18,6 +18,7 @@ constant and each transform a product of constant and sparse factors. Spatial ve
 Everything a robot's file fixes is a number at trace time, so every product with a zero entry of
 a placement, an axis or an inertia is dropped and every product with ±1 is a sign.
 """
+import math
 from dataclasses import dataclass
 
 from .trace import Printer, Tape
@@ -326,9 +327,51 @@ def _loads(tape, loads):
     return (lambda i: tape.leaf(f"Q[{i}]")), [tape.leaf(f"g[{i}]") for i in range(3)], False
 
 
+#: A pivot of M below this fraction of its diagonal entry is noted (linalg.c.in's LG_PIVOT_NOTE).
+PIVOT_NOTE = 1e-3
+
+
+def diagonal_bounds(joints, parent):
+    """An upper bound of M_kk over every q for each node k, from the numbers of its subtree:
+    Σ m_b of a prismatic joint; Σ_b trace(I_b about its centre of mass) + m_b·ρ_b² of a revolute
+    one, ρ_b the centre's distance from the joint's origin bounded by the placements' lengths on
+    the way (times the joint's multiplier squared); inf where a body's inertia is a parameter or a
+    prismatic joint on the way moves it without bound."""
+    n = len(parent)
+    children = [[] for _ in range(n)]
+    for k, up in enumerate(parent):
+        if up >= 0:
+            children[up].append(k)
+    bounds = []
+    for k in range(n):
+        total, stack = 0.0, [(k, 0.0, False)]
+        while stack:
+            b, reach, unbounded = stack.pop()
+            if any(j >= 0 for j in joints.inertia_parameter[b]):
+                total = math.inf
+                break
+            m, h, I = float(joints.inertia[b][0]), joints.inertia[b][1:4], joints.inertia[b][4:]
+            centre = math.sqrt(sum(float(x) ** 2 for x in h)) / m if m > 0 else 0.0
+            own = float(I[0]) + float(I[2]) + float(I[5]) - 2 * m * centre ** 2
+            if joints.prismatic[k]:
+                total += m
+            elif unbounded and m > 0:
+                total = math.inf
+                break
+            else:
+                total += max(own, 0.0) + m * (reach + centre) ** 2
+            for c in children[b]:
+                length = math.sqrt(sum(float(x) ** 2 for x in joints.placement[c][9:]))
+                stack.append((c, reach + length, unbounded or bool(joints.prismatic[c])))
+        bounds.append(total * float(joints.motion[k][0]) ** 2)
+    return bounds
+
+
 def trace_qdd(joints, parent, coordinate, notes, loads=None, name="lg_lean_qdd"):
     """The C function `int name(t, q, qd, p, u, Q, g, qdd)`: q̈ by the articulated-body algorithm
-    traced for the robot (1 when a pivot D is not positive: M is not positive definite), with the
+    traced for the robot (1 when M is not positive definite; a pivot D_k not above PIVOT_NOTE of
+    the bound of M_kk, `diagonal_bounds`, has M's pivots checked and noted by lg_lean_pivots as
+    the generic recursion's are), with the
     generalized forces and the gravity `loads` = (Q, g) (SymEngine) traced too where they can
     be (`Traced.loads` False: it reads them from the arrays Q and g, lg_tree_loads')."""
     tape = Tape()
@@ -337,9 +380,12 @@ def trace_qdd(joints, parent, coordinate, notes, loads=None, name="lg_lean_qdd")
     qdd, D = articulated_body(tape, robot, lambda i: tape.leaf(f"qd[{i}]"), Q, g)
     outputs = [qdd[i] for i in range(len(qdd))]
     printer = Printer(tape)
-    pivots = " && ".join(f"{printer.ref(d)} > 0.0" for d in D if not isinstance(d, float))
+    floors = [PIVOT_NOTE * b if math.isfinite(b) else 0.0
+              for b in diagonal_bounds(joints, parent)]
+    pivots = " && ".join(f"{printer.ref(d)} > {floor!r}" for d, floor in zip(D, floors)
+                         if not isinstance(d, float))
     legend = "\n".join(f" *   {note}" for note in notes)
-    stores = [f"    if (!({pivots or '1'}))\n        return 1;"]
+    stores = [f"    if (!({pivots or '1'}) && lg_lean_pivots(t, q, p))\n        return 1;"]
     stores += [f"    qdd[{i}] = {printer.ref(x)};" for i, x in enumerate(outputs)]
     return _function(
         tape, outputs + D, stores, name, "double t, const double *q, const double *qd, "
