@@ -39,6 +39,8 @@ import numpy as np
 HERE = Path(__file__).resolve().parent
 ROOT = HERE.parent
 RESULTS = HERE / "results"
+sys.path.insert(0, str(HERE))
+from robots import robots_dir      # noqa: E402
 ARM = ROOT / "examples" / "robots" / "arm7.urdf"
 TOOL = np.array([0.0, 0.0, 0.1034])
 G = 9.81
@@ -46,19 +48,6 @@ SOLO_STAND = {"FL": (0.0, 0.8, -1.6), "FR": (0.0, 0.8, -1.6), "HL": (0.0, -0.8, 
               "HR": (0.0, -0.8, 1.6)}
 SOLO_JOINTS = ("HAA", "HFE", "KFE")
 KP, KD = 5.0, 0.1
-
-
-def robots_dir():
-    """example-robot-data's robots folder, or None."""
-    import importlib.metadata
-    try:
-        files = importlib.metadata.files("example-robot-data") or ()
-    except importlib.metadata.PackageNotFoundError:
-        return None
-    for f in files:
-        if str(f).endswith("robots/solo_description/robots/solo12.urdf"):
-            return Path(f.locate()).parents[2]
-    return None
 
 
 def best_per_call(f, repeats=3):
@@ -383,7 +372,10 @@ def main():
                          f"{platform.python_version()}", "load_before": load(),
               "kinematics": []}
     out = Path(tempfile.gettempdir()) / "lagrgen-robots-world"
-    root = robots_dir()
+    try:
+        root = robots_dir()
+    except SystemExit:                      # example-robot-data is not installed
+        root = None
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         try:

@@ -22,6 +22,19 @@ BACKENDS = ["python", "c"]
 SCIPY_PORTED = (1, 17)
 
 
+def robots_dir():
+    """The robots folder of the example-robot-data package, or None when it is not installed."""
+    import importlib.metadata
+    try:
+        files = importlib.metadata.files("example-robot-data") or ()
+    except importlib.metadata.PackageNotFoundError:
+        return None
+    for f in files:
+        if str(f).endswith("robots/solo_description/robots/solo12.urdf"):
+            return Path(f.locate()).parents[2]
+    return None
+
+
 def counts_close(ours, ref, rel=0.05, slack=3):
     """True when solver counts (an int or a tuple of ints: nfev, njev, ...) agree within `rel`
     relative plus `slack`. The native engine takes SciPy's steps, but a last-bit difference of

@@ -2,7 +2,7 @@
 a plane, with impacts, resting contact and isotropic Coulomb friction (stick and slip) — and
 redundant contacts (a box on four corners) held with least-norm forces, on both engines; solo12
 and a quadruped under joint PD control; MuJoCo as a second judge in flight and at rest."""
-import importlib.metadata
+import importlib.util
 from pathlib import Path
 
 import numpy as np
@@ -10,6 +10,7 @@ import pytest
 import sympy as sp
 
 import lagrgen
+from conftest import robots_dir
 from lagrgen import Model, rotation
 
 G = 9.81
@@ -213,15 +214,6 @@ def test_a_two_component_friction_is_planar_on_any_model():
 
 
 # -- robots ----------------------------------------------------------------------------------------
-def robots_dir():
-    try:
-        files = importlib.metadata.files("example-robot-data") or ()
-    except importlib.metadata.PackageNotFoundError:
-        return None
-    for f in files:
-        if str(f).endswith("robots/solo_description/robots/solo12.urdf"):
-            return Path(f.locate()).parents[2]
-    return None
 
 
 #: Standing postures: (abduction, hip, knee) per leg.

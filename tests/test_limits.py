@@ -2,13 +2,12 @@
 act as unilateral contacts of the hybrid solve (stops <joint>_lower and <joint>_upper, inelastic
 unless limit_restitution), on both engines and in ensembles; limits=False leaves them declared
 but not enforced; a start beyond a limit is refused saying so."""
-import importlib.metadata
-from pathlib import Path
 
 import numpy as np
 import pytest
 
 import lagrgen
+from conftest import robots_dir
 from lagrgen import ContactError, Signal
 
 G = 9.81
@@ -178,17 +177,6 @@ def test_a_suspension_stays_within_its_five_millimetres(files, engine, tmp_path)
     assert z.min() >= -0.005 - 1e-9 and z.max() <= 0.005
     assert sol.mode["suspension_joint_lower"] == "contact"
     assert sol.multipliers["suspension_joint_lower"][-1] == pytest.approx(11.5 * G, rel=1e-9)
-
-
-def robots_dir():
-    try:
-        files = importlib.metadata.files("example-robot-data") or ()
-    except importlib.metadata.PackageNotFoundError:
-        return None
-    for f in files:
-        if str(f).endswith("robots/tiago_description/robots/tiago_dual.urdf"):
-            return Path(f.locate()).parents[2]
-    return None
 
 
 @pytest.mark.skipif(robots_dir() is None, reason="example-robot-data is not installed")

@@ -2,7 +2,6 @@
 SymPy expressions and the compiled `mod.link_pose`, `mod.link_jacobian` of every tree model, on
 both backends and formulations; against the expressions, finite differences and Pinocchio's
 updateFramePlacements / computeFrameJacobian(LOCAL_WORLD_ALIGNED)."""
-import importlib.metadata
 from pathlib import Path
 
 import numpy as np
@@ -10,6 +9,7 @@ import pytest
 import sympy as sp
 
 import lagrgen
+from conftest import robots_dir
 from lagrgen import rotation
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -247,16 +247,6 @@ def test_link_positions_are_expressions_for_outputs_and_gaps(tmp_path):
 
 
 # -- Pinocchio ------------------------------------------------------------------------------------
-def robots_dir():
-    """example-robot-data's robots folder, or None."""
-    try:
-        files = importlib.metadata.files("example-robot-data") or ()
-    except importlib.metadata.PackageNotFoundError:
-        return None
-    for f in files:
-        if str(f).endswith("robots/ur_description/urdf/ur5_robot.urdf"):
-            return Path(f.locate()).parents[2]
-    return None
 
 
 def pinocchio_frames(path, coordinates, links, states, point):

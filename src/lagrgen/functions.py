@@ -41,7 +41,7 @@ class Output:
 #: label is a unit compiled on first use into its own module, `<model>_<label>` (lagrgen.units):
 #: "parameters" (the parameter Jacobian), "directions" (the directional derivatives of the
 #: sensitivities), "manifold" (the constraint residuals' Jacobian of the linearization), "hessian"
-#: (the residual's second derivatives, for collocation).
+#: (the residual's second derivatives, for collocation), "links" (link poses and Jacobians).
 MODEL_UNIT = "model"
 
 
