@@ -247,17 +247,26 @@ def mujoco_model(path, radius=1e-3, timestep=1e-3):
     spec.option.timestep = timestep
     spec.option.cone = mujoco.mjtCone.mjCONE_ELLIPTIC
     spec.body("base_link").add_freejoint()
+    return legged_contacts(mujoco, spec, SOLO_STAND, SOLO_JOINTS, "{leg}_FOOT", KP, KD, radius)
+
+
+def legged_contacts(mujoco, spec, stand, joints, foot, kp, kd, radius):
+    """MuJoCo's legged robot of `spec` compiled (model, data): its hinges <leg>_<joint> as springs
+    of stiffness kp about the posture `stand` ({leg: one angle per name of `joints`}) with damping
+    kd, no friction loss or armature; a sphere of `radius` at each foot (body `foot` formatted
+    with leg=) and the floor `radius` below z = 0, μ = 1, the no-slip pass, soft contacts of time
+    constant 5 ms."""
     for joint in spec.joints:
         if joint.type == mujoco.mjtJoint.mjJNT_HINGE:
-            leg, name = joint.name.split("_")
-            set_coefficient(joint, "stiffness", KP)
-            joint.springref = SOLO_STAND[leg][SOLO_JOINTS.index(name)]
-            set_coefficient(joint, "damping", KD)
+            leg, name = joint.name.split("_", 1)
+            set_coefficient(joint, "stiffness", kp)
+            joint.springref = stand[leg][joints.index(name)]
+            set_coefficient(joint, "damping", kd)
             joint.frictionloss = 0.0
             joint.armature = 0.0
-    for leg in SOLO_STAND:
-        spec.body(f"{leg}_FOOT").add_geom(type=mujoco.mjtGeom.mjGEOM_SPHERE, size=[radius, 0, 0],
-                                          friction=[1.0, 0, 0])
+    for leg in stand:
+        spec.body(foot.format(leg=leg)).add_geom(type=mujoco.mjtGeom.mjGEOM_SPHERE,
+                                                 size=[radius, 0, 0], friction=[1.0, 0, 0])
     spec.worldbody.add_geom(type=mujoco.mjtGeom.mjGEOM_PLANE, size=[5, 5, 0.1],
                             pos=[0, 0, -radius], friction=[1.0, 0, 0])
     model = spec.compile()
@@ -273,6 +282,8 @@ def strip_meshes(text):
 
 
 def set_coefficient(joint, name, value):
+    """Set a joint's stiffness or damping: a polynomial's coefficients in MuJoCo 4, a number
+    before."""
     try:
         setattr(joint, name, [value, 0.0, 0.0])         # MuJoCo 4: polynomial coefficients
     except TypeError:

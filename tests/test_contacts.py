@@ -10,7 +10,7 @@ import pytest
 import sympy as sp
 
 import lagrgen
-from conftest import robots_dir
+from conftest import benchmark, robots_dir
 from lagrgen import Model, rotation
 
 G = 9.81
@@ -330,32 +330,8 @@ def mujoco_quadruped(mujoco, radius=1e-3, kp=8.0, kd=0.5):
     spec.option.integrator = mujoco.mjtIntegrator.mjINT_RK4
     spec.option.cone = mujoco.mjtCone.mjCONE_ELLIPTIC
     spec.body("trunk").add_freejoint()
-    for joint in spec.joints:
-        if joint.type == mujoco.mjtJoint.mjJNT_HINGE:
-            leg, name = joint.name.split("_", 1)
-            coefficient(joint, "stiffness", kp)
-            joint.springref = QUADRUPED_STAND[leg][("abad", "hip_joint", "knee").index(name)]
-            coefficient(joint, "damping", kd)
-            joint.frictionloss = 0.0
-            joint.armature = 0.0
-    for leg in QUADRUPED_STAND:
-        spec.body(f"{leg}_foot").add_geom(type=mujoco.mjtGeom.mjGEOM_SPHERE,
-                                          size=[radius, 0, 0], friction=[1.0, 0, 0])
-    spec.worldbody.add_geom(type=mujoco.mjtGeom.mjGEOM_PLANE, size=[5, 5, 0.1],
-                            pos=[0, 0, -radius], friction=[1.0, 0, 0])
-    model = spec.compile()
-    model.opt.noslip_iterations = 10          # no creep of the sticking feet
-    model.geom_solref[:] = (0.005, 1.0)       # stiffer soft contacts than the default 0.02 s
-    return model, mujoco.MjData(model)
-
-
-def coefficient(joint, name, value):
-    """Set a joint's stiffness or damping: a polynomial's coefficients in MuJoCo 4, a number
-    before."""
-    try:
-        setattr(joint, name, [value, 0.0, 0.0])
-    except TypeError:
-        setattr(joint, name, value)
+    return benchmark("robots_world").legged_contacts(
+        mujoco, spec, QUADRUPED_STAND, ("abad", "hip_joint", "knee"), "{leg}_foot", kp, kd, radius)
 
 
 def mujoco_state(mod, y):
