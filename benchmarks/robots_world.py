@@ -291,6 +291,7 @@ def set_coefficient(joint, name, value):
 
 
 def rpy_quaternion(roll, pitch, yaw):
+    """The unit quaternion (w, x, y, z), MuJoCo's order, of R = Rz(yaw)·Ry(pitch)·Rx(roll)."""
     cr, sr = np.cos(roll / 2), np.sin(roll / 2)
     cp, sp = np.cos(pitch / 2), np.sin(pitch / 2)
     cy, sy = np.cos(yaw / 2), np.sin(yaw / 2)

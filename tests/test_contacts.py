@@ -311,15 +311,6 @@ def test_solo12_dropped_from_30_cm_lands_on_its_feet_and_rests_with_its_weight_o
 
 
 # -- MuJoCo ----------------------------------------------------------------------------------------
-def rpy_quaternion(roll, pitch, yaw):
-    """The unit quaternion (w, x, y, z) of R = Rz(yaw)·Ry(pitch)·Rx(roll)."""
-    cr, sr = np.cos(roll / 2), np.sin(roll / 2)
-    cp, sp_ = np.cos(pitch / 2), np.sin(pitch / 2)
-    cy, sy = np.cos(yaw / 2), np.sin(yaw / 2)
-    return np.array([cr * cp * cy + sr * sp_ * sy, sr * cp * cy - cr * sp_ * sy,
-                     cr * sp_ * cy + sr * cp * sy, cr * cp * sy - sr * sp_ * cy])
-
-
 def mujoco_quadruped(mujoco, radius=1e-3, kp=8.0, kd=0.5):
     """MuJoCo's model of the same quadruped: a free joint on the trunk, the joints' springs and
     dampers, a sphere of `radius` at each foot and the floor `radius` below z = 0, elliptic
@@ -337,7 +328,7 @@ def mujoco_quadruped(mujoco, radius=1e-3, kp=8.0, kd=0.5):
 def mujoco_state(mod, y):
     """qpos of MuJoCo's quadruped at lagrgen's state y (zero velocities)."""
     q = y[:mod.n_coordinates]
-    return np.concatenate([q[:3], rpy_quaternion(*q[3:6]), q[6:]])
+    return np.concatenate([q[:3], benchmark("robots_world").rpy_quaternion(*q[3:6]), q[6:]])
 
 
 @pytest.mark.skipif(importlib.util.find_spec("mujoco") is None, reason="mujoco is not installed")
