@@ -5,6 +5,7 @@ random evaluation points, and numeric evaluation of SymPy expressions written in
 lagrgen (the README's `pip install .`), whose runtime extension is compiled.
 """
 import functools
+import importlib
 import importlib.util
 from pathlib import Path
 
@@ -20,6 +21,29 @@ BACKENDS = ["python", "c"]
 
 #: SciPy's release series that lagrgen's native engine is a port of (native/README.md).
 SCIPY_PORTED = (1, 17)
+
+
+def benchmark(name):
+    """A module of benchmarks/ (their Pinocchio and MuJoCo comparisons, the robots' folder)."""
+    import sys
+    sys.path.insert(0, str(ROOT / "benchmarks"))
+    try:
+        return importlib.import_module(name)
+    finally:
+        sys.path.pop(0)
+
+
+def robots_dir():
+    """The robots folder of the example-robot-data package, or None when it is not installed."""
+    import importlib.metadata
+    try:
+        files = importlib.metadata.files("example-robot-data") or ()
+    except importlib.metadata.PackageNotFoundError:
+        return None
+    for f in files:
+        if str(f).endswith("robots/solo_description/robots/solo12.urdf"):
+            return Path(f.locate()).parents[2]
+    return None
 
 
 def counts_close(ours, ref, rel=0.05, slack=3):

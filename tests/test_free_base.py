@@ -14,6 +14,7 @@ import pytest
 from scipy.linalg import expm
 
 import lagrgen
+from conftest import benchmark
 from lagrgen.base_state import quaternion_of, quaternion_product
 from lagrgen.urdf import FREE_BASE, rpy_matrix
 
@@ -49,9 +50,10 @@ def brick(out):
 @pytest.fixture(scope="module")
 def quadruped(out):
     """The quadruped with a free base and with a floating one (rigid-body dynamics only)."""
-    free = lagrgen.from_urdf(QUADRUPED, base="free", joint_dynamics=False, name="quad_free")
+    free = lagrgen.from_urdf(QUADRUPED, base="free", joint_dynamics=False, name="quad_free",
+                             limits=False)
     floating = lagrgen.from_urdf(QUADRUPED, base="floating", joint_dynamics=False,
-                                 name="quad_floating")
+                                 name="quad_floating", limits=False)
     return (lagrgen.build(free, out_dir=out, quiet=True),
             lagrgen.build(floating, out_dir=out, quiet=True))
 
@@ -276,17 +278,6 @@ def test_the_free_quadruped_moves_as_the_floating_one_away_from_gimbal_lock(quad
     energies = floating.outputs(0.0, floating_of_free(y, 19))[-3:]
     assert abs(energies[0]) > 1.0
     assert np.allclose(free.outputs(0.0, y)[-3:], energies, rtol=1e-9, atol=1e-9)
-
-
-def benchmark(name):
-    """A module of benchmarks/ (their Pinocchio comparison and robots' folder)."""
-    import importlib
-    import sys
-    sys.path.insert(0, str(ROOT / "benchmarks"))
-    try:
-        return importlib.import_module(name)
-    finally:
-        sys.path.pop(0)
 
 
 def pinocchio_tumble(path, mod, T=1.0):

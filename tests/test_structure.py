@@ -169,7 +169,7 @@ def test_split_standalone_file_is_one_plain_c_unit(split_model, tmp_path):
 STAGES = [
     ("base", ["_version", "errors", "numbers", "names", "caching", "functions", "methods",
               "options", "signals", "toolchain"]),
-    ("description", ["rotation", "bodies3d", "records", "checks", "description"]),
+    ("description", ["rotation", "bodies3d", "records", "links", "checks", "description"]),
     ("derivation", ["calculus", "terms", "frames", "contributions", "lagrange", "nonsmooth", "tree", "tree3d",
                     "free_base", "dimensions"]),
     ("kernels", ["tangents", "hessians", "kernels", "trace", "lean3d"]),
@@ -384,7 +384,7 @@ def test_every_physics_record_has_one_contribution_function():
              if isinstance(cls, type) and dataclasses.is_dataclass(cls)}
     not_physics = {records.ModelSpec, records.Constraint, records.VelocityConstraint,
                    records.ExternalEquations, records.Impact, records.Friction,
-                   records.Segment}
+                   records.Segment, records.LinkFrame}
     assert kinds - not_physics == set(contributions.CONTRIBUTIONS)
     assert len(set(contributions.CONTRIBUTIONS.values())) == len(contributions.CONTRIBUTIONS)
 

@@ -58,8 +58,9 @@ def chain(tmp_path_factory):
 
 
 #: The functions called on the chain: all but the residual's Hessian, a dense (3n)² matrix for
-#: collocation (13 million entries here) from a planar tree's symbolic second derivatives.
-LARGE = [f for f in FUNCTIONS if f.name != "residual_hessian"]
+#: collocation (13 million entries here) from a planar tree's symbolic second derivatives, and the
+#: link functions (the chain has no links).
+LARGE = [f for f in FUNCTIONS if f.name != "residual_hessian" and f.call != "link"]
 
 
 #: Run in a fresh process: every function of the chain at one state, on the main thread and on a
@@ -228,6 +229,8 @@ def driver_source(info, point, k=2):
     def array(values):
         return "{" + ", ".join(repr(float(v)) for v in values) + ", 0.0}"
 
+    n = len(info.coordinates)
+    link_state = list(y[:n + 3]) + [len(info.link_names) - 1]   # [q, point, the last link]
     lines = ["#include <math.h>", "#include <stdio.h>", "#include <stdlib.h>",
              f'#include "{name}_model.h"',
              "static void show(const char *fn, int status, const double *out, int size)",
@@ -236,13 +239,15 @@ def driver_source(info, point, k=2):
              "int main(void)", "{",
              f"    const double y[] = {array(y)}, p[] = {array(p)}, u[] = {array(u)};",
              f"    const double dy[] = {array(np.ravel(dy))}, dp[] = {array(np.ravel(dp))};",
+             f"    const double link_state[] = {array(link_state)};",
              f"    double nan_state[{len(y)}];",
              f"    for (int i = 0; i < {len(y)}; ++i)", "        nan_state[i] = NAN;"]
     for state in ("y", "nan_state"):
         for f in FUNCTIONS:
             size = f.size(dims)
+            at = "link_state" if f.call == "link" and state == "y" else state
             call = (f"{name}_{f.name}({t!r}, {state}, p, u, {k}, dy, dp, out)"
-                    if f.call == "directions" else f"{name}_{f.name}({t!r}, {state}, p, u, out)")
+                    if f.call == "directions" else f"{name}_{f.name}({t!r}, {at}, p, u, out)")
             lines += ["    {", f"        double *out = malloc({max(size, 1)} * sizeof(double));",
                       f"        int status = {call};",
                       f'        show("{f.name}", status, out, status || {state} != y ? 0 : {size});',
@@ -259,9 +264,12 @@ def module_outputs(mod, point, k=2):
              "state": lambda f: f(t, y[:2 * n], p, u),
              "implicit": lambda f: f(q, qd, a, t, p, u),
              "weighted": lambda f: f(q, qd, a, mu, t, p, u),
-             "directions": lambda f: f(t, y[:2 * n], dy, dp, p, u)}
+             "directions": lambda f: f(t, y[:2 * n], dy, dp, p, u),
+             "link": lambda f: f(mod.link_names[-1], q, y[n:n + 3], p)}
     out = {}
     for function in FUNCTIONS:
+        if function.call == "link" and not mod.link_names:
+            continue
         got = calls[function.call](getattr(mod, function.name))
         got = got if isinstance(got, tuple) else (got,)
         out[function.name] = np.concatenate([np.ravel(g) for g in got])
@@ -337,6 +345,9 @@ def test_workspaces_on_the_stack_and_on_the_heap_give_the_same_numbers(tmp_path,
         lines = [line.split() for line in run.stdout.splitlines()]
         assert len(lines) == 2 * len(FUNCTIONS)
         for (name, status, *values), function in zip(lines, FUNCTIONS):
+            if function.call == "link" and not info.link_names:     # none to ask for
+                assert name == function.name and status == "1", (flags, name, status)
+                continue
             assert name == function.name and status == "0", (flags, name, status)
             assert_allclose(np.array(values, float), expected[name], rtol=1e-13,
                             atol=1e-13 * max(1.0, np.abs(expected[name]).max(initial=0.0)),

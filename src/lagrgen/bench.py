@@ -134,7 +134,8 @@ def bench_model(make_model, y0=None, methods=BENCH_METHODS, t_span=(0.0, 10.0), 
 def runnable_methods(mod, methods):
     """(the methods that can solve `mod`, {method: why not} for the others): a model with
     impacts or frictions runs its hybrid solve with the native methods only (not LSODA)."""
-    if not mod.nonsmooth_definitions:
+    from .hybrid import is_hybrid
+    if not is_hybrid(mod):
         return list(methods), {}
     runnable = [m for m in methods if m in NATIVE_METHODS]
     return runnable, {m: "a model with impacts or frictions runs with "

@@ -169,7 +169,29 @@ def model_info(spec, equations, formulation=None):
                                for e in _nonsmooth().describe(spec)],
         inertial_parameters=inertial_parameters(spec),
         initial_state=spec.initial_state, coordinate_limits=spec.limits,
+        link_names=tree_links(equations), limit_stops=limit_stops(spec),
         tree_structure=_tree_structure(equations) if formulation == "recursive" else {})
+
+
+def limit_stops(spec):
+    """The enforced limits of `spec` as (name, coordinate index, sign, bound, restitution): a stop
+    <coordinate>_lower at the lower limit (sign +1), <coordinate>_upper at the upper (−1)."""
+    limits = {name: (lower, upper) for name, lower, upper, *_ in spec.limits}
+    out = []
+    for name, restitution in spec.stops:
+        j = spec.coordinate_names.index(name)
+        for side, sign, bound in (("lower", 1, limits[name][0]), ("upper", -1, limits[name][1])):
+            if bound is not None:
+                out.append((f"{name}_{side}", j, sign, float(bound), float(restitution)))
+    return tuple(out)
+
+
+def tree_links(equations):
+    """The names of the links of a three-dimensional tree (none for any other model)."""
+    from .kernels import has_links
+    from .tree import analysed
+    return tuple(name for name, _ in analysed(equations)[0].links) \
+        if has_links(equations) else ()
 
 
 def _tree_structure(equations):

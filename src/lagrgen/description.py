@@ -53,6 +53,7 @@ class Description:
         self._nonsmooth = []       # Impact / Friction records, in declaration order
         self._initial = None       # {coordinate name: (q0, q̇0)}: the declared initial state
         self._limits = {}          # coordinate name -> (lower, upper, velocity, effort)
+        self._stops = {}           # coordinate name -> restitution of its enforced range
         self._stabilization = BAUMGARTE_DEFAULTS
         self._kinematics = {}      # orientation → bodies3d.Kinematics, computed once each
 
@@ -293,7 +294,7 @@ class Description:
         return (shape[0],) + tuple(self._check(v, f"{shape[0]} size", velocities=False,
                                                inputs=False) for v in shape[1:])
 
-    def rigid_body_3d(self, mass, inertia, position, orientation):
+    def rigid_body_3d(self, mass, inertia, position, orientation, name=None):
         """Rigid body in space: T += ½·mass·ṙ·ṙ + ½·ωᵀ·I·ω, with ω the body-frame angular velocity
         (ω̃ = Rᵀ·Ṙ) of the orientation R.
 
@@ -305,8 +306,15 @@ class Description:
         position : 3 components, the centre of mass in the fixed frame (coordinates, t).
         orientation : 3×3 rotation matrix R(q, t) mapping body-frame components to fixed-frame
             ones, best built from `lagrgen.rotation` (``rotation.z(psi) * rotation.x(theta)``).
+        name : str, optional, the body's name as a link (`link_position`; default body<k>, k
+            counting the 3-D bodies in declaration order).
         """
         from .bodies3d import body_inertia
+        if name is not None:
+            check_name(name, "rigid_body_3d name")
+            if name in self.link_names:
+                raise ModelError(f"rigid_body_3d: model {self.name!r} already has a link "
+                                 f"{name!r}")
         mass = self._check(mass, "rigid body mass", velocities=False, inputs=False)
         inertia = body_inertia(self, inertia)
         position = self._check(as_vector(position, "rigid body position"), "rigid body position",
@@ -317,7 +325,50 @@ class Description:
         kin = self._orientation(orientation, "rigid_body_3d orientation")
         self._drawables.append(("body3d", (position, kin.R)))
         self._add(Body3D(mass, frozen(position), frozen(inertia), frozen(kin.omega), frozen(kin.R),
-                          frozen(kin.omega_fixed)))
+                          frozen(kin.omega_fixed), name))
+
+    @property
+    def link_names(self):
+        """The model's links: a URDF robot's links, then its `rigid_body_3d` bodies (named, or
+        body<k>), in order."""
+        from .links import link_names
+        return link_names(self._physics)
+
+    def link_position(self, link, point=(0, 0, 0)):
+        """The position in the fixed frame of a point fixed in a link.
+
+        Parameters
+        ----------
+        link : str, one of `link_names` (a URDF link, or a rigid_body_3d's name)
+        point : 3 numbers or parameter expressions, the point in the link's frame (a URDF
+            link's frame; a rigid_body_3d's frame is at its centre of mass, along its body axes)
+
+        Returns
+        -------
+        sympy.Matrix (3×1): p_link + R_link·point in the model's symbols
+        """
+        from .links import pose
+        R, p = pose(self._physics, link, self.name)
+        return p + R * self._link_point(point)
+
+    def link_rotation(self, link):
+        """The orientation of a link's frame in the fixed frame: the 3×3 SymPy Matrix R with
+        x_fixed = R·x_link."""
+        from .links import pose
+        return pose(self._physics, link, self.name)[0]
+
+    def _link_point(self, point):
+        """`point` as a 3×1 Matrix of constants (numbers and parameters)."""
+        where = "link point"
+        point = self._check(as_vector(point, where), where, velocities=False, inputs=False,
+                            vector=True)
+        if len(point) != 3:
+            raise ModelError(f"a {where} has 3 components (x, y, z in the link's frame), got "
+                             f"{len(point)}")
+        if any(point.has(c) for c in self._coordinates):
+            raise ModelError(f"a {where} is fixed in its link: it must not depend on the "
+                             "coordinates")
+        return point
 
     def torque_3d(self, moment, orientation):
         """A moment acting on the body of orientation R: Q_j += moment · ∂ω_fixed/∂q̇_j.
@@ -481,7 +532,8 @@ class Description:
         pairs = [self._initial.get(c, (0.0, 0.0)) for c in names]
         return tuple(q for q, _ in pairs) + tuple(qd for _, qd in pairs)
 
-    def limit(self, coordinate, lower=None, upper=None, velocity=None, effort=None):
+    def limit(self, coordinate, lower=None, upper=None, velocity=None, effort=None,
+              enforce=False, restitution=0.0):
         """Declare a coordinate's limits: its range lower ≤ q ≤ upper, its largest speed
         abs(q̇) ≤ velocity and the largest effort abs(tau_<coordinate>) ≤ effort of the input that
         drives it (a URDF joint's <limit>); None leaves one out. Each call replaces that
@@ -493,6 +545,14 @@ class Description:
         coordinate : str or the function `model.coordinates` returned
         lower, upper : float or None, lower ≤ upper
         velocity, effort : float ≥ 0 or None
+        enforce : bool
+            True: the range acts in simulations as two unilateral contacts, stops named
+            <coordinate>_lower (gap q − lower) and <coordinate>_upper (gap upper − q), struck
+            with the `restitution` (0: inelastic; a stop reached at rest holds the coordinate
+            there until the force on it pulls away), as `impact`s in `simulate` and
+            `simulate_many` on both engines. Other tools (linearization, collocation, FMUs,
+            sensitivities) see the model without its stops.
+        restitution : float in [0, 1], the stops' coefficient of restitution
         """
         name = self._limited_coordinate(coordinate)
         values = [_limit_value(v, what, name) for what, v in
@@ -506,7 +566,20 @@ class Description:
                 raise ModelError(f"limit({name!r}, {what}={v}): a {what} limit bounds abs({what}) "
                                  "and must not be negative")
         self._limits[name] = tuple(values)
+        self._stops.pop(name, None)
+        if enforce:
+            e = finite_number(restitution, f"limit({name!r}) restitution", ModelError)
+            if not 0.0 <= e <= 1.0:
+                raise ModelError(f"limit({name!r}, restitution={e}): a restitution is between 0 "
+                                 "and 1")
+            if low is not None or high is not None:
+                self._stops[name] = e
         self._changed()
+
+    @property
+    def stops(self):
+        """{coordinate name: restitution} of the limits enforced in simulations (`limit`)."""
+        return {c: self._stops[c] for c in self.coordinate_names if c in self._stops}
 
     def _limited_coordinate(self, coordinate):
         """The name of `coordinate` (a name or the function `coordinates` returned)."""
@@ -577,11 +650,22 @@ class Description:
         defaults to mu). `normal_force` is an expression
         or the name of a constraint or impact whose multiplier is N: write that constraint or gap
         as a signed distance (a gradient of unit length, e.g. x·sin α + y·cos α for a slope), so
-        that its multiplier is a force; likewise v should be the sliding speed itself."""
+        that its multiplier is a force; likewise v should be the sliding speed itself.
+
+        A slip velocity of two components (v1, v2), the velocities along two orthogonal unit
+        directions of a plane, is isotropic friction in that plane: while slipping a force
+        −mu·abs(N)·v/‖v‖ (each component along its ∂v_i/∂q̇); v = 0 held while the force that
+        takes is at most mu_static·abs(N) in norm (a friction disk). Its normal force named as an
+        impact, it acts only while that contact is held (its mode is "open" otherwise).
+        `ground_contact` declares one with its impact."""
         check_name(name, "friction name")
         where = f"friction {name}"
-        v = check_affine_in_velocities(
-            self._check(slip_velocity, where, inputs=False), self.qd, where)
+        if isinstance(slip_velocity, (list, tuple, sp.MatrixBase)) and len(slip_velocity) == 2:
+            v = frozen([check_affine_in_velocities(self._check(c, where, inputs=False), self.qd,
+                                                   where) for c in slip_velocity])
+        else:
+            v = check_affine_in_velocities(self._check(slip_velocity, where, inputs=False),
+                                           self.qd, where)
         if isinstance(normal_force, str):
             check_name(normal_force, "normal_force name")
             normal = normal_force
@@ -595,6 +679,49 @@ class Description:
         self._declare(name, "friction")
         self._nonsmooth.append(Friction(name, v, normal, mu, mu_s))
         self._changed()
+
+    def ground_contact(self, name, link, point=(0, 0, 0), mu=1.0, restitution=0.0, height=0.0,
+                       normal=(0, 0, 1)):
+        """A point fixed in a link against the plane normal·x = height: the impact
+        `name` on the gap normal·x − height (x = `link_position(link, point)`, the normal made a
+        unit vector) with the `restitution`, and, when mu is not 0, isotropic Coulomb friction in
+        the plane, the friction `<name>_friction` on the point's velocity along two unit tangents
+        t1, t2 (t1 the fixed x axis projected onto the plane, or y when the normal is along x;
+        t2 = normal × t1), its normal force the contact's (`friction` with two components).
+
+        Parameters
+        ----------
+        name : str, the contact's name (its impact; the friction is <name>_friction)
+        link : str, one of `link_names`
+        point : 3 numbers or parameter expressions in the link's frame
+        mu : friction coefficient (a number ≥ 0 or an expression of parameters); static and
+            kinetic alike
+        restitution : number in [0, 1] or an expression of parameters
+        height : the plane's offset along the normal (a number or parameter expression)
+        normal : 3 numbers, the plane's normal (pointing out of the ground)
+        """
+        where = f"ground contact {name}"
+        x = self.link_position(link, point)
+        n, t1, t2 = plane_axes(normal, name)
+        mu = check_coefficient(self._check(mu, where + " mu", velocities=False, inputs=False),
+                               where, "mu")
+        frictional = not (mu.is_number and float(mu) == 0.0)
+        for taken in (name, f"{name}_friction") if frictional else (name,):
+            check_name(taken, "ground contact name")
+            if taken in self._names:
+                raise ModelError(f"{where}: the name {taken!r} is already used for the "
+                                 f"{self._names[taken]} of model {self.name!r}")
+        gap = (n.T * x)[0, 0] - self._check(height, where + " height", velocities=False,
+                                             inputs=False)
+        self.impact(name, gap, restitution)
+        plane = ("ground", (tuple(float(v) for v in n), self._check(
+            height, where + " height", velocities=False, inputs=False)))
+        if plane not in self._drawables:
+            self._drawables.append(plane)
+        self._drawables.append(("point", (x, sp.Integer(0))))
+        if frictional:
+            xd = x.diff(self.t)
+            self.friction(f"{name}_friction", [(t1.T * xd)[0, 0], (t2.T * xd)[0, 0]], name, mu)
 
     @property
     def nonsmooth(self):
@@ -715,7 +842,35 @@ def _frozen_spec(description):
         constraint_names=d.constraint_names, stabilization=d._stabilization,
         events=tuple(d._events), nonsmooth=tuple(d._nonsmooth),
         initial_state=d.initial_values,
-        limits=tuple((name, *values) for name, values in d.limits.items()))
+        limits=tuple((name, *values) for name, values in d.limits.items()),
+        stops=tuple(d.stops.items()))
+
+
+def plane_axes(normal, name):
+    """(n, t1, t2): the unit `normal` of a ground contact's plane and two unit tangents, t1 the
+    fixed x axis projected on the plane (y when the normal is along x), t2 = n × t1 (SymPy
+    3×1 matrices of floats, integers where exact)."""
+    try:
+        values = [float(v) for v in normal]
+    except (TypeError, ValueError):
+        raise ModelError(f"ground contact {name}: normal must be 3 numbers, got {normal!r}") \
+            from None
+    norm = math.sqrt(sum(v * v for v in values))
+    if len(values) != 3 or not math.isfinite(norm) or norm == 0.0:
+        raise ModelError(f"ground contact {name}: normal must be 3 finite numbers, not all 0, "
+                         f"got {normal!r}")
+    n = [v / norm for v in values]
+    axis = [1.0, 0.0, 0.0] if abs(n[0]) < 0.9 else [0.0, 1.0, 0.0]
+    along = sum(a * b for a, b in zip(axis, n))
+    t1 = [a - along * b for a, b in zip(axis, n)]
+    size = math.sqrt(sum(v * v for v in t1))
+    t1 = [v / size for v in t1]
+    t2 = [n[1] * t1[2] - n[2] * t1[1], n[2] * t1[0] - n[0] * t1[2], n[0] * t1[1] - n[1] * t1[0]]
+
+    def exact(v):
+        return sp.Matrix([sp.Integer(int(x)) if float(x).is_integer() else sp.Float(x)
+                          for x in v])
+    return exact(n), exact(t1), exact(t2)
 
 
 def _limit_value(value, what, name):

@@ -23,6 +23,7 @@ from typing import Optional
 import numpy as np
 
 from .errors import LagrgenError, near_singular_limit, warn_near_singular
+from .hybrid import force_names, is_hybrid
 from .methods import BY_NAME
 from .native.engine import _event_arrays, _tolerances, native_events, native_reason
 from .options import check_run_options as checked_options
@@ -445,7 +446,7 @@ def batch_reason(mod, method, options, sensitivities=()):
     why = native_reason(mod, method, None, None, rest)
     if why:
         return why
-    if mod.nonsmooth_definitions:
+    if is_hybrid(mod):
         return "the transitions of a non-smooth model are collected per run"
     return None
 
@@ -516,7 +517,7 @@ def simulate_many(mod, t_span, y0=None, params=None, inputs=None, t_eval=None, m
     runs = len(Y0)
     if runs == 0:
         raise ValueError("simulate_many needs at least one run")
-    if mod.nonsmooth_definitions:
+    if is_hybrid(mod):
         check_starts(mod, t0, Y0, P, run_inputs, options.get("gap_tol"))
     sensitivities = sensitivity_names(mod, sensitivities, options)
     why_not = batch_reason(mod, method, options, sensitivities) if mod.backend == "c" else \
@@ -585,15 +586,13 @@ def check_starts(mod, t0, Y0, P, run_inputs, gap_tol=None):
 def multiplier_names(mod):
     """The rows of an ensemble's `multipliers`: the model's constraints, then (a model with
     impacts or frictions) each impact's contact force and each friction's force."""
-    return tuple(mod.constraint_names) + tuple(
-        d[0] for kind in ("impact", "friction") for d in mod.nonsmooth_definitions
-        if d[1] == kind)
+    return tuple(mod.constraint_names) + (force_names(mod) if is_hybrid(mod) else ())
 
 
 def run_multipliers(mod, sol):
     """The `multiplier_names(mod)` rows of one run's result."""
     rows = [sol.constraint_forces] if mod.n_constraints else []
-    if mod.nonsmooth_definitions:
+    if is_hybrid(mod):
         rows.append(sol.contact_forces)
     return np.concatenate(rows)
 
@@ -606,7 +605,8 @@ def ensemble_meta(mod, plan, P):
             "parameters": tuple(mod.parameters), "params": P, "t": plan.t_eval,
             "output_names": tuple(mod.output_names) if plan.outputs else (),
             "constraint_names": multiplier_names(mod),
-            "elements": tuple(d[0] for d in mod.nonsmooth_definitions),
+            "elements": tuple(d[0] for d in mod.nonsmooth_definitions) + tuple(
+                stop[0] for stop in mod.info.limit_stops),
             "units": dict(mod.units), "sensitivity_names": plan.sensitivities,
             "method": getattr(plan.method, "__name__", str(plan.method)),
             "rtol": float(np.max(plan.rtol)), "atol": float(np.max(plan.atol))}

@@ -25,6 +25,7 @@ from dataclasses import dataclass
 import symengine as se
 
 from .calculus import rate
+from .rotation import quaternion_matrix
 
 ZERO = se.Integer(0)
 
@@ -110,19 +111,6 @@ def quaternion_product(a, b):
 def conjugate(a):
     """ζ* = (−x, −y, −z, w)."""
     return [-a[0], -a[1], -a[2], a[3]]
-
-
-def quaternion_matrix(z, homogeneous=False):
-    """R = R_h(ζ)/|ζ|²: the rotation of the direction of the quaternion ζ = (x, y, z, w) (3×3
-    lists; `homogeneous`: R_h(ζ) = |ζ|²·R, quadratic in ζ; any ring's symbols, SymPy's too)."""
-    x, y, z_, w = z
-    R = [[w * w + x * x - y * y - z_ * z_, 2 * (x * y - w * z_), 2 * (x * z_ + w * y)],
-         [2 * (x * y + w * z_), w * w - x * x + y * y - z_ * z_, 2 * (y * z_ - w * x)],
-         [2 * (x * z_ - w * y), 2 * (y * z_ + w * x), w * w - x * x - y * y + z_ * z_]]
-    if homogeneous:
-        return R
-    n2 = x * x + y * y + z_ * z_ + w * w
-    return [[e / n2 for e in row] for row in R]
 
 
 def quaternion_rate(z, zd, body=False):

@@ -23,6 +23,8 @@ CALL_STYLES = {
     "state": ("t", "y"),        # f(t, y, p=None, u=None)
     "directions": ("t", "y", "dy", "dp"),   # f(t, y, dy, dp=None, p=None, u=None)
     "implicit": ("q", "qd", "a", "t"),   # f(q, qd, a, t=0.0, p=None, u=None), a = [q̈, λ]
+    "link": ("link", "q", "point"),      # f(link, q, point=(0, 0, 0), p=None); in C
+                                         # y = [q, point, the link's index]
     "weighted": ("q", "qd", "a", "mu", "t"),   # f(q, qd, a, mu, t=0.0, p=None, u=None): weights
                                                # mu of the implicit form's rows; y = [q, q̇, a, mu]
 }
@@ -39,7 +41,7 @@ class Output:
 #: label is a unit compiled on first use into its own module, `<model>_<label>` (lagrgen.units):
 #: "parameters" (the parameter Jacobian), "directions" (the directional derivatives of the
 #: sensitivities), "manifold" (the constraint residuals' Jacobian of the linearization), "hessian"
-#: (the residual's second derivatives, for collocation).
+#: (the residual's second derivatives, for collocation), "links" (link poses and Jacobians).
 MODEL_UNIT = "model"
 
 
@@ -150,6 +152,14 @@ FUNCTIONS = (
                   "Y(q, q̇, q̈) with M·q̈ − F = Y·π for the bodies' inertial parameters π "
                   "(inertial_parameters; forces of inputs, springs and dampers left out): "
                   "∂(M·q̈ − F)/∂π", ("parameter_b", "body_poses"), "regressor"),
+    ModelFunction("link_pose", "link", (Output("position", ("3",)), Output("rotation", ("3", "3"))),
+                  "the world position p + R·point of a point fixed in a link and the link's "
+                  "rotation R (x_world = R·x_link), from the tree's link frames",
+                  ("link_frames",), "links"),
+    ModelFunction("link_jacobian", "link", (Output("J", ("6", "n")),),
+                  "J with [velocity of the point; angular velocity of the link] = J·q̇, world "
+                  "axes: the columns of the joints above the link, [v_j + ω_j × x; ω_j] from "
+                  "their twists [ω_j; v_j]", ("link_frames",), "links"),
     ModelFunction("residual_parameter_jacobian", "implicit",
                   (Output("dr_dp", ("n_implicit", "n_params")),),
                   "∂r/∂p of r = [M·q̈ − F − Aᵀλ; A·q̈ − γ] at a given a = [q̈, λ]",
@@ -172,7 +182,8 @@ def functions_of(unit):
 #: scleronomic model with R quadratic in q̇.
 POWER_TERMS = ("input_power", "rayleigh_dissipation")
 
-#: Entries of `hybrid_terms`' `terms` per impact and per friction, beside the n of its gradient
-#: (the layout is in `lagrgen.nonsmooth`).
-HYBRID_FIELDS = {"impact": 4, "friction": 5}
+#: Entries of `hybrid_terms`' `terms` per impact and per friction, beside the n of each of its
+#: HYBRID_GRADIENTS gradients (the layout is in `lagrgen.nonsmooth`).
+HYBRID_FIELDS = {"impact": 4, "friction": 5, "planar_friction": 7}
+HYBRID_GRADIENTS = {"impact": 1, "friction": 1, "planar_friction": 2}
 

@@ -64,12 +64,25 @@ PGS_SWEEPS = 200
 STALL_SEGMENTS = 100
 
 
+class Solution(tuple):
+    """What `HybridSystem.solve` returns: the tuple (q̈, λ of the impacts, λ of the frictions, N
+    of the frictions, (M, A, impact rows, friction rows)[, λ of the constraints]), and the planar
+    frictions' part as attributes: `planar_force` (npf × 2: the sticking multipliers, or
+    −μ·N·û while slipping), `planar_normal` (npf), `planar_rows` (npf × (7 + 2n)) and
+    `planar_slip` (npf × 2: v)."""
+    planar_force = planar_normal = planar_rows = planar_slip = None
+
+
 class HybridSystem:
     """The impacts and frictions of a built model, assembled for one mode at a state.
 
+    The impacts are the model's (`model.impact`) and then its enforced limits' stops
+    (`mod.info.limit_stops`: gap sign·(q_j − bound), whose rows this class writes itself).
+    Elements are numbered impacts, frictions, planar frictions (events and transitions).
+
     Parameters
     ----------
-    mod : built model with impacts or frictions (`mod.nonsmooth_definitions`)
+    mod : built model with impacts, frictions or stops
     p : parameter vector
     u_at : t -> input vector
     """
@@ -79,38 +92,58 @@ class HybridSystem:
         self.n = n = mod.n_coordinates
         self.m = mod.n_constraints
         defs = mod.nonsmooth_definitions
-        self.names = [d[0] for d in defs]
-        self.impacts = [d for d in defs if d[1] == "impact"]
+        self.stops = tuple(mod.info.limit_stops)
+        self.impacts = [d for d in defs if d[1] == "impact"] + \
+            [(s[0], "impact", None) for s in self.stops]
         self.frictions = [d for d in defs if d[1] == "friction"]
-        self.ni, self.nf = len(self.impacts), len(self.frictions)
+        self.planars = [d for d in defs if d[1] == "planar_friction"]
+        self.names = [d[0] for d in self.impacts + self.frictions + self.planars]
+        self.ni, self.nf, self.npf = len(self.impacts), len(self.frictions), len(self.planars)
+        self.n_model_impacts = self.ni - len(self.stops)
         self.normal = [d[2] for d in self.frictions]
-        self.n_events = self.ni + self.nf
+        self.planar_normal = [d[2] for d in self.planars]
+        self.n_events = self.ni + self.nf + self.npf
         self._impact_size, self._friction_size = 4 + n, 5 + n
+        self._planar_size = 7 + 2 * n
 
     # -- the model's terms ----------------------------------------------------------------------
     def terms(self, t, y):
         """(M, F, A, γ, impacts, frictions) at (t, y): impacts (ni, 4 + n) rows [g, ġ, γ, e, W],
-        frictions (nf, 5 + n) rows [v, γ, μ, μ_s, N, w]."""
-        M, F, A, gamma, terms = self.mod.hybrid_terms(t, y, self.p, self.u_at(t))
-        k = self.ni * self._impact_size
-        impacts = terms[:k].reshape(self.ni, self._impact_size)
-        frictions = terms[k:].reshape(self.nf, self._friction_size)
-        return M, F, A, gamma, impacts, frictions
+        the stops' after the model's; frictions (nf, 5 + n) rows [v, γ, μ, μ_s, N, w]."""
+        return self.all_terms(t, y)[:6]
 
-    def solve(self, t, y, contact, slip, constraint_forces=False):
+    def all_terms(self, t, y):
+        """`terms` and the planar frictions' rows (npf, 7 + 2n) [v1, v2, γ1, γ2, μ, μ_s, N, w1,
+        w2]."""
+        n = self.n
+        M, F, A, gamma, terms = self.mod.hybrid_terms(t, y, self.p, self.u_at(t))
+        k = self.n_model_impacts * self._impact_size
+        impacts = terms[:k].reshape(self.n_model_impacts, self._impact_size)
+        if self.stops:
+            impacts = np.vstack([impacts, stop_rows(self.stops, y, n)])
+        frictions = terms[k:k + self.nf * self._friction_size].reshape(self.nf,
+                                                                       self._friction_size)
+        planars = terms[k + self.nf * self._friction_size:].reshape(self.npf, self._planar_size)
+        return M, F, A, gamma, impacts, frictions, planars
+
+    def solve(self, t, y, contact, slip, constraint_forces=False, planar=None):
         """Accelerations and forces in the mode (contact: bool per impact; slip: per friction
-        +1/−1 slipping in that direction, 0 sticking).
+        +1/−1 slipping in that direction, 0 sticking; planar: (per planar friction −1 inactive,
+        0 sticking, 1 slipping; its anchor direction d) or None for all inactive).
 
         Returns
         -------
-        (q̈, λ of the impacts (0 where open), λ of the frictions (0 where slipping), N of the
-        frictions, the terms), and with `constraint_forces` also λ of the model's constraints
+        `Solution`: (q̈, λ of the impacts (0 where open), λ of the frictions (0 where
+        slipping), N of the frictions, the terms), and with `constraint_forces` also λ of the
+        model's constraints
         """
         n, m = self.n, self.m
-        M, F, A, gamma, imp, fr = self.terms(t, y)
+        M, F, A, gamma, imp, fr, pf = self.all_terms(t, y)
+        pmode, anchor = planar if planar is not None else ((-1,) * self.npf, ((1.0, 0.0),) *
+                                                            self.npf)
         rows = [A[k] for k in range(m)]
         rhs = list(gamma)
-        impact_row, friction_row = {}, {}
+        impact_row, friction_row, planar_row = {}, {}, {}
         for i in range(self.ni):
             if contact[i]:
                 impact_row[i] = len(rows)
@@ -121,70 +154,90 @@ class HybridSystem:
                 friction_row[j] = len(rows)
                 rows.append(fr[j, 5:])
                 rhs.append(fr[j, 1])
+        for k in range(self.npf):
+            if pmode[k] == 0:
+                planar_row[k] = len(rows)
+                rows += [pf[k, 7:7 + n], pf[k, 7 + n:]]
+                rhs += [pf[k, 2], pf[k, 3]]
         r = len(rows)
         R = np.array(rows).reshape(r, n)
         force = F.copy()
-        linked = []            # (friction j, row of its normal force, −μ·s)
+        linked = []            # (row of the normal force, its force per unit |N|)
         for j in range(self.nf):
             if slip[j] == 0:
                 continue
             c = -fr[j, 2] * slip[j]
-            row = self._normal_row(j, impact_row)
+            row = self._normal_row(self.normal[j], impact_row)
             if row is None:
                 if self.normal[j] is None:
                     force += c * abs(fr[j, 4]) * fr[j, 5:]
             else:
-                linked.append((j, row, c))
+                linked.append((row, c * fr[j, 5:]))
+        directions = np.zeros((self.npf, 2))
+        for k in range(self.npf):
+            if pmode[k] != 1:
+                continue
+            directions[k] = slip_direction(pf[k, :2], anchor[k])
+            per_unit = -pf[k, 4] * (directions[k, 0] * pf[k, 7:7 + n]
+                                    + directions[k, 1] * pf[k, 7 + n:])
+            row = self._normal_row(self.planar_normal[k], impact_row)
+            if row is None:
+                if self.planar_normal[k] is None:
+                    force += abs(pf[k, 6]) * per_unit
+            else:
+                linked.append((row, per_unit))
+        regularized = np.arange(r) >= m
         sigma = np.ones(r)
         for _ in range(4):
-            K = np.zeros((n + r, n + r))
-            K[:n, :n] = M
-            K[:n, n:] = -R.T
-            K[n:, :n] = R
-            for j, row, c in linked:
-                K[:n, n + row] -= c * sigma[row] * fr[j, 5:]
-            x = np.linalg.solve(K, np.concatenate([force, rhs]))
-            lam = x[n:]
+            B = R.T.copy()
+            for row, per_unit in linked:
+                B[:, row] += sigma[row] * per_unit
+            qdd, lam = saddle_solve(M, R, B, force, np.array(rhs, dtype=float), regularized)
             new_sigma = np.where(lam < 0, -1.0, 1.0)
-            if all(new_sigma[row] == sigma[row] for _, row, _ in linked):
+            if all(new_sigma[row] == sigma[row] for row, _ in linked):
                 break
             sigma = new_sigma
-        qdd = x[:n]
         lam_impact = np.array([lam[impact_row[i]] if i in impact_row else 0.0
                                for i in range(self.ni)])
         lam_friction = np.array([lam[friction_row[j]] if j in friction_row else 0.0
                                  for j in range(self.nf)])
-        normal = np.empty(self.nf)
-        for j in range(self.nf):
-            row = self._normal_row(j, impact_row)
-            normal[j] = abs(lam[row]) if row is not None else (
-                abs(fr[j, 4]) if self.normal[j] is None else 0.0)
-        if constraint_forces:
-            return qdd, lam_impact, lam_friction, normal, (M, A, imp, fr), lam[:m].copy()
-        return qdd, lam_impact, lam_friction, normal, (M, A, imp, fr)
+        normal = np.array([self._normal_value(self.normal[j], fr[j, 4], impact_row, lam)
+                           for j in range(self.nf)])
+        out = Solution((qdd, lam_impact, lam_friction, normal, (M, A, imp, fr)) +
+                       ((lam[:m].copy(),) if constraint_forces else ()))
+        out.planar_normal = np.array([self._normal_value(self.planar_normal[k], pf[k, 6],
+                                                         impact_row, lam)
+                                      for k in range(self.npf)])
+        out.planar_force = np.array([lam[planar_row[k]:planar_row[k] + 2] if k in planar_row
+                                     else -pf[k, 4] * out.planar_normal[k] * directions[k]
+                                     for k in range(self.npf)]).reshape(self.npf, 2)
+        out.planar_rows, out.planar_slip = pf, pf[:, :2]
+        return out
 
-    def forces(self, t, y, contact, slip):
+    def forces(self, t, y, contact, slip, planar=None):
         """The forces of the mode at (t, y): λ of the model's constraints, then each impact's
         contact force (its multiplier; 0 while open), then each friction's force along its slip
-        direction (the sticking multiplier, or −μ·|N|·s while slipping); NaN where the mode
-        equations are singular."""
+        direction (the sticking multiplier, or −μ·|N|·s while slipping), then each planar
+        friction's two components; NaN where the mode equations are singular."""
         try:
-            _, lam_i, lam_f, normal, (_, _, _, fr), lam_m = self.solve(t, y, contact, slip, True)
+            out = self.solve(t, y, contact, slip, True, planar)
         except np.linalg.LinAlgError:
-            return np.full(self.m + self.ni + self.nf, np.nan)
+            return np.full(self.m + self.ni + self.nf + 2 * self.npf, np.nan)
+        _, lam_i, lam_f, normal, (_, _, _, fr), lam_m = out
         along = [lam_f[j] if slip[j] == 0 else -fr[j, 2] * slip[j] * normal[j]
                  for j in range(self.nf)]
-        return np.concatenate([lam_m, lam_i, along])
+        return np.concatenate([lam_m, lam_i, along, out.planar_force.ravel()])
 
     def active(self, j, contact):
-        """Whether friction j acts in a mode with these contacts: not while its normal force is
-        the multiplier of an open contact (N = 0: no force, no sticking, no events)."""
-        ref = self.normal[j]
-        return ref is None or ref[0] != "impact" or bool(contact[ref[1]])
+        """Whether friction j acts in a mode with these contacts (`acts`)."""
+        return acts(self.normal[j], contact)
 
-    def _normal_row(self, j, impact_row):
-        """The row of R whose multiplier is friction j's normal force, or None."""
-        ref = self.normal[j]
+    def planar_active(self, k, contact):
+        """Whether planar friction k acts in a mode with these contacts (`acts`)."""
+        return acts(self.planar_normal[k], contact)
+
+    def _normal_row(self, ref, impact_row):
+        """The row of R whose multiplier is a friction's normal force (`ref`), or None."""
         if ref is None:
             return None
         kind, k = ref
@@ -192,23 +245,41 @@ class HybridSystem:
             return k
         return impact_row.get(k)
 
-    def rhs(self, t, y, contact, slip):
+    def _normal_value(self, ref, expression, impact_row, lam):
+        """A friction's normal force: abs(λ) of its row, abs(the expression), or 0 (its
+        contact is open)."""
+        row = self._normal_row(ref, impact_row)
+        if row is not None:
+            return abs(lam[row])
+        return abs(expression) if ref is None else 0.0
+
+    def rhs(self, t, y, contact, slip, planar=None):
         """ẏ = [q̇, q̈] in the mode."""
-        qdd = self.solve(t, y, contact, slip)[0]
+        qdd = self.solve(t, y, contact, slip, planar=planar)[0]
         return np.concatenate([y[self.n:], qdd])
 
-    def events(self, t, y, contact, slip):
-        """The event values of the mode, all falling through zero at a switch: g (open), λ
-        (contact), s·v (slipping), μ_s·|N| − |λ| (sticking); 1 for a friction whose contact is
-        open (it has none)."""
-        _, lam_i, lam_f, normal, (_, _, imp, fr) = self.solve(t, y, contact, slip)
+    def events(self, t, y, contact, slip, planar=None, offsets=None):
+        """The event values of the mode, all falling through zero at a switch: g (open; g plus
+        its offset for a contact left open at rest at its surface, see `Switching._touching`),
+        λ (contact), s·v (slipping), μ_s·|N| − |λ| (sticking); for a planar friction
+        μ_s·|N| − ‖λ‖ (sticking), d·v (slipping along its anchor d); 1 for a friction
+        of either kind whose contact is open (it has none)."""
+        out = self.solve(t, y, contact, slip, planar=planar)
+        _, lam_i, lam_f, normal, (_, _, imp, fr) = out
         values = np.empty(self.n_events)
         for i in range(self.ni):
-            values[i] = lam_i[i] if contact[i] else imp[i, 0]
+            values[i] = lam_i[i] if contact[i] else imp[i, 0] + (
+                0.0 if offsets is None else offsets[i])
         for j in range(self.nf):
             values[self.ni + j] = (1.0 if not self.active(j, contact)
                                    else fr[j, 3] * normal[j] - abs(lam_f[j]) if slip[j] == 0
                                    else slip[j] * fr[j, 0])
+        pmode, anchor = planar if planar is not None else ((-1,) * self.npf, None)
+        for k in range(self.npf):
+            values[self.ni + self.nf + k] = (
+                1.0 if pmode[k] < 0 else
+                out.planar_rows[k, 5] * out.planar_normal[k] - np.hypot(*out.planar_force[k])
+                if pmode[k] == 0 else np.dot(anchor[k], out.planar_slip[k]))
         return values
 
     # -- the reset map --------------------------------------------------------------------------
@@ -221,18 +292,35 @@ class HybridSystem:
         X = Minv @ A.T
         return Minv - X @ np.linalg.solve(A @ X, X.T)
 
-    def impact(self, t, y, contact, closing, rebound):
+    def impact(self, t, y, contact, closing, rebound, planar=None):
         """q̇⁺ by the generalized Newton law (see the module) for the closing impacts (indices)
-        and the held ones; `rebound` gives e per closing impact. Returns (y⁺, ġ⁻ of each
-        closing impact)."""
+        and the held ones; `rebound` gives e per closing impact. The planar frictions of those
+        contacts that act or will act (whose normal force is one of them) take tangential
+        impulses within their friction disks, μ times the normal impulse (Coulomb's law for
+        impulses: sticking where it can). Returns (y⁺, ġ⁻ of each closing impact)."""
         involved = list(closing) + [i for i in range(self.ni) if contact[i] and i not in closing]
         e = np.array([rebound[i] if i in closing else 0.0 for i in involved])
-        before, PW, D = self.delassus(t, y, involved)
-        target = -e * np.minimum(before, 0.0)
-        impulse = projected_gauss_seidel(D, before, target)
+        M, _, A, _, imp, _, pf = self.all_terms(t, y)
+        n = self.n
+        W = [imp[i, 4:] for i in involved]
+        before = [imp[i, 1] for i in involved]
+        target = list(-e * np.minimum(before, 0.0))
+        cones = []
+        for k in range(self.npf):
+            ref = self.planar_normal[k]
+            if ref is None or ref[0] != "impact" or ref[1] not in involved:
+                continue
+            cones.append((involved.index(ref[1]), len(W), len(W) + 1, pf[k, 4]))
+            W += [pf[k, 7:7 + n], pf[k, 7 + n:]]
+            before += [pf[k, 0], pf[k, 1]]
+            target += [0.0, 0.0]
+        W = np.array(W).reshape(len(W), n)
+        PW = self.inverse_mass(M, A) @ W.T
+        impulse = projected_gauss_seidel(W @ PW, np.array(before), np.array(target),
+                                         cones=cones)
         y_plus = y.copy()
-        y_plus[self.n:] = y[self.n:] + PW @ impulse
-        return y_plus, before[:len(closing)]
+        y_plus[n:] = y[n:] + PW @ impulse
+        return y_plus, np.array(before[:len(closing)])
 
     def delassus(self, t, y, rows):
         """(ġ, P·Wᵀ, D = W·P·Wᵀ) of the impacts `rows` at (t, y): a generalized impulse Λ along
@@ -244,10 +332,10 @@ class HybridSystem:
 
     def hold(self, t, y, rows):
         """y after the inelastic impulses that set ġ = 0 for the impacts `rows` (held
-        contacts): D·Λ = −ġ, q̇⁺ = q̇ + P·Wᵀ·Λ."""
+        contacts): D·Λ = −ġ (the least-norm impulses of redundant contacts), q̇⁺ = q̇ + P·Wᵀ·Λ."""
         before, PW, D = self.delassus(t, y, rows)
         y_plus = y.copy()
-        y_plus[self.n:] = y[self.n:] + PW @ np.linalg.solve(D, -before)
+        y_plus[self.n:] = y[self.n:] + PW @ regularized_solve(D, -before)
         return y_plus
 
     def rest_speeds(self, t, y, slip, gap_tol):
@@ -258,32 +346,120 @@ class HybridSystem:
         return np.sqrt(2.0 * gap_tol * np.abs(imp[:, 4:] @ qdd - imp[:, 2]))
 
 
-def mode_names(system, contact, slip):
-    """{name: "open" | "contact" | "stick" | "slip"} of the mode (contact, slip); a friction whose
-    contact is open is "open"."""
+#: The Tikhonov weight of the contact rows of the mode equations, relative to the largest
+#: diagonal entry of their Delassus matrix, and the refinements after it (see `saddle_solve`).
+REGULARIZATION = 1e-7
+REFINEMENTS = 3
+#: A planar friction slips along (v + PLANAR_BLEND·d)/‖v + PLANAR_BLEND·d‖ (m/s): the direction
+#: of its slip velocity, and its anchor d where v is 0 (as it starts to slip).
+PLANAR_BLEND = 1e-9
+#: The event of a contact left open at rest at its surface fires this fraction of gap_tol past
+#: it (`Switching.offsets`).
+TOUCH_OFFSET = 1e-3
+
+
+def stop_rows(stops, y, n):
+    """The impact rows [g, ġ, γ, e, W] of the stops (name, j, sign, bound, e): g = sign·(q_j −
+    bound), ġ = sign·q̇_j, γ = 0, W = sign·e_j."""
+    rows = np.zeros((len(stops), 4 + n))
+    for r, (_, j, sign, bound, e) in enumerate(stops):
+        rows[r, :4] = sign * (y[j] - bound), sign * y[n + j], 0.0, e
+        rows[r, 4 + j] = sign
+    return rows
+
+
+def slip_direction(v, anchor):
+    """The unit direction of slip û = (v + b·d)/‖v + b·d‖ (b = PLANAR_BLEND, d the anchor)."""
+    u = np.asarray(v, dtype=float) + PLANAR_BLEND * np.asarray(anchor, dtype=float)
+    norm = np.hypot(*u)
+    return u / norm if norm > 0 else np.asarray(anchor, dtype=float)
+
+
+def saddle_solve(M, R, B, force, rhs, regularized):
+    """(q̈, λ) of M·q̈ = force + B·λ, R·q̈ = rhs (B = Rᵀ, or Rᵀ with the columns of slipping
+    frictions' forces per unit normal force added) through the Delassus matrix
+    D = R·M⁻¹·B: D·λ = rhs − R·M⁻¹·force. Redundant contacts (a box on four corners, the
+    sticking feet of a walker) make D singular, and their forces are not unique: the rows
+    `regularized` get a small weight ε (REGULARIZATION times D's largest diagonal entry of
+    them) on D's diagonal, and REFINEMENTS steps λ += (D + ε)⁻¹·(rhs' − D·λ) take its bias
+    off: λ tends to the least-norm solution (exact where the rows are independent), and q̈ is
+    the same for every solution."""
+    if not len(rhs):
+        return np.linalg.solve(M, force), np.zeros(0)
+    X = np.linalg.solve(M, np.column_stack([B, force]))
+    r = len(rhs)
+    XB, xf = X[:, :r], X[:, r]
+    D = R @ XB
+    lam = regularized_solve(D, rhs - R @ xf, regularized)
+    return xf + XB @ lam, lam
+
+
+def regularized_solve(D, b, regularized=None):
+    """λ with D·λ = b, least-norm where D is singular on the `regularized` rows (all by
+    default): see `saddle_solve`."""
+    regularized = np.ones(len(b), dtype=bool) if regularized is None else regularized
+    diagonal = np.abs(np.diag(D))[regularized]
+    scale = diagonal.max() if diagonal.size and diagonal.max() > 0 else 1.0
+    K = D + np.diag(np.where(regularized, REGULARIZATION * scale, 0.0))
+    lam = np.linalg.solve(K, b)
+    for _ in range(REFINEMENTS):
+        lam = lam + np.linalg.solve(K, b - D @ lam)
+    return lam
+
+
+def acts(ref, contact):
+    """Whether a friction whose normal force is `ref` (None: an expression; (kind, index): a
+    constraint's or an impact's multiplier) acts with these contacts: not while it is the
+    multiplier of an open contact (N = 0: no force, no sticking row, no events). One rule for
+    the frictions and the planar frictions."""
+    return ref is None or ref[0] != "impact" or bool(contact[ref[1]])
+
+
+def mode_names(system, contact, slip, pmode=None):
+    """{name: "open" | "contact" | "stick" | "slip"} of the mode (contact, slip, and the planar
+    frictions' pmode: −1 inactive, 0 stick, 1 slip); a friction of either kind whose contact is
+    open is "open"."""
     out = {d[0]: CONTACT if c else OPEN for d, c in zip(system.impacts, contact)}
     out.update({d[0]: OPEN if not system.active(j, contact) else STICK if v == 0 else SLIP
                 for j, (d, v) in enumerate(zip(system.frictions, slip))})
+    pmode = (-1,) * system.npf if pmode is None else pmode
+    out.update({d[0]: OPEN if not system.planar_active(k, contact) else (OPEN, STICK, SLIP)[
+        int(v) + 1] for k, (d, v) in enumerate(zip(system.planars, pmode))})
     return out
 
 
-def projected_gauss_seidel(D, before, target, sweeps=PGS_SWEEPS):
-    """Λ ≥ 0 with after = before + D·Λ ≥ target, Λ_i·(after_i − target_i) = 0 (an LCP), by
-    projected Gauss–Seidel sweeps; exact in one sweep for one contact."""
+def projected_gauss_seidel(D, before, target, sweeps=PGS_SWEEPS, cones=()):
+    """Λ with after = before + D·Λ: Λ_i ≥ 0, after_i ≥ target_i, Λ_i·(after_i − target_i) = 0
+    (an LCP) for every row but the friction rows of `cones` ((normal row, t1 row, t2 row, μ)),
+    whose pair (Λ_t1, Λ_t2) aims at after = target within the disk of radius μ·Λ_normal; by
+    projected Gauss–Seidel sweeps (exact in one sweep for one contact)."""
     k = len(before)
     impulse = np.zeros(k)
     after = before.astype(float).copy()
+    tangent = {i for _, a, b, _ in cones for i in (a, b)}
+
+    def move(i, new):
+        delta = new - impulse[i]
+        if delta:
+            after[:] += D[:, i] * delta
+            impulse[i] = new
+        return abs(delta) * D[i, i]
+
     for _ in range(sweeps):
         change = 0.0
         for i in range(k):
-            if D[i, i] <= 0:
+            if i in tangent or D[i, i] <= 0:
                 continue
-            new = max(0.0, impulse[i] - (after[i] - target[i]) / D[i, i])
-            delta = new - impulse[i]
-            if delta:
-                after += D[:, i] * delta
-                impulse[i] = new
-                change = max(change, abs(delta) * D[i, i])
+            change = max(change, move(i, max(0.0, impulse[i] - (after[i] - target[i]) / D[i, i])))
+        for normal, a, b, mu in cones:
+            for i in (a, b):
+                if D[i, i] > 0:
+                    change = max(change, move(i, impulse[i] - (after[i] - target[i]) / D[i, i]))
+            radius = mu * impulse[normal]
+            size = np.hypot(impulse[a], impulse[b])
+            if size > radius:
+                scale = radius / size
+                change = max(change, move(a, impulse[a] * scale), move(b, impulse[b] * scale))
         if change <= 1e-15 * (1.0 + np.abs(before).max(initial=0.0)):
             break
     return impulse
@@ -303,11 +479,40 @@ class Switching:
         self.fastest = [0.0] * system.ni
         self.bounced = []          # the impacts that just bounced (for `lift_off`)
         self.transitions = []
+        self.pmode = [-1] * system.npf             # planar frictions: −1 inactive, 0 stick, 1 slip
+        self.anchor = [(1.0, 0.0)] * system.npf    # and the direction each slips along
+        self.gap_offsets = [0.0] * system.ni       # of the impact events (`_touching`)
+
+    def offsets(self):
+        """The gap offsets of the impact events (`_touching`)."""
+        return tuple(self.gap_offsets)
+
+    def _touching(self, out):
+        """The gap offsets of the impact events from the solution `out` of the settled mode: −g
+        where an open gap g is below 0 (within gap_tol, struck or released there: its event
+        starts at 0, not below), plus TOUCH_OFFSET·gap_tol for a contact left open at rest at its
+        surface (g ≤ gap_tol, ġ² ≤ 2·gap_tol·abs(g̈): it rises no higher than gap_tol, and
+        g̈ ≥ −1000·gap_tol: nothing presses it back; not one that has just bounced), so that a contact resting there without force (a redundant
+        one that a least-norm solution releases, a body wedged between two walls) does not fire
+        its event on a gap that stays 0 to round-off; it strikes when it closes past the
+        offset."""
+        qdd, _, _, _, (_, _, imp, _) = out
+        gdd = imp[:, 4:] @ qdd - imp[:, 2]
+        self.gap_offsets = [
+            0.0 if c else max(0.0, -g) + (
+                TOUCH_OFFSET * self.gap_tol if i not in self.bounced and g <= self.gap_tol
+                and gd * gd <= 2 * self.gap_tol * abs(a) and a >= -1e3 * self.gap_tol else 0.0)
+            for i, (c, g, gd, a) in enumerate(zip(self.contact, imp[:, 0], imp[:, 1], gdd))]
+
+    @property
+    def planar(self):
+        """The planar frictions' part of the mode: (pmode, anchor) as tuples."""
+        return tuple(self.pmode), tuple(self.anchor)
 
     def mode(self):
         """{name: "open" | "contact" | "stick" | "slip"} (a friction whose contact is open:
         "open")."""
-        return mode_names(self.system, self.contact, self.slip)
+        return mode_names(self.system, self.contact, self.slip, self.pmode)
 
     def _record(self, t, k, kind):
         self.transitions.append((float(t), self.system.names[k], kind))
@@ -321,8 +526,8 @@ class Switching:
         the impulses at the start, if any). ContactError for a start inside a surface
         (g < −gap_tol) or coefficients out of range."""
         s = self.system
-        imp, fr = s.terms(t, y)[4:]
-        check_coefficients(s, imp, fr, t)
+        imp, fr, pf = s.all_terms(t, y)[4:]
+        check_coefficients(s, imp, fr, t, pf)
         check_outside(s, imp, self.gap_tol)
         for j in range(s.nf):
             v = fr[j, 0]
@@ -350,8 +555,8 @@ class Switching:
         """The state and mode after the segment ended at (t, y) on the events `fired`."""
         s = self.system
         closing = []
-        imp, fr = s.terms(t, y)[4:]
-        check_coefficients(s, imp, fr, t)
+        imp, fr, pf = s.all_terms(t, y)[4:]
+        check_coefficients(s, imp, fr, t, pf)
         for i in range(s.ni):
             if not self.contact[i] and (i in fired or imp[i, 0] <= self.gap_tol) \
                     and imp[i, 1] < 0:
@@ -362,24 +567,59 @@ class Switching:
             if i < s.ni and self.contact[i] and i not in closing:
                 self.contact[i] = False
                 self._record(t, i, "release")
-        fr = s.terms(t, y)[5]
+        fr, pf = s.all_terms(t, y)[5:]
         fired = list(fired) + [s.ni + j for j in range(s.nf) if s.ni + j not in fired
                                and self.slip[j] != 0 and abs(fr[j, 0]) <= 1e3 * self.gap_tol]
+        fired += [s.ni + s.nf + k for k in range(s.npf) if s.ni + s.nf + k not in fired
+                  and self.pmode[k] == 1 and np.hypot(*pf[k, :2]) <= 1e3 * self.gap_tol]
         for k in fired:
             j = k - s.ni
-            if j >= 0 and not s.active(j, self.contact):
+            if j >= s.nf:
+                self._planar_event(t, y, j - s.nf, pf[j - s.nf, :2])
+            elif j >= 0 and not s.active(j, self.contact):
                 continue
-            if j >= 0 and self.slip[j] == 0:
-                lam = s.solve(t, y, self.contact, self.slip)[2][j]
+            elif j >= 0 and self.slip[j] == 0:
+                lam = s.solve(t, y, self.contact, self.slip, planar=self.planar)[2][j]
                 self.slip[j] = -1 if lam > 0 else 1
                 self._record(t, k, SLIP)
             elif j >= 0:
                 self._try_stick(t, y, j)
         return self.settle(t, y)
 
+    def _planar_event(self, t, y, k, v):
+        """Planar friction k's event: sticking, its force reached μ_s·|N| (it slips, away from
+        the force); slipping, v reached 0 (it tries to stick) or turned across its anchor (a
+        new anchor along v)."""
+        if self.pmode[k] < 0:
+            return
+        if self.pmode[k] == 0:
+            force = self.system.solve(t, y, self.contact, self.slip,
+                                      planar=self.planar).planar_force[k]
+            self.pmode[k], self.anchor[k] = 1, _unit(-force, self.anchor[k])
+            self._record(t, self.system.ni + self.system.nf + k, SLIP)
+        elif np.hypot(*v) <= 1e3 * self.gap_tol:
+            self._try_stick_planar(t, y, k)
+        else:
+            self.anchor[k] = _unit(v, self.anchor[k])
+
+    def _try_stick_planar(self, t, y, k, record=True):
+        """Planar friction k at v = 0: stick if the holding force is within μ_s·|N| in norm,
+        else slip away from it."""
+        s = self.system
+        self.pmode[k] = 0
+        out = s.solve(t, y, self.contact, self.slip, planar=self.planar)
+        force = out.planar_force[k]
+        if np.hypot(*force) <= out.planar_rows[k, 5] * out.planar_normal[k]:
+            kind = STICK
+        else:
+            self.pmode[k], self.anchor[k], kind = 1, _unit(-force, self.anchor[k]), SLIP
+        if record:
+            self._record(t, s.ni + s.nf + k, kind)
+
     def _impacts(self, t, y, closing, imp):
         """Apply the impact law to the closing contacts; those whose rebound e·|ġ⁻| is at most
-        the rest velocity take e = 0 and are held when their force is then ≥ 0."""
+        the rest velocity take e = 0 and are held when their force is then ≥ 0; held contacts
+        the impulses lift off (ġ⁺ > 1000·gap_tol) are released."""
         s = self.system
         e, resting = {}, []
         for i in closing:
@@ -392,12 +632,18 @@ class Switching:
                 e[i] = 0.0
                 resting.append(i)
         y, _ = s.impact(t, y, self.contact, closing, e)
+        after = s.terms(t, y)[4]
+        for i in range(s.ni):               # held contacts the impulses lifted off their surface
+            if self.contact[i] and i not in closing and after[i, 1] > 1e3 * self.gap_tol:
+                self.contact[i] = False
+                self._record(t, i, "release")
+                self.bounced.append(i)
         held = []
         for i in closing:
             if i in resting:
                 self.contact[i] = True
                 self._classify_frictions(t, y, [i])
-                if s.solve(t, y, self.contact, self.slip)[1][i] >= 0:
+                if s.solve(t, y, self.contact, self.slip, planar=self.planar)[1][i] >= 0:
                     self._record(t, i, CONTACT)
                     held.append(i)
                     continue
@@ -437,7 +683,8 @@ class Switching:
         s = self.system
         slip = list(self.slip)
         slip[j] = 0
-        _, _, lam_f, normal, (_, _, _, fr) = s.solve(t, y, self.contact, slip)
+        _, _, lam_f, normal, (_, _, _, fr) = s.solve(t, y, self.contact, slip,
+                                                     planar=self.planar)
         if abs(lam_f[j]) <= fr[j, 3] * normal[j]:
             self.slip[j] = 0
             self._record(t, s.ni + j, STICK)
@@ -446,11 +693,15 @@ class Switching:
             self._record(t, s.ni + j, SLIP)
 
     def settle(self, t, y, record=True):
-        """Make the mode consistent at (t, y): no negative contact force, no sticking force beyond
-        its limit, no sticking friction with v ≠ 0 (after an impact)."""
+        """Make the mode consistent at (t, y): no negative contact force, no open contact at rest
+        at its surface that the others press into it (`pressed`: it is held, its ġ set to 0),
+        no sticking force beyond its limit, no sticking friction with v ≠ 0 (after an impact).
+        Returns y."""
         s = self.system
-        for _ in range(2 * (s.ni + s.nf) + 2):
-            _, lam_i, lam_f, normal, (_, _, _, fr) = s.solve(t, y, self.contact, self.slip)
+        activated, tried, stuck = set(), set(), set()
+        for _ in range(2 * (s.ni + s.nf + s.npf) + 2):
+            out = s.solve(t, y, self.contact, self.slip, planar=self.planar)
+            qdd, lam_i, lam_f, normal, (_, _, imp, fr) = out
             changed = False
             for i in range(s.ni):
                 if self.contact[i] and lam_i[i] < 0:
@@ -458,6 +709,15 @@ class Switching:
                     changed = True
                     if record:
                         self._record(t, i, "release")
+            pressed = self.pressed(imp, imp[:, 4:] @ qdd - imp[:, 2])
+            if pressed:
+                for i in pressed:
+                    self.contact[i] = True
+                    if record:
+                        self._record(t, i, CONTACT)
+                if any(imp[i, 1] != 0 for i in pressed):
+                    y = s.hold(t, y, [i for i in range(s.ni) if self.contact[i]])
+                changed = True
             for j in range(s.nf):
                 if self.slip[j] != 0 or not s.active(j, self.contact):
                     continue
@@ -468,11 +728,76 @@ class Switching:
                     changed = True
                     if record:
                         self._record(t, s.ni + j, SLIP)
+            slipped, planar_changed = self._settle_planar(out, activated, tried, stuck)
+            if record:
+                for k in slipped:
+                    self._record(t, s.ni + s.nf + k, SLIP)
+            changed = changed or planar_changed
             if not changed:
                 break
+        if record:                          # the planar frictions that began to act, as they end
+            for k in sorted(activated):
+                self._record(t, s.ni + s.nf + k, STICK if self.pmode[k] == 0 else SLIP)
+            for k in sorted(stuck - activated):
+                if self.pmode[k] == 0:
+                    self._record(t, s.ni + s.nf + k, STICK)
         if len(self.transitions) > self.max_transitions:
             raise ChatteringError(t, self.max_transitions)
+        self._touching(out if not changed else
+                       s.solve(t, y, self.contact, self.slip, planar=self.planar))
         return y
+
+    def pressed(self, imp, gdd):
+        """The open contacts at rest at their surface (g ≤ gap_tol, ġ² ≤ 2·gap_tol·abs(g̈); not
+        one that has just bounced) that the mode drives into it (g̈ < −1000·gap_tol): a contact
+        released while another held kept it closed, or one found closed at the start beside
+        others. A `rest_velocity` given holds only those whose rebound e·abs(ġ) is at most it
+        (0: contacts never rest)."""
+        return [i for i in range(self.system.ni) if not self.contact[i]
+                and i not in self.bounced
+                and imp[i, 0] <= self.gap_tol and gdd[i] < -1e3 * self.gap_tol
+                and imp[i, 1] ** 2 <= 2 * self.gap_tol * abs(gdd[i])
+                and (self.rest_velocity is None
+                     or imp[i, 3] * abs(imp[i, 1]) <= self.rest_velocity)]
+
+    def _settle_planar(self, out, activated, tried, stuck):
+        """The planar frictions' part of `settle` on the solution `out` of the mode: inactive
+        where their contact is open; where it has just closed (added to `activated`, all
+        together), sticking when abs(v) ≤ 1000·gap_tol, else slipping along v; sticking ones
+        slip when v ≠ 0 or their force leaves the disk; slipping ones take v's direction as
+        their anchor, or, once per settle (`tried`), try sticking where v is 0 (stopped by the
+        others: added to `stuck`). Returns the planar frictions that began to slip (to
+        record), and whether a mode changed."""
+        s = self.system
+        slipped, changed = [], False
+        for k in range(s.npf):
+            v = out.planar_slip[k]
+            moving = np.hypot(*v) > 1e3 * self.gap_tol
+            if not s.planar_active(k, self.contact):
+                changed |= self.pmode[k] != -1
+                self.pmode[k] = -1
+                activated.discard(k)
+            elif self.pmode[k] == -1:
+                changed = True
+                activated.add(k)
+                self.pmode[k], self.anchor[k] = (1, _unit(v, self.anchor[k])) if moving else \
+                    (0, self.anchor[k])
+            elif self.pmode[k] == 0 and (moving or np.hypot(*out.planar_force[k])
+                                         > out.planar_rows[k, 5] * out.planar_normal[k]):
+                changed = True
+                self.pmode[k], self.anchor[k] = 1, _unit(v if moving else -out.planar_force[k],
+                                                         self.anchor[k])
+                if k in stuck:
+                    stuck.discard(k)
+                elif k not in activated:
+                    slipped.append(k)
+            elif self.pmode[k] == 1 and moving:
+                self.anchor[k] = _unit(v, self.anchor[k])
+            elif self.pmode[k] == 1 and k not in tried and k not in activated:   # stopped
+                tried.add(k)
+                self.pmode[k], changed = 0, True
+                stuck.add(k)
+        return slipped, changed
 
     def lift_off(self, t, y):
         """How long the segment's first piece should be: half the predicted flight time of a
@@ -482,7 +807,7 @@ class Switching:
         bounced, self.bounced = self.bounced, []
         if not bounced:
             return np.inf
-        qdd, _, _, _, (_, _, imp, _) = s.solve(t, y, self.contact, self.slip)
+        qdd, _, _, _, (_, _, imp, _) = s.solve(t, y, self.contact, self.slip, planar=self.planar)
         shortest = np.inf
         for i in bounced:
             if self.contact[i] or imp[i, 1] <= 0:
@@ -491,6 +816,12 @@ class Switching:
             if gdd < 0:
                 shortest = min(shortest, imp[i, 1] / -gdd)
         return shortest
+
+
+def _unit(v, fallback):
+    """v/‖v‖ as a tuple (the `fallback` where v is 0)."""
+    norm = np.hypot(*v)
+    return (float(v[0] / norm), float(v[1] / norm)) if norm > 0 else tuple(fallback)
 
 
 def coefficient_problem(imp, fr):
@@ -513,7 +844,7 @@ def coefficient_message(system, kind, k, value, mu, t):
     if kind == "restitution":
         return (f"impact {system.impacts[k][0]!r} has restitution {value:g} at t = {t:.9g}: "
                 "it must be between 0 and 1 (check the parameter values of the run)")
-    name = system.frictions[k][0]
+    name = (system.frictions + system.planars)[k][0]
     if kind == "mu":
         return (f"friction {name!r} has mu = {value:g} at t = {t:.9g}: a friction coefficient "
                 "must be ≥ 0 (check the parameter values of the run)")
@@ -522,8 +853,11 @@ def coefficient_message(system, kind, k, value, mu, t):
             "values of the run)")
 
 
-def check_coefficients(system, imp, fr, t):
-    """ContactError when a restitution or friction coefficient is out of range."""
+def check_coefficients(system, imp, fr, t, pf=None):
+    """ContactError when a restitution or friction coefficient is out of range (the planar
+    frictions' rows `pf` counted after the frictions)."""
+    if pf is not None and len(pf):
+        fr = np.vstack([fr[:, :4], np.column_stack([pf[:, :2], pf[:, 4:6]])])
     problem = coefficient_problem(imp, fr)
     if problem is not None:
         raise ContactError(coefficient_message(system, *problem, t))
@@ -538,6 +872,13 @@ def check_outside(system, imp, gap_tol):
 
 
 def start_inside_message(system, i, gap, gap_tol):
+    if i >= system.n_model_impacts:
+        _, j, sign, bound, _ = system.stops[i - system.n_model_impacts]
+        coordinate = system.mod.coordinates[j]
+        return (f"the run starts with {coordinate} = {bound + gap / sign:.9g}, beyond its "
+                f"{'lower' if sign > 0 else 'upper'} limit {bound:g} (enforced as a stop: "
+                f"Model.limit(..., enforce=True), from_urdf(..., limits=True)): start within the "
+                "limits, or build the model with the limits not enforced (limits=False)")
     return (f"the run starts inside the surface of impact {system.impacts[i][0]!r}: its gap is "
             f"{gap:g} (< -gap_tol = {-gap_tol:g}); start with the gap ≥ 0 (a state saved at a "
             "contact has gap 0)")
@@ -547,9 +888,9 @@ def check_start(mod, t0, y0, p, u, gap_tol=GAP_TOL, run=None):
     """ContactError (prefixed with the run index, if given) when the state (t0, y0) starts
     inside an impact's surface or a coefficient is out of range at the values p, u."""
     system = HybridSystem(mod, p, lambda t: u)
-    imp, fr = system.terms(t0, np.asarray(y0, dtype=float))[4:]
+    imp, fr, pf = system.all_terms(t0, np.asarray(y0, dtype=float))[4:]
     try:
-        check_coefficients(system, imp, fr, t0)
+        check_coefficients(system, imp, fr, t0, pf)
         check_outside(system, imp, gap_tol)
     except ContactError as exc:
         if run is None:
@@ -612,10 +953,10 @@ def simulate_hybrid(mod, t_span, y0, method, p, u_at, rtol, atol, t_eval=None,
         t, y = t0, sw.start(t0, y0)
     except np.linalg.LinAlgError:
         raise singular_modes(system, t0, y0, gap_tol) from None
-    mode = (tuple(sw.contact), tuple(sw.slip))
+    mode = (tuple(sw.contact), tuple(sw.slip), sw.planar)
     ts, ys, modes = [np.array([t0])], [y[:, None]], [mode]
     if sw.transitions:                      # struck at the start: saved before and after
-        opened = ((False,) * system.ni, mode[1])
+        opened = ((False,) * system.ni, mode[1], None)
         ts, ys, modes = [np.array([t0]), np.array([t0])], [y0[:, None], y[:, None]], \
             [opened, mode]
     nfev, segments, status, message = 0, 0, 0, "The solver successfully reached the end."
@@ -627,15 +968,15 @@ def simulate_hybrid(mod, t_span, y0, method, p, u_at, rtol, atol, t_eval=None,
         modes = [mode]
     while t < tf:
         t_start = t
-        contact, slip = tuple(sw.contact), tuple(sw.slip)
+        contact, slip, planar = tuple(sw.contact), tuple(sw.slip), sw.planar
         piece = sw.lift_off(t, y)
         t_end = min(tf, t + 0.5 * piece) if np.isfinite(piece) else tf
         if not t_end > t:
             t_end = tf
 
         def fun(tt, yy):
-            return system.rhs(tt, yy, contact, slip)
-        values = _EventValues(system, contact, slip)
+            return system.rhs(tt, yy, contact, slip, planar)
+        values = _EventValues(system, contact, slip, planar, sw.offsets())
         events = [_event(values, k) for k in range(system.n_events)]
         sol = solve_ivp(fun, (t, t_end), y, method=SOLVERS.get(method, method), rtol=rtol,
                         atol=atol, dense_output=te_all is not None, events=events or None,
@@ -650,12 +991,12 @@ def simulate_hybrid(mod, t_span, y0, method, p, u_at, rtol, atol, t_eval=None,
         if te_all is None:
             ts.append(sol.t[1:])
             ys.append(sol.y[:, 1:])
-            modes.append((contact, slip))
+            modes.append((contact, slip, planar))
         else:
             te = te_all[(te_all > t) & (te_all <= t_stop)]
             ts.append(te)
             ys.append(sol.sol(te) if len(te) else np.zeros((len(y), 0)))
-            modes.append((contact, slip))
+            modes.append((contact, slip, planar))
         if max_steps is not None and steps >= max_steps:
             stopped = "max_steps"
         elif max_wall_time is not None and time.monotonic() - started > max_wall_time:
@@ -681,14 +1022,14 @@ def simulate_hybrid(mod, t_span, y0, method, p, u_at, rtol, atol, t_eval=None,
             if te_all is None:
                 ts.append(np.array([t]))
                 ys.append(y[:, None])
-                modes.append((tuple(sw.contact), tuple(sw.slip)))
+                modes.append((tuple(sw.contact), tuple(sw.slip), sw.planar))
         no_progress = no_progress + 1 if t - t_start < least else 0
         if no_progress >= STALL_SEGMENTS:
             status, message = -1, stall_message(t, least, sw.transitions)
             break
     forces = [system.forces(ti, yi, *m) for times, states, m in zip(ts, ys, modes)
               for ti, yi in zip(times, states.T)]
-    forces = np.array(forces).reshape(-1, system.m + system.ni + system.nf).T
+    forces = np.array(forces).reshape(-1, system.m + system.ni + system.nf + 2 * system.npf).T
     return dict(t=np.concatenate(ts), y=np.concatenate(ys, axis=1), transitions=sw.transitions,
                 forces=forces,
                 mode=sw.mode(), nfev=nfev, status=status, message=message, n_segments=segments,
@@ -720,14 +1061,16 @@ def stall_message(t, least, transitions):
 class _EventValues:
     """All event values of a mode at (t, y), computed once for the solve_ivp event callables."""
 
-    def __init__(self, system, contact, slip):
-        self.system, self.contact, self.slip = system, contact, slip
+    def __init__(self, system, contact, slip, planar=None, offsets=None):
+        self.system, self.contact, self.slip, self.planar = system, contact, slip, planar
+        self.offsets = offsets
         self.key, self.values = None, None
 
     def __call__(self, t, y):
         key = (t, y.tobytes())
         if key != self.key:
-            self.key, self.values = key, self.system.events(t, y, self.contact, self.slip)
+            self.key, self.values = key, self.system.events(t, y, self.contact, self.slip,
+                                                            self.planar, self.offsets)
         return self.values
 
 
@@ -736,6 +1079,35 @@ def _event(values, k):
         return values(t, y)[k]
     g.terminal, g.direction = True, -1
     return g
+
+
+def is_hybrid(mod):
+    """True if `mod` runs as a hybrid solve: it has impacts, frictions or enforced limits."""
+    return bool(mod.nonsmooth_definitions or mod.info.limit_stops)
+
+
+def check_within_stops(mod, y, gap_tol=GAP_TOL):
+    """ValueError when a state of `y` (2n × k) puts a coordinate beyond an enforced limit
+    (a stop's gap below −gap_tol): a smooth run, such as one with sensitivities, is the hybrid
+    one only while no stop is reached."""
+    for name, j, sign, bound, _ in mod.info.limit_stops:
+        gaps = sign * (np.asarray(y)[j] - bound)
+        if gaps.size and gaps.min() < -gap_tol:
+            raise ValueError(
+                f"the run reached stop {name!r} ({mod.coordinates[j]} = "
+                f"{np.asarray(y)[j][np.argmin(gaps)]:.6g}, limit {bound:g}): sensitivities are "
+                "computed for smooth runs and do not cross switches; run within the limits, or "
+                "build the model with its limits not enforced (from_urdf(..., limits=False))")
+
+
+def force_names(mod):
+    """The rows of a hybrid solve's contact forces: each impact's (the model's, then its stops'),
+    each friction's, and the two components of each planar friction's (<name>_1, <name>_2)."""
+    defs = mod.nonsmooth_definitions
+    return tuple(d[0] for d in defs if d[1] == "impact") + \
+        tuple(stop[0] for stop in mod.info.limit_stops) + \
+        tuple(d[0] for d in defs if d[1] == "friction") + \
+        tuple(f"{d[0]}_{c}" for d in defs if d[1] == "planar_friction" for c in (1, 2))
 
 
 KIND_NAMES = ("impact", CONTACT, "release", STICK, SLIP)
@@ -766,19 +1138,23 @@ def solve_hybrid_native(mod, t_span, y0, method, p, u_spec, rtol, atol, t_eval=N
     rtol, atol = _tolerances(rtol, atol, 2 * n)
     kinds = [NORMAL_KINDS[None if ref is None else ref[0]] for ref in system.normal]
     index = [0 if ref is None else int(ref[1]) for ref in system.normal]
+    planar_kinds = [NORMAL_KINDS[None if ref is None else ref[0]] for ref in system.planar_normal]
+    planar_index = [0 if ref is None else int(ref[1]) for ref in system.planar_normal]
+    stops = [(j, sign, bound, e) for _, j, sign, bound, e in system.stops]
     t0, tf = map(float, t_span)
     first = 0.0 if first_step is None else float(first_step)
     out = _ode.solve_hybrid(
-        method, mod.compiled_model.function_address("hybrid_terms"), n, system.m, system.ni,
-        system.nf, kinds, index, np.asarray(p, dtype=float), list(u_spec), t0, tf,
-        np.asarray(y0, dtype=float), rtol, atol, float(max_step), first, t_eval,
-        -1.0 if rest_velocity is None else float(rest_velocity), float(gap_tol),
-        int(max_transitions), poll, int(max_steps or 0), float(max_wall_time or 0.0))
+        method, mod.compiled_model.function_address("hybrid_terms"), n, system.m,
+        system.n_model_impacts, system.nf, kinds, index, np.asarray(p, dtype=float),
+        list(u_spec), t0, tf, np.asarray(y0, dtype=float), rtol, atol, float(max_step), first,
+        t_eval, -1.0 if rest_velocity is None else float(rest_velocity), float(gap_tol),
+        int(max_transitions), poll, int(max_steps or 0), float(max_wall_time or 0.0),
+        stops=stops, planar_kind=planar_kinds, planar_index=planar_index)
     transitions = [(float(t), system.names[int(k)], KIND_NAMES[int(kind)])
                    for t, k, kind in out["transitions"]]
     message = native_failure_message(mod, system, out, transitions, float(gap_tol), t0, tf,
                                      np.asarray(y0, dtype=float))
-    mode = mode_names(system, out["contact"], out["slip"])
+    mode = mode_names(system, out["contact"], out["slip"], out["pmode"])
     return dict(t=out["t"], y=out["y"].T.copy(), forces=out["forces"].T.copy(),
                 transitions=transitions, mode=mode,
                 nfev=out["nfev"], status=out["status"], message=message,
@@ -868,8 +1244,7 @@ def simulate_nonsmooth(mod, t_span, y0, method, p, inputs, u_at, rtol, atol, t_e
     sol.n_segments = out["n_segments"]
     m = mod.n_constraints
     sol.hybrid_constraint_forces = out["forces"][:m]
-    sol.contact_names = tuple(d[0] for d in mod.nonsmooth_definitions if d[1] == "impact") + \
-        tuple(d[0] for d in mod.nonsmooth_definitions if d[1] == "friction")
+    sol.contact_names = force_names(mod)
     sol.contact_forces = out["forces"][m:]
     sol.guard = None
     if out["stopped"] is not None:

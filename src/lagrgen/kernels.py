@@ -74,6 +74,19 @@ class Kernel:
         return self.spec.name
 
 
+def has_links(eq):
+    """True if the equations are those of a three-dimensional tree with links
+    (`lagrgen.links`)."""
+    found = tree.analysed(eq)[0] if tree.tree3d.is_spatial(eq.spec) else None
+    return found is not None and bool(found.links)
+
+
+def link_frames(spatial):
+    """The link_frames kernel's outputs of a `SpatialTree`: the links' poses, the nodes' twists."""
+    return {"poses": [x for pose in spatial.link_poses for x in pose],
+            "twists": [x for record in spatial.records for x in record[:6]]}
+
+
 def flatten(matrix):
     """Row-major list of the entries of a list of lists."""
     return [e for row in matrix for e in row]
@@ -190,6 +203,10 @@ KERNELS = (
     KernelSpec("body_poses", "each body's pose (R, p) in the fixed frame (a spatial tree only)",
                (Output("poses", ("n", "12")),), lambda eq: {"poses": []},
                when=lambda eq: False),
+    KernelSpec("link_frames", "each link's frame (R row-major, then its origin p) in the fixed "
+               "frame, and each node's twist s = [ω; v] per unit rate (a spatial tree's links)",
+               (Output("poses", ("n_links", "12")), Output("twists", ("n_nodes", "6"))),
+               lambda eq: link_frames(tree.analyse(eq)), when=lambda eq: has_links(eq)),
     KernelSpec("events", "the event functions g_k(t, q, q̇, u), whose roots the solvers locate",
                (Output("g", ("n_events",)),), lambda eq: {"g": list(eq.events)},
                when=lambda eq: bool(eq.events)),
@@ -376,7 +393,7 @@ TREE_KERNELS = (
                python=False),
 )
 #: The dense kernels the recursive formulation keeps (none of them needs M or F).
-_KEPT = ("events", "nonsmooth")
+_KEPT = ("events", "nonsmooth", "link_frames")
 #: The kernels of each formulation, in the order they are generated.
 FORMULATION_KERNELS = {"dense": KERNELS,
                        "recursive": TREE_KERNELS + tuple(k for k in KERNELS if k.name in _KEPT)}

@@ -9,23 +9,32 @@ C) need at a state, as one row-major vector `terms` of the model function `hybri
     per friction j (5 + n): v, γ, μ, μ_s, N, w (n)   w = ∂v/∂q̇, w·q̈ = γ keeps v̇ = 0,
                                                       γ = −(∂v/∂q·q̇ + ∂v/∂t), N the normal-force
                                                       expression (0 when N is a multiplier)
+    per planar friction k (7 + 2n): v1, v2, γ1, γ2, μ, μ_s, N, w1 (n), w2 (n)
+                                                      the same for its two slip velocities
 
-Impacts come first, then frictions, each in declaration order. The mode equations, impact law and
+Impacts come first, then frictions, then planar frictions, each in declaration order. The mode equations, impact law and
 switching rules themselves are in `lagrgen.hybrid` (and its C port).
 """
 import symengine as se
 
 from .errors import ModelError
-from .functions import HYBRID_FIELDS
+from .functions import HYBRID_FIELDS, HYBRID_GRADIENTS
 from .records import Friction, Impact
 
 IMPACT_FIELDS = HYBRID_FIELDS["impact"]
 FRICTION_FIELDS = HYBRID_FIELDS["friction"]
 
 
+def kind(element):
+    """"impact", "friction" or "planar_friction"."""
+    if isinstance(element, Impact):
+        return "impact"
+    return "planar_friction" if element.planar else "friction"
+
+
 def record_size(element, n):
     """How many entries of `terms` one element takes."""
-    return (IMPACT_FIELDS if isinstance(element, Impact) else FRICTION_FIELDS) + n
+    return HYBRID_FIELDS[kind(element)] + HYBRID_GRADIENTS[kind(element)] * n
 
 
 def n_terms(elements, n):
@@ -55,14 +64,15 @@ def describe(spec):
                     f"friction {e.name!r}: normal_force {e.normal_force!r} names no constraint or "
                     f"impact of model {spec.name!r} (those are: {known}); give an expression or "
                     "one of those names")
-        out.append({"name": e.name, "kind": "friction", "normal": normal})
+        out.append({"name": e.name, "kind": kind(e), "normal": normal})
     return out
 
 
 def ordered(elements):
-    """Impacts first, then frictions, each in declaration order (the layout of `terms`)."""
-    return [e for e in elements if isinstance(e, Impact)] + \
-        [e for e in elements if isinstance(e, Friction)]
+    """Impacts first, then frictions, then planar frictions, each in declaration order (the
+    layout of `terms`)."""
+    return [e for k in ("impact", "friction", "planar_friction") for e in elements
+            if kind(e) == k]
 
 
 def terms(eq):
@@ -80,11 +90,12 @@ def terms(eq):
             gamma = -rate_at_fixed_qd(gd, q, qd, t)
             out += [g, gd, gamma, convert(e.restitution)] + W
         else:
-            v = convert(e.slip_velocity)
-            w = [diff(v, v_j) for v_j in qd]
-            gamma = -rate_at_fixed_qd(v, q, qd, t)
+            vs = [convert(x) for x in (e.slip_velocity if e.planar else [e.slip_velocity])]
+            ws = [[diff(v, v_j) for v_j in qd] for v in vs]
+            gammas = [-rate_at_fixed_qd(v, q, qd, t) for v in vs]
             normal = 0 if isinstance(e.normal_force, str) else convert(e.normal_force)
-            out += [v, gamma, convert(e.mu), convert(e.mu_static), normal] + w
+            out += vs + gammas + [convert(e.mu), convert(e.mu_static), normal] + \
+                [x for w in ws for x in w]
     return [se.sympify(x) for x in out]
 
 

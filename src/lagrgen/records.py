@@ -57,6 +57,7 @@ class Body3D:
     omega: sp.ImmutableMatrix
     orientation: sp.ImmutableMatrix = None
     omega_fixed: sp.ImmutableMatrix = None
+    name: str = None                # the link it is (`Model.link_position`); None: body<k>
 
 
 @dataclass(frozen=True)
@@ -91,9 +92,21 @@ class Segment:
 class Articulation:
     """A tree of rigid bodies joined by revolute and prismatic joints (`lagrgen.from_urdf`):
     T of every segment's body, V = −Σ m·g·c of a uniform gravity `gravity` (3, fixed frame).
-    Segments come parents first."""
+    Segments come parents first; `links` (`LinkFrame`s) says where each link's frame is."""
     segments: tuple
     gravity: sp.ImmutableMatrix
+    links: tuple = ()
+
+
+@dataclass(frozen=True)
+class LinkFrame:
+    """Where a link's frame is: fixed in the frame of segment `segment` (−1: the fixed frame) at
+    `offset` (3×1), rotated by `rotation` (3×3), numbers; links that fixed joints merge into a
+    body keep their own frames."""
+    name: str
+    segment: int
+    rotation: sp.ImmutableMatrix
+    offset: sp.ImmutableMatrix
 
 
 @dataclass(frozen=True)
@@ -184,12 +197,17 @@ class Impact:
 class Friction:
     """Coulomb friction with sticking on v(q, q̇, t) = w(q, t)·q̇ + b(q, t) (`Model.friction`);
     `normal_force` an expression, or the name (str) of a constraint or impact whose multiplier
-    is the normal force."""
+    is the normal force. A `slip_velocity` of two components (a 2×1 matrix) is isotropic
+    friction in a plane (`planar`)."""
     name: str
     slip_velocity: sp.Expr
     normal_force: object
     mu: sp.Expr
     mu_static: sp.Expr
+
+    @property
+    def planar(self):
+        return isinstance(self.slip_velocity, sp.MatrixBase)
 
 
 class Event(NamedTuple):
@@ -238,6 +256,7 @@ class ModelSpec:
     nonsmooth: tuple = ()     # Impact / Friction records, in declaration order
     initial_state: tuple = ()  # [q0, q̇0] as 2n floats, or () when none is declared
     limits: tuple = ()        # (coordinate name, lower, upper, velocity, effort), None if absent
+    stops: tuple = ()         # (coordinate name, restitution): limits enforced in simulations
 
     @property
     def external(self):

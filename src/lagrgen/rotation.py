@@ -106,3 +106,16 @@ def is_rotation(R, tol=1e-9):
     R = np.asarray(R, dtype=float)
     return (R.shape == (3, 3) and np.allclose(R.T @ R, np.eye(3), atol=tol)
             and abs(np.linalg.det(R) - 1.0) < tol)
+
+
+def quaternion_matrix(z, homogeneous=False):
+    """R = R_h(ζ)/|ζ|²: the rotation of the direction of the quaternion ζ = (x, y, z, w) (3×3
+    lists; `homogeneous`: R_h(ζ) = |ζ|²·R, quadratic in ζ; any ring's symbols, SymPy's too)."""
+    x, y, z_, w = z
+    R = [[w * w + x * x - y * y - z_ * z_, 2 * (x * y - w * z_), 2 * (x * z_ + w * y)],
+         [2 * (x * y + w * z_), w * w - x * x + y * y - z_ * z_, 2 * (y * z_ - w * x)],
+         [2 * (x * z_ - w * y), 2 * (y * z_ + w * x), w * w - x * x - y * y + z_ * z_]]
+    if homogeneous:
+        return R
+    n2 = x * x + y * y + z_ * z_ + w * w
+    return [[e / n2 for e in row] for row in R]

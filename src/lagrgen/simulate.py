@@ -8,6 +8,7 @@ import numpy as np
 
 from .errors import warn_near_singular
 from .functions import POWER_TERMS
+from .hybrid import check_within_stops, is_hybrid
 from .methods import METHODS
 from .native.engine import native_reason, simulate_native
 from .options import SWITCHING_OPTIONS, check_run_options as checked_options
@@ -86,13 +87,15 @@ def simulate(mod, t_span, y0=None, method="RK45", params=None, inputs=None, rtol
     p = parameters_from(mod, params)
     u_at = input_function(mod, inputs)
     if sensitivities is not None:
+        if is_hybrid(mod):
+            check_within_stops(mod, np.reshape(y0, (-1, 1)))
         return finished_result(mod, run_sensitivities(mod, t_span, y0, method, p, u_at, rtol,
                                                       atol, sensitivities, events, max_steps,
                                                       max_wall_time, inputs=inputs, engine=engine,
                                                       t_eval=t_eval, dense_output=dense_output,
                                                       **options),
                                p, u_at, method)
-    if mod.nonsmooth_definitions:
+    if is_hybrid(mod):
         from .hybrid import simulate_nonsmooth
         sol = simulate_nonsmooth(mod, t_span, y0, method, p, inputs, u_at, rtol, atol, t_eval,
                                  dense_output, events, engine, progress, options, max_steps,
@@ -140,7 +143,7 @@ def check_run_options(method, engine, options):
 def refuse_switching_options(mod, options):
     """ValueError for rest_velocity, gap_tol or max_transitions given for a smooth model."""
     given = [k for k in SWITCHING_OPTIONS if k in options]
-    if given and not mod.nonsmooth_definitions:
+    if given and not is_hybrid(mod):
         raise ValueError(f"{given[0]} applies to a model with impacts or frictions "
                          "(model.impact, model.friction); this model has none")
 
@@ -180,13 +183,15 @@ def finished_result(mod, sol, p, u_at, method=None):
         sol.event_names = tuple(name for name, _, _ in mod.event_definitions)
     if mod.n_constraints:
         from .constraints import along
-        hybrid = bool(mod.nonsmooth_definitions)
+        hybrid = is_hybrid(mod)
         sol.constraint_forces, sol.constraint_residuals = along(mod, sol, p, u_at, not hybrid)
         if hybrid:                         # with the contacts held: the hybrid solve's λ
             sol.constraint_forces = sol.hybrid_constraint_forces
         sol.constraint_names = tuple(mod.constraint_names)
         sol.multipliers = dict(zip(sol.constraint_names, sol.constraint_forces))
-    if mod.nonsmooth_definitions:
+    if is_hybrid(mod) and "contact_names" not in sol:     # a smooth run with sensitivities
+        check_within_stops(mod, sol.y)
+    elif is_hybrid(mod):
         sol.multipliers = {**(sol.multipliers if mod.n_constraints else {}),
                            **dict(zip(sol.contact_names, sol.contact_forces))}
     return sol

@@ -53,7 +53,10 @@ class SpatialTree:
     from, None when a segment's values are not numbers or parameters) and `gravity`.
     A tree whose root is a free base (`lagrgen.free_base`) has nodes in the base's chart, one
     coordinate fewer than the model (`coordinate` indexes the chart's), its Q in the model's
-    coordinates and `free` its `FreeBase`.
+    coordinates and `free` its `FreeBase`. `links` are the model's links (`lagrgen.links`) as
+    (name, the node whose body carries it or −1 for the fixed frame), `link_poses` their
+    frames (R row-major then origin, 12 expressions each), formed on first use
+    (`link_terms()`); a free base has none yet.
     """
     coordinate: tuple
     parent: tuple
@@ -65,6 +68,8 @@ class SpatialTree:
     joints: object = None
     gravity: list = field(default_factory=list)
     free: object = None
+    links: tuple = ()
+    link_terms: object = tuple
     kind = "spatial"
     fields = FIELDS
 
@@ -79,6 +84,10 @@ class SpatialTree:
     @property
     def poses(self):
         return self._formed[1]
+
+    @cached_property
+    def link_poses(self):
+        return self.link_terms()
 
     @property
     def n(self):
@@ -198,8 +207,14 @@ def _from_articulation(eq, record, others):
         return records, poses
 
     joints = _joints(eq, record, coordinate, multiplier)
+    def link_terms():
+        world = eq.collected.sums.frames_of(record)
+        return [_placed_pose(world, frame, convert) for frame in record.links]
+
     return SpatialTree(tuple(coordinate), parent, end, terms, Q, notes, articulated=True,
-                       joints=joints, gravity=gravity)
+                       joints=joints, gravity=gravity,
+                       links=tuple((frame.name, frame.segment) for frame in record.links),
+                       link_terms=link_terms)
 
 
 def _joints(eq, record, coordinate, multiplier):
@@ -232,6 +247,18 @@ def _joints(eq, record, coordinate, multiplier):
         inertia_parameter.append(tuple(index))
     return Joints(tuple(prismatic), tuple(axis), tuple(placement), tuple(motion), tuple(inertia),
                   tuple(inertia_parameter))
+
+
+def _placed_pose(world, frame, convert):
+    """The 12 pose expressions (R row-major, origin) of a link fixed in a segment's frame."""
+    R0 = [[convert(x) for x in row] for row in frame.rotation.tolist()]
+    o = [convert(x) for x in frame.offset]
+    if frame.segment < 0:
+        return [x for row in R0 for x in row] + o
+    carrier = world[frame.segment]
+    R = frames.matmul(carrier.R, R0)
+    p = [a + b for a, b in zip(carrier.p, frames.apply(carrier.R, o))]
+    return [x for row in R for x in row] + p
 
 
 def inertial_symbols(spec):
@@ -310,6 +337,7 @@ class Body:
     inertia: list = None
     omega: list = None
     coordinates: frozenset = frozenset()
+    name: str = None
 
 
 def _from_bodies(eq):
@@ -327,10 +355,12 @@ def _from_bodies(eq):
         if isinstance(record, Body3D):
             if record.orientation is None or record.omega_fixed is None:
                 raise NotATree("a 3-D body has no orientation recorded")
+            name = record.name if record.name is not None else \
+                f"body{sum(b.R is not None for b in bodies)}"
             bodies.append(Body(convert(record.mass), [convert(x) for x in record.position],
                                [[convert(x) for x in row] for row in record.orientation.tolist()],
                                [[convert(x) for x in row] for row in record.inertia.tolist()],
-                               [convert(x) for x in record.omega_fixed]))
+                               [convert(x) for x in record.omega_fixed], name=name))
         elif isinstance(record, Particle) and len(record.position) == 3:
             bodies.append(Body(convert(record.mass), [convert(x) for x in record.position]))
         elif isinstance(record, APPLIED):
@@ -345,6 +375,7 @@ def _from_bodies(eq):
                 x.free_symbols & moving for row in body.inertia or [] for x in row):
             raise NotATree("a body moves with t, or its mass or inertia varies")
         body.coordinates = frozenset(index[s] for s in free if s in index)
+    rigid = [b for b in bodies if b.R is not None]
     bodies = [b for b in bodies if b.coordinates]
     n = len(q)
     moved = [frozenset(b for b, body in enumerate(bodies) if j in body.coordinates)
@@ -399,7 +430,11 @@ def _from_bodies(eq):
                      f"{len(carried) or 'no'} bod{'y' if len(carried) == 1 else 'ies'}")
     identity = [se.Integer(int(i == j)) for i in range(3) for j in range(3)] + [zero] * 3
     poses = [identity] * len(coordinate)
-    return SpatialTree(coordinate, parent, end, lambda: (records, poses), Q, notes)
+    carrier = {id(body): node_of[own] for body, own in zip(bodies, leaf)}
+    links = tuple((body.name, carrier.get(id(body), -1)) for body in rigid)
+    link_poses = [[x for row in body.R for x in row] + body.p for body in rigid]
+    return SpatialTree(coordinate, parent, end, lambda: (records, poses), Q, notes, links=links,
+                       link_terms=lambda: link_poses)
 
 
 def _column(eq, body, j, reference=None):

@@ -431,11 +431,13 @@ class Part:
     body: np.ndarray = field(default_factory=lambda: np.zeros(10))
 
 
-def parts(robot, base="fixed", frozen=None):
+def parts(robot, base="fixed", frozen=None, frames=None):
     """The robot's moving joints as `Part`s, parents first (depth first from the root link, in
     file order), with the links that fixed joints join merged into the body before them; the
-    joints of `frozen` ({name: position}) are fixed at that position."""
+    joints of `frozen` ({name: position}) are fixed at that position. `frames`, a dict, receives
+    {link: (the Part whose frame it is fixed in, or None for the fixed frame, R, p)}."""
     frozen = frozen or {}
+    frames = {} if frames is None else frames
     out = []
     if base == "floating":
         for name, kind, axis in FLOATING_BASE:
@@ -449,6 +451,7 @@ def parts(robot, base="fixed", frozen=None):
         out[owner0].link = robot.root
     while stack:
         link, owner, R, p = stack.pop()
+        frames[link] = (out[owner] if owner >= 0 else None, R, p)
         if owner >= 0:
             out[owner].body = _merged(out[owner].body, robot.links[link], R, p, link)
         pending = []
@@ -557,7 +560,8 @@ def _frozen_massless(robot, found, followers, massless):
 
 
 def from_urdf(path, name=None, base="fixed", gravity=(0.0, 0.0, -9.81), joint_dynamics=True,
-              parameters=None, mimic=True, check_inertias=True, massless="error"):
+              parameters=None, mimic=True, check_inertias=True, massless="error", limits=True,
+              limit_restitution=0.0):
     """A `lagrgen.Model` of the robot in the URDF file `path`.
 
     Parameters
@@ -573,7 +577,7 @@ def from_urdf(path, name=None, base="fixed", gravity=(0.0, 0.0, -9.81), joint_dy
         coordinates base_x, base_y, base_z, base_qx, base_qy, base_qz, base_qw first (its
         origin and a quaternion, see the robots guide), the inputs force_base_x, ...,
         torque_base_z (a force and a moment on its origin, fixed axes) and the outputs
-        base_roll, base_pitch, base_yaw; its initial state is upright at rest.
+        base_roll, base_pitch, base_yaw; its initial state is upright.
     gravity : 3 numbers or expressions
         The uniform gravity in the fixed frame, m/s².
     joint_dynamics : bool
@@ -593,13 +597,20 @@ def from_urdf(path, name=None, base="fixed", gravity=(0.0, 0.0, -9.81), joint_dy
     massless : "error" or "fixed"
         A joint that moves no mass or inertia (every link below it massless: its row of M would
         be zero): a URDFError, or ("fixed") the joint held fixed at 0 with a URDFWarning.
+    limits : bool
+        True: the joints' position limits act in simulations as unilateral contacts, stops
+        <joint>_lower and <joint>_upper (`Model.limit(..., enforce=True)`); False: declared
+        (`model.limits`, collocation bounds), not enforced.
+    limit_restitution : float in [0, 1]
+        The stops' coefficient of restitution (0: inelastic).
 
     Returns
     -------
     lagrgen.Model
         One coordinate per moving joint (revolute, continuous: an angle in rad; prismatic: a
         displacement in m), named as the joint, and one input `tau_<joint>` each; the joints'
-        limits in `model.limits`.
+        limits in `model.limits`. Its initial state is at rest with every joint at 0, or, where
+        enforced limits exclude 0, at the limit nearest 0.
     """
     import sympy as sp
 
@@ -621,7 +632,8 @@ def from_urdf(path, name=None, base="fixed", gravity=(0.0, 0.0, -9.81), joint_dy
         _check_mimics(robot)
     if massless not in ("error", "fixed"):
         raise ModelError(f"massless must be 'error' or 'fixed', got {massless!r}")
-    found = parts(robot, base)
+    frames = {}
+    found = parts(robot, base, frames=frames)
     names = [p.name for p in found]
     clash = {n for n in names if names.count(n) > 1}
     if clash:
@@ -637,7 +649,7 @@ def from_urdf(path, name=None, base="fixed", gravity=(0.0, 0.0, -9.81), joint_dy
                          "reads them)")
     frozen = _frozen_massless(robot, found, followers, massless)
     if frozen:
-        found = parts(robot, base, frozen)
+        found = parts(robot, base, frozen, frames)
         followers = {name: f for name, f in followers.items()
                      if any(p.name == name for p in found)}
     coordinate_parts = [p for p in found if p.name not in followers]
@@ -673,7 +685,7 @@ def from_urdf(path, name=None, base="fixed", gravity=(0.0, 0.0, -9.81), joint_dy
                              motion[p.name], inertias[k],
                              _radial_inertia(p.body) if p.kind == "free" else 0.0)
                      for k, p in enumerate(found))
-    record = Articulation(segments, sp.ImmutableMatrix(gravity))
+    record = Articulation(segments, sp.ImmutableMatrix(gravity), _link_frames(frames, found))
     model._add(record)
     model._drawables.append(("robot", (record,)))
     for p, u in zip(joint_parts, tau):
@@ -683,11 +695,35 @@ def from_urdf(path, name=None, base="fixed", gravity=(0.0, 0.0, -9.81), joint_dy
     if joint_dynamics:
         _joint_dynamics(model, found, motion)
     model.urdf = robot
+    start = {"base_qw": 1.0} if base == "free" else {}
     for p in coordinate_parts:
         limit = p.joint.limit if p.joint is not None else None
         if limit is not None and any(v is not None for v in astuple(limit)):
-            model.limit(p.name, *astuple(limit))
+            model.limit(p.name, *astuple(limit), enforce=bool(limits),
+                        restitution=limit_restitution)
+            if limits:
+                start.update(_within(p.name, limit.lower, limit.upper))
+    if start:
+        model.initial_state(q=start)
     return model
+
+
+def _within(name, lower, upper):
+    """{name: the bound nearest 0} for a joint whose enforced limits exclude 0, else {}."""
+    if lower is not None and lower > 0:
+        return {name: float(lower)}
+    if upper is not None and upper < 0:
+        return {name: float(upper)}
+    return {}
+
+
+def _link_frames(frames, found):
+    """The `LinkFrame` of every link, in the order of the file's links met depth first."""
+    from .records import LinkFrame
+    index = {id(part): k for k, part in enumerate(found)}
+    return tuple(LinkFrame(link, -1 if owner is None else index[id(owner)], _exact(_clean(R)),
+                           _exact(_clean(p).reshape(3, 1)))
+                 for link, (owner, R, p) in frames.items())
 
 
 def _radial_inertia(body):
@@ -714,7 +750,6 @@ def _free_base(model, coordinates):
     for name, angle in zip(FREE_OUTPUTS, _rpy_of_matrix(sp.Matrix(
             quaternion_matrix(list(z), homogeneous=True)))):
         model.output(name, angle, units="rad")
-    model.initial_state(q={"base_qw": 1.0})
 
 
 def _rpy_of_matrix(R):

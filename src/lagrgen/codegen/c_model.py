@@ -6,7 +6,7 @@ from string import Template
 from ..functions import DIRECTIONS_SIGNATURE, EXPORTED
 from ..kernels import KERNELS, kernel_names, model_kernels
 from .printer import c_function, in_lanes, kernel_statements
-from .tree_code import template_name, tree_c
+from .tree_code import link_layout, template_name, tree_c
 
 TEMPLATES = Path(__file__).resolve().parent / "templates"
 SIGNATURE = "double t, const double *y, const double *p, const double *u, double *out"
@@ -243,10 +243,26 @@ def model_source(info, equations, max_statements=400, functions=EXPORTED):
         functions=model_functions(info.name, functions),
         inertial_index=", ".join(str(info.parameters.index(name))
                                  for name in info.inertial_parameters) or "0",
+        link_tables=link_tables(equations) if info.link_names else "",
         coordinate_names=_names(info.coordinates),
         parameter_names=_names(info.parameters), input_names=_names(info.inputs),
         defaults=", ".join(_double(d) for d in defaults),
         metadata=c_char_array(info.to_json()))
+
+
+def link_tables(equations):
+    """The C tables of a tree's links (`tree_code.link_layout`): each link's node, each node's
+    parent and coordinate."""
+    layout = link_layout(equations)
+    rows = ", ".join
+    return (f"/* Link k is carried by node lg_link_node[k] (−1: fixed); node i's parent (−1: a root)"
+            f" and coordinate. */\n#define N_LINK_NODES {len(layout['parent'])}\n"
+            f"LG_MAYBE_UNUSED static const int lg_link_node[N_LINKS] = "
+            f"{{{rows(map(str, layout['node']))}}};\n"
+            f"LG_MAYBE_UNUSED static const int lg_link_parent[N_LINK_NODES] = "
+            f"{{{rows(map(str, layout['parent']))}}};\n"
+            f"LG_MAYBE_UNUSED static const int lg_link_coordinate[N_LINK_NODES] = "
+            f"{{{rows(map(str, layout['coordinate']))}}};\n")
 
 
 def module_source(info, units=0, functions=EXPORTED, template="module.c.in"):

@@ -21,4 +21,8 @@ def python_source(equations, formulation="dense"):
     if formulation == "recursive":
         from .tree_code import layout
         chunks.append(f"TREE = {layout(equations)!r}")
+    from ..kernels import has_links
+    if has_links(equations):
+        from .tree_code import link_layout
+        chunks.append(f"LINKS = {link_layout(equations)!r}")
     return "\n\n\n".join(chunks) + "\n"

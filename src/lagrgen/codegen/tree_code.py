@@ -211,3 +211,11 @@ def _tree_c(equations, tables, template, kernels):
         dnode_index=_ints([i for ko in tables["dnode"] for i in ko]),
         dnode_start=_ints(tables["dnode_start"]),
         dqp_index=_ints([i for ij in tables["dQp"] for i in ij]))
+
+
+def link_layout(equations):
+    """The tables of a three-dimensional tree's links: {"node": the node carrying each link (−1:
+    fixed), "parent": each node's parent (−1: a root), "coordinate": each node's coordinate}."""
+    tree = trees.analyse(equations)
+    return {"node": [node for _, node in tree.links], "parent": list(tree.parent),
+            "coordinate": list(tree.coordinate)}

@@ -487,6 +487,13 @@ cdef extern from "lg_hybrid.h":
         long max_transitions
         int *contact
         int *slip
+        int n_stops
+        const double *stops
+        int npf
+        const int *planar_kind
+        const int *planar_index
+        int *pmode
+        double *anchor
     ctypedef struct lg_hybrid_result_t:
         int status
         int stopped
@@ -504,7 +511,8 @@ def solve_hybrid(str method, uintptr_t terms, int n, int m, int ni, int nf, norm
                  normal_index, p, list inputs, double t0, double tf, y0, double rtol, atol,
                  double max_step, double first_step, t_eval, double rest_velocity,
                  double gap_tol, long max_transitions, Poll poll=None, long max_steps=0,
-                 double max_wall_time=0.0, double save_budget=0.0):
+                 double max_wall_time=0.0, double save_budget=0.0, stops=(), planar_kind=(),
+                 planar_index=()):
     """Run a hybrid solve (lagrgen/native/lg_hybrid.c) in C without the GIL.
 
     Parameters
@@ -517,13 +525,16 @@ def solve_hybrid(str method, uintptr_t terms, int n, int m, int ni, int nf, norm
         Per friction: 0 expression, 1 constraint k, 2 impact k (the index).
     rest_velocity : float
         < 0: the relative default. Other arguments as `solve` (poll: Ctrl-C, progress, stop).
+    stops : (k, 4) numbers: the enforced limits (coordinate, sign, bound, restitution), impacts
+        after the model's ni
+    planar_kind, planar_index : arrays of int (npf): the planar frictions' normal forces
 
     Returns
     -------
     dict
-        t, y (len(t), 2n), forces (len(t), m + ni + nf) (lg_hybrid_result_t.forces),
-        transitions (k, 3) of (t, element, kind code), contact (ni),
-        slip (nf), status, message, nfev, n_segments, failure (an LG_HY_* code of
+        t, y (len(t), 2n), forces (len(t), m + ni + k + nf + 2·npf) (lg_hybrid_result_t.forces),
+        transitions (k, 3) of (t, element, kind code), contact (ni + k),
+        slip (nf), pmode (npf), anchor (npf, 2), status, message, nfev, n_segments, failure (an LG_HY_* code of
         lg_hybrid.h) with failed_element, failed_value, failed_other.
     """
     if method not in METHOD_CODES:
@@ -538,7 +549,15 @@ def solve_hybrid(str method, uintptr_t terms, int n, int m, int ni, int nf, norm
     cdef cnp.ndarray te = None if t_eval is None else f64(t_eval)
     cdef cnp.ndarray nk = np.ascontiguousarray(list(normal_kind) + [0], dtype=np.intc)
     cdef cnp.ndarray nx = np.ascontiguousarray(list(normal_index) + [0], dtype=np.intc)
-    cdef cnp.ndarray contact = np.zeros(ni + 1, dtype=np.intc)
+    cdef cnp.ndarray st = f64(np.asarray(stops, dtype=float).ravel().tolist() + [0.0])
+    cdef int n_stops = (st.shape[0] - 1) // 4
+    cdef int npf = len(planar_kind)
+    cdef cnp.ndarray pk = np.ascontiguousarray(list(planar_kind) + [0], dtype=np.intc)
+    cdef cnp.ndarray px = np.ascontiguousarray(list(planar_index) + [0], dtype=np.intc)
+    cdef cnp.ndarray pmode = np.full(npf + 1, -1, dtype=np.intc)
+    cdef cnp.ndarray anchor = np.zeros(2 * npf + 2)
+    anchor[::2] = 1.0
+    cdef cnp.ndarray contact = np.zeros(ni + n_stops + 1, dtype=np.intc)
     cdef cnp.ndarray slip = np.ones(nf + 1, dtype=np.intc)
     cdef lg_hybrid_t hy
     cdef lg_options_t op
@@ -565,6 +584,13 @@ def solve_hybrid(str method, uintptr_t terms, int n, int m, int ni, int nf, norm
         hy.max_transitions = max_transitions
         hy.contact = <int *>cnp.PyArray_DATA(contact)
         hy.slip = <int *>cnp.PyArray_DATA(slip)
+        hy.n_stops = n_stops
+        hy.stops = <const double *>cnp.PyArray_DATA(st)
+        hy.npf = npf
+        hy.planar_kind = <const int *>cnp.PyArray_DATA(pk)
+        hy.planar_index = <const int *>cnp.PyArray_DATA(px)
+        hy.pmode = <int *>cnp.PyArray_DATA(pmode)
+        hy.anchor = <double *>cnp.PyArray_DATA(anchor)
         set_options(&op, method, t0, tf, rtol, <const double *>cnp.PyArray_DATA(atola),
                     max_step, first_step,
                     NULL if te is None else <const double *>cnp.PyArray_DATA(te),
@@ -583,8 +609,9 @@ def solve_hybrid(str method, uintptr_t terms, int n, int m, int ni, int nf, norm
                         message=res.message.decode(), nfev=res.nfev, n_steps=res.n_steps,
                         stopped=res.stopped, t_reached=res.t_reached,
                         n_segments=res.n_segments, transitions=buf_array(&res.transitions, 3),
-                        forces=buf_array(&res.forces, m + ni + nf),
-                        contact=contact[:ni].copy(), slip=slip[:nf].copy(),
+                        forces=buf_array(&res.forces, m + ni + n_stops + nf + 2 * npf),
+                        contact=contact[:ni + n_stops].copy(), slip=slip[:nf].copy(),
+                        pmode=pmode[:npf].copy(), anchor=anchor[:2 * npf].reshape(npf, 2),
                         failure=res.failure, failed_element=res.failed_element,
                         failed_value=res.failed_value, failed_other=res.failed_other)
         finally:

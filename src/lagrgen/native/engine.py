@@ -17,6 +17,9 @@ from scipy.integrate._ivp.rk import Dop853DenseOutput, RkDenseOutput
 
 from ..errors import MassMatrixError, NonFiniteError
 from ..methods import BY_NAME, NATIVE_METHODS
+
+#: The most events a native solve locates (LG_MAX_EVENTS of lg_ode.h).
+MAX_EVENTS = 1024
 from ..options import (absolute_tolerance, count, first_step as checked_first_step,
                        max_step as checked_max_step, output_times, relative_tolerance, seconds)
 from ..results import stopped_by_guard
@@ -60,6 +63,11 @@ def native_reason(mod, method, inputs, events, options, rtol=0.0):
     other = [k for k in options if k not in NATIVE_OPTIONS]
     if other:
         return f"option {other[0]!r} is only supported by the SciPy engine"
+    events = len(mod.event_definitions) + len(mod.nonsmooth_definitions) + \
+        len(mod.info.limit_stops)
+    if events > MAX_EVENTS:
+        return f"it has {events} events, impacts, frictions and stops (the native engine " \
+               f"locates at most {MAX_EVENTS})"
     return None
 
 
@@ -156,8 +164,8 @@ def _event_arrays(events):
             raise ValueError("The `terminal` attribute of each event must be a boolean or "
                              "positive integer.")
     direction = np.asarray(direction, dtype=float).reshape(-1)
-    if len(emax) > 64:
-        raise ValueError("the native engine locates at most 64 events")
+    if len(emax) > MAX_EVENTS:
+        raise ValueError(f"the native engine locates at most {MAX_EVENTS} events")
     if direction.size != len(emax) or not emax:
         raise ValueError("events need one terminal flag and one direction per event")
     if not address:

@@ -2,12 +2,16 @@
  *
  *     M·q̈ = F + Σ_slip (−μ_j·|N_j|·s_j)·w_jᵀ + Rᵀ·λ,    R·q̈ = γ_R
  *
- * (R: the model's constraints, the held contacts' W_i, the sticking frictions' w_j) are solved
- * as one (n + r) linear system by Gaussian elimination with partial pivoting; a segment is one
+ * (R: the model's constraints, the held contacts' W_i, the sticking frictions' w_j; a planar
+ * friction slips with −μ·|N|·(û1·w1 + û2·w2), û its unit slip direction) are solved through the
+ * Delassus matrix D = R·M⁻¹·B (B = Rᵀ with the slipping frictions' forces per unit normal force
+ * added to their normal rows' columns): D·λ = γ_R − R·M⁻¹·F, the contact rows regularized and the
+ * result refined (hy_saddle: the least-norm forces of redundant contacts); a segment is one
  * lg_solve with terminal events (all falling through zero); between segments the impact law
- * (generalized Newton, projected Gauss–Seidel on the Delassus matrix) and the switching rules.
- * The model's functions keep their signature f(t, y, p, u, out); the segment's rhs, Jacobian and
- * events are lg_solve's system hooks (sys_rhs, sys_jac, sys_events) with this driver's context.
+ * (generalized Newton with Coulomb's disks for planar frictions, projected Gauss–Seidel on the
+ * Delassus matrix) and the switching rules. The model's functions keep their signature
+ * f(t, y, p, u, out); the segment's rhs, Jacobian and events are lg_solve's system hooks
+ * (sys_rhs, sys_jac, sys_events) with this driver's context.
  */
 #define _POSIX_C_SOURCE 200809L   /* clock_gettime under -std=c99 */
 #include "lg_hybrid.h"
@@ -20,23 +24,41 @@
 
 #define IMPACT_FIELDS 4
 #define FRICTION_FIELDS 5
+#define PLANAR_FIELDS 7
 #define REST_FACTOR 1e-6
 #define PGS_SWEEPS 200
+/* lagrgen.hybrid.REGULARIZATION, REFINEMENTS, PLANAR_BLEND, TOUCH_OFFSET. */
+#define REGULARIZATION 1e-7
+#define REFINEMENTS 3
+#define PLANAR_BLEND 1e-9
+#define TOUCH_OFFSET 1e-3
 
 typedef struct {
     lg_hybrid_t *h;
-    int n, m, ni, nf, rmax;
+    int n, m, ni, nf, npf, rmax;   /* ni: the model's impacts and the stops */
     double *terms;                 /* hybrid_terms output */
+    double *stop_rows;             /* the stops' impact rows */
     double *K, *x, *R, *rhs, *sigma, *force;
+    double *XB, *Dl, *Kd, *res;    /* hy_saddle: M⁻¹·[B | force], D, D + ε, a residual */
+    int *piv, *pivd, *reg;
     double *lam_i, *lam_f, *normal, *qdd;
+    double *lam_p, *normal_p, *dir_p;   /* planar: force (2 each), N, slip direction (2 each) */
+    double *vel_p;                 /* planar slip velocities at a switch (2 each) */
     double *u;                     /* inputs at a switching time */
-    double *P, *Minv, *work, *D, *WP, *impulse, *after, *target, *before, *e;
-    int *row_of_impact, *row_of_friction, *involved, *closing, *resting, *bounced, *held;
+    double *P, *Minv, *work, *D, *WP, *impulse, *after, *target, *before, *e, *Wrow;
+    int *row_of_impact, *row_of_friction, *row_of_planar, *involved, *closing, *resting;
+    int *bounced, *held, *cone;
     int *opened;                   /* ni zeros: every contact open */
+    int *unset;                    /* npf × −1: every planar friction inactive */
     int n_bounced;
+    double *gap_offset;            /* of the impact events (hy_touching) */
+    int cached;                    /* the solution at hand is the segment's at (cached_t, _y) */
+    double cached_t, *cached_y;
+    int *activated;                /* planar frictions that began to act in hy_settle */
     double *fastest, *fy, *fy2, *yp, *force_row;
     double *rest_speed;            /* per impact at the start: √(2·gap_tol·|g̈|) */
-    const int *contact, *slip;     /* the mode of the current evaluation */
+    const int *contact, *slip, *pmode;   /* the mode of the current evaluation */
+    const double *anchor;
     lg_hybrid_result_t *result;
 } hy_ctx;
 
@@ -54,40 +76,107 @@ void lg_hybrid_result_free(lg_hybrid_result_t *r)
 }
 
 /* -- linear algebra ------------------------------------------------------------------------- */
+/* K = P·L·U in place (k×k, row-major, partial pivoting, the row swaps in piv); 1 when K is
+ * singular. */
+static int hy_lu_factor(double *K, int *piv, int k)
+{
+    for (int c = 0; c < k; ++c) {
+        int p = c;
+        for (int r = c + 1; r < k; ++r)
+            if (fabs(K[r * k + c]) > fabs(K[p * k + c]))
+                p = r;
+        piv[c] = p;
+        if (!(fabs(K[p * k + c]) > 0))
+            return 1;
+        if (p != c)
+            for (int j = 0; j < k; ++j) {
+                double s = K[c * k + j];
+                K[c * k + j] = K[p * k + j];
+                K[p * k + j] = s;
+            }
+        for (int r = c + 1; r < k; ++r) {
+            double f = K[r * k + c] /= K[c * k + c];
+            if (f != 0)
+                for (int j = c + 1; j < k; ++j)
+                    K[r * k + j] -= f * K[c * k + j];
+        }
+    }
+    return 0;
+}
+
+/* b := K⁻¹·b with the factor of hy_lu_factor, for `ncols` columns of b (row stride ncols):
+ * the row swaps first (the multipliers moved with their rows), then L, then U. */
+static void hy_lu_apply(const double *K, const int *piv, double *b, int k, int ncols)
+{
+    for (int c = 0; c < k; ++c)
+        if (piv[c] != c)
+            for (int j = 0; j < ncols; ++j) {
+                double s = b[c * ncols + j];
+                b[c * ncols + j] = b[piv[c] * ncols + j];
+                b[piv[c] * ncols + j] = s;
+            }
+    for (int c = 0; c < k; ++c) {
+        for (int r = c + 1; r < k; ++r) {
+            double f = K[r * k + c];
+            if (f != 0)
+                for (int j = 0; j < ncols; ++j)
+                    b[r * ncols + j] -= f * b[c * ncols + j];
+        }
+    }
+    for (int r = k - 1; r >= 0; --r)
+        for (int j = 0; j < ncols; ++j) {
+            double s = b[r * ncols + j];
+            for (int c = r + 1; c < k; ++c)
+                s -= K[r * k + c] * b[c * ncols + j];
+            b[r * ncols + j] = s / K[r * k + r];
+        }
+}
+
 /* Solve K·x = b (k×k, row-major, overwritten) in place in b; 1 when K is singular. */
 static int hy_lu_solve(double *K, double *b, int k)
 {
-    for (int c = 0; c < k; ++c) {
-        int piv = c;
-        for (int r = c + 1; r < k; ++r)
-            if (fabs(K[r * k + c]) > fabs(K[piv * k + c]))
-                piv = r;
-        if (!(fabs(K[piv * k + c]) > 0))
-            return 1;
-        if (piv != c) {
-            for (int j = 0; j < k; ++j) {
-                double s = K[c * k + j];
-                K[c * k + j] = K[piv * k + j];
-                K[piv * k + j] = s;
-            }
-            double s = b[c];
-            b[c] = b[piv];
-            b[piv] = s;
+    int piv[64], *p = k <= 64 ? piv : malloc((size_t)k * sizeof(int));
+    if (!p)
+        return 1;
+    int singular = hy_lu_factor(K, p, k);
+    if (!singular)
+        hy_lu_apply(K, p, b, k, 1);
+    if (p != piv)
+        free(p);
+    return singular;
+}
+
+/* λ with D·λ = b (r×r, row-major; D kept), least-norm where D is singular on the rows
+ * reg[q] != 0: ε = REGULARIZATION·(their largest diagonal entry) added to their diagonal
+ * entries, then REFINEMENTS steps λ += (D + ε)⁻¹·(b − D·λ) (lagrgen.hybrid.regularized_solve).
+ * 1 when D + ε is singular. Uses c->Kd, c->pivd, c->res. */
+static int hy_regularized_solve(hy_ctx *c, const double *D, const double *b, const int *reg,
+                                int r, double *lam)
+{
+    double scale = 0.0;
+    for (int q = 0; q < r; ++q)
+        if (reg[q])
+            scale = fmax(scale, fabs(D[q * r + q]));
+    if (!(scale > 0))
+        scale = 1.0;
+    memcpy(c->Kd, D, (size_t)r * r * sizeof(double));
+    for (int q = 0; q < r; ++q)
+        if (reg[q])
+            c->Kd[q * r + q] += REGULARIZATION * scale;
+    if (hy_lu_factor(c->Kd, c->pivd, r))
+        return 1;
+    memcpy(lam, b, r * sizeof(double));
+    hy_lu_apply(c->Kd, c->pivd, lam, r, 1);
+    for (int it = 0; it < REFINEMENTS; ++it) {
+        for (int q = 0; q < r; ++q) {
+            double s = b[q];
+            for (int l = 0; l < r; ++l)
+                s -= D[q * r + l] * lam[l];
+            c->res[q] = s;
         }
-        for (int r = c + 1; r < k; ++r) {
-            double f = K[r * k + c] / K[c * k + c];
-            if (f == 0)
-                continue;
-            for (int j = c; j < k; ++j)
-                K[r * k + j] -= f * K[c * k + j];
-            b[r] -= f * b[c];
-        }
-    }
-    for (int r = k - 1; r >= 0; --r) {
-        double s = b[r];
-        for (int j = r + 1; j < k; ++j)
-            s -= K[r * k + j] * b[j];
-        b[r] = s / K[r * k + r];
+        hy_lu_apply(c->Kd, c->pivd, c->res, r, 1);
+        for (int q = 0; q < r; ++q)
+            lam[q] += c->res[q];
     }
     return 0;
 }
@@ -97,18 +186,36 @@ static int hy_lu_solve(double *K, double *b, int k)
 #define F_(c) ((c)->terms + (c)->n * (c)->n)
 #define A_(c) ((c)->terms + (c)->n * (c)->n + (c)->n)
 #define G_(c) ((c)->terms + (c)->n * (c)->n + (c)->n + (c)->m * (c)->n)
-#define IMP(c, i) ((c)->terms + (c)->n * (c)->n + (c)->n + (c)->m * (c)->n + (c)->m \
-                   + (size_t)(i) * (IMPACT_FIELDS + (c)->n))
-#define FR(c, j) (IMP(c, (c)->ni) + (size_t)(j) * (FRICTION_FIELDS + (c)->n))
+#define MODEL_IMP(c, i) ((c)->terms + (c)->n * (c)->n + (c)->n + (c)->m * (c)->n + (c)->m \
+                         + (size_t)(i) * (IMPACT_FIELDS + (c)->n))
+/* Impact i: the model's, then the stops' rows. */
+#define IMP(c, i) ((i) < (c)->h->ni ? MODEL_IMP(c, i) \
+                   : (c)->stop_rows + (size_t)((i) - (c)->h->ni) * (IMPACT_FIELDS + (c)->n))
+#define FR(c, j) (MODEL_IMP(c, (c)->h->ni) + (size_t)(j) * (FRICTION_FIELDS + (c)->n))
+#define PF(c, k) (FR(c, (c)->nf) + (size_t)(k) * (PLANAR_FIELDS + 2 * (c)->n))
 
 static int hy_terms(hy_ctx *c, double t, const double *y, const double *u)
 {
-    return c->h->terms(t, y, c->h->p, u, c->terms);
+    int n = c->n;
+    c->cached = 0;                   /* the terms at hand are no longer the cached solution's */
+    if (c->h->terms(t, y, c->h->p, u, c->terms))
+        return 1;
+    for (int s = 0; s < c->h->n_stops; ++s) {      /* lagrgen.hybrid.stop_rows */
+        const double *stop = c->h->stops + 4 * s;
+        const int j = (int)stop[0];
+        double *row = c->stop_rows + (size_t)s * (IMPACT_FIELDS + n);
+        memset(row, 0, (IMPACT_FIELDS + n) * sizeof(double));
+        row[0] = stop[1] * (y[j] - stop[2]);
+        row[1] = stop[1] * y[n + j];
+        row[3] = stop[3];
+        row[IMPACT_FIELDS + j] = stop[1];
+    }
+    return 0;
 }
 
-static int hy_normal_row(const hy_ctx *c, int j)
+/* The row of R whose multiplier is the normal force of kind/index, or −1. */
+static int hy_row_of(const hy_ctx *c, int kind, int k)
 {
-    int kind = c->h->normal_kind[j], k = c->h->normal_index[j];
     if (kind == LG_NORMAL_CONSTRAINT)
         return k;
     if (kind == LG_NORMAL_IMPACT)
@@ -116,17 +223,92 @@ static int hy_normal_row(const hy_ctx *c, int j)
     return -1;
 }
 
-/* Whether friction j acts in a mode with these contacts: not while its normal force is the
- * multiplier of an open contact (N = 0: no force, no sticking, no events). */
-static int hy_active(const hy_ctx *c, int j, const int *contact)
+static int hy_normal_row(const hy_ctx *c, int j)
 {
-    return c->h->normal_kind[j] != LG_NORMAL_IMPACT || contact[c->h->normal_index[j]];
+    return hy_row_of(c, c->h->normal_kind[j], c->h->normal_index[j]);
 }
 
-/* q̈, the contact and sticking multipliers and the normal forces in the mode (contact, slip),
- * into c->qdd, lam_i, lam_f, normal; the terms stay in c->terms. 1: singular or model failure. */
+/* Whether a friction whose normal force is (kind, index) acts in a mode with these contacts: not
+ * while it is the multiplier of an open contact (N = 0: no force, no sticking, no events); one
+ * rule for the frictions and the planar frictions (lagrgen.hybrid.acts). */
+static int hy_acts(int kind, int index, const int *contact)
+{
+    return kind != LG_NORMAL_IMPACT || contact[index];
+}
+
+static int hy_active(const hy_ctx *c, int j, const int *contact)
+{
+    return hy_acts(c->h->normal_kind[j], c->h->normal_index[j], contact);
+}
+
+static int hy_planar_active(const hy_ctx *c, int k, const int *contact)
+{
+    return hy_acts(c->h->planar_kind[k], c->h->planar_index[k], contact);
+}
+
+/* The unit slip direction (v + b·d)/‖v + b·d‖ of planar friction k (b = PLANAR_BLEND). */
+static void hy_slip_direction(const double *v, const double *anchor, double *out)
+{
+    double a = v[0] + PLANAR_BLEND * anchor[0], b = v[1] + PLANAR_BLEND * anchor[1];
+    double norm = hypot(a, b);
+    out[0] = norm > 0 ? a / norm : anchor[0];
+    out[1] = norm > 0 ? b / norm : anchor[1];
+}
+
+/* (q̈, λ) of M·q̈ = force + B·λ, R·q̈ = rhs with B = Rᵀ plus c->Wrow's columns (the slipping
+ * frictions' forces per unit normal force, scaled by c->sigma) through D = R·M⁻¹·B (see the top);
+ * into c->qdd and c->x + n. `nlinked` columns in c->Wrow (n each) at rows c->cone[0..). */
+static int hy_saddle(hy_ctx *c, int r, int nlinked)
+{
+    int n = c->n, w = r + 1;
+    /* XB = M⁻¹·[B | force] (n × (r + 1)) */
+    for (int a = 0; a < n; ++a) {
+        for (int q = 0; q < r; ++q)
+            c->XB[a * w + q] = c->R[q * n + a];
+        c->XB[a * w + r] = c->force[a];
+    }
+    for (int l = 0; l < nlinked; ++l) {
+        int row = c->cone[l];
+        for (int a = 0; a < n; ++a)
+            c->XB[a * w + row] += c->sigma[row] * c->Wrow[(size_t)l * n + a];
+    }
+    memcpy(c->K, M_(c), (size_t)n * n * sizeof(double));
+    if (hy_lu_factor(c->K, c->piv, n))
+        return 1;
+    hy_lu_apply(c->K, c->piv, c->XB, n, w);
+    if (!r) {
+        for (int a = 0; a < n; ++a)
+            c->qdd[a] = c->XB[a * w];
+        return 0;
+    }
+    for (int q = 0; q < r; ++q) {
+        double sb = c->rhs[q];
+        for (int a = 0; a < n; ++a)
+            sb -= c->R[q * n + a] * c->XB[a * w + r];
+        c->force_row[q] = sb;
+        for (int l = 0; l < r; ++l) {
+            double s = 0;
+            for (int a = 0; a < n; ++a)
+                s += c->R[q * n + a] * c->XB[a * w + l];
+            c->Dl[q * r + l] = s;
+        }
+    }
+    if (hy_regularized_solve(c, c->Dl, c->force_row, c->reg, r, c->x + n))
+        return 1;
+    for (int a = 0; a < n; ++a) {
+        double s = c->XB[a * w + r];
+        for (int q = 0; q < r; ++q)
+            s += c->XB[a * w + q] * c->x[n + q];
+        c->qdd[a] = s;
+    }
+    return 0;
+}
+
+/* q̈, the contact and sticking multipliers and the normal forces in the mode (contact, slip,
+ * pmode, anchor), into c->qdd, lam_i, lam_f, normal, lam_p, normal_p (and λ at c->x + n); the
+ * terms stay in c->terms. 1: singular or model failure. */
 static int hy_solve(hy_ctx *c, double t, const double *y, const double *u, const int *contact,
-                    const int *slip)
+                    const int *slip, const int *pmode, const double *anchor)
 {
     int n = c->n, m = c->m;
     if (hy_terms(c, t, y, u))
@@ -135,12 +317,14 @@ static int hy_solve(hy_ctx *c, double t, const double *y, const double *u, const
     for (int k = 0; k < m; ++k, ++r) {
         memcpy(c->R + (size_t)r * n, A_(c) + (size_t)k * n, n * sizeof(double));
         c->rhs[r] = G_(c)[k];
+        c->reg[r] = 0;
     }
     for (int i = 0; i < c->ni; ++i) {
         c->row_of_impact[i] = -1;
         if (contact[i]) {
             c->row_of_impact[i] = r;
             memcpy(c->R + (size_t)r * n, IMP(c, i) + IMPACT_FIELDS, n * sizeof(double));
+            c->reg[r] = 1;
             c->rhs[r++] = IMP(c, i)[2];
         }
     }
@@ -149,48 +333,65 @@ static int hy_solve(hy_ctx *c, double t, const double *y, const double *u, const
         if (slip[j] == 0 && hy_active(c, j, contact)) {
             c->row_of_friction[j] = r;
             memcpy(c->R + (size_t)r * n, FR(c, j) + FRICTION_FIELDS, n * sizeof(double));
+            c->reg[r] = 1;
             c->rhs[r++] = FR(c, j)[1];
         }
     }
-    memcpy(c->force, F_(c), n * sizeof(double));
-    for (int j = 0; j < c->nf; ++j) {
-        if (slip[j] == 0 || hy_normal_row(c, j) >= 0
-            || c->h->normal_kind[j] != LG_NORMAL_EXPRESSION)
-            continue;
-        double f = -FR(c, j)[2] * slip[j] * fabs(FR(c, j)[4]);
-        for (int a = 0; a < n; ++a)
-            c->force[a] += f * FR(c, j)[FRICTION_FIELDS + a];
+    for (int k = 0; k < c->npf; ++k) {
+        c->row_of_planar[k] = -1;
+        if (pmode[k] == 0) {
+            c->row_of_planar[k] = r;
+            for (int d = 0; d < 2; ++d) {
+                memcpy(c->R + (size_t)r * n, PF(c, k) + PLANAR_FIELDS + d * n,
+                       n * sizeof(double));
+                c->reg[r] = 1;
+                c->rhs[r++] = PF(c, k)[2 + d];
+            }
+        }
     }
-    int k = n + r;
+    memcpy(c->force, F_(c), n * sizeof(double));
+    int nlinked = 0;
+    for (int j = 0; j < c->nf; ++j) {
+        if (slip[j] == 0)
+            continue;
+        double f = -FR(c, j)[2] * slip[j];
+        int row = hy_normal_row(c, j);
+        if (row >= 0) {
+            for (int a = 0; a < n; ++a)
+                c->Wrow[(size_t)nlinked * n + a] = f * FR(c, j)[FRICTION_FIELDS + a];
+            c->cone[nlinked++] = row;
+        } else if (c->h->normal_kind[j] == LG_NORMAL_EXPRESSION) {
+            f *= fabs(FR(c, j)[4]);
+            for (int a = 0; a < n; ++a)
+                c->force[a] += f * FR(c, j)[FRICTION_FIELDS + a];
+        }
+    }
+    for (int k = 0; k < c->npf; ++k) {
+        double *dir = c->dir_p + 2 * k;
+        dir[0] = dir[1] = 0.0;
+        if (pmode[k] != 1)
+            continue;
+        const double *pf = PF(c, k), *w1 = pf + PLANAR_FIELDS, *w2 = w1 + n;
+        hy_slip_direction(pf, anchor + 2 * k, dir);
+        int row = hy_row_of(c, c->h->planar_kind[k], c->h->planar_index[k]);
+        double scale = row >= 0 ? 1.0 : (c->h->planar_kind[k] == LG_NORMAL_EXPRESSION
+                                         ? fabs(pf[6]) : 0.0);
+        double *target = row >= 0 ? c->Wrow + (size_t)nlinked * n : c->force;
+        for (int a = 0; a < n; ++a) {
+            double f = -pf[4] * scale * (dir[0] * w1[a] + dir[1] * w2[a]);
+            target[a] = row >= 0 ? f : target[a] + f;
+        }
+        if (row >= 0)
+            c->cone[nlinked++] = row;
+    }
     for (int a = 0; a < r; ++a)
         c->sigma[a] = 1.0;
     for (int iter = 0; iter < 4; ++iter) {
-        memset(c->K, 0, (size_t)k * k * sizeof(double));
-        for (int a = 0; a < n; ++a)
-            for (int b = 0; b < n; ++b)
-                c->K[a * k + b] = M_(c)[a * n + b];
-        for (int q = 0; q < r; ++q)
-            for (int a = 0; a < n; ++a) {
-                c->K[a * k + n + q] = -c->R[q * n + a];
-                c->K[(n + q) * k + a] = c->R[q * n + a];
-            }
-        for (int j = 0; j < c->nf; ++j) {
-            int row = hy_normal_row(c, j);
-            if (slip[j] == 0 || row < 0)
-                continue;
-            double f = -FR(c, j)[2] * slip[j];
-            for (int a = 0; a < n; ++a)
-                c->K[a * k + n + row] -= f * c->sigma[row] * FR(c, j)[FRICTION_FIELDS + a];
-        }
-        memcpy(c->x, c->force, n * sizeof(double));
-        memcpy(c->x + n, c->rhs, r * sizeof(double));
-        if (hy_lu_solve(c->K, c->x, k))
+        if (hy_saddle(c, r, nlinked))
             return 1;
         int same = 1;
-        for (int j = 0; j < c->nf; ++j) {
-            int row = hy_normal_row(c, j);
-            if (slip[j] == 0 || row < 0)
-                continue;
+        for (int l = 0; l < nlinked; ++l) {
+            int row = c->cone[l];
             double s = c->x[n + row] < 0 ? -1.0 : 1.0;
             if (s != c->sigma[row]) {
                 c->sigma[row] = s;
@@ -200,7 +401,6 @@ static int hy_solve(hy_ctx *c, double t, const double *y, const double *u, const
         if (same)
             break;
     }
-    memcpy(c->qdd, c->x, n * sizeof(double));
     for (int i = 0; i < c->ni; ++i)
         c->lam_i[i] = c->row_of_impact[i] >= 0 ? c->x[n + c->row_of_impact[i]] : 0.0;
     for (int j = 0; j < c->nf; ++j) {
@@ -209,14 +409,38 @@ static int hy_solve(hy_ctx *c, double t, const double *y, const double *u, const
         c->normal[j] = row >= 0 ? fabs(c->x[n + row])
                        : (c->h->normal_kind[j] == LG_NORMAL_EXPRESSION ? fabs(FR(c, j)[4]) : 0.0);
     }
+    for (int k = 0; k < c->npf; ++k) {
+        int row = hy_row_of(c, c->h->planar_kind[k], c->h->planar_index[k]);
+        double N = row >= 0 ? fabs(c->x[n + row])
+                   : (c->h->planar_kind[k] == LG_NORMAL_EXPRESSION ? fabs(PF(c, k)[6]) : 0.0);
+        c->normal_p[k] = N;
+        for (int d = 0; d < 2; ++d)
+            c->lam_p[2 * k + d] = c->row_of_planar[k] >= 0 ? c->x[n + c->row_of_planar[k] + d]
+                                  : -PF(c, k)[4] * N * c->dir_p[2 * k + d];
+    }
     return 0;
 }
 
 /* -- the segment's functions (p is the context) --------------------------------------------- */
+/* hy_solve in the segment's mode, unless the last solve was at this very (t, y) in it (the
+ * events at the point of the step's last stage): 1 on failure. */
+static int hy_solve_segment(hy_ctx *c, double t, const double *y, const double *u)
+{
+    size_t bytes = 2 * (size_t)c->n * sizeof(double);
+    if (c->cached && t == c->cached_t && memcmp(y, c->cached_y, bytes) == 0)
+        return 0;
+    if (hy_solve(c, t, y, u, c->contact, c->slip, c->pmode, c->anchor))
+        return 1;
+    c->cached = 1;
+    c->cached_t = t;
+    memcpy(c->cached_y, y, bytes);
+    return 0;
+}
+
 static int hy_rhs(void *ctx, double t, const double *y, const double *u, double *ydot)
 {
     hy_ctx *c = (hy_ctx *)ctx;
-    if (hy_solve(c, t, y, u, c->contact, c->slip))
+    if (hy_solve_segment(c, t, y, u))
         return 1;
     memcpy(ydot, y + c->n, c->n * sizeof(double));
     memcpy(ydot + c->n, c->qdd, c->n * sizeof(double));
@@ -243,22 +467,32 @@ static int hy_jacobian(void *ctx, double t, const double *y, const double *u, do
     return 0;
 }
 
-static void hy_event_values(hy_ctx *c, const int *contact, const int *slip, double *values)
+/* The event values of the mode (lagrgen.hybrid.HybridSystem.events): an open gap plus its
+ * offset (hy_touching). */
+static void hy_event_values(hy_ctx *c, const int *contact, const int *slip, const int *pmode,
+                            const double *anchor, double *values)
 {
     for (int i = 0; i < c->ni; ++i)
-        values[i] = contact[i] ? c->lam_i[i] : IMP(c, i)[0];
+        values[i] = contact[i] ? c->lam_i[i] : IMP(c, i)[0] + c->gap_offset[i];
     for (int j = 0; j < c->nf; ++j)
         values[c->ni + j] = !hy_active(c, j, contact) ? 1.0
                             : slip[j] == 0 ? FR(c, j)[3] * c->normal[j] - fabs(c->lam_f[j])
                                            : slip[j] * FR(c, j)[0];
+    for (int k = 0; k < c->npf; ++k) {
+        const double *pf = PF(c, k);
+        values[c->ni + c->nf + k] =
+            pmode[k] < 0 ? 1.0
+            : pmode[k] == 0 ? pf[5] * c->normal_p[k] - hypot(c->lam_p[2 * k], c->lam_p[2 * k + 1])
+                            : anchor[2 * k] * pf[0] + anchor[2 * k + 1] * pf[1];
+    }
 }
 
 static int hy_events(void *ctx, double t, const double *y, const double *u, double *values)
 {
     hy_ctx *c = (hy_ctx *)ctx;
-    if (hy_solve(c, t, y, u, c->contact, c->slip))
+    if (hy_solve_segment(c, t, y, u))
         return 1;
-    hy_event_values(c, c->contact, c->slip, values);
+    hy_event_values(c, c->contact, c->slip, c->pmode, c->anchor, values);
     return 0;
 }
 
@@ -310,29 +544,40 @@ static int hy_inverse_mass(hy_ctx *c)
     return 0;
 }
 
-/* For the impacts rows[0..k) at the state whose terms and P are at hand: WP = P·Wᵀ (n×k),
- * D = W·P·Wᵀ (k×k) and before = ġ: an impulse Λ along W changes q̇ by WP·Λ and ġ by D·Λ. */
-static void hy_delassus(hy_ctx *c, const int *rows, int k)
+/* For k gradient rows (n each) in c->Wrow at the state whose terms and P are at hand:
+ * WP = P·Wᵀ (n×k), D = W·P·Wᵀ (k×k): an impulse Λ along W changes q̇ by WP·Λ and the rows'
+ * rates by D·Λ. */
+static void hy_delassus_rows(hy_ctx *c, int k)
 {
     int n = c->n;
     for (int a = 0; a < n; ++a)
         for (int q = 0; q < k; ++q) {
             double s = 0;
-            const double *W = IMP(c, rows[q]) + IMPACT_FIELDS;
+            const double *W = c->Wrow + (size_t)q * n;
             for (int b = 0; b < n; ++b)
                 s += c->P[a * n + b] * W[b];
             c->WP[a * k + q] = s;
         }
     for (int q = 0; q < k; ++q) {
-        const double *W = IMP(c, rows[q]) + IMPACT_FIELDS;
+        const double *W = c->Wrow + (size_t)q * n;
         for (int l = 0; l < k; ++l) {
             double s = 0;
             for (int b = 0; b < n; ++b)
                 s += W[b] * c->WP[b * k + l];
             c->D[q * k + l] = s;
         }
+    }
+}
+
+/* hy_delassus_rows for the impacts rows[0..k), with before = ġ. */
+static void hy_delassus(hy_ctx *c, const int *rows, int k)
+{
+    for (int q = 0; q < k; ++q) {
+        memcpy(c->Wrow + (size_t)q * c->n, IMP(c, rows[q]) + IMPACT_FIELDS,
+               c->n * sizeof(double));
         c->before[q] = IMP(c, rows[q])[1];
     }
+    hy_delassus_rows(c, k);
 }
 
 /* q̇ += WP·Λ: the impulses c->impulse[0..k) along the rows of the last hy_delassus. */
@@ -347,12 +592,26 @@ static void hy_apply_impulse(hy_ctx *c, double *y, int k)
     }
 }
 
+/* Move impulse q to `value` (lagrgen.hybrid.projected_gauss_seidel); its change times D_qq. */
+static double hy_pgs_move(hy_ctx *c, int k, int q, double value)
+{
+    double delta = value - c->impulse[q];
+    if (delta == 0)
+        return 0.0;
+    for (int l = 0; l < k; ++l)
+        c->after[l] += c->D[l * k + q] * delta;
+    c->impulse[q] = value;
+    return fabs(delta) * c->D[q * k + q];
+}
+
 /* q̇⁺ by the generalized Newton law for the closing impacts (closing[0..nc), restitution e[]
- * per closing one) and the held ones (e = 0); y updated in place; before[] gets ġ⁻. */
+ * per closing one) and the held ones (e = 0), with Coulomb's disks for the planar frictions
+ * whose normal force is one of them (their tangential impulses within μ times the normal one,
+ * aiming at v = 0); y updated in place; before[] gets ġ⁻. */
 static int hy_impact(hy_ctx *c, double t, double *y, const double *u, const int *closing, int nc,
                      const double *e)
 {
-    int k = 0;
+    int k = 0, n = c->n, ncones = 0;
     if (hy_terms(c, t, y, u) || hy_inverse_mass(c))
         return 1;
     for (int a = 0; a < nc; ++a)
@@ -364,27 +623,61 @@ static int hy_impact(hy_ctx *c, double t, double *y, const double *u, const int 
         if (c->h->contact[i] && !in)
             c->involved[k++] = i;
     }
-    hy_delassus(c, c->involved, k);
+    int ninvolved = k;
+    for (int q = 0; q < ninvolved; ++q) {
+        memcpy(c->Wrow + (size_t)q * n, IMP(c, c->involved[q]) + IMPACT_FIELDS,
+               n * sizeof(double));
+        c->before[q] = IMP(c, c->involved[q])[1];
+        c->target[q] = q < nc ? -e[q] * fmin(c->before[q], 0.0) : 0.0;
+    }
+    for (int p = 0; p < c->npf; ++p) {
+        if (c->h->planar_kind[p] != LG_NORMAL_IMPACT)
+            continue;
+        int normal = -1;
+        for (int q = 0; q < ninvolved; ++q)
+            if (c->involved[q] == c->h->planar_index[p])
+                normal = q;
+        if (normal < 0)
+            continue;
+        for (int d = 0; d < 2; ++d) {
+            memcpy(c->Wrow + (size_t)k * n, PF(c, p) + PLANAR_FIELDS + d * n, n * sizeof(double));
+            c->before[k] = PF(c, p)[d];
+            c->target[k++] = 0.0;
+        }
+        c->cone[2 * ncones] = normal;
+        c->cone[2 * ncones + 1] = p;
+        ++ncones;
+    }
+    hy_delassus_rows(c, k);
     double scale = 1.0;
     for (int q = 0; q < k; ++q) {
         c->after[q] = c->before[q];
-        c->target[q] = q < nc ? -e[q] * fmin(c->before[q], 0.0) : 0.0;
         c->impulse[q] = 0.0;
         scale = fmax(scale, fabs(c->before[q]));
     }
     for (int sweep = 0; sweep < PGS_SWEEPS; ++sweep) {
         double change = 0;
-        for (int q = 0; q < k; ++q) {
+        for (int q = 0; q < ninvolved; ++q) {
             double d = c->D[q * k + q];
             if (d <= 0)
                 continue;
-            double nw = fmax(0.0, c->impulse[q] - (c->after[q] - c->target[q]) / d);
-            double delta = nw - c->impulse[q];
-            if (delta != 0) {
-                for (int l = 0; l < k; ++l)
-                    c->after[l] += c->D[l * k + q] * delta;
-                c->impulse[q] = nw;
-                change = fmax(change, fabs(delta) * d);
+            change = fmax(change, hy_pgs_move(c, k, q, fmax(0.0, c->impulse[q]
+                                                       - (c->after[q] - c->target[q]) / d)));
+        }
+        for (int cn = 0; cn < ncones; ++cn) {
+            int a = ninvolved + 2 * cn, b = a + 1, normal = c->cone[2 * cn];
+            for (int q = a; q <= b; ++q) {
+                double d = c->D[q * k + q];
+                if (d > 0)
+                    change = fmax(change, hy_pgs_move(c, k, q, c->impulse[q]
+                                                      - (c->after[q] - c->target[q]) / d));
+            }
+            double radius = PF(c, c->cone[2 * cn + 1])[4] * c->impulse[normal];
+            double size = hypot(c->impulse[a], c->impulse[b]);
+            if (size > radius) {
+                double s = radius / size, ia = c->impulse[a] * s, ib = c->impulse[b] * s;
+                change = fmax(change, hy_pgs_move(c, k, a, ia));
+                change = fmax(change, hy_pgs_move(c, k, b, ib));
             }
         }
         if (change <= 1e-15 * scale)
@@ -409,18 +702,122 @@ static void hy_inputs(hy_ctx *c, double t)
 
 static int hy_solve_mode(hy_ctx *c, double t, const double *y)
 {
-    return hy_solve(c, t, y, c->u, c->h->contact, c->h->slip);
+    return hy_solve(c, t, y, c->u, c->h->contact, c->h->slip, c->h->pmode, c->h->anchor);
 }
 
-/* Make the mode consistent: no negative contact force, no sticking force beyond its limit, no
- * sticking friction with v != 0. */
-static int hy_settle(hy_ctx *c, double t, const double *y, int record)
+/* The gap offsets of the impact events (lagrgen.hybrid.Switching._touching): −g where an open
+ * gap g is below 0, plus TOUCH_OFFSET·gap_tol for an open contact at rest at its surface
+ * (g <= gap_tol, ġ² <= 2·gap_tol·|g̈| and g̈ >= −1000·gap_tol, not one that has just bounced);
+ * the solution of the settled mode at the state is at hand. */
+static void hy_touching(hy_ctx *c)
+{
+    for (int i = 0; i < c->ni; ++i) {
+        const double *imp = IMP(c, i);
+        double gdd = -imp[2];
+        int bounced = 0;
+        for (int a = 0; a < c->n_bounced; ++a)
+            bounced |= c->bounced[a] == i;
+        for (int b = 0; b < c->n; ++b)
+            gdd += imp[IMPACT_FIELDS + b] * c->qdd[b];
+        c->gap_offset[i] = c->h->contact[i] ? 0.0 : fmax(0.0, -imp[0])
+                           + (!bounced && imp[0] <= c->h->gap_tol
+                                      && imp[1] * imp[1] <= 2 * c->h->gap_tol * fabs(gdd)
+                                      && gdd >= -1e3 * c->h->gap_tol
+                                  ? TOUCH_OFFSET * c->h->gap_tol : 0.0);
+    }
+}
+
+/* anchor := v/‖v‖ (kept where v is 0). */
+static void hy_set_anchor(double *anchor, double v0, double v1)
+{
+    double norm = hypot(v0, v1);
+    if (norm > 0) {
+        anchor[0] = v0 / norm;
+        anchor[1] = v1 / norm;
+    }
+}
+
+/* Planar friction k at v = 0: stick if its holding force is within μ_s·|N| in norm, else slip
+ * away from it (recorded when `record`). */
+static int hy_try_stick_planar(hy_ctx *c, double t, const double *y, int k, int record)
 {
     lg_hybrid_t *h = c->h;
-    for (int it = 0; it < 2 * (c->ni + c->nf) + 2; ++it) {
+    h->pmode[k] = 0;
+    if (hy_solve_mode(c, t, y))
+        return 1;
+    double f0 = c->lam_p[2 * k], f1 = c->lam_p[2 * k + 1];
+    int kind = LG_STICK;
+    if (hypot(f0, f1) > PF(c, k)[5] * c->normal_p[k]) {
+        h->pmode[k] = 1;
+        hy_set_anchor(h->anchor + 2 * k, -f0, -f1);
+        kind = LG_SLIP;
+    }
+    return record && hy_record(c, t, c->ni + c->nf + k, kind) ? -1 : 0;
+}
+
+/* The planar frictions' part of hy_settle on the solution at hand (lagrgen.hybrid.Switching.
+ * _settle_planar): those that have just begun to act are marked 1 in c->activated (all
+ * together: sticking where abs(v) <= 1000·gap_tol, else slipping along v), slipping ones that
+ * the others have stopped (abs(v) <= 1000·gap_tol) try sticking once (2; 3 when they slip on);
+ * the others that begin to slip are recorded when `record`. 1 if a mode changed, 0, or -1 when
+ * out of memory. */
+static int hy_settle_planar(hy_ctx *c, double t, int record)
+{
+    lg_hybrid_t *h = c->h;
+    int changed = 0;
+    for (int k = 0; k < c->npf; ++k) {
+        const double *pf = PF(c, k);
+        double v0 = pf[0], v1 = pf[1];
+        int moving = hypot(v0, v1) > 1e3 * h->gap_tol;
+        if (!hy_planar_active(c, k, h->contact)) {
+            changed |= h->pmode[k] != -1;
+            h->pmode[k] = -1;
+            c->activated[k] = 0;
+        } else if (h->pmode[k] == -1) {
+            changed = 1;
+            c->activated[k] = 1;
+            h->pmode[k] = moving;
+            if (moving)
+                hy_set_anchor(h->anchor + 2 * k, v0, v1);
+        } else if (h->pmode[k] == 0 && (moving || hypot(c->lam_p[2 * k], c->lam_p[2 * k + 1])
+                                                  > pf[5] * c->normal_p[k])) {
+            changed = 1;
+            h->pmode[k] = 1;
+            if (moving)
+                hy_set_anchor(h->anchor + 2 * k, v0, v1);
+            else
+                hy_set_anchor(h->anchor + 2 * k, -c->lam_p[2 * k], -c->lam_p[2 * k + 1]);
+            if (c->activated[k] == 2)
+                c->activated[k] = 3;                    /* tried sticking: slips on */
+            else if (record && !c->activated[k]
+                     && hy_record(c, t, c->ni + c->nf + k, LG_SLIP))
+                return -1;
+        } else if (h->pmode[k] == 1 && moving) {
+            hy_set_anchor(h->anchor + 2 * k, v0, v1);
+        } else if (h->pmode[k] == 1 && c->activated[k] == 0) {   /* stopped by the others */
+            h->pmode[k] = 0;
+            c->activated[k] = 2;
+            changed = 1;
+        }
+    }
+    return changed;
+}
+
+static int hy_hold(hy_ctx *c, double t, double *y, const int *rows, int k, int record);
+
+/* Make the mode consistent (lagrgen.hybrid.Switching.settle): no negative contact force, no
+ * open contact at rest at its surface that the mode drives into it (held, its ġ set to 0), no
+ * sticking force beyond its limit, no sticking friction with v != 0; then the gap offsets of the
+ * contacts left at their surface. y may change. */
+static int hy_settle(hy_ctx *c, double t, double *y, int record)
+{
+    lg_hybrid_t *h = c->h;
+    int settled = 0;
+    memset(c->activated, 0, (c->npf + 1) * sizeof(int));
+    for (int it = 0; it < 2 * (c->ni + c->nf + c->npf) + 2 && !settled; ++it) {
         if (hy_solve_mode(c, t, y))
             return 1;
-        int changed = 0;
+        int changed = 0, npressed = 0, moving = 0;
         for (int i = 0; i < c->ni; ++i)
             if (h->contact[i] && c->lam_i[i] < 0) {
                 h->contact[i] = 0;
@@ -428,6 +825,35 @@ static int hy_settle(hy_ctx *c, double t, const double *y, int record)
                 if (record && hy_record(c, t, i, LG_RELEASE))
                     return -1;
             }
+        for (int i = 0; i < c->ni; ++i) {       /* lagrgen.hybrid.Switching.pressed */
+            const double *imp = IMP(c, i);
+            int bounced = 0;
+            for (int a = 0; a < c->n_bounced; ++a)
+                bounced |= c->bounced[a] == i;
+            if (h->contact[i] || bounced || !(imp[0] <= h->gap_tol))
+                continue;
+            double gdd = -imp[2];
+            for (int b = 0; b < c->n; ++b)
+                gdd += imp[IMPACT_FIELDS + b] * c->qdd[b];
+            if (gdd < -1e3 * h->gap_tol && imp[1] * imp[1] <= 2 * h->gap_tol * fabs(gdd)
+                && (h->rest_velocity < 0 || imp[3] * fabs(imp[1]) <= h->rest_velocity))
+                c->closing[npressed++] = i;
+        }
+        for (int a = 0; a < npressed; ++a) {
+            h->contact[c->closing[a]] = 1;
+            moving |= IMP(c, c->closing[a])[1] != 0;
+            if (record && hy_record(c, t, c->closing[a], LG_CONTACT))
+                return -1;
+        }
+        if (npressed) {
+            int nh = 0, err;
+            changed = 1;
+            for (int i = 0; i < c->ni; ++i)
+                if (h->contact[i])
+                    c->held[nh++] = i;
+            if (moving && (err = hy_hold(c, t, y, c->held, nh, 0)))
+                return err;
+        }
         for (int j = 0; j < c->nf; ++j) {
             if (h->slip[j] != 0 || !hy_active(c, j, h->contact))
                 continue;
@@ -440,14 +866,28 @@ static int hy_settle(hy_ctx *c, double t, const double *y, int record)
                     return -1;
             }
         }
-        if (!changed)
-            break;
+        int planar = hy_settle_planar(c, t, record);
+        if (planar < 0)
+            return -1;
+        settled = !changed && !planar;    /* then the solution of the mode is at hand */
     }
+    for (int k = 0; k < c->npf; ++k)     /* the planar frictions that began to act, as they end */
+        if (record && c->activated[k] == 1
+            && hy_record(c, t, c->ni + c->nf + k, h->pmode[k] == 0 ? LG_STICK : LG_SLIP))
+            return -1;
+    for (int k = 0; k < c->npf; ++k)     /* and those that stuck, stopped by the others */
+        if (record && c->activated[k] == 2 && h->pmode[k] == 0
+            && hy_record(c, t, c->ni + c->nf + k, LG_STICK))
+            return -1;
+    if (!settled && hy_solve_mode(c, t, y))
+        return 1;
+    hy_touching(c);
     return 0;
 }
 
 /* 2 (result->failure set) when a restitution is outside [0, 1] or a friction coefficient out
- * of range in the terms at hand (NaN is out of every range), else 0. */
+ * of range in the terms at hand (NaN is out of every range), else 0; a planar friction k is
+ * element nf + k of the frictions. */
 static int hy_check_coefficients(hy_ctx *c)
 {
     lg_hybrid_result_t *r = c->result;
@@ -458,8 +898,9 @@ static int hy_check_coefficients(hy_ctx *c)
             r->failed_value = IMP(c, i)[3];
             return 2;
         }
-    for (int j = 0; j < c->nf; ++j) {
-        double mu = FR(c, j)[2], mu_s = FR(c, j)[3];
+    for (int j = 0; j < c->nf + c->npf; ++j) {
+        const double *mus = j < c->nf ? FR(c, j) + 2 : PF(c, j - c->nf) + 4;
+        double mu = mus[0], mu_s = mus[1];
         if (!(mu >= 0.0) || !(mu_s >= mu)) {
             r->failure = mu >= 0.0 ? LG_HY_MU_STATIC : LG_HY_MU;
             r->failed_element = j;
@@ -473,26 +914,28 @@ static int hy_check_coefficients(hy_ctx *c)
 
 static int hy_impacts(hy_ctx *c, double t, double *y, int nc);
 
-/* The inelastic impulses that set ġ = 0 for the held contacts rows[0..k) (D·Λ = −ġ,
- * q̇ += P·Wᵀ·Λ) with a "contact" transition for each whose ġ was not 0; y changes in place.
- * 1: model failure or D singular, -1: out of memory. */
-static int hy_hold(hy_ctx *c, double t, double *y, const int *rows, int k)
+/* The inelastic impulses that set ġ = 0 for the held contacts rows[0..k) (D·Λ = −ġ, the
+ * least-norm impulses of redundant contacts, q̇ += P·Wᵀ·Λ) with a "contact" transition for
+ * each whose ġ was not 0; y changes in place. 1: model failure or D singular, -1: out of
+ * memory. */
+static int hy_hold(hy_ctx *c, double t, double *y, const int *rows, int k, int record)
 {
     int moving = 0;
     if (hy_terms(c, t, y, c->u) || hy_inverse_mass(c))
         return 1;
     hy_delassus(c, rows, k);
     for (int q = 0; q < k; ++q) {
-        c->impulse[q] = -c->before[q];
+        c->target[q] = -c->before[q];
+        c->reg[q] = 1;
         moving |= c->before[q] != 0;
     }
     if (!moving)
         return 0;
-    if (hy_lu_solve(c->D, c->impulse, k))
+    if (hy_regularized_solve(c, c->D, c->target, c->reg, k, c->impulse))
         return 1;
     hy_apply_impulse(c, y, k);
     for (int q = 0; q < k; ++q)
-        if (c->before[q] != 0 && hy_record(c, t, rows[q], LG_CONTACT))
+        if (record && c->before[q] != 0 && hy_record(c, t, rows[q], LG_CONTACT))
             return -1;
     return 0;
 }
@@ -527,7 +970,7 @@ static int hy_start(hy_ctx *c, double t, double *y)
     }
     if (!closed)
         return hy_settle(c, t, y, 0);
-    if (hy_solve(c, t, y, c->u, c->opened, h->slip))
+    if (hy_solve(c, t, y, c->u, c->opened, h->slip, c->unset, h->anchor))
         return 1;
     for (int i = 0; i < c->ni; ++i) {
         double gdd = -IMP(c, i)[2];
@@ -541,7 +984,7 @@ static int hy_start(hy_ctx *c, double t, double *y)
     for (int i = 0; i < c->ni; ++i)
         if (h->contact[i])
             c->held[nh++] = i;
-    if (nh && (err = hy_hold(c, t, y, c->held, nh)))
+    if (nh && (err = hy_hold(c, t, y, c->held, nh, 1)))
         return err;
     if (hy_terms(c, t, y, c->u))
         return 1;
@@ -600,8 +1043,19 @@ static int hy_impacts(hy_ctx *c, double t, double *y, int nc)
         if (c->resting[a])
             c->e[a] = 0.0;
     }
-    if (hy_impact(c, t, y, c->u, c->closing, nc, c->e))
+    if (hy_impact(c, t, y, c->u, c->closing, nc, c->e) || hy_terms(c, t, y, c->u))
         return 1;
+    for (int i = 0; i < c->ni; ++i) {      /* held contacts the impulses lifted off */
+        int in = 0;
+        for (int a = 0; a < nc; ++a)
+            in |= c->closing[a] == i;
+        if (h->contact[i] && !in && IMP(c, i)[1] > 1e3 * h->gap_tol) {
+            h->contact[i] = 0;
+            if (hy_record(c, t, i, LG_RELEASE))
+                return -1;
+            c->bounced[c->n_bounced++] = i;
+        }
+    }
     for (int a = 0; a < nc; ++a) {
         int i = c->closing[a];
         if (c->resting[a]) {
@@ -639,6 +1093,27 @@ static int hy_try_stick(hy_ctx *c, double t, const double *y, int j)
         return hy_record(c, t, c->ni + j, LG_STICK) ? -1 : 0;
     h->slip[j] = c->lam_f[j] > 0 ? -1 : 1;
     return hy_record(c, t, c->ni + j, LG_SLIP) ? -1 : 0;
+}
+
+/* Planar friction k's event (lagrgen.hybrid.Switching._planar_event): sticking, its force
+ * reached μ_s·|N| (it slips, away from the force); slipping, v reached 0 (it tries to stick)
+ * or turned across its anchor (a new anchor along v). */
+static int hy_planar_event(hy_ctx *c, double t, const double *y, int k, double v0, double v1)
+{
+    lg_hybrid_t *h = c->h;
+    if (h->pmode[k] < 0)
+        return 0;
+    if (h->pmode[k] == 0) {
+        if (hy_solve_mode(c, t, y))
+            return 1;
+        h->pmode[k] = 1;
+        hy_set_anchor(h->anchor + 2 * k, -c->lam_p[2 * k], -c->lam_p[2 * k + 1]);
+        return hy_record(c, t, c->ni + c->nf + k, LG_SLIP) ? -1 : 0;
+    }
+    if (hypot(v0, v1) <= 1e3 * h->gap_tol)
+        return hy_try_stick_planar(c, t, y, k, 1);
+    hy_set_anchor(h->anchor + 2 * k, v0, v1);
+    return 0;
 }
 
 /* The switch after a segment ended at (t, y) on the events fired[0..nfired). */
@@ -679,11 +1154,26 @@ static int hy_switch(hy_ctx *c, double t, double *y, int *fired, int nfired)
         if (!in && h->slip[j] != 0 && fabs(FR(c, j)[0]) <= 1e3 * h->gap_tol)
             fired[nfired++] = c->ni + j;
     }
+    for (int k = 0; k < c->npf; ++k) {
+        int in = 0, e = c->ni + c->nf + k;
+        for (int a = 0; a < nfired; ++a)
+            in |= fired[a] == e;
+        if (!in && h->pmode[k] == 1 && hypot(PF(c, k)[0], PF(c, k)[1]) <= 1e3 * h->gap_tol)
+            fired[nfired++] = e;
+    }
+    for (int k = 0; k < c->npf; ++k) {   /* the planar slip velocities at this state */
+        c->vel_p[2 * k] = PF(c, k)[0];
+        c->vel_p[2 * k + 1] = PF(c, k)[1];
+    }
     for (int a = 0; a < nfired; ++a) {
         int j = fired[a] - c->ni;
         if (j < 0 || !hy_active(c, j, h->contact))
             continue;
-        if (h->slip[j] == 0) {
+        if (j >= c->nf) {
+            int k = j - c->nf;
+            if ((err = hy_planar_event(c, t, y, k, c->vel_p[2 * k], c->vel_p[2 * k + 1])))
+                return err;
+        } else if (h->slip[j] == 0) {
             if (hy_solve_mode(c, t, y))
                 return 1;
             h->slip[j] = c->lam_f[j] > 0 ? -1 : 1;
@@ -697,16 +1187,17 @@ static int hy_switch(hy_ctx *c, double t, double *y, int *fired, int nfired)
 }
 
 /* The forces (lg_hybrid_result_t.forces) of the output rows saved since the last call, all in
- * the mode (contact, slip); 0, or -1 when out of memory. */
-static int hy_forces_since(hy_ctx *c, const int *contact, const int *slip)
+ * the mode (contact, slip, pmode, anchor); 0, or -1 when out of memory. */
+static int hy_forces_since(hy_ctx *c, const int *contact, const int *slip, const int *pmode,
+                           const double *anchor)
 {
     lg_hybrid_result_t *res = c->result;
-    int n = c->n, k = c->m + c->ni + c->nf;
+    int n = c->n, k = c->m + c->ni + c->nf + 2 * c->npf;
     double *row = c->force_row;
     for (size_t r = k ? res->forces.len / k : res->t.len; r < res->t.len; ++r) {
         double t = res->t.data[r];
         hy_inputs(c, t);
-        if (hy_solve(c, t, res->y.data + r * 2 * n, c->u, contact, slip)) {
+        if (hy_solve(c, t, res->y.data + r * 2 * n, c->u, contact, slip, pmode, anchor)) {
             for (int a = 0; a < k; ++a)
                 row[a] = NAN;
         } else {
@@ -717,6 +1208,7 @@ static int hy_forces_since(hy_ctx *c, const int *contact, const int *slip)
             for (int j = 0; j < c->nf; ++j)
                 row[c->m + c->ni + j] = slip[j] == 0 ? c->lam_f[j]
                                         : -FR(c, j)[2] * slip[j] * c->normal[j];
+            memcpy(row + c->m + c->ni + c->nf, c->lam_p, 2 * c->npf * sizeof(double));
         }
         if (k && lg_buf_push(&res->forces, row, k))
             return -1;
@@ -747,7 +1239,6 @@ static double hy_lift_off(hy_ctx *c, double t, const double *y)
     }
     return shortest;
 }
-
 /* -- the driver ----------------------------------------------------------------------------- */
 static double hy_wall_seconds(void)
 {
@@ -786,25 +1277,47 @@ int lg_hybrid_solve(lg_hybrid_t *h, const lg_options_t *options, lg_hybrid_resul
     c.result = res;
     c.n = h->n;
     c.m = h->m;
-    c.ni = h->ni;
+    c.ni = h->ni + h->n_stops;
     c.nf = h->nf;
-    int n = h->n, dim = 2 * n, ne = h->ni + h->nf;
-    int rmax = h->m + h->ni + h->nf, kmax = n + rmax, big = kmax > ne ? kmax : ne;
+    c.npf = h->npf;
+    int n = h->n, dim = 2 * n, ni = c.ni, npf = h->npf, ne = ni + h->nf + npf;
+    int rmax = h->m + ni + h->nf + 2 * npf, kmax = n + rmax, big = kmax > ne ? kmax : ne;
+    int kimp = ni + 2 * npf, nw = kimp > h->nf + npf ? kimp : h->nf + npf;
     c.rmax = rmax;
     size_t nterms = (size_t)n * n + n + (size_t)h->m * n + h->m
-                    + (size_t)h->ni * (IMPACT_FIELDS + n) + (size_t)h->nf * (FRICTION_FIELDS + n);
-    void *blocks[64];
+                    + (size_t)h->ni * (IMPACT_FIELDS + n) + (size_t)h->nf * (FRICTION_FIELDS + n)
+                    + (size_t)npf * (PLANAR_FIELDS + 2 * n);
+    void *blocks[96];
     int nb = 0, rc = 0;
     size_t D = sizeof(double);
     size_t sq = (size_t)(big > n ? big : n);
     c.terms = hy_alloc(blocks, &nb, nterms * D);
+    c.stop_rows = hy_alloc(blocks, &nb, ((size_t)h->n_stops * (IMPACT_FIELDS + n) + 1) * D);
+    c.XB = hy_alloc(blocks, &nb, (size_t)n * (rmax + 1) * D);
+    c.Dl = hy_alloc(blocks, &nb, ((size_t)rmax * rmax + 1) * D);
+    c.Kd = hy_alloc(blocks, &nb, ((size_t)rmax * rmax + 1) * D);
+    c.res = hy_alloc(blocks, &nb, (rmax + 1) * D);
+    c.piv = hy_alloc(blocks, &nb, (n + 1) * sizeof(int));
+    c.pivd = hy_alloc(blocks, &nb, (rmax + 1) * sizeof(int));
+    c.reg = hy_alloc(blocks, &nb, (rmax + 1) * sizeof(int));
+    c.lam_p = hy_alloc(blocks, &nb, (2 * npf + 1) * D);
+    c.normal_p = hy_alloc(blocks, &nb, (npf + 1) * D);
+    c.dir_p = hy_alloc(blocks, &nb, (2 * npf + 1) * D);
+    c.vel_p = hy_alloc(blocks, &nb, (2 * npf + 1) * D);
+    c.Wrow = hy_alloc(blocks, &nb, ((size_t)n * nw + 1) * D);
+    c.row_of_planar = hy_alloc(blocks, &nb, (npf + 1) * sizeof(int));
+    c.cone = hy_alloc(blocks, &nb, (2 * npf + h->nf + 1) * sizeof(int));
+    c.gap_offset = hy_alloc(blocks, &nb, (ni + 1) * D);
+    c.cached_y = hy_alloc(blocks, &nb, dim * D);
+    c.activated = hy_alloc(blocks, &nb, (npf + 1) * sizeof(int));
+    int *unset = c.unset = hy_alloc(blocks, &nb, (npf + 1) * sizeof(int));
     c.K = hy_alloc(blocks, &nb, (size_t)kmax * kmax * D);
     c.x = hy_alloc(blocks, &nb, (sq + 1) * D);
     c.R = hy_alloc(blocks, &nb, ((size_t)rmax * n + 1) * D);
     c.rhs = hy_alloc(blocks, &nb, (rmax + 1) * D);
     c.sigma = hy_alloc(blocks, &nb, (rmax + 1) * D);
     c.force = hy_alloc(blocks, &nb, n * D);
-    c.lam_i = hy_alloc(blocks, &nb, (h->ni + 1) * D);
+    c.lam_i = hy_alloc(blocks, &nb, (ni + 1) * D);
     c.lam_f = hy_alloc(blocks, &nb, (h->nf + 1) * D);
     c.normal = hy_alloc(blocks, &nb, (h->nf + 1) * D);
     c.qdd = hy_alloc(blocks, &nb, n * D);
@@ -812,33 +1325,35 @@ int lg_hybrid_solve(lg_hybrid_t *h, const lg_options_t *options, lg_hybrid_resul
     c.P = hy_alloc(blocks, &nb, (size_t)n * n * D);
     c.Minv = hy_alloc(blocks, &nb, (size_t)n * n * D);
     c.work = hy_alloc(blocks, &nb, sq * sq * D);
-    c.D = hy_alloc(blocks, &nb, ((size_t)h->ni * h->ni + 1) * D);
-    c.WP = hy_alloc(blocks, &nb, ((size_t)n * (h->ni > h->m ? h->ni : h->m) + 1) * D);
-    c.impulse = hy_alloc(blocks, &nb, (h->ni + 1) * D);
-    c.after = hy_alloc(blocks, &nb, (h->ni + 1) * D);
-    c.target = hy_alloc(blocks, &nb, (h->ni + 1) * D);
-    c.before = hy_alloc(blocks, &nb, (h->ni + 1) * D);
-    c.e = hy_alloc(blocks, &nb, (h->ni + 1) * D);
-    c.fastest = hy_alloc(blocks, &nb, (h->ni + 1) * D);
-    c.rest_speed = hy_alloc(blocks, &nb, (h->ni + 1) * D);
+    c.D = hy_alloc(blocks, &nb, ((size_t)kimp * kimp + 1) * D);
+    c.WP = hy_alloc(blocks, &nb, ((size_t)n * (kimp > h->m ? kimp : h->m) + 1) * D);
+    c.impulse = hy_alloc(blocks, &nb, (kimp + 1) * D);
+    c.after = hy_alloc(blocks, &nb, (kimp + 1) * D);
+    c.target = hy_alloc(blocks, &nb, (kimp + 1) * D);
+    c.before = hy_alloc(blocks, &nb, (kimp + 1) * D);
+    c.e = hy_alloc(blocks, &nb, (ni + 1) * D);
+    c.fastest = hy_alloc(blocks, &nb, (ni + 1) * D);
+    c.rest_speed = hy_alloc(blocks, &nb, (ni + 1) * D);
     c.fy = hy_alloc(blocks, &nb, dim * D);
     c.fy2 = hy_alloc(blocks, &nb, dim * D);
     c.yp = hy_alloc(blocks, &nb, dim * D);
-    c.row_of_impact = hy_alloc(blocks, &nb, (h->ni + 1) * sizeof(int));
+    c.row_of_impact = hy_alloc(blocks, &nb, (ni + 1) * sizeof(int));
     c.row_of_friction = hy_alloc(blocks, &nb, (h->nf + 1) * sizeof(int));
-    c.involved = hy_alloc(blocks, &nb, (h->ni + 1) * sizeof(int));
-    c.closing = hy_alloc(blocks, &nb, (h->ni + 1) * sizeof(int));
-    c.resting = hy_alloc(blocks, &nb, (h->ni + 1) * sizeof(int));
-    c.bounced = hy_alloc(blocks, &nb, (h->ni + 1) * sizeof(int));
-    c.held = hy_alloc(blocks, &nb, (h->ni + 1) * sizeof(int));
+    c.involved = hy_alloc(blocks, &nb, (ni + 1) * sizeof(int));
+    c.closing = hy_alloc(blocks, &nb, (ni + 1) * sizeof(int));
+    c.resting = hy_alloc(blocks, &nb, (ni + 1) * sizeof(int));
+    c.bounced = hy_alloc(blocks, &nb, (ni + 1) * sizeof(int));
+    c.held = hy_alloc(blocks, &nb, (ni + 1) * sizeof(int));
     c.force_row = hy_alloc(blocks, &nb, (rmax + 1) * D);
-    int *opened = c.opened = hy_alloc(blocks, &nb, (h->ni + 1) * sizeof(int));
+    int *opened = c.opened = hy_alloc(blocks, &nb, (ni + 1) * sizeof(int));
     double *y = hy_alloc(blocks, &nb, dim * D);
     double *emax = hy_alloc(blocks, &nb, (ne + 1) * D);
     double *edir = hy_alloc(blocks, &nb, (ne + 1) * D);
     int *fired = hy_alloc(blocks, &nb, (ne + 1) * sizeof(int));
-    int *mode_c = hy_alloc(blocks, &nb, (h->ni + 1) * sizeof(int));
+    int *mode_c = hy_alloc(blocks, &nb, (ni + 1) * sizeof(int));
     int *mode_s = hy_alloc(blocks, &nb, (h->nf + 1) * sizeof(int));
+    int *mode_p = hy_alloc(blocks, &nb, (npf + 1) * sizeof(int));
+    double *mode_a = hy_alloc(blocks, &nb, (2 * npf + 1) * D);
     for (int k = 0; k < nb; ++k)
         if (!blocks[k])
             rc = -1;
@@ -855,6 +1370,8 @@ int lg_hybrid_solve(lg_hybrid_t *h, const lg_options_t *options, lg_hybrid_resul
         emax[k] = 1.0;
         edir[k] = -1.0;
     }
+    for (int k = 0; k < npf; ++k)
+        unset[k] = -1;
     memcpy(y, options->y0, dim * D);
     double t = options->t0, tf = options->tf;
     int err = hy_start(&c, t, y);
@@ -870,7 +1387,7 @@ int lg_hybrid_solve(lg_hybrid_t *h, const lg_options_t *options, lg_hybrid_resul
     }
     if (!options->t_eval && res->transitions.len       /* struck at the start: before, after */
         && (lg_buf_push(&res->t, &t, 1) || lg_buf_push(&res->y, options->y0, dim)
-            || hy_forces_since(&c, opened, h->slip))) {
+            || hy_forces_since(&c, opened, h->slip, unset, h->anchor))) {
         rc = -1;
         goto done;
     }
@@ -886,7 +1403,7 @@ int lg_hybrid_solve(lg_hybrid_t *h, const lg_options_t *options, lg_hybrid_resul
         }
         ++eval_i;
     }
-    if (hy_forces_since(&c, h->contact, h->slip)) {
+    if (hy_forces_since(&c, h->contact, h->slip, h->pmode, h->anchor)) {
         rc = -1;
         goto done;
     }
@@ -920,10 +1437,14 @@ int lg_hybrid_solve(lg_hybrid_t *h, const lg_options_t *options, lg_hybrid_resul
             snprintf(res->message, sizeof res->message, "stopped at t = %.9g", t);
             break;
         }
-        memcpy(mode_c, h->contact, (h->ni + 1) * sizeof(int));
+        memcpy(mode_c, h->contact, (ni + 1) * sizeof(int));
         memcpy(mode_s, h->slip, (h->nf + 1) * sizeof(int));
+        memcpy(mode_p, h->pmode, npf * sizeof(int));
+        memcpy(mode_a, h->anchor, 2 * npf * D);
         c.contact = mode_c;
         c.slip = mode_s;
+        c.pmode = mode_p;
+        c.anchor = mode_a;
         double piece = hy_lift_off(&c, t, y);
         double t_end = isfinite(piece) ? fmin(tf, t + 0.5 * piece) : tf;
         if (!(t_end > t))
@@ -991,7 +1512,7 @@ int lg_hybrid_solve(lg_hybrid_t *h, const lg_options_t *options, lg_hybrid_resul
                 goto done;
             }
             lg_result_free(&seg);
-            if (hy_forces_since(&c, mode_c, mode_s))
+            if (hy_forces_since(&c, mode_c, mode_s, mode_p, mode_a))
                 rc = -1;
             break;
         }
@@ -1019,7 +1540,7 @@ int lg_hybrid_solve(lg_hybrid_t *h, const lg_options_t *options, lg_hybrid_resul
             rc = -1;
             goto done;
         }
-        if (hy_forces_since(&c, mode_c, mode_s)) {
+        if (hy_forces_since(&c, mode_c, mode_s, mode_p, mode_a)) {
             lg_result_free(&seg);
             rc = -1;
             goto done;
@@ -1065,7 +1586,8 @@ int lg_hybrid_solve(lg_hybrid_t *h, const lg_options_t *options, lg_hybrid_resul
             break;
         }
         if (!options->t_eval && (lg_buf_push(&res->t, &t, 1) || lg_buf_push(&res->y, y, dim)
-                                 || hy_forces_since(&c, h->contact, h->slip))) {
+                                 || hy_forces_since(&c, h->contact, h->slip, h->pmode,
+                                                    h->anchor))) {
             rc = -1;
             goto done;
         }

@@ -37,9 +37,21 @@ typedef struct {
     double rest_velocity;        /* < 0: 1e-6 times the largest impact speed of the contact */
     double gap_tol;              /* a gap within it is closed; a slip velocity within 1000× is 0 */
     long max_transitions;
-    int *contact;                /* ni, in/out: 1 held */
+    int *contact;                /* ni + n_stops, in/out: 1 held */
     int *slip;                   /* nf, in/out: +1/-1 slipping that way, 0 sticking (a friction
                                   * on an open contact is inactive: N = 0, no force, no event) */
+    /* Enforced limits (lagrgen.hybrid.stop_rows): impacts ni … ni + n_stops − 1 after the
+     * model's, on gaps sign·(q_j − bound); 4 numbers each: j, sign, bound, restitution. */
+    int n_stops;
+    const double *stops;
+    /* Planar (isotropic) frictions, elements after the frictions: their normal forces as
+     * normal_kind/normal_index; their mode (in/out): −1 inactive (their contact open), 0
+     * sticking, 1 slipping along the unit anchor (2 numbers each) as it started. */
+    int npf;
+    const int *planar_kind;
+    const int *planar_index;
+    int *pmode;
+    double *anchor;
 } lg_hybrid_t;
 
 typedef struct {
@@ -54,9 +66,10 @@ typedef struct {
     double failed_value, failed_other;
     lg_buf_t t, y;               /* output times and states */
     lg_buf_t forces;             /* per output time, in the mode of that time: λ of the model's
-                                  * constraints (m), the contact forces (ni, 0 while open), the
-                                  * friction forces along the slip direction (nf: the sticking
-                                  * multiplier, or −μ·|N|·s while slipping); NaN if singular */
+                                  * constraints (m), the contact forces (ni + n_stops, 0 while
+                                  * open), the friction forces along the slip direction (nf: the
+                                  * sticking multiplier, or −μ·|N|·s while slipping), the planar
+                                  * frictions' two components (2·npf); NaN if singular */
     lg_buf_t transitions;        /* (t, element, kind) triples */
 } lg_hybrid_result_t;
 

@@ -1816,8 +1816,8 @@ static int handle_step_events(solver_t *s, lg_result_t *r, double *g, double *g_
 {
     const lg_problem_t *pb = s->pb;
     int ne = pb->n_events, n_active = 0;
-    int active[64];
-    double roots[64];
+    int active[LG_MAX_EVENTS];
+    double roots[LG_MAX_EVENTS];
     *terminate = 0;
     if (eval_events(s, s->t, s->y, g_new))
         return 2;
@@ -1921,7 +1921,7 @@ int lg_solve(const lg_problem_t *pb, const lg_options_t *op, lg_result_t *r)
     memset(r, 0, sizeof *r);
     if (op->method < LG_RK23 || op->method > LG_BDF || pb->dim < 0 || !(pb->rhs || pb->sys_rhs)
         || ((op->method == LG_RADAU || op->method == LG_BDF) && !(pb->jacobian || pb->sys_jac))
-        || (pb->n_events > 0 && !(pb->events || pb->sys_events)) || pb->n_events > 64) {
+        || (pb->n_events > 0 && !(pb->events || pb->sys_events)) || pb->n_events > LG_MAX_EVENTS) {
         set_message(r, "invalid solver options");
         r->status = -1;
         return -1;

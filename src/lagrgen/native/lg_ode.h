@@ -23,6 +23,8 @@ typedef int (*lg_rhs_fn)(double t, const double *y, const double *p, const doubl
                          double *ydot);
 typedef int (*lg_jac_fn)(double t, const double *y, const double *p, const double *u,
                          double *J);
+/* The most events a solve locates (the hybrid driver's impacts, stops and frictions). */
+#define LG_MAX_EVENTS 1024
 /* n_events event values g_i(t, y); return 0 (nonzero stops the solve with status -1). */
 typedef int (*lg_events_fn)(double t, const double *y, const double *p, const double *u,
                             double *values);

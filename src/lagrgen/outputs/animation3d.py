@@ -15,9 +15,10 @@ AXIS_COLOURS = ("tab:red", "tab:green", "tab:blue")
 
 
 def is_3d(model):
-    """True if the model has a 3-D body, a robot or a drawable point with 3 components."""
+    """True if the model has a 3-D body, a robot, a ground or a drawable point with 3
+    components."""
     for kind, points in model.drawables:
-        if kind in ("body3d", "robot"):
+        if kind in ("body3d", "robot", "ground"):
             return True
         if kind == "point":
             points = points[:1]          # (position, mass): the mass only sizes the marker
@@ -109,6 +110,8 @@ def tracks_3d(model, p, t, q):
         if kind == "robot":
             tracks += robot_tracks(model, points[0], p, t, q)
             continue
+        if kind == "ground":                 # drawn once, under the scene (`draw_ground`)
+            continue
         if kind == "body3d":
             position, R = points
             Rn = np.stack([np.stack([numeric_function(model, R[i, j], p)(t, q) for j in range(3)],
@@ -193,6 +196,22 @@ def setup_axes(fig, tracks, title):
     return ax, 2 * half
 
 
+def draw_ground(ax, model, p, centre, half):
+    """The planes of the model's ground contacts (normal·x = height) as grey grids across the
+    scene's cube (`model.ground_contact`)."""
+    for kind, (normal, height) in (d for d in model.drawables if d[0] == "ground"):
+        n = np.array(normal, dtype=float)
+        h = float(numeric_function(model, height, p)(np.zeros(1), np.zeros((len(model.q), 1)))[0])
+        t1 = np.cross(n, [0.0, 1.0, 0.0] if abs(n[1]) < 0.9 else [1.0, 0.0, 0.0])
+        t1 /= np.linalg.norm(t1)
+        t2 = np.cross(n, t1)
+        middle = centre + (h - n @ centre) * n
+        for s in np.linspace(-half, half, 9):
+            for a, b in ((t1, t2), (t2, t1)):
+                ends = np.array([middle + s * a - half * b, middle + s * a + half * b])
+                ax.plot(ends[:, 0], ends[:, 1], ends[:, 2], "-", color="0.75", linewidth=0.8)
+
+
 def scene_3d(model, times, q, p, title=None):
     """(figure, scene, clock text) of the 3-D model along q (n × frames) at `times`."""
     from .figures import new_figure
@@ -201,6 +220,7 @@ def scene_3d(model, times, q, p, title=None):
     tracks = tracks_3d(model, p, times, q)
     fig = new_figure(5, 5)
     ax, size = setup_axes(fig, tracks, title or model.name)
+    draw_ground(ax, model, p, *box(tracks))
     scene = Scene3D(ax, tracks, size)
     clock = ax.text2D(0.02, 0.96, "", transform=ax.transAxes, va="top")
     return fig, scene, clock

@@ -27,7 +27,7 @@ from lagrgen.runtime.describe import BuiltModule
 from lagrgen.runtime.info import INFO_ATTRIBUTES, ModelInfo
 from lagrgen.runtime import units
 from lagrgen.runtime.arguments import (defaults_array, initial_state_array, input_vector,
-                                       parameter_vector, require_finite)
+                                       link_index, link_point, parameter_vector, require_finite)
 
 cnp.import_array()
 
@@ -428,9 +428,81 @@ cdef class DirectionsFunction:
         return out[:dim], (derivatives[0] if single else derivatives)
 
 
+#: The default point of a link function: the link frame's origin.
+ORIGIN = (0, 0, 0)
+#: A link function's state [q, point, index] stays on the stack up to this many coordinates.
+cdef enum:
+    LINK_STACK = 256
+
+
+cdef class LinkFunction(BoundFunction):
+    """f(link, q, point=(0, 0, 0), p=None) of a link of the model's tree (`link_names`); in C
+    the state is [q, point, the link's index]. New float64 arrays on every call."""
+
+    cdef dict index
+    cdef tuple links
+
+    def __init__(self, CompiledModel model, spec):
+        BoundFunction.__init__(self, model, spec)
+        self.links = tuple(model.info.link_names)
+        self.index = {name: k for k, name in enumerate(self.links)}
+
+    def __call__(self, link, q, point=ORIGIN, p=None):
+        found = self.index.get(link) if type(link) is str else None
+        if found is None:
+            link_index(self.name_of_model(), self.links, link)
+        if self.fn == NULL:
+            self.fn = self.model.pointer(self.name)
+        cdef Py_ssize_t n = self.model.n_coordinates
+        cdef double stack[LINK_STACK + 4]
+        cdef cnp.ndarray heap = None
+        cdef double *y = stack
+        if n > LINK_STACK:
+            heap = np.empty(n + 4)
+            y = <double *>cnp.PyArray_DATA(heap)
+        memcpy(y, cnp.PyArray_DATA(as_f64(q, n, "q")), n * sizeof(double))
+        if point is ORIGIN:
+            y[n] = y[n + 1] = y[n + 2] = 0.0
+        else:
+            memcpy(y + n, cnp.PyArray_DATA(link_point(point)), 3 * sizeof(double))
+        y[n + 3] = <int>found
+        cdef cnp.ndarray pa = self.model.params(p)
+        cdef cnp.ndarray out
+        cdef double buffer[12]
+        cdef int status
+        if len(self.shapes) == 1:
+            out = <cnp.ndarray>cnp.PyArray_EMPTY(self.nd, self.dims, cnp.NPY_DOUBLE, 0)
+            status = self.fn(0.0, y, data(pa), data(self.model._zeros),
+                             <double *>cnp.PyArray_DATA(out))
+            if status:
+                self.link_failed(status)
+            return out
+        status = self.fn(0.0, y, data(pa), data(self.model._zeros), buffer)
+        if status:
+            self.link_failed(status)
+        cdef cnp.npy_intp three = 3
+        cdef cnp.npy_intp square[2]
+        square[0] = square[1] = 3
+        cdef cnp.ndarray position = <cnp.ndarray>cnp.PyArray_EMPTY(1, &three, cnp.NPY_DOUBLE, 0)
+        cdef cnp.ndarray rotation = <cnp.ndarray>cnp.PyArray_EMPTY(2, square, cnp.NPY_DOUBLE, 0)
+        memcpy(cnp.PyArray_DATA(position), buffer, 3 * sizeof(double))
+        memcpy(cnp.PyArray_DATA(rotation), buffer + 3, 9 * sizeof(double))
+        return position, rotation
+
+    cdef str name_of_model(self):
+        return self.model.name
+
+    cdef link_failed(self, int status):
+        if status == NO_MEMORY:
+            raise MemoryError(f"compiled model {self.model.name!r} could not allocate the work "
+                              f"arrays of {self.name}")
+        raise BuildError(f"{self.name} of compiled model {self.model.name!r} failed (status "
+                         f"{status}): its links unit does not match the model; rebuild it")
+
+
 CALLABLES = {"state": StateFunction, "q": CoordinateFunction, "q_qd": StateArgumentsFunction,
              "implicit": ImplicitFunction, "weighted": WeightedFunction,
-             "directions": DirectionsFunction}
+             "directions": DirectionsFunction, "link": LinkFunction}
 #: The functions not of the one signature lg_function.
 DIRECTION_FUNCTIONS = frozenset(f.name for f in FUNCTIONS if f.call == "directions")
 

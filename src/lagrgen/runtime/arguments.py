@@ -41,6 +41,28 @@ def as_vector(obj, size, what):
     return arr
 
 
+def link_index(model, links, link):
+    """The index of `link` among the model's `links` (names); UnknownNameError listing them."""
+    try:
+        return links.index(link)
+    except ValueError:
+        pass
+    if not links:
+        raise UnknownNameError(f"model {model!r} has no links: link_pose and link_jacobian "
+                               "need a three-dimensional tree (a robot from a URDF file, or "
+                               "rigid_body_3d bodies that form a tree)")
+    raise UnknownNameError(f"{link!r} is not a link of model {model!r}; its links are "
+                           f"{', '.join(links)}")
+
+
+def link_point(point):
+    """A point in a link's frame as 3 finite float64 numbers."""
+    point = as_vector(point, 3, "point (3 coordinates in the link's frame)")
+    if not np.isfinite(point).all():
+        raise ValueError(f"point must be 3 finite numbers, got {point}")
+    return point
+
+
 def require_finite(values, names, what):
     """Raise ValueError naming the first entry of `values` that is NaN or infinite."""
     bad = np.flatnonzero(~np.isfinite(values))

@@ -9,7 +9,7 @@ import json
 from dataclasses import asdict, dataclass, field, fields
 
 from ..errors import BuildError
-from ..functions import HYBRID_FIELDS, POWER_TERMS
+from ..functions import HYBRID_FIELDS, HYBRID_GRADIENTS, POWER_TERMS
 
 
 @dataclass(frozen=True)
@@ -25,7 +25,11 @@ class ModelInfo:
     (over the kinematic tree, `lagrgen.tree`); `inertial_parameters` the parameters that are the
     bodies' ten inertial parameters (m, m·c, I about the body frame's origin), ten per body, the
     columns of the regressor; `coordinate_limits` the declared limits (`Model.limit`) as
-    (coordinate, lower, upper, velocity, effort), None where absent; `tree_structure` of a
+    (coordinate, lower, upper, velocity, effort), None where absent; `link_names` the names of
+    the links of a three-dimensional tree (`link_pose`, `link_jacobian`), in order;
+    `limit_stops` the enforced limits (`Model.limit(..., enforce=True)`), unilateral contacts of
+    the hybrid solves, as (name, coordinate index, sign, bound, restitution): gap
+    sign·(q − bound) ≥ 0; `tree_structure` of a
     three-dimensional tree in the recursive formulation (else empty): its nodes' `coordinate` and
     `parent` (−1: a root), and the nonzero entries (row, col) of its generalized forces' first
     derivatives `dq`, `dqd`, `du` (coordinate, variable) and second derivatives `qh` (point
@@ -51,11 +55,14 @@ class ModelInfo:
     formulation: str = "dense"
     inertial_parameters: tuple = ()
     coordinate_limits: tuple = ()
+    link_names: tuple = ()
+    limit_stops: tuple = ()
     tree_structure: dict = field(default_factory=dict)
 
     def __post_init__(self):
         for name in ("coordinates", "parameters", "inputs", "defaults", "output_names",
-                     "constraint_names", "initial_state", "inertial_parameters"):
+                     "constraint_names", "initial_state", "inertial_parameters",
+                     "link_names"):
             object.__setattr__(self, name, tuple(getattr(self, name)))
         object.__setattr__(self, "event_definitions",
                            tuple(tuple(e) for e in self.event_definitions))
@@ -63,6 +70,7 @@ class ModelInfo:
         object.__setattr__(self, "tree_structure", dict(self.tree_structure))
         object.__setattr__(self, "coordinate_limits",
                            tuple(tuple(entry) for entry in self.coordinate_limits))
+        object.__setattr__(self, "limit_stops", tuple(tuple(entry) for entry in self.limit_stops))
         object.__setattr__(self, "nonsmooth_definitions", tuple(
             (name, kind, None if normal is None else tuple(normal))
             for name, kind, normal in self.nonsmooth_definitions))
@@ -91,9 +99,10 @@ class ModelInfo:
                 "n_implicit": n + m, "n_point": 3 * n + m + len(self.inputs),
                 "n_events": len(self.event_definitions), "n_power": len(POWER_TERMS),
                 "n_outputs": len(self.output_names),
-                "n_inertial": len(self.inertial_parameters),
-                "n_hybrid": sum(HYBRID_FIELDS[kind] + n for _, kind, _ in
-                                self.nonsmooth_definitions)}
+                "n_inertial": len(self.inertial_parameters), "n_links": len(self.link_names),
+                "3": 3, "6": 6,
+                "n_hybrid": sum(HYBRID_FIELDS[kind] + HYBRID_GRADIENTS[kind] * n
+                                for _, kind, _ in self.nonsmooth_definitions)}
 
     def to_json(self):
         """The record as JSON (with its dimensions, for readers of the C metadata)."""
@@ -117,4 +126,4 @@ INFO_ATTRIBUTES = ("name", "coordinates", "parameters", "inputs", "units", "outp
                    "constraint_names", "event_definitions", "explicit_time", "content_hash",
                    "lagrgen_version", "n_coordinates", "n_constraints", "dimensions",
                    "nonsmooth_definitions", "formulation", "inertial_parameters",
-                   "limits")
+                   "limits", "link_names")

@@ -34,6 +34,7 @@ class BuiltModel(Protocol):
     formulation: str              # "dense" (Cholesky of M) or "recursive" (over the kinematic tree)
     inertial_parameters: Tuple[str, ...]  # the bodies' inertial parameters π, 10 per body (§21)
     limits: Dict[str, tuple]      # coordinate -> (lower, upper, velocity, effort), None if absent
+    link_names: Tuple[str, ...]   # the links of a three-dimensional tree (§22), else ()
     content_hash: str             # of the derived equations and lagrgen's generator
     lagrgen_version: str
     n_coordinates: int
@@ -102,6 +103,13 @@ class BuiltModel(Protocol):
 
     def regressor(self, q, qd, a, t=0.0, p=None, u=None) -> np.ndarray:
         """Y, (n, len(inertial_parameters)), with M·q̈ − F = Y·π at q̈ = a (§21)."""
+
+    def link_pose(self, link, q, point=(0, 0, 0), p=None) -> tuple:
+        """(x (3,), R (3, 3)): the world position of a point fixed in a link and the link's
+        rotation (§22)."""
+
+    def link_jacobian(self, link, q, point=(0, 0, 0), p=None) -> np.ndarray:
+        """J (6, n) with [velocity of the point; angular velocity] = J @ q̇, world axes (§22)."""
 
     def residual_parameter_jacobian(self, q, qd, a, t=0.0, p=None, u=None) -> np.ndarray:
         """∂r/∂p, (n + n_constraints, n_params), of the same r."""

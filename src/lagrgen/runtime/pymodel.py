@@ -15,7 +15,7 @@ from ..errors import ConstraintError, LagrgenError, MassMatrixError, NonFiniteEr
 from ..functions import FUNCTIONS
 from . import dual
 from .arguments import (as_vector, defaults_array, initial_state_array, input_vector,
-                        parameter_vector)
+                        link_index, link_point, parameter_vector)
 from .describe import describe
 from .info import INFO_ATTRIBUTES
 
@@ -378,6 +378,33 @@ class PythonModel:
             return np.zeros((n, 0))
         return -self._parameter_b(t, q, qd, list(a[:n]), p, u)[:, index]
 
+    def _link_frames(self, link, q, point, p):
+        """(x = p + R·point, R, the link's index, the nodes' twists) of a link (an index of
+        `link_names`)."""
+        poses, twists = self._kernel("link_frames", 0.0, q, [0.0] * len(q), None, p,
+                                     [0.0] * len(self.inputs))
+        pose = poses.reshape(-1, 12)[link]
+        R = pose[:9].reshape(3, 3)
+        return pose[9:] + R @ point, R, twists.reshape(-1, 6)
+
+    def _link_pose(self, link, q, point, p):
+        x, R, _ = self._link_frames(link, q, point, p)
+        return x, R
+
+    def _link_jacobian(self, link, q, point, p):
+        """The columns [v_i + ω_i × x; ω_i] of the twists [ω_i; v_i] of the nodes at and above
+        the link's, summed per coordinate."""
+        x, _, twists = self._link_frames(link, q, point, p)
+        tables = self._kernels["LINKS"]
+        J = np.zeros((6, self.n_coordinates))
+        i = tables["node"][link]
+        while i >= 0:
+            w, v = twists[i, :3], twists[i, 3:]
+            J[:3, tables["coordinate"][i]] += v + np.cross(w, x)
+            J[3:, tables["coordinate"][i]] += w
+            i = tables["parent"][i]
+        return J
+
     def _outputs(self, t, q, qd, p, u):
         return self._kernel("outputs", t, q, qd, None, p, u)[0]
 
@@ -456,6 +483,18 @@ def _implicit_caller(model, impl):
     return call
 
 
+def _link_caller(model, impl):
+    n = model.n_coordinates
+
+    def call(link, q, point=(0, 0, 0), p=None):
+        index = link_index(model.name, model.link_names, link)
+        point = link_point(point)
+        p_list = model._arguments(p, None)[0]
+        return impl(index, as_vector(q, n, "q").tolist(), point, p_list)
+    call.__doc__ = impl.__doc__
+    return call
+
+
 def _weighted_caller(model, impl):
     n, m = model.n_coordinates, model.n_constraints
 
@@ -470,4 +509,4 @@ def _weighted_caller(model, impl):
 
 _CALLERS = {"state": _state_caller, "q": _coordinate_caller, "q_qd": _state_arguments_caller,
             "directions": _directions_caller, "implicit": _implicit_caller,
-            "weighted": _weighted_caller}
+            "weighted": _weighted_caller, "link": _link_caller}
