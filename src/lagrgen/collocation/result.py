@@ -180,7 +180,7 @@ class CollocationResult:
         """{state name: (excursion, t)}: how far each state's interpolant (`state_at`) leaves
         its bounds between the points, where collocation does not bound it, largest over
         `samples` instants per interval, for the states that leave them by more than 1e-6 of
-        max(1, |bound|) (names: the coordinates and <coordinate>_dot). An interval's bound is
+        max(1, abs(bound)) (names: the coordinates and <coordinate>_dot). An interval's bound is
         the loosest of its points' (instance values do not bound the states between)."""
         L, tr = self._layout, self._transcription
         lo, hi = (L.point_block(b)[:, :2 * L.n] for b in (tr.lo, tr.hi))
