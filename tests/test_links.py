@@ -222,6 +222,27 @@ def test_bad_link_names_and_points_get_clear_errors(built, small_file):
         model.link_position("tip", (model.q[0], 0, 0))
 
 
+def test_a_point_is_read_alike_in_every_form(built):
+    """The compiled link functions read a point given as a tuple of numbers or a float64 array
+    without converting it; every other form (a list, a strided, byte-swapped, float32 or integer
+    array) gives the same numbers, and a non-finite point is refused in each."""
+    _, mods = built
+    mod = mods["small", "recursive", "c"]
+    q = np.array([0.3, -0.2, 0.5])
+    reference = [f("tip", q, (0.1, -0.2, 0.3)) for f in (mod.link_pose, mod.link_jacobian)]
+    strided = np.array([0.1, 9.0, -0.2, 9.0, 0.3])[::2]
+    for point in ((0.1, -0.2, 0.3), [0.1, -0.2, 0.3], np.array([0.1, -0.2, 0.3]), strided,
+                  np.array([0.1, -0.2, 0.3], dtype=">f8")):
+        pose, jac = mod.link_pose("tip", q, point), mod.link_jacobian("tip", q, point)
+        assert np.array_equal(pose[0], reference[0][0]) and np.array_equal(jac, reference[1])
+    for same in (np.array([0, 1, 0]), np.array([0, 1, 0], dtype=np.float32)):
+        assert np.array_equal(mod.link_pose("tip", q, (0, 1, 0))[0],
+                              mod.link_pose("tip", q, same)[0])
+    for bad in ((0.0, np.inf, 0.0), np.array([0.0, 0.0, np.nan]), (0, 0, 10 ** 400)):
+        with pytest.raises((ValueError, OverflowError)):
+            mod.link_jacobian("tip", q, bad)
+
+
 def test_a_model_without_links_says_so(tmp_path):
     model = lagrgen.Model("no_links")
     x, = model.coordinates("x")

@@ -430,6 +430,38 @@ cdef class DirectionsFunction:
 
 #: The default point of a link function: the link frame's origin.
 ORIGIN = (0, 0, 0)
+
+
+cdef int three_numbers(object point, double *out) except -1:
+    """1 with `point` written to out when it is a tuple of 3 finite floats or ints (a link's
+    point as people write it) or a 1-D float64 array of 3 finite numbers, read without
+    converting it, else 0 (link_point converts and checks it)."""
+    cdef int i
+    cdef object v
+    cdef cnp.ndarray arr
+    if type(point) is cnp.ndarray:
+        arr = <cnp.ndarray>point
+        if arr.ndim != 1 or arr.shape[0] != 3 or cnp.PyArray_TYPE(arr) != cnp.NPY_DOUBLE \
+                or not cnp.PyArray_ISNOTSWAPPED(arr):
+            return 0
+        for i in range(3):
+            out[i] = (<double *>cnp.PyArray_GETPTR1(arr, i))[0]
+            if not isfinite(out[i]):
+                return 0
+        return 1
+    if type(point) is not tuple or len(<tuple>point) != 3:
+        return 0
+    for i in range(3):
+        v = (<tuple>point)[i]
+        if type(v) is int:
+            if not -1e300 < v < 1e300:
+                return 0
+        elif type(v) is not float:
+            return 0
+        out[i] = v
+        if not isfinite(out[i]):
+            return 0
+    return 1
 #: A link function's state [q, point, index] stays on the stack up to this many coordinates.
 cdef enum:
     LINK_STACK = 256
@@ -463,7 +495,7 @@ cdef class LinkFunction(BoundFunction):
         memcpy(y, cnp.PyArray_DATA(as_f64(q, n, "q")), n * sizeof(double))
         if point is ORIGIN:
             y[n] = y[n + 1] = y[n + 2] = 0.0
-        else:
+        elif not three_numbers(point, y + n):
             memcpy(y + n, cnp.PyArray_DATA(link_point(point)), 3 * sizeof(double))
         y[n + 3] = <int>found
         cdef cnp.ndarray pa = self.model.params(p)
