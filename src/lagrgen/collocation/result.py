@@ -187,20 +187,19 @@ class CollocationResult:
         if not (np.isfinite(lo).any() or np.isfinite(hi).any()):
             return {}
         names = list(self.coordinates) + [f"{c}_dot" for c in self.coordinates]
+        starts = np.asarray(L.node_points)
+        low = np.minimum(np.minimum.reduceat(lo, starts[:-1], axis=0), lo[starts[1:]]).T
+        high = np.maximum(np.maximum.reduceat(hi, starts[:-1], axis=0), hi[starts[1:]]).T
         fractions = (np.arange(samples) + 0.5) / samples
+        times = self.t[:-1, None] + fractions * np.diff(self.t)[:, None]      # (K, samples)
+        values = self.state_at(times.ravel()).reshape(2 * L.n, *times.shape)
+        excess = np.maximum(low[:, :, None] - values, values - high[:, :, None])
         out = {}
-        for k in range(len(self.t) - 1):
-            inside = L.node_points[k] + np.arange(L.node_points[k + 1] - L.node_points[k] + 1)
-            low, high = lo[inside].min(axis=0), hi[inside].max(axis=0)
-            times = self.t[k] + fractions * (self.t[k + 1] - self.t[k])
-            values = self.state_at(times)
-            excess = np.maximum(low[:, None] - values, values - high[:, None])
-            for i in np.flatnonzero(excess.max(axis=1) > 0):
-                j = int(np.argmax(excess[i]))
-                bound = low[i] if values[i, j] < low[i] else high[i]
-                if excess[i, j] > 1e-6 * max(1.0, abs(bound)) and \
-                        excess[i, j] > out.get(names[i], (0.0,))[0]:
-                    out[names[i]] = (float(excess[i, j]), float(times[j]))
+        for i in np.flatnonzero(excess.max(axis=(1, 2)) > 0):
+            k, j = np.unravel_index(np.argmax(excess[i]), times.shape)
+            bound = low[i, k] if values[i, k, j] < low[i, k] else high[i, k]
+            if excess[i, k, j] > 1e-6 * max(1.0, abs(bound)):
+                out[names[i]] = (float(excess[i, k, j]), float(times[k, j]))
         return out
 
     def state_at(self, times):
