@@ -424,3 +424,59 @@ def test_the_command_line_shows_and_simulates_a_free_base(tmp_path):
     last = dict(zip(names, map(float, lines[-1].split(","))))
     assert last["base_z"] == pytest.approx(-9.81 / 8, rel=1e-6) and last["base_qw"] == 1.0
     assert last["base_pitch"] == 0.0
+
+
+# -- link kinematics --------------------------------------------------------------------------------
+def test_a_free_bases_link_frames_equal_the_floating_ones_finite_differences_and_pinocchio(
+        quadruped, out):
+    """link_pose and link_jacobian of the free quadruped (compiled and Python): the floating
+    model's at the same state, J·q̇ (q̇ ∋ ζ̇) the velocities of finite differences along q̇ and
+    Pinocchio's frame velocities (LOCAL_WORLD_ALIGNED) of its free-flyer."""
+    free, floating = quadruped
+    python = lagrgen.build(lagrgen.from_urdf(QUADRUPED, base="free", joint_dynamics=False,
+                                             name="quad_free", limits=False),
+                           backend="python", out_dir=out, quiet=True)
+    joints = list(free.coordinates[7:])
+    rng = np.random.default_rng(11)
+    start = dict(position=(0.1, -0.2, 0.5), rpy=(0.3, -0.4, 1.0), velocity=(0.5, 0.2, 1.0),
+                 angular_velocity=(0.6, -0.8, 0.4), q=dict(zip(joints, rng.uniform(-0.4, 0.4, 12))),
+                 qd=dict(zip(joints, rng.uniform(-1, 1, 12))))
+    y, yf = lagrgen.base_state(free, **start), lagrgen.base_state(floating, **start)
+    n, nf = free.n_coordinates, floating.n_coordinates
+    q, qd = y[:n], y[n:]
+    point, h = np.array([0.05, -0.02, 0.03]), 1e-6
+    assert free.link_names == floating.link_names == python.link_names
+    for link in free.link_names:
+        x, R = free.link_pose(link, q, point)
+        J = free.link_jacobian(link, q, point)
+        xf, Rf = floating.link_pose(link, yf[:nf], point)
+        assert np.allclose(x, xf, atol=1e-14) and np.allclose(R, Rf, atol=1e-14)
+        assert np.allclose(J @ qd, floating.link_jacobian(link, yf[:nf], point) @ yf[nf:],
+                           atol=1e-13)
+        for mine, theirs in zip(python.link_pose(link, q, point) + (python.link_jacobian(
+                link, q, point),), (x, R, J)):
+            assert np.allclose(mine, theirs, atol=1e-14)
+        (xp, Rp), (xm, Rm) = (free.link_pose(link, q + s * h * qd, point) for s in (1, -1))
+        W = (Rp - Rm) / (2 * h) @ R.T
+        assert np.allclose((xp - xm) / (2 * h), J[:3] @ qd, atol=1e-8)
+        assert np.allclose([W[2, 1], W[0, 2], W[1, 0]], J[3:] @ qd, atol=1e-8)
+    with pytest.raises(ValueError, match="quaternion"):
+        free.link_jacobian("trunk", np.zeros(n))
+    with pytest.raises(ValueError, match="quaternion"):
+        python.link_pose("FL_foot", np.zeros(n))
+    pin = pytest.importorskip("pinocchio")
+    pm = pin.buildModelFromUrdf(str(QUADRUPED), pin.JointModelFreeFlyer())
+    data = pm.createData()
+    Rb = rotation_of(q[3:7])
+    omega = start["angular_velocity"]
+    v = np.concatenate([Rb.T @ qd[:3], Rb.T @ omega, qd[7:]])
+    pin.forwardKinematics(pm, data, q, v)
+    pin.updateFramePlacements(pm, data)
+    for link in ("trunk", "FL_foot", "HR_shank"):
+        frame = pm.getFrameId(link)
+        pin.computeJointJacobians(pm, data, q)
+        Jp = pin.getFrameJacobian(pm, data, frame, pin.LOCAL_WORLD_ALIGNED)
+        x, R = free.link_pose(link, q)
+        assert np.allclose(x, data.oMf[frame].translation, atol=1e-12)
+        assert np.allclose(R, data.oMf[frame].rotation, atol=1e-12)
+        assert np.allclose(free.link_jacobian(link, q) @ qd, Jp @ v, atol=1e-12)

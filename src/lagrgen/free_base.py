@@ -105,3 +105,30 @@ def chart_column(z, i):
     generalized force of e_i is ½·(ζ ⊗ a_i)·Q_ζ."""
     unit = [se.Integer(int(i == k)) for k in range(3)] + [se.Integer(0)]
     return frames.quaternion_product(z, unit)
+
+
+def link_node(segment):
+    """The node of `free_base.link_tree` whose body is segment `segment` (−1: the fixed frame):
+    the base's is node 6 (its last quaternion node), joint k's node k + 6."""
+    return -1 if segment < 0 else segment + 6
+
+
+def link_tree(z, nodes, parent, records):
+    """(parent, coordinate, twists) of the tree of a free base's links in the model's coordinates
+    (a `tree3d.LinkTree`): nodes 0–2 its position
+    (the chart's prismatic nodes), nodes 3–6 its quaternion's components ζ_k, each with the
+    twist Σ_i G_ik·s_i of the chart's rotation nodes s_i (ė = G·ζ̇, G_ik = 2·(ζ ⊗ a_i)_k/|ζ|²,
+    the inverse of ∂ζ/∂e = ½·ζ ⊗ a_i on ζ's tangent space), then the joints' nodes (chart
+    node m ≥ 6 is node m + 1): a chain from the position down, so that J·q̇ with q̇ ∋ ζ̇ is
+    the link's [velocity; angular velocity]."""
+    norm2 = se.Add(*(x * x for x in z))
+    G = [[2 * x / norm2 for x in chart_column(z, i)] for i in range(3)]
+    spins = [records[3 + i][:6] for i in range(3)]
+    twists = [records[i][:6] for i in range(3)]
+    twists += [[se.Add(*(G[i][k] * spins[i][r] for i in range(3))) for r in range(6)]
+               for k in range(4)]
+    twists += [record[:6] for record in records[6:]]
+    link_parent = tuple(range(-1, 6)) + tuple(6 if parent[m] == 5 else parent[m] + 1
+                                             for m in range(6, len(nodes)))
+    coordinate = tuple(range(7)) + tuple(c + 1 for c in nodes[6:])
+    return link_parent, coordinate, twists

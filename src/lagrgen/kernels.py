@@ -84,7 +84,7 @@ def has_links(eq):
 def link_frames(spatial):
     """The link_frames kernel's outputs of a `SpatialTree`: the links' poses, the nodes' twists."""
     return {"poses": [x for pose in spatial.link_poses for x in pose],
-            "twists": [x for record in spatial.records for x in record[:6]]}
+            "twists": [x for twist in spatial.link_tree.twists for x in twist]}
 
 
 def flatten(matrix):

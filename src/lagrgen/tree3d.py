@@ -39,6 +39,16 @@ from .records import Articulation, Body3D, Particle, PotentialEnergy
 FIELDS = (("s", 6), ("Y", 10), ("base", 6), ("Q", 1))
 
 
+@dataclass(frozen=True)
+class LinkTree:
+    """The tree a link's frame Jacobian is read from: node i's `parent` (−1: a root), the model
+    coordinate whose rate it moves with (`coordinate`), and its twist per unit rate [ω_i; v_i]
+    (Plücker coordinates at the fixed origin, `twists[i]`, 6 expressions)."""
+    parent: tuple
+    coordinate: tuple
+    twists: list
+
+
 @dataclass(eq=False)
 class SpatialTree:
     """A model's three-dimensional kinematic tree and its nodes' terms (internal symbols).
@@ -56,7 +66,8 @@ class SpatialTree:
     coordinates and `free` its `FreeBase`. `links` are the model's links (`lagrgen.links`) as
     (name, the node whose body carries it or −1 for the fixed frame), `link_poses` their
     frames (R row-major then origin, 12 expressions each), formed on first use
-    (`link_terms()`); a free base has none yet.
+    (`link_terms()`). The links' Jacobian walks `link_tree` (`LinkTree`): the node tree itself,
+    or for a free base one node per model coordinate of the base (`free_base.link_tree`).
     """
     coordinate: tuple
     parent: tuple
@@ -70,6 +81,7 @@ class SpatialTree:
     free: object = None
     links: tuple = ()
     link_terms: object = tuple
+    link_nodes: object = None
     kind = "spatial"
     fields = FIELDS
 
@@ -88,6 +100,15 @@ class SpatialTree:
     @cached_property
     def link_poses(self):
         return self.link_terms()
+
+    @cached_property
+    def link_tree(self):
+        """The `LinkTree` the links' Jacobian walks: the node tree, unless `link_nodes()` gives
+        one of its own."""
+        if self.link_nodes is not None:
+            return self.link_nodes()
+        return LinkTree(self.parent, self.coordinate,
+                        [record[:6] for record in self.records])
 
     @property
     def n(self):
@@ -183,7 +204,13 @@ def _from_articulation(eq, record, others):
         nodes, parent, records, notes, poses = free_base.free_tree(
             eq, record, Q, world, lambda k: (coordinate[k - 1], multiplier[k - 1]))
         return SpatialTree(nodes, parent, _subtree_ends(parent), lambda: (records, poses), Q,
-                           notes, free=free_base.FreeBase(float(record.segments[0].radial)))
+                           notes, free=free_base.FreeBase(float(record.segments[0].radial)),
+                           links=tuple((frame.name, free_base.link_node(frame.segment))
+                                       for frame in record.links),
+                           link_terms=lambda: [_placed_pose(world, frame, convert)
+                                               for frame in record.links],
+                           link_nodes=lambda: LinkTree(*free_base.link_tree(
+                               [eq.q[j] for j in free_base.QUATERNION], nodes, parent, records)))
     parent = tuple(s.parent for s in record.segments)
     end = _subtree_ends(parent)
     gravity = [convert(g) for g in record.gravity]

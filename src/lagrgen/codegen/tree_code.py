@@ -217,5 +217,6 @@ def link_layout(equations):
     """The tables of a three-dimensional tree's links: {"node": the node carrying each link (−1:
     fixed), "parent": each node's parent (−1: a root), "coordinate": each node's coordinate}."""
     tree = trees.analyse(equations)
-    return {"node": [node for _, node in tree.links], "parent": list(tree.parent),
-            "coordinate": list(tree.coordinate)}
+    walked = tree.link_tree
+    return {"node": [node for _, node in tree.links], "parent": list(walked.parent),
+            "coordinate": list(walked.coordinate)}

@@ -27,7 +27,8 @@ from lagrgen.runtime.describe import BuiltModule
 from lagrgen.runtime.info import INFO_ATTRIBUTES, ModelInfo
 from lagrgen.runtime import units
 from lagrgen.runtime.arguments import (defaults_array, initial_state_array, input_vector,
-                                       link_index, link_point, parameter_vector, require_finite)
+                                       link_index, link_not_finite, link_point,
+                                       parameter_vector, require_finite)
 
 cnp.import_array()
 
@@ -210,7 +211,8 @@ cdef class CompiledModel:
         state = np.array([y[i] for i in range(2 * n)])
         if np.all(np.isfinite(state)) and np.isfinite(t):
             M = np.empty(n * n)
-            self.pointer("mass_matrix")(t, y, p, u, <double *>cnp.PyArray_DATA(M))
+            if self.pointer("mass_matrix")(t, y, p, u, <double *>cnp.PyArray_DATA(M)):
+                raise MassMatrixError.at(self.name, t, state[:n])
             if not np.all(np.isfinite(M)):
                 raise NonFiniteError.in_mass_matrix(self.name, t, state[:n])
             if not self.n_constraints:
@@ -432,6 +434,14 @@ cdef class DirectionsFunction:
 ORIGIN = (0, 0, 0)
 
 
+cdef bint finite_numbers(const double *x, Py_ssize_t count):
+    cdef Py_ssize_t i
+    for i in range(count):
+        if not isfinite(x[i]):
+            return False
+    return True
+
+
 cdef int three_numbers(object point, double *out) except -1:
     """1 with `point` written to out when it is a tuple of 3 finite floats or ints (a link's
     point as people write it) or a 1-D float64 array of 3 finite numbers, read without
@@ -508,10 +518,14 @@ cdef class LinkFunction(BoundFunction):
                              <double *>cnp.PyArray_DATA(out))
             if status:
                 self.link_failed(status)
+            if not finite_numbers(<double *>cnp.PyArray_DATA(out), 6 * n):
+                self.not_finite(link)
             return out
         status = self.fn(0.0, y, data(pa), data(self.model._zeros), buffer)
         if status:
             self.link_failed(status)
+        if not finite_numbers(buffer, 12):
+            self.not_finite(link)
         cdef cnp.npy_intp three = 3
         cdef cnp.npy_intp square[2]
         square[0] = square[1] = 3
@@ -523,6 +537,9 @@ cdef class LinkFunction(BoundFunction):
 
     cdef str name_of_model(self):
         return self.model.name
+
+    cdef not_finite(self, link):
+        raise ValueError(link_not_finite(self.model.name, self.name, link))
 
     cdef link_failed(self, int status):
         if status == NO_MEMORY:

@@ -55,6 +55,12 @@ def link_index(model, links, link):
                            f"{', '.join(links)}")
 
 
+def link_not_finite(model, function, link):
+    """The message of a link function whose result is not finite."""
+    return (f"{function} of model {model!r} at link {link!r} is not finite: q must be finite "
+            "numbers (and a free base's quaternion q[3:7] nonzero)")
+
+
 def link_point(point):
     """A point in a link's frame as 3 finite float64 numbers."""
     point = as_vector(point, 3, "point (3 coordinates in the link's frame)")

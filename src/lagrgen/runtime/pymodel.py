@@ -15,7 +15,7 @@ from ..errors import ConstraintError, LagrgenError, MassMatrixError, NonFiniteEr
 from ..functions import FUNCTIONS
 from . import dual
 from .arguments import (as_vector, defaults_array, initial_state_array, input_vector,
-                        link_index, link_point, parameter_vector)
+                        link_index, link_not_finite, link_point, parameter_vector)
 from .describe import describe
 from .info import INFO_ATTRIBUTES
 
@@ -490,7 +490,10 @@ def _link_caller(model, impl):
         index = link_index(model.name, model.link_names, link)
         point = link_point(point)
         p_list = model._arguments(p, None)[0]
-        return impl(index, as_vector(q, n, "q").tolist(), point, p_list)
+        out = impl(index, as_vector(q, n, "q").tolist(), point, p_list)
+        if not all(np.isfinite(x).all() for x in (out if isinstance(out, tuple) else (out,))):
+            raise ValueError(link_not_finite(model.name, impl.__name__.strip("_"), link))
+        return out
     call.__doc__ = impl.__doc__
     return call
 
