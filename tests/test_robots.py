@@ -235,6 +235,26 @@ def test_a_floating_base_near_gimbal_lock_warns(quadruped):
             assert bool(found) == warned, (pitch, engine, [str(w.message) for w in caught])
 
 
+def test_a_robot_with_stops_near_gimbal_lock_warns_from_the_hybrid_solve(quadruped):
+    """The floating quadruped with its joint limits enforced (from_urdf's default, so run by the
+    hybrid driver) warns as the smooth runs do near pitch = π/2, and not at pitch 0.3."""
+    stopped, _ = quadruped
+    assert stopped.info.limit_stops
+    n = stopped.n_coordinates
+    for pitch, warned in ((np.pi / 2 - 1e-6, True), (0.3, False)):
+        y0 = lagrgen.base_state(stopped, position=(0, 0, 1.0), rpy=(0.0, pitch, 0.0))
+        y0[n + 3] = 1.5
+        for engine in ("native", "scipy"):
+            with warnings.catch_warnings(record=True) as caught:
+                warnings.simplefilter("always")
+                sol = lagrgen.simulate(stopped, (0.0, 0.05), y0, rtol=1e-9, atol=1e-12,
+                                       engine=engine)
+            assert sol.success
+            found = [w for w in caught
+                     if issubclass(w.category, lagrgen.NearSingularMassMatrixWarning)]
+            assert bool(found) == warned, (pitch, engine, [str(w.message) for w in caught])
+
+
 def test_a_free_robot_keeps_its_energy_and_momentum(quadruped):
     _, free = quadruped
     n = free.n_coordinates

@@ -50,7 +50,7 @@ import time
 
 import numpy as np
 
-from .errors import ContactError
+from .errors import ContactError, warn_near_singular
 from .methods import NATIVE_METHODS
 
 OPEN, CONTACT, STICK, SLIP = "open", "contact", "stick", "slip"
@@ -89,6 +89,7 @@ class HybridSystem:
 
     def __init__(self, mod, p, u_at):
         self.mod, self.p, self.u_at = mod, p, u_at
+        self.least_pivot = 1.0          # the least D_kk/M_kk of M met by `solve` (LDLᵀ)
         self.n = n = mod.n_coordinates
         self.m = mod.n_constraints
         defs = mod.nonsmooth_definitions
@@ -139,6 +140,7 @@ class HybridSystem:
         """
         n, m = self.n, self.m
         M, F, A, gamma, imp, fr, pf = self.all_terms(t, y)
+        self.note_pivots(M)
         pmode, anchor = planar if planar is not None else ((-1,) * self.npf, ((1.0, 0.0),) *
                                                             self.npf)
         rows = [A[k] for k in range(m)]
@@ -213,6 +215,16 @@ class HybridSystem:
                                      for k in range(self.npf)]).reshape(self.npf, 2)
         out.planar_rows, out.planar_slip = pf, pf[:, :2]
         return out
+
+    def note_pivots(self, M):
+        """Keep the least relative pivot D_kk/M_kk of M's LDLᵀ in `least_pivot` (0 when M is
+        not positive definite: the solve that follows says so)."""
+        try:
+            L = np.linalg.cholesky(M)
+        except np.linalg.LinAlgError:
+            self.least_pivot = 0.0
+            return
+        self.least_pivot = min(self.least_pivot, float(np.min(np.diag(L) ** 2 / np.diag(M))))
 
     def forces(self, t, y, contact, slip, planar=None):
         """The forces of the mode at (t, y): λ of the model's constraints, then each impact's
@@ -1033,7 +1045,8 @@ def simulate_hybrid(mod, t_span, y0, method, p, u_at, rtol, atol, t_eval=None,
     return dict(t=np.concatenate(ts), y=np.concatenate(ys, axis=1), transitions=sw.transitions,
                 forces=forces,
                 mode=sw.mode(), nfev=nfev, status=status, message=message, n_segments=segments,
-                success=status >= 0, stopped=stopped, t_reached=t, n_steps=steps)
+                success=status >= 0, stopped=stopped, t_reached=t, n_steps=steps,
+                least_pivot=system.least_pivot)
 
 
 def stall_step(t0, tf):
@@ -1160,7 +1173,7 @@ def solve_hybrid_native(mod, t_span, y0, method, p, u_spec, rtol, atol, t_eval=N
                 nfev=out["nfev"], status=out["status"], message=message,
                 n_segments=out["n_segments"], success=out["status"] >= 0,
                 stopped=GUARDS.get(out["stopped"]), t_reached=out["t_reached"],
-                n_steps=out["n_steps"])
+                n_steps=out["n_steps"], least_pivot=out["least_pivot"])
 
 
 def native_failure_message(mod, system, out, transitions, gap_tol, t0, tf, y0):
@@ -1193,7 +1206,8 @@ def simulate_nonsmooth(mod, t_span, y0, method, p, inputs, u_at, rtol, atol, t_e
 
     max_steps and max_wall_time bound the whole solve (all segments): inside the segments on the
     native engine, between them on the SciPy engine; `max_transitions` bounds the switching, and
-    Ctrl-C ends a native solve."""
+    Ctrl-C ends a native solve. A run whose factorizations of M met a relative pivot below
+    `errors.near_singular_limit(rtol)` warns NearSingularMassMatrixWarning."""
     from .results import stopped_by_guard
     from scipy.integrate._ivp.ivp import OdeResult
 
@@ -1247,6 +1261,7 @@ def simulate_nonsmooth(mod, t_span, y0, method, p, inputs, u_at, rtol, atol, t_e
     sol.contact_names = force_names(mod)
     sol.contact_forces = out["forces"][m:]
     sol.guard = None
+    warn_near_singular(mod, min(out["least_pivot"], mod.pivot_record()), rtol)
     if out["stopped"] is not None:
         stopped_by_guard(sol, guard_reason(out["stopped"], max_steps, max_wall_time),
                          out["t_reached"], float(t_span[1]), out["n_steps"])

@@ -97,6 +97,7 @@ def simulate(mod, t_span, y0=None, method="RK45", params=None, inputs=None, rtol
                                p, u_at, method)
     if is_hybrid(mod):
         from .hybrid import simulate_nonsmooth
+        mod.pivot_record()
         sol = simulate_nonsmooth(mod, t_span, y0, method, p, inputs, u_at, rtol, atol, t_eval,
                                  dense_output, events, engine, progress, options, max_steps,
                                  max_wall_time)

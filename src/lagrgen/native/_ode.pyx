@@ -503,6 +503,7 @@ cdef extern from "lg_hybrid.h":
         int failure, failed_element
         double failed_value, failed_other
         lg_buf_t t, y, forces, transitions
+        double least_pivot
     int lg_hybrid_solve(lg_hybrid_t *, const lg_options_t *, lg_hybrid_result_t *) nogil
     void lg_hybrid_result_free(lg_hybrid_result_t *) nogil
 
@@ -613,7 +614,8 @@ def solve_hybrid(str method, uintptr_t terms, int n, int m, int ni, int nf, norm
                         contact=contact[:ni + n_stops].copy(), slip=slip[:nf].copy(),
                         pmode=pmode[:npf].copy(), anchor=anchor[:2 * npf].reshape(npf, 2),
                         failure=res.failure, failed_element=res.failed_element,
-                        failed_value=res.failed_value, failed_other=res.failed_other)
+                        failed_value=res.failed_value, failed_other=res.failed_other,
+                        least_pivot=res.least_pivot)
         finally:
             lg_hybrid_result_free(&res)
     finally:

@@ -255,6 +255,17 @@ static void hy_slip_direction(const double *v, const double *anchor, double *out
     out[1] = norm > 0 ? b / norm : anchor[1];
 }
 
+/* The least relative pivot |U_kk|/M_kk of M's factor in c->K into the result's least_pivot. */
+static void hy_note_pivots(hy_ctx *c, int n)
+{
+    const double *M = M_(c);
+    for (int k = 0; k < n; ++k) {
+        double ratio = fabs(c->K[k * n + k]) / fabs(M[k * n + k]);
+        if (ratio < c->result->least_pivot)
+            c->result->least_pivot = ratio;
+    }
+}
+
 /* (q̈, λ) of M·q̈ = force + B·λ, R·q̈ = rhs with B = Rᵀ plus c->Wrow's columns (the slipping
  * frictions' forces per unit normal force, scaled by c->sigma) through D = R·M⁻¹·B (see the top);
  * into c->qdd and c->x + n. `nlinked` columns in c->Wrow (n each) at rows c->cone[0..). */
@@ -275,6 +286,7 @@ static int hy_saddle(hy_ctx *c, int r, int nlinked)
     memcpy(c->K, M_(c), (size_t)n * n * sizeof(double));
     if (hy_lu_factor(c->K, c->piv, n))
         return 1;
+    hy_note_pivots(c, n);
     hy_lu_apply(c->K, c->piv, c->XB, n, w);
     if (!r) {
         for (int a = 0; a < n; ++a)
@@ -1271,6 +1283,7 @@ static void *hy_alloc(void **list, int *count, size_t bytes)
 int lg_hybrid_solve(lg_hybrid_t *h, const lg_options_t *options, lg_hybrid_result_t *res)
 {
     memset(res, 0, sizeof *res);
+    res->least_pivot = 1.0;
     hy_ctx c;
     memset(&c, 0, sizeof c);
     c.h = h;

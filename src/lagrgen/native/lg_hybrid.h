@@ -71,6 +71,8 @@ typedef struct {
                                   * sticking multiplier, or −μ·|N|·s while slipping), the planar
                                   * frictions' two components (2·npf); NaN if singular */
     lg_buf_t transitions;        /* (t, element, kind) triples */
+    double least_pivot;          /* the least |U_kk|/M_kk of M's factorizations (1 at most): M
+                                  * nearly singular below ~1e-8 (Euler angles near gimbal lock) */
 } lg_hybrid_result_t;
 
 /* Run a hybrid solve from y0 over [t0, tf] (options: method, tolerances, max_step, t_eval; its
