@@ -455,3 +455,18 @@ def test_check_converges_at_the_order_of_hermite_simpson(pendulums):
         u = res.input_signals()["F"]
         assert_allclose(u(res.t_points), res._point_values("u", 0), atol=1e-12)
     assert deviations[1] < deviations[0] / 10 and deviations[1] < 2e-4
+
+
+def test_an_answer_at_ipopts_acceptable_level_says_so(integrator):
+    """IPOPT's "Solved To Acceptable Level" (status 1) is a success looser than tol: the result
+    says so in its notes; a solve to tol does not."""
+    model, mod = integrator
+    F, = model.input_functions
+    loose = {"acceptable_tol": 1e3, "acceptable_iter": 1, "acceptable_constr_viol_tol": 1e3,
+             "acceptable_dual_inf_tol": 1e10, "acceptable_compl_inf_tol": 1e3}
+    res = effort_problem(mod, F, 11, "trapezoidal").solve(
+        progress=False, mesh_tol=None, hessian="quasi-newton", tol=1e-12, options=loose)
+    assert res.status == 1 and res.success
+    assert any("acceptable level" in note for note in res.notes)
+    res = effort_problem(mod, F, 11, "trapezoidal").solve(progress=False, mesh_tol=None)
+    assert res.status == 0 and not any("acceptable level" in note for note in res.notes)

@@ -128,7 +128,8 @@ class CollocationResult:
             _transcription=tr, _controls=tr.controls,
             _lam=np.asarray(info.get("mult_g", np.zeros(0)), dtype=float),
             _z=np.asarray(info.get("mult_z", np.zeros(0)), dtype=float),
-            notes=list(getattr(tr, "notes", ())), solve_seconds=seconds, solver="ipopt")
+            notes=list(getattr(tr, "notes", ())) + acceptable_note(status),
+            solve_seconds=seconds, solver="ipopt")
 
     def estimate_errors(self, stacklevel=2):
         """Fill `stderr`, `cov`, `unidentified`, `unseen` and `at_bounds` from the data term at
@@ -320,3 +321,14 @@ def simpson_quadratics(t_nodes, values):
     h = np.diff(t_nodes)
     return np.column_stack([np.zeros_like(h), 2 * (u0 - 2 * um + u1) / h**2,
                             (-3 * u0 + 4 * um - u1) / h, u0])
+
+
+def acceptable_note(status):
+    """[a note] when IPOPT ended at its acceptable level (status 1: success, but looser than
+    `tol`), else []."""
+    if status != 1:
+        return []
+    return ["IPOPT stopped at its acceptable level (several iterations within acceptable_tol, "
+            "1e-6 by default), not at the requested tol: the answer is optimal to about 1e-6; "
+            "options={'acceptable_iter': 0} makes it go on to tol"]
+
