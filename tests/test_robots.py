@@ -215,24 +215,29 @@ def test_a_floating_base_falls_freely_and_its_jacobian_is_exact(quadruped):
     assert relative(J, fd) < 1e-6
 
 
-def test_a_floating_base_near_gimbal_lock_warns(quadruped):
-    """Issue 45 item 6: the free quadruped tumbling from 1e-6 rad short of pitch = π/2 (its
-    roll–pitch–yaw base near gimbal lock) warns on both engines; from pitch 0.3 it does not."""
-    _, free = quadruped
-    n = free.n_coordinates
-    y0 = np.zeros(2 * n)
-    y0[n + 3] = 1.5                                   # rolling
+def assert_warns_only_near_gimbal_lock(mod, y0):
+    """Runs of `mod` (both engines) from y0 rolling at 1.5 rad/s warn NearSingularMassMatrixWarning
+    from pitch 1e-6 rad short of π/2 (its roll–pitch–yaw base near gimbal lock), not from 0.3."""
+    n = mod.n_coordinates
+    y0 = np.array(y0, dtype=float)
+    y0[n + 3] = 1.5
     for pitch, warned in ((np.pi / 2 - 1e-6, True), (0.3, False)):
         y0[4] = pitch
         for engine in ("native", "scipy"):
             with warnings.catch_warnings(record=True) as caught:
                 warnings.simplefilter("always")
-                sol = lagrgen.simulate(free, (0.0, 0.05), y0, rtol=1e-9, atol=1e-12,
+                sol = lagrgen.simulate(mod, (0.0, 0.05), y0, rtol=1e-9, atol=1e-12,
                                        engine=engine)
             assert sol.success
             found = [w for w in caught
                      if issubclass(w.category, lagrgen.NearSingularMassMatrixWarning)]
             assert bool(found) == warned, (pitch, engine, [str(w.message) for w in caught])
+
+
+def test_a_floating_base_near_gimbal_lock_warns(quadruped):
+    """Issue 45 item 6: the free quadruped tumbling near pitch = π/2 warns on both engines."""
+    _, free = quadruped
+    assert_warns_only_near_gimbal_lock(free, np.zeros(2 * free.n_coordinates))
 
 
 def test_a_robot_with_stops_near_gimbal_lock_warns_from_the_hybrid_solve(quadruped):
@@ -240,19 +245,7 @@ def test_a_robot_with_stops_near_gimbal_lock_warns_from_the_hybrid_solve(quadrup
     hybrid driver) warns as the smooth runs do near pitch = π/2, and not at pitch 0.3."""
     stopped, _ = quadruped
     assert stopped.info.limit_stops
-    n = stopped.n_coordinates
-    for pitch, warned in ((np.pi / 2 - 1e-6, True), (0.3, False)):
-        y0 = lagrgen.base_state(stopped, position=(0, 0, 1.0), rpy=(0.0, pitch, 0.0))
-        y0[n + 3] = 1.5
-        for engine in ("native", "scipy"):
-            with warnings.catch_warnings(record=True) as caught:
-                warnings.simplefilter("always")
-                sol = lagrgen.simulate(stopped, (0.0, 0.05), y0, rtol=1e-9, atol=1e-12,
-                                       engine=engine)
-            assert sol.success
-            found = [w for w in caught
-                     if issubclass(w.category, lagrgen.NearSingularMassMatrixWarning)]
-            assert bool(found) == warned, (pitch, engine, [str(w.message) for w in caught])
+    assert_warns_only_near_gimbal_lock(stopped, lagrgen.base_state(stopped, position=(0, 0, 1)))
 
 
 def test_a_free_robot_keeps_its_energy_and_momentum(quadruped):
