@@ -4,7 +4,9 @@ A model is drawn in 3-D when it has a `rigid_body_3d` or any drawable point with
 `lagrgen.plotting.animate` hands such models here. Each 3-D body is drawn as its centre of mass and
 its body frame (three short lines along the body axes R·e_x, R·e_y, R·e_z, red/green/blue); the
 model's `line(...)` polylines, particles, planar bodies (in the z = 0 plane) and springs/dampers
-(straight lines) are drawn as well.
+(straight lines) are drawn as well. A robot (`from_urdf`) is a stick figure through its links'
+frames (`robot_tracks`), its ground contacts' points at their places and the planes of the ground
+under it (`draw_ground`).
 """
 import numpy as np
 
@@ -79,9 +81,18 @@ def quaternion_rotations(z):
 
 def robot_tracks(model, record, p, t, q):
     """Line tracks from each link-carrying segment's origin to its parent link's (or to the
-    fixed origin for a root of a fixed base) and on to its body's centre of mass, a point there."""
+    fixed origin for a root of a fixed base) and on to its body's centre of mass, a point there;
+    and from a segment's origin to the frame of each link a fixed joint merged into its body (a
+    foot, a hand's tool), so that a leg reaches its foot."""
     origins, rotations = robot_frames(model, record, p, t, q)
     tracks = []
+    for frame in record.links:
+        offset = np.array(frame.offset, dtype=float).reshape(3)
+        if frame.segment < 0 or not offset.any() or \
+                frame.name == record.segments[frame.segment].link:
+            continue
+        origin = origins[frame.segment]
+        tracks.append(("line", [origin, origin + rotations[frame.segment] @ offset]))
     for k, segment in enumerate(record.segments):
         if not segment.link:
             continue
@@ -197,8 +208,9 @@ def setup_axes(fig, tracks, title):
 
 
 def draw_ground(ax, model, p, centre, half):
-    """The planes of the model's ground contacts (normal·x = height) as grey grids across the
-    scene's cube (`model.ground_contact`)."""
+    """The planes of the model's ground contacts (normal·x = height) as sand-coloured squares,
+    ruled by grey grids, across the scene's cube (`model.ground_contact`), under the rest."""
+    from mpl_toolkits.mplot3d.art3d import Poly3DCollection
     for kind, (normal, height) in (d for d in model.drawables if d[0] == "ground"):
         n = np.array(normal, dtype=float)
         h = float(numeric_function(model, height, p)(np.zeros(1), np.zeros((len(model.q), 1)))[0])
@@ -206,10 +218,16 @@ def draw_ground(ax, model, p, centre, half):
         t1 /= np.linalg.norm(t1)
         t2 = np.cross(n, t1)
         middle = centre + (h - n @ centre) * n
+        corners = [middle + a * half * t1 + b * half * t2
+                   for a, b in ((-1, -1), (1, -1), (1, 1), (-1, 1))]
+        ax.computed_zorder = False       # the ground under the scene, whatever the depths say
+        ax.add_collection3d(Poly3DCollection([corners], facecolor="#efe4d2",
+                                             edgecolor="none", zorder=0))
         for s in np.linspace(-half, half, 9):
             for a, b in ((t1, t2), (t2, t1)):
                 ends = np.array([middle + s * a - half * b, middle + s * a + half * b])
-                ax.plot(ends[:, 0], ends[:, 1], ends[:, 2], "-", color="0.75", linewidth=0.8)
+                ax.plot(ends[:, 0], ends[:, 1], ends[:, 2], "-", color="0.6", linewidth=0.8,
+                        zorder=0.5)
 
 
 def scene_3d(model, times, q, p, title=None):
