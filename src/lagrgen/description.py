@@ -658,14 +658,21 @@ class Description:
         takes is at most mu_static·abs(N) in norm (a friction disk). Its normal force named as an
         impact, it acts only while that contact is held (its mode is "open" otherwise).
         `ground_contact` declares one with its impact."""
+        self._friction(name, slip_velocity, normal_force, mu, mu_static)
+
+    def _friction(self, name, slip_velocity, normal_force, mu, mu_static, affine=False):
+        """`friction`; `affine`: the slip velocity is known to be w(q, t)·q̇ + b(q, t) (a point's
+        velocity: `ground_contact`), and is not differentiated to check it."""
         check_name(name, "friction name")
         where = f"friction {name}"
+
+        def checked(c):
+            c = self._check(c, where, inputs=False)
+            return c if affine else check_affine_in_velocities(c, self.qd, where)
         if isinstance(slip_velocity, (list, tuple, sp.MatrixBase)) and len(slip_velocity) == 2:
-            v = frozen([check_affine_in_velocities(self._check(c, where, inputs=False), self.qd,
-                                                   where) for c in slip_velocity])
+            v = frozen([checked(c) for c in slip_velocity])
         else:
-            v = check_affine_in_velocities(self._check(slip_velocity, where, inputs=False),
-                                           self.qd, where)
+            v = checked(slip_velocity)
         if isinstance(normal_force, str):
             check_name(normal_force, "normal_force name")
             normal = normal_force
@@ -721,7 +728,8 @@ class Description:
         self._drawables.append(("point", (x, sp.Integer(0))))
         if frictional:
             xd = x.diff(self.t)
-            self.friction(f"{name}_friction", [(t1.T * xd)[0, 0], (t2.T * xd)[0, 0]], name, mu)
+            self._friction(f"{name}_friction", [(t1.T * xd)[0, 0], (t2.T * xd)[0, 0]], name, mu,
+                           None, affine=True)
 
     @property
     def nonsmooth(self):
