@@ -58,9 +58,9 @@ def small_model(path):
     return lagrgen.from_urdf(path, name="small_links")
 
 
-def hand_tree():
+def hand_tree(name="hand_tree"):
     """A hand-written tree of rigid_body_3d's: a sliding, turning base with two branches."""
-    model = lagrgen.Model("hand_tree")
+    model = lagrgen.Model(name)
     x, yaw, a, b, c = model.coordinates("x yaw a b c")
     L, = model.parameters(L=0.4)
     R0 = rotation.z(yaw)
@@ -173,6 +173,42 @@ def test_c_and_python_and_both_formulations_agree_to_round_off(built):
                 x, R = mod.link_pose(link, q, POINT)
                 assert np.abs(x - ref_x).max() < 1e-14 and np.abs(R - ref_R).max() < 1e-14
                 assert np.abs(mod.link_jacobian(link, q, POINT) - ref_J).max() < 1e-14
+
+
+def test_each_links_own_functions_equal_the_walk_over_all_frames(tmp_path, monkeypatch):
+    """The compiled links of a small tree have functions of their own, computing only their
+    chain (kernels.link_chains); a tree beyond LINK_CHAIN_MAX_DEPTHS (here forced) walks the
+    twists of all its nodes (lg_link_frames), as the Python backend does: all three agree to
+    round-off on every link, with a free base and with a hand-written tree."""
+    from lagrgen import kernels
+    rng = np.random.default_rng(11)
+    for make in (lambda name: lagrgen.from_urdf(QUADRUPED, base="floating", name=name),
+                 hand_tree):
+        mods, sources = {}, {}
+        for way, limit in (("own", kernels.LINK_CHAIN_MAX_DEPTHS), ("walk", 0)):
+            model = make(f"chains_{way}")
+            with monkeypatch.context() as patch:
+                patch.setattr(kernels, "LINK_CHAIN_MAX_DEPTHS", limit)
+                kernels.link_chains.cache_clear()
+                mods[way] = lagrgen.build(model, out_dir=tmp_path / way, quiet=True)
+                mods[way].link_pose(model.link_names[0], np.zeros(len(model.q)))  # its unit
+            sources[way] = "".join(path.read_text() for path in
+                                   (tmp_path / way).glob("__lagrgen__/*/links-*/*_model.c"))
+        kernels.link_chains.cache_clear()
+        assert "#define LG_LINK_CHAINS 1" in sources["own"] and "lg_link_frames" not in \
+            sources["own"].split("#define LG_LINK_CHAINS 1")[0]
+        assert "#define LG_LINK_CHAINS 0" in sources["walk"]
+        mods["python"] = lagrgen.build(make("chains_python"), backend="python")
+        for _ in range(2):
+            q = rng.uniform(-1, 1, mods["own"].n_coordinates)
+            for link in mods["own"].link_names:
+                x, R = mods["own"].link_pose(link, q, POINT)
+                J = mods["own"].link_jacobian(link, q, POINT)
+                for way in ("walk", "python"):
+                    other_x, other_R = mods[way].link_pose(link, q, POINT)
+                    assert np.abs(other_x - x).max() < 1e-14
+                    assert np.abs(other_R - R).max() < 1e-14
+                    assert np.abs(mods[way].link_jacobian(link, q, POINT) - J).max() < 1e-14
 
 
 def test_the_fixed_frame_links_do_not_move(built):

@@ -87,6 +87,71 @@ def link_frames(spatial):
             "twists": [x for twist in spatial.link_tree.twists for x in twist]}
 
 
+#: A link's point in its own frame, the argument `point` of its kernels (`link_chains`).
+LINK_POINT = tuple(se.Symbol(f"point[{r}]") for r in range(3))
+#: A tree's links have kernels of their own (`link_chains`) while the nodes above its links number
+#: at most this many in all (Σ over the links of their depth: a chain of n joints has about n²/2,
+#: so a long chain's links keep to the walk over the tree's twists, `link_frames`). Their CSE
+#: grows with that sum: solo12 (138) adds about 0.5 s to its links unit, a chain of 27 joints (378)
+#: would add 2.6 s.
+LINK_CHAIN_MAX_DEPTHS = 200
+LINK_POSE = KernelSpec("link_pose", "a link's pose: the world position x = o + R·point of a point "
+                       "fixed in it, then its rotation R (row-major)",
+                       (Output("out", ("12",)),), None, arguments=("q", "p", "point"))
+LINK_JACOBIAN = KernelSpec("link_jacobian", "a link's frame Jacobian at a point fixed in it: "
+                           "[ẋ; ω] = J·q̇, the column of node i's coordinate [v_i + ω_i × x; ω_i] "
+                           "from its twist [ω_i; v_i] for each node i at or above the link",
+                           (Output("out", ("6", "n")),), None, arguments=("q", "p", "point"))
+
+
+def link_chain(spatial, k, n):
+    """({"out": pose}, {"out": J}) of link k of a `SpatialTree` with n model coordinates: its
+    x = o + R·point and R, and its frame Jacobian (6×n, row-major) summed over the nodes at and
+    above it, each node's twist [ω; v] giving [v + ω × x; ω] in its coordinate's column."""
+    pose, walked = spatial.link_poses[k], spatial.link_tree
+    R, o = pose[:9], pose[9:]
+    x = [o[r] + sum(R[3 * r + c] * LINK_POINT[c] for c in range(3)) for r in range(3)]
+    J = [[se.Integer(0)] * n for _ in range(6)]
+    i = spatial.links[k][1]
+    while i >= 0:
+        w, v, c = walked.twists[i][:3], walked.twists[i][3:], walked.coordinate[i]
+        cross = [w[1] * x[2] - w[2] * x[1], w[2] * x[0] - w[0] * x[2], w[0] * x[1] - w[1] * x[0]]
+        for r in range(3):
+            J[r][c] += v[r] + cross[r]
+            J[3 + r][c] += w[r]
+        i = walked.parent[i]
+    return {"out": x + list(R)}, {"out": flatten(J)}
+
+
+def link_depths(spatial):
+    """Σ over a tree's links of the nodes at and above each (`LINK_CHAIN_MAX_DEPTHS`)."""
+    parent, total = spatial.link_tree.parent, 0
+    for _, i in spatial.links:
+        while i >= 0:
+            total, i = total + 1, parent[i]
+    return total
+
+
+@once_per
+def link_chains(eq):
+    """[(pose kernel, Jacobian kernel)] of each link of the equations' tree (`link_chain`, one
+    CSE over both, each printing only the temporaries it needs: only the link's own chain is
+    computed), or [] for a tree whose links are too many
+    or too deep (`LINK_CHAIN_MAX_DEPTHS`), and for a model without links."""
+    if not has_links(eq):
+        return []
+    spatial = tree.analyse(eq)
+    if link_depths(spatial) > LINK_CHAIN_MAX_DEPTHS:
+        return []
+    chains = []
+    for k in range(len(spatial.links)):
+        pose, jacobian = link_chain(spatial, k, eq.n)
+        both = cse_kernel(LINK_JACOBIAN, {"pose": pose["out"], "J": jacobian["out"]})
+        chains.append((Kernel(LINK_POSE, both.temporaries, {"out": both.outputs["pose"]}),
+                       Kernel(LINK_JACOBIAN, both.temporaries, {"out": both.outputs["J"]})))
+    return chains
+
+
 def flatten(matrix):
     """Row-major list of the entries of a list of lists."""
     return [e for row in matrix for e in row]

@@ -4,7 +4,7 @@ from pathlib import Path
 from string import Template
 
 from ..functions import DIRECTIONS_SIGNATURE, EXPORTED
-from ..kernels import KERNELS, kernel_names, model_kernels
+from ..kernels import KERNELS, kernel_names, link_chains, model_kernels
 from .printer import c_function, in_lanes, kernel_statements
 from .tree_code import link_layout, template_name, tree_c
 
@@ -227,6 +227,8 @@ def model_source(info, equations, max_statements=400, functions=EXPORTED):
     defaults = info.defaults or [0.0]
     units = []
     formulation, names = info.formulation, kernels_of(functions)
+    if "link_frames" in names and link_chains(equations):
+        names.remove("link_frames")     # the links have functions of their own (link_functions)
     kernels = kernel_functions(equations, max_statements, units, names, formulation)
     split = units[0] > 0
     recursive = formulation == "recursive"
@@ -262,7 +264,33 @@ def link_tables(equations):
             f"LG_MAYBE_UNUSED static const int lg_link_parent[N_LINK_NODES] = "
             f"{{{rows(map(str, layout['parent']))}}};\n"
             f"LG_MAYBE_UNUSED static const int lg_link_coordinate[N_LINK_NODES] = "
-            f"{{{rows(map(str, layout['coordinate']))}}};\n")
+            f"{{{rows(map(str, layout['coordinate']))}}};\n" + link_functions(equations))
+
+
+#: The arguments of a link's own functions (`link_functions`).
+LINK_PARAMETERS = "const double *q, const double *p, const double *point, double *out"
+
+
+def link_functions(equations):
+    """Each link's own pose and Jacobian (`kernels.link_chains`: only the frames and twists of
+    its chain), lg_link_pose_<k> and lg_link_jacobian_<k>, and their tables lg_link_poses and
+    lg_link_jacobians, indexed by link (LG_LINK_CHAINS 1); LG_LINK_CHAINS 0 for a tree whose
+    links walk the twists of all its nodes (lg_link_frames)."""
+    chains = link_chains(equations)
+    if not chains:
+        return "#define LG_LINK_CHAINS 0\n"
+    prologue = "    (void)q; (void)p; (void)point;\n"
+    text = ["/* Each link's own pose and frame Jacobian, computing only the frames and twists of "
+            "the nodes at and above it. */\n#define LG_LINK_CHAINS 1\n"
+            f"typedef int (*lg_link_fn)({LINK_PARAMETERS});\n"]
+    for k, pair in enumerate(chains):
+        text += [c_function(f"lg_{kernel.name}_{k}", LINK_PARAMETERS, "q, p, point, out",
+                            kernel_statements(kernel), f"{kernel.spec.formula}: link {k}",
+                            prologue=prologue, status=True) for kernel in pair]
+    for kernel in chains[0]:
+        text.append(f"static const lg_link_fn lg_{kernel.name}s[N_LINKS] = {{"
+                    + ", ".join(f"lg_{kernel.name}_{k}" for k in range(len(chains))) + "};\n")
+    return "\n".join(text)
 
 
 def module_source(info, units=0, functions=EXPORTED, template="module.c.in"):

@@ -1,17 +1,24 @@
     /* y = [q, point (3), the link's index]: out = [x (3), R (3×3, row-major)] with
-     * x = p + R·point, from the link frames (lg_link_frames). 1 for an index out of range. */
+     * x = p + R·point, from the link's own function (lg_link_poses: its chain only) or from the
+     * frames of all links (lg_link_frames). 1 for an index out of range. */
 #if N_LINKS
-#define LG_LINK_POSE_WORK (12 * N_LINKS + 6 * N_LINK_NODES)
     const double *point = y + N;
     const int k = (int)y[N + 3];
     if (!(y[N + 3] >= 0.0 && k < N_LINKS))
         return 1;
+#if LG_LINK_CHAINS
+#define LG_LINK_POSE_WORK 0
+    (void)t, (void)u, (void)work;
+    return lg_link_poses[k](y, p, point, out);
+#else
+#define LG_LINK_POSE_WORK (12 * N_LINKS + 6 * N_LINK_NODES)
     LG_TRY(lg_link_frames(t, y, lg_zeros, lg_zeros, p, u, work, work + 12 * N_LINKS));
     const double *R = work + 12 * k, *o = R + 9;
     for (int r = 0; r < 3; ++r)
         out[r] = o[r] + R[3 * r] * point[0] + R[3 * r + 1] * point[1] + R[3 * r + 2] * point[2];
     memcpy(out + 3, R, 9 * sizeof(double));
     return 0;
+#endif
 #else
 #define LG_LINK_POSE_WORK 0
     (void)t, (void)y, (void)p, (void)u, (void)out, (void)work;
