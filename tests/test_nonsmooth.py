@@ -584,3 +584,7 @@ def test_max_steps_and_max_wall_time_bound_the_whole_hybrid_solve(built, engine)
     sol = lagrgen.simulate(mod, (0, 1e7), {"y": 1.0}, params={"e": 1.0}, engine=engine,
                            max_wall_time=0.2, **TOL)
     assert not sol.success and "max_wall_time" in sol.guard
+    # one long segment (a ball resting on the floor, small steps): stopped inside it
+    sol = lagrgen.simulate(mod, (0, 1e4), {"y": 0.0}, params={"e": 0.0}, engine=engine,
+                           max_wall_time=0.3, max_step=1e-5, **TOL)
+    assert not sol.success and "max_wall_time" in sol.guard and 0 < sol.t[-1] < 1e4

@@ -38,7 +38,8 @@ limit (μ_s·|N| − |λ| ↓ 0). Then:
   [0, 1], μ < 0 or μ_s < μ (at the start and at every switch) and two closed impacts with
   parallel gradients (duplicate contacts) are `ContactError`s. A solve whose segments stop
   advancing (STALL_SEGMENTS in a row shorter than ten spacings of doubles at the far end of the
-  span) ends with a message saying so; max_steps and max_wall_time hold between segments too.
+  span) ends with a message saying so; max_steps and max_wall_time hold between segments too,
+  and max_wall_time within a segment on the SciPy engine (`_wall_clock`).
 * Forces. Every saved state carries the forces of its mode (`HybridSystem.forces`): the model's
   constraint multipliers, each impact's contact force, each friction's force along its slip
   velocity.
@@ -990,9 +991,20 @@ def simulate_hybrid(mod, t_span, y0, method, p, u_at, rtol, atol, t_eval=None,
             return system.rhs(tt, yy, contact, slip, planar)
         values = _EventValues(system, contact, slip, planar, sw.offsets())
         events = [_event(values, k) for k in range(system.n_events)]
-        sol = solve_ivp(fun, (t, t_end), y, method=SOLVERS.get(method, method), rtol=rtol,
-                        atol=atol, dense_output=te_all is not None, events=events or None,
-                        **options)
+        if max_wall_time is not None:
+            events.append(_wall_clock(started + max_wall_time))
+        try:
+            sol = solve_ivp(fun, (t, t_end), y, method=SOLVERS.get(method, method), rtol=rtol,
+                            atol=atol, dense_output=te_all is not None, events=events or None,
+                            **options)
+        except _GuardReached as reached:
+            t, y = reached.t, reached.y
+            if te_all is None:
+                ts.append(np.array([t]))
+                ys.append(y[:, None])
+                modes.append((contact, slip, planar))
+            status, message, stopped = -1, f"stopped at t = {t:.9g}", "max_wall_time"
+            break
         nfev += sol.nfev
         segments += 1
         steps += len(sol.t) - 1
@@ -1085,6 +1097,26 @@ class _EventValues:
             self.key, self.values = key, self.system.events(t, y, self.contact, self.slip,
                                                             self.planar, self.offsets)
         return self.values
+
+
+class _GuardReached(Exception):
+    """The wall-time guard passed inside a segment, at the accepted step (t, y)."""
+
+    def __init__(self, t, y):
+        super().__init__(t)
+        self.t, self.y = float(t), np.array(y, dtype=float)
+
+
+def _wall_clock(deadline):
+    """A solve_ivp event that never fires but ends the segment (`_GuardReached`) at the first
+    accepted step after the monotonic clock passes `deadline`: max_wall_time inside a segment
+    (SciPy evaluates the events at every accepted step)."""
+    def g(t, y):
+        if time.monotonic() > deadline:
+            raise _GuardReached(t, y)
+        return 1.0
+    g.terminal = False
+    return g
 
 
 def _event(values, k):
@@ -1205,7 +1237,8 @@ def simulate_nonsmooth(mod, t_span, y0, method, p, inputs, u_at, rtol, atol, t_e
     with also `transitions`, `mode`, `n_segments`, `engine` and `guard` (None).
 
     max_steps and max_wall_time bound the whole solve (all segments): inside the segments on the
-    native engine, between them on the SciPy engine; `max_transitions` bounds the switching, and
+    native engine; on the SciPy engine max_wall_time inside them too (at an accepted step) and
+    max_steps between them; `max_transitions` bounds the switching, and
     Ctrl-C ends a native solve. A run whose factorizations of M met a relative pivot below
     `errors.near_singular_limit(rtol)` warns NearSingularMassMatrixWarning."""
     from .results import stopped_by_guard
