@@ -1142,7 +1142,8 @@ def main(argv=None):
     out["versions"] = versions(next((r["version"] for r in ok(out["crocoddyl"] or [])),
                                     "not run"))
     out["load"] = load
-    given = sys.argv[1:] if argv is None else argv
+    given = [os.path.basename(a) if os.path.isabs(a) else a
+             for a in (sys.argv[1:] if argv is None else argv)]
     if given:
         out["header_note"] = f"Run as `python benchmarks/robot_motions.py {' '.join(given)}`."
     text = report(out, load, args.quick)
