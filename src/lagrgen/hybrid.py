@@ -1108,12 +1108,17 @@ class _GuardReached(Exception):
 
 
 def _wall_clock(deadline):
-    """A solve_ivp event that never fires but ends the segment (`_GuardReached`) at the first
-    accepted step after the monotonic clock passes `deadline`: max_wall_time inside a segment
-    (SciPy evaluates the events at every accepted step)."""
+    """A solve_ivp event that never fires but ends the segment (`_GuardReached`) once the
+    monotonic clock passes `deadline`: max_wall_time inside a segment. SciPy evaluates the
+    events at the start and at the end of every accepted step, before it looks for their roots,
+    so the state kept is the step's start (the last one no event had crossed), not its end
+    (which may lie past an impact)."""
+    last = []
+
     def g(t, y):
         if time.monotonic() > deadline:
-            raise _GuardReached(t, y)
+            raise _GuardReached(*(last or (t, y)))
+        last[:] = (t, np.array(y, dtype=float))
         return 1.0
     g.terminal = False
     return g
