@@ -229,7 +229,7 @@ def test_noise_free_records_give_the_truth_to_round_off(arm, base, example, reco
 
 def test_the_python_backend_identifies_alike(arms, example, trajectory):
     mod = arms["python"]
-    t = np.linspace(0, 10, 201)
+    t = np.linspace(0, 10, 41)
     q, qd, qdd = trajectory.q(t), trajectory.qd(t), trajectory.qdd(t)
     tau = inverse_dynamics(mod, truth_vector(mod, example.TRUTH), q, qd, qdd)
     est = identify_inertial(mod, t, q, tau, qd, qdd)

@@ -50,6 +50,7 @@ C (`lagrgen.native._ode.solve_hybrid`, `native/lg_hybrid.c`, the same rules).
 import time
 
 import numpy as np
+import scipy.linalg
 
 from .errors import ContactError, warn_near_singular
 from .methods import NATIVE_METHODS
@@ -141,7 +142,7 @@ class HybridSystem:
         """
         n, m = self.n, self.m
         M, F, A, gamma, imp, fr, pf = self.all_terms(t, y)
-        self.note_pivots(M)
+        solve_M = self.factored(M)
         pmode, anchor = planar if planar is not None else ((-1,) * self.npf, ((1.0, 0.0),) *
                                                             self.npf)
         rows = [A[k] for k in range(m)]
@@ -195,7 +196,8 @@ class HybridSystem:
             B = R.T.copy()
             for row, per_unit in linked:
                 B[:, row] += sigma[row] * per_unit
-            qdd, lam = saddle_solve(M, R, B, force, np.array(rhs, dtype=float), regularized)
+            qdd, lam = saddle_solve(solve_M, R, B, force, np.array(rhs, dtype=float),
+                                    regularized)
             new_sigma = np.where(lam < 0, -1.0, 1.0)
             if all(new_sigma[row] == sigma[row] for row, _ in linked):
                 break
@@ -217,15 +219,18 @@ class HybridSystem:
         out.planar_rows, out.planar_slip = pf, pf[:, :2]
         return out
 
-    def note_pivots(self, M):
-        """Keep the least relative pivot D_kk/M_kk of M's LDLᵀ in `least_pivot` (0 when M is
-        not positive definite: the solve that follows says so)."""
+    def factored(self, M):
+        """X ↦ M⁻¹·X by one Cholesky factorization M = L·Lᵀ, its least relative pivot
+        D_kk/M_kk = L_kk²/M_kk kept in `least_pivot`; by LU where M is not positive definite
+        (pivot 0: the warning says so; a singular M raises LinAlgError in the solve)."""
         try:
-            L = np.linalg.cholesky(M)
+            factor = scipy.linalg.cho_factor(M, lower=True, check_finite=False)
         except np.linalg.LinAlgError:
             self.least_pivot = 0.0
-            return
-        self.least_pivot = min(self.least_pivot, float(np.min(np.diag(L) ** 2 / np.diag(M))))
+            return lambda X: np.linalg.solve(M, X)
+        pivots = np.diag(factor[0]) ** 2 / np.diag(M)
+        self.least_pivot = min(self.least_pivot, float(np.min(pivots)))
+        return lambda X: scipy.linalg.cho_solve(factor, X, check_finite=False)
 
     def forces(self, t, y, contact, slip, planar=None):
         """The forces of the mode at (t, y): λ of the model's constraints, then each impact's
@@ -388,8 +393,8 @@ def slip_direction(v, anchor):
     return u / norm if norm > 0 else np.asarray(anchor, dtype=float)
 
 
-def saddle_solve(M, R, B, force, rhs, regularized):
-    """(q̈, λ) of M·q̈ = force + B·λ, R·q̈ = rhs (B = Rᵀ, or Rᵀ with the columns of slipping
+def saddle_solve(solve_M, R, B, force, rhs, regularized):
+    """(q̈, λ) of M·q̈ = force + B·λ (solve_M: X ↦ M⁻¹·X), R·q̈ = rhs (B = Rᵀ, or Rᵀ with the columns of slipping
     frictions' forces per unit normal force added) through the Delassus matrix
     D = R·M⁻¹·B: D·λ = rhs − R·M⁻¹·force. Redundant contacts (a box on four corners, the
     sticking feet of a walker) make D singular, and their forces are not unique: the rows
@@ -398,8 +403,8 @@ def saddle_solve(M, R, B, force, rhs, regularized):
     off: λ tends to the least-norm solution (exact where the rows are independent), and q̈ is
     the same for every solution."""
     if not len(rhs):
-        return np.linalg.solve(M, force), np.zeros(0)
-    X = np.linalg.solve(M, np.column_stack([B, force]))
+        return solve_M(force), np.zeros(0)
+    X = solve_M(np.column_stack([B, force]))
     r = len(rhs)
     XB, xf = X[:, :r], X[:, r]
     D = R @ XB

@@ -264,7 +264,27 @@ def link_tables(equations):
             f"LG_MAYBE_UNUSED static const int lg_link_parent[N_LINK_NODES] = "
             f"{{{rows(map(str, layout['parent']))}}};\n"
             f"LG_MAYBE_UNUSED static const int lg_link_coordinate[N_LINK_NODES] = "
-            f"{{{rows(map(str, layout['coordinate']))}}};\n" + link_functions(equations))
+            f"{{{rows(map(str, layout['coordinate']))}}};\n" + LINK_ARGUMENTS
+            + link_functions(equations))
+
+
+#: How link_pose and link_jacobian read their arguments y = [q, point (3), the link's index].
+LINK_ARGUMENTS = """\
+/* The link's index in y = [q, point (3), k]; -1 when it is out of range. */
+LG_MAYBE_UNUSED static int lg_link_argument(const double *y)
+{
+    const double k = y[N + 3];
+    return k >= 0.0 && k < N_LINKS ? (int)k : -1;
+}
+
+/* x = o + R·point, R row-major 3×3. */
+LG_MAYBE_UNUSED static void lg_link_point(const double *R, const double *o, const double *point,
+                                          double *x)
+{
+    for (int r = 0; r < 3; ++r)
+        x[r] = o[r] + R[3 * r] * point[0] + R[3 * r + 1] * point[1] + R[3 * r + 2] * point[2];
+}
+"""
 
 
 #: The arguments of a link's own functions (`link_functions`).

@@ -60,13 +60,26 @@ cdef inline cnp.ndarray as_f64(object obj, Py_ssize_t size, str what):
     return arr
 
 
+cdef bint finite_numbers(const double *x, Py_ssize_t count) noexcept nogil:
+    """True if the count numbers at x are all finite: x − x is 0 for a finite x and NaN for an
+    infinite or NaN one; summed in four lanes, with no branch per number (a 6×18 Jacobian is
+    checked in a third of the time of an isfinite per entry)."""
+    cdef double s0 = 0.0, s1 = 0.0, s2 = 0.0, s3 = 0.0
+    cdef Py_ssize_t i = 0
+    while i + 4 <= count:
+        s0 += x[i] - x[i]
+        s1 += x[i + 1] - x[i + 1]
+        s2 += x[i + 2] - x[i + 2]
+        s3 += x[i + 3] - x[i + 3]
+        i += 4
+    while i < count:
+        s0 += x[i] - x[i]
+        i += 1
+    return (s0 + s1) + (s2 + s3) == 0.0
+
+
 cdef inline bint all_finite(cnp.ndarray arr):
-    cdef const double *x = <const double *>cnp.PyArray_DATA(arr)
-    cdef Py_ssize_t i
-    for i in range(cnp.PyArray_DIM(arr, 0)):
-        if not isfinite(x[i]):
-            return False
-    return True
+    return finite_numbers(<const double *>cnp.PyArray_DATA(arr), cnp.PyArray_DIM(arr, 0))
 
 
 cdef inline const double *data(cnp.ndarray arr):
@@ -432,24 +445,6 @@ cdef class DirectionsFunction:
 
 #: The default point of a link function: the link frame's origin.
 ORIGIN = (0, 0, 0)
-
-
-cdef bint finite_numbers(const double *x, Py_ssize_t count) noexcept nogil:
-    """True if the count numbers at x are all finite: x − x is 0 for a finite x and NaN for an
-    infinite or NaN one; summed in four lanes, with no branch per number (a 6×18 Jacobian is
-    checked in a third of the time of an isfinite per entry)."""
-    cdef double s0 = 0.0, s1 = 0.0, s2 = 0.0, s3 = 0.0
-    cdef Py_ssize_t i = 0
-    while i + 4 <= count:
-        s0 += x[i] - x[i]
-        s1 += x[i + 1] - x[i + 1]
-        s2 += x[i + 2] - x[i + 2]
-        s3 += x[i + 3] - x[i + 3]
-        i += 4
-    while i < count:
-        s0 += x[i] - x[i]
-        i += 1
-    return (s0 + s1) + (s2 + s3) == 0.0
 
 
 cdef int three_numbers(object point, double *out) except -1:

@@ -492,7 +492,7 @@ def _link_caller(model, impl):
         p_list = model._arguments(p, None)[0]
         out = impl(index, as_vector(q, n, "q").tolist(), point, p_list)
         if not all(np.isfinite(x).all() for x in (out if isinstance(out, tuple) else (out,))):
-            raise ValueError(link_not_finite(model.name, impl.__name__.strip("_"), link))
+            raise ValueError(link_not_finite(model.name, impl.__name__.removeprefix("_"), link))
         return out
     call.__doc__ = impl.__doc__
     return call

@@ -5,8 +5,8 @@
      * walking the twists of all nodes (lg_link_frames). 1 for an index out of range. */
 #if N_LINKS
     const double *point = y + N;
-    const int k = (int)y[N + 3];
-    if (!(y[N + 3] >= 0.0 && k < N_LINKS))
+    const int k = lg_link_argument(y);
+    if (k < 0)
         return 1;
 #if LG_LINK_CHAINS
 #define LG_LINK_JACOBIAN_WORK 0
@@ -18,8 +18,7 @@
     LG_TRY(lg_link_frames(t, y, lg_zeros, lg_zeros, p, u, work, work + 12 * N_LINKS));
     const double *R = work + 12 * k, *o = R + 9;
     double x[3];
-    for (int r = 0; r < 3; ++r)
-        x[r] = o[r] + R[3 * r] * point[0] + R[3 * r + 1] * point[1] + R[3 * r + 2] * point[2];
+    lg_link_point(R, o, point, x);
     memset(out, 0, 6 * N * sizeof(double));
     for (int i = lg_link_node[k]; i >= 0; i = lg_link_parent[i]) {
         const double *w = twists + 6 * i, *v = w + 3;

@@ -3,8 +3,8 @@
      * frames of all links (lg_link_frames). 1 for an index out of range. */
 #if N_LINKS
     const double *point = y + N;
-    const int k = (int)y[N + 3];
-    if (!(y[N + 3] >= 0.0 && k < N_LINKS))
+    const int k = lg_link_argument(y);
+    if (k < 0)
         return 1;
 #if LG_LINK_CHAINS
 #define LG_LINK_POSE_WORK 0
@@ -14,8 +14,7 @@
 #define LG_LINK_POSE_WORK (12 * N_LINKS + 6 * N_LINK_NODES)
     LG_TRY(lg_link_frames(t, y, lg_zeros, lg_zeros, p, u, work, work + 12 * N_LINKS));
     const double *R = work + 12 * k, *o = R + 9;
-    for (int r = 0; r < 3; ++r)
-        out[r] = o[r] + R[3 * r] * point[0] + R[3 * r + 1] * point[1] + R[3 * r + 2] * point[2];
+    lg_link_point(R, o, point, out);
     memcpy(out + 3, R, 9 * sizeof(double));
     return 0;
 #endif
