@@ -718,7 +718,7 @@ class Description:
             if taken in self._names:
                 raise ModelError(f"{where}: the name {taken!r} is already used for the "
                                  f"{self._names[taken]} of model {self.name!r}")
-        gap = (n.T * x)[0, 0] - self._check(height, where + " height", velocities=False,
+        gap = along(n, x) - self._check(height, where + " height", velocities=False,
                                              inputs=False)
         self.impact(name, gap, restitution)
         plane = ("ground", (tuple(float(v) for v in n), self._check(
@@ -727,9 +727,10 @@ class Description:
             self._drawables.append(plane)
         self._drawables.append(("point", (x, sp.Integer(0))))
         if frictional:
-            xd = x.diff(self.t)
-            self._friction(f"{name}_friction", [(t1.T * xd)[0, 0], (t2.T * xd)[0, 0]], name, mu,
-                           None, affine=True)
+            from .links import velocity
+            xd = velocity(x, self.t)
+            self._friction(f"{name}_friction", [along(t1, xd), along(t2, xd)], name, mu, None,
+                           affine=True)
 
     @property
     def nonsmooth(self):
@@ -852,6 +853,12 @@ def _frozen_spec(description):
         initial_state=d.initial_values,
         limits=tuple((name, *values) for name, values in d.limits.items()),
         stops=tuple(d.stops.items()))
+
+
+def along(axis, x):
+    """axisᵀ·x over axis's nonzero components (a matrix product multiplies the long
+    expressions of a link's point by the zeros too)."""
+    return sp.Add(*(a * e for a, e in zip(axis, x) if a != 0))
 
 
 def plane_axes(normal, name):
