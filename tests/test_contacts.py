@@ -292,6 +292,30 @@ def test_both_engines_agree_on_a_landing_quadruped(quadruped):
     np.testing.assert_allclose(runs[0].y, runs[1].y, atol=1e-7)
 
 
+def test_two_feet_that_slip_together_neither_creep_nor_stall(quadruped):
+    """Dropped from 30 cm with every knee bent the same way, the quadruped pitches as it lands:
+    both front feet reach the edge of their friction disks at the same instant, slip together
+    and stick again. With a slip direction blended over 1e-9 m/s (the size of a sticking foot's
+    drift) the native engine stalled there and the SciPy one crept. Both engines agree."""
+    _, mod = quadruped
+    y0 = standing_state(mod, QUADRUPED_STAND, QUAD_JOINTS, QUAD_FEET, 0.3)
+    t_eval = np.linspace(0.0, 0.5, 6)
+    runs = [lagrgen.simulate(mod, (0.0, 0.5), y0, engine=engine, t_eval=t_eval, rtol=1e-8,
+                             atol=1e-10, max_wall_time=120) for engine in ("native", "scipy")]
+    for sol in runs:
+        assert sol.success, sol.message
+        front = [(t, kind) for t, name, kind in sol.transitions
+                 if name in ("FL_foot_friction", "FR_foot_friction") and t > 0.3]
+        slips = [t for t, kind in front if kind == "slip"]
+        sticks = [t for t, kind in front if kind == "stick"]
+        assert len(slips) == 2 and len(sticks) == 2 and len(front) == 4, sol.transitions
+        assert np.ptp(slips) == 0.0 and np.ptp(sticks) == 0.0 and sticks[0] > slips[0] + 0.05
+        assert [sol.mode[f"{leg}_foot_friction"] for leg in QUADRUPED_STAND] == ["stick"] * 4
+    np.testing.assert_allclose([t for t, *_ in runs[0].transitions],
+                               [t for t, *_ in runs[1].transitions], atol=1e-7)
+    np.testing.assert_allclose(runs[0].y, runs[1].y, atol=1e-6)
+
+
 @pytest.mark.skipif(robots_dir() is None, reason="example-robot-data is not installed")
 def test_solo12_dropped_from_30_cm_lands_on_its_feet_and_rests_with_its_weight_on_them(
         tmp_path):

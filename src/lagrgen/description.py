@@ -654,7 +654,8 @@ class Description:
 
         A slip velocity of two components (v1, v2), the velocities along two orthogonal unit
         directions of a plane, is isotropic friction in that plane: while slipping a force
-        −mu·abs(N)·v/‖v‖ (each component along its ∂v_i/∂q̇); v = 0 held while the force that
+        −mu·abs(N)·v/‖v‖ (each component along its ∂v_i/∂q̇; below 1e-7 m/s the direction blends
+        with the one it began to slip in, `lagrgen.hybrid.PLANAR_BLEND`); v = 0 held while the force that
         takes is at most mu_static·abs(N) in norm (a friction disk). Its normal force named as an
         impact, it acts only while that contact is held (its mode is "open" otherwise).
         `ground_contact` declares one with its impact."""

@@ -30,7 +30,7 @@
 /* lagrgen.hybrid.REGULARIZATION, REFINEMENTS, PLANAR_BLEND, TOUCH_OFFSET. */
 #define REGULARIZATION 1e-7
 #define REFINEMENTS 3
-#define PLANAR_BLEND 1e-9
+#define PLANAR_BLEND 1e-7
 #define TOUCH_OFFSET 1e-3
 
 typedef struct {
