@@ -588,3 +588,7 @@ def test_max_steps_and_max_wall_time_bound_the_whole_hybrid_solve(built, engine)
     sol = lagrgen.simulate(mod, (0, 1e4), {"y": 0.0}, params={"e": 0.0}, engine=engine,
                            max_wall_time=0.3, max_step=1e-5, **TOL)
     assert not sol.success and "max_wall_time" in sol.guard and 0 < sol.t[-1] < 1e4
+    sol = lagrgen.simulate(mod, (0, 1e4), {"y": 0.0}, params={"e": 0.0}, engine=engine,
+                           max_steps=200, max_step=1e-5, **TOL)
+    assert not sol.success and "max_steps=200" in sol.message
+    assert 1e-3 < sol.t[-1] <= 200 * 1e-5 * (1 + 1e-9)      # 200 steps of at most 1e-5 s

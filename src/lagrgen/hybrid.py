@@ -38,8 +38,8 @@ limit (μ_s·|N| − |λ| ↓ 0). Then:
   [0, 1], μ < 0 or μ_s < μ (at the start and at every switch) and two closed impacts with
   parallel gradients (duplicate contacts) are `ContactError`s. A solve whose segments stop
   advancing (STALL_SEGMENTS in a row shorter than ten spacings of doubles at the far end of the
-  span) ends with a message saying so; max_steps and max_wall_time hold between segments too,
-  and max_wall_time within a segment on the SciPy engine (`_wall_clock`).
+  span) ends with a message saying so; max_steps and max_wall_time hold within a segment and
+  between segments on both engines (on the SciPy engine by an event, `_guard`).
 * Forces. Every saved state carries the forces of its mode (`HybridSystem.forces`): the model's
   constraint multipliers, each impact's contact force, each friction's force along its slip
   velocity.
@@ -1000,8 +1000,9 @@ def simulate_hybrid(mod, t_span, y0, method, p, u_at, rtol, atol, t_eval=None,
             return system.rhs(tt, yy, contact, slip, planar)
         values = _EventValues(system, contact, slip, planar, sw.offsets())
         events = [_event(values, k) for k in range(system.n_events)]
-        if max_wall_time is not None:
-            events.append(_wall_clock(started + max_wall_time))
+        if max_wall_time is not None or max_steps is not None:
+            events.append(_guard(None if max_wall_time is None else started + max_wall_time,
+                                 None if max_steps is None else max_steps - steps))
         try:
             sol = solve_ivp(fun, (t, t_end), y, method=SOLVERS.get(method, method), rtol=rtol,
                             atol=atol, dense_output=te_all is not None, events=events or None,
@@ -1012,7 +1013,8 @@ def simulate_hybrid(mod, t_span, y0, method, p, u_at, rtol, atol, t_eval=None,
                 ts.append(np.array([t]))
                 ys.append(y[:, None])
                 modes.append((contact, slip, planar))
-            status, message, stopped = -1, f"stopped at t = {t:.9g}", "max_wall_time"
+            steps += reached.steps
+            status, message, stopped = -1, f"stopped at t = {t:.9g}", reached.reason
             break
         nfev += sol.nfev
         segments += 1
@@ -1034,7 +1036,7 @@ def simulate_hybrid(mod, t_span, y0, method, p, u_at, rtol, atol, t_eval=None,
             stopped = "max_steps"
         elif max_wall_time is not None and time.monotonic() - started > max_wall_time:
             stopped = "max_wall_time"
-        if stopped is not None:             # checked between segments on this engine
+        if stopped is not None:
             status, message, t = -1, f"stopped at t = {sol.t[-1]:.9g}", sol.t[-1]
             break
         if sol.status == 0:
@@ -1109,24 +1111,31 @@ class _EventValues:
 
 
 class _GuardReached(Exception):
-    """The wall-time guard passed inside a segment, at the accepted step (t, y)."""
+    """A guard (`reason`: "max_steps" or "max_wall_time") ended a segment at the accepted step
+    (t, y), `steps` steps into it."""
 
-    def __init__(self, t, y):
-        super().__init__(t)
+    def __init__(self, reason, t, y, steps):
+        super().__init__(reason)
+        self.reason, self.steps = reason, steps
         self.t, self.y = float(t), np.array(y, dtype=float)
 
 
-def _wall_clock(deadline):
+def _guard(deadline, steps):
     """A solve_ivp event that never fires but ends the segment (`_GuardReached`) once the
-    monotonic clock passes `deadline`: max_wall_time inside a segment. SciPy evaluates the
-    events at the start and at the end of every accepted step, before it looks for their roots,
+    monotonic clock passes `deadline` or after `steps` accepted steps (None: no bound on
+    either): max_wall_time and max_steps inside a segment. SciPy evaluates the events once at
+    the segment's start and at the end of every accepted step, before it looks for their roots,
     so the state kept is the step's start (the last one no event had crossed), not its end
     (which may lie past an impact)."""
-    last = []
+    last, calls = [], [0]
 
     def g(t, y):
-        if time.monotonic() > deadline:
-            raise _GuardReached(*(last or (t, y)))
+        calls[0] += 1
+        done = calls[0] - 1
+        reason = ("max_wall_time" if deadline is not None and time.monotonic() > deadline
+                  else "max_steps" if steps is not None and done > steps else None)
+        if reason:
+            raise _GuardReached(reason, *(last or (t, y)), max(done - 1, 0))
         last[:] = (t, np.array(y, dtype=float))
         return 1.0
     g.terminal = False
@@ -1250,9 +1259,8 @@ def simulate_nonsmooth(mod, t_span, y0, method, p, inputs, u_at, rtol, atol, t_e
     "native", when the native engine can run the model) or with `solve_ivp`. Returns an OdeResult
     with also `transitions`, `mode`, `n_segments`, `engine` and `guard` (None).
 
-    max_steps and max_wall_time bound the whole solve (all segments): inside the segments on the
-    native engine; on the SciPy engine max_wall_time inside them too (at an accepted step) and
-    max_steps between them; `max_transitions` bounds the switching, and
+    max_steps and max_wall_time bound the whole solve (all segments), inside the segments too
+    (on the SciPy engine at an accepted step); `max_transitions` bounds the switching, and
     Ctrl-C ends a native solve. A run whose factorizations of M met a relative pivot below
     `errors.near_singular_limit(rtol)` warns NearSingularMassMatrixWarning."""
     from .results import stopped_by_guard
