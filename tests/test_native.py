@@ -377,8 +377,9 @@ def test_tiny_rtol_is_clipped_like_scipy(pendulum, method):
     y0 = [0.5, -0.3, 0.0, 0.4]
     with pytest.warns(UserWarning, match="rtol"):
         ref = scipy_reference(pendulum, (0, 0.3), y0, method, rtol=1e-16, atol=1e-12)
-    with pytest.warns(UserWarning, match="rtol"):
+    with pytest.warns(UserWarning, match="rtol") as caught:
         ours = lagrgen.simulate(pendulum, (0, 0.3), y0, method=method, rtol=1e-16, atol=1e-12)
+    assert not [w for w in caught if w.category is lagrgen.NearSingularMassMatrixWarning]
     assert counts_close((ours.nfev, ours.njev, ours.nlu, ours.t.size),
                         (ref.nfev, ref.njev, ref.nlu, ref.t.size))
     assert_allclose(ours.y[:, -1], ref.y[:, -1], rtol=1e-10, atol=1e-12)

@@ -58,9 +58,11 @@ NEAR_SINGULAR = 1e-8
 
 def near_singular_limit(rtol=None):
     """The relative pivot of M below which a run warns: NEAR_SINGULAR, or eps/rtol when that is
-    larger (the digits lost then exceed those the tolerance asks for)."""
+    larger (the digits lost then exceed those the tolerance asks for), rtol clipped to 100·eps
+    as the solvers clip it (below, eps/rtol would exceed every pivot and always warn)."""
+    eps = np.finfo(float).eps
     if rtol is not None and np.ndim(rtol) == 0 and rtol > 0:
-        return max(NEAR_SINGULAR, np.finfo(float).eps / float(rtol))
+        return max(NEAR_SINGULAR, eps / max(float(rtol), 100 * eps))
     return NEAR_SINGULAR
 
 
