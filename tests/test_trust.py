@@ -140,6 +140,7 @@ def test_ctrl_c_ends_a_native_solve_within_half_a_second(chatter):
     code = textwrap.dedent(f"""
         import os, signal, threading, time
         import lagrgen
+        signal.signal(signal.SIGINT, signal.default_int_handler)   # whatever was inherited
         mod = lagrgen.load("chatter", out_dir={str(out)!r})
         sent = []
         def interrupt():
