@@ -259,6 +259,33 @@ def quadruped(tmp_path_factory):
     return model, lagrgen.build(model, out_dir=out, quiet=True)
 
 
+def test_a_ground_contacts_gap_and_slip_velocity_are_the_compiled_link_frames(quadruped):
+    """On a tilted plane n·x = h (n = (0, 0.6, 0.8)) at a point off a foot's origin: the gap is
+    n·x and the slip velocity [t1; t2]·ẋ with x and ẋ = J·q̇ from the compiled link_pose and
+    link_jacobian, at random states (the declaration differentiates by SymEngine, the
+    compiled Jacobian is the recursion's)."""
+    _, mod = quadruped
+    model = lagrgen.from_urdf(QUADRUPED, base="floating", name="quad_tilted",
+                              joint_dynamics=False)
+    point, normal, height = (0.01, -0.02, 0.03), np.array([0.0, 0.6, 0.8]), 0.1
+    model.ground_contact("foot", "FL_foot", point=point, normal=normal, height=height)
+    impact, friction = model.nonsmooth
+    t1 = np.array([1.0, 0.0, 0.0])
+    t2 = np.cross(normal, t1)
+    n = mod.n_coordinates
+    q_, qd_ = sp.symbols(f"q:{n}"), sp.symbols(f"qd:{n}")
+    plain = {**dict(zip(model.qd, qd_)), **dict(zip(model.q, q_))}
+    gap = sp.lambdify([q_], impact.gap.xreplace(plain))
+    slip = sp.lambdify([q_, qd_], list(friction.slip_velocity.xreplace(plain)))
+    rng = np.random.default_rng(7)
+    for _ in range(3):
+        q, qd = rng.uniform(-1, 1, n), rng.uniform(-1, 1, n)
+        x = mod.link_pose("FL_foot", q, point)[0]
+        xd = mod.link_jacobian("FL_foot", q, point)[:3] @ qd
+        assert gap(q) == pytest.approx(normal @ x - height, abs=1e-12)
+        np.testing.assert_allclose(slip(q, qd), [t1 @ xd, t2 @ xd], rtol=1e-11, atol=1e-12)
+
+
 def test_a_quadruped_stands_five_seconds_under_joint_pd_control(quadruped):
     """Put down on its feet, the quadruped sags onto its joints' springs and stands: feet
     sticking where they were, the trunk level, its weight on its feet."""
