@@ -1,12 +1,15 @@
 """Impacts, resting contact and Coulomb friction with sticking (API.md §13), against closed forms,
 on the native (C) and SciPy engines and on both backends."""
+import re
+from pathlib import Path
+
 import numpy as np
 import pytest
 import sympy as sp
 from numpy.testing import assert_allclose
 
 import lagrgen
-from lagrgen import Model, ModelError
+from lagrgen import Model, ModelError, hybrid
 from lagrgen.hybrid import projected_gauss_seidel
 
 G = 9.81
@@ -592,3 +595,13 @@ def test_max_steps_and_max_wall_time_bound_the_whole_hybrid_solve(built, engine)
                            max_steps=200, max_step=1e-5, **TOL)
     assert not sol.success and "max_steps=200" in sol.message
     assert 1e-3 < sol.t[-1] <= 200 * 1e-5 * (1 + 1e-9)      # 200 steps of at most 1e-5 s
+    assert len(sol.t) == 201 and np.all(np.diff(sol.t) > 0)   # every step up to there kept
+
+
+def test_the_native_drivers_constants_are_the_python_drivers():
+    """lg_hybrid.c repeats lagrgen.hybrid's REGULARIZATION, REFINEMENTS, PLANAR_BLEND and
+    TOUCH_OFFSET (the engines agree only while they are equal)."""
+    source = (Path(hybrid.__file__).parent / "native" / "lg_hybrid.c").read_text()
+    for name in ("REGULARIZATION", "REFINEMENTS", "PLANAR_BLEND", "TOUCH_OFFSET"):
+        value = re.search(rf"^#define {name} (\S+)$", source, re.MULTILINE)
+        assert value is not None and float(value.group(1)) == getattr(hybrid, name), name

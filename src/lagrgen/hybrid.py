@@ -398,8 +398,8 @@ def slip_direction(v, anchor):
 
 
 def saddle_solve(solve_M, R, B, force, rhs, regularized):
-    """(q̈, λ) of M·q̈ = force + B·λ (solve_M: X ↦ M⁻¹·X), R·q̈ = rhs (B = Rᵀ, or Rᵀ with the columns of slipping
-    frictions' forces per unit normal force added) through the Delassus matrix
+    """(q̈, λ) of M·q̈ = force + B·λ, R·q̈ = rhs (solve_M: X ↦ M⁻¹·X; B = Rᵀ, or Rᵀ with the
+    columns of slipping frictions' forces per unit normal force added) through the Delassus matrix
     D = R·M⁻¹·B: D·λ = rhs − R·M⁻¹·force. Redundant contacts (a box on four corners, the
     sticking feet of a walker) make D singular, and their forces are not unique: the rows
     `regularized` get a small weight ε (REGULARIZATION times D's largest diagonal entry of
@@ -1010,8 +1010,8 @@ def simulate_hybrid(mod, t_span, y0, method, p, u_at, rtol, atol, t_eval=None,
         except _GuardReached as reached:
             t, y = reached.t, reached.y
             if te_all is None:
-                ts.append(np.array([t]))
-                ys.append(y[:, None])
+                ts.append(reached.ts[1:])
+                ys.append(reached.ys[:, 1:])
                 modes.append((contact, slip, planar))
             steps += reached.steps
             status, message, stopped = -1, f"stopped at t = {t:.9g}", reached.reason
@@ -1111,13 +1111,15 @@ class _EventValues:
 
 
 class _GuardReached(Exception):
-    """A guard (`reason`: "max_steps" or "max_wall_time") ended a segment at the accepted step
-    (t, y), `steps` steps into it."""
+    """A guard (`reason`: "max_steps" or "max_wall_time") ended a segment: `ts`, `ys` (n × k)
+    its start and the ends of the steps accepted before the guard, the last the state kept."""
 
-    def __init__(self, reason, t, y, steps):
+    def __init__(self, reason, states):
         super().__init__(reason)
-        self.reason, self.steps = reason, steps
-        self.t, self.y = float(t), np.array(y, dtype=float)
+        self.reason = reason
+        self.ts = np.array([t for t, _ in states])
+        self.ys = np.array([y for _, y in states]).T
+        self.t, self.y, self.steps = float(self.ts[-1]), self.ys[:, -1], len(states) - 1
 
 
 def _guard(deadline, steps):
@@ -1126,17 +1128,15 @@ def _guard(deadline, steps):
     either): max_wall_time and max_steps inside a segment. SciPy evaluates the events once at
     the segment's start and at the end of every accepted step, before it looks for their roots,
     so the state kept is the step's start (the last one no event had crossed), not its end
-    (which may lie past an impact)."""
-    last, calls = [], [0]
+    (which may lie past an impact); the states before it are kept too."""
+    accepted = []
 
     def g(t, y):
-        calls[0] += 1
-        done = calls[0] - 1
         reason = ("max_wall_time" if deadline is not None and time.monotonic() > deadline
-                  else "max_steps" if steps is not None and done > steps else None)
+                  else "max_steps" if steps is not None and len(accepted) > steps else None)
         if reason:
-            raise _GuardReached(reason, *(last or (t, y)), max(done - 1, 0))
-        last[:] = (t, np.array(y, dtype=float))
+            raise _GuardReached(reason, accepted or [(t, np.array(y, dtype=float))])
+        accepted.append((t, np.array(y, dtype=float)))
         return 1.0
     g.terminal = False
     return g
