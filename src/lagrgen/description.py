@@ -655,8 +655,8 @@ class Description:
         A slip velocity of two components (v1, v2), the velocities along two orthogonal unit
         directions of a plane, is isotropic friction in that plane: while slipping a force
         −mu·abs(N)·v/‖v‖ (each component along its ∂v_i/∂q̇; below 1e-7 m/s the direction blends
-        with the one it began to slip in, `lagrgen.hybrid.PLANAR_BLEND`); v = 0 held while the force that
-        takes is at most mu_static·abs(N) in norm (a friction disk). Its normal force named as an
+        with the one it began to slip in, `lagrgen.hybrid.PLANAR_BLEND`); v = 0 held while the
+        force that takes is at most mu_static·abs(N) in norm (a friction disk). Its normal force named as an
         impact, it acts only while that contact is held (its mode is "open" otherwise).
         `ground_contact` declares one with its impact."""
         self._friction(name, slip_velocity, normal_force, mu, mu_static)
@@ -719,11 +719,9 @@ class Description:
             if taken in self._names:
                 raise ModelError(f"{where}: the name {taken!r} is already used for the "
                                  f"{self._names[taken]} of model {self.name!r}")
-        gap = along(n, x) - self._check(height, where + " height", velocities=False,
-                                             inputs=False)
-        self.impact(name, gap, restitution)
-        plane = ("ground", (tuple(float(v) for v in n), self._check(
-            height, where + " height", velocities=False, inputs=False)))
+        height = self._check(height, where + " height", velocities=False, inputs=False)
+        self.impact(name, along(n, x) - height, restitution)
+        plane = ("ground", (tuple(float(v) for v in n), height))
         if plane not in self._drawables:
             self._drawables.append(plane)
         self._drawables.append(("point", (x, sp.Integer(0))))

@@ -136,8 +136,8 @@ def link_depths(spatial):
 def link_chains(eq):
     """[(pose kernel, Jacobian kernel)] of each link of the equations' tree (`link_chain`, one
     CSE over both, each printing only the temporaries it needs: only the link's own chain is
-    computed), or [] for a tree whose links are too many
-    or too deep (`LINK_CHAIN_MAX_DEPTHS`), and for a model without links."""
+    computed), or [] for a tree whose links are too many or too deep (`LINK_CHAIN_MAX_DEPTHS`),
+    and for a model without links."""
     if not has_links(eq):
         return []
     spatial = tree.analyse(eq)
