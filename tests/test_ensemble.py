@@ -360,6 +360,43 @@ def test_ctrl_c_stops_every_running_batch_quickly(mod, runs, t_end, store, tmp_p
     assert lines[1] == "usable True"
 
 
+INTERRUPTED_OFTEN = """
+import faulthandler, importlib, random, signal, sys
+import numpy as np
+sys.path.insert(0, {directory!r})
+import lagrgen
+mod = importlib.import_module({name!r})
+def on_alarm(signum, frame):
+    raise KeyboardInterrupt
+signal.signal(signal.SIGALRM, on_alarm)
+P = np.tile(mod.defaults, (200000, 1))
+rng = random.Random(5)
+faulthandler.dump_traceback_later(60, exit=True)
+for k in range(30):
+    signal.setitimer(signal.ITIMER_REAL, rng.uniform(0.02, 0.2))
+    try:
+        lagrgen.simulate_many(mod, (0.0, 1e-3), [0.5, 0, 0, 0], params=P, t_eval=[0.0, 1e-3],
+                              workers=2, progress=False)
+        signal.setitimer(signal.ITIMER_REAL, 0)
+    except KeyboardInterrupt:
+        pass
+faulthandler.cancel_dump_traceback_later()
+print("interrupted 30 times", flush=True)
+"""
+
+
+def test_ctrl_c_at_any_moment_never_deadlocks_the_pool(mod):
+    """30 interrupts at random moments of an ensemble of 400 short chunks: each one returns.
+    (Waiting with `concurrent.futures.wait` deadlocked here within a few interrupts: it takes
+    every pending future's lock in a loop, and an interrupt inside the loop left some held.)"""
+    script = INTERRUPTED_OFTEN.format(directory=os.path.dirname(mod.__file__),
+                                      name=mod.__name__)
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join(p for p in sys.path if p))
+    proc = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True,
+                          env=env, timeout=180)
+    assert proc.stdout.strip() == "interrupted 30 times", proc.stderr[-3000:]
+
+
 def test_step_guard_per_run_in_the_batch(mod):
     ens = lagrgen.simulate_many(mod, (0.0, 10.0), [0.5, 0, 0, 0], params=masses(mod, 3),
                                 t_eval=[0.0, 10.0], max_steps=5, workers=2)

@@ -15,7 +15,8 @@ import math
 import os
 import sys
 import threading
-from concurrent.futures import FIRST_COMPLETED, ThreadPoolExecutor, wait
+import queue
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Optional
@@ -713,20 +714,26 @@ class RunsBar:
 
 def _on_threads(mod, plan, parts, workers, sink, bar):
     """The chunks on a thread pool (even for one thread: the main thread only waits, so Ctrl-C
-    reaches it at once; it then sets the shared stop flag that every running batch reads)."""
+    reaches it at once; it then sets the shared stop flag that every running batch reads).
+
+    The main thread waits on a `queue.SimpleQueue` that each finished chunk's future is put on.
+    It never waits with `concurrent.futures.wait`, which takes every pending future's lock in a
+    Python loop: a KeyboardInterrupt inside that loop left some of them held, and the worker
+    finishing such a chunk then blocked for ever (the pool's shutdown with it)."""
     stop = np.zeros(1, dtype=np.intc)
+    finished = queue.SimpleQueue()
     pool = ThreadPoolExecutor(max_workers=workers, thread_name_prefix="lagrgen-ensemble")
-    futures = {}
+    futures = []
     try:
         for part in parts:
-            futures[pool.submit(_solve_into, mod, plan, part, sink, stop)] = part
-        pending = set(futures)
-        while pending:
-            done, pending = wait(pending, timeout=0.1, return_when=FIRST_COMPLETED)
-            for future in done:
-                part = futures[future]
-                sink.take(part, future.result(), in_place=isinstance(sink, MemorySink))
-                bar.update(len(part))
+            future = pool.submit(_solve_into, mod, plan, part, sink, stop)
+            future.part = part
+            future.add_done_callback(finished.put)
+            futures.append(future)
+        for _ in range(len(futures)):
+            future = _next_finished(finished)
+            sink.take(future.part, future.result(), in_place=isinstance(sink, MemorySink))
+            bar.update(len(future.part))
     except BaseException:
         stop[0] = 1
         for future in futures:
@@ -734,6 +741,15 @@ def _on_threads(mod, plan, parts, workers, sink, bar):
         raise
     finally:
         pool.shutdown(wait=True)
+
+
+def _next_finished(finished):
+    """The next future put on `finished`, waiting in short slices so that Ctrl-C is seen."""
+    while True:
+        try:
+            return finished.get(timeout=0.1)
+        except queue.Empty:
+            pass
 
 
 _SCATTERED = {}
