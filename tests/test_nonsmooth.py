@@ -6,7 +6,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import sympy as sp
-from numpy.testing import assert_allclose
+from numpy.testing import assert_allclose, assert_array_equal
 
 import lagrgen
 from lagrgen import Model, ModelError, hybrid
@@ -596,6 +596,22 @@ def test_max_steps_and_max_wall_time_bound_the_whole_hybrid_solve(built, engine)
     assert not sol.success and "max_steps=200" in sol.message
     assert 1e-3 < sol.t[-1] <= 200 * 1e-5 * (1 + 1e-9)      # 200 steps of at most 1e-5 s
     assert len(sol.t) == 201 and np.all(np.diff(sol.t) > 0)   # every step up to there kept
+
+
+@pytest.mark.parametrize("engine", ["native", "scipy"])
+def test_a_hybrid_solve_cut_inside_a_segment_keeps_its_t_eval_points(built, engine):
+    """A ball falling from 1 m for 0.45 s, cut by max_steps (steps of 1e-3 s) inside its first
+    segment: the t_eval points up to the cut are kept, on the free fall's parabola."""
+    mod = built(ball_model)
+    t_eval = np.linspace(0.0, 0.4, 81)
+    sol = lagrgen.simulate(mod, (0, 1.0), {"y": 1.0}, engine=engine, t_eval=t_eval,
+                           max_steps=150, max_step=1e-3, **TOL)
+    assert not sol.success and "max_steps=150" in sol.message
+    cut = float(sol.message.split("stopped at t = ")[1].split()[0].rstrip(":;,"))
+    assert 0.1 < cut <= 0.15 + 1e-12
+    assert_array_equal(sol.t, t_eval[t_eval <= cut])
+    assert_allclose(sol.y[0], 1.0 - 0.5 * G * sol.t ** 2, atol=1e-9)
+    assert_allclose(sol.y[1], -G * sol.t, atol=1e-9)
 
 
 def test_the_native_drivers_constants_are_the_python_drivers():

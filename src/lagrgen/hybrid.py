@@ -39,7 +39,7 @@ limit (μ_s·|N| − |λ| ↓ 0). Then:
   parallel gradients (duplicate contacts) are `ContactError`s. A solve whose segments stop
   advancing (STALL_SEGMENTS in a row shorter than ten spacings of doubles at the far end of the
   span) ends with a message saying so; max_steps and max_wall_time hold within a segment and
-  between segments on both engines (on the SciPy engine by an event, `_guard`).
+  between segments on both engines (on the SciPy engine by an event, `_Guard`).
 * Forces. Every saved state carries the forces of its mode (`HybridSystem.forces`): the model's
   constraint multipliers, each impact's contact force, each friction's force along its slip
   velocity.
@@ -1000,24 +1000,29 @@ def simulate_hybrid(mod, t_span, y0, method, p, u_at, rtol, atol, t_eval=None,
             return system.rhs(tt, yy, contact, slip, planar)
         values = _EventValues(system, contact, slip, planar, sw.offsets())
         events = [_event(values, k) for k in range(system.n_events)]
+        guard = None
         if max_wall_time is not None or max_steps is not None:
-            events.append(_guard(None if max_wall_time is None else started + max_wall_time,
-                                 None if max_steps is None else max_steps - steps))
-        try:
-            sol = solve_ivp(fun, (t, t_end), y, method=SOLVERS.get(method, method), rtol=rtol,
-                            atol=atol, dense_output=te_all is not None, events=events or None,
-                            **options)
-        except _GuardReached as reached:
-            t, y = reached.t, reached.y
-            if te_all is None:
-                ts.append(reached.ts[1:])
-                ys.append(reached.ys[:, 1:])
-                modes.append((contact, slip, planar))
-            steps += reached.steps
-            status, message, stopped = -1, f"stopped at t = {t:.9g}", reached.reason
-            break
+            guard = _Guard(None if max_wall_time is None else started + max_wall_time,
+                           None if max_steps is None else max_steps - steps)
+            events.append(guard)
+        sol = solve_ivp(fun, (t, t_end), y, method=SOLVERS.get(method, method), rtol=rtol,
+                        atol=atol, dense_output=te_all is not None, events=events or None,
+                        **options)
         nfev += sol.nfev
         segments += 1
+        if guard is not None and guard.reason is not None:
+            if te_all is None:
+                ts.append(sol.t[1:-1])              # the last is the guard's root, ≈ t_cut
+                ys.append(sol.y[:, 1:-1])
+            else:
+                te = te_all[(te_all > t) & (te_all <= guard.t_cut)]
+                ts.append(te)
+                ys.append(sol.sol(te) if len(te) else np.zeros((len(y), 0)))
+            modes.append((contact, slip, planar))
+            t, y = guard.t_cut, guard.y_cut
+            steps += guard.steps_done
+            status, message, stopped = -1, f"stopped at t = {t:.9g}", guard.reason
+            break
         steps += len(sol.t) - 1
         if sol.status < 0:
             status, message = -1, sol.message
@@ -1110,36 +1115,36 @@ class _EventValues:
         return self.values
 
 
-class _GuardReached(Exception):
-    """A guard (`reason`: "max_steps" or "max_wall_time") ended a segment: `ts`, `ys` (n × k)
-    its start and the ends of the steps accepted before the guard, the last the state kept."""
+class _Guard:
+    """A solve_ivp event for max_wall_time and max_steps inside a segment (None: no bound on
+    either). SciPy evaluates the events at the segment's start and at the end of every accepted
+    step. The guard is +1 until the monotonic clock passes `deadline` at a step's end, or that
+    step is the (`steps` + 1)-th; it is then −1 after t_cut, the end of the step before (the
+    last one no event had crossed: the step's own end may lie past an impact), +1 up to it. A
+    terminal event, its root is found at t_cut to SciPy's tolerance, so that the segment ends
+    there with every step before it and its dense output (the t_eval points up to t_cut);
+    y_cut is the state at t_cut as the solver stored it."""
 
-    def __init__(self, reason, states):
-        super().__init__(reason)
-        self.reason = reason
-        self.ts = np.array([t for t, _ in states])
-        self.ys = np.array([y for _, y in states]).T
-        self.t, self.y, self.steps = float(self.ts[-1]), self.ys[:, -1], len(states) - 1
+    terminal, direction = True, 0
 
+    def __init__(self, deadline, steps):
+        self.deadline, self.steps = deadline, steps
+        self.steps_done, self.reason = -1, None
+        self.t_cut, self.y_cut = None, None
 
-def _guard(deadline, steps):
-    """A solve_ivp event that never fires but ends the segment (`_GuardReached`) once the
-    monotonic clock passes `deadline` or after `steps` accepted steps (None: no bound on
-    either): max_wall_time and max_steps inside a segment. SciPy evaluates the events once at
-    the segment's start and at the end of every accepted step, before it looks for their roots,
-    so the state kept is the step's start (the last one no event had crossed), not its end
-    (which may lie past an impact); the states before it are kept too."""
-    accepted = []
-
-    def g(t, y):
-        reason = ("max_wall_time" if deadline is not None and time.monotonic() > deadline
-                  else "max_steps" if steps is not None and len(accepted) > steps else None)
-        if reason:
-            raise _GuardReached(reason, accepted or [(t, np.array(y, dtype=float))])
-        accepted.append((t, np.array(y, dtype=float)))
+    def __call__(self, t, y):
+        if self.reason is not None:
+            return 1.0 if t <= self.t_cut else -1.0
+        reason = ("max_wall_time" if self.deadline is not None and
+                  time.monotonic() > self.deadline else
+                  "max_steps" if self.steps is not None and self.steps_done >= self.steps
+                  else None)
+        if reason and self.t_cut is not None:
+            self.reason = reason
+            return -1.0
+        self.steps_done += 1
+        self.t_cut, self.y_cut = t, np.array(y, dtype=float)
         return 1.0
-    g.terminal = False
-    return g
 
 
 def _event(values, k):

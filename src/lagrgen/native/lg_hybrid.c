@@ -1517,9 +1517,13 @@ int lg_hybrid_solve(lg_hybrid_t *h, const lg_options_t *options, lg_hybrid_resul
             res->stopped = seg.stopped;
             res->t_reached = seg.t_reached;
             snprintf(res->message, sizeof res->message, "stopped at t = %.9g", seg.t_reached);
-            if (options->t_eval == NULL && seg.t.len > 1
-                && (lg_buf_push(&res->t, seg.t.data + 1, seg.t.len - 1)
-                    || lg_buf_push(&res->y, seg.y.data + dim, (seg.t.len - 1) * dim))) {
+            /* the steps (or the t_eval points) up to the cut; not the start, nor t_end */
+            size_t from = options->t_eval ? 0 : 1, keep = seg.t.len;
+            if (extra && keep && seg.t.data[keep - 1] == t_end)
+                --keep;
+            if (keep > from
+                && (lg_buf_push(&res->t, seg.t.data + from, keep - from)
+                    || lg_buf_push(&res->y, seg.y.data + from * dim, (keep - from) * dim))) {
                 lg_result_free(&seg);
                 rc = -1;
                 goto done;
