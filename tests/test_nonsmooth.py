@@ -614,6 +614,44 @@ def test_a_hybrid_solve_cut_inside_a_segment_keeps_its_t_eval_points(built, engi
     assert_allclose(sol.y[1], -G * sol.t, atol=1e-9)
 
 
+def free_block():
+    """A block (x, y) on a spring above a floor contact that carries its friction, with a stop
+    on x: in flight (the floor open, the stop open) nothing acts but the model's forces."""
+    model = Model("free_block")
+    x, y = model.coordinates("x y")
+    m, mu, k = model.parameters(m=2.0, mu=0.3, k=5.0)
+    model.particle(m, sp.Matrix([x, y]))
+    model.potential_energy(m * G * y + k * x ** 2 / 2)
+    model.impact("floor", y, restitution=0.5)
+    model.friction("slide", x.diff(model.t), "floor", mu)
+    model.limit(x, upper=0.5, enforce=True)
+    return model
+
+
+def test_a_free_mode_is_the_models_own_equations(built):
+    """In a free mode the SciPy driver takes q̈ from the model's rhs, the events from the gaps
+    alone and the forces as 0: the same as the mode equations give, at random states."""
+    mod = built(free_block)
+    u_at = lambda t: np.zeros(0)                                    # noqa: E731
+    system = hybrid.HybridSystem(mod, mod.defaults, u_at)
+    general = hybrid.HybridSystem(mod, mod.defaults, u_at)
+    general.is_free = lambda contact, planar=None: False
+    system.solve = lambda *args, **kwargs: pytest.fail("a free mode solved the mode equations")
+    open_, slip = (False, False), (1,)
+    assert system.is_free(open_) and not system.is_free((True, False))
+    assert not system.is_free((False, True))
+    rng = np.random.default_rng(3)
+    for _ in range(5):
+        y = np.array([rng.uniform(-0.4, 0.4), rng.uniform(0.1, 1), *rng.normal(size=2)])
+        t = rng.uniform(0, 1)
+        assert_allclose(system.rhs(t, y, open_, slip), general.rhs(t, y, open_, slip),
+                        rtol=1e-13, atol=1e-13)
+        offsets = (rng.uniform(0, 1e-9), 0.0)
+        assert_array_equal(system.events(t, y, open_, slip, offsets=offsets),
+                           general.events(t, y, open_, slip, offsets=offsets))
+        assert_array_equal(system.forces(t, y, open_, slip), general.forces(t, y, open_, slip))
+
+
 def test_the_native_drivers_constants_are_the_python_drivers():
     """lg_hybrid.c repeats lagrgen.hybrid's REGULARIZATION, REFINEMENTS, PLANAR_BLEND and
     TOUCH_OFFSET (the engines agree only while they are equal)."""

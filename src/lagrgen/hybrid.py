@@ -43,6 +43,9 @@ limit (μ_s·|N| − |λ| ↓ 0). Then:
 * Forces. Every saved state carries the forces of its mode (`HybridSystem.forces`): the model's
   constraint multipliers, each impact's contact force, each friction's force along its slip
   velocity.
+* A free mode (a model without constraints, every contact open, no friction acting: a robot
+  between its joint limits) adds nothing to the model's equations: `HybridSystem` then takes q̈
+  from the model's own rhs, the events from the gaps and the forces as 0.
 
 `HybridSystem` holds that logic; `simulate_hybrid` runs it with `solve_ivp` (engine "scipy") or in
 C (`lagrgen.native._ode.solve_hybrid`, `native/lg_hybrid.c`, the same rules).
@@ -108,6 +111,10 @@ class HybridSystem:
         self.n_events = self.ni + self.nf + self.npf
         self._impact_size, self._friction_size = 4 + n, 5 + n
         self._planar_size = 7 + 2 * n
+        self._stop_index = np.array([s[1] for s in self.stops], dtype=int)
+        self._stop_sign = np.array([s[2] for s in self.stops], dtype=float)
+        self._stop_bound = np.array([s[3] for s in self.stops], dtype=float)
+        self._free = {}
 
     # -- the model's terms ----------------------------------------------------------------------
     def terms(self, t, y):
@@ -236,7 +243,10 @@ class HybridSystem:
         """The forces of the mode at (t, y): λ of the model's constraints, then each impact's
         contact force (its multiplier; 0 while open), then each friction's force along its slip
         direction (the sticking multiplier, or −μ·|N|·s while slipping), then each planar
-        friction's two components; NaN where the mode equations are singular."""
+        friction's two components; NaN where the mode equations are singular. All 0 in a free
+        mode (`is_free`)."""
+        if self.is_free(contact, planar):
+            return np.zeros(self.m + self.ni + self.nf + 2 * self.npf)
         try:
             out = self.solve(t, y, contact, slip, True, planar)
         except np.linalg.LinAlgError:
@@ -271,10 +281,34 @@ class HybridSystem:
             return abs(lam[row])
         return abs(expression) if ref is None else 0.0
 
+    def is_free(self, contact, planar=None):
+        """Whether the mode adds nothing to the model's own equations: a model without
+        constraints, no contact closed, and no friction of either kind acting (each one's normal
+        force an open contact's). Its q̈ is then M⁻¹·F, the model's rhs, and its events are the
+        contacts' gaps alone."""
+        key = (tuple(contact), None if planar is None else tuple(planar[0]))
+        free = self._free.get(key)
+        if free is None:
+            free = (self.m == 0 and not any(contact)
+                    and not any(self.active(j, contact) for j in range(self.nf))
+                    and (planar is None or all(k < 0 for k in planar[0])))
+            self._free[key] = free
+        return free
+
     def rhs(self, t, y, contact, slip, planar=None):
-        """ẏ = [q̇, q̈] in the mode."""
+        """ẏ = [q̇, q̈] in the mode (in a free mode, `is_free`, the model's own rhs)."""
+        if self.is_free(contact, planar):
+            return self.mod.rhs(t, y, self.p, self.u_at(t))
         qdd = self.solve(t, y, contact, slip, planar=planar)[0]
         return np.concatenate([y[self.n:], qdd])
+
+    def gaps(self, t, y):
+        """The gap g of every impact: the model's (from its compiled terms, where it has any),
+        then the stops' sign·(q_j − bound)."""
+        stops = self._stop_sign * (y[self._stop_index] - self._stop_bound)
+        if not self.n_model_impacts:
+            return stops
+        return np.concatenate([self.all_terms(t, y)[4][:self.n_model_impacts, 0], stops])
 
     def events(self, t, y, contact, slip, planar=None, offsets=None):
         """The event values of the mode, all falling through zero at a switch: g (open; g plus
@@ -282,6 +316,10 @@ class HybridSystem:
         λ (contact), s·v (slipping), μ_s·|N| − |λ| (sticking); for a planar friction
         μ_s·|N| − ‖λ‖ (sticking), d·v (slipping along its anchor d); 1 for a friction
         of either kind whose contact is open (it has none)."""
+        if self.is_free(contact, planar):
+            values = np.ones(self.n_events)
+            values[:self.ni] = self.gaps(t, y) + (0.0 if offsets is None else offsets)
+            return values
         out = self.solve(t, y, contact, slip, planar=planar)
         _, lam_i, lam_f, normal, (_, _, imp, fr) = out
         values = np.empty(self.n_events)
