@@ -5,9 +5,9 @@ examples/robots/arm7.urdf built twice, with its limits enforced and without, fal
 q = (0, 0.3, 0, −1, 0, 1.3, 0) at rest: for 0.3 s (before it reaches a stop: the same motion
 both ways) and for 2 s (its shoulder strikes its upper stop and comes to rest on it; without the
 stops it swings on). `lagrgen.simulate` on the native and SciPy engines, RK45 at lagrgen's
-default tolerances, without and with 201 output times: the median wall time of ROUNDS runs, the
-builds interleaved so that the load of a shared machine falls on both alike, and the ratio of the
-enforced limits' time to the free robot's. Prints the table and writes
+default tolerances, without and with 201 output times: the median wall time of ROUNDS runs
+(SCIPY_ROUNDS on SciPy's engine), the builds interleaved so that the load of a shared machine
+falls on both alike, and the ratio of the enforced limits' time to the free robot's. Prints the table and writes
 benchmarks/results/robot_stops.{md,json}.
 
     python benchmarks/robot_stops.py
@@ -28,6 +28,7 @@ URDF = ROOT / "examples" / "robots" / "arm7.urdf"
 START = np.concatenate([[0.0, 0.3, 0.0, -1.0, 0.0, 1.3, 0.0], np.zeros(7)])
 SPANS = (0.3, 2.0)
 ROUNDS = 15
+SCIPY_ROUNDS = 5
 
 
 def builds():
@@ -57,7 +58,7 @@ def measure():
             for outputs in (False, True):
                 sols = {k: run(mod, engine, t_end, outputs) for k, mod in mods.items()}
                 times = {k: [] for k in mods}
-                for _ in range(ROUNDS if engine == "native" else max(3, ROUNDS // 3)):
+                for _ in range(ROUNDS if engine == "native" else SCIPY_ROUNDS):
                     for k, mod in mods.items():
                         times[k].append(timed(mod, engine, t_end, outputs))
                 on, off = (statistics.median(times[k]) * 1e3 for k in (True, False))
@@ -72,7 +73,7 @@ def measure():
 def markdown(rows, when, load):
     lines = ["# A robot's enforced joint limits in a simulation", "",
              f"{when}, load average {load[0]:.1f} / {load[1]:.1f} on {os.cpu_count()} cores; "
-             f"median of {ROUNDS} runs on the native engine, {max(3, ROUNDS // 3)} on SciPy's, "
+             f"median of {ROUNDS} runs on the native engine, {SCIPY_ROUNDS} on SciPy's, "
              "the two builds interleaved.", "",
              "arm7 falling from rest, RK45 at the default tolerances. Over 0.3 s it reaches no "
              "stop: the motion is the same with and without its limits, and the ratio is what a "

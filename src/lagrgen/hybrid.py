@@ -114,6 +114,7 @@ class HybridSystem:
         self._stop_index = np.array([s[1] for s in self.stops], dtype=int)
         self._stop_sign = np.array([s[2] for s in self.stops], dtype=float)
         self._stop_bound = np.array([s[3] for s in self.stops], dtype=float)
+        self._stop_restitution = np.array([s[4] for s in self.stops], dtype=float)
         self._free = {}
 
     # -- the model's terms ----------------------------------------------------------------------
@@ -130,7 +131,7 @@ class HybridSystem:
         k = self.n_model_impacts * self._impact_size
         impacts = terms[:k].reshape(self.n_model_impacts, self._impact_size)
         if self.stops:
-            impacts = np.vstack([impacts, stop_rows(self.stops, y, n)])
+            impacts = np.vstack([impacts, self.stop_rows(y)])
         frictions = terms[k:k + self.nf * self._friction_size].reshape(self.nf,
                                                                        self._friction_size)
         planars = terms[k + self.nf * self._friction_size:].reshape(self.npf, self._planar_size)
@@ -302,10 +303,25 @@ class HybridSystem:
         qdd = self.solve(t, y, contact, slip, planar=planar)[0]
         return np.concatenate([y[self.n:], qdd])
 
+    def stop_gaps(self, y):
+        """The stops' gaps g = sign·(q_j − bound)."""
+        return self._stop_sign * (y[self._stop_index] - self._stop_bound)
+
+    def stop_rows(self, y):
+        """The impact rows [g, ġ, γ, e, W] of the stops: g = sign·(q_j − bound),
+        ġ = sign·q̇_j, γ = 0, W = sign·e_j."""
+        n = self.n
+        rows = np.zeros((len(self.stops), 4 + n))
+        rows[:, 0] = self.stop_gaps(y)
+        rows[:, 1] = self._stop_sign * y[n + self._stop_index]
+        rows[:, 3] = self._stop_restitution
+        rows[np.arange(len(self.stops)), 4 + self._stop_index] = self._stop_sign
+        return rows
+
     def gaps(self, t, y):
         """The gap g of every impact: the model's (from its compiled terms, where it has any),
-        then the stops' sign·(q_j − bound)."""
-        stops = self._stop_sign * (y[self._stop_index] - self._stop_bound)
+        then the stops' (`stop_gaps`)."""
+        stops = self.stop_gaps(y)
         if not self.n_model_impacts:
             return stops
         return np.concatenate([self.all_terms(t, y)[4][:self.n_model_impacts, 0], stops])
@@ -416,16 +432,6 @@ PLANAR_BLEND = 1e-7
 #: The event of a contact left open at rest at its surface fires this fraction of gap_tol past
 #: it (`Switching.offsets`).
 TOUCH_OFFSET = 1e-3
-
-
-def stop_rows(stops, y, n):
-    """The impact rows [g, ġ, γ, e, W] of the stops (name, j, sign, bound, e): g = sign·(q_j −
-    bound), ġ = sign·q̇_j, γ = 0, W = sign·e_j."""
-    rows = np.zeros((len(stops), 4 + n))
-    for r, (_, j, sign, bound, e) in enumerate(stops):
-        rows[r, :4] = sign * (y[j] - bound), sign * y[n + j], 0.0, e
-        rows[r, 4 + j] = sign
-    return rows
 
 
 def slip_direction(v, anchor):

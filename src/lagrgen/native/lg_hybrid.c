@@ -200,7 +200,7 @@ static int hy_terms(hy_ctx *c, double t, const double *y, const double *u)
     c->cached = 0;                   /* the terms at hand are no longer the cached solution's */
     if (c->h->terms(t, y, c->h->p, u, c->terms))
         return 1;
-    for (int s = 0; s < c->h->n_stops; ++s) {      /* lagrgen.hybrid.stop_rows */
+    for (int s = 0; s < c->h->n_stops; ++s) {      /* lagrgen.hybrid.HybridSystem.stop_rows */
         const double *stop = c->h->stops + 4 * s;
         const int j = (int)stop[0];
         double *row = c->stop_rows + (size_t)s * (IMPACT_FIELDS + n);

@@ -40,8 +40,9 @@ typedef struct {
     int *contact;                /* ni + n_stops, in/out: 1 held */
     int *slip;                   /* nf, in/out: +1/-1 slipping that way, 0 sticking (a friction
                                   * on an open contact is inactive: N = 0, no force, no event) */
-    /* Enforced limits (lagrgen.hybrid.stop_rows): impacts ni … ni + n_stops − 1 after the
-     * model's, on gaps sign·(q_j − bound); 4 numbers each: j, sign, bound, restitution. */
+    /* Enforced limits (lagrgen.hybrid.HybridSystem.stop_rows): impacts ni … ni + n_stops − 1
+     * after the model's, on gaps sign·(q_j − bound); 4 numbers each: j, sign, bound,
+     * restitution. */
     int n_stops;
     const double *stops;
     /* Planar (isotropic) frictions, elements after the frictions: their normal forces as
