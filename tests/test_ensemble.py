@@ -370,6 +370,8 @@ def on_alarm(signum, frame):
     raise KeyboardInterrupt
 signal.signal(signal.SIGALRM, on_alarm)
 P = np.tile(mod.defaults, (200000, 1))
+lagrgen.simulate_many(mod, (0.0, 1e-3), [0.5, 0, 0, 0], params=P[:4], t_eval=[0.0, 1e-3],
+                      workers=2, progress=False)      # imported before the interrupts start
 rng = random.Random(5)
 faulthandler.dump_traceback_later(60, exit=True)
 for k in range(30):

@@ -15,8 +15,8 @@ import math
 import os
 import sys
 import threading
+import _thread
 import queue
-from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Optional
@@ -713,38 +713,67 @@ class RunsBar:
 
 
 def _on_threads(mod, plan, parts, workers, sink, bar):
-    """The chunks on a thread pool (even for one thread: the main thread only waits, so Ctrl-C
+    """The chunks on `workers` threads (even for one: the main thread only waits, so Ctrl-C
     reaches it at once; it then sets the shared stop flag that every running batch reads).
 
-    The main thread waits on a `queue.SimpleQueue` that each finished chunk's future is put on.
-    It never waits with `concurrent.futures.wait`, which takes every pending future's lock in a
-    Python loop: a KeyboardInterrupt inside that loop left some of them held, and the worker
-    finishing such a chunk then blocked for ever (the pool's shutdown with it)."""
+    The main thread takes no lock that a worker needs, so that a KeyboardInterrupt at any moment
+    of it leaves none held: the chunks to solve and the chunks solved pass through
+    `queue.SimpleQueue`s (written in C), and the threads are started by `_thread` (a
+    `threading.Thread` waits on a Python-level Condition to start). `concurrent.futures`
+    deadlocked here: waiting, it took every pending future's lock in a Python loop, and
+    submitting, its idle Semaphore's; an interrupt inside either left a lock held that a worker
+    then waited on for ever."""
     stop = np.zeros(1, dtype=np.intc)
-    finished = queue.SimpleQueue()
-    pool = ThreadPoolExecutor(max_workers=workers, thread_name_prefix="lagrgen-ensemble")
-    futures = []
+    todo, finished = queue.SimpleQueue(), queue.SimpleQueue()
+    for part in parts:
+        todo.put(part)
+    running = 0
     try:
-        for part in parts:
-            future = pool.submit(_solve_into, mod, plan, part, sink, stop)
-            future.part = part
-            future.add_done_callback(finished.put)
-            futures.append(future)
-        for _ in range(len(futures)):
-            future = _next_finished(finished)
-            sink.take(future.part, future.result(), in_place=isinstance(sink, MemorySink))
-            bar.update(len(future.part))
+        for _ in range(min(workers, len(parts))):
+            _thread.start_new_thread(_chunk_worker, (mod, plan, sink, stop, todo, finished))
+            running += 1
+        left = len(parts)
+        while left:
+            item = _next_finished(finished)
+            if item is None:                            # a thread found no chunk left
+                running -= 1
+                if not running:
+                    raise RuntimeError("the ensemble's threads ended with chunks unsolved")
+                continue
+            part, result, error = item
+            left -= 1
+            if error is not None:
+                raise error
+            sink.take(part, result, in_place=isinstance(sink, MemorySink))
+            bar.update(len(part))
     except BaseException:
         stop[0] = 1
-        for future in futures:
-            future.cancel()
         raise
     finally:
-        pool.shutdown(wait=True)
+        while running:                                  # each thread's end: no chunk under way
+            if _next_finished(finished) is None:
+                running -= 1
+
+
+def _chunk_worker(mod, plan, sink, stop, todo, finished):
+    """One ensemble thread: solves chunks from `todo` until it is empty or `stop` is set, each
+    put on `finished` as (part, result, None) or (part, None, the exception); then None."""
+    try:
+        while not stop[0]:
+            try:
+                part = todo.get_nowait()
+            except queue.Empty:
+                break
+            try:
+                finished.put((part, _solve_into(mod, plan, part, sink, stop), None))
+            except BaseException as exc:        # noqa: B036 — the main thread raises it
+                finished.put((part, None, exc))
+    finally:
+        finished.put(None)
 
 
 def _next_finished(finished):
-    """The next future put on `finished`, waiting in short slices so that Ctrl-C is seen."""
+    """The next item put on `finished`, waiting in short slices so that Ctrl-C is seen."""
     while True:
         try:
             return finished.get(timeout=0.1)
