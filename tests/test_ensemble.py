@@ -389,8 +389,8 @@ print("interrupted 30 times", flush=True)
 
 def test_ctrl_c_at_any_moment_never_deadlocks_the_pool(mod):
     """30 interrupts at random moments of an ensemble of 400 short chunks: each one returns.
-    (Waiting with `concurrent.futures.wait` deadlocked here within a few interrupts: it takes
-    every pending future's lock in a loop, and an interrupt inside the loop left some held.)"""
+    (A `concurrent.futures` pool deadlocked here: `wait` takes every pending future's lock in a
+    Python loop, `submit` its idle Semaphore's, and an interrupt inside left a lock held.)"""
     script = INTERRUPTED_OFTEN.format(directory=os.path.dirname(mod.__file__),
                                       name=mod.__name__)
     env = dict(os.environ, PYTHONPATH=os.pathsep.join(p for p in sys.path if p))
