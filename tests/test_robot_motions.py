@@ -202,6 +202,47 @@ def test_the_structured_qp_is_the_kkt_solution(swing):
     assert np.abs(stationarity).max() < 1e-6 * (1 + np.abs(lin.g).max())
 
 
+@pytest.mark.filterwarnings("ignore", category=DiscretizationWarning)
+def test_the_qps_regularization_is_the_least_that_serves_from_any_last_one(swing):
+    """A QP that is not convex along its inputs is factored with the least regularization of
+    the grid 1e-8·10ᵏ that makes it positive definite (what a search up from 1e-8 finds),
+    whatever regularization the last factor needed; started at the last one, the search takes
+    three factors (none, the last, a tenth of it) where the search up from 1e-8 takes more."""
+    from lagrgen.collocation import sqp
+    model, mod = swing
+    prob = swing_problem(mod, model.input_functions[0], nodes=9)
+    res = prob.solve(progress=False, mesh_tol=None, solver="ipopt")
+    tr = prob.transcription("exact").bound(3.0)
+    stages, rows = sqp.Stages.of(tr), sqp.Rows.of(tr)
+    lin = sqp.linearize(tr, res.x, res._lam, stages, rows)
+    qp = sqp.StructuredQP(tr, stages, rows, lin)
+    u = tr.layout.nz - 1                                  # the torque's place in a point
+    W = lin.W.copy()
+    W[:, u, u] -= 3e-3 * np.abs(W[:, u, u]).max() + 1e-4
+    G = qp.point_costs(W, lin.g)[0]
+    grid = [0.0] + [sqp.FIRST_REGULARIZATION * sqp.GROWTH ** k for k in range(13)]
+    least = next(delta for delta in grid if qp.factor(G, delta))
+    assert least > 1e-6, least                            # not convex: it needs one
+    reference = qp.factored()
+    qp.vectors(qp.point_costs(W, lin.g)[1])
+    steps = qp.solve()
+
+    calls = []
+    factor = qp.factor
+    qp.factor = lambda *args: calls.append(args[1]) or factor(*args)
+    for last in (0.0, least, least * 1e3, least * 1e-4):
+        calls.clear()
+        inertia = sqp.Inertia(last)
+        gamma, delta = sqp._factored(qp, W, lin.g, inertia)
+        assert delta == pytest.approx(least, rel=1e-12) and inertia.last == delta
+        qp.vectors(gamma)
+        assert np.allclose(qp.solve(), steps, rtol=1e-12, atol=1e-12)
+        assert all(np.array_equal(a, b) for a, b in zip(qp.factored()[:4], reference[:4]))
+        if last == least:
+            assert calls == [0.0, least, least / sqp.GROWTH]
+    assert grid.index(least) + 1 >= 5                     # the search up from 1e-8's factors
+
+
 def test_refined_meshes_by_the_sqp_reach_ipopts_optimum(swing):
     """The refinement's meshes after the first, started from the last solution, are solved by
     the structured SQP (solver="sqp": a torque that stays inside its bounds, the velocity

@@ -52,6 +52,9 @@ STALL, STALL_DUAL = 1e-10, 1e-2
 #: the one its inputs produce: an unstable one visibly; Newton's steps make the extra digits
 #: cheap).
 FEASIBLE = 1e-3
+#: The inertia correction's regularizations (`Inertia`): the grid's first, its last and its
+#: ratio.
+FIRST_REGULARIZATION, MAX_REGULARIZATION, GROWTH = 1e-8, 1e4, 10.0
 #: SQP iterations by default.
 SQP_ITERATIONS = 30
 #: Passes of the active set before the QP turns to the interior point; its iterations.
@@ -126,12 +129,29 @@ class Stages:
 class Rows:
     """The linear rows of the NLP (tr.E) confined to one interval: `interval` (R,), their
     coefficients per point of it `coef` (R, points of an interval, nz), their bounds lo, hi on
-    E·x (R,), and `index` their rows in E."""
+    E·x (R,), and `index` their rows in E; `slot` (R,) each row's place among its interval's
+    rows, `width` the most rows of an interval (the stages' row blocks are padded to it)."""
     interval: np.ndarray
     coef: np.ndarray
     lo: np.ndarray
     hi: np.ndarray
     index: np.ndarray
+    slot: np.ndarray = field(init=False)
+    width: int = field(init=False)
+
+    def __post_init__(self):
+        order = np.argsort(self.interval, kind="stable")
+        first = np.searchsorted(self.interval[order], self.interval[order])
+        self.slot = np.empty(self.interval.size, dtype=np.int64)
+        self.slot[order] = np.arange(self.interval.size) - first
+        self.width = int(self.slot.max()) + 1 if self.slot.size else 0
+
+    def padded(self, values, count):
+        """values (R, ...) placed per interval: (count, width, ...), zero where an interval has
+        fewer rows."""
+        out = np.zeros((count, self.width) + values.shape[1:])
+        out[self.interval, self.slot] = values
+        return out
 
     @staticmethod
     def spanning(tr):
@@ -341,10 +361,8 @@ class StructuredQP:
         R = rows.index.size
         self.alpha, self.beta = np.zeros((R, self.ny)), np.zeros((R, self.nv))
         self.const = np.zeros(R)
-        if not R:
-            return
         k = rows.interval
-        for p in range(pts.shape[1]):
+        for p in range(pts.shape[1] if R else 0):
             point = pts[k, p]
             a = rows.coef[:, p]                                           # (R, nz)
             hat = (self.T[point].transpose(0, 2, 1) @ a[:, :, None])[:, :, 0]
@@ -356,13 +374,15 @@ class StructuredQP:
             self.alpha += (C[k].transpose(0, 2, 1) @ hat[:, :, None])[:, :, 0]
             self.beta += (E[k].transpose(0, 2, 1) @ hat[:, :, None])[:, :, 0]
             self.const += np.einsum("ri,ri->r", hat, e[k])
+        count = pts.shape[0]
+        self.alpha_pad = rows.padded(self.alpha, count)                 # (k, width, ny)
+        self.beta_pad = rows.padded(self.beta, count)                   # (k, width, nv)
 
     # -- the recursion ------------------------------------------------------------------------------
     def factor(self, G, regularize=0.0, row_weights=None):
         """The backward Riccati pass of the matrices for the point Hessians G (`_riccati.factor`)
-        and the rows' terms w_r·[α; β]·[α; β]ᵀ in their stages. Returns 0, or the regularization
-        of the inputs' Hessians to try when one is not positive definite (the QP not convex
-        along them)."""
+        and the rows' terms w_r·[α; β]·[α; β]ᵀ in their stages, the inputs' Hessians plus
+        regularize·1. False when one is not positive definite (the QP not convex along them)."""
         pts = self.stages.points
         count, ny, nv = pts.shape[0], self.ny, self.nv
         Qxx, Qxv, Qvv = G[pts[:, 0]].copy(), np.zeros((count, ny, nv)), np.zeros((count, nv, nv))
@@ -374,22 +394,29 @@ class StructuredQP:
             Qxv += Ct @ GE
             Qvv += E.transpose(0, 2, 1) @ GE
         if row_weights is not None and np.any(row_weights):
-            k, w = self.rows.interval, row_weights
-            wa = w[:, None] * self.alpha
-            scatter_add(Qxx, k, wa[:, :, None] * self.alpha[:, None, :])
-            scatter_add(Qxv, k, wa[:, :, None] * self.beta[:, None, :])
-            scatter_add(Qvv, k, (w[:, None] * self.beta)[:, :, None] * self.beta[:, None, :])
+            w = self.rows.padded(row_weights, count)[:, :, None]
+            alpha_t = self.alpha_pad.transpose(0, 2, 1)
+            Qxx += alpha_t @ (w * self.alpha_pad)
+            Qxv += alpha_t @ (w * self.beta_pad)
+            Qvv += self.beta_pad.transpose(0, 2, 1) @ (w * self.beta_pad)
         self.P = np.zeros((count + 1, ny, ny))
         self.Hxv = np.zeros((count, ny, nv))
         self.chol = np.zeros((count, nv, nv))
         self.gain = np.zeros((count, nv, ny))
         status = riccati_factor(Qxx, Qxv, Qvv, self.A, self.B,
                                 np.ascontiguousarray(G[pts[-1, -1]]), float(regularize),
-                                 self.P, self.Hxv, self.chol, self.gain)
+                                self.P, self.Hxv, self.chol, self.gain)
         if status:
-            return max(1e-8, 10 * regularize)
+            return False
         self.G = G
-        return 0.0
+        return True
+
+    def factored(self):
+        """The state of the last successful `factor` (to `restore` after a failed one)."""
+        return self.P, self.Hxv, self.chol, self.gain, self.G
+
+    def restore(self, factored):
+        self.P, self.Hxv, self.chol, self.gain, self.G = factored
 
     def vectors(self, gamma, row_gradients=None):
         """The backward pass of the affine parts for the point gradients γ and the rows' terms
@@ -400,10 +427,11 @@ class StructuredQP:
             lin = (G[pts[:, p + 1]] @ e[:, :, None])[:, :, 0] + gamma[pts[:, p + 1]]
             qx += (C.transpose(0, 2, 1) @ lin[:, :, None])[:, :, 0]
             qv += (E.transpose(0, 2, 1) @ lin[:, :, None])[:, :, 0]
-        if row_gradients is not None and np.any(row_gradients):
-            scatter_add(qx, self.rows.interval, row_gradients[:, None] * self.alpha)
-            scatter_add(qv, self.rows.interval, row_gradients[:, None] * self.beta)
         count = pts.shape[0]
+        if row_gradients is not None and np.any(row_gradients):
+            gr = self.rows.padded(row_gradients, count)[:, :, None]
+            qx += (self.alpha_pad.transpose(0, 2, 1) @ gr)[:, :, 0]
+            qv += (self.beta_pad.transpose(0, 2, 1) @ gr)[:, :, 0]
         self.p = np.zeros((count + 1, self.ny))
         self.ff = np.zeros((count, self.nv))
         riccati_vectors(qx, qv, self.A, self.B, self.b,
@@ -483,17 +511,20 @@ class QPResult:
     regularization: float
 
 
-def solve_qp(tr, stages, rows, lin, active, tol=1e-10):
+def solve_qp(tr, stages, rows, lin, active, inertia=None, tol=1e-10):
     """The QP of `lin`: by the active set when it settles within ACTIVE_PASSES (a warm start's
-    set, updated in place), else by the interior point (`solve_qp_interior`). `QPResult`."""
+    set, updated in place), else by the interior point (`solve_qp_interior`); the inputs'
+    Hessians regularized where they are not positive definite (`inertia`, an `Inertia`, keeps
+    the last regularization). `QPResult`."""
+    inertia = Inertia() if inertia is None else inertia
     qp = StructuredQP(tr, stages, rows, lin)
     try:
-        return solve_qp_active(qp, lin, active, tol)
+        return solve_qp_active(qp, lin, active, inertia, tol)
     except Unsupported:
         if DEBUG:
             print("    the active set did not settle: interior point")
         active.reset()
-        return solve_qp_interior(qp, lin, active)
+        return solve_qp_interior(qp, lin, active, inertia)
 
 
 def _penalties(lin):
@@ -512,18 +543,39 @@ def _row_penalties(qp, lin):
     return PENALTY * _point_scale(lin)[start]
 
 
-def _factored(qp, W, g, regularization=0.0, row_weights=None):
-    """qp factored for the point blocks W and the rows' weights (the inputs' Hessians
-    regularized until positive definite, up to a limit) and its cost gradients for g; the
-    regularization used."""
+@dataclass
+class Inertia:
+    """The regularization δ of the inputs' Hessians that made the last factor positive definite
+    (IPOPT's inertia correction, its δ_w), kept from factor to factor of a solve: the least δ
+    of the grid FIRST_REGULARIZATION·GROWTHᵏ that serves is searched from the last one, down
+    while it serves and up while it does not (two or three factors where a search up from the
+    grid's first took eight)."""
+    last: float = 0.0
+
+
+def _factored(qp, W, g, inertia, row_weights=None):
+    """qp factored for the point blocks W and the rows' weights, the inputs' Hessians
+    regularized by the least δ (0, or of `inertia`'s grid) that makes them positive definite;
+    its cost gradients for g and δ."""
     G, gamma = qp.point_costs(W, g)
-    while True:
-        need = qp.factor(G, regularization, row_weights)
-        if not need:
-            return gamma, regularization
-        regularization = need
-        if regularization > 1e4:
-            raise Unsupported("the QP is not convex along its inputs (inertia)")
+    if qp.factor(G, 0.0, row_weights):
+        return gamma, 0.0
+    delta = max(inertia.last, FIRST_REGULARIZATION)
+    if qp.factor(G, delta, row_weights):
+        factored = qp.factored()
+        while delta / GROWTH >= FIRST_REGULARIZATION * (1 - 1e-9) and \
+                qp.factor(G, delta / GROWTH, row_weights):
+            delta, factored = delta / GROWTH, qp.factored()
+        qp.restore(factored)
+    else:
+        while True:
+            delta *= GROWTH
+            if delta > MAX_REGULARIZATION:
+                raise Unsupported("the QP is not convex along its inputs (inertia)")
+            if qp.factor(G, delta, row_weights):
+                break
+    inertia.last = delta
+    return gamma, delta
 
 
 def _with_diagonal(W, add):
@@ -549,7 +601,7 @@ def _apply_changes(side, z, release, cross_hi, cross_lo):
     side[cross_lo] = -1
 
 
-def solve_qp_active(qp, lin, active, tol=1e-10, passes=None):
+def solve_qp_active(qp, lin, active, inertia, tol=1e-10, passes=None):
     """The QP by a primal-dual active set with augmented-Lagrangian terms for the active bounds
     and rows (the factor kept while only their multipliers change); Unsupported when the set
     does not settle within `passes` (default ACTIVE_PASSES)."""
@@ -564,7 +616,7 @@ def solve_qp_active(qp, lin, active, tol=1e-10, passes=None):
         row_g = np.where(row_on, active.row_z + row_rho * (qp.const - row_delta), 0.0)
         if refactor:
             W = _with_diagonal(lin.W, np.where(on, rho, 0.0))
-            gamma, regularization = _factored(qp, W, g, regularization,
+            gamma, regularization = _factored(qp, W, g, inertia,
                                               np.where(row_on, row_rho, 0.0))
             refactor = False
         else:
@@ -664,7 +716,7 @@ class _Barrier:
                                       self.has_hi, fraction))
 
 
-def solve_qp_interior(qp, lin, active, tol=1e-9, iterations=IPM_ITERATIONS):
+def solve_qp_interior(qp, lin, active, inertia, tol=1e-9, iterations=IPM_ITERATIONS):
     """The QP by a primal-dual interior point (Mehrotra's predictor-corrector) on the bounds and
     rows that are not fixed, the fixed ones (variables, equality rows) held by a penalty made
     exact at the end by multiplier updates; each iteration one factor of the recursion with the
@@ -699,7 +751,7 @@ def solve_qp_interior(qp, lin, active, tol=1e-9, iterations=IPM_ITERATIONS):
             row_g = (rows.gradient(w, *row_targets) + rows.weights() * qp.const
                      + row_pin * (qp.const - row_target) + row_pins + row_extra)
             if not factored[0]:
-                gamma = _factored(qp, W, g, 0.0, row_w)[0]
+                gamma = _factored(qp, W, g, inertia, row_w)[0]
                 factored[0] = True
             else:
                 gamma = qp.point_costs(W, g)[1]
@@ -839,10 +891,10 @@ def solve(tr, x0, lam0=None, z0=None, tol=1e-8, max_iter=SQP_ITERATIONS, monitor
     lin = linearize(tr, x, lam, stages, rows)
     row_z0 = None if lam0 is None else lam[tr.defect_row + tr.n_defects + rows.index]
     active = ActiveSet.start(lin, None if z0 is None else np.asarray(z0)[:P * nz], row_z0)
-    penalty, passes = 0.0, 0
+    penalty, passes, inertia = 0.0, 0, Inertia()
     primal_now, dual_now, z_now = np.inf, np.inf, np.zeros(L.size)
     for iteration in range(1, max_iter + 1):
-        qp = solve_qp(tr, stages, rows, lin, active)
+        qp = solve_qp(tr, stages, rows, lin, active, inertia)
         passes += qp.passes
         step = np.zeros(L.size)
         step[:P * nz] = qp.dz.ravel()
