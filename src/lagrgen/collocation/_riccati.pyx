@@ -13,13 +13,55 @@ v_k = gain_k·X + ff_k with gain = −Hvv⁻¹·Hvx, ff = −Hvv⁻¹·hv (Hvv b
 QP must be convex along the inputs), P_k = Hxx + Hxv·gain, p_k = hx + Hxv·ff. The matrices'
 pass (`factor`) is separate from the vectors' (`vectors`): a QP whose gradient alone changed
 reuses the factor. Stacked arrays, C-contiguous float64, stage first.
+
+The factor's products and triangular solves run on the BLAS SciPy links (its `cython_blas`
+functions, taken from their capsules at import: SciPy is needed to run, not to build).
 """
 import numpy as np
 cimport numpy as cnp
+from cpython.pycapsule cimport PyCapsule_GetName, PyCapsule_GetPointer
 from libc.math cimport sqrt
 from libc.stdlib cimport free, malloc
+from libc.string cimport memcpy
 
 cnp.import_array()
+
+ctypedef void (*dgemm_t)(char *transa, char *transb, int *m, int *n, int *k, double *alpha,
+                         double *a, int *lda, double *b, int *ldb, double *beta, double *c,
+                         int *ldc) noexcept nogil
+ctypedef void (*dtrsm_t)(char *side, char *uplo, char *transa, char *diag, int *m, int *n,
+                         double *alpha, double *a, int *lda, double *b, int *ldb) noexcept nogil
+
+
+cdef void *_blas(name) except NULL:
+    """The function `name` of scipy.linalg.cython_blas."""
+    from scipy.linalg import cython_blas
+    capsule = cython_blas.__pyx_capi__[name]
+    return PyCapsule_GetPointer(capsule, PyCapsule_GetName(capsule))
+
+
+cdef dgemm_t dgemm = <dgemm_t>_blas("dgemm")
+cdef dtrsm_t dtrsm = <dtrsm_t>_blas("dtrsm")
+
+
+cdef inline void gemm(const double *A, const double *B, double *C, int m, int k, int n,
+                      bint ta, bint add) noexcept nogil:
+    """Row-major C (m×n) = op(A)·B (op: transpose when ta; A is m×k or k×m, B k×n), or C += it
+    when add: BLAS's column-major Cᵀ = Bᵀ·op(A)ᵀ."""
+    cdef char no = b'N', tr = b'T'
+    cdef double one = 1.0, beta = 1.0 if add else 0.0
+    cdef int lda = m if ta else k
+    dgemm(&no, &tr if ta else &no, &n, &m, &k, &one, <double *>B, &n, <double *>A, &lda,
+          &beta, C, &n)
+
+
+cdef inline void cho_solve_rows(const double *L, double *X, int n, int ncols) noexcept nogil:
+    """Row-major X (n×ncols) := (L·Lᵀ)⁻¹·X for L (n×n) row-major lower: in BLAS's column-major
+    terms Xᵀ := Xᵀ·U⁻¹·U⁻ᵀ with U = Lᵀ (L's memory read column-major)."""
+    cdef char right = b'R', upper = b'U', no = b'N', tr = b'T', nonunit = b'N'
+    cdef double one = 1.0
+    dtrsm(&right, &upper, &no, &nonunit, &ncols, &n, &one, <double *>L, &n, X, &ncols)
+    dtrsm(&right, &upper, &tr, &nonunit, &ncols, &n, &one, <double *>L, &n, X, &ncols)
 
 
 cdef inline void matmul(const double *A, const double *B, double *C, int m, int k, int n,
@@ -126,20 +168,14 @@ def factor(const double[:, :, ::1] Qxx, const double[:, :, ::1] Qxv,
             for j in range(nx):
                 P[K, i, j] = P_end[i, j]
         for k in range(K - 1, -1, -1):
-            matmul(&P[k + 1, 0, 0], &A[k, 0, 0], PA, nx, nx, nx, False, False, False)
-            matmul(&P[k + 1, 0, 0], &B[k, 0, 0], PB, nx, nx, nv, False, False, False)
-            for i in range(nx):
-                for j in range(nx):
-                    Hxx[i * nx + j] = Qxx[k, i, j]
-            matmul(&A[k, 0, 0], PA, Hxx, nx, nx, nx, True, False, True)
-            for i in range(nx):
-                for j in range(nv):
-                    Hxv[k, i, j] = Qxv[k, i, j]
-            matmul(&A[k, 0, 0], PB, &Hxv[k, 0, 0], nx, nx, nv, True, False, True)
-            for i in range(nv):
-                for j in range(nv):
-                    chol[k, i, j] = Qvv[k, i, j]
-            matmul(&B[k, 0, 0], PB, &chol[k, 0, 0], nv, nx, nv, True, False, True)
+            gemm(&P[k + 1, 0, 0], &A[k, 0, 0], PA, nx, nx, nx, False, False)
+            gemm(&P[k + 1, 0, 0], &B[k, 0, 0], PB, nx, nx, nv, False, False)
+            memcpy(Hxx, &Qxx[k, 0, 0], nx * nx * sizeof(double))
+            gemm(&A[k, 0, 0], PA, Hxx, nx, nx, nx, True, True)
+            memcpy(&Hxv[k, 0, 0], &Qxv[k, 0, 0], nx * nv * sizeof(double))
+            gemm(&A[k, 0, 0], PB, &Hxv[k, 0, 0], nx, nx, nv, True, True)
+            memcpy(&chol[k, 0, 0], &Qvv[k, 0, 0], nv * nv * sizeof(double))
+            gemm(&B[k, 0, 0], PB, &chol[k, 0, 0], nv, nx, nv, True, True)
             for i in range(nv):
                 for j in range(i):
                     chol[k, i, j] = 0.5 * (chol[k, i, j] + chol[k, j, i])
@@ -151,10 +187,9 @@ def factor(const double[:, :, ::1] Qxx, const double[:, :, ::1] Qxv,
             for i in range(nv):
                 for j in range(nx):
                     T[i * nx + j] = -Hxv[k, j, i]
-            cho_solve(&chol[k, 0, 0], T, nv, nx)
-            for i in range(nv * nx):
-                gain[k, i // nx, i % nx] = T[i]
-            matmul(&Hxv[k, 0, 0], T, Hxx, nx, nv, nx, False, False, True)
+            cho_solve_rows(&chol[k, 0, 0], T, nv, nx)
+            memcpy(&gain[k, 0, 0], T, nv * nx * sizeof(double))
+            gemm(&Hxv[k, 0, 0], T, Hxx, nx, nv, nx, False, True)
             for i in range(nx):
                 for j in range(nx):
                     P[k, i, j] = 0.5 * (Hxx[i * nx + j] + Hxx[j * nx + i])

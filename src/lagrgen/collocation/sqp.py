@@ -312,11 +312,13 @@ class StructuredQP:
 
     def point_costs(self, W, g):
         """(G, γ): each point's cost ½·yᵀ·G·y + γᵀ·y in y from its block W and gradient g."""
-        Tt = self.T.transpose(0, 2, 1)
-        TW = Tt @ W
-        G = TW @ self.T
-        gamma = (TW @ self.t[:, :, None])[:, :, 0] + (Tt @ g[:, :, None])[:, :, 0]
-        return G, gamma
+        G = self.T.transpose(0, 2, 1) @ W @ self.T
+        return G, self.point_gradients(W, g)
+
+    def point_gradients(self, W, g):
+        """γ = Tᵀ·(W·t + g) of each point (`point_costs`' linear part alone)."""
+        Wt = (W @ self.t[:, :, None])[:, :, 0] + g
+        return (self.T.transpose(0, 2, 1) @ Wt[:, :, None])[:, :, 0]
 
     # -- per interval: the states of its inner points and end -------------------------------------
     def interval_maps(self):
@@ -620,7 +622,7 @@ def solve_qp_active(qp, lin, active, inertia, tol=1e-10, passes=None):
                                               np.where(row_on, row_rho, 0.0))
             refactor = False
         else:
-            gamma = qp.point_costs(W, g)[1]
+            gamma = qp.point_gradients(W, g)
         qp.vectors(gamma, row_g)
         y = qp.solve()
         dz = qp.steps(y)
@@ -754,7 +756,7 @@ def solve_qp_interior(qp, lin, active, inertia, tol=1e-9, iterations=IPM_ITERATI
                 gamma = _factored(qp, W, g, inertia, row_w)[0]
                 factored[0] = True
             else:
-                gamma = qp.point_costs(W, g)[1]
+                gamma = qp.point_gradients(W, g)
             qp.vectors(gamma, row_g)
             y = qp.solve()
             dz, value = qp.steps(y).ravel(), qp.row_values()
