@@ -144,6 +144,60 @@ cdef inline void cho_solve(const double *L, double *X, int n, int ncols) noexcep
             X[i * ncols + c] = s / L[i * n + i]
 
 
+def stage_hessians(const double[:, :, ::1] G, const cnp.int64_t[:, ::1] points,
+                   const double[:, :, :, ::1] C, const double[:, :, :, ::1] E,
+                   double[:, :, ::1] Qxx, double[:, :, ::1] Qxv, double[:, :, ::1] Qvv):
+    """Each stage's Hessian in (X, v) from its points' Hessians G (P, ny, ny) in y: the start's
+    (points[k, 0]) and each inner point's (points[k, p + 1], y = C[p, k]·X + E[p, k]·v + ·):
+    Qxx = G_s + Σ Cᵀ·G·C, Qxv = Σ Cᵀ·G·E, Qvv = Σ Eᵀ·G·E (K stages, Qxx (K, ny, ny), Qxv (K,
+    ny, nv), Qvv (K, nv, nv))."""
+    cdef int K = Qxx.shape[0], ny = Qxx.shape[1], nv = Qvv.shape[1], inner = C.shape[0], k, p
+    cdef double *GC = <double *>malloc(ny * ny * sizeof(double))
+    cdef double *GE = <double *>malloc(ny * nv * sizeof(double))
+    if GC == NULL or GE == NULL:
+        free(GC)
+        free(GE)
+        raise MemoryError()
+    with nogil:
+        for k in range(K):
+            memcpy(&Qxx[k, 0, 0], &G[points[k, 0], 0, 0], ny * ny * sizeof(double))
+            for p in range(inner):
+                gemm(&G[points[k, p + 1], 0, 0], &C[p, k, 0, 0], GC, ny, ny, ny, False, False)
+                gemm(&G[points[k, p + 1], 0, 0], &E[p, k, 0, 0], GE, ny, ny, nv, False, False)
+                gemm(&C[p, k, 0, 0], GC, &Qxx[k, 0, 0], ny, ny, ny, True, True)
+                gemm(&C[p, k, 0, 0], GE, &Qxv[k, 0, 0], ny, ny, nv, True, p > 0)
+                gemm(&E[p, k, 0, 0], GE, &Qvv[k, 0, 0], nv, ny, nv, True, p > 0)
+    free(GC)
+    free(GE)
+    return None
+
+
+def stage_gradients(const double[:, :, ::1] G, const double[:, ::1] gamma,
+                    const cnp.int64_t[:, ::1] points, const double[:, :, :, ::1] C,
+                    const double[:, :, :, ::1] E, const double[:, :, ::1] e,
+                    double[:, ::1] qx, double[:, ::1] qv):
+    """Each stage's gradient in (X, v) from its points' Hessians G and gradients γ in y (the
+    `stage_hessians` arrangement, y = C·X + E·v + e at an inner point): qx = γ_s + Σ Cᵀ·(G·e + γ),
+    qv = Σ Eᵀ·(G·e + γ)."""
+    cdef int K = qx.shape[0], ny = qx.shape[1], nv = qv.shape[1], inner = C.shape[0], k, p, i
+    cdef double *lin = <double *>malloc(ny * sizeof(double))
+    if lin == NULL:
+        raise MemoryError()
+    with nogil:
+        for k in range(K):
+            memcpy(&qx[k, 0], &gamma[points[k, 0], 0], ny * sizeof(double))
+            for i in range(nv):
+                qv[k, i] = 0.0
+            for p in range(inner):
+                memcpy(lin, &gamma[points[k, p + 1], 0], ny * sizeof(double))
+                matmul(&G[points[k, p + 1], 0, 0], &e[p, k, 0], lin, ny, ny, 1, False, False,
+                       True)
+                matmul(&C[p, k, 0, 0], lin, &qx[k, 0], ny, ny, 1, True, False, True)
+                matmul(&E[p, k, 0, 0], lin, &qv[k, 0], nv, ny, 1, True, False, True)
+    free(lin)
+    return None
+
+
 def factor(const double[:, :, ::1] Qxx, const double[:, :, ::1] Qxv,
            const double[:, :, ::1] Qvv, const double[:, :, ::1] A, const double[:, :, ::1] B,
            const double[:, ::1] P_end, double regularize, double[:, :, ::1] P,

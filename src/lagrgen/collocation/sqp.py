@@ -33,7 +33,7 @@ import numpy as np
 
 from ..errors import LagrgenError
 from ._riccati import factor as riccati_factor, forward as riccati_forward, \
-    vectors as riccati_vectors
+    stage_gradients, stage_hessians, vectors as riccati_vectors
 
 #: An active bound's penalty ρ relative to its point's Hessian scale: the augmented Lagrangian
 #: converges by about this factor per pass, and the recursion stays well conditioned.
@@ -121,7 +121,8 @@ class Stages:
         point = cols // nz
         D = np.zeros((intervals, stride + 1, per, nz))
         np.add.at(D, (k, point - k * stride, rows % per, cols % nz), values)
-        points = np.arange(intervals)[:, None] * stride + np.arange(stride + 1)[None, :]
+        points = (np.arange(intervals)[:, None] * stride
+                  + np.arange(stride + 1)[None, :]).astype(np.int64)
         return cls(D, points, per)
 
 
@@ -353,6 +354,10 @@ class StructuredQP:
             e[:, :nx] = solved[:, rows, -1]
             maps.append((C, E, e))
         self.maps = maps
+        self.inner_C = np.array([C for C, _, _ in maps[:-1]]).reshape(later - 1, count, ny, ny)
+        self.inner_E = np.array([E for _, E, _ in maps[:-1]]).reshape(later - 1, count, ny,
+                                                                      self.nv)
+        self.inner_e = np.array([e for _, _, e in maps[:-1]]).reshape(later - 1, count, ny)
         A, B, b = maps[-1]
         self.A, self.B, self.b = (np.ascontiguousarray(M) for M in (A, B, b))
 
@@ -387,14 +392,10 @@ class StructuredQP:
         regularize·1. False when one is not positive definite (the QP not convex along them)."""
         pts = self.stages.points
         count, ny, nv = pts.shape[0], self.ny, self.nv
-        Qxx, Qxv, Qvv = G[pts[:, 0]].copy(), np.zeros((count, ny, nv)), np.zeros((count, nv, nv))
-        for p, (C, E, _) in enumerate(self.maps[:-1]):
-            Gp = G[pts[:, p + 1]]
-            Ct = C.transpose(0, 2, 1)
-            GE = Gp @ E
-            Qxx += Ct @ Gp @ C
-            Qxv += Ct @ GE
-            Qvv += E.transpose(0, 2, 1) @ GE
+        G = np.ascontiguousarray(G)
+        Qxx, Qxv, Qvv = np.empty((count, ny, ny)), np.zeros((count, ny, nv)), \
+            np.zeros((count, nv, nv))
+        stage_hessians(G, pts, self.inner_C, self.inner_E, Qxx, Qxv, Qvv)
         if row_weights is not None and np.any(row_weights):
             w = self.rows.padded(row_weights, count)[:, :, None]
             alpha_t = self.alpha_pad.transpose(0, 2, 1)
@@ -423,13 +424,10 @@ class StructuredQP:
     def vectors(self, gamma, row_gradients=None):
         """The backward pass of the affine parts for the point gradients γ and the rows' terms
         g_r·[α; β] in their stages (after `factor`)."""
-        pts, G = self.stages.points, self.G
-        qx, qv = gamma[pts[:, 0]].copy(), np.zeros((pts.shape[0], self.nv))
-        for p, (C, E, e) in enumerate(self.maps[:-1]):
-            lin = (G[pts[:, p + 1]] @ e[:, :, None])[:, :, 0] + gamma[pts[:, p + 1]]
-            qx += (C.transpose(0, 2, 1) @ lin[:, :, None])[:, :, 0]
-            qv += (E.transpose(0, 2, 1) @ lin[:, :, None])[:, :, 0]
-        count = pts.shape[0]
+        pts, count = self.stages.points, self.stages.points.shape[0]
+        gamma = np.ascontiguousarray(gamma)
+        qx, qv = np.empty((count, self.ny)), np.empty((count, self.nv))
+        stage_gradients(self.G, gamma, pts, self.inner_C, self.inner_E, self.inner_e, qx, qv)
         if row_gradients is not None and np.any(row_gradients):
             gr = self.rows.padded(row_gradients, count)[:, :, None]
             qx += (self.alpha_pad.transpose(0, 2, 1) @ gr)[:, :, 0]
