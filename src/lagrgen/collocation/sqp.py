@@ -57,8 +57,9 @@ FEASIBLE = 1e-3
 FIRST_REGULARIZATION, MAX_REGULARIZATION, GROWTH = 1e-8, 1e4, 10.0
 #: SQP iterations by default.
 SQP_ITERATIONS = 30
-#: Passes of the active set before the QP turns to the interior point; its iterations.
-ACTIVE_PASSES, IPM_ITERATIONS = 8, 60
+#: Passes of the active set before the QP turns to the interior point (QUICK_PASSES after a QP
+#: the active set did not settle); the interior point's iterations.
+ACTIVE_PASSES, QUICK_PASSES, IPM_ITERATIONS = 8, 2, 60
 DEBUG = False
 
 
@@ -509,17 +510,18 @@ class QPResult:
     active: ActiveSet
     passes: int
     regularization: float
+    interior: bool = False  # solved by the interior point (the active set did not settle)
 
 
-def solve_qp(tr, stages, rows, lin, active, inertia=None, tol=1e-10):
-    """The QP of `lin`: by the active set when it settles within ACTIVE_PASSES (a warm start's
+def solve_qp(tr, stages, rows, lin, active, inertia=None, tol=1e-10, passes=ACTIVE_PASSES):
+    """The QP of `lin`: by the active set when it settles within `passes` (a warm start's
     set, updated in place), else by the interior point (`solve_qp_interior`); the inputs'
     Hessians regularized where they are not positive definite (`inertia`, an `Inertia`, keeps
     the last regularization). `QPResult`."""
     inertia = Inertia() if inertia is None else inertia
     qp = StructuredQP(tr, stages, rows, lin)
     try:
-        return solve_qp_active(qp, lin, active, inertia, tol)
+        return solve_qp_active(qp, lin, active, inertia, tol, passes)
     except Unsupported:
         if DEBUG:
             print("    the active set did not settle: interior point")
@@ -822,7 +824,7 @@ def solve_qp_interior(qp, lin, active, inertia, tol=1e-9, iterations=IPM_ITERATI
         mult[:] = np.where(side != 0, values, 0.0)
     dz = dz.reshape(P, nz)
     mu, nu_ = qp.multipliers(y, dz, lin.W, lin.g, z.reshape(P, nz), row_z)
-    return QPResult(dz, mu, nu_, active, iteration, 0.0)
+    return QPResult(dz, mu, nu_, active, iteration, 0.0, interior=True)
 
 
 def _fraction_to_boundary(a, da, has_a, b, db, has_b, fraction):
@@ -891,10 +893,11 @@ def solve(tr, x0, lam0=None, z0=None, tol=1e-8, max_iter=SQP_ITERATIONS, monitor
     lin = linearize(tr, x, lam, stages, rows)
     row_z0 = None if lam0 is None else lam[tr.defect_row + tr.n_defects + rows.index]
     active = ActiveSet.start(lin, None if z0 is None else np.asarray(z0)[:P * nz], row_z0)
-    penalty, passes, inertia = 0.0, 0, Inertia()
+    penalty, passes, inertia, qp = 0.0, 0, Inertia(), None
     primal_now, dual_now, z_now = np.inf, np.inf, np.zeros(L.size)
     for iteration in range(1, max_iter + 1):
-        qp = solve_qp(tr, stages, rows, lin, active, inertia)
+        qp = solve_qp(tr, stages, rows, lin, active, inertia,
+                      passes=QUICK_PASSES if qp is not None and qp.interior else ACTIVE_PASSES)
         passes += qp.passes
         step = np.zeros(L.size)
         step[:P * nz] = qp.dz.ravel()
