@@ -144,6 +144,21 @@ cdef inline void cho_solve(const double *L, double *X, int n, int ncols) noexcep
             X[i * ncols + c] = s / L[i * n + i]
 
 
+def point_hessians(const double[:, :, ::1] T, const double[:, :, ::1] W, double[:, :, ::1] G):
+    """G_j = T_jᵀ·W_j·T_j of every point j: its Hessian block W (P, nz, nz) in the variables
+    y = [dx, du] that T (P, nz, ny) maps to its step dz = T·y + t."""
+    cdef int count = T.shape[0], nz = T.shape[1], ny = T.shape[2], j
+    cdef double *WT = <double *>malloc(nz * ny * sizeof(double))
+    if WT == NULL:
+        raise MemoryError()
+    with nogil:
+        for j in range(count):
+            gemm(&W[j, 0, 0], &T[j, 0, 0], WT, nz, nz, ny, False, False)
+            gemm(&T[j, 0, 0], WT, &G[j, 0, 0], ny, nz, ny, True, False)
+    free(WT)
+    return None
+
+
 def stage_hessians(const double[:, :, ::1] G, const cnp.int64_t[:, ::1] points,
                    const double[:, :, :, ::1] C, const double[:, :, :, ::1] E,
                    double[:, :, ::1] Qxx, double[:, :, ::1] Qxv, double[:, :, ::1] Qvv):

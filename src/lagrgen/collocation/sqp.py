@@ -33,7 +33,7 @@ import numpy as np
 
 from ..errors import LagrgenError
 from ._riccati import factor as riccati_factor, forward as riccati_forward, \
-    stage_gradients, stage_hessians, vectors as riccati_vectors
+    point_hessians, stage_gradients, stage_hessians, vectors as riccati_vectors
 
 #: An active bound's penalty ρ relative to its point's Hessian scale: the augmented Lagrangian
 #: converges by about this factor per pass, and the recursion stays well conditioned.
@@ -314,7 +314,8 @@ class StructuredQP:
 
     def point_costs(self, W, g):
         """(G, γ): each point's cost ½·yᵀ·G·y + γᵀ·y in y from its block W and gradient g."""
-        G = self.T.transpose(0, 2, 1) @ W @ self.T
+        G = np.empty((self.T.shape[0], self.ny, self.ny))
+        point_hessians(self.T, np.ascontiguousarray(W), G)
         return G, self.point_gradients(W, g)
 
     def point_gradients(self, W, g):
