@@ -50,7 +50,12 @@ cdef inline void gemm(const double *A, const double *B, double *C, int m, int k,
     when add: BLAS's column-major Cᵀ = Bᵀ·op(A)ᵀ."""
     cdef char no = b'N', tr = b'T'
     cdef double one = 1.0, beta = 1.0 if add else 0.0
-    cdef int lda = m if ta else k
+    cdef int lda = m if ta else k, i
+    if m == 0 or n == 0 or k == 0:         # BLAS refuses a leading dimension of 0
+        if not add:
+            for i in range(m * n):
+                C[i] = 0.0
+        return
     dgemm(&no, &tr if ta else &no, &n, &m, &k, &one, <double *>B, &n, <double *>A, &lda,
           &beta, C, &n)
 
@@ -60,6 +65,8 @@ cdef inline void cho_solve_rows(const double *L, double *X, int n, int ncols) no
     terms Xᵀ := Xᵀ·U⁻¹·U⁻ᵀ with U = Lᵀ (L's memory read column-major)."""
     cdef char right = b'R', upper = b'U', no = b'N', tr = b'T', nonunit = b'N'
     cdef double one = 1.0
+    if n == 0 or ncols == 0:
+        return
     dtrsm(&right, &upper, &no, &nonunit, &ncols, &n, &one, <double *>L, &n, X, &ncols)
     dtrsm(&right, &upper, &tr, &nonunit, &ncols, &n, &one, <double *>L, &n, X, &ncols)
 
