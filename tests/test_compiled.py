@@ -4,6 +4,7 @@ import os
 import subprocess
 import sys
 import textwrap
+import time
 
 import numpy as np
 import pytest
@@ -329,3 +330,72 @@ def test_a_relative_out_dir_named_like_a_compiler_option_is_a_folder(tmp_path, m
     mod = lagrgen.build(spring_mass("dash_folder", 4.0), out_dir="-O3")
     assert (tmp_path / "-O3" / "dash_folder_model.c").is_file()
     assert mod.rhs(0.0, [0.1, 0.0])[1] == pytest.approx(-0.2)     # -k·x/m
+
+
+# -- the compilers' runner (lagrgen.toolchain.run_compilers) ------------------------------------
+SLEEPER = ("import os, sys, time\n"
+           "open(sys.argv[1], 'w').write(str(os.getpid()))\n"
+           "time.sleep(float(sys.argv[2]))\n"
+           "sys.exit(int(sys.argv[3]))\n")
+
+
+def _sleepers(tmp_path, seconds, codes=None):
+    """(command, source) jobs of processes that write their pid, sleep, and exit with a code."""
+    codes = codes or [0] * len(seconds)
+    return [([sys.executable, "-c", SLEEPER, str(tmp_path / f"pid{k}"), str(s), str(c)],
+             tmp_path / f"unit{k}.c") for k, (s, c) in enumerate(zip(seconds, codes))]
+
+
+def _gone(tmp_path, count):
+    """True when each started job's process no longer exists (killed and reaped)."""
+    for k in range(count):
+        path = tmp_path / f"pid{k}"
+        if not path.exists() or not path.read_text():
+            continue
+        try:
+            os.kill(int(path.read_text()), 0)
+        except ProcessLookupError:
+            continue
+        return False
+    return True
+
+
+def test_a_ctrl_c_during_the_compilers_kills_them_at_once_and_leaves_no_thread(tmp_path):
+    """An interrupt while compilers run reaches the caller at once (not when they finish), the
+    compilers are killed and reaped, and no thread is left behind (the units ran on a thread
+    pool, whose locks an interrupt could leave held and hang the build)."""
+    import signal
+    import threading
+    from lagrgen.toolchain import run_compilers
+
+    def interrupt(signum, frame):
+        raise KeyboardInterrupt
+    threads = threading.active_count()
+    old = signal.signal(signal.SIGALRM, interrupt)
+    try:
+        signal.setitimer(signal.ITIMER_REAL, 1.0)
+        began = time.perf_counter()
+        with pytest.raises(KeyboardInterrupt):
+            run_compilers(_sleepers(tmp_path, [30, 30, 30]), 2)
+        waited = time.perf_counter() - began
+    finally:
+        signal.setitimer(signal.ITIMER_REAL, 0)
+        signal.signal(signal.SIGALRM, old)
+    assert waited < 10
+    assert _gone(tmp_path, 3)
+    assert not (tmp_path / "pid2").exists()           # the third never started
+    assert threading.active_count() == threads
+
+
+def test_a_failed_unit_stops_the_others_and_says_which(tmp_path):
+    """The first compiler to fail raises CompileError naming its unit and showing its output;
+    the ones still running are killed, the ones waiting never start."""
+    from lagrgen.toolchain import run_compilers
+    jobs = _sleepers(tmp_path, [30, 0.1, 30], codes=[0, 3, 0])
+    began = time.perf_counter()
+    with pytest.raises(lagrgen.CompileError, match=r"unit1\.c \(exit 3\)"):
+        run_compilers(jobs, 2)
+    assert time.perf_counter() - began < 10
+    assert _gone(tmp_path, 3) and not (tmp_path / "pid2").exists()
+    run_compilers(_sleepers(tmp_path, [0.05] * 5), 2)    # all succeed: no error
+    assert all((tmp_path / f"pid{k}").exists() for k in range(5))

@@ -8,6 +8,7 @@ import shlex
 import subprocess
 import sysconfig
 import tempfile
+import time
 from pathlib import Path
 
 from .errors import BuildError, CompileError
@@ -49,17 +50,7 @@ def link_flags(flags):
 
 def run_compiler(cmd, source_path):
     """Run the compiler command `cmd` on `source_path`; BuildError or CompileError on failure."""
-    try:
-        result = subprocess.run(cmd, capture_output=True, text=True)
-    except FileNotFoundError:
-        raise BuildError(
-            f"no C compiler found (tried {cmd[0]!r}): install one (e.g. `apt-get install gcc`), "
-            "set $CC, or use lagrgen.build(model, backend='python')") from None
-    if result.returncode != 0:
-        message = "\n".join((result.stderr or result.stdout).strip().splitlines()[:60])
-        raise CompileError(
-            f"the C compiler failed on {source_path.name} (exit {result.returncode}):\n{message}\n"
-            f"command: {' '.join(shlex.quote(c) for c in cmd)}")
+    run_compilers([(cmd, source_path)], 1)
 
 
 def compile_jobs():
@@ -71,27 +62,97 @@ def compile_jobs():
 
 
 def compile_units(sources, output_path, flags, unit_flags=None):
-    """Compile the translation units `sources` (paths; the first is the module glue) to objects in
-    parallel (`compile_jobs()` at once) and link them into the extension module `output_path`.
+    """Compile the translation units `sources` (paths; the first is the module glue) to objects,
+    `compile_jobs()` compilers at once, and link them into the extension module `output_path`.
     `unit_flags(path)` may return the flags of one unit (default: `flags`)."""
-    from concurrent.futures import ThreadPoolExecutor
     include = sysconfig.get_paths()["include"]
     templates = str(TEMPLATES)
 
-    def compile_one(source):
+    def command(source):
         own = unit_flags(source) if unit_flags else flags
-        obj = source.with_suffix(".o")
-        run_compiler([*compiler_command(), "-c", *own, "-I", include, "-I", templates,
-                      _path_argument(source), "-o", _path_argument(obj)], source)
-        return obj
+        return [*compiler_command(), "-c", *own, "-I", include, "-I", templates,
+                _path_argument(source), "-o", _path_argument(source.with_suffix(".o"))]
 
-    # longest first, so the last job to start is a short one
-    order = sorted(sources, key=lambda path: -path.stat().st_size)
-    with ThreadPoolExecutor(max_workers=min(compile_jobs(), len(order))) as pool:
-        objects = dict(zip(order, pool.map(compile_one, order)))
+    run_compilers([(command(source), source) for source in sources], compile_jobs())
     run_compiler([*compiler_command(), "-shared", *link_flags(flags),
-                  *(_path_argument(objects[path]) for path in sources), "-o",
+                  *(_path_argument(path.with_suffix(".o")) for path in sources), "-o",
                   _path_argument(output_path)], output_path)
+
+
+#: Seconds between looks at the running compilers.
+POLL_SECONDS = 0.005
+
+
+def run_compilers(jobs, at_once):
+    """Run the compiler commands of `jobs`, (command, source path) pairs, `at_once` at a time;
+    BuildError or CompileError on the first failure.
+
+    The compilers are processes started and watched from the calling thread, without worker
+    threads: an interrupt (Ctrl-C) or a failed unit kills the ones running and raises at once,
+    and no lock is ever held that an interrupt could leave taken (a ThreadPoolExecutor's could,
+    and hang the build or the interpreter's exit)."""
+    pending, running = list(jobs), []
+    try:
+        while pending or running:
+            while pending and len(running) < at_once:
+                running.append(_Compiler(*pending.pop(0)))
+            finished = [job for job in running if job.process.poll() is not None]
+            if not finished:
+                time.sleep(POLL_SECONDS)
+            for job in finished:
+                running.remove(job)
+                job.check()
+    finally:
+        for job in running:
+            job.kill()
+
+
+class _Compiler:
+    """One compiler process, its output kept in a temporary file."""
+
+    def __init__(self, cmd, source_path):
+        self.cmd, self.source_path = cmd, source_path
+        self.log = tempfile.TemporaryFile()
+        try:
+            self.process = subprocess.Popen(cmd, stdin=subprocess.DEVNULL, stdout=self.log,
+                                            stderr=subprocess.STDOUT)
+        except BaseException as exc:
+            self.log.close()
+            if isinstance(exc, FileNotFoundError):
+                raise BuildError(
+                    f"no C compiler found (tried {cmd[0]!r}): install one (e.g. `apt-get "
+                    "install gcc`), set $CC, or use lagrgen.build(model, backend='python')"
+                ) from None
+            raise
+
+    def check(self):
+        """CompileError with the compiler's first 60 lines when it failed."""
+        code = self.process.returncode
+        self.log.seek(0)
+        text = self.log.read().decode(errors="replace")
+        self.log.close()
+        if code != 0:
+            message = "\n".join(text.strip().splitlines()[:60])
+            raise CompileError(
+                f"the C compiler failed on {self.source_path.name} (exit {code}):\n{message}\n"
+                f"command: {' '.join(shlex.quote(c) for c in self.cmd)}")
+
+    def kill(self):
+        """Kill and reap the process with bounded waits only (an interrupt inside Popen.poll
+        can leave Popen's own lock held: then it is reaped directly)."""
+        try:
+            self.process.kill()
+        except OSError:
+            pass
+        try:
+            self.process.wait(timeout=1)
+        except subprocess.TimeoutExpired:
+            try:
+                os.waitpid(self.process.pid, 0)
+            except (ChildProcessError, OSError):
+                pass
+        finally:
+            self.log.close()
 
 
 def _path_argument(path):
