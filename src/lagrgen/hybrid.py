@@ -1266,7 +1266,8 @@ def solve_hybrid_native(mod, t_span, y0, method, p, u_spec, rtol, atol, t_eval=N
         list(u_spec), t0, tf, np.asarray(y0, dtype=float), rtol, atol, float(max_step), first,
         t_eval, -1.0 if rest_velocity is None else float(rest_velocity), float(gap_tol),
         int(max_transitions), poll, int(max_steps or 0), float(max_wall_time or 0.0),
-        stops=stops, planar_kind=planar_kinds, planar_index=planar_index)
+        stops=stops, planar_kind=planar_kinds, planar_index=planar_index,
+        rhs=mod.compiled_model.function_address("rhs"))
     transitions = [(float(t), system.names[int(k)], KIND_NAMES[int(kind)])
                    for t, k, kind in out["transitions"]]
     message = native_failure_message(mod, system, out, transitions, float(gap_tol), t0, tf,

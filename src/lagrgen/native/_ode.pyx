@@ -494,6 +494,7 @@ cdef extern from "lg_hybrid.h":
         const int *planar_index
         int *pmode
         double *anchor
+        lg_rhs_fn rhs
     ctypedef struct lg_hybrid_result_t:
         int status
         int stopped
@@ -513,7 +514,7 @@ def solve_hybrid(str method, uintptr_t terms, int n, int m, int ni, int nf, norm
                  double max_step, double first_step, t_eval, double rest_velocity,
                  double gap_tol, long max_transitions, Poll poll=None, long max_steps=0,
                  double max_wall_time=0.0, double save_budget=0.0, stops=(), planar_kind=(),
-                 planar_index=()):
+                 planar_index=(), uintptr_t rhs=0):
     """Run a hybrid solve (lagrgen/native/lg_hybrid.c) in C without the GIL.
 
     Parameters
@@ -529,6 +530,8 @@ def solve_hybrid(str method, uintptr_t terms, int n, int m, int ni, int nf, norm
     stops : (k, 4) numbers: the enforced limits (coordinate, sign, bound, restitution), impacts
         after the model's ni
     planar_kind, planar_index : arrays of int (npf): the planar frictions' normal forces
+    rhs : int
+        Address of the model's C rhs (0: none): a free mode's ẏ (lg_hybrid.h).
 
     Returns
     -------
@@ -592,6 +595,7 @@ def solve_hybrid(str method, uintptr_t terms, int n, int m, int ni, int nf, norm
         hy.planar_index = <const int *>cnp.PyArray_DATA(px)
         hy.pmode = <int *>cnp.PyArray_DATA(pmode)
         hy.anchor = <double *>cnp.PyArray_DATA(anchor)
+        hy.rhs = <lg_rhs_fn>rhs
         set_options(&op, method, t0, tf, rtol, <const double *>cnp.PyArray_DATA(atola),
                     max_step, first_step,
                     NULL if te is None else <const double *>cnp.PyArray_DATA(te),

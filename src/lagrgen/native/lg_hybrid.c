@@ -58,6 +58,7 @@ typedef struct {
     double *fastest, *fy, *fy2, *yp, *force_row;
     double *rest_speed;            /* per impact at the start: √(2·gap_tol·|g̈|) */
     const int *contact, *slip, *pmode;   /* the mode of the current evaluation */
+    int free;                      /* that mode is free (hy_is_free): ẏ from the model's rhs */
     const double *anchor;
     lg_hybrid_result_t *result;
 } hy_ctx;
@@ -433,6 +434,20 @@ static int hy_solve(hy_ctx *c, double t, const double *y, const double *u, const
     return 0;
 }
 
+/* 1 when the mode with `contact` is free: the model has no constraints, impacts or frictions
+ * of its own, every stop is open, and its own rhs is at hand (a narrower test than
+ * lagrgen.hybrid.HybridSystem.is_free): the mode equations are then M·q̈ = F, which the rhs
+ * solves by the model's own method. */
+static int hy_is_free(const hy_ctx *c, const int *contact)
+{
+    if (!c->h->rhs || c->m || c->h->ni || c->nf || c->npf)
+        return 0;
+    for (int i = 0; i < c->ni; ++i)
+        if (contact[i])
+            return 0;
+    return 1;
+}
+
 /* -- the segment's functions (p is the context) --------------------------------------------- */
 /* hy_solve in the segment's mode, unless the last solve was at this very (t, y) in it (the
  * events at the point of the step's last stage): 1 on failure. */
@@ -452,6 +467,8 @@ static int hy_solve_segment(hy_ctx *c, double t, const double *y, const double *
 static int hy_rhs(void *ctx, double t, const double *y, const double *u, double *ydot)
 {
     hy_ctx *c = (hy_ctx *)ctx;
+    if (c->free)
+        return c->h->rhs(t, y, c->h->p, u, ydot);
     if (hy_solve_segment(c, t, y, u))
         return 1;
     memcpy(ydot, y + c->n, c->n * sizeof(double));
@@ -502,6 +519,13 @@ static void hy_event_values(hy_ctx *c, const int *contact, const int *slip, cons
 static int hy_events(void *ctx, double t, const double *y, const double *u, double *values)
 {
     hy_ctx *c = (hy_ctx *)ctx;
+    if (c->free) {                                 /* the stops' gaps (hy_terms' stop rows) */
+        for (int s = 0; s < c->ni; ++s) {
+            const double *stop = c->h->stops + 4 * s;
+            values[s] = stop[1] * (y[(int)stop[0]] - stop[2]) + c->gap_offset[s];
+        }
+        return 0;
+    }
     if (hy_solve_segment(c, t, y, u))
         return 1;
     hy_event_values(c, c->contact, c->slip, c->pmode, c->anchor, values);
@@ -1206,10 +1230,13 @@ static int hy_forces_since(hy_ctx *c, const int *contact, const int *slip, const
     lg_hybrid_result_t *res = c->result;
     int n = c->n, k = c->m + c->ni + c->nf + 2 * c->npf;
     double *row = c->force_row;
+    int free = hy_is_free(c, contact);
     for (size_t r = k ? res->forces.len / k : res->t.len; r < res->t.len; ++r) {
         double t = res->t.data[r];
         hy_inputs(c, t);
-        if (hy_solve(c, t, res->y.data + r * 2 * n, c->u, contact, slip, pmode, anchor)) {
+        if (free) {                                    /* every stop open: no force */
+            memset(row, 0, k * sizeof(double));
+        } else if (hy_solve(c, t, res->y.data + r * 2 * n, c->u, contact, slip, pmode, anchor)) {
             for (int a = 0; a < k; ++a)
                 row[a] = NAN;
         } else {
@@ -1458,6 +1485,7 @@ int lg_hybrid_solve(lg_hybrid_t *h, const lg_options_t *options, lg_hybrid_resul
         c.slip = mode_s;
         c.pmode = mode_p;
         c.anchor = mode_a;
+        c.free = hy_is_free(&c, mode_c);
         double piece = hy_lift_off(&c, t, y);
         double t_end = isfinite(piece) ? fmin(tf, t + 0.5 * piece) : tf;
         if (!(t_end > t))
