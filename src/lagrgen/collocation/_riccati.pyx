@@ -155,7 +155,7 @@ def point_hessians(const double[:, :, ::1] T, const double[:, :, ::1] W, double[
     """G_j = T_jᵀ·W_j·T_j of every point j: its Hessian block W (P, nz, nz) in the variables
     y = [dx, du] that T (P, nz, ny) maps to its step dz = T·y + t."""
     cdef int count = T.shape[0], nz = T.shape[1], ny = T.shape[2], j
-    cdef double *WT = <double *>malloc(nz * ny * sizeof(double))
+    cdef double *WT = <double *>malloc((nz * ny + 1) * sizeof(double))
     if WT == NULL:
         raise MemoryError()
     with nogil:
@@ -174,8 +174,8 @@ def stage_hessians(const double[:, :, ::1] G, const cnp.int64_t[:, ::1] points,
     Qxx = G_s + Σ Cᵀ·G·C, Qxv = Σ Cᵀ·G·E, Qvv = Σ Eᵀ·G·E (K stages, Qxx (K, ny, ny), Qxv (K,
     ny, nv), Qvv (K, nv, nv))."""
     cdef int K = Qxx.shape[0], ny = Qxx.shape[1], nv = Qvv.shape[1], inner = C.shape[0], k, p
-    cdef double *GC = <double *>malloc(ny * ny * sizeof(double))
-    cdef double *GE = <double *>malloc(ny * nv * sizeof(double))
+    cdef double *GC = <double *>malloc((ny * ny + 1) * sizeof(double))
+    cdef double *GE = <double *>malloc((ny * nv + 1) * sizeof(double))
     if GC == NULL or GE == NULL:
         free(GC)
         free(GE)
@@ -202,7 +202,7 @@ def stage_gradients(const double[:, :, ::1] G, const double[:, ::1] gamma,
     `stage_hessians` arrangement, y = C·X + E·v + e at an inner point): qx = γ_s + Σ Cᵀ·(G·e + γ),
     qv = Σ Eᵀ·(G·e + γ)."""
     cdef int K = qx.shape[0], ny = qx.shape[1], nv = qv.shape[1], inner = C.shape[0], k, p, i
-    cdef double *lin = <double *>malloc(ny * sizeof(double))
+    cdef double *lin = <double *>malloc((ny + 1) * sizeof(double))
     if lin == NULL:
         raise MemoryError()
     with nogil:
@@ -228,10 +228,10 @@ def factor(const double[:, :, ::1] Qxx, const double[:, :, ::1] Qxv,
     Cholesky factor of Hvv (K, nv, nv) and gain (K, nv, nx). Returns 0, or k + 1 when stage k's
     Hvv (+ regularize·1) is not positive definite."""
     cdef int K = Qxx.shape[0], nx = Qxx.shape[1], nv = Qvv.shape[1], k, i, j
-    cdef double *PA = <double *>malloc(nx * nx * sizeof(double))
-    cdef double *PB = <double *>malloc(nx * nv * sizeof(double))
-    cdef double *Hxx = <double *>malloc(nx * nx * sizeof(double))
-    cdef double *T = <double *>malloc(nv * nx * sizeof(double))
+    cdef double *PA = <double *>malloc((nx * nx + 1) * sizeof(double))
+    cdef double *PB = <double *>malloc((nx * nv + 1) * sizeof(double))
+    cdef double *Hxx = <double *>malloc((nx * nx + 1) * sizeof(double))
+    cdef double *T = <double *>malloc((nv * nx + 1) * sizeof(double))
     cdef int status = 0
     if PA == NULL or PB == NULL or Hxx == NULL or T == NULL:
         free(PA)
@@ -282,8 +282,8 @@ def vectors(const double[:, ::1] qx, const double[:, ::1] qv, const double[:, :,
             const double[:, :, ::1] chol, double[:, ::1] p, double[:, ::1] ff):
     """The backward pass of the vectors after `factor`: p (K+1, nx), ff (K, nv)."""
     cdef int K = qx.shape[0], nx = qx.shape[1], nv = qv.shape[1], k, i
-    cdef double *lin = <double *>malloc(nx * sizeof(double))
-    cdef double *h = <double *>malloc((nx + nv) * sizeof(double))
+    cdef double *lin = <double *>malloc((nx + 1) * sizeof(double))
+    cdef double *h = <double *>malloc((nx + nv + 1) * sizeof(double))
     if lin == NULL or h == NULL:
         free(lin)
         free(h)
