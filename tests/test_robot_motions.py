@@ -291,6 +291,32 @@ def test_a_replan_equals_a_cold_solve_from_the_new_state(swing):
 
 
 @pytest.mark.filterwarnings("ignore", category=DiscretizationWarning)
+def test_an_sqp_solve_that_ends_on_a_flat_optimum_says_so(swing, monkeypatch):
+    """An SQP solve that converges to tol carries no note; one that ends because its steps no
+    longer lower the objective, its stationarity residual above tol (a flat optimum), says so
+    with the residual and how to solve to tol."""
+    from lagrgen.collocation import sqp
+    model, mod = swing
+    T, = model.input_functions
+    prob = swing_problem(mod, T)
+    first = prob.solve(progress=False, mesh_tol=None)
+    state = first.state_at(0.3)
+    replan = dict(initial={"q": state[:1], "qd": state[1:]}, shift=0.3, solver="sqp")
+    exact = prob.resolve(first, **replan)
+    assert exact.success and not [n for n in exact.notes if "SQP" in n]
+    solve = sqp.solve
+
+    def flat(*args, **kwargs):
+        outcome = solve(*args, **kwargs)
+        outcome.dual = 3.2e-4
+        return outcome
+    monkeypatch.setattr(sqp, "solve", flat)
+    stalled = prob.resolve(first, **replan)
+    said = [n for n in stalled.notes if "SQP" in n]
+    assert len(said) == 1 and "3.2e-04 above tol 1e-08" in said[0] and "'ipopt'" in said[0]
+
+
+@pytest.mark.filterwarnings("ignore", category=DiscretizationWarning)
 def test_a_state_that_leaves_its_bound_between_the_points_is_said(swing):
     """Issue 45 item 4 (states): collocation bounds q̇ at its points; where the velocity rides its
     bound, the interpolant between points goes beyond it, and the result says by how much

@@ -264,7 +264,18 @@ def solve_structured(problem, tr, x0, lam0, z0, settings):
                                              seconds, settings.hessian)
     result.callback_seconds = seconds
     result.solver = "sqp"
+    if outcome.converged and outcome.dual > settings.tol:
+        result.notes.append(flat_optimum_note(outcome.dual, settings.tol))
     return result
+
+
+def flat_optimum_note(dual, tol):
+    """The note of an SQP solve that ended on a flat optimum, its stationarity residual `dual`
+    above `tol`."""
+    return (f"the SQP stopped where its steps no longer lower the objective, its stationarity "
+            f"residual {dual:.1e} above tol {tol:g}: the optimum is flat there (a motion not "
+            f"unique to the last digits) and found less precisely than tol; solver='ipopt' "
+            f"solves to tol")
 
 
 class _SQPProgress:

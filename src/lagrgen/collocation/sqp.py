@@ -849,6 +849,7 @@ class Outcome:
     converged: bool
     message: str
     passes: int
+    dual: float = 0.0       # the stationarity residual at x (kkt_error's)
 
 
 def constraint_multipliers(tr, qp, rows):
@@ -921,7 +922,7 @@ def solve(tr, x0, lam0=None, z0=None, tol=1e-8, max_iter=SQP_ITERATIONS, monitor
                 if primal_now <= FEASIBLE * tol and dual_now <= STALL_DUAL:
                     return Outcome(x, lam, z_now, iteration - 1, True,
                                    "converged (no step lowers the merit function further)",
-                                   passes)
+                                   passes, dual_now)
                 raise Unsupported("the SQP's line search failed")
         x = trial
         lam = lam + alpha * (lam_qp - lam)
@@ -932,7 +933,7 @@ def solve(tr, x0, lam0=None, z0=None, tol=1e-8, max_iter=SQP_ITERATIONS, monitor
             monitor(iteration, value, primal, dual, alpha)
         settled = alpha == 1.0 and abs(value - f) <= STALL * max(1.0, abs(f))
         if primal <= FEASIBLE * tol and (dual <= tol or (settled and dual <= STALL_DUAL)):
-            return Outcome(x, lam, z, iteration, True, "converged", passes)
+            return Outcome(x, lam, z, iteration, True, "converged", passes, dual)
         lin = linearize(tr, x, lam, stages, rows)
     return Outcome(x, lam, z, max_iter, False,
                    f"not converged in {max_iter} iterations", passes)
