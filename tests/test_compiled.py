@@ -399,3 +399,11 @@ def test_a_failed_unit_stops_the_others_and_says_which(tmp_path):
     assert _gone(tmp_path, 3) and not (tmp_path / "pid2").exists()
     run_compilers(_sleepers(tmp_path, [0.05] * 5), 2)    # all succeed: no error
     assert all((tmp_path / f"pid{k}").exists() for k in range(5))
+
+
+def test_a_missing_compiler_is_a_build_error_saying_what_to_do(tmp_path, monkeypatch):
+    from pathlib import Path
+    from lagrgen.toolchain import compiler_command, run_compiler
+    monkeypatch.setenv("CC", str(tmp_path / "no_such_cc"))
+    with pytest.raises(lagrgen.BuildError, match=r"no C compiler found .*\$CC.*backend='python'"):
+        run_compiler([*compiler_command(), "--version"], Path("unit.c"))
