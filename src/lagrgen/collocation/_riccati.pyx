@@ -29,8 +29,6 @@ cnp.import_array()
 ctypedef void (*dgemm_t)(char *transa, char *transb, int *m, int *n, int *k, double *alpha,
                          double *a, int *lda, double *b, int *ldb, double *beta, double *c,
                          int *ldc) noexcept nogil
-ctypedef void (*dgemv_t)(char *trans, int *m, int *n, double *alpha, double *a, int *lda,
-                         double *x, int *incx, double *beta, double *y, int *incy) noexcept nogil
 ctypedef void (*dtrsm_t)(char *side, char *uplo, char *transa, char *diag, int *m, int *n,
                          double *alpha, double *a, int *lda, double *b, int *ldb) noexcept nogil
 
@@ -44,7 +42,6 @@ cdef void *_blas(name) except NULL:
 
 cdef dgemm_t dgemm = <dgemm_t>_blas("dgemm")
 cdef dtrsm_t dtrsm = <dtrsm_t>_blas("dtrsm")
-cdef dgemv_t dgemv = <dgemv_t>_blas("dgemv")
 
 
 cdef inline void gemm(const double *A, const double *B, double *C, int m, int k, int n,
@@ -63,24 +60,6 @@ cdef inline void gemm(const double *A, const double *B, double *C, int m, int k,
           &beta, C, &n)
 
 
-cdef inline void gemv(const double *A, const double *x, double *y, int m, int k, bint ta,
-                      bint add) noexcept nogil:
-    """y (m) = op(A)·x (op: transpose when ta; A row-major m×k, or k×m when ta), or y += it
-    when add."""
-    cdef char no = b'N', tr = b'T'
-    cdef int one_step = 1, i
-    cdef double one = 1.0, beta = 1.0 if add else 0.0
-    if m == 0 or k == 0:
-        if not add:
-            for i in range(m):
-                y[i] = 0.0
-        return
-    if ta:
-        dgemv(&no, &m, &k, &one, <double *>A, &m, <double *>x, &one_step, &beta, y, &one_step)
-    else:
-        dgemv(&tr, &k, &m, &one, <double *>A, &k, <double *>x, &one_step, &beta, y, &one_step)
-
-
 cdef inline void cho_solve_rows(const double *L, double *X, int n, int ncols) noexcept nogil:
     """Row-major X (n×ncols) := (L·Lᵀ)⁻¹·X for L (n×n) row-major lower: in BLAS's column-major
     terms Xᵀ := Xᵀ·U⁻¹·U⁻ᵀ with U = Lᵀ (L's memory read column-major)."""
@@ -90,6 +69,41 @@ cdef inline void cho_solve_rows(const double *L, double *X, int n, int ncols) no
         return
     dtrsm(&right, &upper, &no, &nonunit, &ncols, &n, &one, <double *>L, &n, X, &ncols)
     dtrsm(&right, &upper, &tr, &nonunit, &ncols, &n, &one, <double *>L, &n, X, &ncols)
+
+
+cdef inline void matmul(const double *A, const double *B, double *C, int m, int k, int n,
+                        bint ta, bint tb, bint add) noexcept nogil:
+    """C (m×n) = op(A)·op(B) (op: transpose when ta/tb; A is m×k or k×m, B k×n or n×k), or
+    C += it when add. The inner loops run along rows of C and B (contiguous: vectorized)."""
+    cdef int i, j, l
+    cdef double a, s
+    if not add:
+        for i in range(m * n):
+            C[i] = 0.0
+    if tb:
+        for i in range(m):
+            for j in range(n):
+                s = 0.0
+                if ta:
+                    for l in range(k):
+                        s += A[l * m + i] * B[j * k + l]
+                else:
+                    for l in range(k):
+                        s += A[i * k + l] * B[j * k + l]
+                C[i * n + j] += s
+        return
+    if ta:
+        for l in range(k):
+            for i in range(m):
+                a = A[l * m + i]
+                for j in range(n):
+                    C[i * n + j] += a * B[l * n + j]
+    else:
+        for i in range(m):
+            for l in range(k):
+                a = A[i * k + l]
+                for j in range(n):
+                    C[i * n + j] += a * B[l * n + j]
 
 
 cdef inline int cholesky(double *L, int n) noexcept nogil:
@@ -198,9 +212,10 @@ def stage_gradients(const double[:, :, ::1] G, const double[:, ::1] gamma,
                 qv[k, i] = 0.0
             for p in range(inner):
                 memcpy(lin, &gamma[points[k, p + 1], 0], ny * sizeof(double))
-                gemv(&G[points[k, p + 1], 0, 0], &e[p, k, 0], lin, ny, ny, False, True)
-                gemv(&C[p, k, 0, 0], lin, &qx[k, 0], ny, ny, True, True)
-                gemv(&E[p, k, 0, 0], lin, &qv[k, 0], nv, ny, True, True)
+                matmul(&G[points[k, p + 1], 0, 0], &e[p, k, 0], lin, ny, ny, 1, False, False,
+                       True)
+                matmul(&C[p, k, 0, 0], lin, &qx[k, 0], ny, ny, 1, True, False, True)
+                matmul(&E[p, k, 0, 0], lin, &qv[k, 0], nv, ny, 1, True, False, True)
     free(lin)
     return None
 
@@ -277,19 +292,19 @@ def vectors(const double[:, ::1] qx, const double[:, ::1] qv, const double[:, :,
         for i in range(nx):
             p[K, i] = p_end[i]
         for k in range(K - 1, -1, -1):
-            gemv(&P[k + 1, 0, 0], &b[k, 0], lin, nx, nx, False, False)
+            matmul(&P[k + 1, 0, 0], &b[k, 0], lin, nx, nx, 1, False, False, False)
             for i in range(nx):
                 lin[i] += p[k + 1, i]
             for i in range(nx):
                 h[i] = qx[k, i]
             for i in range(nv):
                 h[nx + i] = qv[k, i]
-            gemv(&A[k, 0, 0], lin, h, nx, nx, True, True)
-            gemv(&B[k, 0, 0], lin, h + nx, nv, nx, True, True)
+            matmul(&A[k, 0, 0], lin, h, nx, nx, 1, True, False, True)
+            matmul(&B[k, 0, 0], lin, h + nx, nv, nx, 1, True, False, True)
             for i in range(nv):
                 ff[k, i] = -h[nx + i]
             cho_solve(&chol[k, 0, 0], &ff[k, 0], nv, 1)
-            gemv(&Hxv[k, 0, 0], &ff[k, 0], h, nx, nv, False, True)
+            matmul(&Hxv[k, 0, 0], &ff[k, 0], h, nx, nv, 1, False, False, True)
             for i in range(nx):
                 p[k, i] = h[i]
     free(lin)
@@ -308,9 +323,9 @@ def forward(const double[::1] X0, const double[:, :, ::1] A, const double[:, :, 
         for k in range(K):
             for i in range(nv):
                 v[k, i] = ff[k, i]
-            gemv(&gain[k, 0, 0], &X[k, 0], &v[k, 0], nv, nx, False, True)
+            matmul(&gain[k, 0, 0], &X[k, 0], &v[k, 0], nv, nx, 1, False, False, True)
             for i in range(nx):
                 X[k + 1, i] = b[k, i]
-            gemv(&A[k, 0, 0], &X[k, 0], &X[k + 1, 0], nx, nx, False, True)
-            gemv(&B[k, 0, 0], &v[k, 0], &X[k + 1, 0], nx, nv, False, True)
+            matmul(&A[k, 0, 0], &X[k, 0], &X[k + 1, 0], nx, nx, 1, False, False, True)
+            matmul(&B[k, 0, 0], &v[k, 0], &X[k + 1, 0], nx, nv, 1, False, False, True)
     return None
