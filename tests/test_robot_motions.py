@@ -317,6 +317,35 @@ def test_an_sqp_solve_that_ends_on_a_flat_optimum_says_so(swing, monkeypatch):
 
 
 @pytest.mark.filterwarnings("ignore", category=DiscretizationWarning)
+def test_where_a_step_of_the_sqp_fails_ipopt_solves_with_a_note(swing, monkeypatch):
+    """solver="sqp": a step that fails (here every QP's) hands the mesh to IPOPT from the same
+    start, which says so and reaches IPOPT's optimum; a problem the SQP does not cover is still
+    an error saying why."""
+    from lagrgen.collocation import sqp
+    model, mod = swing
+    T, = model.input_functions
+    prob = swing_problem(mod, T)
+    first = prob.solve(progress=False, mesh_tol=None)
+    state = first.state_at(0.3)
+    replan = dict(initial={"q": state[:1], "qd": state[1:]}, shift=0.3)
+
+    def stalled(*args, **kwargs):
+        raise sqp.Unsupported("the QP's interior point did not converge in 60 iterations")
+    monkeypatch.setattr(sqp, "solve_qp", stalled)
+    taken = prob.resolve(first, solver="sqp", **replan)
+    by_ipopt = prob.resolve(first, **replan)
+    assert taken.success and taken.solver == "ipopt"
+    said = [n for n in taken.notes if "structured SQP failed" in n]
+    assert len(said) == 1 and "interior point did not converge" in said[0]
+    assert taken.objective == pytest.approx(by_ipopt.objective, rel=1e-12)
+    free = lagrgen.Collocation(mod, nodes=11, duration=(1.0, 4.0))
+    free.initial(q=[0.0], qd=[0.0]).final(q=[np.pi], qd=[0.0]).minimize(time=True)
+    with pytest.raises(lagrgen.errors.LagrgenError, match="cannot solve this problem: .*free "
+                       "duration"):
+        free.solve(progress=False, mesh_tol=None, solver="sqp")
+
+
+@pytest.mark.filterwarnings("ignore", category=DiscretizationWarning)
 def test_a_state_that_leaves_its_bound_between_the_points_is_said(swing):
     """Issue 45 item 4 (states): collocation bounds q̇ at its points; where the velocity rides its
     bound, the interpolant between points goes beyond it, and the result says by how much

@@ -51,9 +51,9 @@ MAX_ITERATIONS = 2**31 - 1
 
 
 #: The solvers `Collocation.solve` may use: "auto" (IPOPT, warm-started from a refined mesh's or
-#: a re-plan's start: measured faster than the structured SQP on robots, benchmarks/
-#: robot_motions.py), "ipopt", or "sqp" (the structured SQP from a warm start, an error where it
-#: does not apply).
+#: a re-plan's start: as quick as the structured SQP on robots, and robust where the SQP's
+#: steps can fail, benchmarks/robot_motions.py), "ipopt", or "sqp" (the structured SQP from a warm start, an error where it
+#: does not apply, IPOPT with a note where one of its steps fails).
 SOLVERS = ("auto", "ipopt", "sqp")
 
 
@@ -227,17 +227,23 @@ def solve_mesh(problem, layout, controls, guess, settings, warm=False, shift=0.0
     and with its usual barrier on a re-plan (`replan`: a new initial state or a shift puts the
     start off the central path, where the warm options took 215-221 iterations on the Panda
     against a cold solve's 26-28); the structured SQP (with the guess's multipliers) solves
-    instead when `settings.solver` is "sqp"."""
+    instead when `settings.solver` is "sqp" (IPOPT, with a note, where one of its steps
+    fails)."""
     from .guess import initial_guess, warm_multipliers
     tr = problem.transcription(settings.hessian, layout, controls)
     x0 = initial_guess(problem, tr, guess, shift)
     T0 = layout.duration(x0) if layout.free else problem.duration_bounds[0]
     bound = tr.bound(T0)
     if settings.solver == "sqp":
-        from .sqp import Unsupported
+        from .sqp import StepFailed, Unsupported
         try:
             return solve_structured(problem, bound, x0, *warm_multipliers(bound, guess, shift),
                                     settings)
+        except StepFailed as exc:
+            result = solve_nlp(problem, bound, x0, settings, warm and not replan)
+            result.notes.append(f"the structured SQP failed ({exc}): IPOPT solved this mesh "
+                                f"from the same start (result.solver says which solved it)")
+            return result
         except Unsupported as exc:
             raise LagrgenError(f"solver='sqp' cannot solve this problem: {exc}; solve it "
                                "with solver='auto' or 'ipopt'") from None

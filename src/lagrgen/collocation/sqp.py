@@ -77,6 +77,11 @@ class Unsupported(LagrgenError):
     """The problem has a part the stage-structured SQP does not cover (said in the message)."""
 
 
+class StepFailed(Unsupported):
+    """The SQP covers the problem, but one of its steps failed (said in the message: a QP
+    whose interior point stalled, a line search, a singular block)."""
+
+
 def unsupported(tr):
     """Why the SQP cannot solve the transcription `tr` (None when it can)."""
     L, problem = tr.layout, tr.problem
@@ -882,11 +887,21 @@ def kkt_error(tr, x, lam, z):
 
 def solve(tr, x0, lam0=None, z0=None, tol=1e-8, max_iter=SQP_ITERATIONS, monitor=None):
     """SQP from (x0, lam0, z0) on the transcription `tr` (its `bound` copy): an `Outcome`;
-    Unsupported when the problem has a part the structure does not cover, or a step fails
-    (the caller then solves with IPOPT)."""
+    Unsupported when the problem has a part the structure does not cover, StepFailed when a
+    step fails (the caller then solves with IPOPT)."""
     reason = unsupported(tr)
     if reason:
         raise Unsupported(f"the SQP does not handle {reason}")
+    try:
+        return _iterate(tr, x0, lam0, z0, tol, max_iter, monitor)
+    except StepFailed:
+        raise
+    except Unsupported as exc:
+        raise StepFailed(str(exc)) from None
+
+
+def _iterate(tr, x0, lam0, z0, tol, max_iter, monitor):
+    """`solve`'s iterations on a problem the structure covers."""
     L = tr.layout
     stages, rows = Stages.of(tr), Rows.of(tr)
     x = np.clip(np.asarray(x0, dtype=float), tr.lo, tr.hi)
