@@ -51,9 +51,9 @@ MAX_ITERATIONS = 2**31 - 1
 
 
 #: The solvers `Collocation.solve` may use: "auto" (IPOPT, warm-started from a refined mesh's or
-#: a re-plan's start: as quick as the structured SQP on robots, and robust where the SQP's
-#: steps can fail, benchmarks/robot_motions.py), "ipopt", or "sqp" (the structured SQP from a warm start, an error where it
-#: does not apply, IPOPT with a note where one of its steps fails).
+#: a re-plan's start: as quick as the structured SQP on robots and robust where the SQP's steps
+#: can fail, benchmarks/robot_motions.py), "ipopt", or "sqp" (the structured SQP from a warm
+#: start, an error where it does not apply, IPOPT with a note where one of its steps fails).
 SOLVERS = ("auto", "ipopt", "sqp")
 
 
