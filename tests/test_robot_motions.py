@@ -303,7 +303,7 @@ def test_an_sqp_solve_that_ends_on_a_flat_optimum_says_so(swing, monkeypatch):
     state = first.state_at(0.3)
     replan = dict(initial={"q": state[:1], "qd": state[1:]}, shift=0.3, solver="sqp")
     exact = prob.resolve(first, **replan)
-    assert exact.success and not [n for n in exact.notes if "SQP" in n]
+    assert exact.success and exact.status == 0 and not [n for n in exact.notes if "SQP" in n]
     solve = sqp.solve
 
     def flat(*args, **kwargs):
@@ -314,6 +314,8 @@ def test_an_sqp_solve_that_ends_on_a_flat_optimum_says_so(swing, monkeypatch):
     stalled = prob.resolve(first, **replan)
     said = [n for n in stalled.notes if "SQP" in n]
     assert len(said) == 1 and "3.2e-04 above tol 1e-08" in said[0] and "'ipopt'" in said[0]
+    assert stalled.success and stalled.status == 1 and "flat optimum" in stalled.message
+    assert not [n for n in stalled.notes if "IPOPT stopped at its acceptable level" in n]
 
 
 @pytest.mark.filterwarnings("ignore", category=DiscretizationWarning)

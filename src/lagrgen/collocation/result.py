@@ -53,7 +53,8 @@ class CollocationResult:
 
     Attributes
     ----------
-    success, status, message : whether IPOPT converged, its return code and message
+    success, status, message : whether the solver converged, its return code and message (IPOPT's;
+        the SQP's 0 to tol, 1 on a flat optimum looser than tol as IPOPT's acceptable level, −1)
     iterations, objective : IPOPT's iterations and the objective at the solution
     t : (nodes,) node times; y : (2n, nodes) [q; q̇]; u : (n_inputs, nodes); qdd : (n, nodes)
     multipliers : (n_constraints, nodes) the constraints' λ (constrained models)
@@ -128,7 +129,7 @@ class CollocationResult:
             _transcription=tr, _controls=tr.controls,
             _lam=np.asarray(info.get("mult_g", np.zeros(0)), dtype=float),
             _z=np.asarray(info.get("mult_z", np.zeros(0)), dtype=float),
-            notes=list(getattr(tr, "notes", ())) + acceptable_note(status),
+            notes=list(getattr(tr, "notes", ())) + info.get("notes", acceptable_note(status)),
             solve_seconds=seconds, solver="ipopt")
 
     def estimate_errors(self, stacklevel=2):

@@ -261,17 +261,21 @@ def solve_structured(problem, tr, x0, lam0, z0, settings):
     outcome = solve(tr, x0, lam0, z0, settings.tol, min(settings.max_iter, SQP_ITERATIONS),
                     monitor)
     seconds = time.perf_counter() - start
-    status = 0 if outcome.converged else -1
-    message = ("SQP converged to the tolerance" if outcome.converged
-               else f"SQP stopped: {outcome.message}")
+    flat = outcome.converged and outcome.dual > settings.tol
+    if not outcome.converged:
+        status, message = -1, f"SQP stopped: {outcome.message}"
+    elif flat:      # a success looser than tol, as IPOPT's acceptable level (status 1)
+        status, message = 1, (f"SQP stopped on a flat optimum (stationarity residual "
+                              f"{outcome.dual:.1e} above tol {settings.tol:g})")
+    else:
+        status, message = 0, "SQP converged to the tolerance"
     info = {"status": status, "status_msg": message, "obj_val": tr.objective(outcome.x),
-            "mult_g": outcome.lam, "mult_z": outcome.z}
+            "mult_g": outcome.lam, "mult_z": outcome.z,
+            "notes": [flat_optimum_note(outcome.dual, settings.tol)] if flat else []}
     result = CollocationResult.from_solution(problem, tr, outcome.x, info, outcome.iterations,
                                              seconds, settings.hessian)
     result.callback_seconds = seconds
     result.solver = "sqp"
-    if outcome.converged and outcome.dual > settings.tol:
-        result.notes.append(flat_optimum_note(outcome.dual, settings.tol))
     return result
 
 

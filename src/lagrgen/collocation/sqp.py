@@ -515,7 +515,6 @@ class QPResult:
     nu: np.ndarray          # (intervals, per) defect multipliers
     active: ActiveSet
     passes: int
-    regularization: float
     interior: bool = False  # solved by the interior point (the active set did not settle)
 
 
@@ -615,7 +614,7 @@ def solve_qp_active(qp, lin, active, inertia, tol=1e-10, passes=None):
     does not settle within `passes` (default ACTIVE_PASSES)."""
     P, nz = lin.W.shape[:2]
     rho, row_rho = _penalties(lin), _row_penalties(qp, lin)
-    regularization, refactor = 0.0, True
+    refactor = True
     lo, hi = lin.lo.ravel(), lin.hi.ravel()
     for count in range(1, (passes or ACTIVE_PASSES) + 1):
         delta, row_delta = active.targets(lin), active.row_targets(lin)
@@ -624,8 +623,7 @@ def solve_qp_active(qp, lin, active, inertia, tol=1e-10, passes=None):
         row_g = np.where(row_on, active.row_z + row_rho * (qp.const - row_delta), 0.0)
         if refactor:
             W = _with_diagonal(lin.W, np.where(on, rho, 0.0))
-            gamma, regularization = _factored(qp, W, g, inertia,
-                                              np.where(row_on, row_rho, 0.0))
+            gamma = _factored(qp, W, g, inertia, np.where(row_on, row_rho, 0.0))[0]
             refactor = False
         else:
             gamma = qp.point_gradients(W, g)
@@ -654,7 +652,7 @@ def solve_qp_active(qp, lin, active, inertia, tol=1e-10, passes=None):
                np.max(np.abs(row_violation), initial=0.0)) <= tol * scale:
             zb = np.where(on, active.z, 0.0).reshape(P, nz)
             mu, nu_ = qp.multipliers(y, dz, lin.W, lin.g, zb, active.row_z)
-            return QPResult(dz, mu, nu_, active, count, regularization)
+            return QPResult(dz, mu, nu_, active, count)
     raise Unsupported(f"the QP's active set did not settle in {passes or ACTIVE_PASSES} passes")
 
 
@@ -830,7 +828,7 @@ def solve_qp_interior(qp, lin, active, inertia, tol=1e-9, iterations=IPM_ITERATI
         mult[:] = np.where(side != 0, values, 0.0)
     dz = dz.reshape(P, nz)
     mu, nu_ = qp.multipliers(y, dz, lin.W, lin.g, z.reshape(P, nz), row_z)
-    return QPResult(dz, mu, nu_, active, iteration, 0.0, interior=True)
+    return QPResult(dz, mu, nu_, active, iteration, interior=True)
 
 
 def _fraction_to_boundary(a, da, has_a, b, db, has_b, fraction):
