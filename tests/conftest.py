@@ -279,3 +279,32 @@ def nlp_derivatives(prob, seed=0):
     gn = np.array([(tr.objective(x + eps * e) - tr.objective(x - eps * e)) / (2 * eps)
                    for e in E])
     return J, Jn, H, np.tril(Hn), g, gn
+
+
+def native_free_mode_pair(mod, monkeypatch, *args, **kwargs):
+    """The same native hybrid solve with its free mode (the model's own rhs between contacts)
+    and without it (rhs address 0: every mode by the mode equations), checked to agree: the
+    same transitions to 1e-9 s, states to 1e-8 (two ways of computing q̈ over a whole run),
+    forces to 1e-7, and not bit for bit (the free mode was taken). Returns (free, general)."""
+    from lagrgen.native import _ode
+    solve_hybrid, addresses = _ode.solve_hybrid, []
+
+    def recorded(*a, **options):
+        addresses.append(options["rhs"])
+        return solve_hybrid(*a, **options)
+
+    monkeypatch.setattr(_ode, "solve_hybrid", recorded)
+    free = lagrgen.simulate(mod, *args, engine="native", **kwargs)
+    monkeypatch.setattr(_ode, "solve_hybrid",
+                        lambda *a, **options: recorded(*a, **{**options, "rhs": 0}))
+    general = lagrgen.simulate(mod, *args, engine="native", **kwargs)
+    monkeypatch.setattr(_ode, "solve_hybrid", solve_hybrid)
+    assert addresses[0] != 0 and addresses[1] == 0
+    assert free.success and general.success, (free.message, general.message)
+    assert [tr[1:] for tr in free.transitions] == [tr[1:] for tr in general.transitions]
+    np.testing.assert_allclose([tr[0] for tr in free.transitions],
+                               [tr[0] for tr in general.transitions], rtol=0, atol=1e-9)
+    np.testing.assert_allclose(free.y, general.y, rtol=0, atol=1e-8)
+    np.testing.assert_allclose(free.contact_forces, general.contact_forces, rtol=0, atol=1e-7)
+    assert np.abs(free.y - general.y).max() > 0
+    return free, general

@@ -12,6 +12,8 @@ import lagrgen
 from lagrgen import Model, ModelError, hybrid
 from lagrgen.hybrid import projected_gauss_seidel
 
+from conftest import native_free_mode_pair
+
 G = 9.81
 TOL = dict(rtol=1e-10, atol=1e-12)
 ENGINES = ("native", "scipy")
@@ -652,6 +654,20 @@ def test_a_free_mode_is_the_models_own_equations(built):
         assert_array_equal(system.events(t, y, open_, slip, offsets=offsets),
                            general.events(t, y, open_, slip, offsets=offsets))
         assert_array_equal(system.forces(t, y, open_, slip), general.forces(t, y, open_, slip))
+
+
+def test_the_native_free_mode_is_the_mode_equations(built, monkeypatch):
+    """The block in flight (the floor open, its friction not acting, the stop open) runs on the
+    native engine from the model's own rhs, its events the gaps alone, with the motion, the
+    transitions and the forces of the mode equations: through bounces on the floor, its
+    friction and a strike on the stop."""
+    free, _ = native_free_mode_pair(built(free_block), monkeypatch, (0.0, 2.0),
+                                    [0.2, 0.4, 1.5, 0.0], t_eval=np.linspace(0, 2, 401), **TOL)
+    kinds = {kind for _, _, kind in free.transitions}
+    names = {name for _, name, _ in free.transitions}
+    assert {"impact"} <= kinds and {"floor", "x_upper"} <= names, free.transitions
+    flying = free.t < free.transitions[0][0]
+    assert flying.sum() > 5 and not np.any(free.contact_forces[:, flying])
 
 
 def test_the_native_drivers_constants_are_the_python_drivers():

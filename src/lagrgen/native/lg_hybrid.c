@@ -195,13 +195,11 @@ static int hy_regularized_solve(hy_ctx *c, const double *D, const double *b, con
 #define FR(c, j) (MODEL_IMP(c, (c)->h->ni) + (size_t)(j) * (FRICTION_FIELDS + (c)->n))
 #define PF(c, k) (FR(c, (c)->nf) + (size_t)(k) * (PLANAR_FIELDS + 2 * (c)->n))
 
-static int hy_terms(hy_ctx *c, double t, const double *y, const double *u)
+/* The stops' impact rows at y (lagrgen.hybrid.HybridSystem.stop_rows). */
+static void hy_stop_rows(hy_ctx *c, const double *y)
 {
     int n = c->n;
-    c->cached = 0;                   /* the terms at hand are no longer the cached solution's */
-    if (c->h->terms(t, y, c->h->p, u, c->terms))
-        return 1;
-    for (int s = 0; s < c->h->n_stops; ++s) {      /* lagrgen.hybrid.HybridSystem.stop_rows */
+    for (int s = 0; s < c->h->n_stops; ++s) {
         const double *stop = c->h->stops + 4 * s;
         const int j = (int)stop[0];
         double *row = c->stop_rows + (size_t)s * (IMPACT_FIELDS + n);
@@ -211,6 +209,14 @@ static int hy_terms(hy_ctx *c, double t, const double *y, const double *u)
         row[3] = stop[3];
         row[IMPACT_FIELDS + j] = stop[1];
     }
+}
+
+static int hy_terms(hy_ctx *c, double t, const double *y, const double *u)
+{
+    c->cached = 0;                   /* the terms at hand are no longer the cached solution's */
+    if (c->h->terms(t, y, c->h->p, u, c->terms))
+        return 1;
+    hy_stop_rows(c, y);
     return 0;
 }
 
@@ -434,16 +440,22 @@ static int hy_solve(hy_ctx *c, double t, const double *y, const double *u, const
     return 0;
 }
 
-/* 1 when the mode with `contact` is free: the model has no constraints, impacts or frictions
- * of its own, every stop is open, and its own rhs is at hand (a narrower test than
- * lagrgen.hybrid.HybridSystem.is_free): the mode equations are then M·q̈ = F, which the rhs
- * solves by the model's own method. */
-static int hy_is_free(const hy_ctx *c, const int *contact)
+/* 1 when the mode (contact, pmode) is free and the model's own rhs is at hand: no model
+ * constraints, no contact closed, no friction of either kind acting (lagrgen.hybrid.
+ * HybridSystem.is_free). The mode equations are then M·q̈ = F, which the rhs solves by the
+ * model's own method; the events need only the gaps, the forces are 0. */
+static int hy_is_free(const hy_ctx *c, const int *contact, const int *pmode)
 {
-    if (!c->h->rhs || c->m || c->h->ni || c->nf || c->npf)
+    if (!c->h->rhs || c->m)
         return 0;
     for (int i = 0; i < c->ni; ++i)
         if (contact[i])
+            return 0;
+    for (int j = 0; j < c->nf; ++j)
+        if (hy_active(c, j, contact))
+            return 0;
+    for (int k = 0; k < c->npf; ++k)
+        if (pmode[k] >= 0)
             return 0;
     return 1;
 }
@@ -519,15 +531,15 @@ static void hy_event_values(hy_ctx *c, const int *contact, const int *slip, cons
 static int hy_events(void *ctx, double t, const double *y, const double *u, double *values)
 {
     hy_ctx *c = (hy_ctx *)ctx;
-    if (c->free) {                                 /* the stops' gaps (hy_terms' stop rows) */
-        for (int s = 0; s < c->ni; ++s) {
-            const double *stop = c->h->stops + 4 * s;
-            values[s] = stop[1] * (y[(int)stop[0]] - stop[2]) + c->gap_offset[s];
-        }
-        return 0;
+    if (!c->free) {
+        if (hy_solve_segment(c, t, y, u))
+            return 1;
+    } else if (c->h->ni) {         /* a free mode's events are the gaps alone */
+        if (hy_terms(c, t, y, u))
+            return 1;
+    } else {
+        hy_stop_rows(c, y);
     }
-    if (hy_solve_segment(c, t, y, u))
-        return 1;
     hy_event_values(c, c->contact, c->slip, c->pmode, c->anchor, values);
     return 0;
 }
@@ -1230,7 +1242,7 @@ static int hy_forces_since(hy_ctx *c, const int *contact, const int *slip, const
     lg_hybrid_result_t *res = c->result;
     int n = c->n, k = c->m + c->ni + c->nf + 2 * c->npf;
     double *row = c->force_row;
-    int free = hy_is_free(c, contact);
+    int free = hy_is_free(c, contact, pmode);
     for (size_t r = k ? res->forces.len / k : res->t.len; r < res->t.len; ++r) {
         double t = res->t.data[r];
         hy_inputs(c, t);
@@ -1485,7 +1497,7 @@ int lg_hybrid_solve(lg_hybrid_t *h, const lg_options_t *options, lg_hybrid_resul
         c.slip = mode_s;
         c.pmode = mode_p;
         c.anchor = mode_a;
-        c.free = hy_is_free(&c, mode_c);
+        c.free = hy_is_free(&c, mode_c, mode_p);
         double piece = hy_lift_off(&c, t, y);
         double t_end = isfinite(piece) ? fmin(tf, t + 0.5 * piece) : tf;
         if (!(t_end > t))

@@ -53,10 +53,9 @@ typedef struct {
     const int *planar_index;
     int *pmode;
     double *anchor;
-    /* The model's own ẏ (its rhs; NULL: none), a free mode's right-hand side: a model without
-     * constraints, impacts or frictions of its own, every stop open (its events the stops'
-     * gaps, its forces 0; narrower than lagrgen.hybrid.HybridSystem.is_free, which also admits
-     * frictions on open contacts). */
+    /* The model's own ẏ (its rhs; NULL: none), a free mode's right-hand side: no model
+     * constraints, no contact closed, no friction acting (lagrgen.hybrid.HybridSystem.is_free;
+     * its events the gaps alone, its forces 0). */
     lg_rhs_fn rhs;
 } lg_hybrid_t;
 
