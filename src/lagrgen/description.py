@@ -656,8 +656,9 @@ class Description:
         directions of a plane, is isotropic friction in that plane: while slipping a force
         −mu·abs(N)·v/‖v‖ (each component along its ∂v_i/∂q̇; below 1e-7 m/s the direction blends
         with the one it began to slip in, `lagrgen.hybrid.PLANAR_BLEND`); v = 0 held while the
-        force that takes is at most mu_static·abs(N) in norm (a friction disk). Its normal force named as an
-        impact, it acts only while that contact is held (its mode is "open" otherwise).
+        force that takes is at most mu_static·abs(N) in norm (a friction disk). Its normal force
+        named as an impact, it acts only while that contact is held (its mode is "open"
+        otherwise).
         `ground_contact` declares one with its impact."""
         self._friction(name, slip_velocity, normal_force, mu, mu_static)
 
