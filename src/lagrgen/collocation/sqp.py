@@ -852,7 +852,7 @@ class Outcome:
     converged: bool
     message: str
     passes: int
-    dual: float = 0.0       # the stationarity residual at x (kkt_error's)
+    dual: float             # the stationarity residual at x (kkt_error's)
 
 
 def constraint_multipliers(tr, qp, rows):
@@ -949,4 +949,4 @@ def _iterate(tr, x0, lam0, z0, tol, max_iter, monitor):
             return Outcome(x, lam, z, iteration, True, "converged", passes, dual)
         lin = linearize(tr, x, lam, stages, rows)
     return Outcome(x, lam, z, max_iter, False,
-                   f"not converged in {max_iter} iterations", passes)
+                   f"not converged in {max_iter} iterations", passes, dual_now)
