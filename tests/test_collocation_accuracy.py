@@ -164,6 +164,55 @@ def test_refinement_stops_at_the_tolerance(pendulum):
     assert nodes[1e-8] > nodes[1e-4]
 
 
+def _mesh(times, errors):
+    from lagrgen.collocation.result import MeshRecord
+    return MeshRecord(len(times), 0, float(max(errors)), 0.0, 0, 0.0, np.asarray(times, float),
+                      np.asarray(errors, float))
+
+
+@pytest.mark.parametrize("order", [4.0, 2.5, 1.5])
+def test_the_order_a_refinement_showed_is_measured_per_interval(order):
+    """Intervals of errors e = C·h^(p+1), split into 2 to 4 pieces whose errors follow the same
+    law: `observed_orders` gives each piece p back (the duration scaled, as a free one is); an
+    interval not split, one within mesh_tol and pieces of error 0 say nothing (ORDER); a piece
+    that gained less than order 1 gets LEAST_ORDER."""
+    from lagrgen.collocation.refine import LEAST_ORDER, ORDER, observed_orders
+    coarse = np.linspace(0.0, 1.0, 11)
+    h = np.diff(coarse)
+    C = np.linspace(1.0, 30.0, 10) / h[0] ** (order + 1) * 1e-4
+    pieces = np.array([2, 3, 4, 2, 3, 4, 2, 3, 4, 1])
+    fine, errors = [0.0], []
+    for k, c in enumerate(pieces):
+        fine += list(coarse[k] + h[k] * np.arange(1, c + 1) / c)
+        errors += [C[k] * (h[k] / c) ** (order + 1)] * c
+    before, after = _mesh(2.5 * coarse, C * h ** (order + 1)), _mesh(2.5 * np.asarray(fine), errors)
+    orders = observed_orders([before, after], 1e-6)
+    assert orders.shape == (len(fine) - 1,)
+    assert_allclose(orders[:-1], order, rtol=1e-9)
+    assert orders[-1] == ORDER
+    tiny = _mesh(2.5 * coarse, np.full(10, 1e-7))
+    assert np.all(observed_orders([tiny, after], 1e-6) == ORDER)
+    assert np.all(observed_orders([before, _mesh(after.times, np.zeros(len(errors)))], 1e-6)
+                  == ORDER)
+    stuck = _mesh(after.times, np.repeat(before.errors, pieces))
+    assert np.all(observed_orders([before, stuck], 1e-6)[:-1] == LEAST_ORDER)
+
+
+def test_a_lower_order_splits_into_more_pieces(pendulum):
+    """The next mesh splits an interval for the order given, one for all or one per interval:
+    e = 1e-4 at mesh_tol 1e-6 takes ⌈(4·100)^(1/5)⌉ = 4 pieces for Hermite–Simpson's order 4,
+    ⌈400^(1/3)⌉ = 8 for order 2."""
+    from lagrgen.collocation.refine import refined_layout
+    _, mod = pendulum
+    layout = lagrgen.Collocation(mod, nodes=3, duration=1.0).layout
+    errors = np.array([1e-4, 1e-8])
+    assert refined_layout(layout, errors, 1e-6, (0.0, 1.0)).nodes == 3 + 3
+    assert refined_layout(layout, errors, 1e-6, (0.0, 1.0), order=2.0).nodes == 3 + 7
+    layout = lagrgen.Collocation(mod, nodes=5, duration=1.0).layout
+    errors, orders = np.array([1e-4, 1e-4, 1e-8, 1e-8]), np.array([2.0, 4.0, 4.0, 4.0])
+    assert refined_layout(layout, errors, 1e-6, (0.0, 1.0), orders).nodes == 5 + 7 + 3
+
+
 # -- bang-bang ------------------------------------------------------------------------------------
 @pytest.mark.parametrize("scheme", ["hermite-simpson", "trapezoidal", "backward-euler"])
 def test_a_bang_bang_switch_is_located(integrator, scheme):

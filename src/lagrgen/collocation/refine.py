@@ -17,11 +17,16 @@ The other inputs are refined with the states (a quadratic per interval of the me
 coarse grid, a smooth optimum (a robot's least-effort move riding its velocity limits) is a
 harder problem than it is, and IPOPT crawls on it.
 
-An interval with error e > mesh_tol/MARGIN is split into ⌈(MARGIN·e/mesh_tol)^(1/5)⌉ pieces
-(Hermite–Simpson's local error falls as h⁵), at least 2 and at most MAX_PIECES per mesh; after the
-first mesh of a trapezoidal or backward-Euler problem, whose errors say little of
-Hermite–Simpson's, in halves. The margin keeps the intervals just below the tolerance from
-crossing it on the next solve one at a time (a mesh each).
+An interval with error e > mesh_tol/MARGIN is split into ⌈(MARGIN·e/mesh_tol)^(1/(p+1))⌉ pieces,
+at least 2 and at most MAX_PIECES per mesh, where p is the order of the local error e ∝ h^(p+1):
+Hermite–Simpson's 4 on smooth motions; from the third mesh on, each interval takes the order its
+interval of the mesh before showed when the last refinement split it (`observed_orders`), lower
+where the motion is not smooth (an input at its bound, a velocity riding its limit: on the Panda's
+least-effort move most intervals show 1.5 to 3.5, and splitting them all for 4 left three above
+the tolerance and took a fourth mesh). After the first mesh of a trapezoidal or backward-Euler
+problem, whose errors say little of Hermite–Simpson's, intervals are split in halves. The margin
+keeps the intervals just below the tolerance from crossing it on the next solve one at a time (a
+mesh each).
 """
 import time
 import warnings
@@ -43,6 +48,8 @@ MAX_GROWTH, MAX_NODES = 4, 20_000
 ORDER = 4
 #: Intervals within this factor of the tolerance are split too, and pieces aim that far below it.
 MARGIN = 4.0
+#: The least order `observed_orders` gives an interval.
+LEAST_ORDER = 1.0
 #: An input within this share of its range from a bound counts as on the bound.
 ON_BOUND = 1e-3
 #: A switch is looked for between intervals saturated at opposite bounds at most this many
@@ -89,7 +96,9 @@ def solve_refined(problem, guess, settings, mesh_tol, max_meshes, start=None):
         if switches is None:
             break
         knots = tuple(sorted(set(knots) | set(switches)))
-        layout = refined_layout(layout, errors, mesh_tol, knots)
+        order = observed_orders(meshes, mesh_tol) if len(meshes) > (
+            1 if problem.scheme == "hermite-simpson" else 2) else ORDER
+        layout = refined_layout(layout, errors, mesh_tol, knots, order)
         tied = tied | inputs_on_bounds(result, problem)
         controls = ControlMesh(knots, degree, tied)
         result = solve_mesh(problem, layout, controls, result, settings, warm=True)
@@ -142,15 +151,38 @@ def finished(result, errors, meshes, mesh_tol, seconds, limit=None):
     return result
 
 
-def refined_layout(layout, errors, mesh_tol, knots):
-    """The next mesh: each interval with error e > mesh_tol/MARGIN split into equal pieces (see
-    the module; in halves after a mesh of another scheme), the control knots added as nodes;
-    Hermite–Simpson."""
+def observed_orders(meshes, mesh_tol):
+    """Per interval of the last mesh, the order p of the local error (e ∝ h^(p+1)) that its
+    interval on the mesh before showed when split: p = log(e / e_c)/log(c) − 1 (e that
+    interval's error, above mesh_tol, c its pieces, e_c their largest error), within
+    [LEAST_ORDER, ORDER]; ORDER where its interval was not split or within mesh_tol."""
+    before, after = meshes[-2], meshes[-1]
+    f0, f1 = _fractions(before.times), _fractions(after.times)
+    owner = np.clip(np.searchsorted(f0, 0.5 * (f1[:-1] + f1[1:])) - 1, 0, f0.size - 2)
+    pieces = np.bincount(owner, minlength=f0.size - 1)
+    worst = np.zeros(f0.size - 1)
+    np.maximum.at(worst, owner, after.errors)
+    orders = np.full(f0.size - 1, float(ORDER))
+    split = (pieces >= 2) & (before.errors > mesh_tol) & (worst > 0)
+    orders[split] = np.log(before.errors[split] / worst[split]) / np.log(pieces[split]) - 1
+    return np.clip(orders, LEAST_ORDER, ORDER)[owner]
+
+
+def _fractions(times):
+    """Node times as fractions of the duration."""
+    times = np.asarray(times, dtype=float)
+    return (times - times[0]) / (times[-1] - times[0])
+
+
+def refined_layout(layout, errors, mesh_tol, knots, order=ORDER):
+    """The next mesh: each interval with error e > mesh_tol/MARGIN split into equal pieces for
+    a local error of `order` (one for all intervals or one each; see the module; in halves
+    after a mesh of another scheme), the control knots added as nodes; Hermite–Simpson."""
     nodes = layout.node_fractions
     target = mesh_tol / MARGIN
     ratio = np.maximum(errors, target) / target
     with np.errstate(over="ignore"):
-        wanted = np.ceil(ratio ** (1.0 / (ORDER + 1))) if layout.scheme == "hermite-simpson" \
+        wanted = np.ceil(ratio ** (1.0 / (order + 1))) if layout.scheme == "hermite-simpson" \
             else 2          # another scheme's error says little of Hermite–Simpson's
         pieces = np.where(errors > target, np.clip(wanted, 2, MAX_PIECES), 1)
     pieces = within_budget(pieces, errors, min(MAX_GROWTH * layout.nodes, MAX_NODES))
