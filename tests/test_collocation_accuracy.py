@@ -198,6 +198,33 @@ def test_the_order_a_refinement_showed_is_measured_per_interval(order):
     assert np.all(observed_orders([before, stuck], 1e-6)[:-1] == LEAST_ORDER)
 
 
+def test_each_refined_mesh_starts_ipopt_by_how_far_off_its_start_is(pendulum, monkeypatch):
+    """The problem's grid starts cold; the first refined mesh, from that grid's motion, with the
+    "far" options of WARM_STARTS (mu_init 1e-4), later ones with the "near" ones (1e-6); each
+    start keeps the last solution on its bounds (bound_push 1e-8). A re-plan starts cold."""
+    from lagrgen.collocation import solver
+    model, mod = pendulum
+    T, = model.input_functions
+    prob = lagrgen.Collocation(mod, nodes=11, duration=3.0)
+    prob.bound("T", -6.0, 6.0)
+    prob.initial(q=[0.0], qd=[0.0]).final(q=[np.pi], qd=[0.0]).minimize(integral=T ** 2)
+    seen, options = [], solver.solver_options
+
+    def recording(hessian, tol, max_iter, given, start=None):
+        chosen = options(hessian, tol, max_iter, given, start)
+        seen.append((start, chosen.get("mu_init"), chosen.get("bound_push")))
+        return chosen
+
+    monkeypatch.setattr(solver, "solver_options", recording)
+    res = prob.solve(progress=False, mesh_tol=1e-8)
+    assert res.success and len(res.meshes) >= 3
+    assert seen == [(None, None, None), ("far", 1e-4, 1e-8)] + [("near", 1e-6, 1e-8)] * (
+        len(res.meshes) - 2)
+    seen.clear()
+    prob.resolve(warm=res, initial={"q": [0.05], "qd": [0.0]}, mesh_tol=None)
+    assert seen == [(None, None, None)]
+
+
 def test_a_lower_order_splits_into_more_pieces(pendulum):
     """The next mesh splits an interval for the order given, one for all or one per interval:
     e = 1e-4 at mesh_tol 1e-6 takes ⌈(4·100)^(1/5)⌉ = 4 pieces for Hermite–Simpson's order 4,

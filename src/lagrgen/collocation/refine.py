@@ -75,8 +75,7 @@ def solve_refined(problem, guess, settings, mesh_tol, max_meshes, start=None):
     degree = 2 if problem.scheme == "hermite-simpson" else 1
     meshes, spent, callbacks, limit = [], 0.0, 0.0, None
     tied = frozenset() if controls is None else frozenset(controls.tied or ())
-    result = solve_mesh(problem, layout, controls, guess, settings, warm=start is not None,
-                        shift=shift, replan=start is not None)
+    result = solve_mesh(problem, layout, controls, guess, settings, shift=shift)
     if start is not None and mesh_tol is None:
         return result
     while True:
@@ -101,7 +100,8 @@ def solve_refined(problem, guess, settings, mesh_tol, max_meshes, start=None):
         layout = refined_layout(layout, errors, mesh_tol, knots, order)
         tied = tied | inputs_on_bounds(result, problem)
         controls = ControlMesh(knots, degree, tied)
-        result = solve_mesh(problem, layout, controls, result, settings, warm=True)
+        result = solve_mesh(problem, layout, controls, result, settings,
+                            start="far" if len(meshes) == 1 else "near")
     result.callback_seconds = callbacks
     result = finished(result, errors, meshes, mesh_tol, spent, limit)
     if result.success:

@@ -38,12 +38,18 @@ BASE_OPTIONS = {"print_level": 0, "sb": "yes"}
 #: quasi-Newton Hessian IPOPT's defaults do better.
 EXACT_OPTIONS = {"mu_strategy": "adaptive", "mu_oracle": "loqo", "min_refinement_steps": 0}
 QUASI_NEWTON_OPTIONS = {"hessian_approximation": "limited-memory"}
-#: A refined mesh started from the last mesh's solution: that point kept as it is (not pushed
-#: off its bounds, which breaks the dynamics of a motion riding a velocity limit) and a small
-#: barrier parameter decreased monotonically. A robot's least-effort move (benchmarks: the
-#: seven-joint arm) takes ~25 iterations per mesh instead of 70–100.
-WARM_OPTIONS = {"bound_push": 1e-8, "bound_frac": 1e-8, "mu_init": 1e-6,
-                "mu_strategy": "monotone"}
+#: IPOPT's start on a refined mesh, from the last mesh's solution: that point kept as it is (not
+#: pushed off its bounds, which breaks the dynamics of a motion riding a velocity limit) and a
+#: small barrier parameter decreased monotonically, which takes ~25 iterations per mesh on a
+#: robot's least-effort move (benchmarks: the seven-joint arm) instead of 70–100. "far": the first
+#: refined mesh, started from the problem's grid, whose motion is off by that grid's error (1e-3
+#: on robots), begins with a larger barrier parameter (the Panda: 25 iterations where 1e-6 took
+#: 45; Talos: 30 where it took 51); "near": later meshes start within a few times mesh_tol, where
+#: the small one is quicker (Talos: 24 and 22 iterations against 30 and 34).
+WARM_STARTS = {"near": {"bound_push": 1e-8, "bound_frac": 1e-8, "mu_init": 1e-6,
+                        "mu_strategy": "monotone"},
+               "far": {"bound_push": 1e-8, "bound_frac": 1e-8, "mu_init": 1e-4,
+                       "mu_strategy": "monotone"}}
 
 
 #: IPOPT counts iterations in a C int.
@@ -101,11 +107,12 @@ def settings(hessian, tol, max_iter, progress, options, solver="auto"):
     return Settings(hessian, float(tol), int(max_iter), bool(progress), dict(options), solver)
 
 
-def solver_options(hessian, tol, max_iter, options, warm=False):
+def solver_options(hessian, tol, max_iter, options, start=None):
     """The IPOPT options of a solve: the base, those of the Hessian's kind (and of a refined
-    mesh's warm start when `warm`), tol and max_iter, and then the caller's."""
+    mesh's `start`, a key of WARM_STARTS, when given), tol and max_iter, and then the
+    caller's."""
     kind = EXACT_OPTIONS if hessian == "exact" else QUASI_NEWTON_OPTIONS
-    return {**BASE_OPTIONS, **kind, **(WARM_OPTIONS if warm else {}), "tol": float(tol),
+    return {**BASE_OPTIONS, **kind, **(WARM_STARTS[start] if start else {}), "tol": float(tol),
             "max_iter": int(max_iter), **options}
 
 
@@ -218,17 +225,15 @@ def _c_stdout():
             printed[0] = caught.read().decode(errors="replace")
 
 
-def solve_mesh(problem, layout, controls, guess, settings, warm=False, shift=0.0,
-               replan=False):
+def solve_mesh(problem, layout, controls, guess, settings, start=None, shift=0.0):
     """The CollocationResult of one solve of `problem` on the mesh `layout` (inputs tied to
     `controls`, a ControlMesh, or free) from `guess` (see `Collocation.solve`; `shift` seconds
-    of an earlier result dropped, its end held); `warm`: the guess is an earlier solution (a
-    refined mesh's start, a re-plan), which IPOPT takes with `WARM_OPTIONS` on a refined mesh
-    and with its usual barrier on a re-plan (`replan`: a new initial state or a shift puts the
-    start off the central path, where the warm options took 215-221 iterations on the Panda
-    against a cold solve's 26-28); the structured SQP (with the guess's multipliers) solves
-    instead when `settings.solver` is "sqp" (IPOPT, with a note, where one of its steps
-    fails)."""
+    of an earlier result dropped, its end held); `start`: a refined mesh's start from the last
+    mesh's solution, which IPOPT takes with those options of WARM_STARTS, or None: IPOPT's usual
+    barrier, also for a re-plan (a new initial state or a shift puts its start off the central
+    path, where the warm options took 215-221 iterations on the Panda against a cold solve's
+    26-28); the structured SQP (with the guess's multipliers) solves instead when
+    `settings.solver` is "sqp" (IPOPT, with a note, where one of its steps fails)."""
     from .guess import initial_guess, warm_multipliers
     tr = problem.transcription(settings.hessian, layout, controls)
     x0 = initial_guess(problem, tr, guess, shift)
@@ -240,14 +245,14 @@ def solve_mesh(problem, layout, controls, guess, settings, warm=False, shift=0.0
             return solve_structured(problem, bound, x0, *warm_multipliers(bound, guess, shift),
                                     settings)
         except StepFailed as exc:
-            result = solve_nlp(problem, bound, x0, settings, warm and not replan)
+            result = solve_nlp(problem, bound, x0, settings, start)
             result.notes.append(f"the structured SQP failed ({exc}): IPOPT solved this mesh "
                                 f"from the same start (result.solver says which solved it)")
             return result
         except Unsupported as exc:
             raise LagrgenError(f"solver='sqp' cannot solve this problem: {exc}; solve it "
                                "with solver='auto' or 'ipopt'") from None
-    return solve_nlp(problem, bound, x0, settings, warm and not replan)
+    return solve_nlp(problem, bound, x0, settings, start)
 
 
 def solve_structured(problem, tr, x0, lam0, z0, settings):
@@ -303,18 +308,19 @@ class _SQPProgress:
               flush=True)
 
 
-def solve_nlp(problem, tr, x0, settings, warm=False):
-    """Run IPOPT on the transcription from x0; the CollocationResult."""
+def solve_nlp(problem, tr, x0, settings, start=None):
+    """Run IPOPT on the transcription from x0 (a refined mesh's `start`: see `solve_mesh`); the
+    CollocationResult."""
     from .result import CollocationResult
     cyipopt = ipopt()
-    start = time.perf_counter()
+    began = time.perf_counter()
     monitor = _Progress(settings.progress)
     adapter = _Callbacks(tr, monitor)
     nlp = cyipopt.Problem(n=tr.layout.size, m=tr.n_constraints, problem_obj=adapter,
                           lb=tr.lo, ub=tr.hi, cl=tr.g_lo, cu=tr.g_hi)
     hessian = settings.hessian
     for key, value in solver_options(hessian, settings.tol, settings.max_iter,
-                                     settings.options, warm).items():
+                                     settings.options, start).items():
         add_option(nlp, key, value)
     x0 = np.clip(np.asarray(x0, dtype=float), tr.lo, tr.hi)
     try:
@@ -329,7 +335,7 @@ def solve_nlp(problem, tr, x0, settings, warm=False):
                            f"{settings.options!r} against IPOPT's list of options "
                            "(https://coin-or.github.io/Ipopt/OPTIONS.html)")
     monitor.finish()
-    seconds = time.perf_counter() - start
+    seconds = time.perf_counter() - began
     info["mult_z"] = np.asarray(info["mult_x_U"]) - np.asarray(info["mult_x_L"])
     result = CollocationResult.from_solution(problem, tr, np.asarray(x), info,
                                              monitor.iterations, seconds, hessian)
