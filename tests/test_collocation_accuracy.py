@@ -199,10 +199,12 @@ def test_the_order_a_refinement_showed_is_measured_per_interval(order):
 
 
 def test_each_refined_mesh_starts_ipopt_by_how_far_off_its_start_is(pendulum, monkeypatch):
-    """The problem's grid starts cold; the first refined mesh, from that grid's motion, with the
-    "far" options of WARM_STARTS (mu_init 1e-4), later ones with the "near" ones (1e-6); each
-    start keeps the last solution on its bounds (bound_push 1e-8). A re-plan starts cold."""
+    """The problem's grid starts cold; a refined mesh whose last mesh's error was above
+    NEAR·mesh_tol with the "far" options of WARM_STARTS (mu_init 1e-4), one within it with the
+    "near" ones (1e-6); each start keeps the last solution on its bounds (bound_push 1e-8). A
+    re-plan starts cold."""
     from lagrgen.collocation import solver
+    from lagrgen.collocation.refine import NEAR
     model, mod = pendulum
     T, = model.input_functions
     prob = lagrgen.Collocation(mod, nodes=11, duration=3.0)
@@ -218,11 +220,51 @@ def test_each_refined_mesh_starts_ipopt_by_how_far_off_its_start_is(pendulum, mo
     monkeypatch.setattr(solver, "solver_options", recording)
     res = prob.solve(progress=False, mesh_tol=1e-8)
     assert res.success and len(res.meshes) >= 3
-    assert seen == [(None, None, None), ("far", 1e-4, 1e-8)] + [("near", 1e-6, 1e-8)] * (
-        len(res.meshes) - 2)
+    kinds = ["near" if m.error <= NEAR * 1e-8 else "far" for m in res.meshes[:-1]]
+    assert {"near", "far"} <= set(kinds)
+    barrier = {"far": 1e-4, "near": 1e-6}
+    assert seen == [(None, None, None)] + [(k, barrier[k], 1e-8) for k in kinds]
     seen.clear()
     prob.resolve(warm=res, initial={"q": [0.05], "qd": [0.0]}, mesh_tol=None)
     assert seen == [(None, None, None)]
+
+
+def test_a_refined_mesh_starts_from_the_last_meshs_multipliers(pendulum):
+    """`refined_multipliers` gives back a result's own multipliers on its own mesh, and on a
+    mesh of every interval halved the Lagrangian's gradient ∇f + Jᵀλ + z (z: upper minus lower)
+    at the interpolated start is a few percent of its terms Jᵀλ: the multipliers are densities
+    of time scaled to the finer rows (h for Simpson's defects and the points, h² for
+    Hermite's), the end values' multipliers kept as they are; with Hermite's rows scaled by h
+    the residual is several times larger."""
+    from lagrgen.collocation.guess import initial_guess, refined_multipliers
+    from lagrgen.collocation.refine import refined_layout
+    model, mod = pendulum
+    T, = model.input_functions
+    prob = lagrgen.Collocation(mod, nodes=21, duration=3.0)
+    prob.bound("T", -6.0, 6.0)
+    prob.initial(q=[0.0], qd=[0.0]).final(q=[np.pi], qd=[0.0]).minimize(integral=T ** 2)
+    res = prob.solve(progress=False, mesh_tol=None)
+    same = prob.transcription("exact", res._layout).bound(3.0)
+    lam, z = refined_multipliers(same, res)
+    assert_allclose(lam, res._lam, rtol=1e-12, atol=1e-14)
+    assert_allclose(z, res._z, rtol=1e-12, atol=1e-14)
+    halved = refined_layout(res._layout, np.full(20, 1.0), 1e-6, (0.0, 1.0), order=1e3)
+    assert halved.nodes == 41
+    tr = prob.transcription("exact", halved).bound(3.0)
+    x0 = initial_guess(prob, tr, res)
+    lam, z = refined_multipliers(tr, res)
+    J = np.zeros((tr.n_constraints, tr.layout.size))
+    rows, cols = tr.jacobianstructure()
+    np.add.at(J, (rows, cols), tr.jacobian(x0))
+    grad = tr.gradient(x0)
+    terms = np.abs(J.T @ lam).max()
+    assert np.abs(grad + J.T @ lam + z).max() < 0.06 * terms
+    per = tr.n_defects // 40
+    hermite = tr.defect_row + (np.arange(40)[:, None] * per + np.arange(per // 2, per)).ravel()
+    scaled_by_h = lam.copy()
+    scaled_by_h[hermite] *= 2.0
+    assert np.abs(grad + J.T @ scaled_by_h + z).max() > 0.12 * terms
+    assert refined_multipliers(tr, {"q": 0.0}) is None
 
 
 def test_a_lower_order_splits_into_more_pieces(pendulum):

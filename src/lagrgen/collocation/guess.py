@@ -317,6 +317,72 @@ def warm_multipliers(tr, guess, shift=0.0):
     return lam, z
 
 
+def refined_multipliers(tr, guess):
+    """(λ, z) for the transcription `tr` of a finer mesh from an earlier result `guess` of the
+    same fixed duration on a coarser one, else None. Every multiplier there is a density times
+    its row's share of the duration (a point's quadrature weight, an interval's length: the
+    defects are Δx/h − f, the objective h·Σ w·L): the densities are interpolated in time and
+    multiplied by the new shares; rows the coarse mesh lacks (input ties) start at 0."""
+    from .grid import quadrature
+    from .result import CollocationResult
+    L = tr.layout
+    if not isinstance(guess, CollocationResult):
+        return None
+    old = guess._layout
+    if L.free or old.free or (old.stride, old.nz, old.ni) != (L.stride, L.nz, L.ni) \
+            or guess._lam.size == 0 or guess._z.size != old.size:
+        return None
+    lam_old, z_old = np.asarray(guess._lam), np.asarray(guess._z)
+    per_point = L.ni + tr.n_path
+    fixed = tr.n_cons + tr.n_term
+    per, bounded = tr.n_defects // (L.nodes - 1), tr.n_envelope // (L.nodes - 1)
+    if lam_old.size < old.points * per_point + fixed + (old.nodes - 1) * (per + bounded):
+        return None
+    lam, z = np.zeros(tr.n_constraints), np.zeros(L.size)
+    w_old, w_new = quadrature(old), quadrature(L)
+    lam[:L.points * per_point] = _rescaled(
+        lam_old[:old.points * per_point].reshape(old.points, per_point), old.fractions, w_old,
+        L.fractions, w_new).ravel()
+    z_points = np.array(z_old[:old.p_start].reshape(old.points, old.nz))
+    pinned = (tr.lo == tr.hi)[:L.p_start].reshape(L.points, L.nz)[[0, -1]]
+    ends = np.where(pinned, z_points[[0, -1]], 0.0)     # an end value's multiplier: no density
+    z_points[[0, -1]] -= ends
+    zp = _rescaled(z_points, old.fractions, w_old, L.fractions, w_new)
+    zp[[0, -1]] += ends
+    z[:L.p_start] = zp.ravel()
+    z[L.p_start:] = z_old[old.p_start:]
+    start_old = old.points * per_point
+    lam[L.points * per_point:tr.defect_row] = lam_old[start_old:start_old + fixed]
+    h_old, h_new = np.diff(old.node_fractions), np.diff(L.node_fractions)
+    mid_old = 0.5 * (old.node_fractions[:-1] + old.node_fractions[1:])
+    mid_new = 0.5 * (L.node_fractions[:-1] + L.node_fractions[1:])
+    d0 = start_old + fixed
+    defects = lam_old[d0:d0 + (old.nodes - 1) * per].reshape(-1, per)
+    simpson = per if L.stride == 1 else per // 2
+    lam[tr.defect_row:tr.defect_row + tr.n_defects] = np.hstack([
+        _rescaled(defects[:, :simpson], mid_old, h_old, mid_new, h_new),
+        _rescaled(defects[:, simpson:], mid_old, h_old ** 2, mid_new, h_new ** 2)]).ravel()
+    if bounded:
+        env_old = lam_old[lam_old.size - bounded * (old.nodes - 1):]
+        lam[tr.n_constraints - tr.n_envelope:] = _rescaled(
+            env_old.reshape(bounded, -1).T, mid_old, h_old, mid_new, h_new).T.ravel()
+    return lam, z
+
+
+def _rescaled(rows, at, share, to, new_share):
+    """Rows of multipliers at the times `at`, each a density times its `share`, as the same
+    densities at the times `to` (linear between and beyond the times `at`) times `new_share`."""
+    density = rows / share[:, None]
+    if at.size > 1:
+        ends = (to[:1] if to[0] < at[0] else at[:0], to[-1:] if to[-1] > at[-1] else at[:0])
+        slopes = ((density[1] - density[0]) / (at[1] - at[0]),
+                  (density[-1] - density[-2]) / (at[-1] - at[-2]))
+        density = np.vstack([density[0] + (ends[0][:, None] - at[0]) * slopes[0], density,
+                             density[-1] + (ends[1][:, None] - at[-1]) * slopes[1]])
+        at = np.concatenate([ends[0], at, ends[1]])
+    return np.array([np.interp(to, at, column) for column in density.T]).T * new_share[:, None]
+
+
 def from_simulation(problem, tr, sol):
     """States of a simulation (sol.t, sol.y) interpolated at the points; accelerations and
     multipliers from the model at those states (inputs at their guessed values)."""

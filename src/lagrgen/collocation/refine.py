@@ -50,6 +50,9 @@ ORDER = 4
 MARGIN = 4.0
 #: The least order `observed_orders` gives an interval.
 LEAST_ORDER = 1.0
+#: A refined mesh's start is "near" its optimum (`solver.WARM_STARTS`) when the last mesh's
+#: error is within this factor of mesh_tol, else "far".
+NEAR = 100.0
 #: An input within this share of its range from a bound counts as on the bound.
 ON_BOUND = 1e-3
 #: A switch is looked for between intervals saturated at opposite bounds at most this many
@@ -101,7 +104,7 @@ def solve_refined(problem, guess, settings, mesh_tol, max_meshes, start=None):
         tied = tied | inputs_on_bounds(result, problem)
         controls = ControlMesh(knots, degree, tied)
         result = solve_mesh(problem, layout, controls, result, settings,
-                            start="far" if len(meshes) == 1 else "near")
+                            start="near" if errors.max() <= NEAR * mesh_tol else "far")
     result.callback_seconds = callbacks
     result = finished(result, errors, meshes, mesh_tol, spent, limit)
     if result.success:

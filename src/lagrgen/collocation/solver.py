@@ -41,15 +41,24 @@ QUASI_NEWTON_OPTIONS = {"hessian_approximation": "limited-memory"}
 #: IPOPT's start on a refined mesh, from the last mesh's solution: that point kept as it is (not
 #: pushed off its bounds, which breaks the dynamics of a motion riding a velocity limit) and a
 #: small barrier parameter decreased monotonically, which takes ~25 iterations per mesh on a
-#: robot's least-effort move (benchmarks: the seven-joint arm) instead of 70–100. "far": the first
-#: refined mesh, started from the problem's grid, whose motion is off by that grid's error (1e-3
-#: on robots), begins with a larger barrier parameter (the Panda: 25 iterations where 1e-6 took
-#: 45; Talos: 30 where it took 51); "near": later meshes start within a few times mesh_tol, where
-#: the small one is quicker (Talos: 24 and 22 iterations against 30 and 34).
+#: robot's least-effort move (benchmarks: the seven-joint arm) instead of 70–100. "far": a mesh
+#: whose last mesh's error exceeded `refine.NEAR`·mesh_tol (the first refined mesh, from the
+#: problem's grid, off by 1e-3 on robots) begins with a larger barrier parameter (the Panda: 25
+#: iterations where 1e-6 took 45; Talos: 30 where it took 51); "near": a start within that,
+#: where the small one is quicker (Talos: 24 and 22 iterations against 30 and 34).
 WARM_STARTS = {"near": {"bound_push": 1e-8, "bound_frac": 1e-8, "mu_init": 1e-6,
                         "mu_strategy": "monotone"},
                "far": {"bound_push": 1e-8, "bound_frac": 1e-8, "mu_init": 1e-4,
                        "mu_strategy": "monotone"}}
+#: A "near" start also takes the last mesh's multipliers, interpolated
+#: (`refined_multipliers` of `lagrgen.collocation.guess`), with the point and them kept as they
+#: are: the Panda's last mesh in 16 iterations instead of 25, Talos's last two in 17 and 16
+#: instead of 24 and 22. From a "far" start they do not help (27 against 25 on the Panda), and
+#: an identification (examples/chain_identification.py, its last mesh's error 1.05) stalled on
+#: them.
+DUAL_OPTIONS = {"warm_start_init_point": "yes", "warm_start_bound_push": 1e-9,
+                "warm_start_bound_frac": 1e-9, "warm_start_mult_bound_push": 1e-9,
+                "warm_start_slack_bound_push": 1e-9, "warm_start_slack_bound_frac": 1e-9}
 
 
 #: IPOPT counts iterations in a C int.
@@ -232,27 +241,30 @@ def solve_mesh(problem, layout, controls, guess, settings, start=None, shift=0.0
     mesh's solution, which IPOPT takes with those options of WARM_STARTS, or None: IPOPT's usual
     barrier, also for a re-plan (a new initial state or a shift puts its start off the central
     path, where the warm options took 215-221 iterations on the Panda against a cold solve's
-    26-28); the structured SQP (with the guess's multipliers) solves instead when
-    `settings.solver` is "sqp" (IPOPT, with a note, where one of its steps fails)."""
-    from .guess import initial_guess, warm_multipliers
+    26-28); from a "near" start IPOPT also starts from the guess's multipliers
+    (`guess.refined_multipliers`, with DUAL_OPTIONS); the structured SQP (with the guess's
+    multipliers) solves instead when `settings.solver` is "sqp" (IPOPT, with a note, where one
+    of its steps fails)."""
+    from .guess import initial_guess, refined_multipliers, warm_multipliers
     tr = problem.transcription(settings.hessian, layout, controls)
     x0 = initial_guess(problem, tr, guess, shift)
     T0 = layout.duration(x0) if layout.free else problem.duration_bounds[0]
     bound = tr.bound(T0)
+    multipliers = refined_multipliers(bound, guess) if start == "near" else None
     if settings.solver == "sqp":
         from .sqp import StepFailed, Unsupported
         try:
             return solve_structured(problem, bound, x0, *warm_multipliers(bound, guess, shift),
                                     settings)
         except StepFailed as exc:
-            result = solve_nlp(problem, bound, x0, settings, start)
+            result = solve_nlp(problem, bound, x0, settings, start, multipliers)
             result.notes.append(f"the structured SQP failed ({exc}): IPOPT solved this mesh "
                                 f"from the same start (result.solver says which solved it)")
             return result
         except Unsupported as exc:
             raise LagrgenError(f"solver='sqp' cannot solve this problem: {exc}; solve it "
                                "with solver='auto' or 'ipopt'") from None
-    return solve_nlp(problem, bound, x0, settings, start)
+    return solve_nlp(problem, bound, x0, settings, start, multipliers)
 
 
 def solve_structured(problem, tr, x0, lam0, z0, settings):
@@ -308,9 +320,9 @@ class _SQPProgress:
               flush=True)
 
 
-def solve_nlp(problem, tr, x0, settings, start=None):
-    """Run IPOPT on the transcription from x0 (a refined mesh's `start`: see `solve_mesh`); the
-    CollocationResult."""
+def solve_nlp(problem, tr, x0, settings, start=None, multipliers=None):
+    """Run IPOPT on the transcription from x0 (a refined mesh's `start`: see `solve_mesh`; and
+    the constraints' and bounds' `multipliers` (λ, z) when given); the CollocationResult."""
     from .result import CollocationResult
     cyipopt = ipopt()
     began = time.perf_counter()
@@ -322,9 +334,15 @@ def solve_nlp(problem, tr, x0, settings, start=None):
     for key, value in solver_options(hessian, settings.tol, settings.max_iter,
                                      settings.options, start).items():
         add_option(nlp, key, value)
+    duals = {}
+    if multipliers is not None:
+        for key, value in {**DUAL_OPTIONS, **settings.options}.items():
+            add_option(nlp, key, value)
+        lam, z = multipliers
+        duals = {"lagrange": lam, "zl": np.maximum(-z, 0.0), "zu": np.maximum(z, 0.0)}
     x0 = np.clip(np.asarray(x0, dtype=float), tr.lo, tr.hi)
     try:
-        x, info = nlp.solve(x0)
+        x, info = nlp.solve(x0, **duals)
     finally:
         if hasattr(nlp, "close"):
             nlp.close()
