@@ -52,7 +52,7 @@ MARGIN = 4.0
 LEAST_ORDER = 1.0
 #: A refined mesh's start is "near" its optimum (`solver.WARM_STARTS`) when the last mesh's
 #: error is within this factor of mesh_tol, else "far".
-NEAR = 100.0
+NEAR = 1000.0
 #: An input within this share of its range from a bound counts as on the bound.
 ON_BOUND = 1e-3
 #: A switch is looked for between intervals saturated at opposite bounds at most this many
