@@ -162,6 +162,27 @@ def test_refinement_stops_at_the_tolerance(pendulum):
         nodes[tol] = res.t.size
         assert res.check() < 1e3 * tol               # the motion the inputs produce
     assert nodes[1e-8] > nodes[1e-4]
+    _check_error_plot(res)
+
+
+def _check_error_plot(res):
+    """plot_errors draws one step curve per mesh, each the mesh's errors, and the tolerance,
+    with the legend outside the axes (no curve hidden behind it)."""
+    fig = res.plot_errors()
+    ax = fig.axes[0]
+    labels = ax.get_legend_handles_labels()[1]
+    assert labels[:len(res.meshes)] == [
+        f"mesh {k}: {m.nodes} nodes, largest {m.error:.1e}" for k, m in enumerate(res.meshes, 1)]
+    assert labels[-1] == f"mesh_tol {res.mesh_tol:g}"
+    steps = [p for p in ax.patches if hasattr(p, "get_data")]
+    assert len(steps) == len(res.meshes)
+    for patch, mesh in zip(steps, res.meshes):
+        values, edges = patch.get_data()[:2]
+        np.testing.assert_allclose(edges, mesh.times)
+        np.testing.assert_allclose(values, np.maximum(mesh.errors, 1e-16))
+    fig.canvas.draw()
+    legend = ax.get_legend().get_window_extent()
+    assert legend.x0 >= ax.get_window_extent().x1
 
 
 def _mesh(times, errors):
@@ -202,7 +223,7 @@ def test_each_refined_mesh_starts_ipopt_by_how_far_off_its_start_is(pendulum, mo
     """The problem's grid starts cold; a refined mesh whose last mesh's error was above
     NEAR·mesh_tol with the "far" options of WARM_STARTS (mu_init 1e-4), one within it with the
     "near" ones (1e-6); each start keeps the last solution on its bounds (bound_push 1e-8). A
-    re-plan starts cold."""
+    re-plan starts cold. Only the "near" starts take the last mesh's multipliers."""
     from lagrgen.collocation import solver
     from lagrgen.collocation.refine import NEAR
     model, mod = pendulum
@@ -212,9 +233,10 @@ def test_each_refined_mesh_starts_ipopt_by_how_far_off_its_start_is(pendulum, mo
     prob.initial(q=[0.0], qd=[0.0]).final(q=[np.pi], qd=[0.0]).minimize(integral=T ** 2)
     seen, options = [], solver.solver_options
 
-    def recording(hessian, tol, max_iter, given, start=None):
-        chosen = options(hessian, tol, max_iter, given, start)
-        seen.append((start, chosen.get("mu_init"), chosen.get("bound_push")))
+    def recording(hessian, tol, max_iter, given, start=None, duals=False):
+        chosen = options(hessian, tol, max_iter, given, start, duals)
+        seen.append((start, chosen.get("mu_init"), chosen.get("bound_push"),
+                     chosen.get("warm_start_init_point")))
         return chosen
 
     monkeypatch.setattr(solver, "solver_options", recording)
@@ -222,11 +244,11 @@ def test_each_refined_mesh_starts_ipopt_by_how_far_off_its_start_is(pendulum, mo
     assert res.success and len(res.meshes) >= 3
     kinds = ["near" if m.error <= NEAR * 1e-8 else "far" for m in res.meshes[:-1]]
     assert {"near", "far"} <= set(kinds)
-    barrier = {"far": 1e-4, "near": 1e-6}
-    assert seen == [(None, None, None)] + [(k, barrier[k], 1e-8) for k in kinds]
+    barrier, duals = {"far": 1e-4, "near": 1e-6}, {"far": None, "near": "yes"}
+    assert seen == [(None, None, None, None)] + [(k, barrier[k], 1e-8, duals[k]) for k in kinds]
     seen.clear()
     prob.resolve(warm=res, initial={"q": [0.05], "qd": [0.0]}, mesh_tol=None)
-    assert seen == [(None, None, None)]
+    assert seen == [(None, None, None, None)]
 
 
 def test_a_refined_mesh_starts_from_the_last_meshs_multipliers(pendulum):

@@ -305,15 +305,14 @@ def warm_multipliers(tr, guess, shift=0.0):
     for kind in range(L.stride):           # nodes, then midpoints
         own = np.arange(kind, P, L.stride)
         for block in (point_rows, zp):
-            block[own] = np.array([np.interp(later[own], times[own], column)
-                                   for column in block[own].T]).T
+            block[own] = _interpolated(block[own], times[own], later[own])
     lam[:P * ni] = point_rows.ravel()
     z[:L.p_start] = zp.ravel()
     base, per = tr.defect_row, tr.n_defects // (L.nodes - 1)
     middles = 0.5 * (L.node_fractions[:-1] + L.node_fractions[1:]) * T
     rows = lam[base:base + tr.n_defects].reshape(-1, per)
-    lam[base:base + tr.n_defects] = np.array(
-        [np.interp(np.minimum(middles + shift, T), middles, column) for column in rows.T]).T.ravel()
+    lam[base:base + tr.n_defects] = _interpolated(
+        rows, middles, np.minimum(middles + shift, T)).ravel()
     return lam, z
 
 
@@ -380,7 +379,13 @@ def _rescaled(rows, at, share, to, new_share):
         density = np.vstack([density[0] + (ends[0][:, None] - at[0]) * slopes[0], density,
                              density[-1] + (ends[1][:, None] - at[-1]) * slopes[1]])
         at = np.concatenate([ends[0], at, ends[1]])
-    return np.array([np.interp(to, at, column) for column in density.T]).T * new_share[:, None]
+    return _interpolated(density, at, to) * new_share[:, None]
+
+
+def _interpolated(rows, at, to):
+    """Rows of values at the times `at`, linearly interpolated at the times `to` (each column
+    held at its end values beyond `at`)."""
+    return np.array([np.interp(to, at, column) for column in rows.T]).T
 
 
 def from_simulation(problem, tr, sol):

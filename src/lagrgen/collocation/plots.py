@@ -54,7 +54,7 @@ def plot_result(result, path=None, title=None):
 def plot_errors(result, path=None, title=None):
     """Each mesh's relative dynamics error per interval against time (a step at the interval's
     place, log scale), with the tolerance; returns the matplotlib Figure (saved to `path`)."""
-    fig = new_figure(7, 3.4)
+    fig = new_figure(9.6, 3.4)
     ax = fig.subplots()
     floor = 1e-16
     for number, mesh in enumerate(result.meshes, start=1):
@@ -67,6 +67,6 @@ def plot_errors(result, path=None, title=None):
     ax.set_xlabel("t")
     ax.set_ylabel("relative dynamics error")
     ax.grid(True, which="major", alpha=0.3)
-    ax.legend(loc="best", fontsize="small")
+    legend_beside(ax)
     ax.set_title(title or f"{result._problem.mod.name}: the dynamics error of each interval")
     return finished(fig, path)

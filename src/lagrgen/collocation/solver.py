@@ -116,13 +116,14 @@ def settings(hessian, tol, max_iter, progress, options, solver="auto"):
     return Settings(hessian, float(tol), int(max_iter), bool(progress), dict(options), solver)
 
 
-def solver_options(hessian, tol, max_iter, options, start=None):
+def solver_options(hessian, tol, max_iter, options, start=None, duals=False):
     """The IPOPT options of a solve: the base, those of the Hessian's kind (and of a refined
-    mesh's `start`, a key of WARM_STARTS, when given), tol and max_iter, and then the
-    caller's."""
+    mesh's `start`, a key of WARM_STARTS, and DUAL_OPTIONS when it starts from multipliers),
+    tol and max_iter, and then the caller's."""
     kind = EXACT_OPTIONS if hessian == "exact" else QUASI_NEWTON_OPTIONS
-    return {**BASE_OPTIONS, **kind, **(WARM_STARTS[start] if start else {}), "tol": float(tol),
-            "max_iter": int(max_iter), **options}
+    return {**BASE_OPTIONS, **kind, **(WARM_STARTS[start] if start else {}),
+            **(DUAL_OPTIONS if duals else {}), "tol": float(tol), "max_iter": int(max_iter),
+            **options}
 
 
 def ipopt():
@@ -331,13 +332,11 @@ def solve_nlp(problem, tr, x0, settings, start=None, multipliers=None):
     nlp = cyipopt.Problem(n=tr.layout.size, m=tr.n_constraints, problem_obj=adapter,
                           lb=tr.lo, ub=tr.hi, cl=tr.g_lo, cu=tr.g_hi)
     hessian = settings.hessian
-    for key, value in solver_options(hessian, settings.tol, settings.max_iter,
-                                     settings.options, start).items():
+    for key, value in solver_options(hessian, settings.tol, settings.max_iter, settings.options,
+                                     start, duals=multipliers is not None).items():
         add_option(nlp, key, value)
     duals = {}
     if multipliers is not None:
-        for key, value in {**DUAL_OPTIONS, **settings.options}.items():
-            add_option(nlp, key, value)
         lam, z = multipliers
         duals = {"lagrange": lam, "zl": np.maximum(-z, 0.0), "zu": np.maximum(z, 0.0)}
     x0 = np.clip(np.asarray(x0, dtype=float), tr.lo, tr.hi)
