@@ -13,7 +13,7 @@ from scipy.optimize import brentq
 
 import lagrgen
 from lagrgen.collocation.accuracy import interval_errors
-from lagrgen.collocation.refine import DiscretizationWarning
+from lagrgen.collocation.refine import DiscretizationWarning, inputs_switching
 from lagrgen.errors import LagrgenError, ModelError, UnknownNameError
 from conftest import damped_oscillator, double_integrator
 
@@ -113,6 +113,32 @@ def test_a_coarse_grid_no_longer_reports_a_false_success(bead):
         alone = brachistochrone(mod, 11).solve(progress=False, mesh_tol=None)
     assert alone.success and alone.error == pytest.approx(stuck.error)
     assert alone.mesh_tol is None and len(alone.meshes) == 1
+    assert inputs_switching(alone, alone._problem, alone._layout.node_fractions) == {0}
+
+
+def test_only_an_input_that_switches_between_its_bounds_is_tied(integrator, pendulum):
+    """The refinement ties an input to the problem's grid when it goes from one bound to the
+    other within a few control intervals (a bang-bang switch; the chatter above), not when it
+    rides one bound (a least-time robot's burst at its torque limit, tied, was held to a
+    quadratic over an interval longer than the burst)."""
+    model, mod = pendulum
+    T, = model.input_functions
+    rides = lagrgen.Collocation(mod, nodes=21, duration=3.0)
+    rides.bound("T", -10.0, 5.0)
+    rides.initial(q=[0.0], qd=[0.0]).final(q=[np.pi], qd=[0.0]).minimize(integral=T ** 2)
+    res = rides.solve(progress=False)
+    assert res.success and res.error <= 1e-6
+    first = res.meshes[0]
+    on_bound = res._point_values("u", 0) >= 5.0 - 1e-3 * 15.0
+    assert on_bound.sum() >= 3 and res._point_values("u", 0).min() > -9.0
+    assert inputs_switching(res, rides, res._layout.node_fractions) == frozenset()
+    assert len(res.meshes) >= 2 and first.nodes == 21
+    bang = lagrgen.Collocation(integrator[1], nodes=41, duration=(0.5, 5.0))
+    bang.bound("F", -1.0, 1.0)
+    bang.initial(q=[0.0], qd=[0.0]).final(q=[1.0], qd=[0.0]).minimize(time=True)
+    with pytest.warns(DiscretizationWarning):
+        coarse = bang.solve(progress=False, mesh_tol=None)
+    assert inputs_switching(coarse, bang, bang.layout.node_fractions) == {0}
 
 
 # -- the error estimate -------------------------------------------------------------------------
@@ -251,6 +277,19 @@ def test_each_refined_mesh_starts_ipopt_by_how_far_off_its_start_is(pendulum, mo
     assert seen == [(None, None, None, None)]
 
 
+def _swing_up_on_its_grid(model, mod, nodes):
+    """(problem, result): the pendulum swung up in 3 s with |T| ≤ 6, least ∫T² dt, solved on
+    its grid of `nodes` alone."""
+    T, = model.input_functions
+    prob = lagrgen.Collocation(mod, nodes=nodes, duration=3.0)
+    prob.bound("T", -6.0, 6.0)
+    prob.initial(q=[0.0], qd=[0.0]).final(q=[np.pi], qd=[0.0]).minimize(integral=T ** 2)
+    with pytest.warns(DiscretizationWarning):
+        res = prob.solve(progress=False, mesh_tol=None)
+    assert res.success
+    return prob, res
+
+
 def test_a_refined_mesh_starts_from_the_last_meshs_multipliers(pendulum):
     """`refined_multipliers` gives back a result's own multipliers on its own mesh, and on a
     mesh of every interval halved the Lagrangian's gradient ∇f + Jᵀλ + z (z: upper minus lower)
@@ -261,11 +300,7 @@ def test_a_refined_mesh_starts_from_the_last_meshs_multipliers(pendulum):
     from lagrgen.collocation.guess import initial_guess, refined_multipliers
     from lagrgen.collocation.refine import refined_layout
     model, mod = pendulum
-    T, = model.input_functions
-    prob = lagrgen.Collocation(mod, nodes=21, duration=3.0)
-    prob.bound("T", -6.0, 6.0)
-    prob.initial(q=[0.0], qd=[0.0]).final(q=[np.pi], qd=[0.0]).minimize(integral=T ** 2)
-    res = prob.solve(progress=False, mesh_tol=None)
+    prob, res = _swing_up_on_its_grid(model, mod, 21)
     same = prob.transcription("exact", res._layout).bound(3.0)
     lam, z = refined_multipliers(same, res)
     assert_allclose(lam, res._lam, rtol=1e-12, atol=1e-14)
@@ -287,6 +322,30 @@ def test_a_refined_mesh_starts_from_the_last_meshs_multipliers(pendulum):
     scaled_by_h[hermite] *= 2.0
     assert np.abs(grad + J.T @ scaled_by_h + z).max() > 0.12 * terms
     assert refined_multipliers(tr, {"q": 0.0}) is None
+
+
+def test_a_refined_mesh_that_ties_an_input_starts_on_its_ties(pendulum):
+    """An input the last mesh left free and the next ties to a coarser control mesh (it reached
+    a bound) starts on its control polynomials: every tie row holds at the start, the carriers
+    keep the last solution's values, and the interpolated start alone leaves the ties."""
+    from lagrgen.collocation.grid import ControlMesh
+    from lagrgen.collocation.guess import from_result, initial_guess
+    from lagrgen.collocation.refine import refined_layout
+    model, mod = pendulum
+    prob, res = _swing_up_on_its_grid(model, mod, 21)
+    knots = tuple(np.linspace(0.0, 1.0, 6))
+    layout = refined_layout(prob.layout, np.full(20, 1e-3), 1e-6, knots)
+    tr = prob.transcription("exact", layout, ControlMesh(knots, 2, frozenset({0})))
+    ties = len(tr.controls.ties(tr.layout, [0]))
+    assert ties > 0 and tr.E.shape[0] >= ties
+    interpolated, x0 = from_result(prob, tr, res), initial_guess(prob, tr, res)
+    off = lambda x: np.abs(tr.E.dot(x)[:ties]).max()           # noqa: E731
+    assert off(interpolated) > 0.05 and off(x0) < 1e-12
+    carriers = sorted({c for cols, _ in tr.controls.ties(tr.layout, [0]) for c in cols[1:]})
+    assert_allclose(x0[carriers], interpolated[carriers])
+    moved = np.flatnonzero(x0 != interpolated)
+    u_cols = {tr.layout.index(j, "u", 0) for j in range(tr.layout.points)}
+    assert moved.size and set(moved) <= u_cols
 
 
 def test_a_lower_order_splits_into_more_pieces(pendulum):

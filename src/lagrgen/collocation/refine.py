@@ -3,19 +3,23 @@
 again from the last solution, until the error is within the tolerance or the meshes run out.
 
 After the first mesh (the problem's grid and scheme as given) the states are collocated with
-Hermite–Simpson on the refined mesh. An input that has reached one of its bounds (on any mesh so
-far) stays one polynomial per interval of the problem's grid (quadratic for Hermite–Simpson,
-linear for the other schemes: `grid.ControlMesh`): the refinement makes the motion that the
-inputs produce exact, without giving the optimizer finer inputs to chatter with. A
+Hermite–Simpson on the refined mesh. An input that has chattered or switched at its bounds (on
+any mesh so far: `inputs_switching`) stays one polynomial per interval of the problem's grid
+(quadratic for Hermite–Simpson, linear for the other schemes: `grid.ControlMesh`): the
+refinement makes the motion that the inputs produce exact, without giving the optimizer finer
+inputs to chatter with. A
 discretization coarser than the inputs is what a chattering optimum exploits (a brachistochrone
 by minimum time beats the cycloid with an input flipping between its bounds from point to
 point); with the states resolved inside each input's interval that gain is gone. Where such an
 input switches between its bounds (a bang-bang optimum), the control intervals of the switch get
 knots around the switching time, narrowed each mesh until the switch spans at most √mesh_tol of
 the duration, so the switching time is located rather than smeared over an interval of the grid.
-The other inputs are refined with the states (a quadratic per interval of the mesh): tied to a
-coarse grid, a smooth optimum (a robot's least-effort move riding its velocity limits) is a
-harder problem than it is, and IPOPT crawls on it.
+The other inputs, those that ride a bound once or never reach one, are refined with the states (a
+quadratic per interval of the mesh): tied to a coarse grid, a smooth optimum (a robot's
+least-effort move riding its velocity limits) is a harder problem than it is, and IPOPT crawls
+on it; and an arc at a bound shorter than an interval of the grid (the Panda's least-time move
+starts and ends with a burst of ~5 ms at the first joint's torque limit, on intervals of 15 ms)
+is held to a quadratic that cannot follow it: tied, its least time came out 0.27 % longer.
 
 An interval with error e > mesh_tol/MARGIN is split into ⌈(MARGIN·e/mesh_tol)^(1/(p+1))⌉ pieces,
 at least 2 and at most MAX_PIECES per mesh, where p is the order of the local error e ∝ h^(p+1):
@@ -101,7 +105,7 @@ def solve_refined(problem, guess, settings, mesh_tol, max_meshes, start=None):
         order = observed_orders(meshes, mesh_tol) if len(meshes) > (
             1 if problem.scheme == "hermite-simpson" else 2) else ORDER
         layout = refined_layout(layout, errors, mesh_tol, knots, order)
-        tied = tied | inputs_on_bounds(result, problem)
+        tied = tied | inputs_switching(result, problem, knots)
         controls = ControlMesh(knots, degree, tied)
         result = solve_mesh(problem, layout, controls, result, settings,
                             start="near" if errors.max() <= NEAR * mesh_tol else "far")
@@ -217,17 +221,30 @@ def within_budget(pieces, errors, budget):
     return 1 + scaled
 
 
-def inputs_on_bounds(result, problem):
-    """The inputs (indices) with a point within ON_BOUND of their range from a finite bound."""
-    on = set()
-    for k in range(result._layout.nu):
+def inputs_switching(result, problem, knots):
+    """The inputs (indices) that chatter or switch at their bounds: those that come back to a
+    bound after leaving it (two runs of points on it or more), or go from one bound to the other
+    within SWITCH_SPAN + 1 control intervals (`knots`): a bang-bang switch."""
+    L = result._layout
+    knots = np.asarray(knots)
+    interval = np.clip(np.searchsorted(knots, L.fractions, side="right") - 1, 0, knots.size - 2)
+    switching = set()
+    for k in range(L.nu):
         lo, hi = problem._bounds.get(("u", k), (-np.inf, np.inf))
+        if k in problem._given or not (np.isfinite(lo) and np.isfinite(hi)) or hi <= lo:
+            continue
         values = result._point_values("u", k)
-        band = ON_BOUND * (hi - lo) if np.isfinite(hi - lo) else ON_BOUND * max(
-            1.0, float(np.abs(values).max()))
-        if np.any(values <= lo + band) or np.any(values >= hi - band):
-            on.add(k)
-    return frozenset(on)
+        band = ON_BOUND * (hi - lo)
+        low, high = values <= lo + band, values >= hi - band
+        if max(_runs(low), _runs(high)) >= 2 or (low.any() and high.any() and np.abs(
+                np.subtract.outer(interval[low], interval[high])).min() <= SWITCH_SPAN + 1):
+            switching.add(k)
+    return frozenset(switching)
+
+
+def _runs(flags):
+    """How many runs of consecutive True there are in `flags`."""
+    return int(flags[0]) + int(np.count_nonzero(flags[1:] & ~flags[:-1]))
 
 
 def switch_knots(result, knots, problem, mesh_tol):
