@@ -116,6 +116,28 @@ def test_a_coarse_grid_no_longer_reports_a_false_success(bead):
     assert inputs_switching(alone, alone._problem, alone._layout.node_fractions) == {0}
 
 
+@pytest.mark.parametrize("bounds, values, tied", [
+    ((-1.0, 1.0), [1, 1, 0.5, 0, -0.5, -1, -1, -1, -1, -1, -1], True),      # a switch
+    ((-1.0, 1.0), [1, 1, 0.5, 0, 0, 0, 0, 0, -0.5, -1, -1], False),         # far apart
+    ((-1.0, 1.0), [1, 0.2, 1, 0.3, 0.1, 0, 0, 0, 0, 0, 0], True),           # back to a bound
+    ((-1.0, 1.0), [0.2, 0.3, 1, 1, 1, 0.5, 0, 0, 0, 0, 0], False),          # one arc on it
+    ((0.0, np.inf), [0, 0.5, 0, 0.6, 0, 0.4, 0.2, 0.1, 0.3, 0.2, 0.1], True),   # one-sided
+    ((0.0, np.inf), [0, 0, 0, 0.2, 0.4, 0.6, 0.8, 0.9, 1, 1, 1], False),
+    ((-np.inf, np.inf), [1, -1, 1, -1, 1, -1, 1, -1, 1, -1, 1], False),     # no bound
+])
+def test_which_inputs_chatter_or_switch(bounds, values, tied):
+    """`inputs_switching` on point values over 10 control intervals of one point each: an input
+    that comes back to a bound, or crosses from one to the other within SWITCH_SPAN + 1
+    intervals, is tied; one arc on a bound, or bounds reached far apart, is not."""
+    from types import SimpleNamespace
+    fractions = np.linspace(0.0, 1.0, 11)
+    result = SimpleNamespace(_layout=SimpleNamespace(fractions=fractions, nu=1),
+                             _point_values=lambda kind, k: np.asarray(values, float))
+    problem = SimpleNamespace(_bounds={("u", 0): bounds}, _given=set())
+    assert inputs_switching(result, problem, tuple(fractions)) == (
+        frozenset({0}) if tied else frozenset())
+
+
 def test_only_an_input_that_switches_between_its_bounds_is_tied(integrator, pendulum):
     """The refinement ties an input to the problem's grid when it goes from one bound to the
     other within a few control intervals (a bang-bang switch; the chatter above), not when it

@@ -3,23 +3,22 @@
 again from the last solution, until the error is within the tolerance or the meshes run out.
 
 After the first mesh (the problem's grid and scheme as given) the states are collocated with
-Hermite–Simpson on the refined mesh. An input that has chattered or switched at its bounds (on
-any mesh so far: `inputs_switching`) stays one polynomial per interval of the problem's grid
-(quadratic for Hermite–Simpson, linear for the other schemes: `grid.ControlMesh`): the
-refinement makes the motion that the inputs produce exact, without giving the optimizer finer
-inputs to chatter with. A
-discretization coarser than the inputs is what a chattering optimum exploits (a brachistochrone
-by minimum time beats the cycloid with an input flipping between its bounds from point to
-point); with the states resolved inside each input's interval that gain is gone. Where such an
-input switches between its bounds (a bang-bang optimum), the control intervals of the switch get
-knots around the switching time, narrowed each mesh until the switch spans at most √mesh_tol of
-the duration, so the switching time is located rather than smeared over an interval of the grid.
-The other inputs, those that ride a bound once or never reach one, are refined with the states (a
-quadratic per interval of the mesh): tied to a coarse grid, a smooth optimum (a robot's
-least-effort move riding its velocity limits) is a harder problem than it is, and IPOPT crawls
-on it; and an arc at a bound shorter than an interval of the grid (the Panda's least-time move
-starts and ends with a burst of ~5 ms at the first joint's torque limit, on intervals of 15 ms)
-is held to a quadratic that cannot follow it: tied, its least time came out 0.27 % longer.
+Hermite–Simpson on the refined mesh. An input that has chattered or switched at its bounds (on any
+mesh so far: `inputs_switching`) stays one polynomial per interval of the problem's grid (quadratic
+for Hermite–Simpson, linear for the other schemes: `grid.ControlMesh`): the refinement makes the
+motion that the inputs produce exact, without giving the optimizer finer inputs to chatter with. A
+discretization coarser than the inputs is what a chattering optimum exploits (a brachistochrone by
+minimum time beats the cycloid with an input flipping between its bounds from point to point); with
+the states resolved inside each input's interval that gain is gone. Where such an input switches
+between its bounds (a bang-bang optimum), the control intervals of the switch get knots around the
+switching time, narrowed each mesh until the switch spans at most √mesh_tol of the duration, so the
+switching time is located rather than smeared over an interval of the grid. The other inputs, those
+that ride a bound once or never reach one, are refined with the states (a quadratic per interval of
+the mesh): tied to a coarse grid, a smooth optimum (a robot's least-effort move riding its velocity
+limits) is a harder problem than it is, and IPOPT crawls on it; and an arc at a bound shorter than
+an interval of the grid (the Panda's least-time move starts and ends with a burst of ~5 ms at the
+first joint's torque limit, on intervals of 15 ms) is held to a quadratic that cannot follow it:
+tied, its least time came out 0.27 % longer.
 
 An interval with error e > mesh_tol/MARGIN is split into ⌈(MARGIN·e/mesh_tol)^(1/(p+1))⌉ pieces,
 at least 2 and at most MAX_PIECES per mesh, where p is the order of the local error e ∝ h^(p+1):
@@ -231,10 +230,11 @@ def inputs_switching(result, problem, knots):
     switching = set()
     for k in range(L.nu):
         lo, hi = problem._bounds.get(("u", k), (-np.inf, np.inf))
-        if k in problem._given or not (np.isfinite(lo) and np.isfinite(hi)) or hi <= lo:
+        if k in problem._given or not (np.isfinite(lo) or np.isfinite(hi)) or hi <= lo:
             continue
         values = result._point_values("u", k)
-        band = ON_BOUND * (hi - lo)
+        band = ON_BOUND * (hi - lo) if np.isfinite(hi - lo) else ON_BOUND * max(
+            1.0, float(np.abs(values).max()))
         low, high = values <= lo + band, values >= hi - band
         if max(_runs(low), _runs(high)) >= 2 or (low.any() and high.any() and np.abs(
                 np.subtract.outer(interval[low], interval[high])).min() <= SWITCH_SPAN + 1):
