@@ -358,12 +358,12 @@ def test_a_refined_mesh_that_ties_an_input_starts_on_its_ties(pendulum):
     knots = tuple(np.linspace(0.0, 1.0, 6))
     layout = refined_layout(prob.layout, np.full(20, 1e-3), 1e-6, knots)
     tr = prob.transcription("exact", layout, ControlMesh(knots, 2, frozenset({0})))
-    ties = len(tr.controls.ties(tr.layout, [0]))
+    ties = len(tr.ties)
     assert ties > 0 and tr.E.shape[0] >= ties
     interpolated, x0 = from_result(prob, tr, res), initial_guess(prob, tr, res)
     off = lambda x: np.abs(tr.E.dot(x)[:ties]).max()           # noqa: E731
     assert off(interpolated) > 0.05 and off(x0) < 1e-12
-    carriers = sorted({c for cols, _ in tr.controls.ties(tr.layout, [0]) for c in cols[1:]})
+    carriers = sorted({c for cols, _ in tr.ties for c in cols[1:]})
     assert_allclose(x0[carriers], interpolated[carriers])
     moved = np.flatnonzero(x0 != interpolated)
     u_cols = {tr.layout.index(j, "u", 0) for j in range(tr.layout.points)}

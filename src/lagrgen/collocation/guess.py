@@ -35,7 +35,7 @@ def initial_guess(problem, tr, guess, shift=0.0):
     if guess is None:
         return default_guess(problem, tr)
     if isinstance(guess, CollocationResult):
-        return on_controls(problem, tr, from_result(problem, tr, guess, shift))
+        return on_controls(tr, from_result(problem, tr, guess, shift))
     if hasattr(guess, "t") and hasattr(guess, "y"):    # a simulation (an OdeResult is a dict)
         return from_simulation(problem, tr, guess)
     if isinstance(guess, dict):
@@ -271,16 +271,15 @@ def from_result(problem, tr, result, shift=0.0):
     return np.clip(x, tr.lo, tr.hi)
 
 
-def on_controls(problem, tr, x):
+def on_controls(tr, x):
     """x with every tied input's value at the points inside a control interval set to the
-    polynomial through the interval's carriers (`grid.ControlMesh.ties`), then clipped to the
-    bounds: a refined mesh that ties an input the last mesh left free (it reached a bound there)
-    starts on its ties (the Panda's least-time move: 26 N·m off them otherwise)."""
-    if tr.controls is None:
+    polynomial through the interval's carriers (the transcription's rows `ties`), then clipped
+    to the bounds: a refined mesh that ties an input the last mesh left free starts on its ties
+    (the Panda's least-time move: 26 N·m off them otherwise)."""
+    if not tr.ties:
         return x
     x = np.array(x)
-    free = [k for k in range(tr.layout.nu) if k not in problem._given]
-    for cols, coefficients in tr.controls.ties(tr.layout, free):
+    for cols, coefficients in tr.ties:
         x[cols[0]] = -np.dot(coefficients[1:], x[cols[1:]])
     return np.clip(x, tr.lo, tr.hi)
 

@@ -261,9 +261,11 @@ class Transcription:
         entries += [(*interpolation(L, kind, i, s, T), value, value)
                     for s, kind, i, value in problem._interpolated
                     if L.node_at(s / T) is None]     # on a node: a bound (`_variable_bounds`)
+        self.ties = []
         if self.controls is not None:
             free = [k for k in range(L.nu) if k not in problem._given]
-            entries += [(c, v, 0.0, 0.0) for c, v in self.controls.ties(L, free)]
+            self.ties = self.controls.ties(L, free)
+            entries += [(c, v, 0.0, 0.0) for c, v in self.ties]
         self.n_envelope = 0
         if L.stride == 2:
             envelope = envelope_rows(L, problem)

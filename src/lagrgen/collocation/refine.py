@@ -224,22 +224,28 @@ def inputs_switching(result, problem, knots):
     """The inputs (indices) that chatter or switch at their bounds: those that come back to a
     bound after leaving it (two runs of points on it or more), or go from one bound to the other
     within SWITCH_SPAN + 1 control intervals (`knots`): a bang-bang switch."""
-    L = result._layout
     knots = np.asarray(knots)
-    interval = np.clip(np.searchsorted(knots, L.fractions, side="right") - 1, 0, knots.size - 2)
+    interval = np.clip(np.searchsorted(knots, result._layout.fractions, side="right") - 1, 0,
+                       knots.size - 2)
     switching = set()
-    for k in range(L.nu):
+    for k, _, _, _, low, high in _inputs_at_bounds(result, problem):
+        if max(_runs(low), _runs(high)) >= 2 or (low.any() and high.any() and np.abs(
+                np.subtract.outer(interval[low], interval[high])).min() <= SWITCH_SPAN + 1):
+            switching.add(k)
+    return frozenset(switching)
+
+
+def _inputs_at_bounds(result, problem):
+    """(k, point values, lo, hi, on lo, on hi) of each free input k with a finite bound, "on" a
+    bound within ON_BOUND of its range (of its largest magnitude when the range is infinite)."""
+    for k in range(result._layout.nu):
         lo, hi = problem._bounds.get(("u", k), (-np.inf, np.inf))
         if k in problem._given or not (np.isfinite(lo) or np.isfinite(hi)) or hi <= lo:
             continue
         values = result._point_values("u", k)
         band = ON_BOUND * (hi - lo) if np.isfinite(hi - lo) else ON_BOUND * max(
             1.0, float(np.abs(values).max()))
-        low, high = values <= lo + band, values >= hi - band
-        if max(_runs(low), _runs(high)) >= 2 or (low.any() and high.any() and np.abs(
-                np.subtract.outer(interval[low], interval[high])).min() <= SWITCH_SPAN + 1):
-            switching.add(k)
-    return frozenset(switching)
+        yield k, values, lo, hi, values <= lo + band, values >= hi - band
 
 
 def _runs(flags):
@@ -253,17 +259,14 @@ def switch_knots(result, knots, problem, mesh_tol):
     between them (the switch) span more than √mesh_tol of the duration, two knots around the
     switching time (where the input crosses the middle of its range), a sixteenth of that span
     (at least a quarter of √mesh_tol) on either side."""
-    L = result._layout
     knots = np.asarray(knots)
-    fractions = L.fractions
+    fractions = result._layout.fractions
     shortest = np.sqrt(mesh_tol)
     found = []
-    for k in range(L.nu):
-        lo, hi = problem._bounds.get(("u", k), (-np.inf, np.inf))
-        if k in problem._given or not (np.isfinite(lo) and np.isfinite(hi)) or hi <= lo:
+    for k, values, lo, hi, low, high in _inputs_at_bounds(result, problem):
+        if not np.isfinite(hi - lo):
             continue
-        values = result._point_values("u", k)
-        side = _saturation(values, fractions, knots, lo, hi)
+        side = _saturation(low, high, fractions, knots)
         for first, last in _switches(side):
             a, b = knots[first + 1], knots[last]
             if b - a <= shortest:
@@ -274,14 +277,13 @@ def switch_knots(result, knots, problem, mesh_tol):
     return [k for k in found if np.min(np.abs(knots - k)) > 1e-12]
 
 
-def _saturation(values, fractions, knots, lo, hi):
-    """Per control interval: −1 (every value on the lower bound), +1 (upper) or 0."""
-    band = ON_BOUND * (hi - lo)
+def _saturation(low, high, fractions, knots):
+    """Per control interval: −1 (every point on the lower bound: `low`), +1 (on the upper:
+    `high`) or 0."""
     side = []
     for a, b in zip(knots[:-1], knots[1:]):
-        inside = values[(fractions >= a - 1e-12) & (fractions <= b + 1e-12)]
-        side.append(-1 if np.all(inside <= lo + band) else
-                    1 if np.all(inside >= hi - band) else 0)
+        inside = (fractions >= a - 1e-12) & (fractions <= b + 1e-12)
+        side.append(-1 if np.all(low[inside]) else 1 if np.all(high[inside]) else 0)
     return side
 
 
