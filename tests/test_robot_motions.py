@@ -291,6 +291,38 @@ def test_a_replan_equals_a_cold_solve_from_the_new_state(swing):
 
 
 @pytest.mark.filterwarnings("ignore", category=DiscretizationWarning)
+def test_an_arms_replans_by_the_sqp_converge_where_its_joints_ride_their_limits(out_dir):
+    """The seven-joint arm's re-plans of a move on which every joint rides its velocity limit:
+    the QPs whose active sets do not settle go to the interior point, whose solution is then
+    made exact by the active set it identified; each re-plan by the SQP converges to tol (no
+    flat stop, no failed step handed to IPOPT) at IPOPT's optimum from the same start."""
+    model = lagrgen.from_urdf(ARM, name="motions_arm", joint_dynamics=False)
+    mod = lagrgen.build(model, out_dir=out_dir)
+    n = mod.n_coordinates
+    lower, upper, velocity = (np.array([mod.limits[c][i] for c in mod.coordinates])
+                              for i in (0, 1, 2))
+    middle, half = (lower + upper) / 2, (upper - lower) / 2
+    prob = lagrgen.Collocation(mod, nodes=41, duration=1.2).bound_limits()
+    prob.initial(q=middle - 0.35 * half * np.linspace(1, -1, n), qd=np.zeros(n))
+    prob.final(q=middle + 0.35 * half * np.linspace(1, -1, n), qd=np.zeros(n))
+    prob.minimize(integral=sum(u ** 2 for u in model.input_functions))
+    last = prob.solve(progress=False, mesh_tol=None)
+    assert last.success
+    riding = np.abs(np.abs(last.y[n:]) - velocity[:, None]) < 1e-6
+    assert riding.any(axis=1).all()
+    for _ in range(3):
+        state = last.state_at(0.12)
+        replan = dict(initial={"q": state[:n], "qd": state[n:]}, shift=0.12)
+        by_sqp = prob.resolve(last, solver="sqp", **replan)
+        by_ipopt = prob.resolve(last, **replan)
+        assert by_sqp.solver == "sqp" and by_sqp.status == 0, by_sqp.notes
+        assert not [note for note in by_sqp.notes if "SQP" in note]
+        assert by_ipopt.status == 0
+        assert abs(by_sqp.objective - by_ipopt.objective) < 1e-7 * by_ipopt.objective
+        last = by_ipopt
+
+
+@pytest.mark.filterwarnings("ignore", category=DiscretizationWarning)
 def test_an_sqp_solve_that_ends_on_a_flat_optimum_says_so(swing, monkeypatch):
     """An SQP solve that converges to tol carries no note; one that ends because its steps no
     longer lower the objective, its stationarity residual above tol (a flat optimum), says so

@@ -21,13 +21,15 @@ updated from the multipliers' signs and the steps' violations; the linear rows c
 interval (an input's envelope between its points, a value between nodes) are affine in that
 interval's X_k and v_k and held alike, their terms added to its stage. When the set does not
 settle, a primal-dual interior point on the same recursion solves the QP (Mehrotra's
-predictor-corrector, the barrier's Hessian on the same diagonals and stages). The defects' and
+predictor-corrector, the barrier's Hessian on the same diagonals and stages), and its solution
+is made exact by the active set's passes from the constraints it found active (those whose
+multiplier exceeds their slack). The defects' and
 residuals' multipliers come back from the recursion (the costates), in the NLP's sign convention
 (∇f + Jᵀλ + z = 0, W = ∇²f + Σ λ_i·∇²c_i), for the next step's Hessian. A step is accepted by
 a line search on the ℓ1 merit function; anything the structure does not cover, or a step that
 fails, is reported so the caller can fall back to IPOPT.
 """
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 
 import numpy as np
 
@@ -43,6 +45,9 @@ PENALTY = 1e4
 PIN_PENALTY = 1e8
 #: Multiplier updates that put the fixed variables onto their values after the interior point.
 PIN_UPDATES = 6
+#: The active set's passes, once it no longer changes, with its penalties raised to the fixed
+#: variables' (the augmented Lagrangian's updates then gain about PIN_PENALTY/PENALTY each).
+PIN_PASSES = 3
 #: A full step that changes the objective by at most STALL (relative) on a feasible point whose
 #: stationarity residual is below STALL_DUAL ends the iterations: the motion moves along a flat
 #: valley of the objective (an optimum that is not unique to the last digits), where the
@@ -255,6 +260,14 @@ class ActiveSet:
     def row_targets(self, lin):
         """The value of E·d that puts each row on its active bound."""
         return np.where(self.row_side > 0, lin.row_hi, lin.row_lo)
+
+    def copy(self):
+        return ActiveSet(*(np.array(getattr(self, f.name)) for f in fields(self)))
+
+    def take(self, other):
+        """This set made `other`'s (in place)."""
+        for f in fields(self):
+            getattr(self, f.name)[...] = getattr(other, f.name)
 
     def reset(self):
         """Only the fixed variables and equality rows active."""
@@ -531,7 +544,23 @@ def solve_qp(tr, stages, rows, lin, active, inertia=None, tol=1e-10, passes=ACTI
         if DEBUG:
             print("    the active set did not settle: interior point")
         active.reset()
-        return solve_qp_interior(qp, lin, active, inertia)
+        return _purified(qp, lin, active, inertia, tol,
+                         solve_qp_interior(qp, lin, active, inertia))
+
+
+def _purified(qp, lin, active, inertia, tol, found):
+    """The interior point's solution `found` made exact: the active set's passes from the set
+    it identified (its constraints on their bounds, the rest free; `active` updated), or `found`
+    as it is where they do not settle within QUICK_PASSES (an interior point's solution keeps
+    its inactive bounds' multipliers at μ/s: the SQP's stationarity would stall at that size)."""
+    trial = active.copy()
+    try:
+        exact = solve_qp_active(qp, lin, trial, inertia, tol, QUICK_PASSES)
+    except Unsupported:
+        return found
+    active.take(trial)
+    return QPResult(exact.dz, exact.mu, exact.nu, active, found.passes + exact.passes,
+                    interior=True)
 
 
 def _penalties(lin):
@@ -611,12 +640,17 @@ def _apply_changes(side, z, release, cross_hi, cross_lo):
 def solve_qp_active(qp, lin, active, inertia, tol=1e-10, passes=None):
     """The QP by a primal-dual active set with augmented-Lagrangian terms for the active bounds
     and rows (the factor kept while only their multipliers change); Unsupported when the set
-    does not settle within `passes` (default ACTIVE_PASSES)."""
+    does not settle within `passes` (default ACTIVE_PASSES), or within ACTIVE_PASSES while each
+    pass changes no more constraints than the one before (a set that is settling); once the set
+    no longer changes, its penalties are raised to PIN_PENALTY for the last digits."""
     P, nz = lin.W.shape[:2]
     rho, row_rho = _penalties(lin), _row_penalties(qp, lin)
     refactor = True
     lo, hi = lin.lo.ravel(), lin.hi.ravel()
-    for count in range(1, (passes or ACTIVE_PASSES) + 1):
+    limit, changed, pinned = passes or ACTIVE_PASSES, np.inf, False
+    count = 0
+    while count < limit:
+        count += 1
         delta, row_delta = active.targets(lin), active.row_targets(lin)
         on, row_on = active.side != 0, active.row_side != 0
         g = (lin.g.ravel() + np.where(on, active.z - rho * delta, 0.0)).reshape(P, nz)
@@ -646,14 +680,22 @@ def solve_qp_active(qp, lin, active, inertia, tol=1e-10, passes=None):
             _apply_changes(active.side, active.z, *changes)
             _apply_changes(active.row_side, active.row_z, *row_changes)
             refactor = True
+            now = sum(int(c.sum()) for c in changes + row_changes)
+            if now <= changed and count == limit:
+                limit = min(limit + 1, ACTIVE_PASSES)
+            changed = now
             continue
-        scale = max(1.0, np.max(np.abs(flat)))
+        scale = max(1e-6, np.max(np.abs(flat)))
         if max(np.max(np.abs(violation), initial=0.0),
                np.max(np.abs(row_violation), initial=0.0)) <= tol * scale:
             zb = np.where(on, active.z, 0.0).reshape(P, nz)
             mu, nu_ = qp.multipliers(y, dz, lin.W, lin.g, zb, active.row_z)
             return QPResult(dz, mu, nu_, active, count)
-    raise Unsupported(f"the QP's active set did not settle in {passes or ACTIVE_PASSES} passes")
+        if not pinned:
+            rho, row_rho = rho * PIN_PENALTY / PENALTY, row_rho * PIN_PENALTY / PENALTY
+            pinned, refactor = True, True
+            limit = max(limit, count + PIN_PASSES)
+    raise Unsupported(f"the QP's active set did not settle in {count} passes")
 
 
 class _Barrier:
@@ -714,6 +756,14 @@ class _Barrier:
         self.s_u = np.where(self.has_hi, self.s_u - a_p * step, 1.0)
         self.y_l = np.where(self.has_lo, self.y_l + a_d * dy_l, 0.0)
         self.y_u = np.where(self.has_hi, self.y_u + a_d * dy_u, 0.0)
+
+    def sides(self):
+        """-1 / +1 where the lower / upper bound is active, 0 elsewhere: active where its
+        multiplier exceeds its slack (y > s: the limit of y·s = μ → 0 splits the bounds by
+        which factor vanishes, whatever the multipliers' scale)."""
+        lower = self.has_lo & (self.y_l > self.s_l)
+        upper = self.has_hi & (self.y_u > self.s_u)
+        return np.where(upper, 1, np.where(lower, -1, 0))
 
     def max_steps(self, step, dy_l, dy_u, fraction):
         return (_fraction_to_boundary(self.s_l, step, self.has_lo, self.s_u, -step,
@@ -820,11 +870,10 @@ def solve_qp_interior(qp, lin, active, inertia, tol=1e-9, iterations=IPM_ITERATI
             break
     z = np.where(fixed, zp + extra, (bounds.y_u + dy_u) - (bounds.y_l + dy_l))
     row_z = np.where(row_fixed, row_zp + row_extra, (rows.y_u + ry_u) - (rows.y_l + ry_l))
-    for side, mult, fix, values in ((active.side, active.z, fixed, z),
-                                    (active.row_side, active.row_z, row_fixed, row_z)):
-        significant = np.abs(values) > 1e-6 * max(1.0, float(np.max(np.abs(values),
-                                                                    initial=0.0)))
-        side[:] = np.where(fix, 1, np.where(significant, np.sign(values), 0)).astype(np.int8)
+    for side, mult, fix, values, barrier in ((active.side, active.z, fixed, z, bounds),
+                                             (active.row_side, active.row_z, row_fixed, row_z,
+                                              rows)):
+        side[:] = np.where(fix, 1, barrier.sides()).astype(np.int8)
         mult[:] = np.where(side != 0, values, 0.0)
     dz = dz.reshape(P, nz)
     mu, nu_ = qp.multipliers(y, dz, lin.W, lin.g, z.reshape(P, nz), row_z)
