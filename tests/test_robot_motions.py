@@ -352,9 +352,9 @@ def test_an_sqp_solve_that_ends_on_a_flat_optimum_says_so(swing, monkeypatch):
 
 @pytest.mark.filterwarnings("ignore", category=DiscretizationWarning)
 def test_where_a_step_of_the_sqp_fails_ipopt_solves_with_a_note(swing, monkeypatch):
-    """solver="sqp": a step that fails (here every QP's) hands the mesh to IPOPT from the same
-    start, which says so and reaches IPOPT's optimum; a problem the SQP does not cover is still
-    an error saying why."""
+    """solver="sqp": a step that fails (here every QP's), or iterations that end without
+    converging, hand the mesh to IPOPT from the same start, which says so and reaches IPOPT's
+    optimum; a problem the SQP does not cover is still an error saying why."""
     from lagrgen.collocation import sqp
     model, mod = swing
     T, = model.input_functions
@@ -372,6 +372,13 @@ def test_where_a_step_of_the_sqp_fails_ipopt_solves_with_a_note(swing, monkeypat
     said = [n for n in taken.notes if "structured SQP failed" in n]
     assert len(said) == 1 and "interior point did not converge" in said[0]
     assert taken.objective == pytest.approx(by_ipopt.objective, rel=1e-12)
+    monkeypatch.undo()
+    monkeypatch.setattr(sqp, "SQP_ITERATIONS", 1)
+    short = prob.resolve(first, solver="sqp", **replan)
+    assert short.success and short.solver == "ipopt"
+    said = [n for n in short.notes if "structured SQP failed" in n]
+    assert len(said) == 1 and "not converged in 1 iterations" in said[0]
+    assert short.objective == pytest.approx(by_ipopt.objective, rel=1e-12)
     free = lagrgen.Collocation(mod, nodes=11, duration=(1.0, 4.0))
     free.initial(q=[0.0], qd=[0.0]).final(q=[np.pi], qd=[0.0]).minimize(time=True)
     with pytest.raises(lagrgen.errors.LagrgenError, match="cannot solve this problem: .*free "

@@ -443,7 +443,7 @@ class Collocation:
             problem's stage structure (`lagrgen.collocation.sqp`) for every mesh, where it
             applies (a fixed duration, no unknown parameters, path constraints, data, ties
             between nodes or constrained model; an error otherwise; where one of its steps
-            fails, IPOPT solves that mesh, with a note). The SQP profits from a warm start
+            fails or it does not converge, IPOPT solves that mesh, with a note). The SQP profits from a warm start
             close to the answer on small problems (a pendulum's re-plan 35 ms against IPOPT's
             60 ms) and is about as quick as IPOPT on robots today (the Panda's re-plans on 101
             nodes 0.57-0.84 s against 0.59-0.70 s, benchmarks/robot_motions.py), its optimum

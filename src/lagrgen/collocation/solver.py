@@ -68,7 +68,8 @@ MAX_ITERATIONS = 2**31 - 1
 #: The solvers `Collocation.solve` may use: "auto" (IPOPT, warm-started from a refined mesh's or
 #: a re-plan's start: as quick as the structured SQP on robots and robust where the SQP's steps
 #: can fail, benchmarks/robot_motions.py), "ipopt", or "sqp" (the structured SQP from a warm
-#: start, an error where it does not apply, IPOPT with a note where one of its steps fails).
+#: start, an error where it does not apply, IPOPT with a note where one of its steps fails or
+#: it does not converge).
 SOLVERS = ("auto", "ipopt", "sqp")
 
 
@@ -270,19 +271,19 @@ def solve_mesh(problem, layout, controls, guess, settings, start=None, shift=0.0
 
 def solve_structured(problem, tr, x0, lam0, z0, settings):
     """The CollocationResult of the structured SQP (`lagrgen.collocation.sqp`) on the
-    transcription `tr` from (x0, lam0, z0); sqp.Unsupported where it does not apply or a step
-    fails."""
+    transcription `tr` from (x0, lam0, z0); sqp.Unsupported where it does not apply, StepFailed
+    where a step fails or it does not converge within its iterations."""
     from .result import CollocationResult
-    from .sqp import SQP_ITERATIONS, solve
+    from .sqp import SQP_ITERATIONS, StepFailed, solve
     start = time.perf_counter()
     monitor = _SQPProgress(settings.progress)
     outcome = solve(tr, x0, lam0, z0, settings.tol, min(settings.max_iter, SQP_ITERATIONS),
                     monitor)
     seconds = time.perf_counter() - start
-    flat = outcome.converged and outcome.dual > settings.tol
     if not outcome.converged:
-        status, message = -1, f"SQP stopped: {outcome.message}"
-    elif flat:      # a success looser than tol, as IPOPT's acceptable level (status 1)
+        raise StepFailed(f"it stopped: {outcome.message}")
+    flat = outcome.dual > settings.tol
+    if flat:      # a success looser than tol, as IPOPT's acceptable level (status 1)
         status, message = 1, (f"SQP stopped on a flat optimum (stationarity residual "
                               f"{outcome.dual:.1e} above tol {settings.tol:g})")
     else:

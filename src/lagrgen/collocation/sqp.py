@@ -38,16 +38,16 @@ from ._riccati import factor as riccati_factor, forward as riccati_forward, \
     point_hessians, stage_gradients, stage_hessians, vectors as riccati_vectors
 
 #: An active bound's penalty ρ relative to its point's Hessian scale: the augmented Lagrangian
-#: converges by about this factor per pass, and the recursion stays well conditioned.
-PENALTY = 1e4
+#: converges by about this factor per pass, and the recursion stays well conditioned. The
+#: point's Hessian understates how stiff a velocity is once the defects tie it to its
+#: neighbours: at 1e4 the Panda's velocity limits held 3e-7 off after 20 passes, ~150 of them
+#: with multipliers of the wrong sign that a stiffer penalty revealed.
+PENALTY = 1e8
 #: The interior point's penalty on fixed variables (no multiplier updates there: the SQP's step
 #: is clipped onto them, and the next linearization corrects what is left).
 PIN_PENALTY = 1e8
 #: Multiplier updates that put the fixed variables onto their values after the interior point.
 PIN_UPDATES = 6
-#: The active set's passes, once it no longer changes, with its penalties raised to the fixed
-#: variables' (the augmented Lagrangian's updates then gain about PIN_PENALTY/PENALTY each).
-PIN_PASSES = 3
 #: A full step that changes the objective by at most STALL (relative) on a feasible point whose
 #: stationarity residual is below STALL_DUAL ends the iterations: the motion moves along a flat
 #: valley of the objective (an optimum that is not unique to the last digits), where the
@@ -65,6 +65,10 @@ SQP_ITERATIONS = 30
 #: Passes of the active set before the QP turns to the interior point (QUICK_PASSES after a QP
 #: the active set did not settle); the interior point's iterations.
 ACTIVE_PASSES, QUICK_PASSES, IPM_ITERATIONS = 8, 2, 60
+#: The most passes of an active set that is settling (each changing no more constraints than the
+#: one before, or than 1/SETTLING of the first's): a pass costs one factor, the interior point a
+#: dozen.
+SETTLING_PASSES, SETTLING = 20, 4
 DEBUG = False
 
 
@@ -385,25 +389,26 @@ class StructuredQP:
         """Each row's E·d = α·X_k + β·v_k + c on its interval k: alpha (R, ny), beta (R, nv),
         const (R,)."""
         rows, pts = self.rows, self.stages.points
-        R = rows.index.size
-        self.alpha, self.beta = np.zeros((R, self.ny)), np.zeros((R, self.nv))
-        self.const = np.zeros(R)
-        k = rows.interval
+        R, count = rows.index.size, pts.shape[0]
+        alpha = np.zeros((count, rows.width, self.ny))
+        beta = np.zeros((count, rows.width, self.nv))
+        const = np.zeros((count, rows.width))
         for p in range(pts.shape[1] if R else 0):
-            point = pts[k, p]
-            a = rows.coef[:, p]                                           # (R, nz)
-            hat = (self.T[point].transpose(0, 2, 1) @ a[:, :, None])[:, :, 0]
-            self.const += np.einsum("ri,ri->r", a, self.t[point])
+            a = rows.padded(rows.coef[:, p], count)                     # (k, width, nz)
+            T, t = self.T[pts[:, p]], self.t[pts[:, p]]
+            hat = a @ T                                                 # (k, width, ny)
+            const += np.einsum("kwi,ki->kw", a, t)
             if p == 0:
-                self.alpha += hat
+                alpha += hat
                 continue
             C, E, e = self.maps[p - 1]
-            self.alpha += (C[k].transpose(0, 2, 1) @ hat[:, :, None])[:, :, 0]
-            self.beta += (E[k].transpose(0, 2, 1) @ hat[:, :, None])[:, :, 0]
-            self.const += np.einsum("ri,ri->r", hat, e[k])
-        count = pts.shape[0]
-        self.alpha_pad = rows.padded(self.alpha, count)                 # (k, width, ny)
-        self.beta_pad = rows.padded(self.beta, count)                   # (k, width, nv)
+            alpha += hat @ C
+            beta += hat @ E
+            const += np.einsum("kwi,ki->kw", hat, e)
+        self.alpha_pad, self.beta_pad = alpha, beta                     # (k, width, ·)
+        self.alpha = alpha[rows.interval, rows.slot]
+        self.beta = beta[rows.interval, rows.slot]
+        self.const = const[rows.interval, rows.slot]
 
     # -- the recursion ------------------------------------------------------------------------------
     def factor(self, G, regularize=0.0, row_weights=None):
@@ -640,14 +645,14 @@ def _apply_changes(side, z, release, cross_hi, cross_lo):
 def solve_qp_active(qp, lin, active, inertia, tol=1e-10, passes=None):
     """The QP by a primal-dual active set with augmented-Lagrangian terms for the active bounds
     and rows (the factor kept while only their multipliers change); Unsupported when the set
-    does not settle within `passes` (default ACTIVE_PASSES), or within ACTIVE_PASSES while each
-    pass changes no more constraints than the one before (a set that is settling); once the set
-    no longer changes, its penalties are raised to PIN_PENALTY for the last digits."""
+    does not settle within `passes` (default ACTIVE_PASSES), or within SETTLING_PASSES while each
+    pass changes no more constraints than the one before or a SETTLING-th of the first's (a set
+    that is settling) or only the multipliers change."""
     P, nz = lin.W.shape[:2]
     rho, row_rho = _penalties(lin), _row_penalties(qp, lin)
     refactor = True
     lo, hi = lin.lo.ravel(), lin.hi.ravel()
-    limit, changed, pinned = passes or ACTIVE_PASSES, np.inf, False
+    limit, changed, first = passes or ACTIVE_PASSES, np.inf, 0
     count = 0
     while count < limit:
         count += 1
@@ -681,8 +686,9 @@ def solve_qp_active(qp, lin, active, inertia, tol=1e-10, passes=None):
             _apply_changes(active.row_side, active.row_z, *row_changes)
             refactor = True
             now = sum(int(c.sum()) for c in changes + row_changes)
-            if now <= changed and count == limit:
-                limit = min(limit + 1, ACTIVE_PASSES)
+            first = first or now
+            if count == limit and (now <= changed or SETTLING * now <= first):
+                limit = min(limit + 1, SETTLING_PASSES)
             changed = now
             continue
         scale = max(1e-6, np.max(np.abs(flat)))
@@ -691,10 +697,8 @@ def solve_qp_active(qp, lin, active, inertia, tol=1e-10, passes=None):
             zb = np.where(on, active.z, 0.0).reshape(P, nz)
             mu, nu_ = qp.multipliers(y, dz, lin.W, lin.g, zb, active.row_z)
             return QPResult(dz, mu, nu_, active, count)
-        if not pinned:
-            rho, row_rho = rho * PIN_PENALTY / PENALTY, row_rho * PIN_PENALTY / PENALTY
-            pinned, refactor = True, True
-            limit = max(limit, count + PIN_PASSES)
+        if count == limit:
+            limit = min(limit + 1, SETTLING_PASSES)
     raise Unsupported(f"the QP's active set did not settle in {count} passes")
 
 
