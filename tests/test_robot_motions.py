@@ -262,7 +262,8 @@ def test_refined_meshes_by_the_sqp_reach_ipopts_optimum(swing):
 @pytest.mark.filterwarnings("ignore", category=DiscretizationWarning)
 def test_a_replan_equals_a_cold_solve_from_the_new_state(swing):
     """resolve(warm, initial, shift): the plan from the state 0.3 s into the first one, warm-
-    started from its shifted motion, equals a cold solve of the same problem from that state;
+    started from its shifted motion (by the structured SQP, solver "auto"'s choice for a
+    re-plan, and by IPOPT), equals a cold solve of the same problem from that state;
     the state read off the solution on its velocity bound (beyond it by the solver's tolerance)
     is clipped with a note; a state clearly outside is refused."""
     model, mod = swing
@@ -270,10 +271,10 @@ def test_a_replan_equals_a_cold_solve_from_the_new_state(swing):
     prob = swing_problem(mod, T)
     first = prob.solve(progress=False, mesh_tol=None)
     state = first.state_at(0.3)
-    again = prob.resolve(first, initial={"q": state[:1], "qd": state[1:]}, shift=0.3,
-                         solver="sqp")
+    again = prob.resolve(first, initial={"q": state[:1], "qd": state[1:]}, shift=0.3)
     assert again.success and again.solver == "sqp" and again.solve_seconds > 0
-    by_ipopt = prob.resolve(first, initial={"q": state[:1], "qd": state[1:]}, shift=0.3)
+    by_ipopt = prob.resolve(first, initial={"q": state[:1], "qd": state[1:]}, shift=0.3,
+                            solver="ipopt")
     assert by_ipopt.success and by_ipopt.solver == "ipopt"
     assert abs(by_ipopt.objective - again.objective) < 1e-6 * again.objective
     cold = swing_problem(mod, T)
@@ -314,7 +315,7 @@ def test_an_arms_replans_by_the_sqp_converge_where_its_joints_ride_their_limits(
         state = last.state_at(0.12)
         replan = dict(initial={"q": state[:n], "qd": state[n:]}, shift=0.12)
         by_sqp = prob.resolve(last, solver="sqp", **replan)
-        by_ipopt = prob.resolve(last, **replan)
+        by_ipopt = prob.resolve(last, solver="ipopt", **replan)
         assert by_sqp.solver == "sqp" and by_sqp.status == 0, by_sqp.notes
         assert not [note for note in by_sqp.notes if "SQP" in note]
         assert by_ipopt.status == 0
@@ -367,7 +368,7 @@ def test_where_a_step_of_the_sqp_fails_ipopt_solves_with_a_note(swing, monkeypat
         raise sqp.Unsupported("the QP's interior point did not converge in 60 iterations")
     monkeypatch.setattr(sqp, "solve_qp", stalled)
     taken = prob.resolve(first, solver="sqp", **replan)
-    by_ipopt = prob.resolve(first, **replan)
+    by_ipopt = prob.resolve(first, solver="ipopt", **replan)
     assert taken.success and taken.solver == "ipopt"
     said = [n for n in taken.notes if "structured SQP failed" in n]
     assert len(said) == 1 and "interior point did not converge" in said[0]

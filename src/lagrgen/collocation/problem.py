@@ -439,15 +439,15 @@ class Collocation:
         max_meshes : int
             The most meshes (solves) the refinement may use, the given grid included.
         solver : {"auto", "ipopt", "sqp"}
-            "auto" and "ipopt": IPOPT, warm-started on a refined mesh; "sqp": the SQP on the
-            problem's stage structure (`lagrgen.collocation.sqp`) for every mesh, where it
-            applies (a fixed duration, no unknown parameters, path constraints, data, ties
-            between nodes or constrained model; an error otherwise; where one of its steps
-            fails or it does not converge, IPOPT solves that mesh, with a note). The SQP profits from a warm start
-            close to the answer on small problems (a pendulum's re-plan 35 ms against IPOPT's
-            60 ms) and is about as quick as IPOPT on robots today (the Panda's re-plans on 101
-            nodes 0.57-0.84 s against 0.59-0.70 s, benchmarks/robot_motions.py), its optimum
-            looser where it is flat (a note says so).
+            "auto": IPOPT, warm-started on a refined mesh, and the SQP on the problem's stage
+            structure (`lagrgen.collocation.sqp`) for a re-plan (`resolve`) it covers; "ipopt":
+            IPOPT alone; "sqp": the SQP for every mesh, where it applies (a fixed duration, no
+            unknown parameters, path constraints, data, ties between nodes or constrained
+            model; an error otherwise). Where one of the SQP's steps fails or it does not
+            converge, IPOPT solves that mesh, with a note. The SQP profits from a warm start
+            close to the answer, where IPOPT's interior point walks its barrier path again
+            (benchmarks/robot_motions.py gives both on the Panda's re-plans and refined
+            meshes); a note says where it stopped on a flat optimum.
 
         Returns
         -------
@@ -466,8 +466,9 @@ class Collocation:
     def resolve(self, warm, initial=None, shift=0.0, **solve_options):
         """Solve the problem again from an earlier solution `warm`: re-planning (model-predictive
         control). The NLP of warm's mesh (its compiled units and sparsity) is reused and the
-        solve starts from warm's motion (IPOPT; solver="sqp": the SQP on the problem's stage
-        structure from warm's motion and multipliers, see `solve`).
+        solve starts from warm's motion: by the SQP on the problem's stage structure from warm's
+        motion and multipliers where it covers the problem (solver="auto"), else by IPOPT (see
+        `solve`; solver="ipopt" for IPOPT).
 
         Parameters
         ----------

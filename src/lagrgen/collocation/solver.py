@@ -65,11 +65,11 @@ DUAL_OPTIONS = {"warm_start_init_point": "yes", "warm_start_bound_push": 1e-9,
 MAX_ITERATIONS = 2**31 - 1
 
 
-#: The solvers `Collocation.solve` may use: "auto" (IPOPT, warm-started from a refined mesh's or
-#: a re-plan's start: as quick as the structured SQP on robots and robust where the SQP's steps
-#: can fail, benchmarks/robot_motions.py), "ipopt", or "sqp" (the structured SQP from a warm
-#: start, an error where it does not apply, IPOPT with a note where one of its steps fails or
-#: it does not converge).
+#: The solvers `Collocation.solve` may use: "auto" (IPOPT, warm-started on a refined mesh; the
+#: structured SQP on a re-plan it covers, from the warm start's motion and multipliers, IPOPT
+#: where it fails: benchmarks/robot_motions.py), "ipopt", or "sqp" (the structured SQP on every
+#: mesh, an error where it does not apply, IPOPT with a note where one of its steps fails or it
+#: does not converge).
 SOLVERS = ("auto", "ipopt", "sqp")
 
 
@@ -236,7 +236,8 @@ def _c_stdout():
             printed[0] = caught.read().decode(errors="replace")
 
 
-def solve_mesh(problem, layout, controls, guess, settings, start=None, shift=0.0):
+def solve_mesh(problem, layout, controls, guess, settings, start=None, shift=0.0,
+               replan=False):
     """The CollocationResult of one solve of `problem` on the mesh `layout` (inputs tied to
     `controls`, a ControlMesh, or free) from `guess` (see `Collocation.solve`; `shift` seconds
     of an earlier result dropped, its end held); `start`: a refined mesh's start from the last
@@ -245,15 +246,16 @@ def solve_mesh(problem, layout, controls, guess, settings, start=None, shift=0.0
     path, where the warm options took 215-221 iterations on the Panda against a cold solve's
     26-28); from a "near" start IPOPT also starts from the guess's multipliers
     (`guess.refined_multipliers`, with DUAL_OPTIONS); the structured SQP (with the guess's
-    multipliers) solves instead when `settings.solver` is "sqp" (IPOPT, with a note, where one
-    of its steps fails)."""
+    multipliers) solves instead when `settings.solver` is "sqp", or "auto" on a `replan` the
+    SQP covers (IPOPT, with a note, where one of its steps fails or it does not converge)."""
     from .guess import initial_guess, refined_multipliers, warm_multipliers
     tr = problem.transcription(settings.hessian, layout, controls)
     x0 = initial_guess(problem, tr, guess, shift)
     T0 = layout.duration(x0) if layout.free else problem.duration_bounds[0]
     bound = tr.bound(T0)
     multipliers = refined_multipliers(bound, guess) if start == "near" else None
-    if settings.solver == "sqp":
+    if settings.solver == "sqp" or (settings.solver == "auto" and replan
+                                    and _structured(bound)):
         from .sqp import StepFailed, Unsupported
         try:
             return solve_structured(problem, bound, x0, *warm_multipliers(bound, guess, shift),
@@ -267,6 +269,12 @@ def solve_mesh(problem, layout, controls, guess, settings, start=None, shift=0.0
             raise LagrgenError(f"solver='sqp' cannot solve this problem: {exc}; solve it "
                                "with solver='auto' or 'ipopt'") from None
     return solve_nlp(problem, bound, x0, settings, start, multipliers)
+
+
+def _structured(tr):
+    """Whether the structured SQP covers the transcription `tr`."""
+    from .sqp import unsupported
+    return unsupported(tr) is None
 
 
 def solve_structured(problem, tr, x0, lam0, z0, settings):

@@ -734,6 +734,11 @@ class _Barrier:
         y_u = self.y_u if y_u is None else y_u
         return float(np.sum(s_l * y_l * self.has_lo) + np.sum(s_u * y_u * self.has_hi))
 
+    def largest_gap(self):
+        """The largest complementarity product s·y."""
+        return float(max(np.max(self.s_l * self.y_l * self.has_lo, initial=0.0),
+                         np.max(self.s_u * self.y_u * self.has_hi, initial=0.0)))
+
     def weights(self):
         """Σ = y_l/s_l + y_u/s_u."""
         return (np.where(self.has_lo, self.y_l / self.s_l, 0.0)
@@ -850,7 +855,8 @@ def solve_qp_interior(qp, lin, active, inertia, tol=1e-9, iterations=IPM_ITERATI
         if DEBUG:
             print(f"    interior {iteration}: gap {now:.2e} steps {a_p:.2f} {a_d:.2f} "
                   f"|d| {np.max(np.abs(d)):.2e}")
-        if now <= tol * first_gap and a_p > 0.5:
+        if now <= tol * first_gap and a_p > 0.5 and \
+                max(bounds.largest_gap(), rows.largest_gap()) <= tol * first_gap:
             break
     else:
         if not now <= 1e-6 * first_gap:
