@@ -243,17 +243,26 @@ def test_the_qps_regularization_is_the_least_that_serves_from_any_last_one(swing
     assert grid.index(least) + 1 >= 5                     # the search up from 1e-8's factors
 
 
-def test_refined_meshes_by_the_sqp_reach_ipopts_optimum(swing):
-    """The refinement's meshes after the first, started from the last solution, are solved by
-    the structured SQP (solver="sqp": a torque that stays inside its bounds, the velocity
-    riding its own) to IPOPT's optimum on the same meshes; "auto" is IPOPT."""
+def test_refined_meshes_by_the_sqp_reach_ipopts_optimum(swing, monkeypatch):
+    """solver="sqp": the first mesh, started from a guess, is IPOPT's; the refinement's meshes
+    after it, started from the last solution and its multipliers, are the structured SQP's (a
+    torque that stays inside its bounds, the velocity riding its own), at IPOPT's optimum on the
+    same meshes; "auto" is IPOPT."""
+    from lagrgen.collocation import solver as solver_module
     model, mod = swing
     T, = model.input_functions
+    structured, starts = solver_module.solve_structured, []
+
+    def recording(problem, tr, x0, lam0, z0, settings):
+        starts.append(lam0 is not None and z0 is not None)
+        return structured(problem, tr, x0, lam0, z0, settings)
+    monkeypatch.setattr(solver_module, "solve_structured", recording)
     results = {solver: swing_problem(mod, T, limit=20.0).solve(progress=False, solver=solver)
                for solver in ("sqp", "auto")}
     auto, ipopt = results["sqp"], results["auto"]
     assert auto.success and ipopt.success
     assert auto.solver == "sqp" and ipopt.solver == "ipopt"
+    assert starts == [True] * (len(auto.meshes) - 1)
     assert [m.nodes for m in auto.meshes] == [m.nodes for m in ipopt.meshes]
     assert abs(auto.objective - ipopt.objective) < 1e-7 * ipopt.objective
     assert auto.error <= 1e-6

@@ -441,9 +441,11 @@ class Collocation:
         solver : {"auto", "ipopt", "sqp"}
             "auto": IPOPT, warm-started on a refined mesh, and the SQP on the problem's stage
             structure (`lagrgen.collocation.sqp`) for a re-plan (`resolve`) it covers; "ipopt":
-            IPOPT alone; "sqp": the SQP for every mesh, where it applies (a fixed duration, no
-            unknown parameters, path constraints, data, ties between nodes or constrained
-            model; an error otherwise). Where one of the SQP's steps fails or it does not
+            IPOPT alone; "sqp": the SQP for every mesh started from an earlier solution (the
+            refined meshes, a re-plan, a guess that is a result), IPOPT for one started from
+            another guess, where the SQP applies (a fixed duration, no unknown parameters, path
+            constraints, data, ties between nodes or constrained model; an error otherwise).
+            Where one of the SQP's steps fails or it does not
             converge, IPOPT solves that mesh, with a note. The SQP profits from a warm start
             close to the answer, where IPOPT's interior point walks its barrier path again
             (benchmarks/robot_motions.py gives both on the Panda's re-plans and refined

@@ -68,8 +68,8 @@ MAX_ITERATIONS = 2**31 - 1
 #: The solvers `Collocation.solve` may use: "auto" (IPOPT, warm-started on a refined mesh; the
 #: structured SQP on a re-plan it covers, from the warm start's motion and multipliers, IPOPT
 #: where it fails: benchmarks/robot_motions.py), "ipopt", or "sqp" (the structured SQP on every
-#: mesh, an error where it does not apply, IPOPT with a note where one of its steps fails or it
-#: does not converge).
+#: warm-started mesh, IPOPT on one started from a guess, an error where the SQP does not apply,
+#: IPOPT with a note where one of its steps fails or it does not converge).
 SOLVERS = ("auto", "ipopt", "sqp")
 
 
@@ -246,35 +246,36 @@ def solve_mesh(problem, layout, controls, guess, settings, start=None, shift=0.0
     path, where the warm options took 215-221 iterations on the Panda against a cold solve's
     26-28); from a "near" start IPOPT also starts from the guess's multipliers
     (`guess.refined_multipliers`, with DUAL_OPTIONS); the structured SQP (with the guess's
-    multipliers) solves instead when `settings.solver` is "sqp", or "auto" on a `replan` the
-    SQP covers (IPOPT, with a note, where one of its steps fails or it does not converge)."""
+    multipliers) solves a warm-started mesh (a refined one, a `replan`, or one started from an
+    earlier result) instead when `settings.solver` is "sqp", or "auto" on a `replan` the SQP
+    covers (IPOPT, with a note, where one of its steps fails or it does not converge)."""
     from .guess import initial_guess, refined_multipliers, warm_multipliers
+    from .result import CollocationResult
     tr = problem.transcription(settings.hessian, layout, controls)
     x0 = initial_guess(problem, tr, guess, shift)
     T0 = layout.duration(x0) if layout.free else problem.duration_bounds[0]
     bound = tr.bound(T0)
     multipliers = refined_multipliers(bound, guess) if start == "near" else None
-    if settings.solver == "sqp" or (settings.solver == "auto" and replan
-                                    and _structured(bound)):
-        from .sqp import StepFailed, Unsupported
-        try:
-            return solve_structured(problem, bound, x0, *warm_multipliers(bound, guess, shift),
-                                    settings)
-        except StepFailed as exc:
-            result = solve_nlp(problem, bound, x0, settings, start, multipliers)
-            result.notes.append(f"the structured SQP failed ({exc}): IPOPT solved this mesh "
-                                f"from the same start (result.solver says which solved it)")
-            return result
-        except Unsupported as exc:
-            raise LagrgenError(f"solver='sqp' cannot solve this problem: {exc}; solve it "
-                               "with solver='auto' or 'ipopt'") from None
-    return solve_nlp(problem, bound, x0, settings, start, multipliers)
-
-
-def _structured(tr):
-    """Whether the structured SQP covers the transcription `tr`."""
-    from .sqp import unsupported
-    return unsupported(tr) is None
+    if settings.solver == "ipopt" or (settings.solver == "auto" and not replan):
+        return solve_nlp(problem, bound, x0, settings, start, multipliers)
+    from .sqp import StepFailed, unsupported
+    reason = unsupported(bound)
+    if reason and settings.solver == "sqp":
+        raise LagrgenError(f"solver='sqp' cannot solve this problem: the SQP does not handle "
+                           f"{reason}; solve it with solver='auto' or 'ipopt'")
+    warm = replan or start is not None or isinstance(guess, CollocationResult)
+    if reason or not warm:
+        return solve_nlp(problem, bound, x0, settings, start, multipliers)
+    lam0, z0 = warm_multipliers(bound, guess, shift)
+    if lam0 is None and multipliers is not None:
+        lam0, z0 = multipliers
+    try:
+        return solve_structured(problem, bound, x0, lam0, z0, settings)
+    except StepFailed as exc:
+        result = solve_nlp(problem, bound, x0, settings, start, multipliers)
+        result.notes.append(f"the structured SQP failed ({exc}): IPOPT solved this mesh from "
+                            f"the same start (result.solver says which solved it)")
+        return result
 
 
 def solve_structured(problem, tr, x0, lam0, z0, settings):
