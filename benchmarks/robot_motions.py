@@ -379,7 +379,7 @@ def worker_replan(folder, replans, accuracy):
                 "notes": len(res2.notes), "cold_wall": cold_wall,
                 "cold_iterations": int(cold.iterations), "cold_objective": float(cold.objective),
                 "cold_success": bool(cold.success), "error": float(res2.error)}
-        step.update(replan_by_sqp(lagrgen, prob, last, state, n))
+        step.update(replan_by_ipopt(lagrgen, prob, last, state, n))
         if accuracy and k == 0:
             step["accuracy"] = lagrgen_accuracy(res2, urdf)
         out["replans"].append(step)
@@ -387,18 +387,18 @@ def worker_replan(folder, replans, accuracy):
     return out
 
 
-def replan_by_sqp(lagrgen, prob, last, state, n):
-    """The same re-plan by the structured SQP (`solver="sqp"`): its figures, or why it did not
-    solve."""
+def replan_by_ipopt(lagrgen, prob, last, state, n):
+    """The same re-plan by IPOPT from the same warm start (`solver="ipopt"`): its figures, or
+    why it did not solve."""
     began, cpu = time.perf_counter(), cpu_time()
     try:
         res = prob.resolve(warm=last, initial={"q": state[:n], "qd": state[n:]}, shift=SHIFT,
-                           solver="sqp")
+                           solver="ipopt")
     except lagrgen.LagrgenError as exc:
-        return {"sqp_failed": str(exc)[:300]}
-    return {"sqp_wall": time.perf_counter() - began, "sqp_cpu": cpu_time() - cpu,
-            "sqp_iterations": int(res.iterations), "sqp_objective": float(res.objective),
-            "sqp_success": bool(res.success)}
+        return {"ipopt_failed": str(exc)[:300]}
+    return {"ipopt_wall": time.perf_counter() - began, "ipopt_cpu": cpu_time() - cpu,
+            "ipopt_iterations": int(res.iterations), "ipopt_objective": float(res.objective),
+            "ipopt_success": bool(res.success)}
 
 
 def worker_min_time(folder, warm):
@@ -1015,8 +1015,9 @@ def replan_table(replan):
              f"state at {SHIFT} s (`resolve(warm=last, initial=..., shift={SHIFT})`), against a "
              "cold `solve` of the same problem:\n",
              "| re-plan | `resolve` ms | CPU ms | solver, iterations | objective | cold solve ms "
-             "| cold iterations | cold objective | relative difference | notes | `solver=\"sqp\"` ms "
-             "| CPU ms | SQP iterations | SQP objective, relative difference |",
+             "| cold iterations | cold objective | relative difference | notes | "
+             "`solver=\"ipopt\"` ms | CPU ms | IPOPT iterations | IPOPT objective, relative "
+             "difference |",
              "| --: | --: | --: | --- | --: | --: | --: | --: | --: | --: | --: | --: | --: | --: |"]
     for k, s in enumerate(replan["replans"], 1):
         diff = abs(s["objective"] - s["cold_objective"]) / max(abs(s["cold_objective"]), 1e-300)
@@ -1024,19 +1025,20 @@ def replan_table(replan):
                      f"{s['iterations']}{'' if s['success'] else ' (failed)'} | "
                      f"{s['objective']:.10g} | {ms(s['cold_wall'])} | {s['cold_iterations']}"
                      f"{'' if s['cold_success'] else ' (failed)'} | {s['cold_objective']:.10g} |"
-                     f" {diff:.1e} | {s['notes']} | {sqp_cells(s)} |")
+                     f" {diff:.1e} | {s['notes']} | {ipopt_cells(s)} |")
     return "\n".join(lines) + "\n"
 
 
-def sqp_cells(s):
-    """A re-plan's cells of the structured SQP's figures."""
-    if "sqp_wall" not in s:
-        reason = s.get("sqp_failed", "not measured").replace("|", "/")
+def ipopt_cells(s):
+    """A re-plan's cells of IPOPT's figures from the same warm start."""
+    if "ipopt_wall" not in s:
+        reason = s.get("ipopt_failed", "not measured").replace("|", "/")
         return f"— | — | — | {reason}"
-    diff = abs(s["sqp_objective"] - s["cold_objective"]) / max(abs(s["cold_objective"]), 1e-300)
-    return (f"{ms(s['sqp_wall'])} | {ms(s['sqp_cpu'])} | {s['sqp_iterations']}"
-            f"{'' if s['sqp_success'] else ' (not converged)'} | {s['sqp_objective']:.10g}, "
-            f"{diff:.1e}")
+    diff = (abs(s["ipopt_objective"] - s["cold_objective"])
+            / max(abs(s["cold_objective"]), 1e-300))
+    return (f"{ms(s['ipopt_wall'])} | {ms(s['ipopt_cpu'])} | {s['ipopt_iterations']}"
+            f"{'' if s['ipopt_success'] else ' (not converged)'} | "
+            f"{s['ipopt_objective']:.10g}, {diff:.1e}")
 
 
 def mintime_table(mt):

@@ -271,8 +271,8 @@ def test_refined_meshes_by_the_sqp_reach_ipopts_optimum(swing, monkeypatch):
 @pytest.mark.filterwarnings("ignore", category=DiscretizationWarning)
 def test_a_replan_equals_a_cold_solve_from_the_new_state(swing):
     """resolve(warm, initial, shift): the plan from the state 0.3 s into the first one, warm-
-    started from its shifted motion (by the structured SQP, and by IPOPT, solver "auto"'s
-    choice), equals a cold solve of the same problem from that state;
+    started from its shifted motion (by the structured SQP, solver "auto"'s choice for a
+    re-plan, and by IPOPT), equals a cold solve of the same problem from that state;
     the state read off the solution on its velocity bound (beyond it by the solver's tolerance)
     is clipped with a note; a state clearly outside is refused."""
     model, mod = swing
@@ -280,10 +280,10 @@ def test_a_replan_equals_a_cold_solve_from_the_new_state(swing):
     prob = swing_problem(mod, T)
     first = prob.solve(progress=False, mesh_tol=None)
     state = first.state_at(0.3)
-    again = prob.resolve(first, initial={"q": state[:1], "qd": state[1:]}, shift=0.3,
-                         solver="sqp")
+    again = prob.resolve(first, initial={"q": state[:1], "qd": state[1:]}, shift=0.3)
     assert again.success and again.solver == "sqp" and again.solve_seconds > 0
-    by_ipopt = prob.resolve(first, initial={"q": state[:1], "qd": state[1:]}, shift=0.3)
+    by_ipopt = prob.resolve(first, initial={"q": state[:1], "qd": state[1:]}, shift=0.3,
+                            solver="ipopt")
     assert by_ipopt.success and by_ipopt.solver == "ipopt"
     assert abs(by_ipopt.objective - again.objective) < 1e-6 * again.objective
     cold = swing_problem(mod, T)

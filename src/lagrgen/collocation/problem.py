@@ -439,17 +439,17 @@ class Collocation:
         max_meshes : int
             The most meshes (solves) the refinement may use, the given grid included.
         solver : {"auto", "ipopt", "sqp"}
-            "auto" and "ipopt": IPOPT, warm-started on a refined mesh and a re-plan; "sqp":
-            the SQP on the problem's stage structure (`lagrgen.collocation.sqp`) for every mesh
-            started from an earlier solution (the refined meshes, a re-plan, a guess that is a
-            result), IPOPT for one started from another guess, where the SQP applies (a fixed
-            duration, no unknown parameters, path constraints, data, ties between nodes or
-            constrained model; an error otherwise). Where one of the SQP's steps fails or it
-            does not converge, IPOPT solves that mesh, with a note. The SQP profits from a warm
-            start close to the answer: the Panda's refined solve takes about half IPOPT's time
-            with it; a re-plan whose start is far from feasible takes it short steps, and
-            Talos' large refined meshes settle slowly (benchmarks/robot_motions.py gives both
-            solvers); a note says where it stopped on a flat optimum.
+            "auto": IPOPT, warm-started on a refined mesh, and the SQP on the problem's stage
+            structure (`lagrgen.collocation.sqp`) for a re-plan (`resolve`) it covers; "ipopt":
+            IPOPT alone; "sqp": the SQP for every mesh started from an earlier solution (the
+            refined meshes, a re-plan, a guess that is a result), IPOPT for one started from
+            another guess, where the SQP applies (a fixed duration, no unknown parameters, path
+            constraints, data, ties between nodes or constrained model; an error otherwise).
+            Where one of the SQP's steps fails or it does not
+            converge, IPOPT solves that mesh, with a note. The SQP profits from a warm start
+            close to the answer, where IPOPT's interior point walks its barrier path again
+            (benchmarks/robot_motions.py gives both on the Panda's re-plans and refined
+            meshes); a note says where it stopped on a flat optimum.
 
         Returns
         -------
@@ -468,8 +468,9 @@ class Collocation:
     def resolve(self, warm, initial=None, shift=0.0, **solve_options):
         """Solve the problem again from an earlier solution `warm`: re-planning (model-predictive
         control). The NLP of warm's mesh (its compiled units and sparsity) is reused and the
-        solve starts from warm's motion (IPOPT; solver="sqp": the SQP on the problem's stage
-        structure from warm's motion and multipliers, see `solve`).
+        solve starts from warm's motion: by the SQP on the problem's stage structure from warm's
+        motion and multipliers where it covers the problem (solver="auto"), else by IPOPT (see
+        `solve`; solver="ipopt" for IPOPT).
 
         Parameters
         ----------

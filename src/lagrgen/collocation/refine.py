@@ -81,7 +81,8 @@ def solve_refined(problem, guess, settings, mesh_tol, max_meshes, start=None):
     degree = 2 if problem.scheme == "hermite-simpson" else 1
     meshes, spent, callbacks, limit = [], 0.0, 0.0, None
     tied = frozenset() if controls is None else frozenset(controls.tied or ())
-    result = solve_mesh(problem, layout, controls, guess, settings, shift=shift)
+    result = solve_mesh(problem, layout, controls, guess, settings, shift=shift,
+                        replan=start is not None)
     if start is not None and mesh_tol is None:
         return result
     while True:

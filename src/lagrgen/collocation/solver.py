@@ -65,12 +65,11 @@ DUAL_OPTIONS = {"warm_start_init_point": "yes", "warm_start_bound_push": 1e-9,
 MAX_ITERATIONS = 2**31 - 1
 
 
-#: The solvers `Collocation.solve` may use: "auto" (IPOPT, warm-started from a refined mesh's or
-#: a re-plan's start: as quick as the structured SQP on the Panda's re-plans, from the third on
-#: quicker (the SQP's first steps are short there), and quicker on Talos' large refined meshes,
-#: benchmarks/robot_motions.py), "ipopt", or "sqp" (the structured SQP on every warm-started
-#: mesh, IPOPT on one started from a guess, an error where the SQP does not apply, IPOPT with a
-#: note where one of its steps fails or it does not converge).
+#: The solvers `Collocation.solve` may use: "auto" (IPOPT, warm-started on a refined mesh; the
+#: structured SQP on a re-plan it covers, from the warm start's motion and multipliers, IPOPT
+#: where it fails: benchmarks/robot_motions.py), "ipopt", or "sqp" (the structured SQP on every
+#: warm-started mesh, IPOPT on one started from a guess, an error where the SQP does not apply,
+#: IPOPT with a note where one of its steps fails or it does not converge).
 SOLVERS = ("auto", "ipopt", "sqp")
 
 
@@ -237,7 +236,8 @@ def _c_stdout():
             printed[0] = caught.read().decode(errors="replace")
 
 
-def solve_mesh(problem, layout, controls, guess, settings, start=None, shift=0.0):
+def solve_mesh(problem, layout, controls, guess, settings, start=None, shift=0.0,
+               replan=False):
     """The CollocationResult of one solve of `problem` on the mesh `layout` (inputs tied to
     `controls`, a ControlMesh, or free) from `guess` (see `Collocation.solve`; `shift` seconds
     of an earlier result dropped, its end held); `start`: a refined mesh's start from the last
@@ -246,9 +246,9 @@ def solve_mesh(problem, layout, controls, guess, settings, start=None, shift=0.0
     path, where the warm options took 215-221 iterations on the Panda against a cold solve's
     26-28); from a "near" start IPOPT also starts from the guess's multipliers
     (`guess.refined_multipliers`, with DUAL_OPTIONS); the structured SQP (with the guess's
-    multipliers) solves a warm-started mesh (a refined one, a re-plan, or one started from an
-    earlier result) instead when `settings.solver` is "sqp" (IPOPT, with a note, where one of
-    its steps fails or it does not converge)."""
+    multipliers) solves a warm-started mesh (a refined one, a `replan`, or one started from an
+    earlier result) instead when `settings.solver` is "sqp", or "auto" on a `replan` the SQP
+    covers (IPOPT, with a note, where one of its steps fails or it does not converge)."""
     from .guess import initial_guess, refined_multipliers, warm_multipliers
     from .result import CollocationResult
     tr = problem.transcription(settings.hessian, layout, controls)
@@ -256,14 +256,15 @@ def solve_mesh(problem, layout, controls, guess, settings, start=None, shift=0.0
     T0 = layout.duration(x0) if layout.free else problem.duration_bounds[0]
     bound = tr.bound(T0)
     multipliers = refined_multipliers(bound, guess) if start == "near" else None
-    if settings.solver != "sqp":
+    if settings.solver == "ipopt" or (settings.solver == "auto" and not replan):
         return solve_nlp(problem, bound, x0, settings, start, multipliers)
     from .sqp import StepFailed, unsupported
     reason = unsupported(bound)
-    if reason:
+    if reason and settings.solver == "sqp":
         raise LagrgenError(f"solver='sqp' cannot solve this problem: the SQP does not handle "
                            f"{reason}; solve it with solver='auto' or 'ipopt'")
-    if start is None and not isinstance(guess, CollocationResult):
+    warm = replan or start is not None or isinstance(guess, CollocationResult)
+    if reason or not warm:
         return solve_nlp(problem, bound, x0, settings, start, multipliers)
     lam0, z0 = warm_multipliers(bound, guess, shift)
     if lam0 is None and multipliers is not None:
