@@ -23,11 +23,11 @@ interval's X_k and v_k and held alike, their terms added to its stage. When the 
 settle, a primal-dual interior point on the same recursion solves the QP (Mehrotra's
 predictor-corrector, the barrier's Hessian on the same diagonals and stages), and its solution
 is made exact by the active set's passes from the constraints it found active (those whose
-multiplier exceeds their slack). The defects' and
-residuals' multipliers come back from the recursion (the costates), in the NLP's sign convention
-(∇f + Jᵀλ + z = 0, W = ∇²f + Σ λ_i·∇²c_i), for the next step's Hessian. A step is accepted by
-a line search on the ℓ1 merit function; anything the structure does not cover, or a step that
-fails, is reported so the caller can fall back to IPOPT.
+multiplier exceeds their slack). The defects' and residuals' multipliers come back from the
+recursion (the costates), in the NLP's sign convention (∇f + Jᵀλ + z = 0,
+W = ∇²f + Σ λ_i·∇²c_i), for the next step's Hessian. A step is accepted by a line search on the
+ℓ1 merit function; anything the structure does not cover, or a step that fails, is reported so
+the caller can fall back to IPOPT.
 """
 from dataclasses import dataclass, field, fields
 
@@ -266,6 +266,7 @@ class ActiveSet:
         return np.where(self.row_side > 0, lin.row_hi, lin.row_lo)
 
     def copy(self):
+        """A set of its own with this one's sides and multipliers."""
         return ActiveSet(*(np.array(getattr(self, f.name)) for f in fields(self)))
 
     def take(self, other):
