@@ -159,7 +159,8 @@ def swing_problem(mod, T, nodes=41, limit=6.0):
 def test_the_structured_qp_is_the_kkt_solution(swing):
     """One QP of the SQP (accelerations eliminated point by point, states interval by interval,
     the Riccati recursion, bounds by the active set) equals the solve of the whole KKT system
-    with the same bounds held, and its multipliers make the KKT conditions hold."""
+    with the same bounds held, and its multipliers make the KKT conditions hold; the interior
+    point's solution, made exact by the active set it identifies, equals it too."""
     import scipy.sparse as sps
     from lagrgen.collocation import sqp
     model, mod = swing
@@ -193,6 +194,12 @@ def test_the_structured_qp_is_the_kkt_solution(swing):
                           active.row_targets(lin)[row_on]])
     reference = np.linalg.lstsq(K.toarray(), rhs, rcond=None)[0][:N]   # rows may repeat bounds
     assert np.abs(qp.dz.ravel() - reference).max() < 1e-7 * (1 + np.abs(reference).max())
+    inner, inertia = sqp.ActiveSet.start(lin), sqp.Inertia()     # by the interior point, cold
+    structured = sqp.StructuredQP(tr, stages, rows, lin)
+    found = sqp.solve_qp_interior(structured, lin, inner, inertia)
+    exact = sqp._purified(structured, lin, inner, inertia, 1e-10, found)
+    assert exact is not found and exact.interior
+    assert np.abs(exact.dz.ravel() - reference).max() < 1e-7 * (1 + np.abs(reference).max())
     lam_qp = sqp.constraint_multipliers(tr, qp, rows)
     z = np.zeros(L.size)
     z[:N] = np.where(active.side != 0, active.z, 0.0)
