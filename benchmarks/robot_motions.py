@@ -22,7 +22,8 @@ rigid-body dynamics Pinocchio's `aba` computes):
   re-plan    the Panda's motion on 101 nodes (mesh_tol=None); then `REPLANS` re-plans in a loop,
              each `prob.resolve(warm=last, initial=last.state_at(0.1), shift=0.1)` (the same 1 s
              move to the goal from where the last plan is at 0.1 s), each against a cold
-             `prob.solve` of the same re-plan problem.
+             `prob.solve` of the same re-plan problem and against IPOPT's re-plan from the same
+             warm start (`solver="ipopt"`).
   min-time   the Panda from start to goal in the least time within its limits,
              `Collocation(mod, nodes=51, duration=(0.1, 5.0))`, `minimize(time=True)`: on the 51
              nodes alone (mesh_tol=None), then refined (the defaults), checked by 101 nodes and

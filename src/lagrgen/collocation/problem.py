@@ -445,11 +445,11 @@ class Collocation:
             refined meshes, a re-plan, a guess that is a result), IPOPT for one started from
             another guess, where the SQP applies (a fixed duration, no unknown parameters, path
             constraints, data, ties between nodes or constrained model; an error otherwise).
-            Where one of the SQP's steps fails or it does not
-            converge, IPOPT solves that mesh, with a note. The SQP profits from a warm start
-            close to the answer, where IPOPT's interior point walks its barrier path again
-            (benchmarks/robot_motions.py gives both on the Panda's re-plans and refined
-            meshes); a note says where it stopped on a flat optimum.
+            Where one of the SQP's steps fails or it does not converge, IPOPT solves that mesh,
+            with a note. The SQP profits from a warm start close to the answer, where IPOPT's
+            interior point walks its barrier path again (benchmarks/robot_motions.py gives both
+            on the Panda's re-plans and refined meshes); a note says where it stopped on a flat
+            optimum.
 
         Returns
         -------

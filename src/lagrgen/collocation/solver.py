@@ -263,8 +263,7 @@ def solve_mesh(problem, layout, controls, guess, settings, start=None, shift=0.0
     if reason and settings.solver == "sqp":
         raise LagrgenError(f"solver='sqp' cannot solve this problem: the SQP does not handle "
                            f"{reason}; solve it with solver='auto' or 'ipopt'")
-    warm = replan or start is not None or isinstance(guess, CollocationResult)
-    if reason or not warm:
+    if reason or (start is None and not isinstance(guess, CollocationResult)):
         return solve_nlp(problem, bound, x0, settings, start, multipliers)
     lam0, z0 = warm_multipliers(bound, guess, shift)
     if lam0 is None and multipliers is not None:

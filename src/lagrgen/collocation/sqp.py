@@ -557,8 +557,9 @@ def solve_qp(tr, stages, rows, lin, active, inertia=None, tol=1e-10, passes=ACTI
 def _purified(qp, lin, active, inertia, tol, found):
     """The interior point's solution `found` made exact: the active set's passes from the set
     it identified (its constraints on their bounds, the rest free; `active` updated), or `found`
-    as it is where they do not settle within QUICK_PASSES (an interior point's solution keeps
-    its inactive bounds' multipliers at μ/s: the SQP's stationarity would stall at that size)."""
+    as it is where they do not settle (QUICK_PASSES, more while the set is settling: an interior
+    point's solution keeps its inactive bounds' multipliers at μ/s, and the SQP's stationarity
+    would stall at that size)."""
     trial = active.copy()
     try:
         exact = solve_qp_active(qp, lin, trial, inertia, tol, QUICK_PASSES)
@@ -678,15 +679,15 @@ def solve_qp_active(qp, lin, active, inertia, tol=1e-10, passes=None):
         changes = _set_changes(on, active.side, active.z, active.fixed, flat, lo, hi, tol)
         row_changes = _set_changes(row_on, active.row_side, active.row_z, active.row_fixed,
                                    row_value, lin.row_lo, lin.row_hi, tol)
+        now = sum(int(c.sum()) for c in changes + row_changes)
         if DEBUG:
-            print(f"    pass {count}: active {int(on.sum())}+{int(row_on.sum())} changes "
-                  f"{sum(int(c.sum()) for c in changes + row_changes)} violation "
-                  f"{np.max(np.abs(violation), initial=0):.2e} |dz| {np.max(np.abs(flat)):.2e}")
-        if any(c.any() for c in changes + row_changes):
+            print(f"    pass {count}: active {int(on.sum())}+{int(row_on.sum())} changes {now} "
+                  f"violation {np.max(np.abs(violation), initial=0):.2e} "
+                  f"|dz| {np.max(np.abs(flat)):.2e}")
+        if now:
             _apply_changes(active.side, active.z, *changes)
             _apply_changes(active.row_side, active.row_z, *row_changes)
             refactor = True
-            now = sum(int(c.sum()) for c in changes + row_changes)
             first = first or now
             if count == limit and (now <= changed or SETTLING * now <= first):
                 limit = min(limit + 1, SETTLING_PASSES)
