@@ -308,11 +308,21 @@ def test_a_replan_equals_a_cold_solve_from_the_new_state(swing):
 
 
 @pytest.mark.filterwarnings("ignore", category=DiscretizationWarning)
-def test_an_arms_replans_by_the_sqp_converge_where_its_joints_ride_their_limits(out_dir):
+def test_an_arms_replans_by_the_sqp_converge_where_its_joints_ride_their_limits(out_dir,
+                                                                               monkeypatch):
     """The seven-joint arm's re-plans of a move on which every joint rides its velocity limit:
     the QPs whose active sets do not settle go to the interior point, whose solution is then
-    made exact by the active set it identified; each re-plan by the SQP converges to tol (no
-    flat stop, no failed step handed to IPOPT) at IPOPT's optimum from the same start."""
+    made exact by the active set it identified (or, far from the solution, taken as the interior
+    point leaves it at a loose tolerance); each re-plan by the SQP converges to tol (no flat
+    stop, no failed step handed to IPOPT) at IPOPT's optimum from the same start."""
+    from lagrgen.collocation import sqp
+    tolerances, interior = [], sqp.solve_qp_interior
+
+    def spied(qp, lin, active, inertia, tol=1e-9, **kwargs):
+        tolerances.append(tol)
+        return interior(qp, lin, active, inertia, tol, **kwargs)
+
+    monkeypatch.setattr(sqp, "solve_qp_interior", spied)
     model = lagrgen.from_urdf(ARM, name="motions_arm", joint_dynamics=False)
     mod = lagrgen.build(model, out_dir=out_dir)
     n = mod.n_coordinates
@@ -337,6 +347,19 @@ def test_an_arms_replans_by_the_sqp_converge_where_its_joints_ride_their_limits(
         assert by_ipopt.status == 0
         assert abs(by_sqp.objective - by_ipopt.objective) < 1e-7 * by_ipopt.objective
         last = by_ipopt
+    assert sqp.LOOSE_TOL in tolerances
+
+
+def test_an_active_set_is_abandoned_only_when_its_changes_do_not_shrink_fast_enough():
+    """_hopeless: a set whose changes grow, or shrink too slowly to settle in the passes left,
+    goes to the interior point; one shrinking fast enough, or changing a few constraints, goes
+    on."""
+    from lagrgen.collocation.sqp import HOPELESS_FEW, _hopeless
+    assert _hopeless(3476, 1774, 18)                   # growing
+    assert _hopeless(176, 205, 18)                     # ×0.86 a pass: ~34 more passes
+    assert not _hopeless(61, 105, 17)                  # ×0.58 a pass: ~8 more
+    assert not _hopeless(HOPELESS_FEW, 4 * HOPELESS_FEW, 1)
+    assert not _hopeless(1774, np.inf, 19)             # the first pass
 
 
 @pytest.mark.filterwarnings("ignore", category=DiscretizationWarning)

@@ -23,8 +23,10 @@ interval's X_k and v_k and held alike, their terms added to its stage. When the 
 settle, a primal-dual interior point on the same recursion solves the QP (Mehrotra's
 predictor-corrector, the barrier's Hessian on the same diagonals and stages), and its solution
 is made exact by the active set's passes from the constraints it found active (those whose
-multiplier exceeds their slack). The defects' and residuals' multipliers come back from the
-recursion (the costates), in the NLP's sign convention (∇f + Jᵀλ + z = 0,
+multiplier exceeds their slack); far from the solution (the first steps of a re-plan) the
+interior point's solution at a loose tolerance is the step, and the active set is abandoned for
+it as soon as its changes shrink too slowly to settle. The defects' and residuals' multipliers
+come back from the recursion (the costates), in the NLP's sign convention (∇f + Jᵀλ + z = 0,
 W = ∇²f + Σ λ_i·∇²c_i), for the next step's Hessian. A step is accepted by a line search on the
 ℓ1 merit function; anything the structure does not cover, or a step that fails, is reported so
 the caller can fall back to IPOPT.
@@ -69,6 +71,14 @@ ACTIVE_PASSES, QUICK_PASSES, IPM_ITERATIONS = 8, 2, 60
 #: one before, or than 1/SETTLING of the first's): a pass costs one factor, the interior point a
 #: dozen.
 SETTLING_PASSES, SETTLING = 20, 4
+#: Far from the solution (the KKT error above LOOSE_ABOVE), a QP the active set does not solve
+#: is solved by the interior point to LOOSE_TOL (relative to its first gap) and taken as it is:
+#: the steps there are long and the next linearization corrects them (on the Panda's re-plans
+#: the first two QPs; 8–10 factors each instead of 16–20, with the same iterations).
+LOOSE_ABOVE, LOOSE_TOL = 30.0, 1e-5
+#: An active set changing more constraints a pass than this is abandoned for the interior point
+#: when its changes do not shrink fast enough to settle within SETTLING_PASSES (`_hopeless`).
+HOPELESS_FEW = 16
 DEBUG = False
 
 
@@ -537,11 +547,14 @@ class QPResult:
     interior: bool = False  # solved by the interior point (the active set did not settle)
 
 
-def solve_qp(tr, stages, rows, lin, active, inertia=None, tol=1e-10, passes=ACTIVE_PASSES):
+def solve_qp(tr, stages, rows, lin, active, inertia=None, tol=1e-10, passes=ACTIVE_PASSES,
+             loose=False):
     """The QP of `lin`: by the active set when it settles within `passes` (a warm start's
-    set, updated in place), else by the interior point (`solve_qp_interior`); the inputs'
-    Hessians regularized where they are not positive definite (`inertia`, an `Inertia`, keeps
-    the last regularization). `QPResult`."""
+    set, updated in place), else by the interior point (`solve_qp_interior`), to LOOSE_TOL and
+    as it stands when `loose` (a step far from the solution, which the next ones correct), else
+    to its tolerance and made exact (`_purified`); the inputs' Hessians regularized where they
+    are not positive definite (`inertia`, an `Inertia`, keeps the last regularization).
+    `QPResult`."""
     inertia = Inertia() if inertia is None else inertia
     qp = StructuredQP(tr, stages, rows, lin)
     try:
@@ -550,6 +563,8 @@ def solve_qp(tr, stages, rows, lin, active, inertia=None, tol=1e-10, passes=ACTI
         if DEBUG:
             print("    the active set did not settle: interior point")
         active.reset()
+        if loose:
+            return solve_qp_interior(qp, lin, active, inertia, LOOSE_TOL)
         return _purified(qp, lin, active, inertia, tol,
                          solve_qp_interior(qp, lin, active, inertia))
 
@@ -562,7 +577,7 @@ def _purified(qp, lin, active, inertia, tol, found):
     would stall at that size)."""
     trial = active.copy()
     try:
-        exact = solve_qp_active(qp, lin, trial, inertia, tol, QUICK_PASSES)
+        exact = solve_qp_active(qp, lin, trial, inertia, tol, QUICK_PASSES, patient=True)
     except Unsupported:
         return found
     active.take(trial)
@@ -644,12 +659,14 @@ def _apply_changes(side, z, release, cross_hi, cross_lo):
     side[cross_lo] = -1
 
 
-def solve_qp_active(qp, lin, active, inertia, tol=1e-10, passes=None):
+def solve_qp_active(qp, lin, active, inertia, tol=1e-10, passes=None, patient=False):
     """The QP by a primal-dual active set with augmented-Lagrangian terms for the active bounds
     and rows (the factor kept while only their multipliers change); Unsupported when the set
     does not settle within `passes` (default ACTIVE_PASSES), or within SETTLING_PASSES while each
     pass changes no more constraints than the one before or a SETTLING-th of the first's (a set
-    that is settling) or only the multipliers change."""
+    that is settling) or only the multipliers change, and, unless `patient` (the interior
+    point's set made exact: there is nothing cheaper to turn to), as soon as its changes do not
+    shrink fast enough to settle within SETTLING_PASSES (`_hopeless`)."""
     P, nz = lin.W.shape[:2]
     rho, row_rho = _penalties(lin), _row_penalties(qp, lin)
     refactor = True
@@ -685,6 +702,9 @@ def solve_qp_active(qp, lin, active, inertia, tol=1e-10, passes=None):
                   f"violation {np.max(np.abs(violation), initial=0):.2e} "
                   f"|dz| {np.max(np.abs(flat)):.2e}")
         if now:
+            if not patient and _hopeless(now, changed, SETTLING_PASSES - count):
+                raise Unsupported(f"the QP's active set is not settling ({changed} then {now} "
+                                  f"changes in passes {count - 1} and {count})")
             _apply_changes(active.side, active.z, *changes)
             _apply_changes(active.row_side, active.row_z, *row_changes)
             refactor = True
@@ -702,6 +722,18 @@ def solve_qp_active(qp, lin, active, inertia, tol=1e-10, passes=None):
         if count == limit:
             limit = min(limit + 1, SETTLING_PASSES)
     raise Unsupported(f"the QP's active set did not settle in {count} passes")
+
+
+def _hopeless(now, before, left):
+    """Whether an active set whose passes changed `before` then `now` constraints would not
+    settle within `left` more passes were its changes to keep shrinking at that ratio (the
+    interior point then costs fewer factors); sets changing at most HOPELESS_FEW constraints are
+    always given their passes."""
+    if now <= HOPELESS_FEW or not np.isfinite(before):
+        return False
+    if now >= before:
+        return True
+    return np.log(now) / np.log(before / now) > left
 
 
 class _Barrier:
@@ -970,10 +1002,13 @@ def _iterate(tr, x0, lam0, z0, tol, max_iter, monitor):
     row_z0 = None if lam0 is None else lam[tr.defect_row + tr.n_defects + rows.index]
     active = ActiveSet.start(lin, None if z0 is None else np.asarray(z0)[:P * nz], row_z0)
     penalty, passes, inertia, qp = 0.0, 0, Inertia(), None
-    primal_now, dual_now, z_now = np.inf, np.inf, np.zeros(L.size)
+    z_now = np.zeros(L.size)
+    z_now[:P * nz] = np.where(active.side != 0, active.z, 0.0)
+    primal_now, dual_now = kkt_error(tr, x, lam, z_now)
     for iteration in range(1, max_iter + 1):
         qp = solve_qp(tr, stages, rows, lin, active, inertia,
-                      passes=QUICK_PASSES if qp is not None and qp.interior else ACTIVE_PASSES)
+                      passes=QUICK_PASSES if qp is not None and qp.interior else ACTIVE_PASSES,
+                      loose=max(primal_now, dual_now) > LOOSE_ABOVE)
         passes += qp.passes
         step = np.zeros(L.size)
         step[:P * nz] = qp.dz.ravel()
