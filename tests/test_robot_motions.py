@@ -210,6 +210,30 @@ def test_the_structured_qp_is_the_kkt_solution(swing):
 
 
 @pytest.mark.filterwarnings("ignore", category=DiscretizationWarning)
+def test_a_points_costs_with_a_diagonal_added_are_the_eliminated_blocks(swing):
+    """diagonal_costs / diagonal_gradients (TᵀWT formed once, the diagonal's terms added) equal
+    Tᵀ·(W + diag(add))·T and Tᵀ·((W + diag(add))·t + g) formed whole."""
+    from lagrgen.collocation import sqp
+    model, mod = swing
+    prob = swing_problem(mod, model.input_functions[0], nodes=9)
+    res = prob.solve(progress=False, mesh_tol=None, solver="ipopt")
+    tr = prob.transcription("exact").bound(3.0)
+    stages, rows = sqp.Stages.of(tr), sqp.Rows.of(tr)
+    lin = sqp.linearize(tr, res.x, res._lam, stages, rows)
+    qp = sqp.StructuredQP(tr, stages, rows, lin)
+    rng = np.random.default_rng(3)
+    P, nz = lin.W.shape[:2]
+    for _ in range(2):
+        add = rng.uniform(0, 1e3, P * nz) * (rng.random(P * nz) < 0.5)
+        W = lin.W + np.einsum("pi,ij->pij", add.reshape(P, nz), np.eye(nz))
+        g = rng.standard_normal((P, nz))
+        G, gamma = qp.point_costs(W, g)
+        scale = np.abs(G).max()
+        assert np.abs(qp.diagonal_costs(add) - G).max() < 1e-12 * scale
+        assert np.allclose(qp.diagonal_gradients(add, g), gamma, rtol=1e-12, atol=1e-12 * scale)
+
+
+@pytest.mark.filterwarnings("ignore", category=DiscretizationWarning)
 def test_the_qps_regularization_is_the_least_that_serves_from_any_last_one(swing):
     """A QP that is not convex along its inputs is factored with the least regularization of
     the grid 1e-8·10ᵏ that makes it positive definite (what a search up from 1e-8 finds),
@@ -240,7 +264,8 @@ def test_the_qps_regularization_is_the_least_that_serves_from_any_last_one(swing
     for last in (0.0, least, least * 1e3, least * 1e-4):
         calls.clear()
         inertia = sqp.Inertia(last)
-        gamma, delta = sqp._factored(qp, W, lin.g, inertia)
+        delta = sqp._factored(qp, G, inertia)
+        gamma = qp.point_costs(W, lin.g)[1]
         assert delta == pytest.approx(least, rel=1e-12) and inertia.last == delta
         qp.vectors(gamma)
         assert np.allclose(qp.solve(), steps, rtol=1e-12, atol=1e-12)

@@ -322,6 +322,7 @@ class StructuredQP:
         n, nu = L.n, L.nu
         self.nx, self.ny = 2 * n, 2 * n + nu
         self._eliminate_accelerations()
+        self._plain_G = None
         self.interval_maps()
         self.row_maps()
 
@@ -355,6 +356,26 @@ class StructuredQP:
         """γ = Tᵀ·(W·t + g) of each point (`point_costs`' linear part alone)."""
         Wt = (W @ self.t[:, :, None])[:, :, 0] + g
         return (self.T.transpose(0, 2, 1) @ Wt[:, :, None])[:, :, 0]
+
+    def diagonal_costs(self, add):
+        """G of each point for the blocks W + diag(add) (add: (P·nz,)): TᵀWT, formed once per
+        QP, plus Tᵀ·diag(add)·T, which is diagonal on the states and inputs (T's identity
+        rows) and n rank-one terms of the acceleration rows."""
+        if self._plain_G is None:
+            self._plain_G = self.point_costs(self.lin.W, self.lin.g)[0]
+        n, nu = self.L.n, self.L.nu
+        add = add.reshape(self.T.shape[0], self.L.nz)
+        G = self._plain_G.copy()
+        kept = np.r_[0:2 * n, 3 * n:3 * n + nu]
+        states_inputs = np.arange(self.ny)
+        G[:, states_inputs, states_inputs] += add[:, kept]
+        Ta = self.T[:, 2 * n:3 * n, :]
+        G += Ta.transpose(0, 2, 1) @ (add[:, 2 * n:3 * n, None] * Ta)
+        return G
+
+    def diagonal_gradients(self, add, g):
+        """γ of each point for the blocks W + diag(add) and gradients g (P, nz)."""
+        return self.point_gradients(self.lin.W, g + add.reshape(g.shape) * self.t)
 
     # -- per interval: the states of its inner points and end -------------------------------------
     def interval_maps(self):
@@ -611,13 +632,12 @@ class Inertia:
     last: float = 0.0
 
 
-def _factored(qp, W, g, inertia, row_weights=None):
-    """qp factored for the point blocks W and the rows' weights, the inputs' Hessians
-    regularized by the least δ (0, or of `inertia`'s grid) that makes them positive definite;
-    its cost gradients for g and δ."""
-    G, gamma = qp.point_costs(W, g)
+def _factored(qp, G, inertia, row_weights=None):
+    """qp factored for the point Hessians G and the rows' weights, the inputs' Hessians
+    regularized by the least δ (0, or of `inertia`'s grid) that makes them positive definite:
+    δ."""
     if qp.factor(G, 0.0, row_weights):
-        return gamma, 0.0
+        return 0.0
     delta = max(inertia.last, FIRST_REGULARIZATION)
     if qp.factor(G, delta, row_weights):
         factored = qp.factored()
@@ -633,15 +653,7 @@ def _factored(qp, W, g, inertia, row_weights=None):
             if qp.factor(G, delta, row_weights):
                 break
     inertia.last = delta
-    return gamma, delta
-
-
-def _with_diagonal(W, add):
-    """W (P, nz, nz) plus the diagonal `add` (P·nz,)."""
-    P, nz = W.shape[:2]
-    out = W.reshape(P, nz * nz).copy()
-    out[:, np.arange(nz) * (nz + 1)] += add.reshape(P, nz)
-    return out.reshape(P, nz, nz)
+    return delta
 
 
 def _set_changes(on, side, z, fixed, value, lo, hi, tol):
@@ -679,12 +691,11 @@ def solve_qp_active(qp, lin, active, inertia, tol=1e-10, passes=None, patient=Fa
         on, row_on = active.side != 0, active.row_side != 0
         g = (lin.g.ravel() + np.where(on, active.z - rho * delta, 0.0)).reshape(P, nz)
         row_g = np.where(row_on, active.row_z + row_rho * (qp.const - row_delta), 0.0)
+        add = np.where(on, rho, 0.0)
         if refactor:
-            W = _with_diagonal(lin.W, np.where(on, rho, 0.0))
-            gamma = _factored(qp, W, g, inertia, np.where(row_on, row_rho, 0.0))[0]
+            _factored(qp, qp.diagonal_costs(add), inertia, np.where(row_on, row_rho, 0.0))
             refactor = False
-        else:
-            gamma = qp.point_gradients(W, g)
+        gamma = qp.diagonal_gradients(add, g)
         qp.vectors(gamma, row_g)
         y = qp.solve()
         dz = qp.steps(y)
@@ -840,7 +851,7 @@ def solve_qp_interior(qp, lin, active, inertia, tol=1e-9, iterations=IPM_ITERATI
     def system(pins, row_pins):
         """The solve of the barrier's Newton system about the current point for complementarity
         targets (t_l, t_u) of the bounds and of the rows, after factoring."""
-        W = _with_diagonal(lin.W, bounds.weights() + pin)
+        add = bounds.weights() + pin
         row_w = rows.weights() + row_pin
         factored = [False]
 
@@ -850,10 +861,9 @@ def solve_qp_interior(qp, lin, active, inertia, tol=1e-9, iterations=IPM_ITERATI
             row_g = (rows.gradient(w, *row_targets) + rows.weights() * qp.const
                      + row_pin * (qp.const - row_target) + row_pins + row_extra)
             if not factored[0]:
-                gamma = _factored(qp, W, g, inertia, row_w)[0]
+                _factored(qp, qp.diagonal_costs(add), inertia, row_w)
                 factored[0] = True
-            else:
-                gamma = qp.point_gradients(W, g)
+            gamma = qp.diagonal_gradients(add, g)
             qp.vectors(gamma, row_g)
             y = qp.solve()
             dz, value = qp.steps(y).ravel(), qp.row_values()
