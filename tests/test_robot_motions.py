@@ -209,10 +209,9 @@ def test_the_structured_qp_is_the_kkt_solution(swing):
     assert np.abs(stationarity).max() < 1e-6 * (1 + np.abs(lin.g).max())
 
 
-@pytest.mark.filterwarnings("ignore", category=DiscretizationWarning)
-def test_a_points_costs_with_a_diagonal_added_are_the_eliminated_blocks(swing):
-    """diagonal_costs / diagonal_gradients (TᵀWT formed once, the diagonal's terms added) equal
-    Tᵀ·(W + diag(add))·T and Tᵀ·((W + diag(add))·t + g) formed whole."""
+def swing_qp_at_optimum(swing):
+    """(transcription, linearization, StructuredQP) of the swing-up on 9 nodes at IPOPT's
+    solution."""
     from lagrgen.collocation import sqp
     model, mod = swing
     prob = swing_problem(mod, model.input_functions[0], nodes=9)
@@ -220,7 +219,15 @@ def test_a_points_costs_with_a_diagonal_added_are_the_eliminated_blocks(swing):
     tr = prob.transcription("exact").bound(3.0)
     stages, rows = sqp.Stages.of(tr), sqp.Rows.of(tr)
     lin = sqp.linearize(tr, res.x, res._lam, stages, rows)
-    qp = sqp.StructuredQP(tr, stages, rows, lin)
+    return tr, lin, sqp.StructuredQP(tr, stages, rows, lin)
+
+
+@pytest.mark.filterwarnings("ignore", category=DiscretizationWarning)
+def test_a_points_costs_with_a_diagonal_added_are_the_eliminated_blocks(swing):
+    """diagonal_costs / diagonal_gradients (TᵀWT formed once, the diagonal's terms added) equal
+    Tᵀ·(W + diag(add))·T and Tᵀ·((W + diag(add))·t + g) formed whole."""
+    from lagrgen.collocation import sqp
+    tr, lin, qp = swing_qp_at_optimum(swing)
     rng = np.random.default_rng(3)
     P, nz = lin.W.shape[:2]
     for _ in range(2):
@@ -240,13 +247,7 @@ def test_the_qps_regularization_is_the_least_that_serves_from_any_last_one(swing
     whatever regularization the last factor needed; started at the last one, the search takes
     three factors (none, the last, a tenth of it) where the search up from 1e-8 takes more."""
     from lagrgen.collocation import sqp
-    model, mod = swing
-    prob = swing_problem(mod, model.input_functions[0], nodes=9)
-    res = prob.solve(progress=False, mesh_tol=None, solver="ipopt")
-    tr = prob.transcription("exact").bound(3.0)
-    stages, rows = sqp.Stages.of(tr), sqp.Rows.of(tr)
-    lin = sqp.linearize(tr, res.x, res._lam, stages, rows)
-    qp = sqp.StructuredQP(tr, stages, rows, lin)
+    tr, lin, qp = swing_qp_at_optimum(swing)
     u = tr.layout.nz - 1                                  # the torque's place in a point
     W = lin.W.copy()
     W[:, u, u] -= 3e-3 * np.abs(W[:, u, u]).max() + 1e-4
