@@ -226,8 +226,7 @@ def swing_qp_at_optimum(swing):
 def test_a_points_costs_with_a_diagonal_added_are_the_eliminated_blocks(swing):
     """diagonal_costs / diagonal_gradients (TᵀWT formed once, the diagonal's terms added) equal
     Tᵀ·(W + diag(add))·T and Tᵀ·((W + diag(add))·t + g) formed whole."""
-    from lagrgen.collocation import sqp
-    tr, lin, qp = swing_qp_at_optimum(swing)
+    _, lin, qp = swing_qp_at_optimum(swing)
     rng = np.random.default_rng(3)
     P, nz = lin.W.shape[:2]
     for _ in range(2):
