@@ -798,7 +798,7 @@ def casadi_available():
 def measure(args, tmp, say):
     """Every figure of the report (a dict)."""
     repeat = 1 if args.quick else max(args.repeat, 1)
-    replans = 2 if args.quick else args.replans
+    replans = args.replans if args.replans is not None else 2 if args.quick else 10
     tmp = Path(tmp)
     urdf = robot_urdf("panda", tmp / "urdf")
     names, start, goal = PANDA_JOINTS, list(PANDA_START), list(PANDA_GOAL)
@@ -1154,7 +1154,8 @@ def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--quick", action="store_true", help="one of each, no Talos, no chain")
     parser.add_argument("--repeat", type=int, default=3, help="cold processes per figure")
-    parser.add_argument("--replans", type=int, default=10, help="re-plans in the loop")
+    parser.add_argument("--replans", type=int,
+                        help="re-plans in the loop (default 10, 2 with --quick)")
     parser.add_argument("--no-talos", action="store_true", help="leave Talos out")
     parser.add_argument("--talos-timeout", type=float, default=1200,
                         help="seconds a Talos process may take")
