@@ -391,7 +391,8 @@ def test_an_active_set_is_abandoned_only_when_its_changes_do_not_shrink_fast_eno
 def test_an_sqp_solve_that_ends_on_a_flat_optimum_says_so(swing, monkeypatch):
     """An SQP solve that converges to tol carries no note; one that ends because its steps no
     longer lower the objective, its stationarity residual above tol (a flat optimum), says so
-    with the residual and how to solve to tol."""
+    with the residual and how to solve to tol under solver="sqp", and is finished to tol by
+    IPOPT from its motion and multipliers under solver="auto" (with a note)."""
     from lagrgen.collocation import sqp
     model, mod = swing
     T, = model.input_functions
@@ -413,6 +414,12 @@ def test_an_sqp_solve_that_ends_on_a_flat_optimum_says_so(swing, monkeypatch):
     assert len(said) == 1 and "3.2e-04 above tol 1e-08" in said[0] and "'ipopt'" in said[0]
     assert stalled.success and stalled.status == 1 and "flat optimum" in stalled.message
     assert not [n for n in stalled.notes if "IPOPT stopped at its acceptable level" in n]
+    replan.pop("solver")                    # "auto": IPOPT finishes what the SQP left flat
+    finished = prob.resolve(first, **replan)
+    assert finished.solver == "ipopt" and finished.status == 0
+    said = [n for n in finished.notes if "SQP" in n]
+    assert len(said) == 1 and "stopped short of tol" in said[0] and "3.2e-04" in said[0]
+    assert abs(finished.objective - exact.objective) < 1e-8 * exact.objective
 
 
 @pytest.mark.filterwarnings("ignore", category=DiscretizationWarning)

@@ -448,8 +448,9 @@ class Collocation:
             Where one of the SQP's steps fails or it does not converge, IPOPT solves that mesh,
             with a note. The SQP profits from a warm start close to the answer, where IPOPT's
             interior point walks its barrier path again (benchmarks/robot_motions.py gives both
-            on the Panda's re-plans and refined meshes); a note says where it stopped on a flat
-            optimum.
+            on the Panda's re-plans and refined meshes). Where it stops on a flat optimum short of
+            tol, "auto" has IPOPT finish the mesh from its motion and multipliers and "sqp"
+            returns it with status 1 (a note says which).
 
         Returns
         -------

@@ -67,9 +67,10 @@ MAX_ITERATIONS = 2**31 - 1
 
 #: The solvers `Collocation.solve` may use: "auto" (IPOPT, warm-started on a refined mesh; the
 #: structured SQP on a re-plan it covers, from the warm start's motion and multipliers, IPOPT
-#: where it fails: benchmarks/robot_motions.py), "ipopt", or "sqp" (the structured SQP on every
-#: warm-started mesh, IPOPT on one started from a guess, an error where the SQP does not apply,
-#: IPOPT with a note where one of its steps fails or it does not converge).
+#: where it fails or finishing where it stops short of tol: benchmarks/robot_motions.py),
+#: "ipopt", or "sqp" (the structured SQP on every warm-started mesh, IPOPT on one started from a
+#: guess, an error where the SQP does not apply, IPOPT with a note where one of its steps fails
+#: or it does not converge).
 SOLVERS = ("auto", "ipopt", "sqp")
 
 
@@ -248,7 +249,8 @@ def solve_mesh(problem, layout, controls, guess, settings, start=None, shift=0.0
     (`guess.refined_multipliers`, with DUAL_OPTIONS); the structured SQP (with the guess's
     multipliers) solves a warm-started mesh (a refined one, a `replan`, or one started from an
     earlier result) instead when `settings.solver` is "sqp", or "auto" on a `replan` the SQP
-    covers (IPOPT, with a note, where one of its steps fails or it does not converge)."""
+    covers (IPOPT, with a note, where one of its steps fails or it does not converge, and under
+    "auto" from the SQP's answer where it stops short of tol: `finished_by_ipopt`)."""
     from .guess import initial_guess, refined_multipliers, warm_multipliers
     from .result import CollocationResult
     tr = problem.transcription(settings.hessian, layout, controls)
@@ -269,12 +271,25 @@ def solve_mesh(problem, layout, controls, guess, settings, start=None, shift=0.0
     if lam0 is None and multipliers is not None:
         lam0, z0 = multipliers
     try:
-        return solve_structured(problem, bound, x0, lam0, z0, settings)
+        result = solve_structured(problem, bound, x0, lam0, z0, settings)
     except StepFailed as exc:
         result = solve_nlp(problem, bound, x0, settings, start, multipliers)
         result.notes.append(f"the structured SQP failed ({exc}): IPOPT solved this mesh from "
                             f"the same start (result.solver says which solved it)")
         return result
+    if result.status == 0 or settings.solver == "sqp":
+        return result
+    return finished_by_ipopt(problem, bound, result, settings)
+
+
+def finished_by_ipopt(problem, tr, flat, settings):
+    """IPOPT's solve of `tr` from the SQP's result `flat` that stopped on a flat optimum (above
+    tol), its motion and multipliers kept as a near start: solver="auto" returns a solution to
+    tol (solver="sqp" returns the SQP's, with its note)."""
+    result = solve_nlp(problem, tr, flat.x, settings, "near", (flat._lam, flat._z))
+    result.notes.append(f"the structured SQP stopped short of tol ({flat.message}): IPOPT "
+                        f"finished this mesh from its motion and multipliers")
+    return result
 
 
 def solve_structured(problem, tr, x0, lam0, z0, settings):

@@ -348,9 +348,13 @@ class StructuredQP:
 
     def point_costs(self, W, g):
         """(G, γ): each point's cost ½·yᵀ·G·y + γᵀ·y in y from its block W and gradient g."""
+        return self.eliminated_hessians(W), self.point_gradients(W, g)
+
+    def eliminated_hessians(self, W):
+        """G = Tᵀ·W·T of each point (`point_costs`' quadratic part alone)."""
         G = np.empty((self.T.shape[0], self.ny, self.ny))
         point_hessians(self.T, np.ascontiguousarray(W), G)
-        return G, self.point_gradients(W, g)
+        return G
 
     def point_gradients(self, W, g):
         """γ = Tᵀ·(W·t + g) of each point (`point_costs`' linear part alone)."""
@@ -362,7 +366,7 @@ class StructuredQP:
         QP, plus Tᵀ·diag(add)·T, which is diagonal on the states and inputs (T's identity
         rows) and n rank-one terms of the acceleration rows."""
         if self._plain_G is None:
-            self._plain_G = self.point_costs(self.lin.W, self.lin.g)[0]
+            self._plain_G = self.eliminated_hessians(self.lin.W)
         n, nu = self.L.n, self.L.nu
         add = add.reshape(self.T.shape[0], self.L.nz)
         G = self._plain_G.copy()
@@ -970,6 +974,14 @@ def constraint_multipliers(tr, qp, rows):
     return lam
 
 
+def bound_multipliers(L, active):
+    """The bounds' multipliers z of every variable (the NLP's convention) from an active set:
+    its multipliers where a bound is active, 0 elsewhere."""
+    z = np.zeros(L.size)
+    z[:L.points * L.nz] = np.where(active.side != 0, active.z, 0.0)
+    return z
+
+
 def violation(tr, c):
     """Each constraint's violation of its bounds (0 within them)."""
     return np.maximum(np.maximum(tr.g_lo - c, c - tr.g_hi), 0.0)
@@ -1012,8 +1024,7 @@ def _iterate(tr, x0, lam0, z0, tol, max_iter, monitor):
     row_z0 = None if lam0 is None else lam[tr.defect_row + tr.n_defects + rows.index]
     active = ActiveSet.start(lin, None if z0 is None else np.asarray(z0)[:P * nz], row_z0)
     penalty, passes, inertia, qp = 0.0, 0, Inertia(), None
-    z_now = np.zeros(L.size)
-    z_now[:P * nz] = np.where(active.side != 0, active.z, 0.0)
+    z_now = bound_multipliers(L, active)
     primal_now, dual_now = kkt_error(tr, x, lam, z_now)
     for iteration in range(1, max_iter + 1):
         qp = solve_qp(tr, stages, rows, lin, active, inertia,
@@ -1023,8 +1034,7 @@ def _iterate(tr, x0, lam0, z0, tol, max_iter, monitor):
         step = np.zeros(L.size)
         step[:P * nz] = qp.dz.ravel()
         lam_qp = constraint_multipliers(tr, qp, rows)
-        z = np.zeros(L.size)
-        z[:P * nz] = np.where(active.side != 0, active.z, 0.0)
+        z = bound_multipliers(L, active)
         f, c, grad = tr.objective(x), tr.constraints(x), tr.gradient(x)
         penalty = max(penalty, 1.1 * float(np.max(np.abs(lam_qp), initial=0.0)), 1e-6)
         infeasibility = np.sum(violation(tr, c))
