@@ -419,7 +419,7 @@ def test_an_sqp_solve_that_ends_on_a_flat_optimum_says_so(swing, monkeypatch):
     assert finished.solver == "ipopt" and finished.status == 0
     said = [n for n in finished.notes if "SQP" in n]
     assert len(said) == 1 and "stopped short of tol" in said[0] and "3.2e-04" in said[0]
-    assert abs(finished.objective - exact.objective) < 1e-8 * exact.objective
+    assert abs(finished.objective - exact.objective) < 1e-6 * exact.objective
 
 
 @pytest.mark.filterwarnings("ignore", category=DiscretizationWarning)
