@@ -167,8 +167,9 @@ def test_warm_start_from_an_earlier_result_on_another_grid(integrator):
 @pytest.mark.parametrize("duration", [1.0, (0.5, 2.0)], ids=["fixed", "free"])
 def test_jacobian_and_lagrangian_hessian_match_finite_differences(cart, scheme, duration):
     """Every ingredient at once: dynamics, unknown parameters, two path constraints (one with an
-    acceleration), an integrand with parameters, periodicity, data (fixed duration) or minimum
-    time (free); and the sparsity structures cover every nonzero."""
+    acceleration), an integrand with parameters, periodicity, bounded states, data (fixed
+    duration) or minimum time (free: with the states' hulls between the points); and the
+    sparsity structures cover every nonzero."""
     model, mod = cart
     x, th = model.q
     P, Fc = model.input_functions
@@ -183,6 +184,7 @@ def test_jacobian_and_lagrangian_hessian_match_finite_differences(cart, scheme, 
     if not free:
         prob.track([0.1, 0.35, 0.9], [[0.1, 0.2, 0.3], [0.0, 0.1, 0.3]], ["theta", "x_dot"])
     prob.periodic(["x"])
+    prob.bound("x", -2, 2).bound("theta_dot", hi=5)      # a free duration's states' hulls
     J, Jn, H, Hn, grad, gradn = nlp_derivatives(prob)
     scale = 1 + np.abs(Jn).max()
     assert np.abs(J - Jn).max() < 1e-7 * scale

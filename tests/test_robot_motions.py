@@ -478,6 +478,38 @@ def test_a_state_that_leaves_its_bound_between_the_points_is_said(swing):
 
 
 @pytest.mark.filterwarnings("ignore", category=DiscretizationWarning)
+def test_a_least_time_motion_keeps_its_states_within_their_bounds_between_the_points(swing):
+    """With a free duration the states' cubics are held within their bounds by their Bernstein
+    coefficients (two rows an interval for each bounded state): a least-time swing that rides
+    its velocity limit stays within it everywhere (sampled densely), where on the same grid with
+    a fixed duration the interpolant bulges beyond it; the duration is the least the hulls allow
+    (a fixed duration a little shorter cannot be met within them)."""
+    model, mod = swing
+    T, = model.input_functions
+
+    def problem(duration, nodes=21):
+        prob = lagrgen.Collocation(mod, nodes=nodes, duration=duration)
+        prob.bound("T", -6.0, 6.0).bound("theta_dot", -4.0, 4.0).bound("theta", -1.0, 4.0)
+        return prob.initial(q=[0.0], qd=[0.0]).final(q=[np.pi], qd=[0.0])
+
+    fastest = problem((1.0, 6.0)).minimize(time=True)
+    tr = fastest.transcription()
+    assert tr.n_hull == 2 * 2 * 20 and tr.n_constraints == tr.hull_row + tr.n_hull
+    res = fastest.solve(progress=False, mesh_tol=None)
+    assert res.success and res.bound_excursions() == {}
+    dense = res.state_at(np.linspace(0.0, res.duration, 20001))
+    assert 3.9 < np.abs(dense[1]).max() <= 4.0 + 1e-6
+    used = res._transcription
+    hulls = used.constraints(res.x)[used.hull_row:]
+    assert np.abs(hulls).max() > 4.0 - 1e-6                   # a hull of theta_dot holds it
+    assert dense[0].min() >= -1.0 - 1e-6
+    fixed = problem(res.duration).minimize(integral=T ** 2).solve(progress=False, mesh_tol=None)
+    assert fixed.success and "theta_dot" in fixed.bound_excursions()
+    shorter = problem((1.0, 0.999 * res.duration)).minimize(time=True)
+    assert not shorter.solve(progress=False, mesh_tol=None, max_iter=200).success
+
+
+@pytest.mark.filterwarnings("ignore", category=DiscretizationWarning)
 def test_terminal_constraints_and_costs(swing):
     """prob.terminal(expr, lo, hi) holds expr at the last node (the same optimum as the final
     value it states); minimize(terminal=cost) adds the cost of the last node: the motion it

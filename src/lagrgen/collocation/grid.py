@@ -17,7 +17,9 @@ Each defect row is Σ c0·x_col + T·Σ c1·x_col (c1 holding the interval's fra
 fixed duration, bilinear in (T, x) for a free one. Integrals are T·Σ_j w_j·L(z_j) with the scheme's
 weights (trapezoid; right endpoint; Simpson), each holding its intervals' fractions. Between nodes
 a state is the cubic Hermite interpolant of its node values and rates, an acceleration or input
-linear (quadratic through the midpoint for Hermite–Simpson).
+linear (quadratic through the midpoint for Hermite–Simpson). With a free duration, a bounded
+state's cubic on each Hermite–Simpson interval is held within its bounds by its inner Bernstein
+coefficients x_s + h_k/3·f_s and x_e − h_k/3·f_e (`state_hulls`, bilinear in (T, x)).
 """
 from dataclasses import dataclass
 from functools import cached_property
@@ -205,6 +207,31 @@ def defects(layout):
     rows = flat[0].astype(np.int64)
     return rows, flat[1].astype(np.int64), flat[2], flat[3] * layout.steps[rows // per], \
         (N - 1) * per
+
+
+def state_hulls(layout, bounded):
+    """The inner Bernstein coefficients of each bounded state's cubic on each Hermite–Simpson
+    interval as triplets (rows, cols, c0, c1) with row = Σ (c0 + T·c1)·x, and their count: for
+    the state x with rate f, b1 = x_s + h/3·f_s and b2 = x_e − h/3·f_e (two rows an interval,
+    in the order of `bounded`, a list of (kind, i) with kind "q" or "qd"). The cubic lies in the
+    hull of x_s, b1, b2, x_e, so bounding b1 and b2 as the points bound x keeps all of it within
+    the bounds."""
+    rate = {"q": "qd", "qd": "qdd"}
+    nz, K = layout.nz, layout.nodes - 1
+    s, e = np.arange(K) * 2 * nz, (np.arange(K) * 2 + 2) * nz
+    rows, cols, c0, c1 = [], [], [], []
+    for b, (kind, i) in enumerate(bounded):
+        ox, of = layout.offset(kind) + i, layout.offset(rate[kind]) + i
+        first, second = (2 * b + np.arange(2)[:, None]) * K + np.arange(K)[None, :]
+        for row, col, a, c in ((first, s + ox, 1.0, 0.0), (first, s + of, 0.0, 1 / 3),
+                               (second, e + ox, 1.0, 0.0), (second, e + of, 0.0, -1 / 3)):
+            rows.append(row), cols.append(col)
+            c0.append(np.full(K, a)), c1.append(np.full(K, c) * layout.steps)
+    if not rows:
+        empty = np.zeros(0)
+        return empty.astype(np.int64), empty.astype(np.int64), empty, empty, 0
+    flat = [np.concatenate(arrays) for arrays in (rows, cols, c0, c1)]
+    return flat[0].astype(np.int64), flat[1].astype(np.int64), flat[2], flat[3], 2 * K * len(bounded)
 
 
 def defect_intervals(layout):

@@ -376,7 +376,7 @@ def refined_multipliers(tr, guess):
         _rescaled(defects[:, simpson:], mid_old, h_old ** 2, mid_new, h_new ** 2)]).ravel()
     if bounded:
         env_old = lam_old[lam_old.size - bounded * (old.nodes - 1):]
-        lam[tr.n_constraints - tr.n_envelope:] = _rescaled(
+        lam[tr.hull_row - tr.n_envelope:tr.hull_row] = _rescaled(
             env_old.reshape(bounded, -1).T, mid_old, h_old, mid_new, h_new).T.ravel()
     return lam, z
 

@@ -5,8 +5,9 @@ Constraints, in order: the residual r(z_j) = 0 at every point (`residual_terms` 
 function table, called from C for all points at once); the path constraints at every point (a
 compiled unit); a constrained model's position and velocity levels at the first node; the
 defects (linear, or bilinear in T for a free duration; rows scaled as Δx/h − f); the linear
-instance constraints (periodicity, values between nodes). The objective is h·Σ_j w_j·L(z_j) + T (minimum
-time) + Σ ω·(C·x − d)² (data). The Hessian of σ·f + Σ μ·g is assembled from per-point kernels
+instance constraints (periodicity, values between nodes); with a free duration, each bounded
+state's hull between the points (bilinear in T, `grid.state_hulls`). The objective is
+h·Σ_j w_j·L(z_j) + T (minimum time) + Σ ω·(C·x − d)² (data). The Hessian of σ·f + Σ μ·g is assembled from per-point kernels
 (∇²(μᵀr) of the model, ∇²(μᵀg) of the path, σ·h·w_j·∇²L), the cross terms with T and the data
 term's constant 2σ·CᵀΩC; contributions to one entry are summed (`np.bincount`).
 """
@@ -17,7 +18,8 @@ import numpy as np
 from ..calculus import internal_symbols
 from ..errors import LagrgenError
 from ._points import kernel_rows, residual_rows, weighted_rows
-from .grid import defect_intervals, defects, interpolation, quadrature, variable_names
+from .grid import (defect_intervals, defects, interpolation, quadrature, state_hulls,
+                   variable_names)
 from ..hessians import (path_derivatives, point_variables_of, residual_hessian,
                         residual_jacobian_structure, residual_parameter_hessian,
                         scalar_derivatives, weights)
@@ -56,6 +58,7 @@ class Transcription:
         self._consistency()
         self._defect_structure()
         self._linear_rows()
+        self._hull_structure()
         self._data_term()
         self._variable_bounds()
         self.bounds_stamp = problem._values_stamp
@@ -279,6 +282,24 @@ class Transcription:
         self.e_lo = np.array([lo for _, _, lo, _ in entries])
         self.e_hi = np.array([hi for _, _, _, hi in entries])
 
+    def _hull_structure(self):
+        """A free duration's rows holding each bounded state within its bounds between the
+        points (`grid.state_hulls`: bilinear in T and the rates, hence not linear rows); none
+        for a fixed duration, whose refinement shrinks what leaves the bounds there."""
+        L, problem = self.layout, self.problem
+        bounded = [(kind, i) for kind in ("q", "qd") for i in range(L.n)
+                   if L.free and L.stride == 2
+                   and np.isfinite(problem._bounds.get((kind, i), (-np.inf, np.inf))).any()]
+        rows, cols, c0, c1, count = state_hulls(L, bounded)
+        self.n_hull = count
+        self.H0 = Linear(rows, cols, c0, (count, L.size))
+        self.H1 = Linear(rows, cols, c1, (count, L.size))
+        self.hull_c0, self.hull_c1 = c0, c1
+        self.H1_cols = np.unique(cols[c1 != 0])
+        per = 2 * (L.nodes - 1)
+        self.hull_lo = np.repeat([problem._bounds[b][0] for b in bounded], per)
+        self.hull_hi = np.repeat([problem._bounds[b][1] for b in bounded], per)
+
     def _data_term(self):
         """Σ ω·(C·x − d)² over every present sample of every track."""
         L, problem = self.layout, self.problem
@@ -355,12 +376,12 @@ class Transcription:
                                     np.tile([lo_ for _, _, lo_, _ in problem._path], L.points),
                                     np.zeros(self.n_cons),
                                     [lo_ for _, _, lo_, _ in problem._terminal],
-                                    np.zeros(self.n_defects), self.e_lo])
+                                    np.zeros(self.n_defects), self.e_lo, self.hull_lo])
         self.g_hi = np.concatenate([np.zeros(L.points * L.ni),
                                     np.tile([hi_ for _, _, _, hi_ in problem._path], L.points),
                                     np.zeros(self.n_cons),
                                     [hi_ for _, _, _, hi_ in problem._terminal],
-                                    np.zeros(self.n_defects), self.e_hi])
+                                    np.zeros(self.n_defects), self.e_hi, self.hull_hi])
 
     def _columns(self, local):
         """Global columns of per-point local columns (local < nz: the point's own variables,
@@ -381,6 +402,11 @@ class Transcription:
         """The first terminal constraint's row."""
         L = self.layout
         return L.points * (L.ni + self.n_path) + self.n_cons
+
+    @property
+    def hull_row(self):
+        """The first row of the states' hulls (after the linear rows)."""
+        return self.defect_row + self.n_defects + self.E.shape[0]
 
     def _last_columns(self, local):
         """Global columns of the last point's local columns (or unknown parameters')."""
@@ -408,9 +434,12 @@ class Transcription:
             cols.append(np.full(self.def_T_rows.size, L.T_index))
         self.E_values = self.E.values
         rows.append(base + self.n_defects + self.E.rows), cols.append(self.E.cols)
+        if self.n_hull:
+            rows += [self.hull_row + self.H0.rows, self.hull_row + np.arange(self.n_hull)]
+            cols += [self.H0.cols, np.full(self.n_hull, L.T_index)]
         self.jac_rows = np.concatenate(rows).astype(np.int64)
         self.jac_cols = np.concatenate(cols).astype(np.int64)
-        self.n_constraints = base + self.n_defects + self.E.shape[0]
+        self.n_constraints = self.hull_row + self.n_hull
 
     def _hessian_structure(self):
         """The union of every contribution's (row, col) in the lower triangle, and each
@@ -435,6 +464,8 @@ class Transcription:
                 parts.append((np.full(c.size, L.T_index), c))
         if L.free:
             parts.append((np.full(self.D1_cols.size, L.T_index), self.D1_cols))
+        if self.n_hull:
+            parts.append((np.full(self.H1_cols.size, L.T_index), self.H1_cols))
         if self.n_cons:
             first = np.where(self.cons_hess < L.nz, self.cons_hess,
                              L.p_start + self.cons_hess - L.nz)
@@ -597,6 +628,8 @@ class Transcription:
             parts.append(self._terminal_values(state))
         parts.append(self.defect_scale * (self.D0.dot(x) + state["T"] * self.D1.dot(x)))
         parts.append(self.E.dot(x))
+        if self.n_hull:
+            parts.append(self.H0.dot(x) + state["T"] * self.H1.dot(x))
         return np.concatenate(parts)
 
     def jacobianstructure(self):
@@ -620,6 +653,8 @@ class Transcription:
         if L.free:
             parts.append((self.defect_scale * L.T_scale * self.D1.dot(x))[self.def_T_rows])
         parts.append(self.E_values)
+        if self.n_hull:
+            parts += [self.hull_c0 + state["T"] * self.hull_c1, L.T_scale * self.H1.dot(x)]
         return np.concatenate(parts)
 
     def hessianstructure(self):
@@ -650,6 +685,9 @@ class Transcription:
             base = self.defect_row
             mu_def = mu[base:base + self.n_defects]
             parts.append(L.T_scale * self.D1.tdot(self.defect_scale * mu_def)[self.D1_cols])
+        if self.n_hull:
+            mu_hull = mu[self.hull_row:self.hull_row + self.n_hull]
+            parts.append(L.T_scale * self.H1.tdot(mu_hull)[self.H1_cols])
         if self.n_cons:
             weights_ = np.zeros(self.cons_sizes[0])
             start = P * (ni + self.n_path)
