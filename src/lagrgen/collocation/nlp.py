@@ -285,13 +285,17 @@ class Transcription:
     def _hull_structure(self):
         """A free duration's rows holding each bounded state within its bounds between the
         points (`grid.state_hulls`: bilinear in T and the rates, hence not linear rows); none
-        for a fixed duration, whose refinement shrinks what leaves the bounds there."""
+        for a fixed duration, whose refinement shrinks what leaves the bounds there. The hulls
+        bound the points between the ends too (a midpoint is its cubic's value; a node lies
+        within the hull of the interval its rate points into), so those points lose their own
+        bounds (`_variable_bounds`): with both, an arc riding a limit has more active
+        constraints than variables (a = 0 at each node twice over) and IPOPT's steps stall."""
         L, problem = self.layout, self.problem
         bounded = [(kind, i) for kind in ("q", "qd") for i in range(L.n)
                    if L.free and L.stride == 2
                    and np.isfinite(problem._bounds.get((kind, i), (-np.inf, np.inf))).any()]
         rows, cols, c0, c1, count = state_hulls(L, bounded)
-        self.n_hull = count
+        self.hull_states, self.n_hull = bounded, count
         self.H0 = Linear(rows, cols, c0, (count, L.size))
         self.H1 = Linear(rows, cols, c1, (count, L.size))
         self.hull_c0, self.hull_c1 = c0, c1
@@ -336,6 +340,9 @@ class Transcription:
             else:
                 col = L.offset(kind) + i
                 blo[:, col], bhi[:, col] = a, b
+        for kind, i in self.hull_states:     # inside the hulls on either side of them
+            col = L.offset(kind) + i
+            blo[1:-1, col], bhi[1:-1, col] = -np.inf, np.inf
         times = self.point_times(problem.duration_bounds[0])
         for k, values in problem._given.items():
             col = L.offset("u") + k
