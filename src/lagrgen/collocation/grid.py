@@ -230,8 +230,8 @@ def state_hulls(layout, bounded):
     if not rows:
         empty = np.zeros(0)
         return empty.astype(np.int64), empty.astype(np.int64), empty, empty, 0
-    flat = [np.concatenate(arrays) for arrays in (rows, cols, c0, c1)]
-    return flat[0].astype(np.int64), flat[1].astype(np.int64), flat[2], flat[3], 2 * K * len(bounded)
+    rows, cols, c0, c1 = (np.concatenate(arrays) for arrays in (rows, cols, c0, c1))
+    return rows.astype(np.int64), cols.astype(np.int64), c0, c1, 2 * K * len(bounded)
 
 
 def defect_intervals(layout):

@@ -7,9 +7,10 @@ compiled unit); a constrained model's position and velocity levels at the first 
 defects (linear, or bilinear in T for a free duration; rows scaled as Δx/h − f); the linear
 instance constraints (periodicity, values between nodes); with a free duration, each bounded
 state's hull between the points (bilinear in T, `grid.state_hulls`). The objective is
-h·Σ_j w_j·L(z_j) + T (minimum time) + Σ ω·(C·x − d)² (data). The Hessian of σ·f + Σ μ·g is assembled from per-point kernels
-(∇²(μᵀr) of the model, ∇²(μᵀg) of the path, σ·h·w_j·∇²L), the cross terms with T and the data
-term's constant 2σ·CᵀΩC; contributions to one entry are summed (`np.bincount`).
+h·Σ_j w_j·L(z_j) + T (minimum time) + Σ ω·(C·x − d)² (data). The Hessian of σ·f + Σ μ·g is
+assembled from per-point kernels (∇²(μᵀr) of the model, ∇²(μᵀg) of the path, σ·h·w_j·∇²L), the
+cross terms with T and the data term's constant 2σ·CᵀΩC; contributions to one entry are summed
+(`np.bincount`).
 """
 import copy
 
@@ -298,7 +299,6 @@ class Transcription:
         self.hull_states, self.n_hull = bounded, count
         self.H0 = Linear(rows, cols, c0, (count, L.size))
         self.H1 = Linear(rows, cols, c1, (count, L.size))
-        self.hull_c0, self.hull_c1 = c0, c1
         self.H1_cols = np.unique(cols[c1 != 0])
         per = 2 * (L.nodes - 1)
         self.hull_lo = np.repeat([problem._bounds[b][0] for b in bounded], per)
@@ -661,7 +661,7 @@ class Transcription:
             parts.append((self.defect_scale * L.T_scale * self.D1.dot(x))[self.def_T_rows])
         parts.append(self.E_values)
         if self.n_hull:
-            parts += [self.hull_c0 + state["T"] * self.hull_c1, L.T_scale * self.H1.dot(x)]
+            parts += [self.H0.values + state["T"] * self.H1.values, L.T_scale * self.H1.dot(x)]
         return np.concatenate(parts)
 
     def hessianstructure(self):

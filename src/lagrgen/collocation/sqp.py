@@ -323,6 +323,7 @@ class StructuredQP:
         self.nx, self.ny = 2 * n, 2 * n + nu
         self._eliminate_accelerations()
         self._plain_G = None
+        self._kept = np.r_[0:2 * n, 3 * n:3 * n + nu]      # T's identity rows: states, inputs
         self.interval_maps()
         self.row_maps()
 
@@ -367,12 +368,11 @@ class StructuredQP:
         rows) and n rank-one terms of the acceleration rows."""
         if self._plain_G is None:
             self._plain_G = self.eliminated_hessians(self.lin.W)
-        n, nu = self.L.n, self.L.nu
+        n = self.L.n
         add = add.reshape(self.T.shape[0], self.L.nz)
         G = self._plain_G.copy()
-        kept = np.r_[0:2 * n, 3 * n:3 * n + nu]
-        states_inputs = np.arange(self.ny)
-        G[:, states_inputs, states_inputs] += add[:, kept]
+        diagonal = np.arange(self.ny)
+        G[:, diagonal, diagonal] += add[:, self._kept]
         Ta = self.T[:, 2 * n:3 * n, :]
         G += Ta.transpose(0, 2, 1) @ (add[:, 2 * n:3 * n, None] * Ta)
         return G
