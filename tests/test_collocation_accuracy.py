@@ -271,7 +271,8 @@ def test_each_refined_mesh_starts_ipopt_by_how_far_off_its_start_is(pendulum, mo
     """The problem's grid starts cold; a refined mesh whose last mesh's error was above
     NEAR·mesh_tol with the "far" options of WARM_STARTS (mu_init 1e-4), one within it with the
     "near" ones (1e-6); each start keeps the last solution on its bounds (bound_push 1e-8). A
-    re-plan starts cold. Only the "near" starts take the last mesh's multipliers."""
+    re-plan starts cold. Only the "near" starts take the last mesh's multipliers (solver="ipopt";
+    "auto" solves the refined meshes by the SQP)."""
     from lagrgen.collocation import solver
     from lagrgen.collocation.refine import NEAR
     model, mod = pendulum
@@ -288,7 +289,7 @@ def test_each_refined_mesh_starts_ipopt_by_how_far_off_its_start_is(pendulum, mo
         return chosen
 
     monkeypatch.setattr(solver, "solver_options", recording)
-    res = prob.solve(progress=False, mesh_tol=1e-8)
+    res = prob.solve(progress=False, mesh_tol=1e-8, solver="ipopt")
     assert res.success and len(res.meshes) >= 3
     kinds = ["near" if m.error <= NEAR * 1e-8 else "far" for m in res.meshes[:-1]]
     assert {"near", "far"} <= set(kinds)

@@ -276,10 +276,10 @@ def test_the_qps_regularization_is_the_least_that_serves_from_any_last_one(swing
 
 
 def test_refined_meshes_by_the_sqp_reach_ipopts_optimum(swing, monkeypatch):
-    """solver="sqp": the first mesh, started from a guess, is IPOPT's; the refinement's meshes
-    after it, started from the last solution and its multipliers, are the structured SQP's (a
-    torque that stays inside its bounds, the velocity riding its own), at IPOPT's optimum on the
-    same meshes; "auto" is IPOPT."""
+    """solver="sqp" and "auto": the first mesh, started from a guess, is IPOPT's; the
+    refinement's meshes after it, started from the last solution and its multipliers, are the
+    structured SQP's (a torque that stays inside its bounds, the velocity riding its own), at
+    IPOPT's optimum on the same meshes (solver="ipopt")."""
     from lagrgen.collocation import solver as solver_module
     model, mod = swing
     T, = model.input_functions
@@ -290,14 +290,50 @@ def test_refined_meshes_by_the_sqp_reach_ipopts_optimum(swing, monkeypatch):
         return structured(problem, tr, x0, lam0, z0, settings)
     monkeypatch.setattr(solver_module, "solve_structured", recording)
     results = {solver: swing_problem(mod, T, limit=20.0).solve(progress=False, solver=solver)
-               for solver in ("sqp", "auto")}
-    auto, ipopt = results["sqp"], results["auto"]
-    assert auto.success and ipopt.success
-    assert auto.solver == "sqp" and ipopt.solver == "ipopt"
-    assert starts == [True] * (len(auto.meshes) - 1)
-    assert [m.nodes for m in auto.meshes] == [m.nodes for m in ipopt.meshes]
-    assert abs(auto.objective - ipopt.objective) < 1e-7 * ipopt.objective
-    assert auto.error <= 1e-6
+               for solver in ("sqp", "auto", "ipopt")}
+    ipopt = results["ipopt"]
+    assert ipopt.success and ipopt.solver == "ipopt" and len(ipopt.meshes) > 1
+    assert {m.solver for m in ipopt.meshes} == {"ipopt"}
+    for name in ("sqp", "auto"):
+        by = results[name]
+        assert by.success and by.solver == "sqp" and not by.sqp_failed
+        assert [m.solver for m in by.meshes] == ["ipopt"] + ["sqp"] * (len(by.meshes) - 1)
+        assert [m.nodes for m in by.meshes] == [m.nodes for m in ipopt.meshes]
+        assert abs(by.objective - ipopt.objective) < 1e-7 * ipopt.objective
+        assert by.error <= 1e-6
+    assert starts == [True] * (2 * len(ipopt.meshes) - 2)
+
+
+def test_where_the_sqps_stationarity_stalls_auto_hands_the_refinement_to_ipopt(swing,
+                                                                              monkeypatch):
+    """solver="auto": a refined mesh on which the SQP's stationarity residual stops falling
+    (here held at 3e-5 once the constraints hold, over full steps that still move the
+    objective) is solved by IPOPT from the same start, with a note, and so is every mesh after
+    it, at IPOPT's optimum; solver="sqp" goes on to its flat stop instead."""
+    from lagrgen.collocation import sqp
+    model, mod = swing
+    T, = model.input_functions
+    kkt_error = sqp.kkt_error
+
+    def stalling(*args):
+        primal, dual = kkt_error(*args)
+        return primal, dual if primal > sqp.STALLED_PRIMAL else max(dual, 3e-5)
+    monkeypatch.setattr(sqp, "kkt_error", stalling)
+    stall = sqp.STALL
+    monkeypatch.setattr(sqp, "STALL", -1.0)                 # no flat stop before it stalls
+    auto = swing_problem(mod, T, nodes=21, limit=20.0).solve(progress=False)
+    ipopt = swing_problem(mod, T, nodes=21, limit=20.0).solve(progress=False, solver="ipopt")
+    assert auto.success and auto.status == 0 and auto.solver == "ipopt" and auto.sqp_failed
+    assert {m.solver for m in auto.meshes} == {"ipopt"} and len(auto.meshes) > 2
+    said = [n for n in auto.notes if "structured SQP failed" in n]
+    assert len(said) == 1 and "stationarity residual stalled at 3.0e-05" in said[0]
+    assert "on mesh 2" in said[0] and "the meshes after it" in said[0]
+    assert "stalled at 3.0e-05" in auto.sqp_failed
+    assert auto.objective == pytest.approx(ipopt.objective, rel=1e-10)
+    monkeypatch.setattr(sqp, "STALL", stall)
+    by_sqp = swing_problem(mod, T, nodes=21, limit=20.0).solve(progress=False, solver="sqp")
+    assert by_sqp.solver == "sqp" and by_sqp.status == 1 and by_sqp.sqp_failed == ""
+    assert any("3.0e-05 above tol" in n for n in by_sqp.notes)
 
 
 @pytest.mark.filterwarnings("ignore", category=DiscretizationWarning)
@@ -373,6 +409,59 @@ def test_an_arms_replans_by_the_sqp_converge_where_its_joints_ride_their_limits(
         assert abs(by_sqp.objective - by_ipopt.objective) < 1e-7 * by_ipopt.objective
         last = by_ipopt
     assert sqp.LOOSE_TOL in tolerances
+
+
+@pytest.mark.filterwarnings("ignore", category=DiscretizationWarning)
+def test_an_arms_refined_meshes_by_the_sqp_converge_on_the_interior_points_multipliers(
+        out_dir, monkeypatch):
+    """The seven-joint arm's move riding its velocity limits, refined with solver="auto": the
+    QPs whose active sets settle neither before nor after the interior point are taken as the
+    interior point leaves them, with its multipliers of every bound (μ/s on the inactive ones),
+    and the SQP still converges to tol on each refined mesh (before, its stationarity residual
+    stalled at the size of the multipliers it dropped), at IPOPT's optimum."""
+    from lagrgen.collocation import sqp
+    as_left, purified = [], sqp._purified
+
+    def spied(qp, lin, active, inertia, tol, found):
+        made = purified(qp, lin, active, inertia, tol, found)
+        as_left.append(made is found)
+        return made
+    monkeypatch.setattr(sqp, "_purified", spied)
+    model = lagrgen.from_urdf(ARM, name="motions_arm", joint_dynamics=False)
+    mod = lagrgen.build(model, out_dir=out_dir)
+    n = mod.n_coordinates
+    lower, upper = (np.array([mod.limits[c][i] for c in mod.coordinates]) for i in (0, 1))
+    middle, half = (lower + upper) / 2, (upper - lower) / 2
+    prob = lagrgen.Collocation(mod, nodes=21, duration=1.2).bound_limits()
+    prob.initial(q=middle - 0.35 * half * np.linspace(1, -1, n), qd=np.zeros(n))
+    prob.final(q=middle + 0.35 * half * np.linspace(1, -1, n), qd=np.zeros(n))
+    prob.minimize(integral=sum(u ** 2 for u in model.input_functions))
+    auto = prob.solve(progress=False, mesh_tol=1e-5)
+    taken = sum(as_left)
+    ipopt = prob.solve(progress=False, mesh_tol=1e-5, solver="ipopt")
+    assert auto.success and auto.status == 0 and not auto.sqp_failed
+    assert [m.solver for m in auto.meshes[:3]] == ["ipopt", "sqp", "sqp"]
+    assert all(m.status == 0 for m in auto.meshes)
+    assert taken >= 1
+    assert abs(auto.objective - ipopt.objective) < 1e-7 * ipopt.objective
+    assert auto.error <= 1e-5
+
+
+def test_the_sqps_kkt_error_counts_the_multipliers_of_bounds_it_is_off():
+    """kkt_error: the stationarity residual with every bound's multiplier, and complementarity,
+    |z|·(the distance to its bound), where a multiplier sits on a bound the point is off."""
+    from types import SimpleNamespace
+
+    from lagrgen.collocation.sqp import kkt_error
+    tr = SimpleNamespace(lo=np.array([0.0, -np.inf]), hi=np.array([1.0, np.inf]),
+                         g_lo=np.zeros(0), g_hi=np.zeros(0), jac_rows=np.zeros(0, int),
+                         jac_cols=np.zeros(0, int), constraints=lambda x: np.zeros(0),
+                         jacobian=lambda x: np.zeros(0), gradient=lambda x: np.array([-2.0,
+                                                                                        0.0]))
+    lam = np.zeros(0)
+    assert kkt_error(tr, np.array([1.0, 3.0]), lam, np.array([2.0, 0.0])) == (0.0, 0.0)
+    assert kkt_error(tr, np.array([0.75, 3.0]), lam, np.array([2.0, 0.0])) == (0.0, 0.5)
+    assert kkt_error(tr, np.array([1.0, 3.0]), lam, np.array([1.5, 0.0])) == (0.0, 0.5)
 
 
 def test_an_active_set_is_abandoned_only_when_its_changes_do_not_shrink_fast_enough():

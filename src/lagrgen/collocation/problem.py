@@ -439,14 +439,16 @@ class Collocation:
         max_meshes : int
             The most meshes (solves) the refinement may use, the given grid included.
         solver : {"auto", "ipopt", "sqp"}
-            "auto": IPOPT, warm-started on a refined mesh, and the SQP on the problem's stage
-            structure (`lagrgen.collocation.sqp`) for a re-plan (`resolve`) it covers; "ipopt":
-            IPOPT alone; "sqp": the SQP for every mesh started from an earlier solution (the
-            refined meshes, a re-plan, a guess that is a result), IPOPT for one started from
-            another guess, where the SQP applies (a fixed duration, no unknown parameters, path
-            constraints, data, ties between nodes or constrained model; an error otherwise).
-            Where one of the SQP's steps fails or it does not converge, IPOPT solves that mesh,
-            with a note. The SQP profits from a warm start close to the answer, where IPOPT's
+            "auto": IPOPT on the first mesh, and the SQP on the problem's stage structure
+            (`lagrgen.collocation.sqp`) for the refined meshes and a re-plan (`resolve`) it
+            covers, IPOPT where it does not; "ipopt": IPOPT alone; "sqp": the SQP for every
+            mesh started from an earlier solution (the refined meshes, a re-plan, a guess that
+            is a result), IPOPT for one started from another guess, where the SQP applies (a
+            fixed duration, no unknown parameters, path constraints, data, ties between nodes
+            or constrained model; an error otherwise). Where one of the SQP's steps fails or it
+            does not converge (under "auto" also where its stationarity residual stalls above
+            tol), IPOPT solves that mesh from the same start, with a note (and under "auto" the
+            meshes after it). The SQP profits from a warm start close to the answer, where IPOPT's
             interior point walks its barrier path again (benchmarks/robot_motions.py gives both
             on the Panda's re-plans and refined meshes). Where it stops on a flat optimum short of
             tol, "auto" has IPOPT finish the mesh from its motion and multipliers and "sqp"

@@ -79,7 +79,7 @@ def solve_refined(problem, guess, settings, mesh_tol, max_meshes, start=None):
         layout, controls, shift = start
     knots = tuple(controls.knots if controls is not None else layout.node_fractions)
     degree = 2 if problem.scheme == "hermite-simpson" else 1
-    meshes, spent, callbacks, limit = [], 0.0, 0.0, None
+    meshes, spent, callbacks, limit, gave_up = [], 0.0, 0.0, None, None
     tied = frozenset() if controls is None else frozenset(controls.tied or ())
     result = solve_mesh(problem, layout, controls, guess, settings, shift=shift,
                         replan=start is not None)
@@ -92,7 +92,7 @@ def solve_refined(problem, guess, settings, mesh_tol, max_meshes, start=None):
         callbacks += result.callback_seconds
         meshes.append(MeshRecord(layout.nodes, result.iterations, float(errors.max()),
                                  result.objective, result.status, result.seconds,
-                                 result.t.copy(), errors))
+                                 result.t.copy(), errors, result.solver))
         if settings.progress and mesh_tol is not None:
             print(f"mesh {len(meshes)}: {layout.nodes} nodes, {result.iterations} iterations, "
                   f"dynamics error {errors.max():.2e}", flush=True)
@@ -107,9 +107,16 @@ def solve_refined(problem, guess, settings, mesh_tol, max_meshes, start=None):
         layout = refined_layout(layout, errors, mesh_tol, knots, order)
         tied = tied | inputs_switching(result, problem, knots)
         controls = ControlMesh(knots, degree, tied)
+        if settings.solver == "auto" and result.sqp_failed:
+            settings, gave_up = replace(settings, solver="ipopt"), (len(meshes), result)
         result = solve_mesh(problem, layout, controls, result, settings,
                             start="near" if errors.max() <= NEAR * mesh_tol else "far")
     result.callback_seconds = callbacks
+    if gave_up and not result.sqp_failed:
+        mesh, failed = gave_up
+        result.sqp_failed = failed.sqp_failed
+        result.notes.append(f"the structured SQP failed on mesh {mesh} ({failed.sqp_failed}): "
+                            f"IPOPT solved it from the same start, and the meshes after it")
     result = finished(result, errors, meshes, mesh_tol, spent, limit)
     if result.success:
         result.estimate_errors(stacklevel=3)

@@ -20,9 +20,9 @@ IPOPT_STATUS = {
 
 @dataclass(frozen=True)
 class MeshRecord:
-    """One mesh of a solve: its nodes, IPOPT's iterations, status and objective there, the
-    largest relative dynamics error of its intervals, and (for pictures) the node times and each
-    interval's error."""
+    """One mesh of a solve: its nodes, the solver's iterations, status and objective there, the
+    largest relative dynamics error of its intervals, (for pictures) the node times and each
+    interval's error, and which solver gave its answer ("ipopt" or "sqp")."""
     nodes: int
     iterations: int
     error: float
@@ -31,6 +31,7 @@ class MeshRecord:
     seconds: float
     times: np.ndarray = field(default=None, repr=False, compare=False)
     errors: np.ndarray = field(default=None, repr=False, compare=False)
+    solver: str = "ipopt"
 
 
 class Deviation(float):
@@ -71,16 +72,20 @@ class CollocationResult:
     error : the largest relative dynamics error of an interval (`lagrgen.collocation.accuracy`)
     errors : (intervals,) each interval's, on the final mesh
     meshes : the refinement's history, one `MeshRecord` (nodes, iterations, error, objective,
-        status, seconds) per mesh
+        status, seconds, solver) per mesh
     mesh_tol : the tolerance of the error the refinement worked to (None: the grid as given)
     seconds : wall time of the solve over every mesh (after the problem's units were made)
     callback_seconds : the part of it spent evaluating the NLP (the rest is the solver's own)
     solve_seconds : wall time of the last mesh's solve (of `Collocation.resolve`: the re-plan)
     solver : "ipopt" or "sqp", the solver of the last mesh (`Collocation.solve`'s solver=)
+    sqp_failed : why the structured SQP gave up on a mesh of the solve, which IPOPT then solved
+        from the same start (under solver="auto" the later meshes too; a note says so), or ""
     notes : what the solve adjusted and says so (an initial value on a bound clipped, a state
         whose interpolant leaves its bound between the points: `bound_excursions`, ...)
     x : the decision vector (a warm start for another solve)
     """
+
+    sqp_failed = ""
 
     def __init__(self, **fields):
         self.__dict__.update(fields)
@@ -94,7 +99,7 @@ class CollocationResult:
             self.errors, self.error, self.mesh_tol = errors, float(errors.max()), None
             self.meshes = (MeshRecord(self._layout.nodes, self.iterations, self.error,
                                       self.objective, self.status, self.seconds,
-                                      self.t.copy(), errors),)
+                                      self.t.copy(), errors, self.solver),)
             return self.__dict__[name]
         raise AttributeError(f"{type(self).__name__!r} object has no attribute {name!r}")
 

@@ -65,9 +65,11 @@ DUAL_OPTIONS = {"warm_start_init_point": "yes", "warm_start_bound_push": 1e-9,
 MAX_ITERATIONS = 2**31 - 1
 
 
-#: The solvers `Collocation.solve` may use: "auto" (IPOPT, warm-started on a refined mesh; the
-#: structured SQP on a re-plan it covers, from the warm start's motion and multipliers, IPOPT
-#: where it fails or finishing where it stops short of tol: benchmarks/robot_motions.py),
+#: The solvers `Collocation.solve` may use: "auto" (IPOPT on the first mesh; the structured SQP
+#: on the refined meshes and a re-plan it covers, from the warm start's motion and multipliers,
+#: IPOPT from the same start where it fails or its stationarity residual stalls (and on the
+#: refinement's meshes after it), finishing from its answer where it stops on a flat optimum
+#: short of tol: benchmarks/robot_motions.py),
 #: "ipopt", or "sqp" (the structured SQP on every warm-started mesh, IPOPT on one started from a
 #: guess, an error where the SQP does not apply, IPOPT with a note where one of its steps fails
 #: or it does not converge).
@@ -248,9 +250,11 @@ def solve_mesh(problem, layout, controls, guess, settings, start=None, shift=0.0
     26-28); from a "near" start IPOPT also starts from the guess's multipliers
     (`guess.refined_multipliers`, with DUAL_OPTIONS); the structured SQP (with the guess's
     multipliers) solves a warm-started mesh (a refined one, a `replan`, or one started from an
-    earlier result) instead when `settings.solver` is "sqp", or "auto" on a `replan` the SQP
-    covers (IPOPT, with a note, where one of its steps fails or it does not converge, and under
-    "auto" from the SQP's answer where it stops short of tol: `finished_by_ipopt`)."""
+    earlier result) instead when `settings.solver` is "sqp", or "auto" on a `replan` or a
+    refined mesh the SQP covers (IPOPT from the same start, with a note and the result's
+    `sqp_failed`, where one of its steps fails, it does not converge or, under "auto", its
+    stationarity residual stalls; under "auto" IPOPT from the SQP's answer where it stops short
+    of tol on a flat optimum: `finished_by_ipopt`)."""
     from .guess import initial_guess, refined_multipliers, warm_multipliers
     from .result import CollocationResult
     tr = problem.transcription(settings.hessian, layout, controls)
@@ -258,7 +262,8 @@ def solve_mesh(problem, layout, controls, guess, settings, start=None, shift=0.0
     T0 = layout.duration(x0) if layout.free else problem.duration_bounds[0]
     bound = tr.bound(T0)
     multipliers = refined_multipliers(bound, guess) if start == "near" else None
-    if settings.solver == "ipopt" or (settings.solver == "auto" and not replan):
+    if settings.solver == "ipopt" or (settings.solver == "auto" and not replan
+                                      and start is None):
         return solve_nlp(problem, bound, x0, settings, start, multipliers)
     from .sqp import StepFailed, unsupported
     reason = unsupported(bound)
@@ -276,6 +281,7 @@ def solve_mesh(problem, layout, controls, guess, settings, start=None, shift=0.0
         result = solve_nlp(problem, bound, x0, settings, start, multipliers)
         result.notes.append(f"the structured SQP failed ({exc}): IPOPT solved this mesh from "
                             f"the same start (result.solver says which solved it)")
+        result.sqp_failed = str(exc)
         return result
     if result.status == 0 or settings.solver == "sqp":
         return result
@@ -301,7 +307,7 @@ def solve_structured(problem, tr, x0, lam0, z0, settings):
     start = time.perf_counter()
     monitor = _SQPProgress(settings.progress)
     outcome = solve(tr, x0, lam0, z0, settings.tol, min(settings.max_iter, SQP_ITERATIONS),
-                    monitor)
+                    monitor, hand_over=settings.solver == "auto")
     seconds = time.perf_counter() - start
     if not outcome.converged:
         raise StepFailed(f"it stopped: {outcome.message}")

@@ -59,6 +59,12 @@ STALL, STALL_DUAL = 1e-10, 1e-2
 #: the one its inputs produce: an unstable one visibly; Newton's steps make the extra digits
 #: cheap).
 FEASIBLE = 1e-3
+#: At a point stationary to tol (the residual and complementarity of `kkt_error`), a step
+#: that divides the constraints' violation by 1/RESTORING is taken though the merit function
+#: does not fall: the interior point's QP solutions (`_purified`'s, as it left them) are exact to
+#: its gap, and on Talos's 615-node mesh that rounding lifted the objective by more than the
+#: penalty on a violation of 1e-10 (its line search failed one iteration from the end).
+RESTORING = 0.5
 #: The inertia correction's regularizations (`Inertia`): the grid's first, its last and its
 #: ratio.
 FIRST_REGULARIZATION, MAX_REGULARIZATION, GROWTH = 1e-8, 1e4, 10.0
@@ -79,6 +85,13 @@ LOOSE_ABOVE, LOOSE_TOL = 30.0, 1e-5
 #: An active set changing more constraints a pass than this is abandoned for the interior point
 #: when its changes do not shrink fast enough to settle within SETTLING_PASSES (`_hopeless`).
 HOPELESS_FEW = 16
+#: A solve that may hand over (`solve`'s `hand_over`) gives up once the constraints hold to
+#: STALLED_PRIMAL and its stationarity residual, still above tol, fell less than STALLED_DROP
+#: times in each of STALLED_ITERATIONS full steps in a row (Newton's steps would square it).
+#: Before the interior point's multipliers were kept (`bound_multipliers`), Talos's 615-node
+#: mesh stayed near 5e-5 (4.4e-5, 6.7e-5, 5.6e-5, 5.3e-5, at 7 s an iteration); one damped
+#: step that lifts the residual (an active set changing) is no stall.
+STALLED_PRIMAL, STALLED_DROP, STALLED_ITERATIONS = 1e-6, 10.0, 2
 DEBUG = False
 
 
@@ -570,6 +583,8 @@ class QPResult:
     active: ActiveSet
     passes: int
     interior: bool = False  # solved by the interior point (the active set did not settle)
+    z_all: np.ndarray = None    # (P·nz,) the interior point's multipliers of every bound, taken
+    #                             as it left them (not made exact: `_purified`)
 
 
 def solve_qp(tr, stages, rows, lin, active, inertia=None, tol=1e-10, passes=ACTIVE_PASSES,
@@ -935,7 +950,7 @@ def solve_qp_interior(qp, lin, active, inertia, tol=1e-9, iterations=IPM_ITERATI
         mult[:] = np.where(side != 0, values, 0.0)
     dz = dz.reshape(P, nz)
     mu, nu_ = qp.multipliers(y, dz, lin.W, lin.g, z.reshape(P, nz), row_z)
-    return QPResult(dz, mu, nu_, active, iteration, interior=True)
+    return QPResult(dz, mu, nu_, active, iteration, interior=True, z_all=z)
 
 
 def _fraction_to_boundary(a, da, has_a, b, db, has_b, fraction):
@@ -974,11 +989,13 @@ def constraint_multipliers(tr, qp, rows):
     return lam
 
 
-def bound_multipliers(L, active):
+def bound_multipliers(L, active, z_all=None):
     """The bounds' multipliers z of every variable (the NLP's convention) from an active set:
-    its multipliers where a bound is active, 0 elsewhere."""
+    its multipliers where a bound is active, 0 elsewhere; or the interior point's `z_all` of a
+    QP taken as it left it (μ/s on the bounds it left inactive, which its step's stationarity
+    holds)."""
     z = np.zeros(L.size)
-    z[:L.points * L.nz] = np.where(active.side != 0, active.z, 0.0)
+    z[:L.points * L.nz] = np.where(active.side != 0, active.z, 0.0) if z_all is None else z_all
     return z
 
 
@@ -988,32 +1005,40 @@ def violation(tr, c):
 
 
 def kkt_error(tr, x, lam, z):
-    """(the largest constraint violation, the largest stationarity residual scaled like IPOPT's
+    """(the largest constraint violation, the larger of the largest stationarity residual
+    |∇f + Jᵀλ + z| and complementarity |z_i|·(distance to its bound)), each scaled like IPOPT's
     by the multipliers' size)."""
     primal = float(np.max(violation(tr, tr.constraints(x)), initial=0.0))
     grad = tr.gradient(x)
     jt = np.bincount(tr.jac_cols, tr.jacobian(x) * lam[tr.jac_rows], minlength=x.size)
     dual = np.max(np.abs(grad + jt + z), initial=0.0)
     scale = max(100.0, (np.sum(np.abs(lam)) + np.sum(np.abs(z))) / max(1, lam.size + x.size))
-    return primal, float(dual) / (scale / 100.0)
+    gap = np.where(z > 0, tr.hi - x, x - tr.lo)
+    products = np.abs(z) * np.where(np.isfinite(gap), gap, 0.0)
+    compl = np.max(products, initial=0.0) / (max(100.0, np.sum(np.abs(z)) / x.size) / 100.0)
+    if DEBUG:
+        print(f"    stationarity {float(dual) / (scale / 100.0):.2e} complementarity {compl:.2e}")
+    return primal, max(float(dual) / (scale / 100.0), float(compl))
 
 
-def solve(tr, x0, lam0=None, z0=None, tol=1e-8, max_iter=SQP_ITERATIONS, monitor=None):
+def solve(tr, x0, lam0=None, z0=None, tol=1e-8, max_iter=SQP_ITERATIONS, monitor=None,
+          hand_over=False):
     """SQP from (x0, lam0, z0) on the transcription `tr` (its `bound` copy): an `Outcome`;
     Unsupported when the problem has a part the structure does not cover, StepFailed when a
-    step fails (the caller then solves with IPOPT)."""
+    step fails (the caller then solves with IPOPT), and with `hand_over` also where its
+    stationarity residual stalls above tol (STALLED_PRIMAL)."""
     reason = unsupported(tr)
     if reason:
         raise Unsupported(f"the SQP does not handle {reason}")
     try:
-        return _iterate(tr, x0, lam0, z0, tol, max_iter, monitor)
+        return _iterate(tr, x0, lam0, z0, tol, max_iter, monitor, hand_over)
     except StepFailed:
         raise
     except Unsupported as exc:
         raise StepFailed(str(exc)) from None
 
 
-def _iterate(tr, x0, lam0, z0, tol, max_iter, monitor):
+def _iterate(tr, x0, lam0, z0, tol, max_iter, monitor, hand_over=False):
     """`solve`'s iterations on a problem the structure covers."""
     L = tr.layout
     stages, rows = Stages.of(tr), Rows.of(tr)
@@ -1023,7 +1048,7 @@ def _iterate(tr, x0, lam0, z0, tol, max_iter, monitor):
     lin = linearize(tr, x, lam, stages, rows)
     row_z0 = None if lam0 is None else lam[tr.defect_row + tr.n_defects + rows.index]
     active = ActiveSet.start(lin, None if z0 is None else np.asarray(z0)[:P * nz], row_z0)
-    penalty, passes, inertia, qp = 0.0, 0, Inertia(), None
+    penalty, passes, inertia, qp, stalls = 0.0, 0, Inertia(), None, 0
     z_now = bound_multipliers(L, active)
     primal_now, dual_now = kkt_error(tr, x, lam, z_now)
     for iteration in range(1, max_iter + 1):
@@ -1034,7 +1059,7 @@ def _iterate(tr, x0, lam0, z0, tol, max_iter, monitor):
         step = np.zeros(L.size)
         step[:P * nz] = qp.dz.ravel()
         lam_qp = constraint_multipliers(tr, qp, rows)
-        z = bound_multipliers(L, active)
+        z = bound_multipliers(L, active, qp.z_all)
         f, c, grad = tr.objective(x), tr.constraints(x), tr.gradient(x)
         penalty = max(penalty, 1.1 * float(np.max(np.abs(lam_qp), initial=0.0)), 1e-6)
         infeasibility = np.sum(violation(tr, c))
@@ -1043,8 +1068,11 @@ def _iterate(tr, x0, lam0, z0, tol, max_iter, monitor):
         alpha = 1.0
         while True:
             trial = np.clip(x + alpha * step, tr.lo, tr.hi)
-            value = tr.objective(trial) + penalty * np.sum(violation(tr, tr.constraints(trial)))
+            trial_infeasibility = np.sum(violation(tr, tr.constraints(trial)))
+            value = tr.objective(trial) + penalty * trial_infeasibility
             if value <= merit + 1e-4 * alpha * min(slope, 0.0) + 1e-14 * abs(merit):
+                break
+            if dual_now <= tol and trial_infeasibility <= RESTORING * infeasibility:
                 break
             alpha *= 0.5
             if alpha < 1e-3:
@@ -1056,6 +1084,7 @@ def _iterate(tr, x0, lam0, z0, tol, max_iter, monitor):
         x = trial
         lam = lam + alpha * (lam_qp - lam)
         primal, dual = kkt_error(tr, x, lam, z)
+        dual_before = dual_now
         primal_now, dual_now, z_now = primal, dual, z
         value = tr.objective(x)
         if monitor is not None:
@@ -1063,6 +1092,11 @@ def _iterate(tr, x0, lam0, z0, tol, max_iter, monitor):
         settled = alpha == 1.0 and abs(value - f) <= STALL * max(1.0, abs(f))
         if primal <= FEASIBLE * tol and (dual <= tol or (settled and dual <= STALL_DUAL)):
             return Outcome(x, lam, z, iteration, True, "converged", passes, dual)
+        stalls = stalls + 1 if (iteration > 1 and alpha == 1.0 and primal <= STALLED_PRIMAL
+                                and dual > max(tol, dual_before / STALLED_DROP)) else 0
+        if hand_over and stalls >= STALLED_ITERATIONS:
+            raise StepFailed(f"its stationarity residual stalled at {dual:.1e} in iteration "
+                             f"{iteration}, above tol {tol:g}")
         lin = linearize(tr, x, lam, stages, rows)
     return Outcome(x, lam, z, max_iter, False,
                    f"not converged in {max_iter} iterations", passes, dual_now)
