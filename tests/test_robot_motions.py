@@ -207,6 +207,35 @@ def test_the_structured_qp_is_the_kkt_solution(swing):
                     + np.bincount(tr.jac_cols, tr.jacobian(x) * lam_qp[tr.jac_rows],
                                   minlength=L.size)[:N] + z[:N])
     assert np.abs(stationarity).max() < 1e-6 * (1 + np.abs(lin.g).max())
+    found_lam = sqp.constraint_multipliers(tr, found, rows)
+    jt = np.bincount(tr.jac_cols, tr.jacobian(x) * found_lam[tr.jac_rows], minlength=L.size)[:N]
+    residual = lin.g.ravel() + (lin.W @ found.dz[:, :, None])[:, :, 0].ravel() + jt
+    kept = sqp.bound_multipliers(L, found.active, found.z_all)[:N]
+    assert np.abs(residual + kept).max() < 1e-6 * (1 + np.abs(lin.g).max())
+    assert np.abs(residual).max() > 1e3 * np.abs(residual + kept).max()     # bounds it rides
+
+
+@pytest.mark.filterwarnings("ignore", category=DiscretizationWarning)
+def test_a_qp_not_to_be_purified_is_taken_as_the_interior_point_leaves_it(swing, monkeypatch):
+    """solve_qp(purify=False), the SQP's QPs after one whose active set did not make the
+    interior point's solution exact: the interior point's solution as it stands (as_left, with
+    its multipliers of every bound), no passes of the active set after it."""
+    from lagrgen.collocation import sqp
+    tr, lin, _ = swing_qp_at_optimum(swing)
+    stages, rows = sqp.Stages.of(tr), sqp.Rows.of(tr)
+
+    def unsettled(*args, **kwargs):
+        raise sqp.Unsupported("the QP's active set did not settle")
+    purified = []
+    monkeypatch.setattr(sqp, "solve_qp_active", unsettled)
+    monkeypatch.setattr(sqp, "_purified", lambda *args: purified.append(args) or args[-1])
+    taken = sqp.solve_qp(tr, stages, rows, lin, sqp.ActiveSet.start(lin), purify=False)
+    assert taken.interior and taken.as_left and taken.z_all.shape == (lin.W.shape[0]
+                                                                       * lin.W.shape[1],)
+    assert not purified
+    again = sqp.solve_qp(tr, stages, rows, lin, sqp.ActiveSet.start(lin))
+    assert len(purified) == 1 and again.interior
+    assert np.allclose(again.dz, taken.dz, rtol=0, atol=1e-12)
 
 
 def swing_qp_at_optimum(swing):

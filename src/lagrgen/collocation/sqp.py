@@ -583,18 +583,18 @@ class QPResult:
     active: ActiveSet
     passes: int
     interior: bool = False  # solved by the interior point (the active set did not settle)
-    z_all: np.ndarray = None    # (P·nz,) the interior point's multipliers of every bound, taken
-    #                             as it left them (not made exact: `_purified`)
+    z_all: np.ndarray = None    # (P·nz,) the interior point's multipliers of every bound
+    as_left: bool = False       # taken as the interior point left it, not made exact (`_purified`)
 
 
 def solve_qp(tr, stages, rows, lin, active, inertia=None, tol=1e-10, passes=ACTIVE_PASSES,
-             loose=False):
+             loose=False, purify=True):
     """The QP of `lin`: by the active set when it settles within `passes` (a warm start's
     set, updated in place), else by the interior point (`solve_qp_interior`), to LOOSE_TOL and
     as it stands when `loose` (a step far from the solution, which the next ones correct), else
-    to its tolerance and made exact (`_purified`); the inputs' Hessians regularized where they
-    are not positive definite (`inertia`, an `Inertia`, keeps the last regularization).
-    `QPResult`."""
+    to its tolerance and made exact (`_purified`) when `purify`, or as it stands with its
+    multipliers; the inputs' Hessians regularized where they are not positive definite
+    (`inertia`, an `Inertia`, keeps the last regularization). `QPResult`."""
     inertia = Inertia() if inertia is None else inertia
     qp = StructuredQP(tr, stages, rows, lin)
     try:
@@ -605,8 +605,11 @@ def solve_qp(tr, stages, rows, lin, active, inertia=None, tol=1e-10, passes=ACTI
         active.reset()
         if loose:
             return solve_qp_interior(qp, lin, active, inertia, LOOSE_TOL)
-        return _purified(qp, lin, active, inertia, tol,
-                         solve_qp_interior(qp, lin, active, inertia))
+        found = solve_qp_interior(qp, lin, active, inertia)
+        if not purify:
+            found.as_left = True
+            return found
+        return _purified(qp, lin, active, inertia, tol, found)
 
 
 def _purified(qp, lin, active, inertia, tol, found):
@@ -619,6 +622,7 @@ def _purified(qp, lin, active, inertia, tol, found):
     try:
         exact = solve_qp_active(qp, lin, trial, inertia, tol, QUICK_PASSES, patient=True)
     except Unsupported:
+        found.as_left = True
         return found
     active.take(trial)
     return QPResult(exact.dz, exact.mu, exact.nu, active, found.passes + exact.passes,
@@ -1039,7 +1043,10 @@ def solve(tr, x0, lam0=None, z0=None, tol=1e-8, max_iter=SQP_ITERATIONS, monitor
 
 
 def _iterate(tr, x0, lam0, z0, tol, max_iter, monitor, hand_over=False):
-    """`solve`'s iterations on a problem the structure covers."""
+    """`solve`'s iterations on a problem the structure covers. Once the active set did not
+    make an interior point's solution exact (`_purified`: up to SETTLING_PASSES factors, all in
+    vain on Talos's 615-node mesh), the later QPs take it as it stands, with its multipliers of
+    every bound."""
     L = tr.layout
     stages, rows = Stages.of(tr), Rows.of(tr)
     x = np.clip(np.asarray(x0, dtype=float), tr.lo, tr.hi)
@@ -1054,7 +1061,8 @@ def _iterate(tr, x0, lam0, z0, tol, max_iter, monitor, hand_over=False):
     for iteration in range(1, max_iter + 1):
         qp = solve_qp(tr, stages, rows, lin, active, inertia,
                       passes=QUICK_PASSES if qp is not None and qp.interior else ACTIVE_PASSES,
-                      loose=max(primal_now, dual_now) > LOOSE_ABOVE)
+                      loose=max(primal_now, dual_now) > LOOSE_ABOVE,
+                      purify=qp is None or not qp.as_left)
         passes += qp.passes
         step = np.zeros(L.size)
         step[:P * nz] = qp.dz.ravel()
