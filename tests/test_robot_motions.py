@@ -379,6 +379,7 @@ def test_a_replan_equals_a_cold_solve_from_the_new_state(swing):
     state = first.state_at(0.3)
     again = prob.resolve(first, initial={"q": state[:1], "qd": state[1:]}, shift=0.3)
     assert again.success and again.solver == "sqp" and again.solve_seconds > 0
+    assert 0 < again.callback_seconds < again.seconds       # the SQP's own work besides
     by_ipopt = prob.resolve(first, initial={"q": state[:1], "qd": state[1:]}, shift=0.3,
                             solver="ipopt")
     assert by_ipopt.success and by_ipopt.solver == "ipopt"

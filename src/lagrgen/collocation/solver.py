@@ -305,8 +305,8 @@ def solve_structured(problem, tr, x0, lam0, z0, settings):
     from .result import CollocationResult
     from .sqp import SQP_ITERATIONS, StepFailed, solve
     start = time.perf_counter()
-    monitor = _SQPProgress(settings.progress)
-    outcome = solve(tr, x0, lam0, z0, settings.tol, min(settings.max_iter, SQP_ITERATIONS),
+    monitor, timed = _SQPProgress(settings.progress), _Timed(tr)
+    outcome = solve(timed, x0, lam0, z0, settings.tol, min(settings.max_iter, SQP_ITERATIONS),
                     monitor, hand_over=settings.solver == "auto")
     seconds = time.perf_counter() - start
     if not outcome.converged:
@@ -322,7 +322,7 @@ def solve_structured(problem, tr, x0, lam0, z0, settings):
             "notes": [flat_optimum_note(outcome.dual, settings.tol)] if flat else []}
     result = CollocationResult.from_solution(problem, tr, outcome.x, info, outcome.iterations,
                                              seconds, settings.hessian)
-    result.callback_seconds = seconds
+    result.callback_seconds = timed.seconds
     result.solver = "sqp"
     return result
 
@@ -334,6 +334,30 @@ def flat_optimum_note(dual, tol):
             f"residual {dual:.1e} above tol {tol:g}: the optimum is flat there (a motion not "
             f"unique to the last digits) and found less precisely than tol; solver='ipopt' "
             f"solves to tol")
+
+
+class _Timed:
+    """The transcription `tr` with the time spent in its evaluations counted (`seconds`): the
+    structured SQP's callbacks, as `_Callbacks` counts IPOPT's (the rest is the SQP's own)."""
+
+    EVALUATIONS = frozenset({"objective", "constraints", "gradient", "jacobian",
+                             "point_hessians", "point_gradients", "point_residuals"})
+
+    def __init__(self, tr):
+        self._tr, self.seconds = tr, 0.0
+
+    def __getattr__(self, name):
+        value = getattr(self._tr, name)
+        if name not in self.EVALUATIONS:
+            return value
+
+        def timed(*args):
+            start = time.perf_counter()
+            try:
+                return value(*args)
+            finally:
+                self.seconds += time.perf_counter() - start
+        return timed
 
 
 class _SQPProgress:

@@ -60,8 +60,8 @@ STALL, STALL_DUAL = 1e-10, 1e-2
 #: cheap).
 FEASIBLE = 1e-3
 #: At a point stationary to tol (the residual and complementarity of `kkt_error`), a step
-#: that divides the constraints' violation by 1/RESTORING is taken though the merit function
-#: does not fall: the interior point's QP solutions (`_purified`'s, as it left them) are exact to
+#: that takes the constraints' violation to RESTORING of it or less is taken though the merit
+#: function does not fall: the interior point's QP solutions (`_purified`'s, as it left them) are exact to
 #: its gap, and on Talos's 615-node mesh that rounding lifted the objective by more than the
 #: penalty on a violation of 1e-10 (its line search failed one iteration from the end).
 RESTORING = 0.5
@@ -1009,9 +1009,9 @@ def violation(tr, c):
 
 
 def kkt_error(tr, x, lam, z):
-    """(the largest constraint violation, the larger of the largest stationarity residual
-    |∇f + Jᵀλ + z| and complementarity |z_i|·(distance to its bound)), each scaled like IPOPT's
-    by the multipliers' size)."""
+    """(the largest constraint violation, the larger of the stationarity residual
+    |∇f + Jᵀλ + z| and the complementarity |z_i|·(x_i's distance to its bound), largest over the
+    variables, each scaled like IPOPT's by the multipliers' size)."""
     primal = float(np.max(violation(tr, tr.constraints(x)), initial=0.0))
     grad = tr.gradient(x)
     jt = np.bincount(tr.jac_cols, tr.jacobian(x) * lam[tr.jac_rows], minlength=x.size)
