@@ -2,6 +2,8 @@
 of a three-dimensional tree (and from duals on the Python backend), against finite differences of
 its first derivatives and between the backends; the collocation NLP of a URDF robot laid out from
 its structure alone, its Hessian against finite differences."""
+import time
+
 import numpy as np
 import pytest
 import sympy as sp
@@ -526,6 +528,7 @@ def test_an_sqp_solve_that_ends_on_a_flat_optimum_says_so(swing, monkeypatch):
     def flat(*args, **kwargs):
         outcome = solve(*args, **kwargs)
         outcome.dual = 3.2e-4
+        time.sleep(0.3)                   # an SQP that takes its time
         return outcome
     monkeypatch.setattr(sqp, "solve", flat)
     stalled = prob.resolve(first, **replan)
@@ -538,6 +541,7 @@ def test_an_sqp_solve_that_ends_on_a_flat_optimum_says_so(swing, monkeypatch):
     assert finished.solver == "ipopt" and finished.status == 0
     said = [n for n in finished.notes if "SQP" in n]
     assert len(said) == 1 and "stopped short of tol" in said[0] and "3.2e-04" in said[0]
+    assert finished.solve_seconds == finished.seconds >= 0.3       # the SQP's time and IPOPT's
     assert abs(finished.objective - exact.objective) < 1e-6 * exact.objective
 
 

@@ -275,6 +275,7 @@ def solve_mesh(problem, layout, controls, guess, settings, start=None, shift=0.0
     lam0, z0 = warm_multipliers(bound, guess, shift)
     if lam0 is None and multipliers is not None:
         lam0, z0 = multipliers
+    began = time.perf_counter()
     try:
         result = solve_structured(problem, bound, x0, lam0, z0, settings)
     except StepFailed as exc:
@@ -282,10 +283,17 @@ def solve_mesh(problem, layout, controls, guess, settings, start=None, shift=0.0
         result.notes.append(f"the structured SQP failed ({exc}): IPOPT solved this mesh from "
                             f"the same start (result.solver says which solved it)")
         result.sqp_failed = str(exc)
-        return result
+        return timed_from(result, began)
     if result.status == 0 or settings.solver == "sqp":
         return result
-    return finished_by_ipopt(problem, bound, result, settings)
+    return timed_from(finished_by_ipopt(problem, bound, result, settings), began)
+
+
+def timed_from(result, began):
+    """`result` of a mesh that IPOPT solved after the SQP, its seconds (and solve_seconds)
+    counted from `began`, the SQP's start: both solvers' time."""
+    result.seconds = result.solve_seconds = time.perf_counter() - began
+    return result
 
 
 def finished_by_ipopt(problem, tr, flat, settings):
