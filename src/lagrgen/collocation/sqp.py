@@ -23,9 +23,11 @@ interval's X_k and v_k and held alike, their terms added to its stage. When the 
 settle, a primal-dual interior point on the same recursion solves the QP (Mehrotra's
 predictor-corrector, the barrier's Hessian on the same diagonals and stages), and its solution
 is made exact by the active set's passes from the constraints it found active (those whose
-multiplier exceeds their slack); far from the solution (the first steps of a re-plan) the
-interior point's solution at a loose tolerance is the step, and the active set is abandoned for
-it as soon as its changes shrink too slowly to settle. The defects' and residuals' multipliers
+multiplier exceeds their slack), or, where they do not settle, taken as it stands with its
+multipliers of every bound (μ/s on those it leaves inactive: the KKT error then counts their
+complementarity), as are the later QPs of the solve; far from the solution (the first steps of
+a re-plan) the interior point's solution at a loose tolerance is the step, and the active set
+is abandoned for it as soon as its changes shrink too slowly to settle. The defects' and residuals' multipliers
 come back from the recursion (the costates), in the NLP's sign convention (∇f + Jᵀλ + z = 0,
 W = ∇²f + Σ λ_i·∇²c_i), for the next step's Hessian. A step is accepted by a line search on the
 ℓ1 merit function; anything the structure does not cover, or a step that fails, is reported so
