@@ -446,19 +446,21 @@ def test_an_arms_replans_by_the_sqp_converge_where_its_joints_ride_their_limits(
 @pytest.mark.filterwarnings("ignore", category=DiscretizationWarning)
 def test_an_arms_refined_meshes_by_the_sqp_converge_on_the_interior_points_multipliers(
         out_dir, monkeypatch):
-    """The seven-joint arm's move riding its velocity limits, refined with solver="auto": the
-    QPs whose active sets settle neither before nor after the interior point are taken as the
-    interior point leaves them, with its multipliers of every bound (μ/s on the inactive ones),
-    and the SQP still converges to tol on each refined mesh (before, its stationarity residual
-    stalled at the size of the multipliers it dropped), at IPOPT's optimum."""
+    """The seven-joint arm's move riding its velocity limits, refined with solver="auto", every
+    QP of the SQP solved by the interior point and taken as it leaves it (the active set made
+    to fail: what Talos's refined meshes do), with its multipliers of every bound (μ/s on the
+    inactive ones): the SQP converges to tol on the refined meshes (before, its stationarity
+    residual stalled at the size of the multipliers it dropped), at IPOPT's optimum."""
     from lagrgen.collocation import sqp
-    as_left, purified = [], sqp._purified
+    interior = []
 
-    def spied(qp, lin, active, inertia, tol, found):
-        made = purified(qp, lin, active, inertia, tol, found)
-        as_left.append(made is found)
-        return made
-    monkeypatch.setattr(sqp, "_purified", spied)
+    def unsettled(*args, **kwargs):
+        raise sqp.Unsupported("the QP's active set did not settle")
+
+    def spied(*args, **kwargs):
+        interior.append(sqp_interior(*args, **kwargs))
+        return interior[-1]
+    sqp_interior = sqp.solve_qp_interior
     model = lagrgen.from_urdf(ARM, name="motions_arm", joint_dynamics=False)
     mod = lagrgen.build(model, out_dir=out_dir)
     n = mod.n_coordinates
@@ -468,13 +470,15 @@ def test_an_arms_refined_meshes_by_the_sqp_converge_on_the_interior_points_multi
     prob.initial(q=middle - 0.35 * half * np.linspace(1, -1, n), qd=np.zeros(n))
     prob.final(q=middle + 0.35 * half * np.linspace(1, -1, n), qd=np.zeros(n))
     prob.minimize(integral=sum(u ** 2 for u in model.input_functions))
-    auto = prob.solve(progress=False, mesh_tol=1e-5)
-    taken = sum(as_left)
     ipopt = prob.solve(progress=False, mesh_tol=1e-5, solver="ipopt")
+    monkeypatch.setattr(sqp, "solve_qp_active", unsettled)
+    monkeypatch.setattr(sqp, "solve_qp_interior", spied)
+    auto = prob.solve(progress=False, mesh_tol=1e-5)
     assert auto.success and auto.status == 0 and not auto.sqp_failed
     assert [m.solver for m in auto.meshes[:3]] == ["ipopt", "sqp", "sqp"]
     assert all(m.status == 0 for m in auto.meshes)
-    assert taken >= 1
+    assert all(qp.z_all is not None for qp in interior)
+    assert sum(qp.as_left for qp in interior) >= 4       # not far from the solution: to tol
     assert abs(auto.objective - ipopt.objective) < 1e-7 * ipopt.objective
     assert auto.error <= 1e-5
 
