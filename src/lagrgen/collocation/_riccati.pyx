@@ -31,6 +31,8 @@ ctypedef void (*dgemm_t)(char *transa, char *transb, int *m, int *n, int *k, dou
                          int *ldc) noexcept nogil
 ctypedef void (*dtrsm_t)(char *side, char *uplo, char *transa, char *diag, int *m, int *n,
                          double *alpha, double *a, int *lda, double *b, int *ldb) noexcept nogil
+ctypedef void (*dgemv_t)(char *trans, int *m, int *n, double *alpha, double *a, int *lda,
+                         double *x, int *incx, double *beta, double *y, int *incy) noexcept nogil
 
 
 cdef void *_blas(name) except NULL:
@@ -42,6 +44,7 @@ cdef void *_blas(name) except NULL:
 
 cdef dgemm_t dgemm = <dgemm_t>_blas("dgemm")
 cdef dtrsm_t dtrsm = <dtrsm_t>_blas("dtrsm")
+cdef dgemv_t dgemv = <dgemv_t>_blas("dgemv")
 
 
 cdef inline void gemm(const double *A, const double *B, double *C, int m, int k, int n,
@@ -74,9 +77,19 @@ cdef inline void cho_solve_rows(const double *L, double *X, int n, int ncols) no
 cdef inline void matmul(const double *A, const double *B, double *C, int m, int k, int n,
                         bint ta, bint tb, bint add) noexcept nogil:
     """C (m×n) = op(A)·op(B) (op: transpose when ta/tb; A is m×k or k×m, B k×n or n×k), or
-    C += it when add. The inner loops run along rows of C and B (contiguous: vectorized)."""
-    cdef int i, j, l
-    cdef double a, s
+    C += it when add. A product with a vector (n = 1) is BLAS's; otherwise the inner loops run
+    along rows of C and B (contiguous: vectorized)."""
+    cdef int i, j, l, one_step = 1
+    cdef double a, s, one = 1.0, beta = 1.0 if add else 0.0
+    cdef char no = b'N', tr = b'T'
+    if n == 1 and not tb and m > 0 and k > 0:
+        if ta:      # A (k×m) row-major is BLAS's m×k: y = A_blas·x
+            dgemv(&no, &m, &k, &one, <double *>A, &m, <double *>B, &one_step, &beta, C,
+                  &one_step)
+        else:       # A (m×k) row-major is BLAS's k×m: y = A_blasᵀ·x
+            dgemv(&tr, &k, &m, &one, <double *>A, &k, <double *>B, &one_step, &beta, C,
+                  &one_step)
+        return
     if not add:
         for i in range(m * n):
             C[i] = 0.0
