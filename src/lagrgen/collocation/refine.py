@@ -108,14 +108,14 @@ def solve_refined(problem, guess, settings, mesh_tol, max_meshes, start=None):
         tied = tied | inputs_switching(result, problem, knots)
         controls = ControlMesh(knots, degree, tied)
         if settings.solver == "auto" and result.sqp_failed:
-            settings, gave_up = replace(settings, solver="ipopt"), (len(meshes), result)
+            settings = replace(settings, solver="ipopt")
+            gave_up = (len(meshes), result.sqp_failed)
         result = solve_mesh(problem, layout, controls, result, settings,
                             start="near" if errors.max() <= NEAR * mesh_tol else "far")
     result.callback_seconds = callbacks
     if gave_up and not result.sqp_failed:
-        mesh, failed = gave_up
-        result.sqp_failed = failed.sqp_failed
-        result.notes.append(f"the structured SQP failed on mesh {mesh} ({failed.sqp_failed}): "
+        mesh, result.sqp_failed = gave_up
+        result.notes.append(f"the structured SQP failed on mesh {mesh} ({result.sqp_failed}): "
                             f"IPOPT solved it from the same start, and the meshes after it")
     result = finished(result, errors, meshes, mesh_tol, spent, limit)
     if result.success:
