@@ -316,9 +316,9 @@ def test_refined_meshes_by_the_sqp_reach_ipopts_optimum(swing, monkeypatch):
     T, = model.input_functions
     structured, starts = solver_module.solve_structured, []
 
-    def recording(problem, tr, x0, lam0, z0, settings):
+    def recording(problem, tr, x0, lam0, z0, settings, **options):
         starts.append(lam0 is not None and z0 is not None)
-        return structured(problem, tr, x0, lam0, z0, settings)
+        return structured(problem, tr, x0, lam0, z0, settings, **options)
     monkeypatch.setattr(solver_module, "solve_structured", recording)
     results = {solver: swing_problem(mod, T, limit=20.0).solve(progress=False, solver=solver)
                for solver in ("sqp", "auto", "ipopt")}
@@ -365,6 +365,31 @@ def test_where_the_sqps_stationarity_stalls_auto_hands_the_refinement_to_ipopt(s
     by_sqp = swing_problem(mod, T, nodes=21, limit=20.0).solve(progress=False, solver="sqp")
     assert by_sqp.solver == "sqp" and by_sqp.status == 1 and by_sqp.sqp_failed == ""
     assert any("3.0e-05 above tol" in n for n in by_sqp.notes)
+
+
+@pytest.mark.filterwarnings("ignore", category=DiscretizationWarning)
+def test_the_sqp_stops_where_its_constraints_hold_to_tol(swing, monkeypatch):
+    """The SQP's constraints are met to tol, as IPOPT's (FEASIBLE = 1): a violation held at half
+    tol (the remainder that QPs taken as the interior point leaves them carry on Talos's
+    meshes) ends each refined mesh's solve once it is stationary to tol; held at twice tol it
+    does not, and IPOPT solves the mesh with a note."""
+    from lagrgen.collocation import sqp
+    model, mod = swing
+    T, = model.input_functions
+    kkt_error, held = sqp.kkt_error, [0.5e-8]
+
+    def violated(*args):
+        primal, dual = kkt_error(*args)
+        return max(primal, held[0]), dual
+    monkeypatch.setattr(sqp, "kkt_error", violated)
+    met = swing_problem(mod, T, nodes=21, limit=20.0).solve(progress=False, solver="sqp")
+    assert met.status == 0 and len(met.meshes) > 1
+    assert [m.solver for m in met.meshes[1:]] == ["sqp"] * (len(met.meshes) - 1)
+    assert not [note for note in met.notes if "SQP" in note]
+    held[0] = 2e-8
+    off = swing_problem(mod, T, nodes=21, limit=20.0).solve(progress=False, solver="sqp")
+    assert off.meshes[1].solver == "ipopt" and "stopped" in off.sqp_failed
+    assert any("structured SQP failed" in note for note in off.notes)
 
 
 @pytest.mark.filterwarnings("ignore", category=DiscretizationWarning)
@@ -450,9 +475,15 @@ def test_an_arms_refined_meshes_by_the_sqp_converge_on_the_interior_points_multi
     QP of the SQP solved by the interior point and taken as it leaves it (the active set made
     to fail: what Talos's refined meshes do), with its multipliers of every bound (μ/s on the
     inactive ones): the SQP converges to tol on the refined meshes (before, its stationarity
-    residual stalled at the size of the multipliers it dropped), at IPOPT's optimum."""
+    residual stalled at the size of the multipliers it dropped), at IPOPT's optimum. A mesh
+    after one whose QPs were taken as they stood takes them so from its first (purify=False)."""
     from lagrgen.collocation import sqp
-    interior = []
+    interior, purifies = [], []
+    sqp_solve = sqp.solve
+
+    def recorded(*args, **kwargs):
+        purifies.append(kwargs.get("purify", True))
+        return sqp_solve(*args, **kwargs)
 
     def unsettled(*args, **kwargs):
         raise sqp.Unsupported("the QP's active set did not settle")
@@ -473,12 +504,14 @@ def test_an_arms_refined_meshes_by_the_sqp_converge_on_the_interior_points_multi
     ipopt = prob.solve(progress=False, mesh_tol=1e-5, solver="ipopt")
     monkeypatch.setattr(sqp, "solve_qp_active", unsettled)
     monkeypatch.setattr(sqp, "solve_qp_interior", spied)
+    monkeypatch.setattr(sqp, "solve", recorded)
     auto = prob.solve(progress=False, mesh_tol=1e-5)
     assert auto.success and auto.status == 0 and not auto.sqp_failed
     assert [m.solver for m in auto.meshes[:3]] == ["ipopt", "sqp", "sqp"]
     assert all(m.status == 0 for m in auto.meshes)
     assert all(qp.z_all is not None for qp in interior)
     assert sum(qp.as_left for qp in interior) >= 4       # not far from the solution: to tol
+    assert len(purifies) == len(auto.meshes) - 1 and purifies[0] and not any(purifies[1:])
     assert abs(auto.objective - ipopt.objective) < 1e-7 * ipopt.objective
     assert auto.error <= 1e-5
 

@@ -277,7 +277,8 @@ def solve_mesh(problem, layout, controls, guess, settings, start=None, shift=0.0
         lam0, z0 = multipliers
     began = time.perf_counter()
     try:
-        result = solve_structured(problem, bound, x0, lam0, z0, settings)
+        result = solve_structured(problem, bound, x0, lam0, z0, settings,
+                                  purify=not getattr(guess, "_sqp_as_left", False))
     except StepFailed as exc:
         result = solve_nlp(problem, bound, x0, settings, start, multipliers)
         result.notes.append(f"the structured SQP failed ({exc}): IPOPT solved this mesh from "
@@ -306,16 +307,19 @@ def finished_by_ipopt(problem, tr, flat, settings):
     return result
 
 
-def solve_structured(problem, tr, x0, lam0, z0, settings):
+def solve_structured(problem, tr, x0, lam0, z0, settings, purify=True):
     """The CollocationResult of the structured SQP (`lagrgen.collocation.sqp`) on the
     transcription `tr` from (x0, lam0, z0); sqp.Unsupported where it does not apply, StepFailed
-    where a step fails or it does not converge within its iterations."""
+    where a step fails or it does not converge within its iterations. purify=False where the
+    warm start's SQP took its QPs as the interior point left them (`sqp.solve`): a refined
+    mesh of Talos then skips the active set's vain passes and solves its first QP as tightly as
+    the later ones."""
     from .result import CollocationResult
     from .sqp import SQP_ITERATIONS, StepFailed, solve
     start = time.perf_counter()
     monitor, timed = _SQPProgress(settings.progress), _Timed(tr)
     outcome = solve(timed, x0, lam0, z0, settings.tol, min(settings.max_iter, SQP_ITERATIONS),
-                    monitor, hand_over=settings.solver == "auto")
+                    monitor, hand_over=settings.solver == "auto", purify=purify)
     seconds = time.perf_counter() - start
     if not outcome.converged:
         raise StepFailed(f"it stopped: {outcome.message}")
@@ -331,7 +335,7 @@ def solve_structured(problem, tr, x0, lam0, z0, settings):
     result = CollocationResult.from_solution(problem, tr, outcome.x, info, outcome.iterations,
                                              seconds, settings.hessian)
     result.callback_seconds = timed.seconds
-    result.solver = "sqp"
+    result.solver, result._sqp_as_left = "sqp", outcome.as_left
     return result
 
 

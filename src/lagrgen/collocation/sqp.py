@@ -57,10 +57,15 @@ PIN_UPDATES = 6
 #: valley of the objective (an optimum that is not unique to the last digits), where the
 #: residual, quadratic in the step, does not fall further.
 STALL, STALL_DUAL = 1e-10, 1e-2
-#: The constraints are met to FEASIBLE·tol (a motion whose residual is off by tol drifts from
-#: the one its inputs produce: an unstable one visibly; Newton's steps make the extra digits
-#: cheap).
-FEASIBLE = 1e-3
+#: The constraints are met to FEASIBLE·tol, as IPOPT's are to tol. With the QPs taken as the
+#: interior point leaves them (Talos's refined meshes) the constraints converge linearly, not
+#: as Newton's (1e-7, 2e-9, 1e-10, 6e-12 on the 615-node mesh, its stationarity residual at
+#: 4e-9 throughout): a bound whose multiplier vanishes stays ~√gap off its value in each QP, and
+#: the steps carry that. At 1e-3 (the constraints to 1e-11) the meshes took 5 and 4 iterations
+#: of ~17 factors each; at 1 they take 3 and 2, the solve 24 s instead of 41 s. Solving those
+#: QPs to a smaller gap instead (1e-12, 1e-13) took more factors each, and multiplied the
+#: round-off of the multipliers by weights y/s up to 4e16.
+FEASIBLE = 1.0
 #: At a point stationary to tol (the residual and complementarity of `kkt_error`), a step
 #: that takes the constraints' violation to RESTORING of it or less is taken though the merit
 #: function does not fall: with the interior point's QP solutions taken as it left them, the
@@ -981,6 +986,7 @@ class Outcome:
     message: str
     passes: int
     dual: float             # the stationarity residual at x (kkt_error's)
+    as_left: bool = False   # its last QP taken as the interior point left it (`QPResult`)
 
 
 def constraint_multipliers(tr, qp, rows):
@@ -1028,23 +1034,25 @@ def kkt_error(tr, x, lam, z):
 
 
 def solve(tr, x0, lam0=None, z0=None, tol=1e-8, max_iter=SQP_ITERATIONS, monitor=None,
-          hand_over=False):
+          hand_over=False, purify=True):
     """SQP from (x0, lam0, z0) on the transcription `tr` (its `bound` copy): an `Outcome`;
     Unsupported when the problem has a part the structure does not cover, StepFailed when a
     step fails (the caller then solves with IPOPT), and with `hand_over` also where its
-    stationarity residual stalls above tol (STALLED_PRIMAL)."""
+    stationarity residual stalls above tol (STALLED_PRIMAL). purify=False: the interior point's
+    QP solutions are taken as they stand from the first (`Outcome.as_left` of a solve before
+    whose active sets did not make them exact)."""
     reason = unsupported(tr)
     if reason:
         raise Unsupported(f"the SQP does not handle {reason}")
     try:
-        return _iterate(tr, x0, lam0, z0, tol, max_iter, monitor, hand_over)
+        return _iterate(tr, x0, lam0, z0, tol, max_iter, monitor, hand_over, purify)
     except StepFailed:
         raise
     except Unsupported as exc:
         raise StepFailed(str(exc)) from None
 
 
-def _iterate(tr, x0, lam0, z0, tol, max_iter, monitor, hand_over=False):
+def _iterate(tr, x0, lam0, z0, tol, max_iter, monitor, hand_over=False, purify=True):
     """`solve`'s iterations on a problem the structure covers. Once the active set did not
     make an interior point's solution exact (`_purified`: up to SETTLING_PASSES factors, all in
     vain on Talos's 615-node mesh), the later QPs take it as it stands, with its multipliers of
@@ -1064,7 +1072,7 @@ def _iterate(tr, x0, lam0, z0, tol, max_iter, monitor, hand_over=False):
         qp = solve_qp(tr, stages, rows, lin, active, inertia,
                       passes=QUICK_PASSES if qp is not None and qp.interior else ACTIVE_PASSES,
                       loose=max(primal_now, dual_now) > LOOSE_ABOVE,
-                      purify=qp is None or not qp.as_left)
+                      purify=purify if qp is None else not qp.as_left)
         passes += qp.passes
         step = np.zeros(L.size)
         step[:P * nz] = qp.dz.ravel()
@@ -1089,7 +1097,7 @@ def _iterate(tr, x0, lam0, z0, tol, max_iter, monitor, hand_over=False):
                 if primal_now <= FEASIBLE * tol and dual_now <= STALL_DUAL:
                     return Outcome(x, lam, z_now, iteration - 1, True,
                                    "converged (no step lowers the merit function further)",
-                                   passes, dual_now)
+                                   passes, dual_now, qp.as_left)
                 raise Unsupported("the SQP's line search failed")
         x = trial
         lam = lam + alpha * (lam_qp - lam)
@@ -1101,7 +1109,7 @@ def _iterate(tr, x0, lam0, z0, tol, max_iter, monitor, hand_over=False):
             monitor(iteration, value, primal, dual, alpha)
         settled = alpha == 1.0 and abs(value - f) <= STALL * max(1.0, abs(f))
         if primal <= FEASIBLE * tol and (dual <= tol or (settled and dual <= STALL_DUAL)):
-            return Outcome(x, lam, z, iteration, True, "converged", passes, dual)
+            return Outcome(x, lam, z, iteration, True, "converged", passes, dual, qp.as_left)
         stalls = stalls + 1 if (iteration > 1 and alpha == 1.0 and primal <= STALLED_PRIMAL
                                 and dual > max(tol, dual_before / STALLED_DROP)) else 0
         if hand_over and stalls >= STALLED_ITERATIONS:
@@ -1109,4 +1117,5 @@ def _iterate(tr, x0, lam0, z0, tol, max_iter, monitor, hand_over=False):
                              f"{iteration}, above tol {tol:g}")
         lin = linearize(tr, x, lam, stages, rows)
     return Outcome(x, lam, z, max_iter, False,
-                   f"not converged in {max_iter} iterations", passes, dual_now)
+                   f"not converged in {max_iter} iterations", passes, dual_now,
+                   qp is not None and qp.as_left)
