@@ -217,6 +217,77 @@ def test_the_structured_qp_is_the_kkt_solution(swing):
     assert np.abs(residual).max() > 1e3 * np.abs(residual + kept).max()     # bounds it rides
 
 
+def test_the_riccati_factor_skips_a_stages_input_rows_exactly():
+    """_riccati.factor with `states` s (A's rows from s on 0, B's [0 1]: a collocation stage's
+    end inputs are its own) equals the full products and the recursion written out in NumPy:
+    H = Q + [A B]ᵀ·P·[A B], gain = −Hvv⁻¹·Hvx, P = Hxx + Hxv·gain."""
+    from lagrgen.collocation._riccati import factor
+    rng = np.random.default_rng(7)
+    K, s, m, nv = 5, 6, 3, 6
+    nx = s + m
+    A, B = np.zeros((K, nx, nx)), np.zeros((K, nx, nv))
+    A[:, :s], B[:, :s] = rng.normal(size=(K, s, nx)), rng.normal(size=(K, s, nv))
+    B[:, s:, nv - m:] = np.eye(m)
+    H = rng.normal(size=(K, nx + nv, nx + nv))
+    H = H @ H.transpose(0, 2, 1) + 0.1 * np.eye(nx + nv)
+    Qxx, Qxv, Qvv = (np.ascontiguousarray(H[:, a, b]) for a, b in (
+        (slice(0, nx), slice(0, nx)), (slice(0, nx), slice(nx, None)),
+        (slice(nx, None), slice(nx, None))))
+    end = rng.normal(size=(nx, nx))
+    end = end @ end.T
+
+    def factored(states):
+        out = (np.zeros((K + 1, nx, nx)), np.zeros((K, nx, nv)), np.zeros((K, nv, nv)),
+               np.zeros((K, nv, nx)))
+        assert factor(Qxx, Qxv, Qvv, A, B, end, 0.0, *out, states) == 0
+        return out
+    skipped, full = factored(s), factored(-1)
+    P = end
+    for k in range(K - 1, -1, -1):
+        AB = np.concatenate([A[k], B[k]], axis=1)
+        Hk = H[k] + AB.T @ P @ AB
+        gain = -np.linalg.solve(Hk[nx:, nx:], Hk[nx:, :nx])
+        assert np.allclose(full[3][k], gain, rtol=1e-10, atol=1e-12)
+        P = Hk[:nx, :nx] + Hk[:nx, nx:] @ gain
+        assert np.allclose(full[0][k], P, rtol=1e-10, atol=1e-10)
+    for a, b in zip(skipped, full):
+        assert np.allclose(a, b, rtol=1e-12, atol=1e-12 * np.abs(b).max())
+
+
+def test_the_stage_hessians_skip_the_inner_points_input_rows_exactly():
+    """_riccati.stage_hessians with `states` s (C's rows from s on 0, E's the identity's rows
+    of each inner point's block of v) equals the full products and Q = G_s + Σ [C E]ᵀ·G·[C E]
+    written out in NumPy."""
+    from lagrgen.collocation._riccati import stage_hessians
+    rng = np.random.default_rng(11)
+    K, s, m, inner = 4, 5, 2, 2
+    ny, nv = s + m, 3 * m
+    points = np.arange(K * (inner + 1), dtype=np.int64).reshape(K, inner + 1)
+    G = rng.normal(size=(points.size, ny, ny))
+    G = G + G.transpose(0, 2, 1)
+    C, E = np.zeros((inner, K, ny, ny)), np.zeros((inner, K, ny, nv))
+    C[:, :, :s], E[:, :, :s] = rng.normal(size=(inner, K, s, ny)), rng.normal(size=(inner, K, s,
+                                                                                    nv))
+    for p in range(inner):
+        E[p, :, s:, p * m:(p + 1) * m] = np.eye(m)
+
+    def staged(states):
+        out = np.zeros((K, ny, ny)), np.zeros((K, ny, nv)), np.zeros((K, nv, nv))
+        stage_hessians(G, points, C, E, *out, states)
+        return out
+    skipped, full = staged(s), staged(-1)
+    for k in range(K):
+        Q = np.zeros((ny + nv, ny + nv))
+        Q[:ny, :ny] = G[points[k, 0]]
+        for p in range(inner):
+            CE = np.concatenate([C[p, k], E[p, k]], axis=1)
+            Q += CE.T @ G[points[k, p + 1]] @ CE
+        for got, want in zip((a[k] for a in full), (Q[:ny, :ny], Q[:ny, ny:], Q[ny:, ny:])):
+            assert np.allclose(got, want, rtol=1e-12, atol=1e-12)
+    for a, b in zip(skipped, full):
+        assert np.allclose(a, b, rtol=1e-12, atol=1e-12 * np.abs(b).max())
+
+
 @pytest.mark.filterwarnings("ignore", category=DiscretizationWarning)
 def test_a_qp_not_to_be_purified_is_taken_as_the_interior_point_leaves_it(swing, monkeypatch):
     """solve_qp(purify=False), the SQP's QPs after one whose active set did not make the

@@ -50,17 +50,25 @@ cdef dgemv_t dgemv = <dgemv_t>_blas("dgemv")
 cdef inline void gemm(const double *A, const double *B, double *C, int m, int k, int n,
                       bint ta, bint add) noexcept nogil:
     """Row-major C (m×n) = op(A)·B (op: transpose when ta; A is m×k or k×m, B k×n), or C += it
-    when add: BLAS's column-major Cᵀ = Bᵀ·op(A)ᵀ."""
+    when add."""
+    gemm_ld(A, m if ta else k, B, n, C, n, m, k, n, ta, add)
+
+
+cdef inline void gemm_ld(const double *A, int lda, const double *B, int ldb, double *C, int ldc,
+                         int m, int k, int n, bint ta, bint add) noexcept nogil:
+    """`gemm` on blocks of row-major matrices, each row `ld` apart: BLAS's column-major
+    Cᵀ = Bᵀ·op(A)ᵀ."""
     cdef char no = b'N', tr = b'T'
     cdef double one = 1.0, beta = 1.0 if add else 0.0
-    cdef int lda = m if ta else k, i
+    cdef int i, j
     if m == 0 or n == 0 or k == 0:         # BLAS refuses a leading dimension of 0
         if not add:
-            for i in range(m * n):
-                C[i] = 0.0
+            for i in range(m):
+                for j in range(n):
+                    C[i * ldc + j] = 0.0
         return
-    dgemm(&no, &tr if ta else &no, &n, &m, &k, &one, <double *>B, &n, <double *>A, &lda,
-          &beta, C, &n)
+    dgemm(&no, &tr if ta else &no, &n, &m, &k, &one, <double *>B, &ldb, <double *>A, &lda,
+          &beta, C, &ldc)
 
 
 cdef inline void cho_solve_rows(const double *L, double *X, int n, int ncols) noexcept nogil:
@@ -181,12 +189,16 @@ def point_hessians(const double[:, :, ::1] T, const double[:, :, ::1] W, double[
 
 def stage_hessians(const double[:, :, ::1] G, const cnp.int64_t[:, ::1] points,
                    const double[:, :, :, ::1] C, const double[:, :, :, ::1] E,
-                   double[:, :, ::1] Qxx, double[:, :, ::1] Qxv, double[:, :, ::1] Qvv):
+                   double[:, :, ::1] Qxx, double[:, :, ::1] Qxv, double[:, :, ::1] Qvv,
+                   int states=-1):
     """Each stage's Hessian in (X, v) from its points' Hessians G (P, ny, ny) in y: the start's
     (points[k, 0]) and each inner point's (points[k, p + 1], y = C[p, k]·X + E[p, k]·v + ·):
     Qxx = G_s + Σ Cᵀ·G·C, Qxv = Σ Cᵀ·G·E, Qvv = Σ Eᵀ·G·E (K stages, Qxx (K, ny, ny), Qxv (K,
-    ny, nv), Qvv (K, nv, nv))."""
+    ny, nv), Qvv (K, nv, nv)). `states` s ≥ 0: C's rows from s on are 0 and E's are an
+    identity's rows (y's inputs are the inner point's own, v's block p), as `factor`'s A and B."""
     cdef int K = Qxx.shape[0], ny = Qxx.shape[1], nv = Qvv.shape[1], inner = C.shape[0], k, p
+    cdef int s = ny if states < 0 else states, m = ny - s, i, j
+    cdef const double *Gp
     cdef double *GC = <double *>malloc((ny * ny + 1) * sizeof(double))
     cdef double *GE = <double *>malloc((ny * nv + 1) * sizeof(double))
     if GC == NULL or GE == NULL:
@@ -197,11 +209,18 @@ def stage_hessians(const double[:, :, ::1] G, const cnp.int64_t[:, ::1] points,
         for k in range(K):
             memcpy(&Qxx[k, 0, 0], &G[points[k, 0], 0, 0], ny * ny * sizeof(double))
             for p in range(inner):
-                gemm(&G[points[k, p + 1], 0, 0], &C[p, k, 0, 0], GC, ny, ny, ny, False, False)
-                gemm(&G[points[k, p + 1], 0, 0], &E[p, k, 0, 0], GE, ny, ny, nv, False, False)
-                gemm(&C[p, k, 0, 0], GC, &Qxx[k, 0, 0], ny, ny, ny, True, True)
-                gemm(&C[p, k, 0, 0], GE, &Qxv[k, 0, 0], ny, ny, nv, True, p > 0)
-                gemm(&E[p, k, 0, 0], GE, &Qvv[k, 0, 0], nv, ny, nv, True, p > 0)
+                Gp = &G[points[k, p + 1], 0, 0]
+                gemm_ld(Gp, ny, &C[p, k, 0, 0], ny, GC, ny, s, s, ny, False, False)
+                gemm_ld(Gp, ny, &E[p, k, 0, 0], nv, GE, nv, ny, s, nv, False, False)
+                for i in range(ny):
+                    for j in range(m):
+                        GE[i * nv + p * m + j] += Gp[i * ny + s + j]
+                gemm_ld(&C[p, k, 0, 0], ny, GC, ny, &Qxx[k, 0, 0], ny, ny, s, ny, True, True)
+                gemm_ld(&C[p, k, 0, 0], ny, GE, nv, &Qxv[k, 0, 0], nv, ny, s, nv, True, p > 0)
+                gemm_ld(&E[p, k, 0, 0], nv, GE, nv, &Qvv[k, 0, 0], nv, nv, s, nv, True, p > 0)
+                for i in range(m):
+                    for j in range(nv):
+                        Qvv[k, p * m + i, j] += GE[(s + i) * nv + j]
     free(GC)
     free(GE)
     return None
@@ -236,11 +255,15 @@ def stage_gradients(const double[:, :, ::1] G, const double[:, ::1] gamma,
 def factor(const double[:, :, ::1] Qxx, const double[:, :, ::1] Qxv,
            const double[:, :, ::1] Qvv, const double[:, :, ::1] A, const double[:, :, ::1] B,
            const double[:, ::1] P_end, double regularize, double[:, :, ::1] P,
-           double[:, :, ::1] Hxv, double[:, :, ::1] chol, double[:, :, ::1] gain):
+           double[:, :, ::1] Hxv, double[:, :, ::1] chol, double[:, :, ::1] gain,
+           int states=-1):
     """The backward pass of the matrices: P (K+1, nx, nx), and per stage Hxv (K, nx, nv), the
     Cholesky factor of Hvv (K, nv, nv) and gain (K, nv, nx). Returns 0, or k + 1 when stage k's
-    Hvv (+ regularize·1) is not positive definite."""
+    Hvv (+ regularize·1) is not positive definite. `states` s ≥ 0: A's rows from s on are 0 and
+    B's are [0 1] (X_{k+1}'s last nx − s entries are v_k's last: a collocation stage's inputs),
+    and the products skip them."""
     cdef int K = Qxx.shape[0], nx = Qxx.shape[1], nv = Qvv.shape[1], k, i, j
+    cdef int s = nx if states < 0 else states, m = nx - s
     cdef double *PA = <double *>malloc((nx * nx + 1) * sizeof(double))
     cdef double *PB = <double *>malloc((nx * nv + 1) * sizeof(double))
     cdef double *Hxx = <double *>malloc((nx * nx + 1) * sizeof(double))
@@ -257,14 +280,22 @@ def factor(const double[:, :, ::1] Qxx, const double[:, :, ::1] Qxv,
             for j in range(nx):
                 P[K, i, j] = P_end[i, j]
         for k in range(K - 1, -1, -1):
-            gemm(&P[k + 1, 0, 0], &A[k, 0, 0], PA, nx, nx, nx, False, False)
-            gemm(&P[k + 1, 0, 0], &B[k, 0, 0], PB, nx, nx, nv, False, False)
+            # PA = P·A and PB = P·B, of which Aᵀ·PA, Aᵀ·PB and Bᵀ·PB read the rows below s
+            # only through B's identity block
+            gemm_ld(&P[k + 1, 0, 0], nx, &A[k, 0, 0], nx, PA, nx, s, s, nx, False, False)
+            gemm_ld(&P[k + 1, 0, 0], nx, &B[k, 0, 0], nv, PB, nv, nx, s, nv, False, False)
+            for i in range(nx):
+                for j in range(m):
+                    PB[i * nv + nv - m + j] += P[k + 1, i, s + j]
             memcpy(Hxx, &Qxx[k, 0, 0], nx * nx * sizeof(double))
-            gemm(&A[k, 0, 0], PA, Hxx, nx, nx, nx, True, True)
+            gemm_ld(&A[k, 0, 0], nx, PA, nx, Hxx, nx, nx, s, nx, True, True)
             memcpy(&Hxv[k, 0, 0], &Qxv[k, 0, 0], nx * nv * sizeof(double))
-            gemm(&A[k, 0, 0], PB, &Hxv[k, 0, 0], nx, nx, nv, True, True)
+            gemm_ld(&A[k, 0, 0], nx, PB, nv, &Hxv[k, 0, 0], nv, nx, s, nv, True, True)
             memcpy(&chol[k, 0, 0], &Qvv[k, 0, 0], nv * nv * sizeof(double))
-            gemm(&B[k, 0, 0], PB, &chol[k, 0, 0], nv, nx, nv, True, True)
+            gemm_ld(&B[k, 0, 0], nv, PB, nv, &chol[k, 0, 0], nv, nv, s, nv, True, True)
+            for i in range(m):
+                for j in range(nv):
+                    chol[k, nv - m + i, j] += PB[(s + i) * nv + j]
             for i in range(nv):
                 for j in range(i):
                     chol[k, i, j] = 0.5 * (chol[k, i, j] + chol[k, j, i])

@@ -476,7 +476,7 @@ class StructuredQP:
         G = np.ascontiguousarray(G)
         Qxx, Qxv, Qvv = np.empty((count, ny, ny)), np.zeros((count, ny, nv)), \
             np.zeros((count, nv, nv))
-        stage_hessians(G, pts, self.inner_C, self.inner_E, Qxx, Qxv, Qvv)
+        stage_hessians(G, pts, self.inner_C, self.inner_E, Qxx, Qxv, Qvv, self.nx)
         if row_weights is not None and np.any(row_weights):
             w = self.rows.padded(row_weights, count)[:, :, None]
             alpha_t = self.alpha_pad.transpose(0, 2, 1)
@@ -489,7 +489,7 @@ class StructuredQP:
         self.gain = np.zeros((count, nv, ny))
         status = riccati_factor(Qxx, Qxv, Qvv, self.A, self.B,
                                 np.ascontiguousarray(G[pts[-1, -1]]), float(regularize),
-                                self.P, self.Hxv, self.chol, self.gain)
+                                self.P, self.Hxv, self.chol, self.gain, self.nx)
         if status:
             return False
         self.G = G
