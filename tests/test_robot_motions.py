@@ -439,6 +439,31 @@ def test_where_the_sqps_stationarity_stalls_auto_hands_the_refinement_to_ipopt(s
 
 
 @pytest.mark.filterwarnings("ignore", category=DiscretizationWarning)
+def test_where_the_sqp_stalls_near_tol_ipopt_finishes_from_its_answer(swing, monkeypatch):
+    """solver="auto": a stall within STALLED_NEAR·tol (the interior point's rounding of its
+    multipliers on Talos's meshes) ends the SQP as a flat optimum does, and IPOPT finishes each
+    refined mesh from the SQP's motion and multipliers (a few iterations), at IPOPT's optimum;
+    nothing is handed over from a mesh's start."""
+    from lagrgen.collocation import sqp
+    model, mod = swing
+    T, = model.input_functions
+    kkt_error, near = sqp.kkt_error, 0.5 * sqp.STALLED_NEAR * 1e-8
+
+    def stalling(*args):
+        primal, dual = kkt_error(*args)
+        return primal, dual if primal > sqp.STALLED_PRIMAL else max(dual, near)
+    monkeypatch.setattr(sqp, "kkt_error", stalling)
+    monkeypatch.setattr(sqp, "STALL", -1.0)
+    auto = swing_problem(mod, T, nodes=21, limit=20.0).solve(progress=False)
+    ipopt = swing_problem(mod, T, nodes=21, limit=20.0).solve(progress=False, solver="ipopt")
+    assert auto.success and auto.status == 0 and not auto.sqp_failed and len(auto.meshes) > 2
+    finished = [n for n in auto.notes if "IPOPT finished this mesh from its motion" in n]
+    assert finished and not [n for n in auto.notes if "structured SQP failed" in n]
+    assert all(m.iterations <= 10 for m in auto.meshes[1:])
+    assert auto.objective == pytest.approx(ipopt.objective, rel=1e-10)
+
+
+@pytest.mark.filterwarnings("ignore", category=DiscretizationWarning)
 def test_the_sqp_stops_where_its_constraints_hold_to_tol(swing, monkeypatch):
     """The SQP's constraints are met to tol, as IPOPT's (FEASIBLE = 1): a violation held at half
     tol (the remainder that QPs taken as the interior point leaves them carry on Talos's
