@@ -25,13 +25,17 @@ predictor-corrector, the barrier's Hessian on the same diagonals and stages), an
 is made exact by the active set's passes from the constraints it found active (those whose
 multiplier exceeds their slack), or, where they do not settle, taken as it stands with its
 multipliers of every bound (μ/s on those it leaves inactive: the KKT error then counts their
-complementarity), as are the later QPs of the solve; far from the solution (the first steps of
+complementarity), as are the later QPs of the solve (and of the next mesh's: `solve`'s
+purify=False); far from the solution (the first steps of
 a re-plan) the interior point's solution at a loose tolerance is the step, and the active set
 is abandoned for it as soon as its changes shrink too slowly to settle. The defects' and
 residuals' multipliers come back from the recursion (the costates), in the NLP's sign
 convention (∇f + Jᵀλ + z = 0, W = ∇²f + Σ λ_i·∇²c_i), for the next step's Hessian. A step is
-accepted by a line search on the ℓ1 merit function; anything the structure does not cover, or a
-step that fails, is reported so the caller can fall back to IPOPT.
+accepted by a line search on the ℓ1 merit function, and the solve converges where the
+constraints hold to tol and the stationarity residual (complementarity included) is within tol,
+as IPOPT's; anything the structure does not cover, or a step that fails, is reported so the
+caller can fall back to IPOPT, and a solve that stalls or must cut its step within
+STALLED_NEAR·tol stops there for the caller to finish.
 """
 from dataclasses import dataclass, field, fields
 
