@@ -354,7 +354,7 @@ class StructuredQP:
         n, nu = L.n, L.nu
         self.nx, self.ny = 2 * n, 2 * n + nu
         self._eliminate_accelerations()
-        self._plain_G = None
+        self._plain_G, self._Wt = None, None
         self._kept = np.r_[0:2 * n, 3 * n:3 * n + nu]      # T's identity rows: states, inputs
         self.interval_maps()
         self.row_maps()
@@ -410,8 +410,14 @@ class StructuredQP:
         return G
 
     def diagonal_gradients(self, add, g):
-        """γ of each point for the blocks W + diag(add) and gradients g (P, nz)."""
-        return self.point_gradients(self.lin.W, g + add.reshape(g.shape) * self.t)
+        """γ of each point for the blocks W + diag(add) and gradients g (P, nz):
+        Tᵀ·(W·t + g + add·t), with W·t formed once per QP and Tᵀ's identity rows read off."""
+        if self._Wt is None:
+            self._Wt = (self.lin.W @ self.t[:, :, None])[:, :, 0]
+        n = self.L.n
+        v = self._Wt + g + add.reshape(g.shape) * self.t
+        Ta = self.T[:, 2 * n:3 * n, :]
+        return v[:, self._kept] + (Ta.transpose(0, 2, 1) @ v[:, 2 * n:3 * n, None])[:, :, 0]
 
     # -- per interval: the states of its inner points and end -------------------------------------
     def interval_maps(self):
