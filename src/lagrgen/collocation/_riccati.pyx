@@ -71,6 +71,16 @@ cdef inline void gemm_ld(const double *A, int lda, const double *B, int ldb, dou
           &beta, C, &ldc)
 
 
+cdef inline void add_block(double *C, int ldc, const double *A, int lda, int m,
+                           int n) noexcept nogil:
+    """C += A for m×n blocks of row-major matrices, each row `ld` apart (a stage's identity
+    block of inputs, applied without multiplying by it)."""
+    cdef int i, j
+    for i in range(m):
+        for j in range(n):
+            C[i * ldc + j] += A[i * lda + j]
+
+
 cdef inline void cho_solve_rows(const double *L, double *X, int n, int ncols) noexcept nogil:
     """Row-major X (n×ncols) := (L·Lᵀ)⁻¹·X for L (n×n) row-major lower: in BLAS's column-major
     terms Xᵀ := Xᵀ·U⁻¹·U⁻ᵀ with U = Lᵀ (L's memory read column-major)."""
@@ -197,7 +207,7 @@ def stage_hessians(const double[:, :, ::1] G, const cnp.int64_t[:, ::1] points,
     ny, nv), Qvv (K, nv, nv)). `states` s ≥ 0: C's rows from s on are 0 and E's are an
     identity's rows (y's inputs are the inner point's own, v's block p), as `factor`'s A and B."""
     cdef int K = Qxx.shape[0], ny = Qxx.shape[1], nv = Qvv.shape[1], inner = C.shape[0], k, p
-    cdef int s = ny if states < 0 else states, m = ny - s, i, j
+    cdef int s = ny if states < 0 else states, m = ny - s
     cdef const double *Gp
     cdef double *GC = <double *>malloc((ny * ny + 1) * sizeof(double))
     cdef double *GE = <double *>malloc((ny * nv + 1) * sizeof(double))
@@ -212,15 +222,11 @@ def stage_hessians(const double[:, :, ::1] G, const cnp.int64_t[:, ::1] points,
                 Gp = &G[points[k, p + 1], 0, 0]
                 gemm_ld(Gp, ny, &C[p, k, 0, 0], ny, GC, ny, s, s, ny, False, False)
                 gemm_ld(Gp, ny, &E[p, k, 0, 0], nv, GE, nv, ny, s, nv, False, False)
-                for i in range(ny):
-                    for j in range(m):
-                        GE[i * nv + p * m + j] += Gp[i * ny + s + j]
+                add_block(GE + p * m, nv, Gp + s, ny, ny, m)
                 gemm_ld(&C[p, k, 0, 0], ny, GC, ny, &Qxx[k, 0, 0], ny, ny, s, ny, True, True)
                 gemm_ld(&C[p, k, 0, 0], ny, GE, nv, &Qxv[k, 0, 0], nv, ny, s, nv, True, p > 0)
                 gemm_ld(&E[p, k, 0, 0], nv, GE, nv, &Qvv[k, 0, 0], nv, nv, s, nv, True, p > 0)
-                for i in range(m):
-                    for j in range(nv):
-                        Qvv[k, p * m + i, j] += GE[(s + i) * nv + j]
+                add_block(&Qvv[k, 0, 0] + p * m * nv, nv, GE + s * nv, nv, m, nv)
     free(GC)
     free(GE)
     return None
@@ -284,18 +290,14 @@ def factor(const double[:, :, ::1] Qxx, const double[:, :, ::1] Qxv,
             # only through B's identity block
             gemm_ld(&P[k + 1, 0, 0], nx, &A[k, 0, 0], nx, PA, nx, s, s, nx, False, False)
             gemm_ld(&P[k + 1, 0, 0], nx, &B[k, 0, 0], nv, PB, nv, nx, s, nv, False, False)
-            for i in range(nx):
-                for j in range(m):
-                    PB[i * nv + nv - m + j] += P[k + 1, i, s + j]
+            add_block(PB + nv - m, nv, &P[k + 1, 0, 0] + s, nx, nx, m)
             memcpy(Hxx, &Qxx[k, 0, 0], nx * nx * sizeof(double))
             gemm_ld(&A[k, 0, 0], nx, PA, nx, Hxx, nx, nx, s, nx, True, True)
             memcpy(&Hxv[k, 0, 0], &Qxv[k, 0, 0], nx * nv * sizeof(double))
             gemm_ld(&A[k, 0, 0], nx, PB, nv, &Hxv[k, 0, 0], nv, nx, s, nv, True, True)
             memcpy(&chol[k, 0, 0], &Qvv[k, 0, 0], nv * nv * sizeof(double))
             gemm_ld(&B[k, 0, 0], nv, PB, nv, &chol[k, 0, 0], nv, nv, s, nv, True, True)
-            for i in range(m):
-                for j in range(nv):
-                    chol[k, nv - m + i, j] += PB[(s + i) * nv + j]
+            add_block(&chol[k, 0, 0] + (nv - m) * nv, nv, PB + s * nv, nv, m, nv)
             for i in range(nv):
                 for j in range(i):
                     chol[k, i, j] = 0.5 * (chol[k, i, j] + chol[k, j, i])

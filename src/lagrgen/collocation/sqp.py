@@ -34,8 +34,8 @@ convention (∇f + Jᵀλ + z = 0, W = ∇²f + Σ λ_i·∇²c_i), for the next
 accepted by a line search on the ℓ1 merit function, and the solve converges where the
 constraints hold to tol and the stationarity residual (complementarity included) is within tol,
 as IPOPT's; anything the structure does not cover, or a step that fails, is reported so the
-caller can fall back to IPOPT, and a solve that stalls or must cut its step within
-STALLED_NEAR·tol stops there for the caller to finish.
+caller can fall back to IPOPT, and a solve that stalls within STALLED_NEAR·tol stops there for
+the caller to finish.
 """
 from dataclasses import dataclass, field, fields
 
@@ -61,15 +61,6 @@ PIN_UPDATES = 6
 #: valley of the objective (an optimum that is not unique to the last digits), where the
 #: residual, quadratic in the step, does not fall further.
 STALL, STALL_DUAL = 1e-10, 1e-2
-#: The constraints are met to FEASIBLE·tol, as IPOPT's are to tol. With the QPs taken as the
-#: interior point leaves them (Talos's refined meshes) the constraints converge linearly, not
-#: as Newton's (1e-7, 2e-9, 1e-10, 6e-12 on the 615-node mesh, its stationarity residual at
-#: 4e-9 throughout): a bound whose multiplier vanishes stays ~√gap off its value in each QP, and
-#: the steps carry that. At 1e-3 (the constraints to 1e-11) the meshes took 5 and 4 iterations
-#: of ~17 factors each; at 1 they take 3 and 2, the solve 24 s instead of 41 s. Solving those
-#: QPs to a smaller gap instead (1e-12, 1e-13) took more factors each, and multiplied the
-#: round-off of the multipliers by weights y/s up to 4e16.
-FEASIBLE = 1.0
 #: At a point stationary to tol (the residual and complementarity of `kkt_error`), a step
 #: that takes the constraints' violation to RESTORING of it or less is taken though the merit
 #: function does not fall: with the interior point's QP solutions taken as it left them, the
@@ -104,12 +95,9 @@ HOPELESS_FEW = 16
 #: step that lifts the residual (an active set changing) is no stall.
 STALLED_PRIMAL, STALLED_DROP, STALLED_ITERATIONS = 1e-6, 10.0, 2
 #: A stall within STALLED_NEAR·tol ends the solve as a flat optimum does (the caller finishes
-#: from its answer) rather than handing the mesh over from its start, as does a step the line
-#: search cuts there: on a 578-node mesh of Talos the residual held at 1.1e-8 (tol 1e-8: the
-#: size of the interior point's rounding of its multipliers), and IPOPT from the mesh's start
-#: then took 19 iterations and 47 s; on a 1016-node mesh a QP's step from (1.6e-9, 1.2e-8) was
-#: cut to 1/8, the stationarity residual rose to 1.2, and the line search failed 20 iterations
-#: on.
+#: from its answer) rather than handing the mesh over from its start: on a 578-node mesh of
+#: Talos the residual held at 1.1e-8 (tol 1e-8: the size of the interior point's rounding of
+#: its multipliers), and IPOPT from the mesh's start then took 19 iterations and 47 s.
 STALLED_NEAR = 100.0
 DEBUG = False
 
@@ -391,8 +379,13 @@ class StructuredQP:
 
     def point_gradients(self, W, g):
         """γ = Tᵀ·(W·t + g) of each point (`point_costs`' linear part alone)."""
-        Wt = (W @ self.t[:, :, None])[:, :, 0] + g
-        return (self.T.transpose(0, 2, 1) @ Wt[:, :, None])[:, :, 0]
+        return self._transposed((W @ self.t[:, :, None])[:, :, 0] + g)
+
+    def _transposed(self, v):
+        """Tᵀ·v of each point (v: (P, nz)), T's identity rows read off."""
+        n = self.L.n
+        Ta = self.T[:, 2 * n:3 * n, :]
+        return v[:, self._kept] + (Ta.transpose(0, 2, 1) @ v[:, 2 * n:3 * n, None])[:, :, 0]
 
     def diagonal_costs(self, add):
         """G of each point for the blocks W + diag(add) (add: (P·nz,)): TᵀWT, formed once per
@@ -411,13 +404,10 @@ class StructuredQP:
 
     def diagonal_gradients(self, add, g):
         """γ of each point for the blocks W + diag(add) and gradients g (P, nz):
-        Tᵀ·(W·t + g + add·t), with W·t formed once per QP and Tᵀ's identity rows read off."""
+        Tᵀ·(W·t + g + add·t), with W·t formed once per QP."""
         if self._Wt is None:
             self._Wt = (self.lin.W @ self.t[:, :, None])[:, :, 0]
-        n = self.L.n
-        v = self._Wt + g + add.reshape(g.shape) * self.t
-        Ta = self.T[:, 2 * n:3 * n, :]
-        return v[:, self._kept] + (Ta.transpose(0, 2, 1) @ v[:, 2 * n:3 * n, None])[:, :, 0]
+        return self._transposed(self._Wt + g + add.reshape(g.shape) * self.t)
 
     # -- per interval: the states of its inner points and end -------------------------------------
     def interval_maps(self):
@@ -1071,7 +1061,8 @@ def solve(tr, x0, lam0=None, z0=None, tol=1e-8, max_iter=SQP_ITERATIONS, monitor
 
 
 def _iterate(tr, x0, lam0, z0, tol, max_iter, monitor, hand_over=False, purify=True):
-    """`solve`'s iterations on a problem the structure covers. Once the active set did not
+    """`solve`'s iterations on a problem the structure covers, until the constraints hold to tol
+    and the stationarity residual is within it (IPOPT's test). Once the active set did not
     make an interior point's solution exact (`_purified`: up to SETTLING_PASSES factors, all in
     vain on Talos's 615-node mesh), the later QPs take it as it stands, with its multipliers of
     every bound."""
@@ -1112,18 +1103,13 @@ def _iterate(tr, x0, lam0, z0, tol, max_iter, monitor, hand_over=False, purify=T
                 break
             alpha *= 0.5
             if alpha < 1e-3:
-                if primal_now <= FEASIBLE * tol and dual_now <= STALL_DUAL:
+                if primal_now <= tol and dual_now <= STALL_DUAL:
                     return Outcome(x, lam, z_now, iteration - 1, True,
                                    "converged (no step lowers the merit function further)",
                                    passes, dual_now, qp.as_left)
                 raise Unsupported("the SQP's line search failed")
-        if hand_over and alpha < 1.0 and primal_now <= FEASIBLE * tol and \
-                dual_now <= STALLED_NEAR * tol:
-            return Outcome(x, lam, z_now, iteration - 1, True, "converged (near tol, where "
-                           "its QP's step is cut)", passes, dual_now, qp.as_left)
         x = trial
-        lam = lam + alpha * (lam_qp - lam)
-        z = z_now + alpha * (z - z_now)
+        lam, z = lam + alpha * (lam_qp - lam), z_now + alpha * (z - z_now)
         primal, dual = kkt_error(tr, x, lam, z)
         dual_before = dual_now
         primal_now, dual_now, z_now = primal, dual, z
@@ -1131,12 +1117,15 @@ def _iterate(tr, x0, lam0, z0, tol, max_iter, monitor, hand_over=False, purify=T
         if monitor is not None:
             monitor(iteration, value, primal, dual, alpha)
         settled = alpha == 1.0 and abs(value - f) <= STALL * max(1.0, abs(f))
-        if primal <= FEASIBLE * tol and (dual <= tol or (settled and dual <= STALL_DUAL)):
+        # the constraints to tol, not 1e-3·tol: with QPs taken as they stand a bound whose
+        # multiplier vanishes stays ~√gap off its value, and the constraints fell linearly
+        # (Talos's 615-node mesh: 1e-7, 2e-9, 1e-10, 6e-12), 2 iterations of ~17 factors a mesh
+        if primal <= tol and (dual <= tol or (settled and dual <= STALL_DUAL)):
             return Outcome(x, lam, z, iteration, True, "converged", passes, dual, qp.as_left)
         stalls = stalls + 1 if (iteration > 1 and alpha == 1.0 and primal <= STALLED_PRIMAL
                                 and dual > max(tol, dual_before / STALLED_DROP)) else 0
         if hand_over and stalls >= STALLED_ITERATIONS:
-            if dual <= STALLED_NEAR * tol and primal <= FEASIBLE * tol:
+            if dual <= STALLED_NEAR * tol and primal <= tol:
                 return Outcome(x, lam, z, iteration, True, "converged (its stationarity "
                                "residual stalled near tol)", passes, dual, qp.as_left)
             raise StepFailed(f"its stationarity residual stalled at {dual:.1e} in iteration "
