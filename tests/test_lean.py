@@ -51,7 +51,8 @@ def test_a_small_robot_gets_traced_code_and_a_long_chain_the_loops(tmp_path):
     from lagrgen.build import export_c
     source = next(f for f in export_c(lagrgen.from_urdf(ARM, name="arm_c"), tmp_path)
                   if f.suffix == ".c").read_text()
-    assert "LG_FN static int lg_lean_qdd(" in source and "#define LG_LEAN_QDD 1" in source
+    assert "LG_FN LG_PART_FN int lg_lean_qdd(" in source and "#define LG_LEAN_QDD 1" in source
+    assert source.count("/* traced */") == 2       # q̈ and the node records: units of their own
     assert "#define LG_LEAN_NODES 1" in source
     assert "flops (" in source                     # the legend says how many, per joint
     chain = tmp_path / "chain.urdf"

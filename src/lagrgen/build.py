@@ -228,18 +228,21 @@ def generate(info, equations, progress, functions=functions_of(MODEL_UNIT),
 
 def compile_model(files, work, name, flags, progress, part_flags=None):
     """Write `files` into the directory `work` and compile the module glue `<name>_module.c`
-    (which includes the model) and any kernel units into `work/<name><EXT_SUFFIX>`, the kernel
-    units with `part_flags(flags)` when given."""
+    (which includes the model) and any kernel units into `work/<name><EXT_SUFFIX>`, the units
+    of the kernels' parts with `part_flags(flags)` when given (the traced functions' with
+    `flags`: they are the hot path of q̈)."""
     size = sum(len(text) for text in files.values())
     progress.note(f"compiling {size / 1024:.0f} KiB of C ({' '.join(flags)}) ...")
     for file_name, text in files.items():
         (work / file_name).write_text(text)
+    from .codegen.c_model import traced_unit_numbers, unit_file
     lib = cache.Unit(work, name).module_file
     sources = [work / f for f in files if f.endswith(".c") and f != f"{name}_model.c"]
     if len(sources) > 1:                       # the module glue, then the kernels' units
-        glue = sources[0]
+        kept = {sources[0]} | {work / unit_file(name, k)
+                               for k in traced_unit_numbers(files[f"{name}_model.c"])}
         compile_units(sources, lib, flags,
-                      lambda path: flags if path == glue or part_flags is None
+                      lambda path: flags if path in kept or part_flags is None
                       else part_flags(flags))
     else:
         compile_module(sources[0], lib, flags)

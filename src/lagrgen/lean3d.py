@@ -42,10 +42,24 @@ LEAN_MAX_NODE_FLOPS_PER_JOINT = 200
 
 @dataclass
 class Traced:
-    """A traced C function: its text, flops, and whether it traced the loads (Q, g) itself."""
-    text: str
+    """A traced C function `int name(parameters)`: its comment and body, the declarations of the
+    functions it calls, its flops, and whether it traced the loads (Q, g) itself."""
+    name: str
+    parameters: str
+    comment: str
+    body: str
     flops: int
     loads: bool = False
+    calls: tuple = ()
+
+    def declaration(self, linkage="static"):
+        """Its prototype, `linkage` static or LG_PART_FN (a unit of its own, `c_model`)."""
+        return f"LG_FN {linkage} int {self.name}({self.parameters});"
+
+    def definition(self, linkage="static"):
+        """Its C text, after the declarations of the functions it calls."""
+        return ("".join(f"{call}\n" for call in self.calls) + f"/* {self.comment} */\n"
+                + self.declaration(linkage)[:-1] + f"\n{{\n{self.body}}}\n")
 
 
 class Spatial:
@@ -392,21 +406,25 @@ def trace_qdd(joints, parent, coordinate, notes, loads=None, name="lg_lean_qdd")
         "const double *p, const double *u, const double *Q, const double *g, double *qdd",
         "q̈ of the robot by the articulated-body algorithm in joint frames (lagrgen.lean3d), "
         "traced with its\n * numbers folded: {flops} flops ({per_joint} per joint). "
-        f"Nodes:\n{legend}\n", len(parent), traced)
+        f"Nodes:\n{legend}\n", len(parent), traced, calls=(PIVOTS_DECLARATION,))
 
 
-def _function(tape, values, stores, name, parameters, comment, joints, loads):
+#: The check of M's pivots that lg_lean_qdd calls off its hot path (templates/tree3d.c.in).
+PIVOTS_DECLARATION = ("LG_FN LG_PART_FN int lg_lean_pivots(double t, const double *q, "
+                      "const double *p);")
+
+
+def _function(tape, values, stores, name, parameters, comment, joints, loads, calls=()):
     """The `Traced` C function `int name(parameters)` computing the tape's `values` (the nodes
     they need as `const double` temporaries), then the `stores`; `comment` (with {flops} and
-    {per_joint}) heads it."""
+    {per_joint}) heads it, and `calls` declares the functions it calls."""
     nodes = tape.needed(values)
     flops = tape.flops(nodes)
     names = [part.replace("*", " ").split()[-1] for part in parameters.split(",")]
     head = comment.format(flops=flops, per_joint=f"{flops / max(joints, 1):.0f}")
-    text = (f"/* {head} */\nLG_FN static int {name}({parameters})\n{{\n    "
-            + ", ".join(f"(void){x}" for x in names[:-1]) + ";\n"
-            + "\n".join(Printer(tape).statements(nodes) + stores) + "\n    return 0;\n}\n")
-    return Traced(text, flops, loads)
+    body = ("    " + ", ".join(f"(void){x}" for x in names[:-1]) + ";\n"
+            + "\n".join(Printer(tape).statements(nodes) + stores) + "\n    return 0;\n")
+    return Traced(name, parameters, head, body, flops, loads, calls)
 
 
 def world_records(tape, joints, parent, coordinate, Q, g, inputs=None):

@@ -1,12 +1,13 @@
 """The C files of a model: the standalone model (`<name>_model.h`, `<name>_model.c`: plain C, no
 Python) and the thin Python module glue (`<name>_module.c`) that includes it."""
+import re
 from pathlib import Path
 from string import Template
 
 from ..functions import DIRECTIONS_SIGNATURE, EXPORTED
 from ..kernels import KERNELS, kernel_names, link_chains, model_kernels
 from .printer import c_function, in_lanes, kernel_statements
-from .tree_code import link_layout, template_name, tree_c
+from .tree_code import APART, link_layout, template_name, tree_c
 
 TEMPLATES = Path(__file__).resolve().parent / "templates"
 SIGNATURE = "double t, const double *y, const double *p, const double *u, double *out"
@@ -151,10 +152,38 @@ def tape_sizes(kernel):
                    for o in kernel.spec.outputs if o.shape == ("n_tape",))
 
 
+#: The guard of a unit holding a function traced for the robot (`traced_units`).
+TRACED_GUARD = "#if LG_IN_TU({}) /* traced */"
+
+
+def traced_apart(functions):
+    """The functions traced for a robot (`lagrgen.lean3d`) that a module with the registered
+    `functions` compiles as units of their own: the node records, and q̈ where the module has
+    the rhs (a unit that does not call it keeps it static in unit 0, where the compiler drops
+    it)."""
+    return {"lg_tree_nodes"} | ({"lg_lean_qdd"} if any(f.name == "rhs" for f in functions)
+                                else set())
+
+
+def traced_units(functions, after):
+    """The C of the traced `functions` (`lagrgen.lean3d.Traced`), each guarded as a unit of its
+    own numbered from after + 1 (after the kernels' parts): long straight-line functions whose
+    compiler time is most of a robot's build, compiled side by side."""
+    return "".join(f"\n{TRACED_GUARD.format(after + k)}\n{f.definition(APART)}#endif\n"
+                   for k, f in enumerate(functions, 1))
+
+
 def translation_units(model_c):
-    """The number of separately compilable part units in a `<name>_model.c` text (0: none)."""
-    import re
-    return max((int(k) for k in re.findall(r"^#if LG_IN_TU\((\d+)\)$", model_c, re.M)), default=0)
+    """The number of separately compilable units in a `<name>_model.c` text besides unit 0 (the
+    kernels' parts and the traced functions; 0: none)."""
+    return max((int(k) for k in re.findall(r"^#if LG_IN_TU\((\d+)\)(?: /\* traced \*/)?$",
+                                           model_c, re.M)), default=0)
+
+
+def traced_unit_numbers(model_c):
+    """The units of a `<name>_model.c` text that hold a traced function (`traced_units`)."""
+    return {int(k) for k in re.findall(r"^#if LG_IN_TU\((\d+)\) /\* traced \*/$", model_c,
+                                       re.M)}
 
 
 def signature(function):
@@ -230,14 +259,15 @@ def model_source(info, equations, max_statements=400, functions=EXPORTED):
     if "link_frames" in names and link_chains(equations):
         names.remove("link_frames")     # the links have functions of their own (link_functions)
     kernels = kernel_functions(equations, max_statements, units, names, formulation)
-    split = units[0] > 0
     recursive = formulation == "recursive"
     tree_kernels = kernel_names(names, formulation)
+    traced, apart = [], traced_apart(functions)
+    tree = tree_c(equations, read_template(template_name(equations)), tree_kernels, traced,
+                  apart) if recursive and "tree_nodes" in tree_kernels else ""
+    split = units[0] > 0 or bool(traced)
     return Template(read_template("model.c.in")).substitute(
-        substitutions(info), linalg=read_template("linalg.c.in"),
-        recursive=int(recursive),
-        tree=tree_c(equations, read_template(template_name(equations)), tree_kernels)
-        if recursive and "tree_nodes" in tree_kernels else "",
+        substitutions(info), linalg=read_template("linalg.c.in"), recursive=int(recursive),
+        tree=tree, traced=traced_units([f for f in traced if f.name in apart], units[0]),
         kernels=kernels, tu_setup=TU_SETUP if split else "",
         tu0_begin="#if LG_IN_TU(0)\n" if split else "", tu0_end="\n#endif" if split else "",
         constraint_solver=read_template("constraints.c.in"), lanes=LANES,
@@ -327,10 +357,15 @@ def module_source(info, units=0, functions=EXPORTED, template="module.c.in"):
     return text
 
 
+def unit_file(name, k):
+    """The file name of unit k of `<name>_model.c` (`unit_sources`)."""
+    return f"{name}_unit{k}.c"
+
+
 def unit_sources(name, units):
-    """{file name: text} of the part units 1 … `units` of `<name>_model.c` (internal to the build
-    of the Python module: each compiles one group of kernel parts)."""
-    return {f"{name}_unit{k}.c": f'/* Unit {k} of {name}_model.c (lagrgen build file). */\n'
+    """{file name: text} of the units 1 … `units` of `<name>_model.c` (internal to the build of
+    the Python module: each compiles one group of kernel parts, or one traced function)."""
+    return {unit_file(name, k): f'/* Unit {k} of {name}_model.c (lagrgen build file). */\n'
             f'#define LG_TU {k}\n#include "{name}_model.c"\n' for k in range(1, units + 1)}
 
 

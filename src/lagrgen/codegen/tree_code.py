@@ -105,26 +105,37 @@ def _rows(rows, notes, number=repr):
                       for row, note in zip(rows, notes)) or "    {0}"
 
 
-def _lean(equations, tables):
+def _lean(equations, tables, traced, apart):
     """The template's traced functions (`lagrgen.lean3d`) where the tree has them: q̈ when its
     flops per joint and in all are within LEAN_MAX_FLOPS_PER_JOINT and LEAN_MAX_FLOPS, then the
-    node records when the flops left allow them."""
+    node records when the flops left allow them. Each is appended to the list `traced`; one
+    named in `apart` is only declared in the template (its definition is a unit of its own,
+    `c_model.model_source`), the others are defined there."""
     none = dict(has_lean_qdd=0, lean_qdd="", lean_loads=0, has_lean_nodes=0, lean_nodes="")
     tree = trees.analyse(equations)
     joints, coordinate = getattr(tree, "joints", None), tables["coordinate"]
     if joints is None or len(coordinate) > LEAN_MAX_JOINTS or \
             len(set(coordinate)) != len(coordinate):
         return none
+
+    def placed(function):
+        traced.append(function)
+        return function.declaration(APART) if function.name in apart else function.definition()
+
     loads, budget, out = (tree.Q, tree.gravity), LEAN_MAX_FLOPS, dict(none)
     qdd = trace_qdd(joints, tables["parent"], coordinate, tree.notes, loads)
     if qdd.flops <= min(budget, LEAN_MAX_FLOPS_PER_JOINT * len(coordinate)):
         budget -= qdd.flops
-        out.update(has_lean_qdd=1, lean_qdd=qdd.text, lean_loads=int(qdd.loads))
+        out.update(has_lean_qdd=1, lean_qdd=placed(qdd), lean_loads=int(qdd.loads))
     nodes = trace_nodes(joints, tables["parent"], coordinate, tree.notes, loads)
     if nodes is not None and nodes.flops <= min(budget, LEAN_MAX_NODE_FLOPS_PER_JOINT
                                                  * len(coordinate)):
-        out.update(has_lean_nodes=1, lean_nodes=nodes.text)
+        out.update(has_lean_nodes=1, lean_nodes=placed(nodes))
     return out
+
+
+#: The linkage of a traced function compiled as a unit of its own (c_model.TU_SETUP).
+APART = "LG_PART_FN"
 
 
 def _joint_tables(tables, notes):
@@ -147,18 +158,21 @@ def _joint_tables(tables, notes):
                 joint_inertia_parameter=_rows(joints["inertia_parameter"], notes, str))
 
 
-def tree_c(equations, template, kernels=("tree_nodes", "tree_slopes", "tree_parameters")):
+def tree_c(equations, template, kernels=("tree_nodes", "tree_slopes", "tree_parameters"),
+           traced=None, apart=()):
     """`template` (the text of the tree's template, `template_name`) for the equations' tree, in
     a unit that has the `kernels` (names: the parts calling tree_slopes or tree_parameters are
     compiled when they are among them); a free base's, in its chart within
-    `templates/free_base.c.in`."""
+    `templates/free_base.c.in`. The functions traced for the robot (`lagrgen.lean3d.Traced`)
+    are appended to the list `traced`; those named in `apart` are only declared in the text."""
     tables = layout(equations, "tree_parameters" in kernels)
+    traced = [] if traced is None else traced
     if "free" in tables:
-        return free_base_c(equations, tables, template, kernels)
-    return _tree_c(equations, tables, template, kernels)
+        return free_base_c(equations, tables, template, kernels, traced, apart)
+    return _tree_c(equations, tables, template, kernels, traced, apart)
 
 
-def free_base_c(equations, tables, template, kernels):
+def free_base_c(equations, tables, template, kernels, traced, apart):
     """The recursion of a free base's tree in its chart (its own n − 1 coordinates, no slopes or
     parameter derivatives of Q: those are the model's) within the transformation to the model's
     coordinates (`templates/free_base.c.in`)."""
@@ -170,10 +184,10 @@ def free_base_c(equations, tables, template, kernels):
         dqd_index=_ints([i for ij in tables["dqd"] for i in ij]),
         dqp_index=_ints([i for ij in tables["dQp"] for i in ij]),
         has_parameters=int("tree_parameters" in kernels),
-        tree=_tree_c(equations, chart, template, kernels))
+        tree=_tree_c(equations, chart, template, kernels, traced, apart))
 
 
-def _tree_c(equations, tables, template, kernels):
+def _tree_c(equations, tables, template, kernels, traced, apart):
     n = len(tables["coordinate"])
     first, seen = [], set()
     for c in tables["coordinate"]:
@@ -192,7 +206,7 @@ def _tree_c(equations, tables, template, kernels):
         has_parameters=int("tree_parameters" in kernels),
         has_poses=int("tree_poses" in kernels),
         has_outputs=int("tree_outputs" in kernels),
-        **_lean(equations, tables),
+        **_lean(equations, tables, traced, apart),
         **_joint_tables(tables, trees.analyse(equations).notes),
         has_energies=int(tables.get("energies", False)),
         inertial_columns=_ints(tables["inertial_column"]),

@@ -197,6 +197,41 @@ def point_hessians(const double[:, :, ::1] T, const double[:, :, ::1] W, double[
     return None
 
 
+def diagonal_hessians(const double[:, :, ::1] G0, const double[:, :, ::1] T,
+                      const double[:, ::1] add, int n, double[:, :, ::1] G):
+    """G_j = G0_j + T_jᵀ·diag(add_j)·T_j of every point j, for the T of `point_hessians` whose
+    rows other than the accelerations' [2n, 3n) are an identity's (y's states and inputs): add
+    on G0's diagonal, plus Ta_jᵀ·diag(a_j)·Ta_j over the acceleration rows whose a is not 0."""
+    cdef int count = T.shape[0], ny = T.shape[2], j, i, r, rank
+    cdef double a
+    cdef double *S = <double *>malloc((n * ny + 1) * sizeof(double))
+    cdef double *Ta = <double *>malloc((n * ny + 1) * sizeof(double))
+    if S == NULL or Ta == NULL:
+        free(S)
+        free(Ta)
+        raise MemoryError()
+    with nogil:
+        for j in range(count):
+            memcpy(&G[j, 0, 0], &G0[j, 0, 0], ny * ny * sizeof(double))
+            for i in range(2 * n):
+                G[j, i, i] += add[j, i]
+            for i in range(2 * n, ny):
+                G[j, i, i] += add[j, n + i]
+            rank = 0
+            for r in range(n):
+                a = add[j, 2 * n + r]
+                if a != 0.0:
+                    for i in range(ny):
+                        Ta[rank * ny + i] = T[j, 2 * n + r, i]
+                        S[rank * ny + i] = a * T[j, 2 * n + r, i]
+                    rank += 1
+            if rank:
+                gemm(Ta, S, &G[j, 0, 0], ny, rank, ny, True, True)
+    free(S)
+    free(Ta)
+    return None
+
+
 def stage_hessians(const double[:, :, ::1] G, const cnp.int64_t[:, ::1] points,
                    const double[:, :, :, ::1] C, const double[:, :, :, ::1] E,
                    double[:, :, ::1] Qxx, double[:, :, ::1] Qxv, double[:, :, ::1] Qvv,

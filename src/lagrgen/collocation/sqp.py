@@ -43,7 +43,8 @@ import numpy as np
 
 from ..errors import LagrgenError
 from ._riccati import factor as riccati_factor, forward as riccati_forward, \
-    point_hessians, stage_gradients, stage_hessians, vectors as riccati_vectors
+    diagonal_hessians, point_hessians, stage_gradients, stage_hessians, \
+    vectors as riccati_vectors
 
 #: An active bound's penalty ρ relative to its point's Hessian scale: the augmented Lagrangian
 #: converges by about this factor per pass, and the recursion stays well conditioned. The
@@ -342,7 +343,7 @@ class StructuredQP:
         n, nu = L.n, L.nu
         self.nx, self.ny = 2 * n, 2 * n + nu
         self._eliminate_accelerations()
-        self._plain_G, self._Wt = None, None
+        self._plain_G, self._Wt, self.G = None, None, None
         self._kept = np.r_[0:2 * n, 3 * n:3 * n + nu]      # T's identity rows: states, inputs
         self.interval_maps()
         self.row_maps()
@@ -390,16 +391,16 @@ class StructuredQP:
     def diagonal_costs(self, add):
         """G of each point for the blocks W + diag(add) (add: (P·nz,)): TᵀWT, formed once per
         QP, plus Tᵀ·diag(add)·T, which is diagonal on the states and inputs (T's identity
-        rows) and n rank-one terms of the acceleration rows."""
+        rows) and rank-one terms of the acceleration rows whose add is not 0. The array is one
+        of two the QP keeps: the next call but one overwrites it (the last factor's G is never
+        the one written)."""
         if self._plain_G is None:
             self._plain_G = self.eliminated_hessians(self.lin.W)
-        n = self.L.n
-        add = add.reshape(self.T.shape[0], self.L.nz)
-        G = self._plain_G.copy()
-        diagonal = np.arange(self.ny)
-        G[:, diagonal, diagonal] += add[:, self._kept]
-        Ta = self.T[:, 2 * n:3 * n, :]
-        G += Ta.transpose(0, 2, 1) @ (add[:, 2 * n:3 * n, None] * Ta)
+            self._G_buffers = (np.empty_like(self._plain_G), np.empty_like(self._plain_G))
+        G = self._G_buffers[self.G is self._G_buffers[0]]
+        diagonal_hessians(self._plain_G, self.T,
+                          np.ascontiguousarray(add).reshape(self.T.shape[0], self.L.nz),
+                          self.L.n, G)
         return G
 
     def diagonal_gradients(self, add, g):
