@@ -62,6 +62,26 @@ def test_a_small_robot_gets_traced_code_and_a_long_chain_the_loops(tmp_path):
     assert "#define LG_LEAN_QDD 0" in long_source and "#define LG_TREE_JOINTS 1" in long_source
 
 
+def test_the_traced_functions_are_units_of_their_own_where_they_are_called():
+    """A robot's module compiles its traced q̈ and node records apart from unit 0 (side by side);
+    a unit compiled on first use without the rhs (the residual's Hessian) keeps q̈ static in
+    unit 0, where the compiler drops it, and compiles the node records apart."""
+    from lagrgen.build import derived, model_info
+    from lagrgen.codegen.c_model import model_source, traced_unit_numbers, translation_units
+    from lagrgen.functions import MODEL_UNIT, functions_of
+    model = lagrgen.from_urdf(ARM, name="arm_units")
+    spec = model.spec()
+    equations = derived(spec)
+    info = model_info(spec, equations, formulation="recursive")
+    whole = model_source(info, equations, functions=functions_of(MODEL_UNIT))
+    assert traced_unit_numbers(whole) == {1, 2} and translation_units(whole) == 2
+    assert "LG_FN LG_PART_FN int lg_lean_qdd(double t" in whole
+    hessian = model_source(info, equations, functions=functions_of("hessian"))
+    assert traced_unit_numbers(hessian) == {1} and translation_units(hessian) == 1
+    assert "LG_FN static int lg_lean_qdd(double t" in hessian
+    assert "LG_FN LG_PART_FN int lg_tree_nodes(double t" in hessian
+
+
 def test_the_traced_code_and_the_loops_agree(arms):
     lean, loops, python = arms
     n = lean.n_coordinates

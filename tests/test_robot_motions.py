@@ -327,7 +327,8 @@ def swing_qp_at_optimum(swing):
 @pytest.mark.filterwarnings("ignore", category=DiscretizationWarning)
 def test_a_points_costs_with_a_diagonal_added_are_the_eliminated_blocks(swing):
     """diagonal_costs / diagonal_gradients (TᵀWT formed once, the diagonal's terms added) equal
-    Tᵀ·(W + diag(add))·T and Tᵀ·((W + diag(add))·t + g) formed whole."""
+    Tᵀ·(W + diag(add))·T and Tᵀ·((W + diag(add))·t + g) formed whole; the G of the last factor
+    is never the buffer the next diagonal_costs writes."""
     _, lin, qp = swing_qp_at_optimum(swing)
     rng = np.random.default_rng(3)
     P, nz = lin.W.shape[:2]
@@ -339,6 +340,12 @@ def test_a_points_costs_with_a_diagonal_added_are_the_eliminated_blocks(swing):
         scale = np.abs(G).max()
         assert np.abs(qp.diagonal_costs(add) - G).max() < 1e-12 * scale
         assert np.allclose(qp.diagonal_gradients(add, g), gamma, rtol=1e-12, atol=1e-12 * scale)
+    factored = qp.diagonal_costs(np.full(P * nz, 10.0))     # positive definite along the inputs
+    kept = factored.copy()
+    assert qp.factor(factored)
+    for _ in range(3):                  # the next G is never written over the factored one
+        assert qp.diagonal_costs(rng.uniform(0, 1e3, P * nz)) is not qp.G
+        assert qp.G is factored and np.array_equal(qp.G, kept)
 
 
 @pytest.mark.filterwarnings("ignore", category=DiscretizationWarning)
