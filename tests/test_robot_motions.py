@@ -579,9 +579,10 @@ def test_an_arms_refined_meshes_by_the_sqp_converge_on_the_interior_points_multi
     to fail: what Talos's refined meshes do), with its multipliers of every bound (μ/s on the
     inactive ones): the SQP converges to tol on the refined meshes (before, its stationarity
     residual stalled at the size of the multipliers it dropped), at IPOPT's optimum. A mesh
-    after one whose QPs were taken as they stood takes them so from its first (purify=False)."""
+    after one whose QPs were taken as they stood takes them so from its first (purify=False),
+    and after a QP taken so the active set is not tried again."""
     from lagrgen.collocation import sqp
-    interior, purifies = [], []
+    interior, purifies, events = [], [], []
     sqp_solve = sqp.solve
 
     def recorded(*args, **kwargs):
@@ -589,10 +590,12 @@ def test_an_arms_refined_meshes_by_the_sqp_converge_on_the_interior_points_multi
         return sqp_solve(*args, **kwargs)
 
     def unsettled(*args, **kwargs):
+        events.append("active")
         raise sqp.Unsupported("the QP's active set did not settle")
 
     def spied(*args, **kwargs):
         interior.append(sqp_interior(*args, **kwargs))
+        events.append(interior[-1])
         return interior[-1]
     sqp_interior = sqp.solve_qp_interior
     model = lagrgen.from_urdf(ARM, name="motions_arm", joint_dynamics=False)
@@ -615,6 +618,8 @@ def test_an_arms_refined_meshes_by_the_sqp_converge_on_the_interior_points_multi
     assert all(qp.z_all is not None for qp in interior)
     assert sum(qp.as_left for qp in interior) >= 4       # not far from the solution: to tol
     assert len(purifies) == len(auto.meshes) - 1 and purifies[0] and not any(purifies[1:])
+    first = next(i for i, e in enumerate(events) if e != "active" and e.as_left)
+    assert "active" not in events[first + 2:]     # after its purification failed: none tried
     assert abs(auto.objective - ipopt.objective) < 1e-7 * ipopt.objective
     assert auto.error <= 1e-5
 
@@ -646,6 +651,20 @@ def test_an_active_set_is_abandoned_only_when_its_changes_do_not_shrink_fast_eno
     assert not _hopeless(61, 105, 17)                  # ×0.58 a pass: ~8 more
     assert not _hopeless(HOPELESS_FEW, 4 * HOPELESS_FEW, 1)
     assert not _hopeless(1774, np.inf, 19)             # the first pass
+
+
+def test_an_interior_points_set_is_made_exact_while_its_changes_shrink_on_average():
+    """_hopeless_on_average (the interior point's set made exact): Talos's 615-node mesh, whose
+    set had not settled after 20 passes, is given up by its third; a set settling with one pass
+    that changes more than the one before goes on."""
+    from lagrgen.collocation.sqp import SETTLING_PASSES, _hopeless_on_average
+    talos = [1485, 840, 792, 582, 460, 349, 353, 289, 289, 206]
+    verdicts = [_hopeless_on_average(now, talos[0], k, SETTLING_PASSES - k)
+                for k, now in enumerate(talos, 1)]
+    assert verdicts.index(True) <= 2
+    settling = [300, 120, 150, 45, 12, 3]
+    assert not any(_hopeless_on_average(now, settling[0], k, SETTLING_PASSES - k)
+                   for k, now in enumerate(settling, 1))
 
 
 @pytest.mark.filterwarnings("ignore", category=DiscretizationWarning)
