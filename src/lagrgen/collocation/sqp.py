@@ -568,9 +568,10 @@ class StructuredQP:
         pts = st.points
         count = pts.shape[0]
         rows_z = np.zeros((count, pts.shape[1], L.nz))            # Σ_r ζ_r·a_r per place
-        if row_z is not None and row_z.size:
+        rows_y = np.zeros((count, pts.shape[1], self.ny))
+        if row_z is not None and np.any(row_z):
             scatter_add(rows_z, self.rows.interval, row_z[:, None, None] * self.rows.coef)
-        rows_y = (self.T[pts].transpose(0, 1, 3, 2) @ rows_z[..., None])[..., 0]
+            rows_y = (self.T[pts].transpose(0, 1, 3, 2) @ rows_z[..., None])[..., 0]
         grad_y = (self.G @ y[:, :, None])[:, :, 0] + self.gamma   # ∂(cost)/∂y at the point
         later = []
         for p in range(1, self.later + 1):
