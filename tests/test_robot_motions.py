@@ -363,7 +363,7 @@ def test_the_qps_regularization_is_the_least_that_serves_from_any_last_one(swing
     grid = [0.0] + [sqp.FIRST_REGULARIZATION * sqp.GROWTH ** k for k in range(13)]
     least = next(delta for delta in grid if qp.factor(G, delta))
     assert least > 1e-6, least                            # not convex: it needs one
-    reference = qp.factored()
+    reference = [np.copy(a) for a in qp.factored()]
     qp.vectors(qp.point_costs(W, lin.g)[1])
     steps = qp.solve()
 

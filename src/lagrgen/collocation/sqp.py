@@ -165,8 +165,9 @@ class Stages:
             tr.defect_entry_scale * tr.problem.duration_bounds[0]
         k = rows // per
         point = cols // nz
-        D = np.zeros((intervals, stride + 1, per, nz))
-        np.add.at(D, (k, point - k * stride, rows % per, cols % nz), values)
+        shape = (intervals, stride + 1, per, nz)
+        place = np.ravel_multi_index((k, point - k * stride, rows % per, cols % nz), shape)
+        D = np.bincount(place, values, minlength=int(np.prod(shape))).reshape(shape)
         points = (np.arange(intervals)[:, None] * stride
                   + np.arange(stride + 1)[None, :]).astype(np.int64)
         return cls(D, points, per)
@@ -228,8 +229,9 @@ class Rows:
     def of(cls, tr):
         L, E = tr.layout, tr.E
         interval, position = cls._places(tr)
-        coef = np.zeros((E.shape[0], L.stride + 1, L.nz))
-        np.add.at(coef, (E.rows, position, E.cols % L.nz), E.values)
+        shape = (E.shape[0], L.stride + 1, L.nz)
+        place = np.ravel_multi_index((E.rows, position, E.cols % L.nz), shape)
+        coef = np.bincount(place, E.values, minlength=int(np.prod(shape))).reshape(shape)
         return cls(interval, coef, tr.e_lo, tr.e_hi, np.arange(E.shape[0]))
 
 
@@ -344,6 +346,7 @@ class StructuredQP:
         self.nx, self.ny = 2 * n, 2 * n + nu
         self._eliminate_accelerations()
         self._plain_G, self._Wt, self.G = None, None, None
+        self._stage_Q, self._factors, self.P = None, None, None
         self._kept = np.r_[0:2 * n, 3 * n:3 * n + nu]      # T's identity rows: states, inputs
         self.interval_maps()
         self.row_maps()
@@ -479,12 +482,23 @@ class StructuredQP:
     def factor(self, G, regularize=0.0, row_weights=None):
         """The backward Riccati pass of the matrices for the point Hessians G (`_riccati.factor`)
         and the rows' terms w_r·[α; β]·[α; β]ᵀ in their stages, the inputs' Hessians plus
-        regularize·1. False when one is not positive definite (the QP not convex along them)."""
+        regularize·1. False when one is not positive definite (the QP not convex along them),
+        and the last factor kept. The QP keeps two sets of the factor's arrays and writes the
+        one the last factor does not hold (fresh arrays cost Talos's 735-node mesh 66 MB of
+        page faults a factor)."""
         pts = self.stages.points
         count, ny, nv = pts.shape[0], self.ny, self.nv
         G = np.ascontiguousarray(G)
-        Qxx, Qxv, Qvv = np.empty((count, ny, ny)), np.zeros((count, ny, nv)), \
-            np.zeros((count, nv, nv))
+        if self._stage_Q is None:
+            self._stage_Q = (np.zeros((count, ny, ny)), np.zeros((count, ny, nv)),
+                             np.zeros((count, nv, nv)))
+            self._factors = [tuple(np.zeros(shape) for shape in
+                                   ((count + 1, ny, ny), (count, ny, nv), (count, nv, nv),
+                                    (count, nv, ny))) for _ in range(2)]
+        Qxx, Qxv, Qvv = self._stage_Q
+        if not self.inner_C.shape[0]:       # stage_hessians writes Qxv, Qvv from inner points
+            Qxv.fill(0.0)
+            Qvv.fill(0.0)
         stage_hessians(G, pts, self.inner_C, self.inner_E, Qxx, Qxv, Qvv, self.nx)
         if row_weights is not None and np.any(row_weights):
             w = self.rows.padded(row_weights, count)[:, :, None]
@@ -492,16 +506,13 @@ class StructuredQP:
             Qxx += alpha_t @ (w * self.alpha_pad)
             Qxv += alpha_t @ (w * self.beta_pad)
             Qvv += self.beta_pad.transpose(0, 2, 1) @ (w * self.beta_pad)
-        self.P = np.zeros((count + 1, ny, ny))
-        self.Hxv = np.zeros((count, ny, nv))
-        self.chol = np.zeros((count, nv, nv))
-        self.gain = np.zeros((count, nv, ny))
+        P, Hxv, chol, gain = self._factors[self.P is self._factors[0][0]]
         status = riccati_factor(Qxx, Qxv, Qvv, self.A, self.B,
                                 np.ascontiguousarray(G[pts[-1, -1]]), float(regularize),
-                                self.P, self.Hxv, self.chol, self.gain, self.nx)
+                                P, Hxv, chol, gain, self.nx)
         if status:
             return False
-        self.G = G
+        self.P, self.Hxv, self.chol, self.gain, self.G = P, Hxv, chol, gain, G
         return True
 
     def factored(self):
