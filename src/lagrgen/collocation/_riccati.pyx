@@ -71,6 +71,14 @@ cdef inline void gemm_ld(const double *A, int lda, const double *B, int ldb, dou
           &beta, C, &ldc)
 
 
+cdef double *scratch(Py_ssize_t count) except NULL:
+    """A work array of `count` doubles (at least one), to free."""
+    cdef double *out = <double *>malloc((count + 1) * sizeof(double))
+    if out == NULL:
+        raise MemoryError()
+    return out
+
+
 cdef inline void add_block(double *C, int ldc, const double *A, int lda, int m,
                            int n) noexcept nogil:
     """C += A for m×n blocks of row-major matrices, each row `ld` apart (a stage's identity
@@ -202,34 +210,42 @@ def diagonal_hessians(const double[:, :, ::1] G0, const double[:, :, ::1] T,
     """G_j = G0_j + T_jᵀ·diag(add_j)·T_j of every point j, for the T of `point_hessians` whose
     rows other than the accelerations' [2n, 3n) are an identity's (y's states and inputs): add
     on G0's diagonal, plus Ta_jᵀ·diag(a_j)·Ta_j over the acceleration rows whose a is not 0."""
-    cdef int count = T.shape[0], ny = T.shape[2], j, i, r, rank
-    cdef double a
-    cdef double *S = <double *>malloc((n * ny + 1) * sizeof(double))
-    cdef double *Ta = <double *>malloc((n * ny + 1) * sizeof(double))
-    if S == NULL or Ta == NULL:
+    cdef int ny = T.shape[2]
+    cdef double *S = NULL
+    cdef double *Ta = NULL
+    try:
+        S = scratch(n * ny)
+        Ta = scratch(n * ny)
+        with nogil:
+            _diagonal_hessians(G0, T, add, n, G, S, Ta)
+    finally:
         free(S)
         free(Ta)
-        raise MemoryError()
-    with nogil:
-        for j in range(count):
-            memcpy(&G[j, 0, 0], &G0[j, 0, 0], ny * ny * sizeof(double))
-            for i in range(2 * n):
-                G[j, i, i] += add[j, i]
-            for i in range(2 * n, ny):
-                G[j, i, i] += add[j, n + i]
-            rank = 0
-            for r in range(n):
-                a = add[j, 2 * n + r]
-                if a != 0.0:
-                    for i in range(ny):
-                        Ta[rank * ny + i] = T[j, 2 * n + r, i]
-                        S[rank * ny + i] = a * T[j, 2 * n + r, i]
-                    rank += 1
-            if rank:
-                gemm(Ta, S, &G[j, 0, 0], ny, rank, ny, True, True)
-    free(S)
-    free(Ta)
     return None
+
+
+cdef void _diagonal_hessians(const double[:, :, ::1] G0, const double[:, :, ::1] T,
+                             const double[:, ::1] add, int n, double[:, :, ::1] G, double *S,
+                             double *Ta) noexcept nogil:
+    """`diagonal_hessians` with its scratch S and Ta (n × ny each)."""
+    cdef int count = T.shape[0], ny = T.shape[2], j, i, r, rank
+    cdef double a
+    for j in range(count):
+        memcpy(&G[j, 0, 0], &G0[j, 0, 0], ny * ny * sizeof(double))
+        for i in range(2 * n):
+            G[j, i, i] += add[j, i]
+        for i in range(2 * n, ny):
+            G[j, i, i] += add[j, n + i]
+        rank = 0
+        for r in range(n):
+            a = add[j, 2 * n + r]
+            if a != 0.0:
+                for i in range(ny):
+                    Ta[rank * ny + i] = T[j, 2 * n + r, i]
+                    S[rank * ny + i] = a * T[j, 2 * n + r, i]
+                rank += 1
+        if rank:
+            gemm(Ta, S, &G[j, 0, 0], ny, rank, ny, True, True)
 
 
 def stage_hessians(const double[:, :, ::1] G, const cnp.int64_t[:, ::1] points,
