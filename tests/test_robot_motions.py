@@ -220,8 +220,9 @@ def test_the_structured_qp_is_the_kkt_solution(swing):
 def test_the_riccati_factor_skips_a_stages_input_rows_exactly():
     """_riccati.factor with `states` s (A's rows from s on 0, B's [0 1]: a collocation stage's
     end inputs are its own) equals the full products and the recursion written out in NumPy:
-    H = Q + [A B]ᵀ·P·[A B], gain = −Hvv⁻¹·Hvx, P = Hxx + Hxv·gain."""
-    from lagrgen.collocation._riccati import factor
+    H = Q + [A B]ᵀ·P·[A B], gain = −Hvv⁻¹·Hvx, P = Hxx + Hxv·gain; so do the vectors' pass
+    and the forward pass (b's rows from s on 0)."""
+    from lagrgen.collocation._riccati import factor, forward, vectors
     rng = np.random.default_rng(7)
     K, s, m, nv = 5, 6, 3, 6
     nx = s + m
@@ -242,23 +243,48 @@ def test_the_riccati_factor_skips_a_stages_input_rows_exactly():
         assert factor(Qxx, Qxv, Qvv, A, B, end, 0.0, *out, states) == 0
         return out
     skipped, full = factored(s), factored(-1)
-    P = end
+    P, Hk_vv = end, {}
     for k in range(K - 1, -1, -1):
         AB = np.concatenate([A[k], B[k]], axis=1)
         Hk = H[k] + AB.T @ P @ AB
+        Hk_vv[k] = Hk[nx:, nx:]
         gain = -np.linalg.solve(Hk[nx:, nx:], Hk[nx:, :nx])
         assert np.allclose(full[3][k], gain, rtol=1e-10, atol=1e-12)
         P = Hk[:nx, :nx] + Hk[:nx, nx:] @ gain
         assert np.allclose(full[0][k], P, rtol=1e-10, atol=1e-10)
     for a, b in zip(skipped, full):
         assert np.allclose(a, b, rtol=1e-12, atol=1e-12 * np.abs(b).max())
+    P, Hxv, chol, gain = full
+    qx, qv, b = rng.normal(size=(K, nx)), rng.normal(size=(K, nv)), np.zeros((K, nx))
+    b[:, :s] = rng.normal(size=(K, s))
+    p_end, X0 = rng.normal(size=nx), rng.normal(size=nx)
+
+    def passes(states):
+        p, ff = np.zeros((K + 1, nx)), np.zeros((K, nv))
+        vectors(qx, qv, A, B, b, p_end, P, Hxv, chol, p, ff, states)
+        X, v = np.zeros((K + 1, nx)), np.zeros((K, nv))
+        forward(X0, A, B, b, gain, ff, X, v, states)
+        return p, ff, X, v
+    (p, ff, X, v), again = passes(-1), passes(s)
+    for a, b_ in zip(again, (p, ff, X, v)):
+        assert np.allclose(a, b_, rtol=1e-12, atol=1e-12 * np.abs(b_).max())
+    p_next = p_end                          # V_k's linear term: p = hx + Hxv·ff, hv = qv + Bᵀ·l
+    for k in range(K - 1, -1, -1):
+        lin = P[k + 1] @ b[k] + p_next
+        hv = qv[k] + B[k].T @ lin
+        assert np.allclose(ff[k], -np.linalg.solve(Hk_vv[k], hv), rtol=1e-10, atol=1e-12)
+        p_next = qx[k] + A[k].T @ lin + Hxv[k] @ ff[k]
+        assert np.allclose(p[k], p_next, rtol=1e-10, atol=1e-10)
+    for k in range(K):
+        assert np.allclose(v[k], gain[k] @ X[k] + ff[k], rtol=1e-12, atol=1e-12)
+        assert np.allclose(X[k + 1], A[k] @ X[k] + B[k] @ v[k] + b[k], rtol=1e-12, atol=1e-12)
 
 
 def test_the_stage_hessians_skip_the_inner_points_input_rows_exactly():
     """_riccati.stage_hessians with `states` s (C's rows from s on 0, E's the identity's rows
     of each inner point's block of v) equals the full products and Q = G_s + Σ [C E]ᵀ·G·[C E]
-    written out in NumPy."""
-    from lagrgen.collocation._riccati import stage_hessians
+    written out in NumPy; so does stage_gradients (e's rows from s on 0)."""
+    from lagrgen.collocation._riccati import stage_gradients, stage_hessians
     rng = np.random.default_rng(11)
     K, s, m, inner = 4, 5, 2, 2
     ny, nv = s + m, 3 * m
@@ -276,6 +302,21 @@ def test_the_stage_hessians_skip_the_inner_points_input_rows_exactly():
         stage_hessians(G, points, C, E, *out, states)
         return out
     skipped, full = staged(s), staged(-1)
+    gamma, e = rng.normal(size=(points.size, ny)), np.zeros((inner, K, ny))
+    e[:, :, :s] = rng.normal(size=(inner, K, s))
+
+    def gradients(states):
+        out = np.zeros((K, ny)), np.zeros((K, nv))
+        stage_gradients(G, gamma, points, C, E, e, *out, states)
+        return out
+    for got, full_ in zip(gradients(s), gradients(-1)):
+        assert np.allclose(got, full_, rtol=1e-12, atol=1e-12 * np.abs(full_).max())
+    qx, qv = gradients(s)
+    for k in range(K):
+        lin = [G[points[k, p + 1]] @ e[p, k] + gamma[points[k, p + 1]] for p in range(inner)]
+        assert np.allclose(qx[k], gamma[points[k, 0]] + sum(C[p, k].T @ lin[p]
+                                                           for p in range(inner)))
+        assert np.allclose(qv[k], sum(E[p, k].T @ lin[p] for p in range(inner)))
     for k in range(K):
         Q = np.zeros((ny + nv, ny + nv))
         Q[:ny, :ny] = G[points[k, 0]]

@@ -286,11 +286,13 @@ def stage_hessians(const double[:, :, ::1] G, const cnp.int64_t[:, ::1] points,
 def stage_gradients(const double[:, :, ::1] G, const double[:, ::1] gamma,
                     const cnp.int64_t[:, ::1] points, const double[:, :, :, ::1] C,
                     const double[:, :, :, ::1] E, const double[:, :, ::1] e,
-                    double[:, ::1] qx, double[:, ::1] qv):
-    """Each stage's gradient in (X, v) from its points' Hessians G and gradients γ in y (the
-    `stage_hessians` arrangement, y = C·X + E·v + e at an inner point): qx = γ_s + Σ Cᵀ·(G·e + γ),
-    qv = Σ Eᵀ·(G·e + γ)."""
+                    double[:, ::1] qx, double[:, ::1] qv, int states=-1):
+    """Each stage's gradient in (X, v) from its points' Hessians G (symmetric) and gradients γ
+    in y (the `stage_hessians` arrangement, y = C·X + E·v + e at an inner point):
+    qx = γ_s + Σ Cᵀ·(G·e + γ), qv = Σ Eᵀ·(G·e + γ). `states` s ≥ 0: as `stage_hessians`', and
+    e's rows from s on are 0."""
     cdef int K = qx.shape[0], ny = qx.shape[1], nv = qv.shape[1], inner = C.shape[0], k, p, i
+    cdef int s = ny if states < 0 else states, m = ny - s
     cdef double *lin = <double *>malloc((ny + 1) * sizeof(double))
     if lin == NULL:
         raise MemoryError()
@@ -301,10 +303,12 @@ def stage_gradients(const double[:, :, ::1] G, const double[:, ::1] gamma,
                 qv[k, i] = 0.0
             for p in range(inner):
                 memcpy(lin, &gamma[points[k, p + 1], 0], ny * sizeof(double))
-                matmul(&G[points[k, p + 1], 0, 0], &e[p, k, 0], lin, ny, ny, 1, False, False,
+                matmul(&G[points[k, p + 1], 0, 0], &e[p, k, 0], lin, ny, s, 1, True, False,
                        True)
-                matmul(&C[p, k, 0, 0], lin, &qx[k, 0], ny, ny, 1, True, False, True)
-                matmul(&E[p, k, 0, 0], lin, &qv[k, 0], nv, ny, 1, True, False, True)
+                matmul(&C[p, k, 0, 0], lin, &qx[k, 0], ny, s, 1, True, False, True)
+                matmul(&E[p, k, 0, 0], lin, &qv[k, 0], nv, s, 1, True, False, True)
+                for i in range(m):
+                    qv[k, p * m + i] += lin[s + i]
     free(lin)
     return None
 
@@ -376,9 +380,11 @@ def factor(const double[:, :, ::1] Qxx, const double[:, :, ::1] Qxv,
 def vectors(const double[:, ::1] qx, const double[:, ::1] qv, const double[:, :, ::1] A,
             const double[:, :, ::1] B, const double[:, ::1] b, const double[::1] p_end,
             const double[:, :, ::1] P, const double[:, :, ::1] Hxv,
-            const double[:, :, ::1] chol, double[:, ::1] p, double[:, ::1] ff):
-    """The backward pass of the vectors after `factor`: p (K+1, nx), ff (K, nv)."""
+            const double[:, :, ::1] chol, double[:, ::1] p, double[:, ::1] ff, int states=-1):
+    """The backward pass of the vectors after `factor`: p (K+1, nx), ff (K, nv). `states` s ≥ 0:
+    as `factor`'s, and b's rows from s on are 0 (P, symmetric, read by its first s rows)."""
     cdef int K = qx.shape[0], nx = qx.shape[1], nv = qv.shape[1], k, i
+    cdef int s = nx if states < 0 else states, m = nx - s
     cdef double *lin = <double *>malloc((nx + 1) * sizeof(double))
     cdef double *h = <double *>malloc((nx + nv + 1) * sizeof(double))
     if lin == NULL or h == NULL:
@@ -389,15 +395,17 @@ def vectors(const double[:, ::1] qx, const double[:, ::1] qv, const double[:, :,
         for i in range(nx):
             p[K, i] = p_end[i]
         for k in range(K - 1, -1, -1):
-            matmul(&P[k + 1, 0, 0], &b[k, 0], lin, nx, nx, 1, False, False, False)
+            matmul(&P[k + 1, 0, 0], &b[k, 0], lin, nx, s, 1, True, False, False)
             for i in range(nx):
                 lin[i] += p[k + 1, i]
             for i in range(nx):
                 h[i] = qx[k, i]
             for i in range(nv):
                 h[nx + i] = qv[k, i]
-            matmul(&A[k, 0, 0], lin, h, nx, nx, 1, True, False, True)
-            matmul(&B[k, 0, 0], lin, h + nx, nv, nx, 1, True, False, True)
+            matmul(&A[k, 0, 0], lin, h, nx, s, 1, True, False, True)
+            matmul(&B[k, 0, 0], lin, h + nx, nv, s, 1, True, False, True)
+            for i in range(m):
+                h[nx + nv - m + i] += lin[s + i]
             for i in range(nv):
                 ff[k, i] = -h[nx + i]
             cho_solve(&chol[k, 0, 0], &ff[k, 0], nv, 1)
@@ -411,9 +419,11 @@ def vectors(const double[:, ::1] qx, const double[:, ::1] qv, const double[:, :,
 
 def forward(const double[::1] X0, const double[:, :, ::1] A, const double[:, :, ::1] B,
             const double[:, ::1] b, const double[:, :, ::1] gain, const double[:, ::1] ff,
-            double[:, ::1] X, double[:, ::1] v):
-    """The forward pass from X_0: v_k = gain_k·X_k + ff_k, X_{k+1} = A_k·X_k + B_k·v_k + b_k."""
+            double[:, ::1] X, double[:, ::1] v, int states=-1):
+    """The forward pass from X_0: v_k = gain_k·X_k + ff_k, X_{k+1} = A_k·X_k + B_k·v_k + b_k.
+    `states` s ≥ 0: as `factor`'s, and b's rows from s on are 0."""
     cdef int K = A.shape[0], nx = A.shape[1], nv = B.shape[2], k, i
+    cdef int s = nx if states < 0 else states, m = nx - s
     with nogil:
         for i in range(nx):
             X[0, i] = X0[i]
@@ -421,8 +431,10 @@ def forward(const double[::1] X0, const double[:, :, ::1] A, const double[:, :, 
             for i in range(nv):
                 v[k, i] = ff[k, i]
             matmul(&gain[k, 0, 0], &X[k, 0], &v[k, 0], nv, nx, 1, False, False, True)
-            for i in range(nx):
+            for i in range(s):
                 X[k + 1, i] = b[k, i]
-            matmul(&A[k, 0, 0], &X[k, 0], &X[k + 1, 0], nx, nx, 1, False, False, True)
-            matmul(&B[k, 0, 0], &v[k, 0], &X[k + 1, 0], nx, nv, 1, False, False, True)
+            matmul(&A[k, 0, 0], &X[k, 0], &X[k + 1, 0], s, nx, 1, False, False, True)
+            matmul(&B[k, 0, 0], &v[k, 0], &X[k + 1, 0], s, nv, 1, False, False, True)
+            for i in range(m):
+                X[k + 1, s + i] = v[k, nv - m + i]
     return None

@@ -528,7 +528,8 @@ class StructuredQP:
         pts, count = self.stages.points, self.stages.points.shape[0]
         gamma = np.ascontiguousarray(gamma)
         qx, qv = np.empty((count, self.ny)), np.empty((count, self.nv))
-        stage_gradients(self.G, gamma, pts, self.inner_C, self.inner_E, self.inner_e, qx, qv)
+        stage_gradients(self.G, gamma, pts, self.inner_C, self.inner_E, self.inner_e, qx, qv,
+                        self.nx)
         if row_gradients is not None and np.any(row_gradients):
             gr = self.rows.padded(row_gradients, count)[:, :, None]
             qx += (self.alpha_pad.transpose(0, 2, 1) @ gr)[:, :, 0]
@@ -537,7 +538,7 @@ class StructuredQP:
         self.ff = np.zeros((count, self.nv))
         riccati_vectors(qx, qv, self.A, self.B, self.b,
                          np.ascontiguousarray(gamma[pts[-1, -1]]), self.P, self.Hxv, self.chol,
-                         self.p, self.ff)
+                         self.p, self.ff, self.nx)
         self.gamma = gamma
 
     def solve(self):
@@ -551,7 +552,7 @@ class StructuredQP:
         count = pts.shape[0]
         X, v = np.zeros((count + 1, self.ny)), np.zeros((count, self.nv))
         riccati_forward(np.ascontiguousarray(X0), self.A, self.B, self.b, self.gain, self.ff,
-                        X, v)
+                        X, v, self.nx)
         self.X, self.v = X, v
         y = np.zeros((self.L.points, self.ny))
         y[pts[:, 0]] = X[:-1]
