@@ -173,17 +173,19 @@ def traced_units(functions, after):
                    for k, f in enumerate(functions, 1))
 
 
+#: A unit's guard in `<name>_model.c`: its number, and whether it holds a traced function.
+UNIT_GUARD = re.compile(r"^#if LG_IN_TU\((\d+)\)( /\* traced \*/)?$", re.M)
+
+
 def translation_units(model_c):
     """The number of separately compilable units in a `<name>_model.c` text besides unit 0 (the
     kernels' parts and the traced functions; 0: none)."""
-    return max((int(k) for k in re.findall(r"^#if LG_IN_TU\((\d+)\)(?: /\* traced \*/)?$",
-                                           model_c, re.M)), default=0)
+    return max((int(k) for k, _ in UNIT_GUARD.findall(model_c)), default=0)
 
 
 def traced_unit_numbers(model_c):
     """The units of a `<name>_model.c` text that hold a traced function (`traced_units`)."""
-    return {int(k) for k in re.findall(r"^#if LG_IN_TU\((\d+)\) /\* traced \*/$", model_c,
-                                       re.M)}
+    return {int(k) for k, traced in UNIT_GUARD.findall(model_c) if traced}
 
 
 def signature(function):

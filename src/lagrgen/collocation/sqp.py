@@ -346,7 +346,7 @@ class StructuredQP:
         self.nx, self.ny = 2 * n, 2 * n + nu
         self._eliminate_accelerations()
         self._plain_G, self._Wt, self.G = None, None, None
-        self._stage_Q, self._factors, self.P = None, None, None
+        self._G_buffers, self._stage_Q, self._factors, self.P = None, None, None, None
         self._kept = np.r_[0:2 * n, 3 * n:3 * n + nu]      # T's identity rows: states, inputs
         self.interval_maps()
         self.row_maps()
@@ -400,7 +400,7 @@ class StructuredQP:
         if self._plain_G is None:
             self._plain_G = self.eliminated_hessians(self.lin.W)
             self._G_buffers = (np.empty_like(self._plain_G), np.empty_like(self._plain_G))
-        G = self._G_buffers[self.G is self._G_buffers[0]]
+        G = _unheld(self._G_buffers, self.G)
         diagonal_hessians(self._plain_G, self.T,
                           np.ascontiguousarray(add).reshape(self.T.shape[0], self.L.nz),
                           self.L.n, G)
@@ -506,7 +506,7 @@ class StructuredQP:
             Qxx += alpha_t @ (w * self.alpha_pad)
             Qxv += alpha_t @ (w * self.beta_pad)
             Qvv += self.beta_pad.transpose(0, 2, 1) @ (w * self.beta_pad)
-        P, Hxv, chol, gain = self._factors[self.P is self._factors[0][0]]
+        P, Hxv, chol, gain = _unheld(self._factors, self.P, lambda arrays: arrays[0])
         status = riccati_factor(Qxx, Qxv, Qvv, self.A, self.B,
                                 np.ascontiguousarray(G[pts[-1, -1]]), float(regularize),
                                 P, Hxv, chol, gain, self.nx)
@@ -516,11 +516,8 @@ class StructuredQP:
         return True
 
     def factored(self):
-        """The state of the last successful `factor` (to `restore` after a failed one)."""
+        """The arrays of the last successful `factor`: P, Hxv, chol, gain, G."""
         return self.P, self.Hxv, self.chol, self.gain, self.G
-
-    def restore(self, factored):
-        self.P, self.Hxv, self.chol, self.gain, self.G = factored
 
     def vectors(self, gamma, row_gradients=None):
         """The backward pass of the affine parts for the point gradients γ and the rows' terms
@@ -604,6 +601,11 @@ class StructuredQP:
         return mu, nu_
 
 
+def _unheld(pair, held, first=lambda arrays: arrays):
+    """The one of two alternating buffers whose array (`first` of it) is not `held`."""
+    return pair[first(pair[0]) is held]
+
+
 @dataclass
 class QPResult:
     dz: np.ndarray          # (P, nz) the step
@@ -619,8 +621,9 @@ class QPResult:
 def solve_qp(tr, stages, rows, lin, active, inertia=None, tol=1e-10, passes=ACTIVE_PASSES,
              loose=False, purify=True):
     """The QP of `lin`: by the active set when it settles within `passes` (a warm start's
-    set, updated in place; 0: not tried), else by the interior point (`solve_qp_interior`), to LOOSE_TOL and
-    as it stands when `loose` (a step far from the solution, which the next ones correct), else
+    set, updated in place; 0: not tried), else by the interior point (`solve_qp_interior`),
+    to LOOSE_TOL and as it stands when `loose` (a step far from the solution, which the next
+    ones correct), else
     to its tolerance and made exact (`_purified`) when `purify`, or as it stands with its
     multipliers; the inputs' Hessians regularized where they are not positive definite
     (`inertia`, an `Inertia`, keeps the last regularization). `QPResult`."""
@@ -693,11 +696,9 @@ def _factored(qp, G, inertia, row_weights=None):
         return 0.0
     delta = max(inertia.last, FIRST_REGULARIZATION)
     if qp.factor(G, delta, row_weights):
-        factored = qp.factored()
         while delta / GROWTH >= FIRST_REGULARIZATION * (1 - 1e-9) and \
-                qp.factor(G, delta / GROWTH, row_weights):
-            delta, factored = delta / GROWTH, qp.factored()
-        qp.restore(factored)
+                qp.factor(G, delta / GROWTH, row_weights):      # a failed one keeps the last
+            delta /= GROWTH
     else:
         while True:
             delta *= GROWTH
