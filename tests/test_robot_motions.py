@@ -575,16 +575,22 @@ def test_an_arms_replans_by_the_sqp_converge_where_its_joints_ride_their_limits(
     """The seven-joint arm's re-plans of a move on which every joint rides its velocity limit:
     the QPs whose active sets do not settle go to the interior point, whose solution is then
     made exact by the active set it identified (or, far from the solution, taken as the interior
-    point leaves it at a loose tolerance); each re-plan by the SQP converges to tol (no flat
-    stop, no failed step handed to IPOPT) at IPOPT's optimum from the same start."""
+    point leaves it at a loose tolerance, the active set not tried there nor in the step after);
+    each re-plan by the SQP converges to tol (no flat stop, no failed step handed to IPOPT) at
+    IPOPT's optimum from the same start."""
     from lagrgen.collocation import sqp
-    tolerances, interior = [], sqp.solve_qp_interior
+    tolerances, interior, qps, solve_qp = [], sqp.solve_qp_interior, [], sqp.solve_qp
 
     def spied(qp, lin, active, inertia, tol=1e-9, **kwargs):
         tolerances.append(tol)
         return interior(qp, lin, active, inertia, tol, **kwargs)
 
+    def recorded(*args, passes=sqp.ACTIVE_PASSES, loose=False, **kwargs):
+        qps.append((passes, loose))
+        return solve_qp(*args, passes=passes, loose=loose, **kwargs)
+
     monkeypatch.setattr(sqp, "solve_qp_interior", spied)
+    monkeypatch.setattr(sqp, "solve_qp", recorded)
     model = lagrgen.from_urdf(ARM, name="motions_arm", joint_dynamics=False)
     mod = lagrgen.build(model, out_dir=out_dir)
     n = mod.n_coordinates
@@ -610,6 +616,10 @@ def test_an_arms_replans_by_the_sqp_converge_where_its_joints_ride_their_limits(
         assert abs(by_sqp.objective - by_ipopt.objective) < 1e-7 * by_ipopt.objective
         last = by_ipopt
     assert sqp.LOOSE_TOL in tolerances
+    loose = [k for k, (_, far) in enumerate(qps) if far]      # a solve never ends on one
+    assert loose and all(qps[k][0] == 0 for k in loose)
+    assert all(qps[k + 1][0] == 0 for k in loose)
+    assert any(passes > 0 for passes, _ in qps)
 
 
 @pytest.mark.filterwarnings("ignore", category=DiscretizationWarning)

@@ -27,8 +27,9 @@ multiplier exceeds their slack), or, where they do not settle, taken as it stand
 multipliers of every bound (μ/s on those it leaves inactive: the KKT error then counts their
 complementarity), as are the later QPs of the solve (and of the next mesh's: `solve`'s
 purify=False); far from the solution (the first steps of
-a re-plan) the interior point's solution at a loose tolerance is the step, and the active set
-is abandoned for it as soon as its changes shrink too slowly to settle. The defects' and
+a re-plan) the interior point's solution at a loose tolerance is the step, the active set not
+tried there nor in the step after, and elsewhere abandoned for the interior point as soon as
+its changes shrink too slowly to settle. The defects' and
 residuals' multipliers come back from the recursion (the costates), in the NLP's sign
 convention (∇f + Jᵀλ + z = 0, W = ∇²f + Σ λ_i·∇²c_i), for the next step's Hessian. A step is
 accepted by a line search on the ℓ1 merit function, and the solve converges where the
@@ -1087,6 +1088,17 @@ def solve(tr, x0, lam0=None, z0=None, tol=1e-8, max_iter=SQP_ITERATIONS, monitor
         raise StepFailed(str(exc)) from None
 
 
+def _active_passes(last, skipped):
+    """The active set's passes for the next QP: none where it is `skipped` (the QPs are taken as
+    the interior point leaves them; a step far from the solution, or the one after it, whose
+    set is a loose interior point's: on the Panda's re-plans those passes changed 145-1869
+    constraints each and never settled, 2-4 factors a QP for nothing), QUICK_PASSES after a QP
+    the interior point solved (`last`), else ACTIVE_PASSES."""
+    if skipped:
+        return 0
+    return QUICK_PASSES if last is not None and last.interior else ACTIVE_PASSES
+
+
 def _iterate(tr, x0, lam0, z0, tol, max_iter, monitor, hand_over=False, purify=True):
     """`solve`'s iterations on a problem the structure covers, until the constraints hold to tol
     and the stationarity residual is within it (IPOPT's test). Once the active set did not
@@ -1103,14 +1115,15 @@ def _iterate(tr, x0, lam0, z0, tol, max_iter, monitor, hand_over=False, purify=T
     row_z0 = None if lam0 is None else lam[tr.defect_row + tr.n_defects + rows.index]
     active = ActiveSet.start(lin, None if z0 is None else np.asarray(z0)[:P * nz], row_z0)
     penalty, passes, inertia, qp, stalls = 0.0, 0, Inertia(), None, 0
-    as_left = not purify
+    as_left, was_loose = not purify, False
     z_now = bound_multipliers(L, active)
     primal_now, dual_now = kkt_error(tr, x, lam, z_now)
     for iteration in range(1, max_iter + 1):
+        loose = max(primal_now, dual_now) > LOOSE_ABOVE
         qp = solve_qp(tr, stages, rows, lin, active, inertia,
-                      passes=0 if as_left else QUICK_PASSES if qp is not None and qp.interior
-                      else ACTIVE_PASSES,
-                      loose=max(primal_now, dual_now) > LOOSE_ABOVE, purify=not as_left)
+                      passes=_active_passes(qp, as_left or loose or was_loose),
+                      loose=loose, purify=not as_left)
+        was_loose = loose
         as_left = as_left or qp.as_left
         passes += qp.passes
         step = np.zeros(L.size)
