@@ -570,6 +570,33 @@ def test_a_replan_equals_a_cold_solve_from_the_new_state(swing):
 
 
 @pytest.mark.filterwarnings("ignore", category=DiscretizationWarning)
+def test_a_replan_bounded_by_max_iter_is_the_sqps_iterate_there(swing, monkeypatch):
+    """resolve(..., max_iter=k) below the SQP's own limit bounds the work (real-time iterations):
+    the SQP's iterate after k iterations is the result, status -1 and not a success, never
+    handed to IPOPT; each iteration lowers the distance to the converged re-plan, and
+    max_iter=0 is the shifted warm start itself."""
+    from lagrgen.collocation import solver
+    model, mod = swing
+    T, = model.input_functions
+    prob = swing_problem(mod, T)
+    first = prob.solve(progress=False, mesh_tol=None)
+    state = first.state_at(0.3)
+    replan = dict(initial={"q": state[:1], "qd": state[1:]}, shift=0.3)
+    converged = prob.resolve(first, **replan)
+    assert converged.status == 0 and converged.iterations > 2
+    monkeypatch.setattr(solver, "solve_nlp", None)          # IPOPT never called
+    distances = []
+    for k in range(3):
+        bounded = prob.resolve(first, max_iter=k, **replan)
+        assert (bounded.solver, bounded.status, bounded.success) == ("sqp", -1, False)
+        assert bounded.iterations == k and f"max_iter={k}" in bounded.message
+        distances.append(np.abs(bounded.y - converged.y).max())
+    start = first.state_at(np.minimum(converged.t + 0.3, first.duration))
+    assert np.abs(prob.resolve(first, max_iter=0, **replan).y - start).max() < 1e-6
+    assert distances[0] > distances[1] > distances[2]
+
+
+@pytest.mark.filterwarnings("ignore", category=DiscretizationWarning)
 def test_an_arms_replans_by_the_sqp_converge_where_its_joints_ride_their_limits(out_dir,
                                                                                monkeypatch):
     """The seven-joint arm's re-plans of a move on which every joint rides its velocity limit:

@@ -490,7 +490,10 @@ class Collocation:
         **solve_options
             As `solve` (hessian, tol, max_iter, progress, options, solver, mesh_tol,
             max_meshes), with progress=False and mesh_tol=None by default: the solve keeps
-            warm's grid (the dynamics error is measured when `res.error` is first read).
+            warm's grid (the dynamics error is measured when `res.error` is first read). A
+            max_iter below the SQP's own limit (30) bounds the work: the SQP's iterate there is
+            the result (status -1, as IPOPT's at its limit); max_iter=1 is one QP, a real-time
+            iteration of model-predictive control.
 
         Returns
         -------

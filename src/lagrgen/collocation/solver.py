@@ -254,7 +254,8 @@ def solve_mesh(problem, layout, controls, guess, settings, start=None, shift=0.0
     refined mesh the SQP covers (IPOPT from the same start, with a note and the result's
     `sqp_failed`, where one of its steps fails, it does not converge or, under "auto", its
     stationarity residual stalls; under "auto" IPOPT from the SQP's answer where it stops short
-    of tol on a flat optimum: `finished_by_ipopt`)."""
+    of tol on a flat optimum: `finished_by_ipopt`; a max_iter the SQP reaches ends the solve
+    there, as IPOPT's would)."""
     from .guess import initial_guess, refined_multipliers, warm_multipliers
     from .result import CollocationResult
     tr = problem.transcription(settings.hessian, layout, controls)
@@ -285,7 +286,7 @@ def solve_mesh(problem, layout, controls, guess, settings, start=None, shift=0.0
                             f"the same start (result.solver says which solved it)")
         result.sqp_failed = str(exc)
         return timed_from(result, began)
-    if result.status == 0 or settings.solver == "sqp":
+    if result.status in (0, -1) or settings.solver == "sqp":     # -1: stopped at max_iter
         return result
     return timed_from(finished_by_ipopt(problem, bound, result, settings), began)
 
@@ -313,25 +314,34 @@ def solve_structured(problem, tr, x0, lam0, z0, settings, purify=True):
     where a step fails or it does not converge within its iterations. purify=False where the
     warm start's SQP took its QPs as the interior point left them (`sqp.solve`): a refined
     mesh of Talos then skips the active set's vain passes and solves its first QP as tightly as
-    the later ones."""
+    the later ones. A caller's max_iter below the SQP's own SQP_ITERATIONS is a bound on the
+    work (a real-time iteration of model-predictive control: max_iter=1, one QP): the SQP's
+    iterate where it ends is the result, status -1 as IPOPT's at its limit."""
     from .result import CollocationResult
     from .sqp import SQP_ITERATIONS, StepFailed, solve
     start = time.perf_counter()
     monitor, timed = _SQPProgress(settings.progress), _Timed(tr)
+    bounded = settings.max_iter < SQP_ITERATIONS
     outcome = solve(timed, x0, lam0, z0, settings.tol, min(settings.max_iter, SQP_ITERATIONS),
                     monitor, hand_over=settings.solver == "auto", purify=purify)
     seconds = time.perf_counter() - start
-    if not outcome.converged:
+    stopped = not outcome.converged and bounded and outcome.iterations == settings.max_iter
+    if not outcome.converged and not stopped:
         raise StepFailed(f"it stopped: {outcome.message}")
     flat = outcome.dual > settings.tol
-    if flat:      # a success looser than tol, as IPOPT's acceptable level (status 1)
+    if stopped:
+        status, message = -1, (f"SQP stopped at max_iter={settings.max_iter} (the "
+                               f"constraints' violation {outcome.primal:.1e}, the stationarity "
+                               f"residual {outcome.dual:.1e}; tol {settings.tol:g})")
+    elif flat:      # a success looser than tol, as IPOPT's acceptable level (status 1)
         status, message = 1, (f"SQP stopped on a flat optimum (stationarity residual "
                               f"{outcome.dual:.1e} above tol {settings.tol:g})")
     else:
         status, message = 0, "SQP converged to the tolerance"
     info = {"status": status, "status_msg": message, "obj_val": tr.objective(outcome.x),
             "mult_g": outcome.lam, "mult_z": outcome.z,
-            "notes": [flat_optimum_note(outcome.dual, settings.tol)] if flat else []}
+            "notes": [flat_optimum_note(outcome.dual, settings.tol)] if flat and not stopped
+            else []}
     result = CollocationResult.from_solution(problem, tr, outcome.x, info, outcome.iterations,
                                              seconds, settings.hessian)
     result.callback_seconds = timed.seconds

@@ -1023,6 +1023,7 @@ class Outcome:
     passes: int
     dual: float             # the stationarity residual at x (kkt_error's)
     as_left: bool = False   # its QPs taken as the interior point left them (`QPResult`)
+    primal: float = 0.0     # the constraints' largest violation at x
 
 
 def constraint_multipliers(tr, qp, rows):
@@ -1149,7 +1150,7 @@ def _iterate(tr, x0, lam0, z0, tol, max_iter, monitor, hand_over=False, purify=T
                 if primal_now <= tol and dual_now <= STALL_DUAL:
                     return Outcome(x, lam, z_now, iteration - 1, True,
                                    "converged (no step lowers the merit function further)",
-                                   passes, dual_now, as_left)
+                                   passes, dual_now, as_left, primal_now)
                 raise Unsupported("the SQP's line search failed")
         x = trial
         lam, z = lam + alpha * (lam_qp - lam), z_now + alpha * (z - z_now)
@@ -1164,16 +1165,18 @@ def _iterate(tr, x0, lam0, z0, tol, max_iter, monitor, hand_over=False, purify=T
         # multiplier vanishes stays ~√gap off its value, and the constraints fell linearly
         # (Talos's 615-node mesh: 1e-7, 2e-9, 1e-10, 6e-12), 2 iterations of ~17 factors a mesh
         if primal <= tol and (dual <= tol or (settled and dual <= STALL_DUAL)):
-            return Outcome(x, lam, z, iteration, True, "converged", passes, dual, as_left)
+            return Outcome(x, lam, z, iteration, True, "converged", passes, dual, as_left,
+                           primal)
         stalls = stalls + 1 if (iteration > 1 and alpha == 1.0 and primal <= STALLED_PRIMAL
                                 and dual > max(tol, dual_before / STALLED_DROP)) else 0
         if hand_over and stalls >= STALLED_ITERATIONS:
             if dual <= STALLED_NEAR * tol and primal <= tol:
                 return Outcome(x, lam, z, iteration, True, "converged (its stationarity "
-                               "residual stalled near tol)", passes, dual, as_left)
+                               "residual stalled near tol)", passes, dual, as_left,
+                               primal)
             raise StepFailed(f"its stationarity residual stalled at {dual:.1e} in iteration "
                              f"{iteration}, above tol {tol:g}")
         lin = linearize(tr, x, lam, stages, rows)
-    return Outcome(x, lam, z, max_iter, False,
+    return Outcome(x, lam, z_now, max_iter, False,
                    f"not converged in {max_iter} iterations", passes, dual_now,
-                   as_left)
+                   as_left, primal_now)
