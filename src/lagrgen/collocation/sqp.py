@@ -435,24 +435,18 @@ class StructuredQP:
             raise Unsupported("an interval's defects do not determine its states") from None
         self.K, self.later, self.nv = K, later, later * nu
         count = pts.shape[0]
-        maps = []
+        C = np.zeros((later, count, ny, ny))
+        E = np.zeros((later, count, ny, self.nv))
+        e = np.zeros((later, count, ny))
         for p in range(later):
             rows = slice(p * nx, (p + 1) * nx)
-            C = np.zeros((count, ny, ny))
-            E = np.zeros((count, ny, self.nv))
-            e = np.zeros((count, ny))
-            C[:, :nx] = solved[:, rows, :ny]
-            E[:, :nx] = solved[:, rows, ny:ny + self.nv]
-            E[:, nx:, p * nu:(p + 1) * nu] = np.eye(nu)
-            e[:, :nx] = solved[:, rows, -1]
-            maps.append((C, E, e))
-        self.maps = maps
-        self.inner_C = np.array([C for C, _, _ in maps[:-1]]).reshape(later - 1, count, ny, ny)
-        self.inner_E = np.array([E for _, E, _ in maps[:-1]]).reshape(later - 1, count, ny,
-                                                                      self.nv)
-        self.inner_e = np.array([e for _, _, e in maps[:-1]]).reshape(later - 1, count, ny)
-        A, B, b = maps[-1]
-        self.A, self.B, self.b = (np.ascontiguousarray(M) for M in (A, B, b))
+            C[p, :, :nx] = solved[:, rows, :ny]
+            E[p, :, :nx] = solved[:, rows, ny:ny + self.nv]
+            E[p, :, nx:, p * nu:(p + 1) * nu] = np.eye(nu)
+            e[p, :, :nx] = solved[:, rows, -1]
+        self.maps = [(C[p], E[p], e[p]) for p in range(later)]
+        self.inner_C, self.inner_E, self.inner_e = C[:-1], E[:-1], e[:-1]
+        self.A, self.B, self.b = C[-1], E[-1], e[-1]
 
     def row_maps(self):
         """Each row's E·d = α·X_k + β·v_k + c on its interval k: alpha (R, ny), beta (R, nv),
