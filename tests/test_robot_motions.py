@@ -217,6 +217,40 @@ def test_the_structured_qp_is_the_kkt_solution(swing):
     assert np.abs(residual).max() > 1e3 * np.abs(residual + kept).max()     # bounds it rides
 
 
+def test_the_point_hessians_are_the_nlps_hessian_point_by_point(swing):
+    """The SQP's per-point Hessian blocks (`point_hessians`, written at both places of each
+    entry) equal the blocks of IPOPT's sparse Lagrangian Hessian (objective factor 1) on the
+    diagonal, made symmetric, at a point away from any optimum; add_symmetric accumulates
+    repeated entries as np.add.at does."""
+    from lagrgen.collocation.nlp import add_symmetric
+    model, mod = swing
+    T, = model.input_functions
+    tr = swing_problem(mod, T, nodes=9).transcription("exact")
+    L = tr.layout
+    rng = np.random.default_rng(5)
+    x = rng.uniform(-1.0, 1.0, L.size)
+    lam = rng.normal(size=tr.n_constraints)
+    W = tr.point_hessians(x, lam)
+    rows, cols = tr.hessianstructure()
+    H = np.zeros((L.size, L.size))
+    np.add.at(H, (rows, cols), tr.hessian(x, lam, 1.0))
+    H = H + np.tril(H, -1).T
+    assert np.abs(W).max() > 0
+    for j in range(L.points):
+        block = slice(j * L.nz, (j + 1) * L.nz)
+        assert np.allclose(W[j], H[block, block], rtol=1e-12, atol=1e-12)
+    pairs = np.array([[2, 1], [0, 0], [2, 1], [1, 0]])
+    values = rng.normal(size=(3, 4))
+    out = np.zeros((3, 9))
+    add_symmetric(out, 3, pairs, values)
+    dense = np.zeros((3, 3, 3))
+    for (r, c), v in zip(pairs, values.T):
+        dense[:, r, c] += v
+        if r != c:
+            dense[:, c, r] += v
+    assert np.allclose(out.reshape(3, 3, 3), dense)
+
+
 def test_the_riccati_factor_skips_a_stages_input_rows_exactly():
     """_riccati.factor with `states` s (A's rows from s on 0, B's [0 1]: a collocation stage's
     end inputs are its own) equals the full products and the recursion written out in NumPy:
