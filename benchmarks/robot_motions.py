@@ -22,8 +22,9 @@ rigid-body dynamics Pinocchio's `aba` computes):
   re-plan    the Panda's motion on 101 nodes (mesh_tol=None); then `REPLANS` re-plans in a loop,
              each `prob.resolve(warm=last, initial=last.state_at(0.1), shift=0.1)` (the same 1 s
              move to the goal from where the last plan is at 0.1 s), each against a cold
-             `prob.solve` of the same re-plan problem and against IPOPT's re-plan from the same
-             warm start (`solver="ipopt"`).
+             `prob.solve` of the same re-plan problem, against IPOPT's re-plan from the same
+             warm start (`solver="ipopt"`) and against one QP from it (`max_iter=1`, a
+             real-time iteration: how far it is from the converged re-plan).
   min-time   the Panda from start to goal in the least time within its limits,
              `Collocation(mod, nodes=51, duration=(0.1, 5.0))`, `minimize(time=True)`: on the 51
              nodes alone (mesh_tol=None), then refined (the defaults), checked by 101 nodes and
@@ -381,11 +382,23 @@ def worker_replan(folder, replans, accuracy):
                 "cold_iterations": int(cold.iterations), "cold_objective": float(cold.objective),
                 "cold_success": bool(cold.success), "error": float(res2.error)}
         step.update(replan_by_ipopt(lagrgen, prob, last, state, n))
+        step.update(one_qp_replan(prob, last, state, n, res2))
         if accuracy and k == 0:
             step["accuracy"] = lagrgen_accuracy(res2, urdf)
         out["replans"].append(step)
         last = res2
     return out
+
+
+def one_qp_replan(prob, last, state, n, converged):
+    """The same re-plan bounded to one SQP iteration (`max_iter=1`, one QP: a real-time
+    iteration): its time and its largest state difference from the converged re-plan."""
+    import numpy as np
+    began = time.perf_counter()
+    res = prob.resolve(warm=last, initial={"q": state[:n], "qd": state[n:]}, shift=SHIFT,
+                       max_iter=1)
+    return {"one_qp_wall": time.perf_counter() - began,
+            "one_qp_distance": float(np.abs(res.y - converged.y).max())}
 
 
 def replan_by_ipopt(lagrgen, prob, last, state, n):
@@ -1018,15 +1031,17 @@ def replan_table(replan):
              "| re-plan | `resolve` ms | CPU ms | solver, iterations | objective | cold solve ms "
              "| cold iterations | cold objective | relative difference | notes | "
              "`solver=\"ipopt\"` ms | CPU ms | IPOPT iterations | IPOPT objective, relative "
-             "difference |",
-             "| --: | --: | --: | --- | --: | --: | --: | --: | --: | --: | --: | --: | --: | --: |"]
+             "difference | one QP (`max_iter=1`) ms | its largest state difference |",
+             "| --: | --: | --: | --- | --: | --: | --: | --: | --: | --: | --: | --: | --: | --: "
+             "| --: | --: |"]
     for k, s in enumerate(replan["replans"], 1):
         diff = abs(s["objective"] - s["cold_objective"]) / max(abs(s["cold_objective"]), 1e-300)
         lines.append(f"| {k} | {ms(s['wall'])} | {ms(s.get('cpu'))} | {s['solver']} "
                      f"{s['iterations']}{'' if s['success'] else ' (failed)'} | "
                      f"{s['objective']:.10g} | {ms(s['cold_wall'])} | {s['cold_iterations']}"
                      f"{'' if s['cold_success'] else ' (failed)'} | {s['cold_objective']:.10g} |"
-                     f" {diff:.1e} | {s['notes']} | {ipopt_cells(s)} |")
+                     f" {diff:.1e} | {s['notes']} | {ipopt_cells(s)} | "
+                     f"{ms(s.get('one_qp_wall'))} | {s.get('one_qp_distance', float('nan')):.2g} |")
     return "\n".join(lines) + "\n"
 
 
