@@ -80,6 +80,23 @@ def test_the_traced_functions_are_units_of_their_own_where_they_are_called():
     assert traced_unit_numbers(hessian) == {1} and translation_units(hessian) == 1
     assert "LG_FN static int lg_lean_qdd(double t" in hessian
     assert "LG_FN LG_PART_FN int lg_tree_nodes(double t" in hessian
+    pivots = "LG_FN LG_PART_FN int lg_lean_pivots(double t, const double *q, const double *p)"
+    assert whole.count(pivots + ";") == 1 and whole.count(pivots + "\n{") == 1
+
+
+def test_a_traced_functions_callees_are_declared_as_the_template_defines_them():
+    """The prototype a traced function's unit declares for a function it calls is read off
+    the template's definition, so the two cannot disagree; a name the template does not define
+    is an error."""
+    from lagrgen.codegen.c_model import read_template
+    from lagrgen.codegen.tree_code import template_prototypes
+    template = read_template("tree3d.c.in")
+    declared, = template_prototypes(template, ["lg_lean_pivots"])
+    assert declared.endswith(");") and declared[:-1] + "\n{" in template
+    assert template_prototypes("LG_FN static int f(int a,\n    int b)\n{\n}\n", ["f"]) == \
+        ("LG_FN static int f(int a,\n    int b);",)
+    with pytest.raises(ValueError, match="no function lg_nowhere"):
+        template_prototypes(template, ["lg_nowhere"])
 
 
 def test_the_traced_code_and_the_loops_agree(arms):

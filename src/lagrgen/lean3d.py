@@ -42,8 +42,9 @@ LEAN_MAX_NODE_FLOPS_PER_JOINT = 200
 
 @dataclass
 class Traced:
-    """A traced C function `int name(parameters)`: its comment and body, the declarations of the
-    functions it calls, its flops, and whether it traced the loads (Q, g) itself."""
+    """A traced C function `int name(parameters)`: its comment and body, the functions it calls
+    (names, or their prototypes once the code that defines them has given them: `calls`), its
+    flops, and whether it traced the loads (Q, g) itself."""
     name: str
     parameters: str
     comment: str
@@ -406,18 +407,13 @@ def trace_qdd(joints, parent, coordinate, notes, loads=None, name="lg_lean_qdd")
         "const double *p, const double *u, const double *Q, const double *g, double *qdd",
         "q̈ of the robot by the articulated-body algorithm in joint frames (lagrgen.lean3d), "
         "traced with its\n * numbers folded: {flops} flops ({per_joint} per joint). "
-        f"Nodes:\n{legend}\n", len(parent), traced, calls=(PIVOTS_DECLARATION,))
-
-
-#: The check of M's pivots that lg_lean_qdd calls off its hot path (templates/tree3d.c.in).
-PIVOTS_DECLARATION = ("LG_FN LG_PART_FN int lg_lean_pivots(double t, const double *q, "
-                      "const double *p);")
+        f"Nodes:\n{legend}\n", len(parent), traced, calls=("lg_lean_pivots",))
 
 
 def _function(tape, values, stores, name, parameters, comment, joints, loads, calls=()):
     """The `Traced` C function `int name(parameters)` computing the tape's `values` (the nodes
     they need as `const double` temporaries), then the `stores`; `comment` (with {flops} and
-    {per_joint}) heads it, and `calls` declares the functions it calls."""
+    {per_joint}) heads it, and `calls` names the functions it calls."""
     nodes = tape.needed(values)
     flops = tape.flops(nodes)
     names = [part.replace("*", " ").split()[-1] for part in parameters.split(",")]

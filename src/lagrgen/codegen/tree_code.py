@@ -2,6 +2,8 @@
 tree, `lagrgen.tree`) or `templates/tree3d.c.in` (a three-dimensional one, `lagrgen.tree3d`)
 filled with one model's kinematic tree (its node tables, record layout and sparsity of ∂Q/∂y),
 and the same tables for the Python backend (`lagrgen.runtime.tree`, `lagrgen.runtime.tree3d`)."""
+import re
+from dataclasses import replace
 from pathlib import Path
 from string import Template
 
@@ -105,7 +107,19 @@ def _rows(rows, notes, number=repr):
                       for row, note in zip(rows, notes)) or "    {0}"
 
 
-def _lean(equations, tables, traced, apart):
+def template_prototypes(template, names):
+    """The prototypes of the functions `names` as the C `template` defines them (the line
+    `LG_FN ... name(...)` before its body), for code in another unit that calls them."""
+    found = []
+    for name in names:
+        match = re.search(rf"^(LG_FN [^\n(]*\b{re.escape(name)}\([^)]*\))\n\{{", template, re.M)
+        if match is None:
+            raise ValueError(f"the template defines no function {name}")
+        found.append(match.group(1) + ";")
+    return tuple(found)
+
+
+def _lean(equations, tables, traced, apart, template):
     """The template's traced functions (`lagrgen.lean3d`) where the tree has them: q̈ when its
     flops per joint and in all are within LEAN_MAX_FLOPS_PER_JOINT and LEAN_MAX_FLOPS, then the
     node records when the flops left allow them. Each is appended to the list `traced`; one
@@ -119,6 +133,7 @@ def _lean(equations, tables, traced, apart):
         return none
 
     def placed(function):
+        function = replace(function, calls=template_prototypes(template, function.calls))
         traced.append(function)
         return function.declaration(APART) if function.name in apart else function.definition()
 
@@ -206,7 +221,7 @@ def _tree_c(equations, tables, template, kernels, traced, apart):
         has_parameters=int("tree_parameters" in kernels),
         has_poses=int("tree_poses" in kernels),
         has_outputs=int("tree_outputs" in kernels),
-        **_lean(equations, tables, traced, apart),
+        **_lean(equations, tables, traced, apart, template),
         **_joint_tables(tables, trees.analyse(equations).notes),
         has_energies=int(tables.get("energies", False)),
         inertial_columns=_ints(tables["inertial_column"]),
