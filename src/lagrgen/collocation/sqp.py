@@ -809,17 +809,19 @@ def _hopeless_on_average(now, first, count, left):
 
 class _Barrier:
     """The interior point's side of constraints lo ≤ value ≤ hi that are not fixed: slacks
-    s_l = value − lo, s_u = hi − value and their multipliers y_l, y_u (> 0)."""
+    s_l = value − lo, s_u = hi − value and their multipliers y_l, y_u (> 0). A side a
+    constraint lacks keeps s = 1 and y = 0 (its masks `on_lo`, `on_hi` are 0 there), so that its
+    terms vanish from every product below without selecting."""
 
     def __init__(self, lo, hi, fixed, value):
         self.has_lo = np.isfinite(lo) & ~fixed
         self.has_hi = np.isfinite(hi) & ~fixed
-        self.lo, self.hi = lo, hi
+        self.on_lo, self.on_hi = self.has_lo.astype(float), self.has_hi.astype(float)
         self.s_l = np.where(self.has_lo, value - lo, 1.0)
         self.s_u = np.where(self.has_hi, hi - value, 1.0)
-        self.y_l = self.has_lo.astype(float)
-        self.y_u = self.has_hi.astype(float)
+        self.y_l, self.y_u = self.on_lo.copy(), self.on_hi.copy()
         self.count = int(self.has_lo.sum() + self.has_hi.sum())
+        self._weights = None
 
     @staticmethod
     def start_values(lo, hi, fixed, value):
@@ -833,43 +835,44 @@ class _Barrier:
         return np.where(has_hi, np.minimum(value, hi - margin), value)
 
     def gap_sum(self, s_l=None, y_l=None, s_u=None, y_u=None):
+        """Σ s·y over both sides (of the given slacks and multipliers, 0 on absent sides)."""
         s_l = self.s_l if s_l is None else s_l
         y_l = self.y_l if y_l is None else y_l
         s_u = self.s_u if s_u is None else s_u
         y_u = self.y_u if y_u is None else y_u
-        return float(np.sum(s_l * y_l * self.has_lo) + np.sum(s_u * y_u * self.has_hi))
+        return float(np.sum(s_l * y_l) + np.sum(s_u * y_u))     # not BLAS's dot (threads)
 
     def largest_gap(self):
         """The largest complementarity product s·y."""
-        return float(max(np.max(self.s_l * self.y_l * self.has_lo, initial=0.0),
-                         np.max(self.s_u * self.y_u * self.has_hi, initial=0.0)))
+        return float(max(np.max(self.s_l * self.y_l, initial=0.0),
+                         np.max(self.s_u * self.y_u, initial=0.0)))
 
     def weights(self):
-        """Σ = y_l/s_l + y_u/s_u."""
-        return (np.where(self.has_lo, self.y_l / self.s_l, 0.0)
-                + np.where(self.has_hi, self.y_u / self.s_u, 0.0))
+        """Σ = y_l/s_l + y_u/s_u (kept until the next `move`)."""
+        if self._weights is None:
+            self._weights = self.y_l / self.s_l + self.y_u / self.s_u
+        return self._weights
 
     def gradient(self, value, t_l, t_u):
-        """The barrier's linear term at `value` for complementarity targets t_l, t_u."""
-        return (-self.weights() * value - np.where(self.has_lo, t_l / self.s_l, 0.0)
-                + np.where(self.has_hi, t_u / self.s_u, 0.0))
+        """The barrier's linear term at `value` for complementarity targets t_l, t_u (0 on
+        absent sides)."""
+        return t_u / self.s_u - t_l / self.s_l - self.weights() * value
 
     def duals(self, step, t_l, t_u):
         """(Δy_l, Δy_u) of a step of the values."""
-        dy_l = np.where(self.has_lo, t_l / self.s_l - self.y_l / self.s_l * step - self.y_l, 0.0)
-        dy_u = np.where(self.has_hi, t_u / self.s_u + self.y_u / self.s_u * step - self.y_u, 0.0)
-        return dy_l, dy_u
+        return ((t_l - self.y_l * step) / self.s_l - self.y_l,
+                (t_u + self.y_u * step) / self.s_u - self.y_u)
 
     def targets(self, sigma_mu, step, dy_l, dy_u):
         """Mehrotra's corrector targets."""
-        return (np.where(self.has_lo, sigma_mu - step * dy_l, 0.0),
-                np.where(self.has_hi, sigma_mu + step * dy_u, 0.0))
+        return (self.on_lo * sigma_mu - step * dy_l, self.on_hi * sigma_mu + step * dy_u)
 
     def move(self, a_p, a_d, step, dy_l, dy_u):
-        self.s_l = np.where(self.has_lo, self.s_l + a_p * step, 1.0)
-        self.s_u = np.where(self.has_hi, self.s_u - a_p * step, 1.0)
-        self.y_l = np.where(self.has_lo, self.y_l + a_d * dy_l, 0.0)
-        self.y_u = np.where(self.has_hi, self.y_u + a_d * dy_u, 0.0)
+        self.s_l = self.s_l + a_p * self.on_lo * step
+        self.s_u = self.s_u - a_p * self.on_hi * step
+        self.y_l = self.y_l + a_d * dy_l
+        self.y_u = self.y_u + a_d * dy_u
+        self._weights = None
 
     def sides(self):
         """-1 / +1 where the lower / upper bound is active, 0 elsewhere: active where its
@@ -880,10 +883,11 @@ class _Barrier:
         return np.where(upper, 1, np.where(lower, -1, 0))
 
     def max_steps(self, step, dy_l, dy_u, fraction):
-        return (_fraction_to_boundary(self.s_l, step, self.has_lo, self.s_u, -step,
-                                      self.has_hi, fraction),
-                _fraction_to_boundary(self.y_l, dy_l, self.has_lo, self.y_u, dy_u,
-                                      self.has_hi, fraction))
+        """The longest primal and dual steps (at most 1) keeping s and y positive, by
+        `fraction`."""
+        return (_fraction_to_boundary(fraction, (self.s_l, self.on_lo * step),
+                                      (self.s_u, -self.on_hi * step)),
+                _fraction_to_boundary(fraction, (self.y_l, dy_l), (self.y_u, dy_u)))
 
 
 def solve_qp_interior(qp, lin, active, inertia, tol=1e-9, iterations=IPM_ITERATIONS):
@@ -994,14 +998,13 @@ def solve_qp_interior(qp, lin, active, inertia, tol=1e-9, iterations=IPM_ITERATI
     return QPResult(dz, mu, nu_, active, iteration, interior=True, z_all=z)
 
 
-def _fraction_to_boundary(a, da, has_a, b, db, has_b, fraction):
-    """The largest step in (0, 1] keeping a + α·da and b + α·db positive (by `fraction`)."""
-    alpha = 1.0
-    for v, dv, has in ((a, da, has_a), (b, db, has_b)):
-        shrinking = has & (dv < 0)
-        if shrinking.any():
-            alpha = min(alpha, float(np.min(-fraction * v[shrinking] / dv[shrinking])))
-    return alpha
+def _fraction_to_boundary(fraction, *pairs):
+    """The largest step in (0, 1] keeping each v + α·dv of the (v, dv) `pairs` positive (by
+    `fraction`): fraction over the largest −dv/v (v > 0; an absent side's v = dv = 0 counts
+    for nothing)."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        fastest = max(float(np.fmax.reduce(-dv / v, initial=0.0)) for v, dv in pairs)
+    return min(1.0, fraction / fastest) if fastest > 0.0 else 1.0
 
 
 @dataclass
