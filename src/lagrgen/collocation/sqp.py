@@ -1132,7 +1132,7 @@ def _iterate(tr, x0, lam0, z0, tol, max_iter, monitor, hand_over=False, purify=T
         penalty = max(penalty, 1.1 * float(np.max(np.abs(lam_qp), initial=0.0)), 1e-6)
         infeasibility = np.sum(violation(tr, c))
         merit = f + penalty * infeasibility
-        slope = float(grad @ step) - penalty * infeasibility
+        slope = float(np.sum(grad * step)) - penalty * infeasibility     # not BLAS (threads)
         alpha = 1.0
         while True:
             trial = np.clip(x + alpha * step, tr.lo, tr.hi)
