@@ -157,6 +157,17 @@ def swing_problem(mod, T, nodes=41, limit=6.0):
     return prob.minimize(integral=T ** 2)
 
 
+def swing_near_optimum(swing, seed):
+    """(IPOPT's result, the bound transcription, a point 1e-2 off its solution, the random
+    generator) of the swing-up on 9 nodes."""
+    model, mod = swing
+    prob = swing_problem(mod, model.input_functions[0], nodes=9)
+    res = prob.solve(progress=False, mesh_tol=None, solver="ipopt")
+    tr = prob.transcription("exact").bound(3.0)
+    rng = np.random.default_rng(seed)
+    return res, tr, np.clip(res.x + 1e-2 * rng.standard_normal(res.x.size), tr.lo, tr.hi), rng
+
+
 @pytest.mark.filterwarnings("ignore", category=DiscretizationWarning)
 def test_the_structured_qp_is_the_kkt_solution(swing):
     """One QP of the SQP (accelerations eliminated point by point, states interval by interval,
@@ -165,12 +176,7 @@ def test_the_structured_qp_is_the_kkt_solution(swing):
     point's solution, made exact by the active set it identifies, equals it too."""
     import scipy.sparse as sps
     from lagrgen.collocation import sqp
-    model, mod = swing
-    prob = swing_problem(mod, model.input_functions[0], nodes=9)
-    res = prob.solve(progress=False, mesh_tol=None, solver="ipopt")
-    tr = prob.transcription("exact").bound(3.0)
-    rng = np.random.default_rng(5)
-    x = np.clip(res.x + 1e-2 * rng.standard_normal(res.x.size), tr.lo, tr.hi)
+    res, tr, x, rng = swing_near_optimum(swing, 5)
     stages, rows = sqp.Stages.of(tr), sqp.Rows.of(tr)
     lam = res._lam * (1 + 0.1 * rng.standard_normal(res._lam.size))
     lin = sqp.linearize(tr, x, lam, stages, rows)
@@ -370,12 +376,7 @@ def test_a_cut_step_damps_the_bounds_multipliers_as_the_constraints(swing):
     to 1.2 on a 1016-node mesh of Talos): from zero multipliers, the step the merit function
     refuses at full length and takes at half gives half the full step's λ and z."""
     from lagrgen.collocation import sqp
-    model, mod = swing
-    prob = swing_problem(mod, model.input_functions[0], nodes=9)
-    res = prob.solve(progress=False, mesh_tol=None, solver="ipopt")
-    tr = prob.transcription("exact").bound(3.0)
-    rng = np.random.default_rng(7)
-    x0 = np.clip(res.x + 1e-2 * rng.standard_normal(res.x.size), tr.lo, tr.hi)
+    _, tr, x0, _ = swing_near_optimum(swing, 7)
     alphas = []
 
     def monitor(iteration, value, primal, dual, alpha):
@@ -638,6 +639,16 @@ def test_a_replan_equals_a_cold_solve_from_the_new_state(swing):
         prob.resolve(again, shift=5.0)
 
 
+def swing_replan(swing):
+    """(the swing-up's problem, its solution, resolve's arguments of the re-plan from its state
+    at 0.3 s)."""
+    model, mod = swing
+    prob = swing_problem(mod, model.input_functions[0])
+    first = prob.solve(progress=False, mesh_tol=None)
+    state = first.state_at(0.3)
+    return prob, first, dict(initial={"q": state[:1], "qd": state[1:]}, shift=0.3)
+
+
 @pytest.mark.filterwarnings("ignore", category=DiscretizationWarning)
 def test_a_replan_bounded_by_max_iter_is_the_sqps_iterate_there(swing, monkeypatch):
     """resolve(..., max_iter=k) below the SQP's own limit bounds the work (real-time iterations):
@@ -645,12 +656,7 @@ def test_a_replan_bounded_by_max_iter_is_the_sqps_iterate_there(swing, monkeypat
     handed to IPOPT; each iteration lowers the distance to the converged re-plan, and
     max_iter=0 is the shifted warm start itself."""
     from lagrgen.collocation import solver
-    model, mod = swing
-    T, = model.input_functions
-    prob = swing_problem(mod, T)
-    first = prob.solve(progress=False, mesh_tol=None)
-    state = first.state_at(0.3)
-    replan = dict(initial={"q": state[:1], "qd": state[1:]}, shift=0.3)
+    prob, first, replan = swing_replan(swing)
     converged = prob.resolve(first, **replan)
     assert converged.status == 0 and converged.iterations > 2
     monkeypatch.setattr(solver, "solve_nlp", None)          # IPOPT never called
@@ -857,12 +863,7 @@ def test_where_a_step_of_the_sqp_fails_ipopt_solves_with_a_note(swing, monkeypat
     converging, hand the mesh to IPOPT from the same start, which says so and reaches IPOPT's
     optimum; a problem the SQP does not cover is still an error saying why."""
     from lagrgen.collocation import sqp
-    model, mod = swing
-    T, = model.input_functions
-    prob = swing_problem(mod, T)
-    first = prob.solve(progress=False, mesh_tol=None)
-    state = first.state_at(0.3)
-    replan = dict(initial={"q": state[:1], "qd": state[1:]}, shift=0.3)
+    prob, first, replan = swing_replan(swing)
 
     def stalled(*args, **kwargs):
         raise sqp.Unsupported("the QP's interior point did not converge in 60 iterations")
@@ -880,7 +881,7 @@ def test_where_a_step_of_the_sqp_fails_ipopt_solves_with_a_note(swing, monkeypat
     said = [n for n in short.notes if "structured SQP failed" in n]
     assert len(said) == 1 and "not converged in 1 iterations" in said[0]
     assert short.objective == pytest.approx(by_ipopt.objective, rel=1e-12)
-    free = lagrgen.Collocation(mod, nodes=11, duration=(1.0, 4.0))
+    free = lagrgen.Collocation(swing[1], nodes=11, duration=(1.0, 4.0))
     free.initial(q=[0.0], qd=[0.0]).final(q=[np.pi], qd=[0.0]).minimize(time=True)
     with pytest.raises(lagrgen.errors.LagrgenError, match="cannot solve this problem: .*free "
                        "duration"):
