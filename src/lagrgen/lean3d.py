@@ -42,9 +42,9 @@ LEAN_MAX_NODE_FLOPS_PER_JOINT = 200
 
 @dataclass
 class Traced:
-    """A traced C function `int name(parameters)`: its comment and body, the functions it calls
-    (names, or their prototypes once the code that defines them has given them: `calls`), its
-    flops, and whether it traced the loads (Q, g) itself."""
+    """A traced C function `int name(parameters)`: its comment and body, the names of the
+    functions it calls and their prototypes (`declarations`, given by the code that defines
+    them: `codegen.tree_code`), its flops, and whether it traced the loads (Q, g) itself."""
     name: str
     parameters: str
     comment: str
@@ -52,6 +52,7 @@ class Traced:
     flops: int
     loads: bool = False
     calls: tuple = ()
+    declarations: tuple = ()
 
     def declaration(self, linkage="static"):
         """Its prototype, `linkage` static or LG_PART_FN (a unit of its own, `c_model`)."""
@@ -59,7 +60,7 @@ class Traced:
 
     def definition(self, linkage="static"):
         """Its C text, after the declarations of the functions it calls."""
-        return ("".join(f"{call}\n" for call in self.calls) + f"/* {self.comment} */\n"
+        return ("".join(f"{line}\n" for line in self.declarations) + f"/* {self.comment} */\n"
                 + self.declaration(linkage)[:-1] + f"\n{{\n{self.body}}}\n")
 
 

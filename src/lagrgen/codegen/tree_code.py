@@ -133,7 +133,8 @@ def _lean(equations, tables, traced, apart, template):
         return none
 
     def placed(function):
-        function = replace(function, calls=template_prototypes(template, function.calls))
+        function = replace(function,
+                           declarations=template_prototypes(template, function.calls))
         traced.append(function)
         return function.declaration(APART) if function.name in apart else function.definition()
 

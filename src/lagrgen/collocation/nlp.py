@@ -753,18 +753,16 @@ def add_symmetric(W, nz, pairs, values):
     """W (points, nz·nz, each point's block by rows) plus the symmetric blocks whose lower
     triangle holds `values` (points, len(pairs)) at `pairs` (row ≥ col), written in place at
     both places of each entry: no symmetrizing copy of W (on Talos's 735-node mesh three of
-    48 MB each, ~1 s of first-touched pages in a first solve)."""
+    48 MB each, ~1 s of first-touched pages in a first solve). Repeated pairs add up."""
     lower = pairs[:, 0] * nz + pairs[:, 1]
-    if np.unique(lower).size < lower.size:
-        np.add.at(W, (slice(None), lower), values)
-    else:
-        W[:, lower] += values
     inner = pairs[:, 0] != pairs[:, 1]
     upper = pairs[inner, 1] * nz + pairs[inner, 0]
-    if np.unique(upper).size < upper.size:
-        np.add.at(W, (slice(None), upper), values[:, inner])
-    else:
-        W[:, upper] += values[:, inner]
+    repeated = np.unique(lower).size < lower.size       # then its mirror repeats too
+    for places, part in ((lower, values), (upper, values[:, inner])):
+        if repeated:
+            np.add.at(W, (slice(None), places), part)
+        else:
+            W[:, places] += part
 
 
 def envelope_rows(layout, problem):

@@ -321,14 +321,13 @@ def solve_structured(problem, tr, x0, lam0, z0, settings, purify=True):
     from .sqp import SQP_ITERATIONS, StepFailed, solve
     start = time.perf_counter()
     monitor, timed = _SQPProgress(settings.progress), _Timed(tr)
-    bounded = settings.max_iter < SQP_ITERATIONS
     outcome = solve(timed, x0, lam0, z0, settings.tol, min(settings.max_iter, SQP_ITERATIONS),
                     monitor, hand_over=settings.solver == "auto", purify=purify)
     seconds = time.perf_counter() - start
-    stopped = not outcome.converged and bounded and outcome.iterations == settings.max_iter
+    stopped = not outcome.converged and settings.max_iter < SQP_ITERATIONS
     if not outcome.converged and not stopped:
         raise StepFailed(f"it stopped: {outcome.message}")
-    flat = outcome.dual > settings.tol
+    flat = outcome.dual > settings.tol and not stopped
     if stopped:
         status, message = -1, (f"SQP stopped at max_iter={settings.max_iter} (the "
                                f"constraints' violation {outcome.primal:.1e}, the stationarity "
@@ -340,8 +339,7 @@ def solve_structured(problem, tr, x0, lam0, z0, settings, purify=True):
         status, message = 0, "SQP converged to the tolerance"
     info = {"status": status, "status_msg": message, "obj_val": tr.objective(outcome.x),
             "mult_g": outcome.lam, "mult_z": outcome.z,
-            "notes": [flat_optimum_note(outcome.dual, settings.tol)] if flat and not stopped
-            else []}
+            "notes": [flat_optimum_note(outcome.dual, settings.tol)] if flat else []}
     result = CollocationResult.from_solution(problem, tr, outcome.x, info, outcome.iterations,
                                              seconds, settings.hessian)
     result.callback_seconds = timed.seconds
