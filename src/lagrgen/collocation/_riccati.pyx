@@ -72,7 +72,8 @@ cdef inline void gemm_ld(const double *A, int lda, const double *B, int ldb, dou
 
 
 cdef double *scratch(Py_ssize_t count) except NULL:
-    """A work array of `count` doubles (at least one), to free."""
+    """A work array of `count` doubles (at least one), to free; a kernel's several work arrays
+    are parts of one."""
     cdef double *out = <double *>malloc((count + 1) * sizeof(double))
     if out == NULL:
         raise MemoryError()
@@ -194,9 +195,7 @@ def point_hessians(const double[:, :, ::1] T, const double[:, :, ::1] W, double[
     """G_j = T_jᵀ·W_j·T_j of every point j: its Hessian block W (P, nz, nz) in the variables
     y = [dx, du] that T (P, nz, ny) maps to its step dz = T·y + t."""
     cdef int count = T.shape[0], nz = T.shape[1], ny = T.shape[2], j
-    cdef double *WT = <double *>malloc((nz * ny + 1) * sizeof(double))
-    if WT == NULL:
-        raise MemoryError()
+    cdef double *WT = scratch(nz * ny)
     with nogil:
         for j in range(count):
             gemm(&W[j, 0, 0], &T[j, 0, 0], WT, nz, nz, ny, False, False)
@@ -211,16 +210,10 @@ def diagonal_hessians(const double[:, :, ::1] G0, const double[:, :, ::1] T,
     rows other than the accelerations' [2n, 3n) are an identity's (y's states and inputs): add
     on G0's diagonal, plus Ta_jᵀ·diag(a_j)·Ta_j over the acceleration rows whose a is not 0."""
     cdef int ny = T.shape[2]
-    cdef double *S = NULL
-    cdef double *Ta = NULL
-    try:
-        S = scratch(n * ny)
-        Ta = scratch(n * ny)
-        with nogil:
-            _diagonal_hessians(G0, T, add, n, G, S, Ta)
-    finally:
-        free(S)
-        free(Ta)
+    cdef double *S = scratch(2 * n * ny)
+    with nogil:
+        _diagonal_hessians(G0, T, add, n, G, S, S + n * ny)
+    free(S)
     return None
 
 
@@ -260,12 +253,8 @@ def stage_hessians(const double[:, :, ::1] G, const cnp.int64_t[:, ::1] points,
     cdef int K = Qxx.shape[0], ny = Qxx.shape[1], nv = Qvv.shape[1], inner = C.shape[0], k, p
     cdef int s = ny if states < 0 else states, m = ny - s
     cdef const double *Gp
-    cdef double *GC = <double *>malloc((ny * ny + 1) * sizeof(double))
-    cdef double *GE = <double *>malloc((ny * nv + 1) * sizeof(double))
-    if GC == NULL or GE == NULL:
-        free(GC)
-        free(GE)
-        raise MemoryError()
+    cdef double *GC = scratch(ny * ny + ny * nv)
+    cdef double *GE = GC + ny * ny
     with nogil:
         for k in range(K):
             memcpy(&Qxx[k, 0, 0], &G[points[k, 0], 0, 0], ny * ny * sizeof(double))
@@ -279,7 +268,6 @@ def stage_hessians(const double[:, :, ::1] G, const cnp.int64_t[:, ::1] points,
                 gemm_ld(&E[p, k, 0, 0], nv, GE, nv, &Qvv[k, 0, 0], nv, nv, s, nv, True, p > 0)
                 add_block(&Qvv[k, 0, 0] + p * m * nv, nv, GE + s * nv, nv, m, nv)
     free(GC)
-    free(GE)
     return None
 
 
@@ -293,9 +281,7 @@ def stage_gradients(const double[:, :, ::1] G, const double[:, ::1] gamma,
     e's rows from s on are 0."""
     cdef int K = qx.shape[0], ny = qx.shape[1], nv = qv.shape[1], inner = C.shape[0], k, p, i
     cdef int s = ny if states < 0 else states, m = ny - s
-    cdef double *lin = <double *>malloc((ny + 1) * sizeof(double))
-    if lin == NULL:
-        raise MemoryError()
+    cdef double *lin = scratch(ny)
     with nogil:
         for k in range(K):
             memcpy(&qx[k, 0], &gamma[points[k, 0], 0], ny * sizeof(double))
@@ -325,17 +311,11 @@ def factor(const double[:, :, ::1] Qxx, const double[:, :, ::1] Qxv,
     and the products skip them."""
     cdef int K = Qxx.shape[0], nx = Qxx.shape[1], nv = Qvv.shape[1], k, i, j
     cdef int s = nx if states < 0 else states, m = nx - s
-    cdef double *PA = <double *>malloc((nx * nx + 1) * sizeof(double))
-    cdef double *PB = <double *>malloc((nx * nv + 1) * sizeof(double))
-    cdef double *Hxx = <double *>malloc((nx * nx + 1) * sizeof(double))
-    cdef double *T = <double *>malloc((nv * nx + 1) * sizeof(double))
+    cdef double *PA = scratch(2 * nx * nx + 2 * nx * nv)
+    cdef double *PB = PA + nx * nx
+    cdef double *Hxx = PB + nx * nv
+    cdef double *T = Hxx + nx * nx
     cdef int status = 0
-    if PA == NULL or PB == NULL or Hxx == NULL or T == NULL:
-        free(PA)
-        free(PB)
-        free(Hxx)
-        free(T)
-        raise MemoryError()
     with nogil:
         for i in range(nx):
             for j in range(nx):
@@ -371,9 +351,6 @@ def factor(const double[:, :, ::1] Qxx, const double[:, :, ::1] Qxv,
                 for j in range(nx):
                     P[k, i, j] = 0.5 * (Hxx[i * nx + j] + Hxx[j * nx + i])
     free(PA)
-    free(PB)
-    free(Hxx)
-    free(T)
     return status
 
 
@@ -385,12 +362,8 @@ def vectors(const double[:, ::1] qx, const double[:, ::1] qv, const double[:, :,
     as `factor`'s, and b's rows from s on are 0 (P, symmetric, read by its first s rows)."""
     cdef int K = qx.shape[0], nx = qx.shape[1], nv = qv.shape[1], k, i
     cdef int s = nx if states < 0 else states, m = nx - s
-    cdef double *lin = <double *>malloc((nx + 1) * sizeof(double))
-    cdef double *h = <double *>malloc((nx + nv + 1) * sizeof(double))
-    if lin == NULL or h == NULL:
-        free(lin)
-        free(h)
-        raise MemoryError()
+    cdef double *lin = scratch(2 * nx + nv)
+    cdef double *h = lin + nx
     with nogil:
         for i in range(nx):
             p[K, i] = p_end[i]
@@ -413,7 +386,6 @@ def vectors(const double[:, ::1] qx, const double[:, ::1] qv, const double[:, :,
             for i in range(nx):
                 p[k, i] = h[i]
     free(lin)
-    free(h)
     return None
 
 
