@@ -3,6 +3,7 @@ differences, identification against the truth and against lagrgen.fit, constrain
 durations, and the errors bad input gets."""
 import subprocess
 import sys
+import warnings
 
 import numpy as np
 import pytest
@@ -392,6 +393,9 @@ def test_bad_input_gets_clear_errors(integrator, out_dir):
         lagrgen.Collocation(mod, 1, 1.0)
     with pytest.raises(LagrgenError, match="positive"):
         lagrgen.Collocation(mod, 11, -1.0)
+    for pair in ((0.0, 3.0), (-1.0, 3.0), (2.0, 1.0)):   # a motion of no time has no least time
+        with pytest.raises(LagrgenError, match="0 < lo < hi"):
+            lagrgen.Collocation(mod, 11, pair)
     with pytest.raises(LagrgenError, match="scheme"):
         lagrgen.Collocation(mod, 11, 1.0, scheme="rk4")
     with pytest.raises(UnknownNameError):
@@ -428,6 +432,29 @@ def test_bad_input_gets_clear_errors(integrator, out_dir):
         bounded.solve(progress=False)
     with pytest.raises(LagrgenError, match="decision vector"):
         effort_problem(mod, F, 11, "trapezoidal").solve(guess=np.zeros(3), progress=False)
+
+
+def test_a_failed_solve_reports_the_objective_of_its_answer(out_dir):
+    """Where IPOPT stops on an error (a path constraint that is NaN at the start: status -13),
+    res.objective is the objective at the motion it returns (IPOPT says 0), not 0."""
+    model = lagrgen.Model("colloc_nan_path")
+    th, = model.coordinates("theta")
+    T, = model.inputs("T")
+    model.kinetic_energy(th.diff(model.t) ** 2 / 2)
+    model.potential_energy(-9.81 * sp.cos(th))
+    model.torque(T, th)
+    mod = lagrgen.build(model, out_dir=out_dir)
+    prob = lagrgen.Collocation(mod, nodes=21, duration=3.0)
+    prob.bound("T", -15, 15).initial(q=[0.0], qd=[0.0]).final(q=[np.pi], qd=[0.0])
+    prob.minimize(integral=model.input_functions[0] ** 2)
+    prob.path(sp.sqrt(th - 1), lo=0, hi=10)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        res = prob.solve(progress=False, mesh_tol=None)
+    assert not res.success and res.status < 0
+    effort = float(res._transcription.objective(res.x))
+    assert res.objective == effort and effort > 1.0
+    assert abs(effort - np.trapezoid(res.u[0] ** 2, res.t)) < 0.05 * effort
 
 
 def test_given_inputs_and_per_sample_weights_are_checked(integrator):

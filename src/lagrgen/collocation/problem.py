@@ -4,6 +4,7 @@ direct collocation with IPOPT (`solve`).
 """
 import math
 import numbers
+import time
 
 import numpy as np
 
@@ -35,7 +36,8 @@ class Collocation:
     nodes : int
         Number of nodes (≥ 2), equally spaced over the duration.
     duration : float or (float, float)
-        The duration T; a pair (lo, hi) makes T a variable in those bounds (free final time).
+        The duration T; a pair (lo, hi), 0 < lo < hi, makes T a variable in those bounds (free
+        final time).
     scheme : {"hermite-simpson", "trapezoidal", "backward-euler"}
     unknown_params : list of str, optional
         Parameters to estimate or optimize (variables of the problem); the others keep their
@@ -498,7 +500,7 @@ class Collocation:
         Returns
         -------
         CollocationResult
-            With `solve_seconds`, the wall time of this solve.
+            With `solve_seconds`, the wall time of this re-plan (every mesh of it).
         """
         from .refine import solve_refined
         from .result import CollocationResult
@@ -515,8 +517,6 @@ class Collocation:
         if unknown:
             raise LagrgenError(f"resolve() got unexpected options {sorted(unknown)}: it takes "
                                "those of solve")
-        if initial is not None:
-            self._replace_initial(initial)
         opts = {"hessian": "exact", "tol": 1e-8, "max_iter": 3000, "progress": False,
                 "options": None, "solver": "auto", "mesh_tol": None, "max_meshes": 10}
         opts.update(solve_options)
@@ -524,8 +524,20 @@ class Collocation:
                           opts["options"], opts["solver"])
         mesh_tol, max_meshes = _refinement(opts["mesh_tol"], opts["max_meshes"])
         self._require_objective()
-        return solve_refined(self, warm, chosen, mesh_tol, max_meshes,
-                             start=(warm._layout, warm._controls, shift))
+        earlier = dict(self._fixed)
+        try:
+            if initial is not None:
+                self._replace_initial(initial)
+            began = time.perf_counter()
+            result = solve_refined(self, warm, chosen, mesh_tol, max_meshes,
+                                   start=(warm._layout, warm._controls, shift))
+            result.solve_seconds = time.perf_counter() - began
+            return result
+        except BaseException:
+            if initial is not None:           # a re-plan that raises leaves the problem as it was
+                self._fixed = earlier
+                self._changed(structure=False)
+            raise
 
     def _replace_initial(self, initial):
         """Set new initial values (resolve's `initial`): those given replace the earlier ones;
@@ -560,9 +572,10 @@ class Collocation:
 
     def regularization_note(self):
         """What `res.notes` says of the term that picks a motion of the least time."""
-        return ("the least time is reached by more than one motion: the one returned has the "
-                "least ∫Σ(u/ū)² dt among them (ū: each input's half range), chosen by a term of "
-                f"weight {TIME_REGULARIZATION:g} added to the objective")
+        return ("the least time may be reached by more than one motion (joints with slack): "
+                "the one returned has the least ∫Σ(u/ū)² dt among them (ū: each input's half "
+                f"range), chosen by a term of weight {TIME_REGULARIZATION:g} added to the "
+                "objective (res.objective includes it; res.duration is the least time)")
 
     def _require_objective(self):
         if self._integrand is None and not self._minimize_time and not self._tracks \
@@ -684,8 +697,9 @@ def _duration(duration):
         if len(duration) != 2:
             raise LagrgenError(f"duration=(lo, hi) takes two numbers, got {duration!r}")
         lo, hi = (_finite(d, "duration bound") for d in duration)
-        if not 0 <= lo < hi:
-            raise LagrgenError(f"duration=(lo, hi) needs 0 ≤ lo < hi, got {duration!r}")
+        if not 0 < lo < hi:
+            raise LagrgenError(f"duration=(lo, hi) needs 0 < lo < hi (a motion takes some time: "
+                               f"give lo a small positive value), got {duration!r}")
         return True, (lo, hi)
     T = _finite(duration, "duration")
     if T <= 0:

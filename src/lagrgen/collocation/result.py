@@ -1,5 +1,6 @@
 """What `Collocation.solve` returns: the motion at the nodes, the estimates, the solver's report,
 and the ways to look at it (plot, animation, xarray) and to check it (a re-simulation)."""
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -76,7 +77,8 @@ class CollocationResult:
     mesh_tol : the tolerance of the error the refinement worked to (None: the grid as given)
     seconds : wall time of the solve over every mesh (after the problem's units were made)
     callback_seconds : the part of it spent evaluating the NLP (the rest is the solver's own)
-    solve_seconds : wall time of the last mesh's solve (of `Collocation.resolve`: the re-plan)
+    solve_seconds : wall time of the last mesh's solve (of `Collocation.resolve`: the whole
+        re-plan, every mesh of it)
     solver : "ipopt" or "sqp", the solver of the last mesh (`Collocation.solve`'s solver=)
     sqp_failed : why the structured SQP gave up on a mesh of the solve, which IPOPT then solved
         from the same start (under solver="auto" the later meshes too; a note says so), or ""
@@ -121,7 +123,7 @@ class CollocationResult:
         message = message.decode() if isinstance(message, bytes) else str(message)
         return cls(
             success=status in (0, 1), status=status, message=message,
-            iterations=int(iterations), objective=float(info["obj_val"]),
+            iterations=int(iterations), objective=objective_at(tr, x, info, status),
             t=t_points[nodes], y=Z[nodes, :2 * L.n].T.copy(),
             u=Z[nodes, L.offset("u"):].T.copy(), qdd=Z[nodes, 2 * L.n:3 * L.n].T.copy(),
             multipliers=Z[nodes, 3 * L.n:3 * L.n + L.m].T.copy(),
@@ -328,6 +330,20 @@ def simpson_quadratics(t_nodes, values):
     h = np.diff(t_nodes)
     return np.column_stack([np.zeros_like(h), 2 * (u0 - 2 * um + u1) / h**2,
                             (-3 * u0 + 4 * um - u1) / h, u0])
+
+
+def objective_at(tr, x, info, status):
+    """The objective at the solver's answer x: IPOPT's value where it solved (0, 1) or stopped
+    at its limit (-1), else evaluated at x (IPOPT reports 0 after an error), NaN where the
+    problem cannot be evaluated there."""
+    if status in (0, 1, -1):
+        return float(info["obj_val"])
+    try:
+        with np.errstate(all="ignore"):
+            value = float(tr.objective(x))
+    except Exception:
+        return math.nan
+    return value if math.isfinite(value) else math.nan
 
 
 def acceptable_note(status, least_time=False):

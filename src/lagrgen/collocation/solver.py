@@ -272,7 +272,11 @@ def solve_mesh(problem, layout, controls, guess, settings, start=None, shift=0.0
         raise LagrgenError(f"solver='sqp' cannot solve this problem: the SQP does not handle "
                            f"{reason}; solve it with solver='auto' or 'ipopt'")
     if reason or (start is None and not isinstance(guess, CollocationResult)):
-        return solve_nlp(problem, bound, x0, settings, start, multipliers)
+        result = solve_nlp(problem, bound, x0, settings, start, multipliers)
+        if reason and replan:
+            result.notes.append(f"the structured SQP does not handle {reason}: IPOPT solved "
+                                "this re-plan")
+        return result
     lam0, z0 = warm_multipliers(bound, guess, shift)
     if lam0 is None and multipliers is not None:
         lam0, z0 = multipliers
