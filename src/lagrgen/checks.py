@@ -55,10 +55,11 @@ def check_unit(unit, where):
 
 
 def as_vector(value, what):
-    """Return `value` (scalar, list, tuple or Matrix) as a SymPy column Matrix of 1 to 3 entries."""
+    """Return `value` (scalar, list, tuple, 1-D array or Matrix) as a SymPy column Matrix of 1 to
+    3 entries."""
     if isinstance(value, sp.MatrixBase):
         vec = sp.Matrix(value).reshape(len(value), 1)
-    elif isinstance(value, (list, tuple)):
+    elif isinstance(value, (list, tuple)) or getattr(value, "ndim", None) == 1:
         vec = sp.Matrix([sp.sympify(v) for v in value])
     else:
         vec = sp.Matrix([sp.sympify(value)])

@@ -19,7 +19,8 @@ import keyword
 import math
 import re
 import xml.etree.ElementTree as ET
-from dataclasses import astuple, dataclass, field
+from contextlib import contextmanager
+from dataclasses import astuple, dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -532,6 +533,23 @@ def massless_coordinates(found, followers):
     return [part for part in found if part.name not in followers and total[part.name] == 0.0]
 
 
+def _check_base_carries(robot, found):
+    """URDFError when a floating base's root link (with the links fixed to it) has no mass or
+    inertia and one moving joint below it: the base turning (or sliding) about that joint's axis
+    then moves the same bodies as the joint, and M is singular along the difference."""
+    base = next(k for k, part in enumerate(found) if part.link == robot.root)
+    children = [part for part in found if part.parent == base]
+    if np.abs(found[base].body).max() > 0.0 or len(children) != 1:
+        return
+    joint = children[0].joint
+    raise URDFError(f"the root link {robot.root!r} of {robot.name!r} has no mass or inertia and "
+                    f"one moving joint below it ({joint.name!r}): a floating base turning about "
+                    "that joint's axis moves the same bodies as the joint does, so the motion is "
+                    f"not determined (a singular mass matrix): give {robot.root!r} an <inertial>, "
+                    f"make the joint fixed, or float the robot from {children[0].link!r} (a file "
+                    "whose root is that link)")
+
+
 def _frozen_massless(robot, found, followers, massless):
     """{joint name: position} of the joints to fix: none, or (massless="fixed") those of the
     massless coordinates at 0 and the joints that follow them at their offset; URDFError naming
@@ -627,6 +645,9 @@ def from_urdf(path, name=None, base="fixed", gravity=(0.0, 0.0, -9.81), joint_dy
                          f"{gravity!r}") from None
     if len(gravity) != 3:
         raise ModelError(f"gravity must have 3 components, got {len(gravity)}")
+    if any(g.has(sp.nan, sp.oo, -sp.oo, sp.zoo) for g in gravity):
+        raise ModelError(f"gravity must be finite (m/s² in the fixed frame), got "
+                         f"{tuple(gravity)}")
     robot = read(path, check_inertias)
     if mimic:
         _check_mimics(robot)
@@ -643,7 +664,7 @@ def from_urdf(path, name=None, base="fixed", gravity=(0.0, 0.0, -9.81), joint_dy
                  if mimic and p.joint is not None and p.joint.mimic is not None}
     if base == "free" and followers:
         follower, (target, _, _) = next(iter(followers.items()))
-        raise ModelError(f"joint {follower!r} of {robot.name!r} mimics {target!r}: the "
+        raise URDFError(f"joint {follower!r} of {robot.name!r} mimics {target!r}: the "
                          "recursion of a free base takes no mimic joints yet; read the file with "
                          "from_urdf(..., mimic=False) (the joints independent, as Pinocchio "
                          "reads them)")
@@ -652,6 +673,8 @@ def from_urdf(path, name=None, base="fixed", gravity=(0.0, 0.0, -9.81), joint_dy
         found = parts(robot, base, frozen, frames)
         followers = {name: f for name, f in followers.items()
                      if any(p.name == name for p in found)}
+    if base in ("floating", "free"):
+        _check_base_carries(robot, found)
     coordinate_parts = [p for p in found if p.name not in followers]
     if not coordinate_parts:
         raise URDFError(f"robot {robot.name!r} has no moving joint (every joint is fixed), so a "
@@ -666,11 +689,12 @@ def from_urdf(path, name=None, base="fixed", gravity=(0.0, 0.0, -9.81), joint_dy
     names = [p.name for p in joint_parts]
     if base == "free":
         units, names = "m m m 1 1 1 1 " + units, list(FREE_BASE) + names
-    q = dict(zip(names, model.coordinates(names, units=units)))
-    inertias = _inertias(model, found, parameters)
-    tau = model.inputs([f"tau_{p.name}" for p in joint_parts],
-                       units=" ".join("N" if p.kind == "prismatic" else "N*m"
-                                      for p in joint_parts)) if joint_parts else ()
+    with _names_of(robot):
+        q = dict(zip(names, model.coordinates(names, units=units)))
+        inertias = _inertias(model, found, parameters)
+        tau = model.inputs([f"tau_{p.name}" for p in joint_parts],
+                           units=" ".join("N" if p.kind == "prismatic" else "N*m"
+                                          for p in joint_parts)) if joint_parts else ()
     motion = {}
     for p in found:
         if p.name in followers:
@@ -698,6 +722,7 @@ def from_urdf(path, name=None, base="fixed", gravity=(0.0, 0.0, -9.81), joint_dy
     start = {"base_qw": 1.0} if base == "free" else {}
     for p in coordinate_parts:
         limit = p.joint.limit if p.joint is not None else None
+        limit = _narrowed_by_followers(p, limit, found, followers)
         if limit is not None and any(v is not None for v in astuple(limit)):
             model.limit(p.name, *astuple(limit), enforce=bool(limits),
                         restitution=limit_restitution)
@@ -706,6 +731,42 @@ def from_urdf(path, name=None, base="fixed", gravity=(0.0, 0.0, -9.81), joint_dy
     if start:
         model.initial_state(q=start)
     return model
+
+
+def _narrowed_by_followers(part, limit, found, followers):
+    """A leader joint's limits narrowed by those of the joints that follow it (q = m·q_leader + o
+    within [lower, upper] puts q_leader within [(lower − o)/m, (upper − o)/m], and |q̇| ≤ v puts
+    |q̇_leader| ≤ v/|m|); `limit` as it is for a joint that none follows."""
+    for follower in found:
+        target, multiplier, offset = followers.get(follower.name, (None, 0.0, 0.0))
+        if target is None or identifier(target) != part.name or not multiplier:
+            continue
+        own = follower.joint.limit
+        if own is None:
+            continue
+        limit = limit or Limit()
+        lower, upper, velocity = limit.lower, limit.upper, limit.velocity
+        if own.lower is not None and own.upper is not None:
+            ends = sorted(((own.lower - offset) / multiplier, (own.upper - offset) / multiplier))
+            lower = ends[0] if lower is None else max(lower, ends[0])
+            upper = ends[1] if upper is None else min(upper, ends[1])
+        if own.velocity is not None:
+            implied = own.velocity / abs(multiplier)
+            velocity = implied if velocity is None else min(velocity, implied)
+        limit = replace(limit, lower=lower, upper=upper, velocity=velocity)
+    return limit
+
+
+@contextmanager
+def _names_of(robot):
+    """The model's names made from the file's joints and links: a name the model refuses (one
+    taken, or reserved) is a URDFError of the file."""
+    try:
+        yield
+    except URDFError:
+        raise
+    except ModelError as exc:
+        raise URDFError(f"{robot.name!r}: {exc}") from None
 
 
 def _within(name, lower, upper):

@@ -1,0 +1,99 @@
+"""Defects of `from_urdf` and the link kinematics found from outside (issue 42's wave): a floating
+base whose massless root has one joint below it (a singular mass matrix) is refused; a mimic joint's
+own limits narrow its leader's and act as stops; names the model refuses are URDFErrors of the
+file; a NaN gravity is refused; a link point may be a NumPy array."""
+import numpy as np
+import pytest
+
+import lagrgen
+from lagrgen.errors import ModelError
+from lagrgen.urdf import URDFError
+
+INERTIAL = ('<inertial><origin xyz="0.1 0 0.2"/><mass value="{m}"/>'
+            '<inertia ixx="0.01" ixy="0" ixz="0" iyy="0.02" iyz="0" izz="0.015"/></inertial>')
+
+
+def robot(name, root_mass=None, joints=(("j1", "base", "a", "0 0 1"),), mimic="", limit=3.0):
+    """A small robot: root link `base` (massless unless root_mass), a massive link per joint."""
+    base = INERTIAL.format(m=root_mass) if root_mass else ""
+    links = [f'<link name="base">{base}</link>'] + [
+        f'<link name="{child}">{INERTIAL.format(m=1.0)}</link>' for _, _, child, _ in joints]
+    body = [f'<joint name="{j}" type="revolute"><parent link="{parent}"/><child link="{child}"/>'
+            f'<origin xyz="0 0 0.3"/><axis xyz="{axis}"/>'
+            f'<limit lower="-{limit}" upper="{limit}" effort="10" velocity="2"/>'
+            + (mimic if j == "j3" else "") + "</joint>" for j, parent, child, axis in joints]
+    return f'<?xml version="1.0"?><robot name="{name}">{"".join(links + body)}</robot>'
+
+
+def write(tmp_path, text, name):
+    path = tmp_path / f"{name}.urdf"
+    path.write_text(text)
+    return str(path)
+
+
+@pytest.mark.parametrize("base", ["floating", "free"])
+def test_a_floating_base_whose_massless_root_has_one_joint_below_is_refused(tmp_path, base):
+    """The base turning about the one joint's axis moves what the joint moves: M is singular
+    (its smallest eigenvalue was 3e-16, and the free base's accelerations took a null vector).
+    With two joints below, or a massive root, the file is read."""
+    one = write(tmp_path, robot("one_below"), "one")
+    with pytest.raises(URDFError, match="'base' of 'one_below' has no mass.*'j1'.*<inertial>"):
+        lagrgen.from_urdf(one, base=base)
+    lagrgen.from_urdf(one, base="fixed")
+    two = write(tmp_path, robot("two_below", joints=(("j1", "base", "a", "0 0 1"),
+                                                     ("j2", "base", "b", "0 1 0"))), "two")
+    massive = write(tmp_path, robot("massive", root_mass=2.0), "massive")
+    for path, joints in ((two, 2), (massive, 1)):
+        model = lagrgen.from_urdf(path, base=base)
+        assert len(model.q) == (6 if base == "floating" else 7) + joints
+
+
+def test_a_mimic_joints_limits_narrow_its_leaders_and_stop_it(tmp_path):
+    """j3 = −2·j1 + 0.3 within [−3, 3] puts j1 within [−1.35, 1.65] and |q̇1| ≤ 1: model.limits
+    says so and a simulation driving j1 up stops it where j3 meets its limit (it went on to
+    j3 = −5.7 before)."""
+    joints = (("j1", "base", "a", "0 0 1"), ("j2", "a", "b", "0 1 0"), ("j3", "b", "c", "1 0 0"))
+    path = write(tmp_path, robot("mimicked", joints=joints,
+                                 mimic='<mimic joint="j1" multiplier="-2" offset="0.3"/>'),
+                 "mimicked")
+    model = lagrgen.from_urdf(path)
+    lower, upper, velocity, effort = model.limits["j1"]
+    assert (lower, upper, velocity, effort) == pytest.approx((-1.35, 1.65, 1.0, 10.0))
+    assert model.limits["j2"] == pytest.approx((-3.0, 3.0, 2.0, 10.0))
+    mod = lagrgen.build(model, out_dir=str(tmp_path / "gen"), quiet=True)
+    sol = lagrgen.simulate(mod, (0.0, 3.0), np.zeros(4), inputs={"tau_j1": 10.0}, rtol=1e-9,
+                           atol=1e-9)
+    assert sol.y[0].max() == pytest.approx(1.65, abs=1e-9)
+    assert -2.0 * sol.y[0].max() + 0.3 >= -3.0 - 1e-8
+    free = lagrgen.from_urdf(path, mimic=False)
+    assert free.limits["j1"] == pytest.approx((-3.0, 3.0, 2.0, 10.0))
+
+
+def test_names_the_model_refuses_are_urdf_errors_of_the_file(tmp_path):
+    """A joint named as the time, or whose input name another joint takes, is the file's error
+    (URDFError, a ModelError), as a clash of coordinate names already was."""
+    timed = write(tmp_path, robot("timed", joints=(("t", "base", "a", "0 0 1"),)), "timed")
+    with pytest.raises(URDFError, match="'t'"):
+        lagrgen.from_urdf(timed)
+    both = write(tmp_path, robot("both", joints=(("x", "base", "a", "0 0 1"),
+                                                 ("tau_x", "a", "b", "0 1 0"))), "both")
+    with pytest.raises(URDFError, match="tau_x"):
+        lagrgen.from_urdf(both)
+    assert issubclass(URDFError, ModelError)
+
+
+def test_a_gravity_that_is_not_finite_is_refused(tmp_path):
+    path = write(tmp_path, robot("grav"), "grav")
+    for bad in ((0.0, 0.0, float("nan")), (0.0, float("inf"), -9.81)):
+        with pytest.raises(ModelError, match="gravity must be finite"):
+            lagrgen.from_urdf(path, gravity=bad)
+
+
+def test_a_link_point_may_be_a_numpy_array(tmp_path):
+    """link_position and ground_contact take an array as they take a tuple (a (3, 3)·(1, 3)
+    shape error before)."""
+    path = write(tmp_path, robot("arrays"), "arrays")
+    model = lagrgen.from_urdf(path)
+    point = np.array([0.03, -0.02, 0.05])
+    assert model.link_position("a", point) == model.link_position("a", tuple(point))
+    model.ground_contact("tip", "a", point=point, normal=np.array([0.0, 1.0, 0.0]))
