@@ -369,12 +369,36 @@ def test_the_stage_hessians_skip_the_inner_points_input_rows_exactly():
         assert np.allclose(a, b, rtol=1e-12, atol=1e-12 * np.abs(b).max())
 
 
+def test_the_filter_takes_what_lowers_the_violation_or_the_objective_and_remembers_it():
+    """IPOPT's filter: a trial lowering θ or φ by the margin is taken and its start (moved by
+    the margins) enters the filter; a later trial the entry dominates is refused; near
+    feasibility a step along a steep descent needs Armijo's decrease (and adds nothing); θ
+    above θ_max, an objective risen by more than 1e5·max(1, |φ|) and NaN are refused."""
+    from lagrgen.collocation.sqp import FILTER_GAMMA, _Filter
+    f = _Filter.at(2.0)
+    assert f.theta_max == pytest.approx(2e4) and f.theta_min == pytest.approx(2e-4)
+    assert f.takes(10.0, 1.0, 0.0, 1.0, 11.0, 0.5)             # θ down, φ up: h-type
+    assert f.pairs == [pytest.approx((1.0 - FILTER_GAMMA, 10.0 - FILTER_GAMMA))]
+    assert not f.takes(9.0, 0.5, 0.0, 1.0, 10.5, 0.999)        # dominated by that entry
+    assert f.takes(9.0, 0.5, 0.0, 1.0, 8.0, 0.6)               # φ down by the margin
+    assert not f.takes(10.0, 1.0, 0.0, 1.0, 10.0, 1.0)         # neither falls
+    near = _Filter.at(0.0)
+    assert near.takes(5.0, 1e-8, -1.0, 1.0, 4.0, 2e-8)          # φ-type: Armijo holds
+    assert not near.takes(5.0, 1e-8, -1.0, 1.0, 5.0 - 1e-6, 1e-9)   # Armijo fails
+    assert near.pairs == []
+    assert not near.takes(5.0, 1e-8, 0.0, 1.0, 4.0, 2e4)        # beyond θ_max
+    assert not near.takes(5.0, 1.0, 0.0, 1.0, 5.0 + 1e6, 0.1)   # φ risen beyond any
+    assert not near.takes(5.0, 1.0, 0.0, 1.0, np.nan, 0.1)
+    assert not near.takes(5.0, 1.0, 0.0, 1.0, 4.0, np.nan)
+
+
 @pytest.mark.filterwarnings("ignore", category=DiscretizationWarning)
 def test_a_cut_step_damps_the_bounds_multipliers_as_the_constraints(swing):
     """Where the line search cuts a step to α, the bounds' multipliers move by α of the QP's
     change as the constraints' do (undamped, a cut step close to tol lifted the stationarity
-    to 1.2 on a 1016-node mesh of Talos): from zero multipliers, the step the merit function
-    refuses at full length and takes at half gives half the full step's λ and z."""
+    to 1.2 on a 1016-node mesh of Talos): from zero multipliers, the step the line search
+    refuses at full length (an objective risen beyond any) and takes at half gives half the full
+    step's λ and z."""
     from lagrgen.collocation import sqp
     _, tr, x0, _ = swing_near_optimum(swing, 7)
     alphas = []
@@ -496,10 +520,11 @@ def test_the_qps_regularization_is_the_least_that_serves_from_any_last_one(swing
 
 
 def test_refined_meshes_by_the_sqp_reach_ipopts_optimum(swing, monkeypatch):
-    """solver="sqp" and "auto": the first mesh, started from a guess, is IPOPT's; the
-    refinement's meshes after it, started from the last solution and its multipliers, are the
-    structured SQP's (a torque that stays inside its bounds, the velocity riding its own), at
-    IPOPT's optimum on the same meshes (solver="ipopt")."""
+    """solver="auto": the first mesh, started from a guess, is IPOPT's; the refinement's meshes
+    after it, started from the last solution and its multipliers, are the structured SQP's (a
+    torque that stays inside its bounds, the velocity riding its own); solver="sqp": the first
+    mesh too, from the guess without multipliers; both at IPOPT's optimum on the same meshes
+    (solver="ipopt")."""
     from lagrgen.collocation import solver as solver_module
     model, mod = swing
     T, = model.input_functions
@@ -514,14 +539,15 @@ def test_refined_meshes_by_the_sqp_reach_ipopts_optimum(swing, monkeypatch):
     ipopt = results["ipopt"]
     assert ipopt.success and ipopt.solver == "ipopt" and len(ipopt.meshes) > 1
     assert {m.solver for m in ipopt.meshes} == {"ipopt"}
-    for name in ("sqp", "auto"):
+    later = ["sqp"] * (len(ipopt.meshes) - 1)
+    for name, first in (("sqp", "sqp"), ("auto", "ipopt")):
         by = results[name]
         assert by.success and by.solver == "sqp" and not by.sqp_failed
-        assert [m.solver for m in by.meshes] == ["ipopt"] + ["sqp"] * (len(by.meshes) - 1)
+        assert [m.solver for m in by.meshes] == [first] + later
         assert [m.nodes for m in by.meshes] == [m.nodes for m in ipopt.meshes]
         assert abs(by.objective - ipopt.objective) < 1e-7 * ipopt.objective
         assert by.error <= 1e-6
-    assert starts == [True] * (2 * len(ipopt.meshes) - 2)
+    assert starts == [False] + [True] * (2 * len(ipopt.meshes) - 2)
 
 
 def test_where_the_sqps_stationarity_stalls_auto_hands_the_refinement_to_ipopt(swing,
@@ -731,7 +757,8 @@ def test_an_arms_replans_by_the_sqp_converge_where_its_joints_ride_their_limits(
     made exact by the active set it identified (or, far from the solution, taken as the interior
     point leaves it at a loose tolerance, the active set not tried there nor in the step after);
     each re-plan by the SQP converges to tol (no flat stop, no failed step handed to IPOPT) at
-    IPOPT's optimum from the same start."""
+    IPOPT's optimum from the same start; with solver="sqp" the first solve too, from the cold
+    guess (its line search the filter: the ℓ1 merit function cut such steps to a crawl)."""
     from lagrgen.collocation import sqp
     tolerances, interior, qps, solve_qp = [], sqp.solve_qp_interior, [], sqp.solve_qp
 
@@ -759,6 +786,10 @@ def test_an_arms_replans_by_the_sqp_converge_where_its_joints_ride_their_limits(
     assert last.success
     riding = np.abs(np.abs(last.y[n:]) - velocity[:, None]) < 1e-6
     assert riding.any(axis=1).all()
+    cold = prob.solve(progress=False, mesh_tol=None, solver="sqp")   # its first mesh too
+    assert cold.solver == "sqp" and cold.status == 0 and not cold.sqp_failed
+    assert abs(cold.objective - last.objective) < 1e-7 * last.objective
+    assert np.abs(cold.y - last.y).max() < 1e-5
     for _ in range(3):
         state = last.state_at(0.12)
         replan = dict(initial={"q": state[:n], "qd": state[n:]}, shift=0.12)

@@ -250,8 +250,8 @@ def solve_mesh(problem, layout, controls, guess, settings, start=None, shift=0.0
     26-28); from a "near" start IPOPT also starts from the guess's multipliers
     (`guess.refined_multipliers`, with DUAL_OPTIONS); the structured SQP (with the guess's
     multipliers) solves a warm-started mesh (a refined one, a `replan`, or one started from an
-    earlier result) instead when `settings.solver` is "sqp", or "auto" on a `replan` or a
-    refined mesh the SQP covers (IPOPT from the same start, with a note and the result's
+    earlier result; under "sqp" also one from any other guess, a cold start) instead when
+    `settings.solver` is "sqp", or "auto" on a `replan` or a refined mesh the SQP covers (IPOPT from the same start, with a note and the result's
     `sqp_failed`, where one of its steps fails, it does not converge or, under "auto", its
     stationarity residual stalls; under "auto" IPOPT from the SQP's answer where it stops short
     of tol on a flat optimum: `finished_by_ipopt`; a max_iter the SQP reaches ends the solve
@@ -271,7 +271,8 @@ def solve_mesh(problem, layout, controls, guess, settings, start=None, shift=0.0
     if reason and settings.solver == "sqp":
         raise LagrgenError(f"solver='sqp' cannot solve this problem: the SQP does not handle "
                            f"{reason}; solve it with solver='auto' or 'ipopt'")
-    if reason or (start is None and not isinstance(guess, CollocationResult)):
+    cold = start is None and not isinstance(guess, CollocationResult)
+    if reason or (cold and settings.solver != "sqp"):
         result = solve_nlp(problem, bound, x0, settings, start, multipliers)
         if reason and replan:
             result.notes.append(f"the structured SQP does not handle {reason}: IPOPT solved "

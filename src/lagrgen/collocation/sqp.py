@@ -32,7 +32,7 @@ tried there nor in the step after, and elsewhere abandoned for the interior poin
 its changes shrink too slowly to settle. The defects' and
 residuals' multipliers come back from the recursion (the costates), in the NLP's sign
 convention (∇f + Jᵀλ + z = 0, W = ∇²f + Σ λ_i·∇²c_i), for the next step's Hessian. A step is
-accepted by a line search on the ℓ1 merit function, and the solve converges where the
+accepted by IPOPT's filter line search (`_Filter`), and the solve converges where the
 constraints hold to tol and the stationarity residual (complementarity included) is within tol,
 as IPOPT's; anything the structure does not cover, or a step that fails, is reported so the
 caller can fall back to IPOPT, and a solve that stalls within STALLED_NEAR·tol stops there for
@@ -74,6 +74,12 @@ RESTORING = 0.5
 FIRST_REGULARIZATION, MAX_REGULARIZATION, GROWTH = 1e-8, 1e4, 10.0
 #: SQP iterations by default.
 SQP_ITERATIONS = 30
+#: The filter line search's constants (`_Filter`, IPOPT's defaults): θ_max and θ_min as
+#: multiples of max(1, θ at the start), the margins γ_θ = γ_φ, Armijo's η, the switching
+#: condition's exponents s_φ and s_θ, the largest rise of φ relative to max(1, |φ|), and the
+#: shortest step tried.
+FILTER_THETA_MAX, FILTER_THETA_MIN, FILTER_GAMMA, FILTER_ETA = 1e4, 1e-4, 1e-5, 1e-4
+FILTER_S_PHI, FILTER_S_THETA, FILTER_PHI_RISE, SMALLEST_STEP = 2.3, 1.1, 1e5, 1e-3
 #: Passes of the active set before the QP turns to the interior point (QUICK_PASSES after a QP
 #: the active set did not settle); the interior point's iterations.
 ACTIVE_PASSES, QUICK_PASSES, IPM_ITERATIONS = 8, 2, 60
@@ -1097,6 +1103,55 @@ def _active_passes(last, skipped):
     return QUICK_PASSES if last is not None and last.interior else ACTIVE_PASSES
 
 
+class _Filter:
+    """The line search's acceptance of a trial point by its objective φ and its constraints'
+    violation θ (Σ of each one's violation), IPOPT's filter (Wächter & Biegler 2006): a step
+    is taken where the point is not dominated by an earlier pair of the filter and lowers θ or φ
+    enough against the current point; near feasibility (θ ≤ θ_min), a step along which φ falls
+    fast enough against θ (the switching condition) needs Armijo's decrease of φ instead, and
+    does not add the current pair to the filter. A trial θ above θ_max, or a φ that rises by more
+    than FILTER_PHI_RISE·max(1, |φ|) (IPOPT's obj_max_inc), or a value that is not finite, is
+    never taken.
+    (An ℓ1 merit function cut the Panda's steps from a cold start to 1/32–1/8 for 30
+    iterations; with the filter the SQP solves it in 8 where IPOPT takes 27.)"""
+
+    def __init__(self, theta_max, theta_min):
+        self.theta_max, self.theta_min, self.pairs = theta_max, theta_min, []
+
+    @classmethod
+    def at(cls, theta0):
+        """The filter of a solve whose start violates its constraints by θ0."""
+        scale = max(1.0, float(theta0))
+        return cls(FILTER_THETA_MAX * scale, FILTER_THETA_MIN * scale)
+
+    def _refused(self, phi, trial_phi, trial_theta):
+        """Whether a trial is out whatever the step: a value not finite, θ above θ_max, φ risen
+        by more than FILTER_PHI_RISE·max(1, |φ|), or a pair of the filter dominating it."""
+        if not (np.isfinite(trial_phi) and np.isfinite(trial_theta)):
+            return True
+        return (trial_theta > self.theta_max
+                or trial_phi - phi > FILTER_PHI_RISE * max(1.0, abs(phi))
+                or any(trial_theta >= t and trial_phi >= f for t, f in self.pairs))
+
+    def takes(self, phi, theta, slope, alpha, trial_phi, trial_theta):
+        """Whether the point (trial_phi, trial_theta) at step alpha along a direction of slope
+        ∇φᵀd is taken from (phi, theta); a taken step that is not φ-type adds (phi, theta),
+        moved by the margins, to the filter."""
+        if self._refused(phi, trial_phi, trial_theta):
+            return False
+        switching = slope < 0 and alpha * (-slope) ** FILTER_S_PHI > theta ** FILTER_S_THETA
+        rounding = 1e-14 * abs(phi)                 # φ's round-off, where the steps are tiny
+        armijo = trial_phi <= phi + FILTER_ETA * alpha * slope + rounding
+        if switching and theta <= self.theta_min:
+            return armijo
+        margin = FILTER_GAMMA * theta
+        if trial_theta <= theta - margin or trial_phi <= phi - margin + rounding:
+            if not (switching and armijo):
+                self.pairs.append((theta - margin, phi - margin))
+            return True
+        return False
+
+
 def _iterate(tr, x0, lam0, z0, tol, max_iter, monitor, hand_over=False, purify=True):
     """`solve`'s iterations on a problem the structure covers, until the constraints hold to tol
     and the stationarity residual is within it (IPOPT's test). Once the active set did not
@@ -1112,7 +1167,8 @@ def _iterate(tr, x0, lam0, z0, tol, max_iter, monitor, hand_over=False, purify=T
     lin = linearize(tr, x, lam, stages, rows)
     row_z0 = None if lam0 is None else lam[tr.defect_row + tr.n_defects + rows.index]
     active = ActiveSet.start(lin, None if z0 is None else np.asarray(z0)[:P * nz], row_z0)
-    penalty, passes, inertia, qp, stalls = 0.0, 0, Inertia(), None, 0
+    passes, inertia, qp, stalls = 0, Inertia(), None, 0
+    accepted = _Filter.at(np.sum(violation(tr, tr.constraints(x))))
     as_left, was_loose = not purify, False
     z_now = bound_multipliers(L, active)
     primal_now, dual_now = kkt_error(tr, x, lam, z_now)
@@ -1129,25 +1185,23 @@ def _iterate(tr, x0, lam0, z0, tol, max_iter, monitor, hand_over=False, purify=T
         lam_qp = constraint_multipliers(tr, qp, rows)
         z = bound_multipliers(L, active, qp.z_all)
         f, c, grad = tr.objective(x), tr.constraints(x), tr.gradient(x)
-        penalty = max(penalty, 1.1 * float(np.max(np.abs(lam_qp), initial=0.0)), 1e-6)
         infeasibility = np.sum(violation(tr, c))
-        merit = f + penalty * infeasibility
-        slope = float(np.sum(grad * step)) - penalty * infeasibility     # not BLAS (threads)
+        slope = float(np.sum(grad * step))          # not BLAS's dot (its threads)
         alpha = 1.0
         while True:
             trial = np.clip(x + alpha * step, tr.lo, tr.hi)
             trial_infeasibility = np.sum(violation(tr, tr.constraints(trial)))
-            value = tr.objective(trial) + penalty * trial_infeasibility
-            if value <= merit + 1e-4 * alpha * min(slope, 0.0) + 1e-14 * abs(merit):
+            if accepted.takes(f, infeasibility, slope, alpha, tr.objective(trial),
+                              trial_infeasibility):
                 break
             if dual_now <= tol and trial_infeasibility <= RESTORING * infeasibility:
                 break
             alpha *= 0.5
-            if alpha < 1e-3:
+            if alpha < SMALLEST_STEP:
                 if primal_now <= tol and dual_now <= STALL_DUAL:
                     return Outcome(x, lam, z_now, iteration - 1, True,
-                                   "converged (no step lowers the merit function further)",
-                                   passes, dual_now, as_left, primal_now)
+                                   "converged (no step lowers the objective or the violation "
+                                   "further)", passes, dual_now, as_left, primal_now)
                 raise Unsupported("the SQP's line search failed")
         x = trial
         lam, z = lam + alpha * (lam_qp - lam), z_now + alpha * (z - z_now)
