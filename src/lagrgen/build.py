@@ -35,7 +35,8 @@ def build(model, out_dir="generated", backend="c", **options):
         (the articulated-body recursion over a kinematic tree, `lagrgen.tree`; ModelError if the
         model is not one) or None (default: recursive for a tree of at least
         `lagrgen.tree.RECURSIVE_FROM` coordinates). C backend: verbose, quiet, force (rebuild and
-        republish), opt_level ("-O2"), cflags (a list of extra compiler flags).
+        republish), opt_level ("-O2"), cflags (a list of extra compiler flags); the Python
+        backend accepts and ignores these. Any other option is a TypeError.
 
     Returns
     -------
@@ -52,6 +53,9 @@ def build(model, out_dir="generated", backend="c", **options):
     formulation = options.pop("formulation", None)
     if formulation not in (None, "dense", "recursive"):
         raise ModelError(f"unknown formulation {formulation!r}: use 'dense', 'recursive' or None")
+    unknown = set(options) - {"verbose", "quiet", "force", "opt_level", "cflags"}
+    if unknown:
+        raise TypeError(f"build() got unknown option(s) {', '.join(sorted(unknown))}")
     if backend == "python":
         from .codegen.python_module import python_source
         from .runtime.pymodel import PythonModel
@@ -70,9 +74,6 @@ def build(model, out_dir="generated", backend="c", **options):
         built.build_info = {"cache_hit": False, "seconds": time.perf_counter() - start}
         built._source_model = model
         return built
-    unknown = set(options) - {"verbose", "quiet", "force", "opt_level", "cflags"}
-    if unknown:
-        raise TypeError(f"build() got unknown option(s) {', '.join(sorted(unknown))}")
     digest = content_digest(spec, formulation, lambda: derived(spec))
     cache.remember_description(digest, spec)
     built = build_c(spec.name, digest,

@@ -20,7 +20,7 @@ from scipy.optimize import least_squares
 from .errors import LagrgenError
 from .identifiability import (FitWarning, covariance, on_bounds, unseen_directions,  # noqa: F401
                               warn_unseen)
-from .runtime.arguments import parameters_from, state_vector, unknown_name
+from .runtime.arguments import key_name, parameters_from, state_vector, unknown_name
 from .sensitivity import sensitivity_columns
 from .simulate import simulate
 from .vibration import equilibrium, linearize, modes
@@ -106,7 +106,9 @@ def _weights(weights, shape):
 
 def distinct_names(names, what="params"):
     """`names` as a list of distinct names; ValueError naming a repeated one."""
-    names = [names] if isinstance(names, str) else list(names)
+    names = [names] if isinstance(names, str) or getattr(names, "is_Symbol", False) \
+        else list(names)
+    names = [key_name(name) for name in names]
     seen = set()
     for name in names:
         if name in seen:
@@ -143,7 +145,7 @@ def _output_derivatives(mod, t, y, p, u, k, columns, h=1e-7):
 
 
 def fit(mod, t, data, params, y0, measured=None, initial=None, bounds=None, weights=None,
-        method="Radau", **simulate_options):
+        method="Radau", p=None, **simulate_options):
     """Least-squares estimates of the parameters `params` (and initial states `y0:<state>`)
     from samples `data` of the measured coordinates, velocities or outputs at times `t`.
 
@@ -159,8 +161,9 @@ def fit(mod, t, data, params, y0, measured=None, initial=None, bounds=None, weig
     initial : dict name -> start value (default: the model's defaults, y0)
     bounds : dict name -> (low, high)
     weights : a number, one per measured name, or an array of the data's shape
-    method, **simulate_options : passed to `lagrgen.simulate` (rtol, atol, params for the
-        parameters that are not fitted, inputs, ...)
+    method, **simulate_options : passed to `lagrgen.simulate` (rtol, atol, inputs, ...)
+    p : the values of the parameters that are not fitted (a dict by name or Symbol, or a full
+        vector; default the model's defaults)
 
     Returns
     -------
@@ -172,7 +175,7 @@ def fit(mod, t, data, params, y0, measured=None, initial=None, bounds=None, weig
     measured_names, rows = measured_rows(mod, measured)
     data = _as_data(data, len(rows), t.size)
     w = _weights(weights, data.shape)
-    base_p = parameters_from(mod, simulate_options.pop("params", None))
+    base_p = parameters_from(mod, p)
     base_y0 = state_vector(y0, tuple(mod.coordinates))
     theta0, low, high = _start_and_bounds(mod, names, columns, base_p, base_y0, initial, bounds)
     cache = {}
@@ -227,8 +230,20 @@ def at_trial(names, theta):
             "where the model is valid with bounds={name: (low, high)})")
 
 
+def _by_name(given, what):
+    """fit's `initial` or `bounds`, a dict keyed by name or Symbol, keyed by name."""
+    if given is None:
+        return {}
+    if not isinstance(given, dict):
+        entry = "start value" if what == "initial" else "(low, high)"
+        raise TypeError(f"{what} must be a dict of the fitted names (or Symbols) to their "
+                        f"{entry}, got {type(given).__name__}")
+    return {key_name(key): value for key, value in given.items()}
+
+
 def _start_and_bounds(mod, names, columns, p, y0, initial, bounds):
-    initial, bounds = dict(initial or {}), dict(bounds or {})
+    initial, bounds = (_by_name(given, what) for given, what in ((initial, "initial"),
+                                                                 (bounds, "bounds")))
     for given, what in ((initial, "initial"), (bounds, "bounds")):
         unknown = [k for k in given if k not in names]
         if unknown:
@@ -315,6 +330,10 @@ def fit_modes(mod, q0, measured_hz, params, initial=None, bounds=None, shapes=No
             or np.any(target <= 0):
         raise ValueError(f"measured_hz must be 1 to {n} finite positive frequencies, got "
                          f"{np.array2string(target, precision=6)}")
+    if shapes is None and np.any(np.diff(target) < 0):
+        raise ValueError(f"measured_hz {np.array2string(target, precision=6)} are paired with "
+                         "the model's modes in order, the lowest first: give them in ascending "
+                         "order (or give shapes, to pair them by their mode shapes)")
     if shapes is not None:
         shapes = np.asarray(shapes, dtype=float).reshape(n, -1)
         if shapes.shape[1] != target.size:

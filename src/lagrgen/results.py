@@ -42,11 +42,14 @@ class SimulationResult(OdeResult):
 
 def with_coordinates(sol, coordinates, n, model_name=None):
     """`sol` as a SimulationResult with also `coordinates`, `q` (n × len(t)) and `qd`
-    (n × len(t)), views of the rows of `y`."""
+    (n × len(t)), views of the rows of `y`, and (a smooth model's: empty) `transitions` and
+    `mode`."""
     result = sol if isinstance(sol, SimulationResult) else SimulationResult(sol)
     result.coordinates = tuple(coordinates)
     result.q = result.y[:n]
     result.qd = result.y[n:]
+    result.setdefault("transitions", [])        # a smooth motion's: none, and no active set
+    result.setdefault("mode", {})
     if model_name is not None:
         result.__dict__["_model_name"] = model_name   # not a field: only the plot's title
     return result

@@ -68,7 +68,10 @@ def from_sympy(method_or_system, name, defaults=None, inputs=None):
     Returns
     -------
     lagrgen.Model, with the coordinates `method_or_system.q` (in order), usable like any other Model
-    (more physics may be added to it).
+    (more physics may be added to it). Its equations come without energies: the outputs
+    kinetic_energy, potential_energy and total_energy (and the input power and Rayleigh
+    function of `evaluate_outputs`) are NaN; declare what you want to watch with
+    `model.output(name, expr)`.
     """
     from sympy.physics.mechanics import dynamicsymbols
     t = dynamicsymbols._t

@@ -19,6 +19,7 @@ from .errors import LagrgenError, UnknownNameError
 from .linearization import (ZERO_TOL, FrozenTimeWarning, Linearization, ascending,  # noqa: F401
                             check_positive_definite, linearize, operating_point,
                             warn_frozen_time)
+from .runtime.arguments import key_name
 
 
 class EquilibriumError(LagrgenError, RuntimeError):
@@ -440,6 +441,13 @@ def modes(mod_or_lin, q0=None, qd0=None, p=None, u=None, t=0.0, dependent=None):
                 "modes(lin, dependent=...): a Linearization has its independent states already "
                 f"({', '.join(mod_or_lin.states)}); pass dependent= to lagrgen.linearize, or "
                 "call lagrgen.modes(mod, q0, dependent=...) with the built model")
+        given = [name for name, value in (("q0", q0), ("qd0", qd0), ("p", p), ("u", u))
+                 if value is not None] + (["t"] if t != 0.0 else [])
+        if given:
+            raise TypeError(f"modes(lin, {', '.join(f'{g}=...' for g in given)}): a "
+                            "Linearization is taken at its own point and parameters; linearize "
+                            "again (lagrgen.linearize(mod, q0, p=..., u=...)) or call "
+                            "lagrgen.modes(mod, q0, p=..., u=...) with the built model")
     else:
         warn_frozen_time(mod_or_lin, t, "modal analysis")
     lin = as_linearization(mod_or_lin, q0, qd0, p, u, t, dependent)
@@ -516,6 +524,7 @@ def state_modes(lin, model=None):
 def input_index(names, input, model_name=""):
     """The position of `input` among the input `names`, or a clear error."""
     names = tuple(names)
+    input = key_name(input)
     if not names:
         raise LagrgenError(
             f"model {model_name!r} has no inputs: declare one with model.inputs('F') to compute a "
@@ -544,6 +553,8 @@ def frequency_response(mod, q0, freqs_hz, input="F", p=None, u=None, qd0=None):
     freqs = np.atleast_1d(np.asarray(freqs_hz, dtype=float))
     if freqs.ndim != 1:
         raise ValueError(f"freqs_hz must be a 1-D array of frequencies, got shape {freqs.shape}")
+    if not np.all(np.isfinite(freqs)):
+        raise ValueError(f"freqs_hz must be finite, got {np.array2string(freqs, precision=6)}")
     second = lin.has_second_order_form
     b = lin.B[:, j] if second else lin.B_state[:, j]
     size = lin.n if second else len(lin.states)

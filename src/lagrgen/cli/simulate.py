@@ -181,7 +181,7 @@ def write_csv(stream, sol, names, outputs=None, units=None):
             units[f"{c}_dot"] = rate_unit(units[c])
     out_names = list(outputs.names) if outputs is not None else []
     lam = getattr(sol, "constraint_forces", np.zeros((0, len(sol.t))))
-    transitions = getattr(sol, "transitions", None)
+    transitions = sol.transitions if "n_segments" in sol else None     # a hybrid model's
     marks = {}
     for t, name, kind in transitions or ():
         k = int(np.searchsorted(sol.t, t, side="left"))

@@ -103,8 +103,8 @@ class BuiltModel(Protocol):
 
     def regressor(self, q, qd, a, t=0.0, p=None, u=None) -> np.ndarray:
         """Y, (n, len(inertial_parameters)), with M·q̈ − F = Y·π at q̈ = a (§21); for a free
-        base without the term J·r̈·ζ/|ζ| of the inertia J of the quaternion's length r = |ζ|,
-        which moves no body and vanishes on every motion that keeps |ζ| (r̈ = 0)."""
+        base without the term J·r̈·ζ/r of the inertia J of the quaternion's length r, which moves
+        no body and vanishes on every motion that keeps that length (r̈ = 0)."""
 
     def link_pose(self, link, q, point=(0, 0, 0), p=None) -> tuple:
         """(x (3,), R (3, 3)): the world position of a point fixed in a link and the link's

@@ -1,0 +1,102 @@
+"""Defects of the core API found from outside (issue 42's wave), on a two-mass chain: fit_modes
+refuses frequencies it would pair wrongly; fit takes the values of the parameters it does not fit
+(p=) and Symbols for names; a smooth run has empty transitions and mode; modes(lin) refuses
+arguments a linearization cannot take; frequency_response refuses frequencies that are not
+finite and takes the input's function; the Python backend refuses unknown build options."""
+import numpy as np
+import pytest
+
+import lagrgen
+
+TRUE = {"k1": 30.0, "k2": 20.0}
+
+
+@pytest.fixture(scope="module")
+def chain(tmp_path_factory):
+    model = lagrgen.Model("outside_chain2")
+    x1, x2 = model.coordinates("x1 x2")
+    m1, m2, k1, k2, c1, c2 = model.parameters(m1=1.0, m2=0.5, k1=40.0, k2=25.0, c1=0.4,
+                                              c2=0.2)
+    F, = model.inputs("F")
+    model.particle(m1, [x1])
+    model.particle(m2, [x2])
+    model.spring(k1, x1)
+    model.spring(k2, x2 - x1)
+    model.damper(c1, x1)
+    model.damper(c2, x2 - x1)
+    model.generalized_force(x2, F)
+    return model, lagrgen.build(model, out_dir=str(tmp_path_factory.mktemp("outside")),
+                                quiet=True)
+
+
+def test_fit_modes_refuses_frequencies_out_of_order(chain):
+    """Paired with the modes in order, [f2, f1] fitted to wrong stiffnesses with success=True;
+    ascending, the same fit recovers the truth."""
+    model, mod = chain
+    truth = lagrgen.modes(mod, [0.0, 0.0], p=TRUE).frequencies_hz
+    with pytest.raises(ValueError, match="ascending"):
+        lagrgen.fit_modes(mod, [0.0, 0.0], truth[::-1], ["k1", "k2"])
+    upd = lagrgen.fit_modes(mod, [0.0, 0.0], truth, ["k1", "k2"])
+    assert upd.success
+    assert upd.params["k1"] == pytest.approx(30.0, rel=1e-6)
+    assert upd.params["k2"] == pytest.approx(20.0, rel=1e-6)
+
+
+def test_fit_takes_the_unfitted_parameters_values_and_symbols_for_names(chain):
+    """Data made with k1 = 30, k2 = 20: fitting k1 alone recovers 30 only with k2 = 20 given
+    (p=), not at its default 25; names, initial and bounds may be the model's Symbols; bounds in
+    SciPy's form get an error that says a dict is wanted."""
+    model, mod = chain
+    m1, m2, k1, k2, c1, c2 = model.parameter_symbols
+    t = np.linspace(0.0, 3.0, 61)
+    y0 = [0.1, -0.05, 0.0, 0.0]
+    data = lagrgen.simulate(mod, (0.0, 3.0), y0, params=TRUE, t_eval=t, rtol=1e-10,
+                            atol=1e-12).y[:2]
+    given = lagrgen.fit(mod, t, data, [k1], y0, initial={k1: 35.0}, bounds={k1: (1.0, 100.0)},
+                        p={"k2": 20.0}, rtol=1e-10, atol=1e-12)
+    assert given.success and list(given.params) == ["k1"]
+    assert given.params["k1"] == pytest.approx(30.0, rel=1e-6)
+    default = lagrgen.fit(mod, t, data, ["k1"], y0, rtol=1e-10, atol=1e-12)
+    assert abs(default.params["k1"] - 30.0) > 1e-3
+    with pytest.raises(TypeError, match="dict"):
+        lagrgen.fit(mod, t, data, ["k1"], y0, bounds=([0.0], [100.0]))
+    sol = lagrgen.simulate(mod, (0.0, 1.0), y0, sensitivities=[k2])
+    named = lagrgen.simulate(mod, (0.0, 1.0), y0, sensitivities=["k2"])
+    assert np.array_equal(sol.sensitivities, named.sensitivities)
+
+
+def test_a_smooth_run_has_no_transitions_and_no_mode(chain):
+    model, mod = chain
+    for engine in ("native", "scipy"):
+        sol = lagrgen.simulate(mod, (0.0, 0.5), [0.1, 0.0, 0.0, 0.0], engine=engine)
+        assert sol.transitions == [] and sol.mode == {}
+
+
+def test_modes_of_a_linearization_refuse_what_it_cannot_take(chain):
+    """modes(lin, p=...) returned lin's modes unchanged (a wrong number for the new p)."""
+    model, mod = chain
+    lin = lagrgen.linearize(mod, [0.0, 0.0])
+    for extra in ({"p": {"k1": 200.0}}, {"q0": [0.3, 0.0]}, {"u": [5.0]}, {"t": 1.0}):
+        with pytest.raises(TypeError, match="Linearization"):
+            lagrgen.modes(lin, **extra)
+    stiff = lagrgen.modes(mod, [0.0, 0.0], p={"k1": 200.0}).omega
+    assert not np.allclose(stiff, lagrgen.modes(lin).omega)
+
+
+def test_frequency_response_refuses_frequencies_not_finite_and_takes_the_input_function(chain):
+    model, mod = chain
+    F, = model.input_functions
+    with pytest.raises(ValueError, match="finite"):
+        lagrgen.frequency_response(mod, [0.0, 0.0], [np.nan, 1.0], input="F")
+    with pytest.raises(ValueError, match="finite"):
+        lagrgen.frequency_response(mod, [0.0, 0.0], [np.inf], input="F")
+    by_name = lagrgen.frequency_response(mod, [0.0, 0.0], [0.5, 1.0], input="F")
+    by_function = lagrgen.frequency_response(mod, [0.0, 0.0], [0.5, 1.0], input=F)
+    assert np.array_equal(by_name, by_function)
+
+
+def test_the_python_backend_refuses_unknown_build_options(chain):
+    model, _ = chain
+    with pytest.raises(TypeError, match="quite"):
+        lagrgen.build(model, backend="python", quite=True)
+    assert lagrgen.build(model, backend="python", quiet=True).n_coordinates == 2
