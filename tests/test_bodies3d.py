@@ -530,6 +530,7 @@ def _bad(call):
     (lambda M, a, b, m, R: M.rigid_body_3d(m, sp.Matrix([[1, 0.1, 0], [0, 1, 0], [0, 0, 1]]),
                                            [0, 0, 0], R), "symmetric"),
     (lambda M, a, b, m, R: M.rigid_body_3d(m, [1, -1, 1], [0, 0, 0], R), "semi-definite"),
+    (lambda M, a, b, m, R: M.rigid_body_3d(m, [1, 1, 5], [0, 0, 0], R), "triangle inequality"),
     (lambda M, a, b, m, R: M.rigid_body_3d(m, [1, a, 1], [0, 0, 0], R), "constant"),
     (lambda M, a, b, m, R: M.rigid_body_3d(m, [1, 1, 1], [0, 0], R), "3 components"),
     (lambda M, a, b, m, R: M.rigid_body_3d(m, [1, 1, 1], [0, 0, 0], sp.eye(2)), "3×3"),

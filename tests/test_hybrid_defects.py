@@ -359,6 +359,7 @@ def test_ensembles_carry_contact_forces_and_transitions(built, tmp_path):
     for name in ("multipliers", "transition_run", "transition_time", "transition_element",
                  "transition_kind"):
         np.testing.assert_array_equal(stored[name].values, ds[name].values)
+    assert all(ens.success) and stored.attrs["messages"] == {}   # normal ends are not listed
 
 
 def test_bench_times_a_model_with_impacts_with_its_hybrid_methods(built):

@@ -2,7 +2,8 @@
 refuses frequencies it would pair wrongly; fit takes the values of the parameters it does not fit
 (p=) and Symbols for names; a smooth run has empty transitions and mode; modes(lin) refuses
 arguments a linearization cannot take; frequency_response refuses frequencies that are not
-finite and takes the input's function; the Python backend refuses unknown build options."""
+finite and takes the input's function; the Python backend refuses unknown build options; the
+eigenvalues are in ascending order exactly."""
 import numpy as np
 import pytest
 
@@ -100,3 +101,15 @@ def test_the_python_backend_refuses_unknown_build_options(chain):
     with pytest.raises(TypeError, match="quite"):
         lagrgen.build(model, backend="python", quite=True)
     assert lagrgen.build(model, backend="python", quiet=True).n_coordinates == 2
+
+
+def test_eigenvalues_are_in_ascending_order_exactly(chain):
+    """An undamped chain's eigenvalues lie on the imaginary axis: their real parts were LAPACK's
+    round-off (9e-17, −4e-16, ...), which broke `np.diff(real) >= 0`; they are 0, the order holds
+    exactly, and a damped system's conjugate pairs share one real part."""
+    model, mod = chain
+    undamped = lagrgen.linearize(mod, [0.0, 0.0], p={"c1": 0.0, "c2": 0.0}).eigenvalues
+    assert np.all(undamped.real == 0.0) and np.all(np.diff(undamped.imag) > 0)
+    damped = lagrgen.linearize(mod, [0.0, 0.0]).eigenvalues
+    assert np.all(np.diff(damped.real) >= 0) and np.all(damped.real < 0)
+    assert damped[0] == np.conj(damped[1]) and damped[2] == np.conj(damped[3])

@@ -171,6 +171,11 @@ def body_inertia(model, inertia):
         if eig.min() < -1e-12 * max(1.0, abs(eig).max()):
             raise ModelError(f"{where} must be positive semi-definite (principal moments ≥ 0); "
                              f"its eigenvalues are {eig}")
+        if eig[2] > eig[0] + eig[1] + 1e-9 * max(1e-3, abs(eig).max()):
+            raise ModelError(f"{where} breaks the triangle inequality: its principal moments "
+                             f"{eig} have the largest above the sum of the other two, which no "
+                             "mass distribution gives (a thin rod's are (I, I, 0), a flat plate's "
+                             "(a, b, a + b))")
     return I
 
 

@@ -664,9 +664,8 @@ class StoreSink:
         return None
 
     def take(self, part, result, in_place=False):
-        standard = set(MESSAGES.values()) | {""}
-        for i, message in enumerate(result["message"]):
-            if message not in standard:
+        for i, (status, message) in enumerate(zip(result["status"], result["message"])):
+            if int(status) not in (0, 1):        # the end, or a terminal event: normal ends
                 self.messages[str(part.start + i)] = message
 
 
@@ -678,8 +677,9 @@ def _solve_into(mod, plan, part, sink, stop):
         result = solve_part(mod, plan, part, stop=stop)
         if not stop[0]:
             write_part(sink.path, part.start, result)
-        return {"message": result["message"], "engines": result["engines"],
-                "transitions": result["transitions"], "stopped": bool(stop[0])}
+        return {"message": result["message"], "status": result["status"],
+                "engines": result["engines"], "transitions": result["transitions"],
+                "stopped": bool(stop[0])}
     views = sink.views(part)
     result = solve_part(mod, plan, part, out=views, stop=stop)
     result["stopped"] = bool(stop[0])

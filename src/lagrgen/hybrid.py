@@ -1345,6 +1345,9 @@ def simulate_nonsmooth(mod, t_span, y0, method, p, inputs, u_at, rtol, atol, t_e
             out = solve_hybrid_native(mod, t_span, y0, method, p, input_specs(mod, inputs), rtol,
                                       atol, t_eval, poll=Poll(bar), max_steps=max_steps,
                                       max_wall_time=max_wall_time, **switching, **options)
+            if bar is not None:                 # where it ended (the polls are 0.05 s apart)
+                bar(out["t_reached"] if out["stopped"] is not None or out["status"] < 0
+                    else t_span[1])
         finally:
             if bar is not None:
                 bar.close()

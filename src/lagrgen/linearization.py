@@ -135,9 +135,11 @@ class Linearization:
 
     @property
     def eigenvalues(self):
-        """The eigenvalues of A (complex), ascending by real part (then imaginary part)."""
+        """The eigenvalues of A (complex), ascending by real part (then imaginary part); real
+        parts equal within ZERO_TOL of the largest modulus (a conjugate pair; roots on the
+        imaginary axis, whose are 0) are made equal, so that the order holds exactly."""
         s, _ = spectrum(self.A)
-        return s[ascending(s)]
+        return levelled(s[ascending(s)])
 
     @property
     def n(self):
@@ -185,6 +187,18 @@ def ascending(values):
     conjugate pair), then imaginary part."""
     scale = ZERO_TOL * max(np.abs(values).max(initial=0.0), np.finfo(float).tiny)
     return np.lexsort((values.imag, np.round(values.real / scale)))
+
+
+def levelled(values):
+    """Complex `values` in `ascending` order with the real parts that order takes as equal set
+    equal (their mean; 0 for those within ZERO_TOL of 0): round-off no longer breaks it."""
+    scale = ZERO_TOL * max(np.abs(values).max(initial=0.0), np.finfo(float).tiny)
+    keys = np.round(values.real / scale)
+    real = np.array(values.real)
+    for key in np.unique(keys):
+        group = keys == key
+        real[group] = 0.0 if key == 0 else real[group].mean()
+    return real + 1j * values.imag
 
 
 def spectrum(A):

@@ -8,6 +8,17 @@ class SimulationResult(OdeResult):
     """SciPy's OdeResult (the same fields: t, y, nfev, ..., coordinates, q, qd) that can also plot
     itself."""
 
+    @property
+    def transitions(self):
+        """[(t, name, kind)] of a hybrid solve's switches; [] for a smooth model's run."""
+        return self.get("transitions", [])
+
+    @property
+    def mode(self):
+        """{name: "open" | "contact" | "stick" | "slip"} at a hybrid solve's end; {} for a smooth
+        model's run."""
+        return self.get("mode", {})
+
     def plot(self, velocities=True, title=None):
         """q_i(t) (and q̇_i(t) in a second panel), labelled with the model's coordinate names.
 
@@ -42,14 +53,11 @@ class SimulationResult(OdeResult):
 
 def with_coordinates(sol, coordinates, n, model_name=None):
     """`sol` as a SimulationResult with also `coordinates`, `q` (n × len(t)) and `qd`
-    (n × len(t)), views of the rows of `y`, and (a smooth model's: empty) `transitions` and
-    `mode`."""
+    (n × len(t)), views of the rows of `y`."""
     result = sol if isinstance(sol, SimulationResult) else SimulationResult(sol)
     result.coordinates = tuple(coordinates)
     result.q = result.y[:n]
     result.qd = result.y[n:]
-    result.setdefault("transitions", [])        # a smooth motion's: none, and no active set
-    result.setdefault("mode", {})
     if model_name is not None:
         result.__dict__["_model_name"] = model_name   # not a field: only the plot's title
     return result
