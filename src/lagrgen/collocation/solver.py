@@ -251,11 +251,11 @@ def solve_mesh(problem, layout, controls, guess, settings, start=None, shift=0.0
     (`guess.refined_multipliers`, with DUAL_OPTIONS); the structured SQP (with the guess's
     multipliers) solves a warm-started mesh (a refined one, a `replan`, or one started from an
     earlier result; under "sqp" also one from any other guess, a cold start) instead when
-    `settings.solver` is "sqp", or "auto" on a `replan` or a refined mesh the SQP covers (IPOPT from the same start, with a note and the result's
-    `sqp_failed`, where one of its steps fails, it does not converge or, under "auto", its
-    stationarity residual stalls; under "auto" IPOPT from the SQP's answer where it stops short
-    of tol on a flat optimum: `finished_by_ipopt`; a max_iter the SQP reaches ends the solve
-    there, as IPOPT's would)."""
+    `settings.solver` is "sqp", or "auto" on a `replan` or a refined mesh the SQP covers
+    (IPOPT from the same start, with a note and the result's `sqp_failed`, where one of its
+    steps fails, it does not converge or, under "auto", its stationarity residual stalls; under
+    "auto" IPOPT from the SQP's answer where it stops short of tol on a flat optimum:
+    `finished_by_ipopt`; a max_iter the SQP reaches ends the solve there, as IPOPT's would)."""
     from .guess import initial_guess, refined_multipliers, warm_multipliers
     from .result import CollocationResult
     tr = problem.transcription(settings.hessian, layout, controls)
