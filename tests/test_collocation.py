@@ -434,6 +434,15 @@ def test_bad_input_gets_clear_errors(integrator, out_dir):
         effort_problem(mod, F, 11, "trapezoidal").solve(guess=np.zeros(3), progress=False)
 
 
+def test_the_constructor_defaults_are_the_contracts(integrator):
+    """API §18 shows Collocation(mod, nodes=101, duration=2.0, scheme="hermite-simpson",
+    unknown_params=None): those are the defaults."""
+    _, mod = integrator
+    prob = lagrgen.Collocation(mod)
+    assert prob.nodes == 101 and prob.duration_bounds == (2.0, 2.0)
+    assert prob.scheme == "hermite-simpson" and prob.unknown == () and not prob.free_duration
+
+
 def test_a_failed_solve_reports_the_objective_of_its_answer(out_dir):
     """Where IPOPT stops on an error (a path constraint that is NaN at the start: status -13),
     res.objective is the objective at the motion it returns (IPOPT says 0), not 0."""

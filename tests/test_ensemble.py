@@ -263,6 +263,8 @@ def test_bad_ensemble_arguments(mod, tmp_path):
     with pytest.raises(ValueError, match="either workers"):
         lagrgen.simulate_many(mod, (0, 1), [0.1, 0, 0, 0], t_eval=[0, 1], workers=2,
                               client=object())
+    with pytest.raises(TypeError, match="dask.distributed.Client"):
+        lagrgen.simulate_many(mod, (0, 1), [0.1, 0, 0, 0], t_eval=[0, 1], client=object())
     P = masses(mod, 2)
     P[1, 2] = np.nan
     with pytest.raises(ValueError, match="run 1 has a NaN"):

@@ -501,6 +501,8 @@ def simulate_many(mod, t_span, y0=None, params=None, inputs=None, t_eval=None, m
         raise ValueError(f"workers must be a positive integer, got {workers!r}")
     if client is not None and workers is not None:
         raise ValueError("give either workers (threads here) or client (Dask workers), not both")
+    if client is not None and not callable(getattr(client, "scheduler_info", None)):
+        raise TypeError(f"client must be a dask.distributed.Client, got {type(client).__name__}")
     t0, tf = time_span(t_span)
     rest = {k: v for k, v in options.items() if k not in ("engine", "max_steps", "max_wall_time")}
     rtol, atol, t_eval, max_steps, max_wall_time, rest = checked_options(
