@@ -163,6 +163,40 @@ def test_a_block_on_an_incline_sticks_below_tan_theta_and_slides_above(build, en
             assert force == pytest.approx(mu * normals, rel=1e-9)
 
 
+def tip_model(name):
+    """A rod of 1 kg and 1 m hinged at its end 1 m above the ground, released horizontal: its tip
+    falls onto the ground 0.2 m high, bouncing (restitution 0.5) with friction (μ = 0.5). At rest
+    on it the contact holds the rod's one freedom, and the tip's slip is tied to its fall: a
+    friction that nothing moves."""
+    model = Model(name)
+    th, = model.coordinates("theta")
+    centre = sp.Matrix([sp.cos(th) / 2, 0, 1 - sp.sin(th) / 2])
+    model.rigid_body_3d(1.0, [0.001, 1 / 12, 1 / 12], centre, rotation.y(th), name="rod")
+    model.potential_energy(G * (1 - sp.sin(th) / 2))
+    model.ground_contact("tip", "rod", (0.5, 0.0, 0.0), mu=0.5, restitution=0.5, height=0.2)
+    return model
+
+
+@pytest.mark.parametrize("engine", ENGINES)
+def test_a_tip_that_bounces_to_rest_on_the_ground_stays_there(build, engine):
+    """Its bounces accumulate (e = 0.5) and it rests at θ = asin 0.8, on both engines alike: the
+    native engine's planar friction at rest, its slip 0 to round-off, fired its event at once
+    and never stuck (the contact takes the force), 100 empty segments, and the solve gave up at
+    t = 1.204. At rest the split of the tip's force is not determined: the moment about the
+    hinge, N·cos θ + F·sin θ = m·g/2·cos θ with |F| ≤ μ·N, puts N between m·g/2 (F = 0) and
+    m·g/2·cos θ/(cos θ + μ·sin θ) (F = μ·N)."""
+    mod = build("tip", lambda: tip_model("contact_tip"), backend_of(engine))
+    sol = lagrgen.simulate(mod, (0.0, 3.0), [0.0, 0.0], engine=engine, **TOL)
+    assert sol.success, sol.message
+    assert sol.y[0, -1] == pytest.approx(np.arcsin(0.8), abs=1e-9)
+    assert abs(sol.y[1, -1]) < 1e-9 and sol.mode["tip"] == "contact"
+    c, s = 0.6, 0.8
+    least, most = G / 2 * c / (c + 0.5 * s), G / 2
+    assert least * (1 - 1e-9) <= sol.multipliers["tip"][-1] <= most * (1 + 1e-9)
+    impacts = [t for t, name, kind in sol.transitions if kind == "impact"]
+    assert len(impacts) > 10 and sol.transitions[len(impacts)][1:] == ("tip", "contact")
+
+
 def puck_model(mu):
     """A puck that slides without turning (x, y, z; its frame along the fixed axes), a ground
     contact at its bottom."""

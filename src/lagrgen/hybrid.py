@@ -329,12 +329,13 @@ class HybridSystem:
     def events(self, t, y, contact, slip, planar=None, offsets=None):
         """The event values of the mode, all falling through zero at a switch: g (open; g plus
         its offset for a contact left open at rest at its surface, see `Switching._touching`),
-        λ (contact), s·v (slipping), μ_s·|N| − |λ| (sticking); for a planar friction
-        μ_s·|N| − ‖λ‖ (sticking), d·v (slipping along its anchor d); 1 for a friction
+        λ (contact), s·v (slipping; plus its offset for one at rest that nothing moves, see
+        `Switching._touching`), μ_s·|N| − |λ| (sticking); for a planar friction
+        μ_s·|N| − ‖λ‖ (sticking), d·v (slipping along its anchor d; offset alike); 1 for a friction
         of either kind whose contact is open (it has none)."""
         if self.is_free(contact, planar):
             values = np.ones(self.n_events)
-            values[:self.ni] = self.gaps(t, y) + (0.0 if offsets is None else offsets)
+            values[:self.ni] = self.gaps(t, y) + (0.0 if offsets is None else offsets[:self.ni])
             return values
         out = self.solve(t, y, contact, slip, planar=planar)
         _, lam_i, lam_f, normal, (_, _, imp, fr) = out
@@ -345,13 +346,15 @@ class HybridSystem:
         for j in range(self.nf):
             values[self.ni + j] = (1.0 if not self.active(j, contact)
                                    else fr[j, 3] * normal[j] - abs(lam_f[j]) if slip[j] == 0
-                                   else slip[j] * fr[j, 0])
+                                   else slip[j] * fr[j, 0] + (
+                                       0.0 if offsets is None else offsets[self.ni + j]))
         pmode, anchor = planar if planar is not None else ((-1,) * self.npf, None)
         for k in range(self.npf):
             values[self.ni + self.nf + k] = (
                 1.0 if pmode[k] < 0 else
                 out.planar_rows[k, 5] * out.planar_normal[k] - np.hypot(*out.planar_force[k])
-                if pmode[k] == 0 else np.dot(anchor[k], out.planar_slip[k]))
+                if pmode[k] == 0 else np.dot(anchor[k], out.planar_slip[k]) + (
+                    0.0 if offsets is None else offsets[self.ni + self.nf + k]))
         return values
 
     # -- the reset map --------------------------------------------------------------------------
@@ -548,27 +551,45 @@ class Switching:
         self.pmode = [-1] * system.npf             # planar frictions: −1 inactive, 0 stick, 1 slip
         self.anchor = [(1.0, 0.0)] * system.npf    # and the direction each slips along
         self.gap_offsets = [0.0] * system.ni       # of the impact events (`_touching`)
+        self.slip_offsets = [0.0] * (system.nf + system.npf)   # of the slipping frictions'
 
     def offsets(self):
-        """The gap offsets of the impact events (`_touching`)."""
-        return tuple(self.gap_offsets)
+        """The offsets of the impact events, then of the frictions' and the planar frictions'
+        (`_touching`)."""
+        return tuple(self.gap_offsets) + tuple(self.slip_offsets)
 
     def _touching(self, out):
         """The gap offsets of the impact events from the solution `out` of the settled mode: −g
         where an open gap g is below 0 (within gap_tol, struck or released there: its event
         starts at 0, not below), plus TOUCH_OFFSET·gap_tol for a contact left open at rest at its
         surface (g ≤ gap_tol, ġ² ≤ 2·gap_tol·abs(g̈): it rises no higher than gap_tol, and
-        g̈ ≥ −1000·gap_tol: nothing presses it back; not one that has just bounced), so that a contact resting there without force (a redundant
-        one that a least-norm solution releases, a body wedged between two walls) does not fire
-        its event on a gap that stays 0 to round-off; it strikes when it closes past the
-        offset."""
-        qdd, _, _, _, (_, _, imp, _) = out
+        g̈ ≥ −1000·gap_tol: nothing presses it back; not one that has just bounced), so that a
+        contact resting there without force (a redundant one that a least-norm solution
+        releases, a body wedged between two walls) does not fire its event on a gap that stays 0
+        to round-off; it strikes when it closes past the offset. A friction slipping at rest that
+        nothing moves along its slip (|v| and |v̇| ≤ 1000·gap_tol: one redundant with its
+        contact, such as a pendulum's tip resting on the plane it fell on; planar ones alike) gets
+        TOUCH_OFFSET·gap_tol on its event likewise: its s·v, 0 to round-off, fired the event at
+        once and the stick it tried failed on the contact's share of the force, without end."""
+        qdd, _, _, _, (_, _, imp, fr) = out
         gdd = imp[:, 4:] @ qdd - imp[:, 2]
         self.gap_offsets = [
             0.0 if c else max(0.0, -g) + (
                 TOUCH_OFFSET * self.gap_tol if i not in self.bounced and g <= self.gap_tol
                 and gd * gd <= 2 * self.gap_tol * abs(a) and a >= -1e3 * self.gap_tol else 0.0)
             for i, (c, g, gd, a) in enumerate(zip(self.contact, imp[:, 0], imp[:, 1], gdd))]
+        still = 1e3 * self.gap_tol
+        vdd = fr[:, 5:] @ qdd - fr[:, 1]
+        slipping = [s != 0 and self.system.active(j, self.contact) and abs(v) <= still
+                    and abs(a) <= still for j, (s, v, a) in enumerate(zip(self.slip, fr[:, 0],
+                                                                       vdd))]
+        pf, n = out.planar_rows, self.system.n
+        for k in range(self.system.npf):
+            a = (pf[k, 7:7 + n] @ qdd - pf[k, 2], pf[k, 7 + n:] @ qdd - pf[k, 3])
+            slipping.append(self.pmode[k] == 1 and np.hypot(*pf[k, :2]) <= still
+                            and np.hypot(*a) <= still)
+        self.slip_offsets = [TOUCH_OFFSET * self.gap_tol if at_rest else 0.0
+                             for at_rest in slipping]
 
     @property
     def planar(self):

@@ -52,6 +52,8 @@ typedef struct {
     int *unset;                    /* npf × −1: every planar friction inactive */
     int n_bounced;
     double *gap_offset;            /* of the impact events (hy_touching) */
+    double *slip_offset;           /* of the slipping frictions' events (hy_touching), then
+                                      of the planar ones' */
     int cached;                    /* the solution at hand is the segment's at (cached_t, _y) */
     double cached_t, *cached_y;
     int *activated;                /* planar frictions that began to act in hy_settle */
@@ -518,13 +520,14 @@ static void hy_event_values(hy_ctx *c, const int *contact, const int *slip, cons
     for (int j = 0; j < c->nf; ++j)
         values[c->ni + j] = !hy_active(c, j, contact) ? 1.0
                             : slip[j] == 0 ? FR(c, j)[3] * c->normal[j] - fabs(c->lam_f[j])
-                                           : slip[j] * FR(c, j)[0];
+                                           : slip[j] * FR(c, j)[0] + c->slip_offset[j];
     for (int k = 0; k < c->npf; ++k) {
         const double *pf = PF(c, k);
         values[c->ni + c->nf + k] =
             pmode[k] < 0 ? 1.0
             : pmode[k] == 0 ? pf[5] * c->normal_p[k] - hypot(c->lam_p[2 * k], c->lam_p[2 * k + 1])
-                            : anchor[2 * k] * pf[0] + anchor[2 * k + 1] * pf[1];
+                            : anchor[2 * k] * pf[0] + anchor[2 * k + 1] * pf[1]
+                                  + c->slip_offset[c->nf + k];
     }
 }
 
@@ -756,7 +759,8 @@ static int hy_solve_mode(hy_ctx *c, double t, const double *y)
 /* The gap offsets of the impact events (lagrgen.hybrid.Switching._touching): −g where an open
  * gap g is below 0, plus TOUCH_OFFSET·gap_tol for an open contact at rest at its surface
  * (g <= gap_tol, ġ² <= 2·gap_tol·|g̈| and g̈ >= −1000·gap_tol, not one that has just bounced);
- * the solution of the settled mode at the state is at hand. */
+ * and TOUCH_OFFSET·gap_tol on the event of a friction slipping at rest that nothing moves
+ * (|v|, |v̇| <= 1000·gap_tol); the solution of the settled mode at the state is at hand. */
 static void hy_touching(hy_ctx *c)
 {
     for (int i = 0; i < c->ni; ++i) {
@@ -772,6 +776,29 @@ static void hy_touching(hy_ctx *c)
                                       && imp[1] * imp[1] <= 2 * c->h->gap_tol * fabs(gdd)
                                       && gdd >= -1e3 * c->h->gap_tol
                                   ? TOUCH_OFFSET * c->h->gap_tol : 0.0);
+    }
+    for (int j = 0; j < c->nf; ++j) {       /* a friction slipping at rest that nothing moves */
+        const double *fr = FR(c, j);
+        double vdd = -fr[1];
+        for (int b = 0; b < c->n; ++b)
+            vdd += fr[FRICTION_FIELDS + b] * c->qdd[b];
+        c->slip_offset[j] = c->h->slip[j] != 0 && hy_active(c, j, c->h->contact)
+                            && fabs(fr[0]) <= 1e3 * c->h->gap_tol
+                            && fabs(vdd) <= 1e3 * c->h->gap_tol
+                                ? TOUCH_OFFSET * c->h->gap_tol : 0.0;
+    }
+    for (int k = 0; k < c->npf; ++k) {
+        const double *pf = PF(c, k);
+        double a[2];
+        for (int d = 0; d < 2; ++d) {
+            a[d] = -pf[2 + d];
+            for (int b = 0; b < c->n; ++b)
+                a[d] += pf[PLANAR_FIELDS + d * c->n + b] * c->qdd[b];
+        }
+        c->slip_offset[c->nf + k] = c->h->pmode[k] == 1
+                                    && hypot(pf[0], pf[1]) <= 1e3 * c->h->gap_tol
+                                    && hypot(a[0], a[1]) <= 1e3 * c->h->gap_tol
+                                        ? TOUCH_OFFSET * c->h->gap_tol : 0.0;
     }
 }
 
@@ -1360,6 +1387,7 @@ int lg_hybrid_solve(lg_hybrid_t *h, const lg_options_t *options, lg_hybrid_resul
     c.row_of_planar = hy_alloc(blocks, &nb, (npf + 1) * sizeof(int));
     c.cone = hy_alloc(blocks, &nb, (2 * npf + h->nf + 1) * sizeof(int));
     c.gap_offset = hy_alloc(blocks, &nb, (ni + 1) * D);
+    c.slip_offset = hy_alloc(blocks, &nb, (h->nf + npf + 1) * D);
     c.cached_y = hy_alloc(blocks, &nb, dim * D);
     c.activated = hy_alloc(blocks, &nb, (npf + 1) * sizeof(int));
     int *unset = c.unset = hy_alloc(blocks, &nb, (npf + 1) * sizeof(int));
