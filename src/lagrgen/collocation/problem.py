@@ -34,10 +34,10 @@ class Collocation:
     mod : built model
         A model built with the C backend (`lagrgen.build(model)`) in this session.
     nodes : int
-        Number of nodes (≥ 2), equally spaced over the duration (default 101, as API §18 shows).
+        Number of nodes (≥ 2), equally spaced over the duration (default 101).
     duration : float or (float, float)
-        The duration T (default 2.0 s, as API §18 shows); a pair (lo, hi), 0 < lo < hi, makes T
-        a variable in those bounds (free final time).
+        The duration T (default 2.0 s); a pair (lo, hi), 0 < lo < hi, makes T a variable in
+        those bounds (free final time).
     scheme : {"hermite-simpson", "trapezoidal", "backward-euler"}
     unknown_params : list of str, optional
         Parameters to estimate or optimize (variables of the problem); the others keep their
