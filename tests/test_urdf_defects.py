@@ -1,7 +1,8 @@
 """Defects of `from_urdf` and the link kinematics found from outside (issue 42's wave): a floating
 base whose massless root has one joint below it (a singular mass matrix) is refused; a mimic joint's
 own limits narrow its leader's and act as stops; names the model refuses are URDFErrors of the
-file; a NaN gravity is refused; a link point may be a NumPy array."""
+file; a NaN gravity is refused; a link point may be a NumPy array; an optimal motion stays within
+the stops of enforced limits."""
 import numpy as np
 import pytest
 
@@ -97,3 +98,27 @@ def test_a_link_point_may_be_a_numpy_array(tmp_path):
     point = np.array([0.03, -0.02, 0.05])
     assert model.link_position("a", point) == model.link_position("a", tuple(point))
     model.ground_contact("tip", "a", point=point, normal=np.array([0.0, 1.0, 0.0]))
+
+
+def test_an_optimal_motion_stays_within_the_stops_of_enforced_limits(tmp_path):
+    """from_urdf(..., limits=True) makes the limits stops; collocation cannot bounce off them, so
+    they are the coordinates' bounds from the start: a goal beyond one is refused (it was
+    solved through the stop with success=True), and a move within them stays within them."""
+    joints = (("j1", "base", "a", "0 0 1"), ("j2", "a", "b", "0 1 0"))
+    path = write(tmp_path, robot("stopped", joints=joints, limit=1.0), "stopped")
+    mod = lagrgen.build(lagrgen.from_urdf(path), out_dir=str(tmp_path / "gen"), quiet=True)
+    model = mod._source_model
+    prob = lagrgen.Collocation(mod, nodes=11, duration=1.0)
+    assert prob._bounds[("q", 0)] == (-1.0, 1.0) and prob._bounds[("q", 1)] == (-1.0, 1.0)
+    prob.initial(q=[0.0, 0.0], qd=[0.0, 0.0]).final(q=[1.5, 0.0], qd=[0.0, 0.0])
+    prob.minimize(integral=sum(u ** 2 for u in model.input_functions))
+    with pytest.raises(lagrgen.errors.LagrgenError, match="outside"):
+        prob.solve(progress=False, mesh_tol=None)
+    within = lagrgen.Collocation(mod, nodes=11, duration=1.0)
+    within.initial(q=[0.0, 0.0], qd=[0.0, 0.0]).final(q=[0.9, -0.5], qd=[0.0, 0.0])
+    within.minimize(integral=sum(u ** 2 for u in model.input_functions))
+    res = within.solve(progress=False, mesh_tol=None)
+    assert res.success and np.abs(res.y[:2]).max() <= 1.0 + 1e-8
+    free = lagrgen.build(lagrgen.from_urdf(path, limits=False, name="unstopped"),
+                         out_dir=str(tmp_path / "gen"), quiet=True)
+    assert lagrgen.Collocation(free, nodes=11, duration=1.0)._bounds == {}

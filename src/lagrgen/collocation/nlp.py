@@ -371,9 +371,9 @@ class Transcription:
                 if abs(clipped - value) > BOUND_SLACK * max(1.0, abs(clipped)):
                     raise LagrgenError(f"the instance value {value} of {where} lies outside "
                                        f"its bounds [{lo[j]}, {hi[j]}]")
-                self.notes.append(f"the instance value {value!r} of {where} lies "
+                self.notes.append(f"the instance value {float(value)!r} of {where} lies "
                                   f"{abs(clipped - value):.2g} outside its bounds (a solver's "
-                                  f"tolerance): taken as {clipped!r}")
+                                  f"tolerance): taken as {float(clipped)!r}")
                 value = clipped
             lo[j] = hi[j] = given[j] = value
         if L.free:

@@ -99,6 +99,19 @@ class Collocation:
         self._given = {}          # input index -> a number, a callable of t or (times, values)
         self._transcriptions = {}  # (hessian, layout, controls) -> Transcription
         self._values_stamp = 0    # counts changes of instance values alone (resolve)
+        self._bound_stops()
+
+    def _bound_stops(self):
+        """The enforced limits' stops (`from_urdf(..., limits=True)`, `Model.limit(...,
+        enforce=True)`) as the coordinates' bounds: a simulation bounces off them, which smooth
+        collocation cannot represent, so an optimal motion stays within them (else it went
+        through them and said success)."""
+        sides, info = {}, getattr(self.mod, "info", None)
+        for _, j, sign, bound, _ in getattr(info, "limit_stops", ()):
+            lo, hi = sides.get(j, (-math.inf, math.inf))
+            sides[j] = (bound, hi) if sign > 0 else (lo, bound)
+        for j, (lo, hi) in sides.items():
+            self.bound(self.mod.coordinates[j], lo, hi)
 
     def __repr__(self):
         duration = self.duration_bounds if self.free_duration else self.duration_bounds[0]
