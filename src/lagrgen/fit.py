@@ -20,7 +20,8 @@ from scipy.optimize import least_squares
 from .errors import LagrgenError
 from .identifiability import (FitWarning, covariance, on_bounds, unseen_directions,  # noqa: F401
                               warn_unseen)
-from .runtime.arguments import key_name, parameters_from, state_vector, unknown_name
+from .runtime.arguments import key_name, key_names, parameters_from, state_vector, \
+    unknown_name
 from .sensitivity import sensitivity_columns
 from .simulate import simulate
 from .vibration import equilibrium, linearize, modes
@@ -106,9 +107,7 @@ def _weights(weights, shape):
 
 def distinct_names(names, what="params"):
     """`names` as a list of distinct names; ValueError naming a repeated one."""
-    names = [names] if isinstance(names, str) or getattr(names, "is_Symbol", False) \
-        else list(names)
-    names = [key_name(name) for name in names]
+    names = key_names(names)
     seen = set()
     for name in names:
         if name in seen:

@@ -182,18 +182,23 @@ class Linearization:
         return StateSpace(A, B, C, D)
 
 
+def _real_keys(values):
+    """The real parts of complex `values` in units of ZERO_TOL of the largest modulus, rounded:
+    equal keys are real parts equal to round-off (a conjugate pair; 0 on the imaginary axis)."""
+    scale = ZERO_TOL * max(np.abs(values).max(initial=0.0), np.finfo(float).tiny)
+    return np.round(values.real / scale)
+
+
 def ascending(values):
     """The order of complex `values` by real part (equal within ZERO_TOL of the largest: a
     conjugate pair), then imaginary part."""
-    scale = ZERO_TOL * max(np.abs(values).max(initial=0.0), np.finfo(float).tiny)
-    return np.lexsort((values.imag, np.round(values.real / scale)))
+    return np.lexsort((values.imag, _real_keys(values)))
 
 
 def levelled(values):
     """Complex `values` in `ascending` order with the real parts that order takes as equal set
     equal (their mean; 0 for those within ZERO_TOL of 0): round-off no longer breaks it."""
-    scale = ZERO_TOL * max(np.abs(values).max(initial=0.0), np.finfo(float).tiny)
-    keys = np.round(values.real / scale)
+    keys = _real_keys(values)
     real = np.array(values.real)
     for key in np.unique(keys):
         group = keys == key

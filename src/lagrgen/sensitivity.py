@@ -16,15 +16,13 @@ from scipy.integrate import solve_ivp
 
 from .errors import NonFiniteError
 from .methods import STIFF_METHODS
-from .runtime.arguments import key_name, unknown_name
+from .runtime.arguments import key_names, unknown_name
 from .solvers import SOLVERS
 
 
 def sensitivity_columns(mod, names):
     """[(kind, index)] for `names`: ("p", j) for a parameter, ("y0", i) for `y0:<state>`."""
-    names = [names] if isinstance(names, str) or getattr(names, "is_Symbol", False) \
-        else list(names)
-    names = [key_name(name) for name in names]
+    names = key_names(names)
     states = list(mod.coordinates) + [f"{c}_dot" for c in mod.coordinates]
     columns = []
     for name in names:

@@ -9,6 +9,12 @@ from ..errors import UnknownNameError
 from ..names import key_name  # noqa: F401  (re-exported: the runtime reads keys with it)
 
 
+def key_names(names):
+    """A name, a Symbol or a sequence of them as a list of names (`key_name` of each)."""
+    single = isinstance(names, str) or getattr(names, "is_Symbol", False)
+    return [key_name(name) for name in ([names] if single else names)]
+
+
 def unknown_name(what, key, names):
     """The one "unknown name" error: `key` is not among the model's `names` of kind `what`."""
     known = ", ".join(names) if names else "none"
