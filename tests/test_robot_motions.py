@@ -667,6 +667,59 @@ def test_a_replan_equals_a_cold_solve_from_the_new_state(swing):
 
 
 @pytest.mark.filterwarnings("ignore", category=DiscretizationWarning)
+def test_a_replan_whose_sqp_crawls_near_the_solution_is_finished_from_its_last_iterate(
+        swing, monkeypatch):
+    """solver="auto": a re-plan whose SQP creeps near the solution (here its constraints'
+    violation held at 2e-7, above tol, while the rest converges) is handed over after
+    CRAWL_ITERATIONS iterations that each lower the KKT error less than STALLED_DROP times, and
+    IPOPT finishes it from the SQP's last iterate and multipliers in a few iterations (not from
+    the re-plan's start), at the IPOPT re-plan's optimum, as is one whose line search then
+    finds no step; a re-plan whose SQP ends far from a solution (that line search failing
+    with NEAR_SOLUTION made tiny) is still IPOPT's from the re-plan's start."""
+    from lagrgen.collocation import solver as solver_module, sqp
+    model, mod = swing
+    T, = model.input_functions
+    prob = swing_problem(mod, T)
+    first = prob.solve(progress=False, mesh_tol=None)
+    state = first.state_at(0.3)
+    initial = {"q": state[:1] + 0.05, "qd": np.clip(state[1:], -4.0, 4.0)}
+    reference = prob.resolve(first, initial=initial, shift=0.3, solver="ipopt")
+    kkt_error, starts = sqp.kkt_error, []
+
+    def creeping(*args):
+        primal, dual = kkt_error(*args)
+        return max(primal, 2e-7), dual
+    monkeypatch.setattr(sqp, "kkt_error", creeping)
+    monkeypatch.setattr(sqp, "CRAWL_ITERATIONS", 2)     # before its line search finds no step
+    solve_nlp = solver_module.solve_nlp
+
+    def recording(problem, tr, x0, settings, start=None, multipliers=None):
+        starts.append((start, multipliers is not None))
+        return solve_nlp(problem, tr, x0, settings, start, multipliers)
+    monkeypatch.setattr(solver_module, "solve_nlp", recording)
+    again = prob.resolve(first, initial=initial, shift=0.3)
+    assert again.success and again.status == 0 and again.solver == "ipopt"
+    assert starts == [("near", True)] and again.iterations <= 10
+    said = [n for n in again.notes if "KKT error fell less than 10 times" in n]
+    assert len(said) == 1 and "IPOPT finished this mesh from its motion and multipliers" in said[0]
+    assert "KKT error" in again.sqp_failed
+    assert abs(again.objective - reference.objective) < 1e-8 * reference.objective
+    monkeypatch.setattr(sqp, "CRAWL_ITERATIONS", 10**6)
+    starts.clear()
+    stuck = prob.resolve(first, initial=initial, shift=0.3)
+    assert stuck.solver == "ipopt" and starts == [("near", True)]
+    assert any("line search failed): IPOPT finished this mesh from its motion" in n
+               for n in stuck.notes)
+    monkeypatch.setattr(sqp, "NEAR_SOLUTION", 1e-12)           # nowhere near: not handed on
+    starts.clear()
+    far = prob.resolve(first, initial=initial, shift=0.3)
+    assert far.solver == "ipopt" and starts == [(None, False)]
+    assert any("line search failed): IPOPT solved this mesh from the same start" in n
+               for n in far.notes)
+    assert abs(far.objective - reference.objective) < 1e-6 * reference.objective
+
+
+@pytest.mark.filterwarnings("ignore", category=DiscretizationWarning)
 def test_a_replan_that_raises_leaves_the_problem_as_it_was(swing):
     """A resolve refused for its options or its new initial state changes nothing: the next
     solve starts from the declared initial state and equals the first one."""

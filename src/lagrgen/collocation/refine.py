@@ -116,7 +116,7 @@ def solve_refined(problem, guess, settings, mesh_tol, max_meshes, start=None):
     if gave_up and not result.sqp_failed:
         mesh, result.sqp_failed = gave_up
         result.notes.append(f"the structured SQP failed on mesh {mesh} ({result.sqp_failed}): "
-                            f"IPOPT solved it from the same start, and the meshes after it")
+                            f"IPOPT solved it, and the meshes after it")
     result = finished(result, errors, meshes, mesh_tol, spent, limit)
     if result.success:
         result.estimate_errors(stacklevel=3)

@@ -68,8 +68,8 @@ MAX_ITERATIONS = 2**31 - 1
 #: The solvers `Collocation.solve` may use: "auto" (IPOPT on the first mesh; the structured SQP
 #: on the refined meshes and a re-plan it covers, from the warm start's motion and multipliers,
 #: IPOPT from the same start where it fails or its stationarity residual stalls (and on the
-#: refinement's meshes after it), finishing from its answer where it stops on a flat optimum
-#: short of tol: benchmarks/robot_motions.py),
+#: refinement's meshes after it), from its last iterate where that is near a solution, finishing
+#: from its answer where it stops on a flat optimum short of tol: benchmarks/robot_motions.py),
 #: "ipopt", or "sqp" (the structured SQP on every warm-started mesh, IPOPT on one started from a
 #: guess, an error where the SQP does not apply, IPOPT with a note where one of its steps fails
 #: or it does not converge).
@@ -253,9 +253,11 @@ def solve_mesh(problem, layout, controls, guess, settings, start=None, shift=0.0
     earlier result; under "sqp" also one from any other guess, a cold start) instead when
     `settings.solver` is "sqp", or "auto" on a `replan` or a refined mesh the SQP covers
     (IPOPT from the same start, with a note and the result's `sqp_failed`, where one of its
-    steps fails, it does not converge or, under "auto", its stationarity residual stalls; under
-    "auto" IPOPT from the SQP's answer where it stops short of tol on a flat optimum:
-    `finished_by_ipopt`; a max_iter the SQP reaches ends the solve there, as IPOPT's would)."""
+    steps fails, it does not converge or, under "auto", its stationarity residual stalls or its
+    KKT error crawls; from the SQP's last iterate and multipliers instead where that is within
+    `sqp.NEAR_SOLUTION` of a solution; under "auto" IPOPT from the SQP's answer where it stops
+    short of tol on a flat optimum: `finished_by_ipopt`; a max_iter the SQP reaches ends the
+    solve there, as IPOPT's would)."""
     from .guess import initial_guess, refined_multipliers, warm_multipliers
     from .result import CollocationResult
     tr = problem.transcription(settings.hessian, layout, controls)
@@ -286,14 +288,21 @@ def solve_mesh(problem, layout, controls, guess, settings, start=None, shift=0.0
         result = solve_structured(problem, bound, x0, lam0, z0, settings,
                                   purify=not getattr(guess, "_sqp_as_left", False))
     except StepFailed as exc:
-        result = solve_nlp(problem, bound, x0, settings, start, multipliers)
-        result.notes.append(f"the structured SQP failed ({exc}): IPOPT solved this mesh from "
-                            f"the same start (result.solver says which solved it)")
+        last = exc.outcome
+        if last is not None and last.near:
+            result = finished_by_ipopt(problem, bound, last.x, last.lam, last.z, settings,
+                                       f"the structured SQP failed ({exc})")
+        else:
+            result = solve_nlp(problem, bound, x0, settings, start, multipliers)
+            result.notes.append(f"the structured SQP failed ({exc}): IPOPT solved this mesh "
+                                f"from the same start (result.solver says which solved it)")
         result.sqp_failed = str(exc)
         return timed_from(result, began)
     if result.status in (0, -1) or settings.solver == "sqp":     # -1: stopped at max_iter
         return result
-    return timed_from(finished_by_ipopt(problem, bound, result, settings), began)
+    return timed_from(finished_by_ipopt(problem, bound, result.x, result._lam, result._z,
+                                        settings, f"the structured SQP stopped short of tol "
+                                                  f"({result.message})"), began)
 
 
 def timed_from(result, began):
@@ -303,13 +312,14 @@ def timed_from(result, began):
     return result
 
 
-def finished_by_ipopt(problem, tr, flat, settings):
-    """IPOPT's solve of `tr` from the SQP's result `flat` that stopped on a flat optimum (above
-    tol), its motion and multipliers kept as a near start: solver="auto" returns a solution to
-    tol (solver="sqp" returns the SQP's, with its note)."""
-    result = solve_nlp(problem, tr, flat.x, settings, "near", (flat._lam, flat._z))
-    result.notes.append(f"the structured SQP stopped short of tol ({flat.message}): IPOPT "
-                        f"finished this mesh from its motion and multipliers")
+def finished_by_ipopt(problem, tr, x, lam, z, settings, why):
+    """IPOPT's solve of `tr` from the SQP's last point x and its multipliers lam and z, kept
+    as a near start, with a note that says `why`: after a stop on a flat optimum (above tol;
+    solver="sqp" returns the SQP's answer instead), and after a stall or a crawl within
+    `sqp.NEAR_SOLUTION` (a re-plan from a disturbed state: 3 iterations where IPOPT from the
+    re-plan's start took 1549)."""
+    result = solve_nlp(problem, tr, x, settings, "near", (lam, z))
+    result.notes.append(f"{why}: IPOPT finished this mesh from its motion and multipliers")
     return result
 
 
@@ -331,7 +341,7 @@ def solve_structured(problem, tr, x0, lam0, z0, settings, purify=True):
     seconds = time.perf_counter() - start
     stopped = not outcome.converged and settings.max_iter < SQP_ITERATIONS
     if not outcome.converged and not stopped:
-        raise StepFailed(f"it stopped: {outcome.message}")
+        raise StepFailed(f"it stopped: {outcome.message}", outcome)
     flat = outcome.dual > settings.tol and not stopped
     if stopped:
         status, message = -1, (f"SQP stopped at max_iter={settings.max_iter} (the "
