@@ -122,3 +122,19 @@ def test_an_optimal_motion_stays_within_the_stops_of_enforced_limits(tmp_path):
     free = lagrgen.build(lagrgen.from_urdf(path, limits=False, name="unstopped"),
                          out_dir=str(tmp_path / "gen"), quiet=True)
     assert lagrgen.Collocation(free, nodes=11, duration=1.0)._bounds == {}
+
+
+def test_a_collocation_of_a_robot_with_joint_friction_says_how_to_leave_it_out(tmp_path):
+    """Coulomb friction from a URDF's <dynamics friction> cannot be collocated: the error names
+    the frictions and says that from_urdf(..., joint_dynamics=False) builds the robot without
+    them; so built, the problem is made."""
+    text = robot("rubbing").replace("</joint>", '<dynamics damping="0.1" friction="0.5"/></joint>')
+    path = write(tmp_path, text, "rubbing")
+    out_dir = str(tmp_path / "gen")
+    mod = lagrgen.build(lagrgen.from_urdf(path), out_dir=out_dir, quiet=True)
+    with pytest.raises(lagrgen.errors.LagrgenError,
+                       match=r"friction \(friction_j1\).*joint_dynamics=False"):
+        lagrgen.Collocation(mod, nodes=11, duration=1.0)
+    smooth = lagrgen.build(lagrgen.from_urdf(path, name="rubbing_smooth", joint_dynamics=False),
+                           out_dir=out_dir, quiet=True)
+    assert lagrgen.Collocation(smooth, nodes=11, duration=1.0).layout.nodes == 11

@@ -636,9 +636,21 @@ def _compiled_model(mod):
         raise LagrgenError("Collocation needs the C backend: lagrgen.build(model) (the Python "
                            "backend has no function table for the NLP's loops)")
     if mod.nonsmooth_definitions:
-        raise LagrgenError(f"model {mod.name!r} has impacts or friction, which direct "
-                           "collocation on smooth equations cannot represent")
+        names = [d[0] for d in mod.nonsmooth_definitions]
+        raise LagrgenError(f"model {mod.name!r} has impacts or friction ({', '.join(names)}), "
+                           "which direct collocation on smooth equations cannot represent"
+                           + _joint_friction_hint(mod, names))
     return mod
+
+
+def _joint_friction_hint(mod, names):
+    """What to do where the non-smooth definitions include a robot's joint friction (from_urdf
+    names the friction of joint j "friction_j")."""
+    joints = {f"friction_{c}" for c in mod.coordinates}
+    if not getattr(mod.info, "link_names", ()) or not joints.intersection(names):
+        return ""
+    return ("; the joints' Coulomb friction comes from the URDF's <dynamics friction>: "
+            "from_urdf(..., joint_dynamics=False) builds the robot without it")
 
 
 def _source_model(mod):
