@@ -95,8 +95,9 @@ def test_a_urdf_becomes_one_coordinate_and_one_input_per_moving_joint(small_file
     assert mod.formulation == "recursive"
     units = dict(mod.units)
     assert (units["shoulder"], units["slide"], units["tau_slide"]) == ("rad", "m", "N")
-    limits = {"shoulder": (-2.0, 2.0, 3.0, 40.0), "slide": (-0.1, 0.2, 1.0, 100.0)}
-    assert model.limits == limits and mod.limits == limits   # the wrist has no <limit>
+    limits = {"shoulder": (-2.0, 2.0, 3.0, 40.0), "slide": (-0.1, 0.2, 1.0, 100.0),
+              "wrist": (None, None, None, None)}               # the wrist has no <limit>
+    assert model.limits == limits and mod.limits == limits
 
 
 def test_inertial_parameters_are_named_per_body_with_the_files_values(small_file):

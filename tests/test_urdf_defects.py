@@ -138,3 +138,27 @@ def test_a_collocation_of_a_robot_with_joint_friction_says_how_to_leave_it_out(t
     smooth = lagrgen.build(lagrgen.from_urdf(path, name="rubbing_smooth", joint_dynamics=False),
                            out_dir=out_dir, quiet=True)
     assert lagrgen.Collocation(smooth, nodes=11, duration=1.0).layout.nodes == 11
+
+
+def test_every_joint_is_in_model_limits_with_none_where_the_file_gives_none(tmp_path):
+    """model.limits lists each moving joint, a continuous joint without <limit> as
+    (None, None, None, None) (it was left out); the built model keeps it, bound_limits() bounds
+    the others only, and a robot with no limit at all is refused by bound_limits()."""
+    text = robot("spinning", joints=(("j1", "base", "a", "0 0 1"), ("j2", "a", "b", "0 1 0")))
+    text = text.replace('<joint name="j2" type="revolute">', '<joint name="j2" type="continuous">')
+    text = text.replace('<limit lower="-3.0" upper="3.0" effort="10" velocity="2"/></joint>'
+                        '</robot>', '</joint></robot>')
+    model = lagrgen.from_urdf(write(tmp_path, text, "spinning"), base="fixed")
+    assert model.limits == {"j1": (-3.0, 3.0, 2.0, 10.0), "j2": (None, None, None, None)}
+    assert model.stops == {"j1": 0.0}
+    mod = lagrgen.build(model, out_dir=str(tmp_path / "gen"), quiet=True)
+    assert mod.limits["j2"] == (None, None, None, None)
+    prob = lagrgen.Collocation(mod, nodes=5, duration=1.0).bound_limits()
+    assert ("q", 1) not in prob._bounds and prob._bounds[("q", 0)] == (-3.0, 3.0)
+    bare = text.replace('<limit lower="-3.0" upper="3.0" effort="10" velocity="2"/>', "")
+    bare = bare.replace('type="revolute"', 'type="continuous"')
+    loose = lagrgen.build(lagrgen.from_urdf(write(tmp_path, bare, "bare"), name="bare"),
+                          out_dir=str(tmp_path / "gen"), quiet=True)
+    assert set(loose.limits) == {"j1", "j2"}
+    with pytest.raises(lagrgen.errors.LagrgenError, match="declares no limits"):
+        lagrgen.Collocation(loose, nodes=5, duration=1.0).bound_limits()

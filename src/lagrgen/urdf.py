@@ -626,8 +626,8 @@ def from_urdf(path, name=None, base="fixed", gravity=(0.0, 0.0, -9.81), joint_dy
     -------
     lagrgen.Model
         One coordinate per moving joint (revolute, continuous: an angle in rad; prismatic: a
-        displacement in m), named as the joint, and one input `tau_<joint>` each; the joints'
-        limits in `model.limits`. Its initial state is at rest with every joint at 0, or, where
+        displacement in m), named as the joint, and one input `tau_<joint>` each; every
+        joint's limits in `model.limits` (None where the file gives none). Its initial state is at rest with every joint at 0, or, where
         enforced limits exclude 0, at the limit nearest 0.
     """
     import sympy as sp
@@ -728,6 +728,8 @@ def from_urdf(path, name=None, base="fixed", gravity=(0.0, 0.0, -9.81), joint_dy
                         restitution=limit_restitution)
             if limits:
                 start.update(_within(p.name, limit.lower, limit.upper))
+        elif p.joint is not None:
+            model.limit(p.name)              # listed in model.limits, None where absent
     if start:
         model.initial_state(q=start)
     return model

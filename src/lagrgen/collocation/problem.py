@@ -172,7 +172,7 @@ class Collocation:
         the input `tau_<coordinate>` (when the model has one) within ±effort, replacing earlier
         bounds of those names; an absent limit leaves its side unbounded. Returns the problem."""
         limits = self.mod.limits
-        if not limits:
+        if not any(v is not None for entry in limits.values() for v in entry):
             raise LagrgenError(f"model {self.mod.name!r} declares no limits: declare them with "
                                "model.limit(coordinate, lower, upper, velocity, effort) before "
                                "building it, or bound the variables with bound(name, lo, hi)")
