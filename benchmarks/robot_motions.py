@@ -24,7 +24,11 @@ rigid-body dynamics Pinocchio's `aba` computes):
              move to the goal from where the last plan is at 0.1 s), each against a cold
              `prob.solve` of the same re-plan problem, against IPOPT's re-plan from the same
              warm start (`solver="ipopt"`) and against one QP from it (`max_iter=1`, a
-             real-time iteration: how far it is from the converged re-plan).
+             real-time iteration: how far it is from the converged re-plan). Then re-plans
+             from a disturbed state: the first plan's state at 0.1 s with `DISTURBANCES` rad
+             times a standard normal draw (seeded) added to every joint angle, on the 101-node
+             plan and on the Panda's refined first motion (mesh_tol 1e-6), each against a cold
+             solve of the same problem (refined alike).
   min-time   the Panda from start to goal in the least time within its limits,
              `Collocation(mod, nodes=51, duration=(0.1, 5.0))`, `minimize(time=True)`: on the 51
              nodes alone (mesh_tol=None), then refined (the defaults), checked by 101 nodes and
@@ -98,6 +102,8 @@ ROBOTS = {
     "talos": ("talos_data/robots/talos_reduced.urdf", TALOS_JOINTS, TALOS_START, TALOS_GOAL),
 }
 DURATION, NODES, REPLAN_NODES, SHIFT = 1.0, 51, 101, 0.1
+#: The disturbances of the disturbed re-plans (rad, the scale of a normal draw per joint angle).
+DISTURBANCES = (0.01, 0.05)
 CROC_NODES, CROC_GOAL_WEIGHT, CROC_MAX_ITER = 100, 1e5, 1000
 #: Re-simulation with Pinocchio's aba.
 RESIM = {"method": "DOP853", "rtol": 1e-11, "atol": 1e-12}
@@ -387,7 +393,33 @@ def worker_replan(folder, replans, accuracy):
             step["accuracy"] = lagrgen_accuracy(res2, urdf)
         out["replans"].append(step)
         last = res2
+    refined = least_effort(lagrgen, model, mod, "panda", NODES).solve(progress=False)
+    out["disturbed"] = [disturbed_replan(plan, size, seed, mesh_tol)
+                        for plan, mesh_tol in ((res, None), (refined, 1e-6))
+                        for seed, size in enumerate(DISTURBANCES)]
     return out
+
+
+def disturbed_replan(plan, size, seed, mesh_tol):
+    """A re-plan of `plan`'s problem from its state at SHIFT with `size`·N(0, 1) rad added to each
+    joint angle (drawn with `seed`), against a cold solve of the same problem (mesh_tol as the
+    plan's: None keeps its grid, else refined)."""
+    import numpy as np
+    prob, n = plan._problem, plan._problem.layout.n
+    state = plan.state_at(SHIFT).copy()
+    state[:n] += size * np.random.default_rng(seed).standard_normal(n)
+    began = time.perf_counter()
+    res = prob.resolve(warm=plan, initial={"q": state[:n], "qd": state[n:]}, shift=SHIFT,
+                       mesh_tol=mesh_tol)
+    wall = time.perf_counter() - began
+    began = time.perf_counter()
+    cold = prob.solve(progress=False, mesh_tol=mesh_tol)
+    return {"size": size, "nodes": int(plan.t.size), "refined": mesh_tol is not None,
+            "wall": wall, "solver": res.solver, "iterations": int(res.iterations),
+            "success": bool(res.success), "objective": float(res.objective),
+            "handed_over": next((note.split(":")[0] for note in res.notes if "SQP" in note), ""),
+            "cold_wall": time.perf_counter() - began, "cold_objective": float(cold.objective),
+            "cold_success": bool(cold.success)}
 
 
 def one_qp_replan(prob, last, state, n, converged):
@@ -1042,6 +1074,27 @@ def replan_table(replan):
                      f"{'' if s['cold_success'] else ' (failed)'} | {s['cold_objective']:.10g} |"
                      f" {diff:.1e} | {s['notes']} | {ipopt_cells(s)} | "
                      f"{ms(s.get('one_qp_wall'))} | {s.get('one_qp_distance', float('nan')):.2g} |")
+    return "\n".join(lines) + "\n" + disturbed_table(replan.get("disturbed", []))
+
+
+def disturbed_table(runs):
+    """The disturbed re-plans' table (`disturbed_replan`), or nothing where none ran."""
+    if not runs:
+        return ""
+    lines = [f"\nRe-plans from a disturbed state (the plan's state at {SHIFT} s, each joint angle "
+             "moved by the disturbance times a normal draw), against a cold `solve` of the same "
+             "problem:\n",
+             "| plan | disturbance rad | `resolve` ms | solver, iterations | objective | cold solve "
+             "ms | cold objective | relative difference | the SQP's note |",
+             "| --- | --: | --: | --- | --: | --: | --: | --: | --- |"]
+    for s in runs:
+        diff = abs(s["objective"] - s["cold_objective"]) / max(abs(s["cold_objective"]), 1e-300)
+        plan = f"{s['nodes']} nodes" + (", refined to 1e-6" if s["refined"] else "")
+        lines.append(f"| {plan} | {s['size']:g} | {ms(s['wall'])} | {s['solver']} "
+                     f"{s['iterations']}{'' if s['success'] else ' (failed)'} | "
+                     f"{s['objective']:.10g} | {ms(s['cold_wall'])}"
+                     f"{'' if s['cold_success'] else ' (failed)'} | {s['cold_objective']:.10g} | "
+                     f"{diff:.1e} | {s['handed_over'].replace('|', '/') or '—'} |")
     return "\n".join(lines) + "\n"
 
 
