@@ -1,6 +1,7 @@
 """Runs that end, options that are numbers (issue 28): every numeric option checked once with
 one message on both engines and in ensembles; a native solve whose step size collapses stops,
 and what a native solve saves is bounded; the guards hold with sensitivities and in `fit`."""
+import re
 import time
 
 import numpy as np
@@ -210,3 +211,26 @@ def test_the_fmu_solver_settings_follow_the_same_rules(tmp_path, fmi2_callbacks)
                    if isinstance(m, bytes))
     finally:
         fmu.freeInstance()
+
+
+@pytest.mark.parametrize("keyword, said", [
+    ("u", "'u': give it as inputs="), ("p", "'p': give it as params="),
+    ("vectorized", "one state at a time"), ("max_stpe", "did you mean 'max_step'"),
+    ("foo", "passed on to the solver are first_step")])
+def test_a_keyword_no_solver_takes_is_a_type_error(keyword, said, tmp_path_factory):
+    """simulate(mod, ..., u={...}) passed u on to SciPy, which only warned, and ran with the
+    inputs at 0; p= failed inside with 'multiple values'; every keyword that is neither
+    simulate's nor a solver's is now a TypeError saying what was meant, in simulate_many too."""
+    model = lagrgen.Model("keyword_push")
+    x, = model.coordinates("x")
+    F, = model.inputs("F")
+    model.particle(1.0, sp.Matrix([x]))
+    model.force(sp.Matrix([F]), sp.Matrix([x]))
+    mod = lagrgen.build(model, out_dir=str(tmp_path_factory.mktemp("keyword")), quiet=True)
+    with pytest.raises(TypeError, match=re.escape(said)):
+        lagrgen.simulate(mod, (0.0, 1.0), [0.0, 0.0], **{keyword: 1.0})
+    with pytest.raises(TypeError, match=r"simulate_many\(\).*" + re.escape(said)):
+        lagrgen.simulate_many(mod, (0.0, 1.0), [0.0, 0.0], t_eval=[0.0, 1.0], **{keyword: 1.0})
+    pushed = lagrgen.simulate(mod, (0.0, 1.0), [0.0, 0.0], inputs={"F": 1.0}, max_step=0.1,
+                              rtol=1e-10, atol=1e-12)
+    assert abs(pushed.y[0, -1] - 0.5) < 1e-9

@@ -496,7 +496,8 @@ def simulate_many(mod, t_span, y0=None, params=None, inputs=None, t_eval=None, m
     """
     if t_eval is None:
         raise ValueError("simulate_many needs t_eval: every run is sampled at the same times")
-    check_run_options(method, options.get("engine"), options)
+    check_run_options(method, options.get("engine"), options, "simulate_many",
+                      ("engine", "max_steps", "max_wall_time", "events"))
     if workers is not None and (int(workers) != workers or workers < 1):
         raise ValueError(f"workers must be a positive integer, got {workers!r}")
     if client is not None and workers is not None:

@@ -56,7 +56,8 @@ def simulate(mod, t_span, y0=None, method="RK45", params=None, inputs=None, rtol
     (`lagrgen.hybrid`, the guide's "Impacts, contact and dry friction"): its result also has
     `transitions` [(t, name, kind)], `mode` and `n_segments`; options `rest_velocity`,
     `gap_tol`, `max_transitions`; no dense_output.
-    **options : passed to `solve_ivp` unchanged (max_step, first_step, ...)
+    **options : passed to `solve_ivp` unchanged (max_step, first_step, min_step, jac_sparsity,
+        lband, uband); any other keyword is a TypeError
 
     Returns
     -------
@@ -129,16 +130,50 @@ def simulate(mod, t_span, y0=None, method="RK45", params=None, inputs=None, rtol
     return finished_result(mod, sol, p, u_at, method)
 
 
-def check_run_options(method, engine, options):
+#: The keyword options a SciPy solver takes (`solve_ivp`'s and its methods'): simulate passes
+#: them on; a solver class given as `method` may take others.
+SOLVER_OPTIONS = ("first_step", "max_step", "min_step", "jac_sparsity", "lband", "uband")
+#: Keywords that stand for another argument, and that argument.
+MEANT = {"u": "inputs", "p": "params", "parameters": "params", "x0": "y0", "q0": "y0",
+         "t_end": "t_span", "tspan": "t_span", "solver": "method"}
+
+
+def check_run_options(method, engine, options, caller="simulate", own=()):
     """TypeError/ValueError for arguments no engine takes, before any work is done (the numeric
-    options: `lagrgen.options.check_run_options`)."""
+    options: `lagrgen.options.check_run_options`); `own` the caller's keyword options besides
+    the solvers' (a keyword no solver takes was passed to SciPy, which only warned, and a
+    mistyped u= left the inputs at 0)."""
     if "args" in options:
-        raise TypeError("simulate() takes no 'args': pass parameters as params={name: value} "
+        raise TypeError(f"{caller}() takes no 'args': pass parameters as params={{name: value}} "
                         "(or a full parameter array) and inputs as inputs={name: value or f(t)}")
+    if not isinstance(method, type):
+        known = set(SOLVER_OPTIONS) | set(SWITCHING_OPTIONS) | set(own)
+        for name in options:
+            if name not in known:
+                raise TypeError(f"{caller}() got an unexpected keyword argument {name!r}: "
+                                + _meant(name, known))
     if not (method in METHODS or isinstance(method, type)):
         raise ValueError(f"unknown method {method!r}: use one of {', '.join(METHODS)}")
     if engine not in ENGINES:
         raise ValueError(f"engine must be None, 'native' or 'scipy', not {engine!r}")
+
+
+def _meant(name, known):
+    """What a keyword no solver takes was likely meant as."""
+    import difflib
+    if name == "vectorized":
+        return "the model's rhs takes one state at a time: leave it out"
+    if name in MEANT:
+        return f"give it as {MEANT[name]}=..."
+    close = difflib.get_close_matches(name, sorted(known) + list(SIMULATE_ARGUMENTS), n=1)
+    return (f"did you mean {close[0]!r}?" if close else
+            "the options passed on to the solver are " + ", ".join(SOLVER_OPTIONS))
+
+
+#: simulate's own keyword arguments (for the suggestions of `_meant`).
+SIMULATE_ARGUMENTS = ("y0", "method", "params", "inputs", "rtol", "atol", "t_eval",
+                      "dense_output", "events", "engine", "max_steps", "max_wall_time", "progress",
+                      "sensitivities")
 
 
 def refuse_switching_options(mod, options):
