@@ -677,3 +677,80 @@ def test_the_native_drivers_constants_are_the_python_drivers():
     for name in ("REGULARIZATION", "REFINEMENTS", "PLANAR_BLEND", "TOUCH_OFFSET"):
         value = re.search(rf"^#define {name} (\S+)$", source, re.MULTILINE)
         assert value is not None and float(value.group(1)) == getattr(hybrid, name), name
+
+
+def ball_with_events():
+    model = ball_model("ball_with_events")
+    y, = model.q
+    model.event("apex", y.diff(model.t), direction=-1)
+    return model
+
+
+@pytest.mark.parametrize("engine", ENGINES)
+def test_a_hybrid_run_backward_in_time_is_refused(built, engine):
+    """A ball's free fall run from t = 2 back to 1.9 returned its start state at every time
+    with success True; a hybrid run goes forward only, in simulate and simulate_many alike."""
+    mod = built(ball_model)
+    with pytest.raises(ValueError, match=r"forward in time only.*\(2, 1\.9\)"):
+        lagrgen.simulate(mod, (2.0, 1.9), [2.0, 0.0], engine=engine)
+    with pytest.raises(ValueError, match="forward in time only"):
+        lagrgen.simulate_many(mod, (2.0, 1.9), [2.0, 0.0], t_eval=[2.0, 1.9])
+    ahead = lagrgen.simulate(mod, (1.9, 2.0), [2.0, 0.0], engine=engine, **TOL)
+    assert abs(ahead.y[0, -1] - (2.0 - 0.5 * G * 0.1 ** 2)) < 1e-9
+
+
+def test_events_a_hybrid_run_does_not_locate_are_warned_of(built):
+    """Events declared with model.event on a model with impacts were dropped without a word:
+    the hybrid solve warns UntrackedEventsWarning naming them, and still runs."""
+    mod = built(ball_with_events)
+    with pytest.warns(lagrgen.UntrackedEventsWarning, match=r"\(apex\)"):
+        sol = lagrgen.simulate(mod, (0.0, 1.0), [1.0, 0.0], **TOL)
+    assert sol.success and [tr[1] for tr in sol.transitions][:1] == ["floor"]
+    with pytest.warns(lagrgen.UntrackedEventsWarning):
+        lagrgen.simulate_many(mod, (0.0, 1.0), [1.0, 0.0], t_eval=[0.0, 1.0])
+
+
+BOUNCING_STOPPED = """
+import importlib, signal, sys, time
+import numpy as np
+sys.path.insert(0, {directory!r})
+import lagrgen
+mod = importlib.import_module({name!r})
+hit = []
+def on_sigint(signum, frame):
+    hit.append(time.monotonic())
+    raise KeyboardInterrupt
+signal.signal(signal.SIGINT, on_sigint)
+print("start", flush=True)
+try:
+    lagrgen.simulate_many(mod, (0.0, 1e6), [1.0, 0.0], params=[{{"e": 1.0}}] * 8,
+                          t_eval=[0.0, 1e6], workers=2, max_transitions=10**9, progress=False)
+    print("finished", flush=True)
+except KeyboardInterrupt:
+    print("stopped", time.monotonic() - hit[0], flush=True)
+"""
+
+
+def test_ctrl_c_stops_an_ensemble_of_long_hybrid_runs_quickly(built):
+    """Ctrl-C in simulate_many whose runs are long hybrid solves (a ball bouncing elastically for
+    1e6 s) stops within half a second: each native hybrid solve polls the chunks' stop flag (it
+    waited for the running runs to end, 12-19 s)."""
+    import os
+    import signal
+    import subprocess
+    import sys
+    import time
+    mod = built(ball_model)
+    script = BOUNCING_STOPPED.format(directory=os.path.dirname(mod.__file__), name=mod.__name__)
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join(p for p in sys.path if p))
+    proc = subprocess.Popen([sys.executable, "-c", script], stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True, env=env)
+    try:
+        assert proc.stdout.readline().strip() == "start"
+        time.sleep(1.5)
+        proc.send_signal(signal.SIGINT)
+        out, err = proc.communicate(timeout=60)
+    finally:
+        proc.kill()
+    assert out.startswith("stopped"), (out, err[-2000:])
+    assert float(out.split()[1]) < 0.5

@@ -34,6 +34,7 @@ _LAZY = {
     "consistent_state": "constraints",
     "from_sympy": "sympy_interop", "from_urdf": "urdf", "base_state": "base_state",
     "URDFError": "urdf", "URDFWarning": "urdf",
+    "UntrackedEventsWarning": "hybrid",
     "export_fmu": "build",
     "Collocation": "collocation", "CollocationResult": "collocation",
     "rotation": None,
@@ -46,6 +47,7 @@ __all__ = ["Model", "build", "load", "simulate", "evaluate_outputs", "output_eve
            "FitWarning", "IdentifiabilityWarning", "base_parameters", "identify_inertial",
            "exciting_trajectory", "consistent_state",
            "from_sympy", "from_urdf", "base_state", "URDFError", "URDFWarning", "export_fmu", "rotation", "Collocation", "CollocationResult",
+           "UntrackedEventsWarning",
            "LagrgenError", "ConstraintError", "ModelError", "UnknownNameError", "MassMatrixError",
            "BuildError", "CompileError", "NonFiniteError", "ContactError", "StoreError", "StoreWarning",
            "NearSingularMassMatrixWarning", "__version__"]

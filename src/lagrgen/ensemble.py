@@ -24,7 +24,7 @@ from typing import Optional
 import numpy as np
 
 from .errors import LagrgenError, near_singular_limit, warn_near_singular
-from .hybrid import force_names, is_hybrid
+from .hybrid import RUN_STOP, check_hybrid_run, force_names, is_hybrid
 from .methods import BY_NAME
 from .native.engine import _event_arrays, _tolerances, native_events, native_reason
 from .options import check_run_options as checked_options
@@ -309,7 +309,8 @@ def solve_part(mod, plan, part, out=None, stop=None):
     for i in rerun:
         if stop[0]:
             break
-        _one_run(mod, plan, part, i, out)
+        with RUN_STOP.stopping(stop):
+            _one_run(mod, plan, part, i, out)
     done = out["status"] != -2
     out["success"][:] = (out["status"] >= 0) & done
     for i in np.flatnonzero(done & (out["status"] >= 0)):
@@ -522,6 +523,7 @@ def simulate_many(mod, t_span, y0=None, params=None, inputs=None, t_eval=None, m
     if runs == 0:
         raise ValueError("simulate_many needs at least one run")
     if is_hybrid(mod):
+        check_hybrid_run(mod, (t0, tf), stacklevel=3)
         check_starts(mod, t0, Y0, P, run_inputs, options.get("gap_tol"))
     sensitivities = sensitivity_names(mod, sensitivities, options)
     why_not = batch_reason(mod, method, options, sensitivities) if mod.backend == "c" else \
