@@ -4,8 +4,11 @@ refuses frequencies it would pair wrongly; fit takes the values of the parameter
 arguments a linearization cannot take; frequency_response refuses frequencies that are not
 finite and takes the input's function; the Python backend refuses unknown build options; the
 eigenvalues are in ascending order exactly."""
+import warnings
+
 import numpy as np
 import pytest
+import sympy as sp
 
 import lagrgen
 
@@ -113,3 +116,39 @@ def test_eigenvalues_are_in_ascending_order_exactly(chain):
     damped = lagrgen.linearize(mod, [0.0, 0.0]).eigenvalues
     assert np.all(np.diff(damped.real) >= 0) and np.all(damped.real < 0)
     assert damped[0] == np.conj(damped[1]) and damped[2] == np.conj(damped[3])
+
+
+def test_a_top_in_steady_precession_is_neutrally_stable_at_every_speed(tmp_path_factory):
+    """A heavy symmetric top (Euler angles z-x-z) precessing steadily: its zero roots form a
+    Jordan block that round-off splits into ±1e-7 real parts; modes(...).stable was False at
+    some speeds and a sweep found four crossings that do not exist. Now stable everywhere, no
+    crossings, the nutation frequency as the gyroscopic closed form gives it."""
+    from lagrgen import rotation
+    model = lagrgen.Model("precessing_top")
+    psi, th, phi = model.coordinates("psi th phi")
+    m, l, g, I1, I3 = model.parameters(m=1.0, l=0.1, g=9.81, I1=0.01, I3=0.004)
+    R = rotation.z(psi) * rotation.x(th) * rotation.z(phi)
+    centre = R * sp.Matrix([0, 0, l])
+    model.rigid_body_3d(m, [I1, I1, I3], centre, orientation=R)
+    model.potential_energy(m * g * centre[2])
+    mod = lagrgen.build(model, out_dir=str(tmp_path_factory.mktemp("top")), quiet=True)
+    I1p, th0 = 0.01 + 1.0 * 0.1 ** 2, 0.5
+
+    def precession(rate):
+        spin = (0.981 / rate + I1p * rate * np.cos(th0)) / 0.004    # m g l = Ω(I3 ω3 − I1' Ω cos θ)
+        return [0.0, th0, 0.0], [rate, 0.0, spin - rate * np.cos(th0)], None
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")                   # steady motion, not an equilibrium
+        for rate in (1.6, 2.0, 3.6):
+            assert lagrgen.modes(mod, *precession(rate)[:2]).stable
+        sweep = lagrgen.eigenvalue_sweep(mod, np.linspace(1.0, 6.0, 26), precession)
+    assert sweep.crossings() == [] and sweep.stable.all()
+    rate = sweep.values[3]
+    a = 0.004 * (precession(rate)[1][2] + rate * np.cos(th0))           # p_φ = I3·ω3
+    b = I1p * rate * np.sin(th0) ** 2 + a * np.cos(th0)                  # p_ψ
+
+    def routh(theta):          # the effective potential of θ with p_ψ and p_φ held
+        return (b - a * np.cos(theta)) ** 2 / (2 * I1p * np.sin(theta) ** 2) + 0.981 * np.cos(theta)
+    h = 1e-4
+    nutation = np.sqrt((routh(th0 + h) - 2 * routh(th0) + routh(th0 - h)) / h ** 2 / I1p)
+    assert abs(np.abs(sweep.eigenvalues[3].imag).max() - nutation) < 1e-6 * nutation

@@ -182,6 +182,35 @@ class Linearization:
         return StateSpace(A, B, C, D)
 
 
+#: Eigenvalues within CLUSTER·eps^(1/k) of the largest modulus of each other, k of them, may be
+#: one root of multiplicity k whose Jordan block round-off has split into a ring of that radius
+#: (a steadily precessing top's double zero: ±8e-8 real parts at a largest modulus of 23; a
+#: rolling disk's triple zero at its critical speed: ±1e-7 at 4.4).
+CLUSTER = 10.0
+
+
+def real_part_tolerance(values):
+    """(len(values),) float: how far from 0 each eigenvalue's real part may be from round-off
+    alone: ZERO_TOL of the largest modulus (at least 1), or, for one of k eigenvalues within
+    2·CLUSTER·eps^(1/k) of it of one another (k = 2, 3: a defective root split by round-off),
+    CLUSTER·eps^(1/k). Exact zeros (structural: `spectrum` splits them off) are no part of a
+    cluster: round-off does not move them (with them a bicycle's capsize root, 3e-3 near its
+    speed, would have been taken for a quadruple zero's round-off)."""
+    values = np.asarray(values, dtype=complex)
+    scale = max(1.0, np.abs(values).max(initial=0.0))
+    tol = np.full(values.shape, ZERO_TOL * scale)
+    moved = values != 0
+    if np.count_nonzero(moved) < 2:
+        return tol
+    apart = np.abs(values[:, None] - values[None, :])
+    apart[:, ~moved] = np.inf
+    for k in (2, 3):
+        radius = CLUSTER * np.finfo(float).eps ** (1.0 / k) * scale
+        clustered = moved & (np.sum(apart <= 2.0 * radius, axis=1) >= k)
+        tol = np.where(clustered, np.maximum(tol, radius), tol)
+    return tol
+
+
 def _real_keys(values):
     """The real parts of complex `values` in units of ZERO_TOL of the largest modulus, rounded:
     equal keys are real parts equal to round-off (a conjugate pair; 0 on the imaginary axis)."""

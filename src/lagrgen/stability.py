@@ -17,7 +17,8 @@ import numpy as np
 from scipy.optimize import brentq, linear_sum_assignment
 
 from .errors import LagrgenError
-from .linearization import ZERO_TOL, linearize, spectrum, structural_zeros
+from .linearization import (ZERO_TOL, linearize, real_part_tolerance, spectrum,
+                            structural_zeros)
 
 #: Absolute tolerance (relative to the swept range) of a located crossing.
 CROSSING_XTOL = 1e-12
@@ -71,9 +72,12 @@ class EigenvalueSweep:
         return ZERO_TOL * max(1.0, scale)
 
     def _signs(self):
-        """−1, 0, +1 per value and branch: the sign of the real part beyond the tolerance."""
+        """−1, 0, +1 per value and branch: the sign of the real part beyond the tolerance (at
+        least `_tolerance`; a root of several that round-off split at a value gets that value's
+        `linearization.real_part_tolerance`)."""
         re = self.eigenvalues.real
-        tol = self._tolerance()
+        tol = np.maximum(self._tolerance(),
+                         np.array([real_part_tolerance(row) for row in self.eigenvalues]))
         return np.where(re > tol, 1, np.where(re < -tol, -1, 0))
 
     @property

@@ -16,9 +16,9 @@ import scipy.linalg
 from scipy.optimize import linear_sum_assignment, root
 
 from .errors import LagrgenError, UnknownNameError
-from .linearization import (ZERO_TOL, FrozenTimeWarning, Linearization, ascending,  # noqa: F401
-                            check_positive_definite, linearize, operating_point,
-                            warn_frozen_time)
+from .linearization import (ZERO_TOL, FrozenTimeWarning, Linearization,  # noqa: F401
+                            ascending, check_positive_definite, linearize, operating_point,
+                            real_part_tolerance, warn_frozen_time)
 from .runtime.arguments import key_name
 
 
@@ -64,9 +64,10 @@ class Modes:
     @property
     def stable(self):
         """Whether no eigenvalue of the state matrix has a positive real part (beyond round-off:
-        ZERO_TOL of the largest abs(s))."""
+        ZERO_TOL of the largest abs(s), more for a root of several that round-off split:
+        `linearization.real_part_tolerance`)."""
         s = self.eigenvalues
-        return np.bool_(not (s.size and s.real.max() > ZERO_TOL * max(1.0, np.abs(s).max())))
+        return np.bool_(not (s.size and np.any(s.real > real_part_tolerance(s))))
 
     def __len__(self):
         return len(self.omega)
