@@ -480,3 +480,39 @@ def test_a_free_bases_link_frames_equal_the_floating_ones_finite_differences_and
         assert np.allclose(x, data.oMf[frame].translation, atol=1e-12)
         assert np.allclose(R, data.oMf[frame].rotation, atol=1e-12)
         assert np.allclose(free.link_jacobian(link, q) @ qd, Jp @ v, atol=1e-12)
+
+
+def rpy_matrix_of(roll, pitch, yaw):
+    """Rz(yaw)·Ry(pitch)·Rx(roll)."""
+    cr, sr, cp, sp_, cy, sy = (np.cos(roll), np.sin(roll), np.cos(pitch), np.sin(pitch),
+                               np.cos(yaw), np.sin(yaw))
+    return (np.array([[cy, -sy, 0], [sy, cy, 0], [0, 0, 1]])
+            @ np.array([[cp, 0, sp_], [0, 1, 0], [-sp_, 0, cp]])
+            @ np.array([[1, 0, 0], [0, cr, -sr], [0, sr, cr]]))
+
+
+@pytest.mark.parametrize("rpy", [(0.0, np.pi / 2, 0.3), (0.5, np.pi / 2, 0.3),
+                                 (0.2, -np.pi / 2, np.pi), (0.5, np.pi / 2 - 1e-9, 0.3),
+                                 (0.0, np.pi, 0.0), (3.0, 0.1, -3.0)])
+def test_the_roll_pitch_yaw_outputs_give_the_orientation_back_at_gimbal_lock_too(brick, rpy):
+    """base_roll, base_pitch and base_yaw rebuild the base's rotation to round-off everywhere:
+    at pitch ±π/2 the yaw read off the first column was round-off of its own (R(rpy) 1.96 off at
+    (0, π/2, 0.3)); it now follows the roll through R·Rx(−roll)."""
+    y = lagrgen.base_state(brick, rpy=rpy)
+    i = brick.output_names.index("base_roll")
+    roll, pitch, yaw = brick.outputs(0.0, y)[i:i + 3]
+    assert np.abs(rpy_matrix_of(roll, pitch, yaw) - rotation_of(y[3:7])).max() < 1e-14
+    assert np.abs(rotation_of(y[3:7]) - rpy_matrix_of(*rpy)).max() < 1e-14
+
+
+def test_a_zero_quaternion_in_a_start_says_how_to_give_the_orientation(brick):
+    """A y0 dict naming base_z alone left the quaternion 0: a MassMatrixError about masses and
+    inertias; now a ValueError that says to give base_qw=1 or use base_state, in simulate and
+    simulate_many."""
+    with pytest.raises(ValueError, match="quaternion.*is zero.*base_qw=1.*base_state"):
+        lagrgen.simulate(brick, (0.0, 0.1), {"base_z": 1.0})
+    with pytest.raises(ValueError, match="quaternion.*is zero"):
+        lagrgen.simulate_many(brick, (0.0, 0.1), [{"base_z": 1.0}, {"base_qw": 1.0}],
+                              t_eval=[0.0, 0.1])
+    sol = lagrgen.simulate(brick, (0.0, 0.1), {"base_z": 1.0, "base_qw": 1.0})
+    assert sol.success and sol.y[2, -1] == pytest.approx(1.0 - 9.81 * 0.01 / 2, rel=1e-9)

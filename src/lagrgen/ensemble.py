@@ -29,6 +29,7 @@ from .methods import BY_NAME
 from .native.engine import _event_arrays, _tolerances, native_events, native_reason
 from .options import check_run_options as checked_options
 from .runtime.arguments import input_specs, parameters_from, state_vector
+from .runtime.free_base import check_quaternion
 from .signals import Signal, constant_spec
 from .simulate import (check_run_options, evaluate_outputs, refuse_switching_options, simulate,
                        time_span)
@@ -522,6 +523,7 @@ def simulate_many(mod, t_span, y0=None, params=None, inputs=None, t_eval=None, m
     runs = len(Y0)
     if runs == 0:
         raise ValueError("simulate_many needs at least one run")
+    check_quaternion(mod.coordinates, np.transpose(Y0))
     if is_hybrid(mod):
         check_hybrid_run(mod, (t0, tf), stacklevel=3)
         check_starts(mod, t0, Y0, P, run_inputs, options.get("gap_tol"))

@@ -15,6 +15,7 @@ from .options import SWITCHING_OPTIONS, check_run_options as checked_options
 from .progress import ProgressBar
 from .results import Outputs, with_coordinates
 from .runtime.arguments import input_function, parameters_from, state_vector, unknown_name
+from .runtime.free_base import check_quaternion
 from .scipy_engine import solve_scipy
 
 ENGINES = (None, "native", "scipy")
@@ -85,6 +86,7 @@ def simulate(mod, t_span, y0=None, method="RK45", params=None, inputs=None, rtol
         rtol, atol, t_span, t_eval, max_steps, max_wall_time, options)
     refuse_switching_options(mod, options)
     y0 = state_vector(mod.initial_state if y0 is None else y0, tuple(mod.coordinates))
+    check_quaternion(mod.coordinates, y0)
     p = parameters_from(mod, params)
     u_at = input_function(mod, inputs)
     if sensitivities is not None:

@@ -817,10 +817,15 @@ def _free_base(model, coordinates):
 
 def _rpy_of_matrix(R):
     """URDF's (roll, pitch, yaw) of R = Rz(yaw)·Ry(pitch)·Rx(roll) given times any positive
-    number (SymPy): atan2 forms, pitch in [−π/2, π/2]."""
+    number (SymPy): atan2 forms, pitch in [−π/2, π/2]; the yaw from R·Rx(−roll) = Rz(yaw)·Ry(pitch),
+    whose second column is (−sin yaw, cos yaw, 0), so that the three angles give R back at the
+    gimbal lock too, where the roll is whatever round-off makes it (the yaw read off R's first
+    column there was round-off of its own: R(rpy) was 1.96 off R at pitch π/2)."""
     import sympy as sp
-    return (sp.atan2(R[2, 1], R[2, 2]), sp.atan2(-R[2, 0], sp.sqrt(R[0, 0] ** 2 + R[1, 0] ** 2)),
-            sp.atan2(R[1, 0], R[0, 0]))
+    roll = sp.atan2(R[2, 1], R[2, 2])
+    c, s = sp.cos(roll, evaluate=False), sp.sin(roll, evaluate=False)
+    return (roll, sp.atan2(-R[2, 0], sp.sqrt(R[0, 0] ** 2 + R[1, 0] ** 2)),
+            sp.atan2(s * R[0, 2] - c * R[0, 1], c * R[1, 1] - s * R[1, 2]))
 
 
 def _clean(array):

@@ -34,6 +34,7 @@ def add(sub):
 def run(args):
     from ..outputs.plotting import plot_modes
     import warnings
+    from ..errors import MassMatrixError
     from ..vibration import FrozenTimeWarning, equilibrium, modes
     models = models_in(args.model_file, args.model, urdf_options(args))
     for k, model in enumerate(models):
@@ -42,11 +43,17 @@ def run(args):
         at = known_names({c: number(v, f"--at {c}") for c, v in assignments(args.at, "--at").items()},
                          "--at", model, "coordinate", model.coordinate_names)
         mod = build_for(model, args)
-        guess = [at.get(c, 0.0) for c in model.coordinate_names]
+        declared = np.asarray(mod.initial_state, dtype=float)
+        start = declared[:mod.n_coordinates] if declared.size else np.zeros(mod.n_coordinates)
+        guess = [at.get(c, start[i]) for i, c in enumerate(model.coordinate_names)]
         u = inputs or None
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always", FrozenTimeWarning)
-            q0 = equilibrium(mod, guess, p=params, u=u, t=args.t)
+            try:
+                q0 = equilibrium(mod, guess, p=params, u=u, t=args.t)
+            except MassMatrixError as exc:
+                raise MassMatrixError(f"{exc} (the search starts from the model's initial state, "
+                                      "else zeros: give a start with --at NAME=VALUE)") from None
             result = modes(mod, q0, p=params, u=u, t=args.t)
         if caught and not args.quiet:
             print(f"lagrgen: warning: {caught[-1].message}", file=sys.stderr)

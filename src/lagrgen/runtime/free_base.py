@@ -18,6 +18,22 @@ from .tree3d import SpatialPythonModel, SpatialRecursion
 
 #: The model's index of the quaternion's first component, and the chart's block (e, r) there.
 BLOCK = slice(3, 7)
+#: The free base's quaternion coordinates (`from_urdf(..., base="free")`).
+QUATERNION = ("base_qx", "base_qy", "base_qz", "base_qw")
+
+
+def check_quaternion(coordinates, states):
+    """ValueError where a free base's quaternion is zero in a state (a column of `states`, 2n ×
+    runs, or one state): a y0 dict leaves the entries it does not name 0, and the error was a
+    MassMatrixError about masses and inertias."""
+    if tuple(coordinates[3:7]) != QUATERNION:
+        return
+    zeta = np.reshape(np.asarray(states, dtype=float), (2 * len(coordinates), -1))[BLOCK]
+    if np.any(np.all(zeta == 0.0, axis=0)):
+        raise ValueError("the free base's orientation quaternion (base_qx, base_qy, base_qz, "
+                         "base_qw) is zero in the initial state: a y0 dict leaves the entries it "
+                         "does not name 0; give base_qw=1 for the upright pose, or build the "
+                         "state with lagrgen.base_state(mod, position=..., rpy=...)")
 
 
 def qmul(a, b):
