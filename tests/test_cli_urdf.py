@@ -111,3 +111,30 @@ def test_the_show_command_reads_a_vendor_file_with_an_unphysical_antenna(capsys)
     with pytest.warns(UserWarning, match="taken as it is"):
         assert main(["show", str(root), "--no-check-inertias"]) == 0
     assert "robot tiago_dual: 101 coordinates" in capsys.readouterr().out
+
+
+def test_a_free_base_with_mimic_joints_names_the_flag(tmp_path, capsys):
+    """The command line's error for a free base with a mimic joint names --no-mimic (it named
+    the Python option), and the flag reads the file."""
+    path = tmp_path / "mimicking.urdf"
+    path.write_text(robot(link("a"), link("b"), link("c"), joint("j", "a", "b"),
+                          joint("k", "b", "c", extra='<mimic joint="j"/>')))
+    assert main(["build", str(path), "--base", "free", "--out", str(tmp_path / "gen")]) == 1
+    message = capsys.readouterr().err
+    assert "mimics 'j'" in message and "--no-mimic" in message and "from_urdf" not in message
+    assert main(["show", str(path), "--raw", "--base", "free", "--no-mimic"]) == 0
+
+
+@pytest.mark.parametrize("code, said", [
+    ('raise RuntimeError("no such part")', "line 3: the model file raised RuntimeError: no such "
+                                           "part"),
+    ("undefined_helper(1)", "line 3: the model file raised NameError: name 'undefined_helper'")])
+def test_an_error_inside_a_model_file_is_one_line_naming_its_line(tmp_path, capsys, code, said):
+    """An exception a model file raises (not a SyntaxError nor lagrgen's own) printed a whole
+    traceback; it is one line, `lagrgen: error: FILE, line N: ...`, exit status 1."""
+    path = tmp_path / "broken.py"
+    path.write_text(f'import lagrgen\nmodel = lagrgen.Model("broken")\n{code}\n')
+    assert main(["build", str(path), "--out", str(tmp_path / "gen")]) == 1
+    err = capsys.readouterr().err
+    assert err.startswith("lagrgen: error: ") and said in err and "Traceback" not in err
+    assert len(err.strip().splitlines()) == 1

@@ -162,3 +162,24 @@ def test_every_joint_is_in_model_limits_with_none_where_the_file_gives_none(tmp_
     assert set(loose.limits) == {"j1", "j2"}
     with pytest.raises(lagrgen.errors.LagrgenError, match="declares no limits"):
         lagrgen.Collocation(loose, nodes=5, duration=1.0).bound_limits()
+
+
+@pytest.mark.parametrize("inertial, said", [
+    ('<inertial><inertia ixx="0.01" ixy="0" ixz="0" iyy="0.02" iyz="0" izz="0.015"/></inertial>',
+     r"link 'a'.*has no <mass>"),
+    ('<inertial><mass value="1"/><inertia iyy="0.02" izz="0.015"/></inertial>',
+     r"<inertia> of link 'a' gives no ixx"),
+    ('<inertial><mass/><inertia ixx="0.01" iyy="0.02" izz="0.015"/></inertial>',
+     r"the mass of link 'a'")])
+def test_an_inertial_without_its_mass_or_moments_is_refused(tmp_path, inertial, said):
+    """An <inertial> with no <mass> was read as mass 0 (the link then did not fall), and an
+    <inertia> without a moment as 0: both are URDFErrors (urdfdom refuses them too); products of
+    inertia left out are 0."""
+    text = robot("partial").replace(INERTIAL.format(m=1.0), inertial, 1)
+    with pytest.raises(URDFError, match=said):
+        lagrgen.from_urdf(write(tmp_path, text, "partial"))
+    lax = robot("lax").replace(INERTIAL.format(m=1.0),
+                               '<inertial><mass value="1"/><inertia ixx="0.01" iyy="0.02" '
+                               'izz="0.015"/></inertial>', 1)
+    model = lagrgen.from_urdf(write(tmp_path, lax, "lax"))
+    assert model.urdf.links["a"].mass == 1.0

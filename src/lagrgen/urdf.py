@@ -218,8 +218,10 @@ def _inertial(element, link, check_inertias=True):
     if inertial is None:
         return Inertial()
     mass_element = inertial.find("mass")
-    mass = _number(mass_element.get("value") if mass_element is not None else "0",
-                   f"the mass of {what}")
+    if mass_element is None:
+        raise URDFError(f"the <inertial> of {what} has no <mass>: give <mass value=\"...\"/> "
+                        "(a link without mass has no <inertial>; urdfdom refuses it too)")
+    mass = _number(mass_element.get("value"), f"the mass of {what}")
     if mass < 0:
         raise URDFError(f"the mass of {what} is {mass:g}: a mass cannot be negative")
     origin = inertial.find("origin")
@@ -227,6 +229,10 @@ def _inertial(element, link, check_inertias=True):
     R = np.array(rpy_matrix(_vector(origin, "rpy", f"the <inertial><origin> of {what}")))
     tensor = inertial.find("inertia")
     keys = ("ixx", "ixy", "ixz", "iyy", "iyz", "izz")
+    missing = [k for k in ("ixx", "iyy", "izz") if tensor is None or tensor.get(k) is None]
+    if tensor is not None and missing:
+        raise URDFError(f"the <inertia> of {what} gives no {', '.join(missing)}: give the three "
+                        "moments (products of inertia left out are 0)")
     values = {k: _number(tensor.get(k, "0") if tensor is not None else "0",
                          f"the inertia {k} of {what}") for k in keys}
     I = np.array([[values["ixx"], values["ixy"], values["ixz"]],
@@ -665,9 +671,9 @@ def from_urdf(path, name=None, base="fixed", gravity=(0.0, 0.0, -9.81), joint_dy
     if base == "free" and followers:
         follower, (target, _, _) = next(iter(followers.items()))
         raise URDFError(f"joint {follower!r} of {robot.name!r} mimics {target!r}: the "
-                         "recursion of a free base takes no mimic joints yet; read the file with "
-                         "from_urdf(..., mimic=False) (the joints independent, as Pinocchio "
-                         "reads them)")
+                        "recursion of a free base takes no mimic joints yet; read the file with "
+                        f"{suggestion('mimic', False)} (the joints independent, as Pinocchio "
+                        "reads them)", ("mimic", False))
     frozen = _frozen_massless(robot, found, followers, massless)
     if frozen:
         found = parts(robot, base, frozen, frames)

@@ -118,8 +118,21 @@ def run_file(path, what):
         return runpy.run_path(str(path), run_name=f"lagrgen_{what}_file_{path.stem}")
     except SyntaxError as exc:
         raise LagrgenError(f"{exc.filename}, line {exc.lineno}: {exc.msg}") from None
+    except LagrgenError:
+        raise
+    except Exception as exc:                        # noqa: BLE001 — the user's code, said in one line
+        raise LagrgenError(f"{path}{_line_in(exc, path)}: the {what} file raised "
+                           f"{type(exc).__name__}: {exc}") from None
     finally:
         sys.path.pop(0)
+
+
+def _line_in(exc, path):
+    """", line N" of the last frame of `exc`'s traceback in the file `path`, else ""."""
+    import traceback
+    lines = [frame.lineno for frame in traceback.extract_tb(exc.__traceback__)
+             if Path(frame.filename).resolve() == path.resolve()]
+    return f", line {lines[-1]}" if lines else ""
 
 
 def is_urdf(path):
