@@ -754,3 +754,9 @@ def test_ctrl_c_stops_an_ensemble_of_long_hybrid_runs_quickly(built):
         proc.kill()
     assert out.startswith("stopped"), (out, err[-2000:])
     assert float(out.split()[1]) < 0.5
+
+
+def test_a_restitution_just_above_one_is_shown_as_given(built):
+    """The ContactError for e = 1.0000001 said 'has restitution 1', which is allowed."""
+    with pytest.raises(lagrgen.ContactError, match=r"restitution 1\.0000001 at"):
+        lagrgen.simulate(built(ball_model), (0.0, 1.0), [1.0, 0.0], params={"e": 1.0000001})

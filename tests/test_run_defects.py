@@ -234,3 +234,29 @@ def test_a_keyword_no_solver_takes_is_a_type_error(keyword, said, tmp_path_facto
     pushed = lagrgen.simulate(mod, (0.0, 1.0), [0.0, 0.0], inputs={"F": 1.0}, max_step=0.1,
                               rtol=1e-10, atol=1e-12)
     assert abs(pushed.y[0, -1] - 0.5) < 1e-9
+
+
+def test_a_value_given_twice_or_an_input_that_is_no_number_is_named(tmp_path_factory):
+    """params={k_symbol: 9, "k": 4} named one parameter twice and one value won silently; an
+    array for a constant input of a compiled ensemble failed with NumPy's 'only 0-dimensional
+    arrays' and a function returning an array with 'setting an array element': each is now a
+    ValueError naming the parameter or input."""
+    model = lagrgen.Model("named_twice")
+    x, = model.coordinates("x")
+    k, = model.parameters(k=4.0)
+    F, = model.inputs("F")
+    model.particle(1.0, sp.Matrix([x]))
+    model.potential_energy(k * x ** 2 / 2)
+    model.force(sp.Matrix([F]), sp.Matrix([x]))
+    mod = lagrgen.build(model, out_dir=str(tmp_path_factory.mktemp("twice")), quiet=True)
+    with pytest.raises(ValueError, match="parameter 'k' is given twice"):
+        lagrgen.simulate(mod, (0.0, 1.0), [1.0, 0.0], params={k: 9.0, "k": 4.0})
+    with pytest.raises(ValueError, match="input 'F' is given twice"):
+        lagrgen.simulate(mod, (0.0, 1.0), [1.0, 0.0], inputs={F: 1.0, "F": lambda t: 2.0})
+    with pytest.raises(ValueError, match=r"input 'F' must be a number.*array"):
+        lagrgen.simulate_many(mod, (0.0, 1.0), [1.0, 0.0], t_eval=[0.0, 1.0],
+                              inputs={"F": np.array([1.0, 0.0])})
+    with pytest.raises(ValueError, match="input 'F': its function returned array"):
+        lagrgen.simulate(mod, (0.0, 1.0), [1.0, 0.0], inputs={"F": lambda t: np.array([1.0, 2.0])})
+    sol = lagrgen.simulate(mod, (0.0, 1.0), [1.0, 0.0], params={k: 9.0}, rtol=1e-10, atol=1e-12)
+    assert abs(sol.y[0, -1] - np.cos(3.0)) < 1e-8

@@ -931,13 +931,13 @@ def coefficient_problem(imp, fr):
 def coefficient_message(system, kind, k, value, mu, t):
     """The ContactError message of `coefficient_problem`'s finding at time t."""
     if kind == "restitution":
-        return (f"impact {system.impacts[k][0]!r} has restitution {value:g} at t = {t:.9g}: "
+        return (f"impact {system.impacts[k][0]!r} has restitution {value!r} at t = {t:.9g}: "
                 "it must be between 0 and 1 (check the parameter values of the run)")
     name = (system.frictions + system.planars)[k][0]
     if kind == "mu":
-        return (f"friction {name!r} has mu = {value:g} at t = {t:.9g}: a friction coefficient "
+        return (f"friction {name!r} has mu = {value!r} at t = {t:.9g}: a friction coefficient "
                 "must be ≥ 0 (check the parameter values of the run)")
-    return (f"friction {name!r} has mu_static = {value:g} below mu = {mu:g} at t = {t:.9g}: "
+    return (f"friction {name!r} has mu_static = {value!r} below mu = {mu!r} at t = {t:.9g}: "
             "the static coefficient must be at least the kinetic one (check the parameter "
             "values of the run)")
 

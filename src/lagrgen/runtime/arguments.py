@@ -90,10 +90,15 @@ def named_vector(values, names, base, what):
     """`base` (copied) with entries replaced from the dict `values` (name or symbol -> number)."""
     out = np.array(base, dtype=np.float64)
     index = {name: i for i, name in enumerate(names)}
+    seen = set()
     for key, value in values.items():
         name = key_name(key)
         if name not in index:
             raise unknown_name(what, name, names)
+        if name in seen:
+            raise ValueError(f"{what} {name!r} is given twice (by its name and by its Symbol or "
+                             "function): give it once")
+        seen.add(name)
         try:
             out[index[name]] = float(value)
         except (TypeError, ValueError):
@@ -161,6 +166,9 @@ def input_function(mod, inputs):
         name = key_name(key)
         if name not in names:
             raise unknown_name("input", name, names)
+        if name in by_name:
+            raise ValueError(f"input {name!r} is given twice (by its name and by its function): "
+                             "give it once")
         by_name[name] = value
     constants = {k: v for k, v in by_name.items() if not callable(v)}
     u0 = require_finite(named_vector(constants, names, np.zeros(len(names)), "input"), names,
@@ -172,7 +180,12 @@ def input_function(mod, inputs):
     def u_at(t):
         u = u0.copy()
         for i, f in varying:
-            u[i] = f(t)
+            value = f(t)
+            try:
+                u[i] = value
+            except (TypeError, ValueError):
+                raise ValueError(f"input {names[i]!r}: its function returned {value!r} at "
+                                 f"t = {t!r}; it must return one number") from None
         return u
     return u_at
 
@@ -215,7 +228,11 @@ def input_specs(mod, inputs):
         if isinstance(v, Signal):
             specs.append(v.native_spec())
         else:
-            x = float(v)
+            try:
+                x = float(v)
+            except (TypeError, ValueError):
+                raise ValueError(f"input {name!r} must be a number, a lagrgen.Signal or a "
+                                 f"function of t, got {v!r}") from None
             if not np.isfinite(x):
                 raise ValueError(f"input {name!r} is {x}: parameters and inputs must be finite "
                                  "numbers")
