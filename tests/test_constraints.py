@@ -610,3 +610,20 @@ def test_cli_show_and_csv(tmp_path, capsys):
     mod = lagrgen.build(example_model("four_bar"), backend="python")
     assert np.abs(mod.constraint_residuals(0.0, first[1:7])).max() < 1e-12   # projected y0
     assert np.allclose(first[7:9], mod.constraint_forces(0.0, first[1:7]), rtol=1e-12)
+
+
+def test_a_start_off_the_constraints_warns(built, states):
+    """The Cartesian pendulum started at |r| = 1.27 (L = 1), or with a rate across the rod, ran
+    with success True and no word while the stabilization dragged it onto the circle; simulate
+    now warns ConstraintWarning naming the constraint and consistent_state; a consistent start
+    and one off by round-off do not warn."""
+    import warnings
+    mod = built("cartesian_pendulum")
+    with pytest.warns(lagrgen.ConstraintWarning, match=r"largest residual 0\.62.*consistent_state"):
+        lagrgen.simulate(mod, (0.0, 0.1), [0.9, -0.9, 0.0, 0.0])
+    with pytest.warns(lagrgen.ConstraintWarning, match="of the rate of"):
+        lagrgen.simulate(mod, (0.0, 0.1), [0.6, -0.8, 1.0, 0.0])
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", lagrgen.ConstraintWarning)
+        lagrgen.simulate(mod, (0.0, 0.1), states["cartesian_pendulum"])
+        lagrgen.simulate(mod, (0.0, 0.1), [0.6, -0.8 + 1e-12, 0.0, 0.0])

@@ -31,7 +31,7 @@ _LAZY = {
     "frequency_response": "vibration", "FrozenTimeWarning": "vibration",
     "UnstableModeWarning": "vibration", "NotAnEquilibriumWarning": "vibration",
     "eigenvalue_sweep": "stability",
-    "consistent_state": "constraints",
+    "consistent_state": "constraints", "ConstraintWarning": "constraints",
     "from_sympy": "sympy_interop", "from_urdf": "urdf", "base_state": "base_state",
     "URDFError": "urdf", "URDFWarning": "urdf",
     "UntrackedEventsWarning": "hybrid",
@@ -47,7 +47,7 @@ __all__ = ["Model", "build", "load", "simulate", "evaluate_outputs", "output_eve
            "FitWarning", "IdentifiabilityWarning", "base_parameters", "identify_inertial",
            "exciting_trajectory", "consistent_state",
            "from_sympy", "from_urdf", "base_state", "URDFError", "URDFWarning", "export_fmu", "rotation", "Collocation", "CollocationResult",
-           "UntrackedEventsWarning",
+           "UntrackedEventsWarning", "ConstraintWarning",
            "LagrgenError", "ConstraintError", "ModelError", "UnknownNameError", "MassMatrixError",
            "BuildError", "CompileError", "NonFiniteError", "ContactError", "StoreError", "StoreWarning",
            "NearSingularMassMatrixWarning", "__version__"]

@@ -106,6 +106,35 @@ def check_state(mod, t, y, p, u=None):
         check_independent(mod, t, y, A, "initial state")
 
 
+class ConstraintWarning(UserWarning):
+    """A simulation starts from a state that violates the model's constraints."""
+
+
+#: Relative size of the constraint residuals of an initial state above which `simulate` warns.
+START_TOL = 1e-6
+
+
+def warn_off_constraints(mod, t, y, p, u=None, stacklevel=3):
+    """Warn ConstraintWarning where the state y violates the constraints (residuals Φ and
+    A·q̇ + b) by more than START_TOL of max(1, |y|): Baumgarte's stabilization then pulls the
+    motion onto them through a transient that is no motion of the system (a pendulum started
+    at |r| = 1.27 for L = 1 ran with success True and no word)."""
+    if not mod.n_constraints:
+        return
+    r = np.abs(mod.constraint_residuals(float(t), np.asarray(y, dtype=float), p, u))
+    if r.max(initial=0.0) > START_TOL * max(1.0, np.abs(y).max()):
+        import warnings
+        names, n_h = tuple(mod.info.constraint_names), mod.info.n_holonomic
+        worst = int(np.argmax(r))
+        which = f"of {names[worst]!r}" if worst < n_h else \
+            f"of the rate of {names[worst - n_h]!r}"
+        warnings.warn(f"the initial state of model {mod.name!r} violates its constraints (largest "
+                      f"residual {r.max():.3g}, {which}): the stabilization pulls the motion "
+                      "onto them through a transient that is no motion of the system; start "
+                      "from lagrgen.consistent_state(mod, y0)", ConstraintWarning,
+                      stacklevel=stacklevel)
+
+
 def along(mod, sol, p, u_at, forces=True):
     """(λ, residuals) at every output time of `sol`: arrays (m, len(t)) and (n_h + m, len(t));
     λ None without `forces` (a hybrid solve brings its own, with its contacts held)."""

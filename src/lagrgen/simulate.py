@@ -72,7 +72,8 @@ def simulate(mod, t_span, y0=None, method="RK45", params=None, inputs=None, rtol
     `contact_forces` (each impact's contact force, 0 while open, then each friction's force along
     its slip velocity: the sticking force, or −μ·N·sign(v) while slipping), which
     `multipliers` holds by name too. Its initial state should satisfy the constraints (see
-    `lagrgen.consistent_state`; Baumgarte stabilization pulls a small violation back).
+    `lagrgen.consistent_state`; Baumgarte stabilization pulls a small violation back, and one
+    above 1e-6 of the state's size warns ConstraintWarning).
 
     Raises
     ------
@@ -110,8 +111,9 @@ def simulate(mod, t_span, y0=None, method="RK45", params=None, inputs=None, rtol
     if engine == "native" and why_not:
         raise ValueError(f"the native engine cannot run this solve: {why_not}")
     if mod.n_constraints:
-        from .constraints import check_state
+        from .constraints import check_state, warn_off_constraints
         check_state(mod, t_span[0], y0, p, u_at(t_span[0]))
+        warn_off_constraints(mod, t_span[0], y0, p, u_at(t_span[0]))
     bar = ProgressBar(*t_span, show=progress) if progress else None
     run = dict(t_eval=t_eval, dense_output=dense_output, max_steps=max_steps,
                max_wall_time=max_wall_time, progress=bar, **options)
