@@ -118,14 +118,16 @@ def quaternion_of(R):
 
 
 def rpy_rates(rpy, omega):
-    """(ṙoll, ṗitch, ẏaw) of the angular velocity ω (fixed axes) at `rpy`; ModelError at
-    pitch = ±π/2, where no rates give every ω."""
+    """(ṙoll, ṗitch, ẏaw) of the angular velocity ω (fixed axes) at `rpy`: zero at rest, also at
+    pitch = ±π/2, where otherwise no rates give every ω (ModelError)."""
     roll, pitch, yaw = rpy
     cy, sy, cp, sp = math.cos(yaw), math.sin(yaw), math.cos(pitch), math.sin(pitch)
     # ω = E·[ṙoll, ṗitch, ẏaw] with columns Rz·Ry·e_x, Rz·e_y, e_z
     E = np.array([[cy * cp, -sy, 0.0], [sy * cp, cy, 0.0], [-sp, 0.0, 1.0]])
+    if not np.any(omega):
+        return np.zeros(3)                  # at rest: zero rates, gimbal lock or not
     if abs(cp) < 1e-12:
-        raise ModelError(f"base_state: at pitch {pitch!r} (±π/2) roll–pitch–yaw rates cannot "
-                         "give every angular velocity (gimbal lock): use a model with "
+        raise ModelError(f"base_state: at pitch {float(pitch)!r} (±π/2) roll–pitch–yaw rates "
+                         "cannot give every angular velocity (gimbal lock): use a model with "
                          "from_urdf(..., base='free')")
     return np.linalg.solve(E, omega)
