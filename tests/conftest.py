@@ -23,6 +23,30 @@ BACKENDS = ["python", "c"]
 SCIPY_PORTED = (1, 17)
 
 
+#: The head of a script a test interrupts with SIGINT (`str.format` with the compiled model's
+#: `directory` and module `name`): imports the model as `mod` and keeps when SIGINT came in `hit`.
+INTERRUPTED_HEAD = """
+import importlib, signal, sys, time
+import numpy as np
+sys.path.insert(0, {directory!r})
+import lagrgen
+mod = importlib.import_module({name!r})
+hit = []
+def on_sigint(signum, frame):
+    hit.append(time.monotonic())
+    raise KeyboardInterrupt
+signal.signal(signal.SIGINT, on_sigint)
+"""
+
+
+def interrupted_script(mod, body):
+    """The text of a script that runs `body` (already formatted) on the compiled model `mod` and
+    can be interrupted (`INTERRUPTED_HEAD`)."""
+    import os
+    return INTERRUPTED_HEAD.format(directory=os.path.dirname(mod.__file__), name=mod.__name__) \
+        + body
+
+
 def benchmark(name):
     """A module of benchmarks/ (their Pinocchio and MuJoCo comparisons, the robots' folder)."""
     import sys

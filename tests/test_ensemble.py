@@ -15,7 +15,7 @@ from numpy.testing import assert_allclose, assert_array_equal
 
 import lagrgen
 
-from conftest import example_model
+from conftest import example_model, interrupted_script
 
 DOUBLE = example_model("double_pendulum")
 ROD = example_model("cartesian_pendulum")
@@ -301,16 +301,6 @@ def test_progress_bar_on_request(mod, capsys):
 
 
 CTRL_C = """
-import importlib, signal, sys, time
-import numpy as np
-sys.path.insert(0, {directory!r})
-import lagrgen
-mod = importlib.import_module({name!r})
-hit = []
-def on_sigint(signum, frame):
-    hit.append(time.monotonic())
-    raise KeyboardInterrupt
-signal.signal(signal.SIGINT, on_sigint)
 P = np.tile(mod.defaults, (int(sys.argv[1]), 1))
 t_end = float(sys.argv[2])
 store = None if sys.argv[3] == "-" else sys.argv[3]
@@ -337,7 +327,7 @@ print("usable", bool(ens.success.all()), flush=True)
 def test_ctrl_c_stops_every_running_batch_quickly(mod, runs, t_end, store, tmp_path):
     if store:
         pytest.importorskip("zarr")
-    script = CTRL_C.format(directory=os.path.dirname(mod.__file__), name=mod.__name__)
+    script = interrupted_script(mod, CTRL_C)
     env = dict(os.environ, PYTHONPATH=os.pathsep.join(p for p in sys.path if p))
     path = str(tmp_path / "cut.zarr") if store else "-"
     proc = subprocess.Popen([sys.executable, "-c", script, str(runs), str(t_end), path],

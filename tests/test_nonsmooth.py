@@ -12,7 +12,7 @@ import lagrgen
 from lagrgen import Model, ModelError, hybrid
 from lagrgen.hybrid import projected_gauss_seidel
 
-from conftest import native_free_mode_pair
+from conftest import interrupted_script, native_free_mode_pair
 
 G = 9.81
 TOL = dict(rtol=1e-10, atol=1e-12)
@@ -711,19 +711,9 @@ def test_events_a_hybrid_run_does_not_locate_are_warned_of(built):
 
 
 BOUNCING_STOPPED = """
-import importlib, signal, sys, time
-import numpy as np
-sys.path.insert(0, {directory!r})
-import lagrgen
-mod = importlib.import_module({name!r})
-hit = []
-def on_sigint(signum, frame):
-    hit.append(time.monotonic())
-    raise KeyboardInterrupt
-signal.signal(signal.SIGINT, on_sigint)
 print("start", flush=True)
 try:
-    lagrgen.simulate_many(mod, (0.0, 1e6), [1.0, 0.0], params=[{{"e": 1.0}}] * 8,
+    lagrgen.simulate_many(mod, (0.0, 1e6), [1.0, 0.0], params=[{"e": 1.0}] * 8,
                           t_eval=[0.0, 1e6], workers=2, max_transitions=10**9, progress=False)
     print("finished", flush=True)
 except KeyboardInterrupt:
@@ -741,7 +731,7 @@ def test_ctrl_c_stops_an_ensemble_of_long_hybrid_runs_quickly(built):
     import sys
     import time
     mod = built(ball_model)
-    script = BOUNCING_STOPPED.format(directory=os.path.dirname(mod.__file__), name=mod.__name__)
+    script = interrupted_script(mod, BOUNCING_STOPPED)
     env = dict(os.environ, PYTHONPATH=os.pathsep.join(p for p in sys.path if p))
     proc = subprocess.Popen([sys.executable, "-c", script], stdout=subprocess.PIPE,
                             stderr=subprocess.PIPE, text=True, env=env)
@@ -760,3 +750,13 @@ def test_a_restitution_just_above_one_is_shown_as_given(built):
     """The ContactError for e = 1.0000001 said 'has restitution 1', which is allowed."""
     with pytest.raises(lagrgen.ContactError, match=r"restitution 1\.0000001 at"):
         lagrgen.simulate(built(ball_model), (0.0, 1.0), [1.0, 0.0], params={"e": 1.0000001})
+
+
+def test_a_contact_held_and_released_over_and_over_is_said_so():
+    """The stall message of a contact that alternates between held and released at one instant
+    (a brick's corner landing with mu = 0.8 on both engines) says so and what to try, not 'raise
+    rest_velocity'."""
+    said = hybrid.stall_message(0.28, 4e-15, [(0.28, "c6", "contact"), (0.28, "c6", "release"),
+                                               (0.28, "c6", "contact")])
+    assert "Contact 'c6' is held and released over and over" in said
+    assert "lower its mu" in said and "rest_velocity" not in said

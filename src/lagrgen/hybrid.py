@@ -929,7 +929,9 @@ def coefficient_problem(imp, fr):
 
 
 def coefficient_message(system, kind, k, value, mu, t):
-    """The ContactError message of `coefficient_problem`'s finding at time t."""
+    """The ContactError message of `coefficient_problem`'s finding at time t (the values as given:
+    `{:g}` showed a restitution of 1.0000001 as 1)."""
+    value, mu = float(value), None if mu is None else float(mu)
     if kind == "restitution":
         return (f"impact {system.impacts[k][0]!r} has restitution {value!r} at t = {t:.9g}: "
                 "it must be between 0 and 1 (check the parameter values of the run)")
@@ -1161,6 +1163,14 @@ def stall_message(t, least, transitions):
         return head + ("Frictions that toggle between stick and slip at one instant keep "
                        "switching without advancing: check their slip velocities and normal "
                        "forces (a normal force of 0 gives no friction)")
+    if len({name for _, name, _ in recent}) == 1 and \
+            {kind for *_, kind in recent} == {CONTACT, "release"}:
+        return head + (f"Contact {recent[-1][1]!r} is held and released over and over at one "
+                       "instant: held, its force comes out negative; released, it closes at "
+                       "once. Where a friction slides at it this may be Painlevé's paradox (Coulomb "
+                       "friction too large for the geometry pulls the contact in faster than a "
+                       "normal force can push it out), which rigid contact cannot resolve: lower "
+                       "its mu, or give the contact restitution")
     return head + ("Impacts that never come to rest (rest_velocity too small: the default is "
                    "1e-6 times the fastest impact) or contacts that hold a body from both sides "
                    "keep switching without advancing: raise rest_velocity or check the impacts")
