@@ -115,3 +115,19 @@ def test_published_standalone_c_is_repaired_like_the_module(tmp_path):
     header.unlink()
     assert lagrgen.build(model, out_dir=tmp_path).build_info["cache_hit"]
     assert (source.read_text(), header.read_text()) == good
+
+
+def test_a_killed_builds_work_directory_is_removed_by_the_next_build(tmp_path):
+    """kill -9 during a compile left out_dir/__lagrgen__/.build-<module>-*/ for good; the next
+    build of that model removes those untouched for an hour (a build under way is younger)."""
+    cache = tmp_path / CACHE_DIR
+    cache.mkdir()
+    abandoned, running = cache / ".build-abandoned-x1y2", cache / ".build-abandoned-z3w4"
+    for folder in (abandoned, running):
+        folder.mkdir()
+        (folder / "abandoned.c").write_text("/* half written */")
+    two_hours_ago = abandoned.stat().st_mtime - 7200
+    os.utime(abandoned, (two_hours_ago, two_hours_ago))
+    mod = lagrgen.build(spring(2.0, "abandoned"), out_dir=tmp_path, quiet=True)
+    assert mod.rhs(0.0, [1.0, 0.0])[1] == pytest.approx(-2.0)
+    assert not abandoned.exists() and running.exists()

@@ -400,12 +400,29 @@ def discard(directory):
         shutil.rmtree(trash, ignore_errors=True)
 
 
+#: A unit's work directory untouched this long is a build that was killed (kill -9, a power cut).
+ABANDONED_SECONDS = 3600.0
+
+
+def remove_abandoned(unit):
+    """Remove the work directories of earlier builds of `unit` (`.build-<module>-*`) that were
+    left behind by a killed process, untouched for ABANDONED_SECONDS: they stayed for good."""
+    now = time.time()
+    for stale in unit.directory.parent.glob(f".build-{unit.module}-*"):
+        try:
+            if now - stale.stat().st_mtime > ABANDONED_SECONDS:
+                shutil.rmtree(stale, ignore_errors=True)
+        except OSError:
+            pass
+
+
 def store(unit, make, content_hash=None):
     """Make `unit`: `make(work)` writes the sources into the private directory `work` and
     compiles `work/<module><EXT_SUFFIX>`; then its digest (and the `content_hash` of what it was
     compiled from, when given) is recorded, the module fsynced and the directory renamed into
     place (replacing any earlier one). Call it under `writing`."""
     unit.directory.parent.mkdir(parents=True, exist_ok=True)
+    remove_abandoned(unit)
     work = Path(tempfile.mkdtemp(dir=unit.directory.parent, prefix=f".build-{unit.module}-"))
     try:
         made = Unit(work, unit.module)
