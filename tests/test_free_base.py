@@ -48,6 +48,11 @@ def brick(out):
 
 
 @pytest.fixture(scope="module")
+def brick_python():
+    return lagrgen.build(lagrgen.from_urdf(BRICK, base="free", name="brick_py"), backend="python")
+
+
+@pytest.fixture(scope="module")
 def quadruped(out):
     """The quadruped with a free base and with a floating one (rigid-body dynamics only)."""
     free = lagrgen.from_urdf(QUADRUPED, base="free", joint_dynamics=False, name="quad_free",
@@ -497,15 +502,17 @@ def rpy_matrix_of(roll, pitch, yaw):
 @pytest.mark.parametrize("rpy", [(0.0, np.pi / 2, 0.3), (0.5, np.pi / 2, 0.3),
                                  (0.2, -np.pi / 2, np.pi), (0.5, np.pi / 2 - 1e-9, 0.3),
                                  (0.0, np.pi, 0.0), (3.0, 0.1, -3.0)])
-def test_the_roll_pitch_yaw_outputs_give_the_orientation_back_at_gimbal_lock_too(brick, rpy):
-    """base_roll, base_pitch and base_yaw rebuild the base's rotation to round-off everywhere:
-    at pitch ±π/2 the yaw read off the first column was round-off of its own (R(rpy) 1.96 off at
-    (0, π/2, 0.3)); it now follows the roll through R·Rx(−roll)."""
-    y = lagrgen.base_state(brick, rpy=rpy)
-    i = brick.output_names.index("base_roll")
-    roll, pitch, yaw = brick.outputs(0.0, y)[i:i + 3]
-    assert np.abs(rpy_matrix_of(roll, pitch, yaw) - rotation_of(y[3:7])).max() < 1e-14
-    assert np.abs(rotation_of(y[3:7]) - rpy_matrix_of(*rpy)).max() < 1e-14
+def test_the_roll_pitch_yaw_outputs_give_the_orientation_back_at_gimbal_lock_too(
+        brick, brick_python, rpy):
+    """base_roll, base_pitch and base_yaw rebuild the base's rotation to round-off everywhere,
+    on both backends: at pitch ±π/2 the yaw read off the first column was round-off of its own
+    (R(rpy) 1.96 off at (0, π/2, 0.3)); it now follows the roll through R·Rx(−roll)."""
+    for mod in (brick, brick_python):
+        y = lagrgen.base_state(mod, rpy=rpy)
+        i = mod.output_names.index("base_roll")
+        roll, pitch, yaw = mod.outputs(0.0, y)[i:i + 3]
+        assert np.abs(rpy_matrix_of(roll, pitch, yaw) - rotation_of(y[3:7])).max() < 1e-14
+        assert np.abs(rotation_of(y[3:7]) - rpy_matrix_of(*rpy)).max() < 1e-14
 
 
 def test_a_zero_quaternion_in_a_start_says_how_to_give_the_orientation(brick):

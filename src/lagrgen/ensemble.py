@@ -40,6 +40,9 @@ MESSAGES = {0: "The solver successfully reached the end of the integration inter
 #: Runs per chunk at most: one Zarr chunk along `run`, one task, one step of the progress bar.
 MAX_CHUNK = 500
 
+#: simulate_many's keyword options that are not the solvers' (read by it, not passed on).
+ENSEMBLE_OPTIONS = ("engine", "max_steps", "max_wall_time")
+
 
 @dataclass
 class EnsembleResult:
@@ -445,7 +448,7 @@ def batch_reason(mod, method, options, sensitivities=()):
         return "engine='scipy'"
     if sensitivities:
         return "the sensitivities are integrated per run"
-    rest = {k: v for k, v in options.items() if k not in ("engine", "max_steps", "max_wall_time")}
+    rest = {k: v for k, v in options.items() if k not in ENSEMBLE_OPTIONS}
     why = native_reason(mod, method, None, None, rest)
     if why:
         return why
@@ -499,7 +502,7 @@ def simulate_many(mod, t_span, y0=None, params=None, inputs=None, t_eval=None, m
     if t_eval is None:
         raise ValueError("simulate_many needs t_eval: every run is sampled at the same times")
     check_run_options(method, options.get("engine"), options, "simulate_many",
-                      ("engine", "max_steps", "max_wall_time", "events"))
+                      ENSEMBLE_OPTIONS + ("events",))
     if workers is not None and (int(workers) != workers or workers < 1):
         raise ValueError(f"workers must be a positive integer, got {workers!r}")
     if client is not None and workers is not None:
@@ -507,7 +510,7 @@ def simulate_many(mod, t_span, y0=None, params=None, inputs=None, t_eval=None, m
     if client is not None and not callable(getattr(client, "scheduler_info", None)):
         raise TypeError(f"client must be a dask.distributed.Client, got {type(client).__name__}")
     t0, tf = time_span(t_span)
-    rest = {k: v for k, v in options.items() if k not in ("engine", "max_steps", "max_wall_time")}
+    rest = {k: v for k, v in options.items() if k not in ENSEMBLE_OPTIONS}
     rtol, atol, t_eval, max_steps, max_wall_time, rest = checked_options(
         rtol, atol, (t0, tf), t_eval, options.get("max_steps"), options.get("max_wall_time"),
         rest)

@@ -137,9 +137,11 @@ def simulate(mod, t_span, y0=None, method="RK45", params=None, inputs=None, rtol
 #: The keyword options a SciPy solver takes (`solve_ivp`'s and its methods'): simulate passes
 #: them on; a solver class given as `method` may take others.
 SOLVER_OPTIONS = ("first_step", "max_step", "min_step", "jac_sparsity", "lband", "uband")
-#: Keywords that stand for another argument, and that argument.
-MEANT = {"u": "inputs", "p": "params", "parameters": "params", "x0": "y0", "q0": "y0",
-         "t_end": "t_span", "tspan": "t_span", "solver": "method"}
+#: What a keyword no solver takes likely meant: another argument, or nothing.
+MEANT = {**{k: f"give it as {v}=..." for k, v in (
+    ("u", "inputs"), ("p", "params"), ("parameters", "params"), ("x0", "y0"), ("q0", "y0"),
+    ("t_end", "t_span"), ("tspan", "t_span"), ("solver", "method"))},
+    "vectorized": "the model's rhs takes one state at a time: leave it out"}
 
 
 def check_run_options(method, engine, options, caller="simulate", own=()):
@@ -163,21 +165,16 @@ def check_run_options(method, engine, options, caller="simulate", own=()):
 
 
 def _meant(name, known):
-    """What a keyword no solver takes was likely meant as."""
+    """What a keyword no solver takes was likely meant as: `MEANT`'s hint, else the closest of
+    the solvers' options and simulate's own arguments."""
     import difflib
-    if name == "vectorized":
-        return "the model's rhs takes one state at a time: leave it out"
+    import inspect
     if name in MEANT:
-        return f"give it as {MEANT[name]}=..."
-    close = difflib.get_close_matches(name, sorted(known) + list(SIMULATE_ARGUMENTS), n=1)
+        return MEANT[name]
+    own = [a for a in inspect.signature(simulate).parameters if a not in ("mod", "options")]
+    close = difflib.get_close_matches(name, sorted(known) + own, n=1)
     return (f"did you mean {close[0]!r}?" if close else
             "the options passed on to the solver are " + ", ".join(SOLVER_OPTIONS))
-
-
-#: simulate's own keyword arguments (for the suggestions of `_meant`).
-SIMULATE_ARGUMENTS = ("y0", "method", "params", "inputs", "rtol", "atol", "t_eval",
-                      "dense_output", "events", "engine", "max_steps", "max_wall_time", "progress",
-                      "sensitivities")
 
 
 def refuse_switching_options(mod, options):

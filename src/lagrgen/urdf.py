@@ -633,8 +633,9 @@ def from_urdf(path, name=None, base="fixed", gravity=(0.0, 0.0, -9.81), joint_dy
     lagrgen.Model
         One coordinate per moving joint (revolute, continuous: an angle in rad; prismatic: a
         displacement in m), named as the joint, and one input `tau_<joint>` each; every
-        joint's limits in `model.limits` (None where the file gives none). Its initial state is at rest with every joint at 0, or, where
-        enforced limits exclude 0, at the limit nearest 0.
+        joint's limits in `model.limits` (None where the file gives none). Its initial state
+        is at rest with every joint at 0, or, where enforced limits exclude 0, at the limit
+        nearest 0.
     """
     import sympy as sp
 

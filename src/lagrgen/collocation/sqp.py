@@ -1242,15 +1242,6 @@ def _iterate(tr, x0, lam0, z0, tol, max_iter, monitor, hand_over=False, purify=T
                            primal)
         stalls = stalls + 1 if (iteration > 1 and alpha == 1.0 and primal <= STALLED_PRIMAL
                                 and dual > max(tol, dual_before / STALLED_DROP)) else 0
-        error = max(primal, dual)
-        crawls = crawls + 1 if (iteration > 1 and error <= NEAR_SOLUTION
-                                and error > max(tol, error_before / STALLED_DROP)) else 0
-        error_before = error
-        if hand_over and crawls >= CRAWL_ITERATIONS:
-            raise StepFailed(f"its KKT error fell less than {STALLED_DROP:g} times an iteration "
-                             f"near the solution ({error:.1e} in iteration {iteration})",
-                             Outcome(x, lam, z, iteration, False, "crawled", passes, dual,
-                                     as_left, primal))
         if hand_over and stalls >= STALLED_ITERATIONS:
             if dual <= STALLED_NEAR * tol and primal <= tol:
                 return Outcome(x, lam, z, iteration, True, "converged (its stationarity "
@@ -1259,6 +1250,15 @@ def _iterate(tr, x0, lam0, z0, tol, max_iter, monitor, hand_over=False, purify=T
             raise StepFailed(f"its stationarity residual stalled at {dual:.1e} in iteration "
                              f"{iteration}, above tol {tol:g}",
                              Outcome(x, lam, z, iteration, False, "stalled", passes, dual,
+                                     as_left, primal))
+        error = max(primal, dual)
+        crawls = crawls + 1 if (iteration > 1 and error <= NEAR_SOLUTION
+                                and error > max(tol, error_before / STALLED_DROP)) else 0
+        error_before = error
+        if hand_over and crawls >= CRAWL_ITERATIONS:
+            raise StepFailed(f"its KKT error fell less than {STALLED_DROP:g} times an iteration "
+                             f"near the solution ({error:.1e} in iteration {iteration})",
+                             Outcome(x, lam, z, iteration, False, "crawled", passes, dual,
                                      as_left, primal))
         lin = linearize(tr, x, lam, stages, rows)
     return Outcome(x, lam, z_now, max_iter, False,
