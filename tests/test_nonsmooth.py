@@ -10,7 +10,7 @@ from numpy.testing import assert_allclose, assert_array_equal
 
 import lagrgen
 from lagrgen import Model, ModelError, hybrid
-from lagrgen.hybrid import projected_gauss_seidel
+from lagrgen.hybrid import disk_step, projected_gauss_seidel
 
 from conftest import interrupted_script, native_free_mode_pair
 
@@ -298,6 +298,83 @@ def test_projected_gauss_seidel_solves_the_impact_lcp():
     assert np.all(impulse >= 0) and np.all(after >= target - 1e-12)
     assert_allclose(impulse * (after - target), 0, atol=1e-12)
     assert_allclose(impulse, [0.75, 0.0], atol=1e-12)      # the second is pushed clear
+
+
+def coulomb_violation(D, before, target, cones, impulse):
+    """The largest violation of the impact laws by `impulse`: the normal rows' LCP, and for each
+    friction pair the disk, v_t = 0 inside it, and on its rim an impulse against v_t."""
+    after = before + D @ impulse
+    tangent = {i for _, a, b, _ in cones for i in (a, b)}
+    worst = max([max(0, target[i] - after[i], -impulse[i], abs(impulse[i] * (after[i] - target[i])))
+                 for i in range(len(before)) if i not in tangent], default=0.0)
+    for normal, a, b, mu in cones:
+        force, slip = impulse[[a, b]], after[[a, b]]
+        size, radius = np.hypot(*force), mu * impulse[normal]
+        worst = max(worst, size - radius)
+        if size < radius * (1 - 1e-9):
+            worst = max(worst, np.hypot(*slip))
+        elif size > 0:
+            worst = max(worst, abs(force[0] * slip[1] - force[1] * slip[0]) / size,
+                        force @ slip / size)
+    return worst
+
+
+def test_disk_step_minimizes_over_the_disk_singular_blocks_included():
+    """Against the least of the quadratic on a polar grid of the disk, for regular and rank-one
+    blocks (a hinged rod's tip cannot slip sideways), with c in and out of the block's range."""
+    rng = np.random.default_rng(0)
+    rho, phi = np.meshgrid(np.linspace(0, 1, 201), np.linspace(0, 2 * np.pi, 721))
+    unit = np.column_stack([(rho * np.cos(phi)).ravel(), (rho * np.sin(phi)).ravel()])
+    for trial in range(300):
+        A = rng.normal(size=(2, 2))
+        B = A @ A.T if trial % 3 else np.outer(A[0], A[0])
+        c = B @ rng.normal(size=2) if trial % 6 == 0 else rng.normal(size=2)
+        radius = rng.uniform(0.01, 2)
+        x = disk_step(B, c, radius)
+        grid = radius * unit
+        least = np.min(0.5 * np.einsum("ij,jk,ik->i", grid, B, grid) + grid @ c)
+        assert np.hypot(*x) <= radius * (1 + 1e-12)
+        assert 0.5 * x @ B @ x + c @ x <= least + 1e-9 * (1 + abs(least))
+    assert_allclose(disk_step(np.diag([2.0, 0.0]), np.array([1.0, 0.0]), 5.0), [-0.5, 0.0])
+
+
+def test_impulses_with_friction_obey_coulomb_where_plain_sweeps_alternated():
+    """A quadruped's foot landing beside a held one (μ = 0.8): Gauss–Seidel sweeps with the
+    friction pairs clipped to their disks alternated between two answers, and the landing foot
+    kept a closing speed of 5.3e-4 m/s after its impact; now both laws hold to round-off. On random
+    two-contact problems they hold to 1e-8 in at least 34 of 40 (the sweeps are not proven to
+    converge: the rest end near an answer)."""
+    D = np.array([
+        [2.615955492993873, 0.1001328337077167, 4.421755155237471e-05, -0.1651061112175937,
+         -4.197002494509765, 4.200805547440524],
+        [0.10013283370771672, 1.812062687755787, -2.9437794092647387, 2.8044963203321056,
+         0.02096904987859147, -0.19041088233612405],
+        [4.4217551552227915e-05, -2.9437794092647382, 42.3795465764733, 0.2237842333614998,
+         0.004516299082877031, -0.024774745227532226],
+        [-0.16510611121759394, 2.804496320332105, 0.22378423336149914, 19.546234495603088,
+         -0.011356415110161269, 0.19040855353753255],
+        [-4.197002494509764, 0.020969049878590957, 0.0045162990828776835, -0.011356415110161788,
+         42.14667169110799, 0.7245318041891634],
+        [4.200805547440525, -0.19041088233612452, -0.024774745227531945, 0.19040855353752814,
+         0.7245318041891634, 18.931266868615516]])
+    before = np.array([-0.005342760282139192, 3.773897860881448e-12, 5.2749534984973794e-14,
+                       7.94812349616536e-14, 0.010723573881258814, -0.016107417502764905])
+    cones = [(1, 2, 3, 0.8), (0, 4, 5, 0.8)]
+    impulse = projected_gauss_seidel(D, before, np.zeros(6), cones=cones)
+    assert coulomb_violation(D, before, np.zeros(6), cones, impulse) < 1e-12
+    rng = np.random.default_rng(3)
+    good = 0
+    for _ in range(40):
+        n = rng.integers(6, 12)
+        A = rng.normal(size=(n, n))
+        W = rng.normal(size=(6, n))
+        D = W @ np.linalg.inv(A @ A.T + 0.1 * np.eye(n)) @ W.T
+        before = np.concatenate([rng.uniform(-2, 0.2, 2), rng.normal(size=4)])
+        target = np.concatenate([-0.3 * np.minimum(before[:2], 0), np.zeros(4)])
+        cones = [(0, 2, 3, rng.uniform(0.1, 2)), (1, 4, 5, rng.uniform(0.1, 2))]
+        impulse = projected_gauss_seidel(D, before, target, cones=cones)
+        good += coulomb_violation(D, before, target, cones, impulse) < 1e-8
+    assert good >= 34
 
 
 # -- friction ------------------------------------------------------------------------------

@@ -14,13 +14,18 @@ limit (μ_s·|N| − |λ| ↓ 0). Then:
 * Impacts. The closing contacts C (g ≤ gap_tol, ġ < 0) and the held contacts H take impulses
   Λ ≥ 0 by the generalized Newton law: ġ⁺ = ġ⁻ + D·Λ with the Delassus matrix D = W·P·Wᵀ (P the
   inverse mass on the model's constraints), ġ⁺_i + e_i·ġ⁻_i ≥ 0 complementary to Λ_i (e = 0 for
-  H) — a small LCP solved by projected Gauss–Seidel; q̇⁺ = q̇⁻ + P·Wᵀ·Λ. For one contact this is
+  H) — a small LCP solved by projected Gauss–Seidel; the planar frictions of those contacts take
+  tangential impulses by Coulomb's law for impulses (within μ·Λ_n, on the rim against the
+  slip: `disk_step`); q̇⁺ = q̇⁻ + P·Wᵀ·Λ. For one contact this is
   q̇⁺ = q̇⁻ − (1 + e)·M⁻¹∇g·ġ⁻/(∇gᵀM⁻¹∇g). Simultaneous impacts are therefore simultaneous (not
   sequential): a symmetric body landing on two supports keeps its symmetry.
 * Resting contact. When the rebound velocity e·|ġ⁻| is at most `rest_velocity` (default 10⁻⁶
   times the largest impact speed of that contact so far, so e = 0 always rests) the contact is
   held ("contact") if its force is then ≥ 0; a Zeno sequence of bounces ends there.
-* Release when a contact force turns negative; stick when a slip velocity reaches 0 and the
+* Release when a contact force turns negative (where its frictions stick, they slip first, away
+  from their sticking forces: a corner that would pull while sticking may hold while sliding;
+  `Switching._slide`); a planar friction that starts to slip from rest starts at v = 0 along its
+  anchor (`Switching._start_from_rest`); stick when a slip velocity reaches 0 and the
   sticking force is within μ_s·|N|, else slip on in the direction −sign(λ) ("slip"); a sticking
   contact slips when its force reaches μ_s·|N|. The mode is made consistent (forces ≥ 0, sticking
   forces within their cones) before the next segment; `max_transitions` bounds chattering.
@@ -50,6 +55,7 @@ limit (μ_s·|N| − |λ| ↓ 0). Then:
 `HybridSystem` holds that logic; `simulate_hybrid` runs it with `solve_ivp` (engine "scipy") or in
 C (`lagrgen.native._ode.solve_hybrid`, `native/lg_hybrid.c`, the same rules).
 """
+import math
 import threading
 import time
 from contextlib import contextmanager
@@ -65,7 +71,12 @@ OPEN, CONTACT, STICK, SLIP = "open", "contact", "stick", "slip"
 GAP_TOL = 1e-9
 REST_FACTOR = 1e-6
 MAX_TRANSITIONS = 100000
-PGS_SWEEPS = 200
+PGS_SWEEPS = 1000
+#: The share of its step a normal impulse takes per sweep where frictions take impulses too, and
+#: the Newton steps of a friction disk's rim (`projected_gauss_seidel`, `disk_step`).
+PGS_RELAXATION = 0.5
+DISK_NEWTON = 60
+DISK_FLAT = 1e-12
 #: Segments in a row that may end within ten spacings of doubles (at the far end of the span)
 #: of their start before the solve stops as making no progress (native/lg_hybrid.h).
 STALL_SEGMENTS = 100
@@ -227,6 +238,8 @@ class HybridSystem:
                                      else -pf[k, 4] * out.planar_normal[k] * directions[k]
                                      for k in range(self.npf)]).reshape(self.npf, 2)
         out.planar_rows, out.planar_slip = pf, pf[:, :2]
+        out.planar_acceleration = np.column_stack([pf[:, 7:7 + n] @ qdd - pf[:, 2],
+                                                   pf[:, 7 + n:] @ qdd - pf[:, 3]])
         return out
 
     def factored(self, M):
@@ -399,18 +412,22 @@ class HybridSystem:
         y_plus[n:] = y[n:] + PW @ impulse
         return y_plus, np.array(before[:len(closing)])
 
-    def delassus(self, t, y, rows):
-        """(ġ, P·Wᵀ, D = W·P·Wᵀ) of the impacts `rows` at (t, y): a generalized impulse Λ along
-        their gradients W changes q̇ by P·Wᵀ·Λ and their ġ by D·Λ."""
-        M, _, A, _, imp, _ = self.terms(t, y)
-        W = imp[rows, 4:]
+    def delassus(self, t, y, rows, planars=()):
+        """(ġ, P·Wᵀ, D = W·P·Wᵀ) of the impacts `rows` and the slip velocities (v1, v2) of the
+        planar frictions `planars` at (t, y): a generalized impulse Λ along their gradients W
+        changes q̇ by P·Wᵀ·Λ and their velocities by D·Λ."""
+        M, _, A, _, imp, _, pf = self.all_terms(t, y)
+        n = self.n
+        W = np.vstack([imp[rows, 4:]] + [pf[k, 7:].reshape(2, n) for k in planars])
+        before = np.concatenate([imp[rows, 1]] + [pf[k, :2] for k in planars])
         PW = self.inverse_mass(M, A) @ W.T
-        return imp[rows, 1], PW, W @ PW
+        return before, PW, W @ PW
 
-    def hold(self, t, y, rows):
+    def hold(self, t, y, rows, planars=()):
         """y after the inelastic impulses that set ġ = 0 for the impacts `rows` (held
-        contacts): D·Λ = −ġ (the least-norm impulses of redundant contacts), q̇⁺ = q̇ + P·Wᵀ·Λ."""
-        before, PW, D = self.delassus(t, y, rows)
+        contacts) and v = 0 for the planar frictions `planars`: D·Λ = −(ġ, v) (the least-norm
+        impulses of redundant rows), q̇⁺ = q̇ + P·Wᵀ·Λ."""
+        before, PW, D = self.delassus(t, y, list(rows), planars)
         y_plus = y.copy()
         y_plus[self.n:] = y[self.n:] + PW @ regularized_solve(D, -before)
         return y_plus
@@ -502,12 +519,17 @@ def mode_names(system, contact, slip, pmode=None):
 def projected_gauss_seidel(D, before, target, sweeps=PGS_SWEEPS, cones=()):
     """Λ with after = before + D·Λ: Λ_i ≥ 0, after_i ≥ target_i, Λ_i·(after_i − target_i) = 0
     (an LCP) for every row but the friction rows of `cones` ((normal row, t1 row, t2 row, μ)),
-    whose pair (Λ_t1, Λ_t2) aims at after = target within the disk of radius μ·Λ_normal; by
-    projected Gauss–Seidel sweeps (exact in one sweep for one contact)."""
+    whose pair Λ_t = (Λ_t1, Λ_t2) is Coulomb's law for impulses: after_t = target_t within the
+    disk ‖Λ_t‖ ≤ μ·Λ_normal, else on its rim against after_t (`disk_step`). By nonsmooth
+    Gauss–Seidel sweeps: one row at a time for the LCP, one disk at a time for the frictions
+    (exact in one sweep for one frictionless contact); with frictions, each normal row moves
+    PGS_RELAXATION of its step (undamped, the normal and friction impulses of a quadruped's
+    landing foot alternated between two answers without end)."""
     k = len(before)
     impulse = np.zeros(k)
     after = before.astype(float).copy()
     tangent = {i for _, a, b, _ in cones for i in (a, b)}
+    relax = PGS_RELAXATION if cones else 1.0
 
     def move(i, new):
         delta = new - impulse[i]
@@ -521,19 +543,81 @@ def projected_gauss_seidel(D, before, target, sweeps=PGS_SWEEPS, cones=()):
         for i in range(k):
             if i in tangent or D[i, i] <= 0:
                 continue
-            change = max(change, move(i, max(0.0, impulse[i] - (after[i] - target[i]) / D[i, i])))
+            change = max(change, move(i, max(0.0, impulse[i]
+                                             - relax * (after[i] - target[i]) / D[i, i])))
         for normal, a, b, mu in cones:
-            for i in (a, b):
-                if D[i, i] > 0:
-                    change = max(change, move(i, impulse[i] - (after[i] - target[i]) / D[i, i]))
-            radius = mu * impulse[normal]
-            size = np.hypot(impulse[a], impulse[b])
-            if size > radius:
-                scale = radius / size
-                change = max(change, move(a, impulse[a] * scale), move(b, impulse[b] * scale))
+            pair = [a, b]
+            block = D[np.ix_(pair, pair)]
+            step = disk_step(block, after[pair] - target[pair] - block @ impulse[pair],
+                             mu * impulse[normal])
+            change = max(change, move(a, step[0]), move(b, step[1]))
         if change <= 1e-15 * (1.0 + np.abs(before).max(initial=0.0)):
             break
     return impulse
+
+
+def disk_step(B, c, radius):
+    """x minimizing ½·xᵀ·B·x + cᵀ·x over the disk ‖x‖ ≤ radius (B a 2×2 symmetric positive
+    semi-definite block): −B⁻¹·c where that is inside, else x(ν) = −(B + ν·I)⁻¹·c with
+    ‖x(ν)‖ = radius, ν > 0 (`rim_shift`). On the rim B·x + c = −ν·x: the change of velocity
+    opposes the impulse (maximal dissipation). Where B is singular (a direction no impulse
+    moves, such as the sideways slip of a hinged rod's tip), that direction takes no impulse
+    when c has no part along it (relative to DISK_FLAT): the least-norm minimizer. In B's
+    eigenbasis, in closed form (as native/lg_hybrid.c's hy_disk_step)."""
+    if not radius > 0:
+        return np.zeros(2)
+    b0, b1, b2 = float(B[0, 0]), float(B[0, 1]), float(B[1, 1])
+    mean, half = 0.5 * (b0 + b2), 0.5 * (b0 - b2)
+    root = math.hypot(half, b1)
+    values = (max(mean - root, 0.0), max(mean + root, 0.0))
+    if root == 0:
+        v0 = (1.0, 0.0)
+    elif half <= 0:
+        size = math.hypot(root - half, b1)
+        v0 = ((root - half) / size, -b1 / size)
+    else:
+        size = math.hypot(b1, root + half)
+        v0 = (b1 / size, -(root + half) / size)
+    g0, g1 = float(c[0]), float(c[1])
+    cc = [v0[0] * g0 + v0[1] * g1, -v0[1] * g0 + v0[0] * g1]
+    largest = max(abs(cc[0]), abs(cc[1]))
+    unbounded, z = False, [0.0, 0.0]
+    for d in range(2):
+        flat = values[d] <= DISK_FLAT * values[1]
+        if flat and abs(cc[d]) <= DISK_FLAT * largest:
+            cc[d] = 0.0
+        unbounded |= flat and cc[d] != 0
+        z[d] = 0.0 if flat else -cc[d] / values[d]
+    if unbounded or math.hypot(*z) > radius:
+        nu = rim_shift(values, cc, radius)
+        z = [-cc[d] / (values[d] + nu) if cc[d] != 0 else 0.0 for d in range(2)]
+    return np.array([v0[0] * z[0] - v0[1] * z[1], v0[1] * z[0] + v0[0] * z[1]])
+
+
+def rim_shift(values, cc, radius):
+    """ν > 0 with ‖(cc_d/(values_d + ν))‖ = radius (values ≥ 0, the minimizer outside the
+    disk): Newton steps on 1/‖x(ν)‖ − 1/radius (increasing in ν), bisection where a step leaves
+    the bracket [0, ‖cc‖/radius] (at its top every values_d + ν ≥ ‖cc‖/radius: ‖x‖ ≤ radius)."""
+    lo, hi = 0.0, math.hypot(*cc) / radius
+    nu = hi
+    for _ in range(DISK_NEWTON):
+        shifted = [v + nu for v in values]
+        if any(e <= 0 and g != 0 for e, g in zip(shifted, cc)):
+            lo, nu = nu, 0.5 * (nu + hi)
+            continue
+        size = math.hypot(*[g / e if g != 0 else 0.0 for e, g in zip(shifted, cc)])
+        phi = 1.0 / size - 1.0 / radius
+        if phi < 0:
+            lo = nu
+        else:
+            hi = nu
+        slope = sum(g * g / e ** 3 if g != 0 else 0.0 for e, g in zip(shifted, cc)) / size ** 3
+        step = nu - phi / slope if slope > 0 else 0.5 * (lo + hi)
+        new = step if lo < step < hi else 0.5 * (lo + hi)
+        if abs(new - nu) <= 1e-15 * nu:
+            return new
+        nu = new
+    return nu
 
 
 class Switching:
@@ -554,6 +638,7 @@ class Switching:
         self.anchor = [(1.0, 0.0)] * system.npf    # and the direction each slips along
         self.gap_offsets = [0.0] * system.ni       # of the impact events (`_touching`)
         self.slip_offsets = [0.0] * (system.nf + system.npf)   # of the slipping frictions'
+        self.sticking = set()      # the planar frictions sticking as the switch began
 
     def offsets(self):
         """The offsets of the impact events, then of the frictions' and the planar frictions'
@@ -644,6 +729,7 @@ class Switching:
         """The state and mode after the segment ended at (t, y) on the events `fired`."""
         s = self.system
         closing = []
+        self.sticking = {k for k in range(s.npf) if self.pmode[k] == 0}
         imp, fr, pf = s.all_terms(t, y)[4:]
         check_coefficients(s, imp, fr, t, pf)
         for i in range(s.ni):
@@ -787,12 +873,18 @@ class Switching:
         no sticking force beyond its limit, no sticking friction with v ≠ 0 (after an impact).
         Returns y."""
         s = self.system
-        activated, tried, stuck = set(), set(), set()
+        activated, tried, stuck, slid, rested = set(), set(), set(), set(), set()
         for _ in range(2 * (s.ni + s.nf + s.npf) + 2):
             out = s.solve(t, y, self.contact, self.slip, planar=self.planar)
+            y, out = self._start_from_rest(t, y, out, rested, activated)
             qdd, lam_i, lam_f, normal, (_, _, imp, fr) = out
             changed = False
             for i in range(s.ni):
+                if self.contact[i] and lam_i[i] < 0 and i not in slid:
+                    slid.add(i)
+                    if self._slide(t, out, i, activated, stuck, record):
+                        changed = True
+                        continue
                 if self.contact[i] and lam_i[i] < 0:
                     self.contact[i] = False
                     changed = True
@@ -835,6 +927,52 @@ class Switching:
         self._touching(out if not changed else
                        s.solve(t, y, self.contact, self.slip, planar=self.planar))
         return y
+
+    def _start_from_rest(self, t, y, out, rested, activated):
+        """Planar frictions that begin to slip at this switch from sticking or from their
+        contact's closing (`sticking`, or just `activated`), with 0 < ‖v‖ ≤ 1000·gap_tol (the
+        drift of their sticking), start at v = 0 along their anchors: the impulse of
+        `HybridSystem.hold` sets the velocities of every held row to 0 (held contacts, sticking
+        planar frictions and these), so that their slip starts along the anchor, not along the
+        drift. Each at most once per settle (`rested`: those in `sticking` or `activated`).
+        Returns (y, the solution `out` of the mode at that y)."""
+        s = self.system
+        speeds = np.hypot(out.planar_slip[:, 0], out.planar_slip[:, 1])
+        starting = [k for k in range(s.npf) if self.pmode[k] == 1 and k not in rested
+                    and (k in self.sticking or k in activated)
+                    and 0 < speeds[k] <= 1e3 * self.gap_tol]
+        if not starting:
+            return y, out
+        rested.update(starting)
+        held = [i for i in range(s.ni) if self.contact[i]]
+        planars = sorted(starting + [k for k in range(s.npf) if self.pmode[k] == 0])
+        y = s.hold(t, y, held, planars)
+        return y, s.solve(t, y, self.contact, self.slip, planar=self.planar)
+
+    def _slide(self, t, out, i, activated, stuck, record):
+        """A held contact i whose force is negative with its frictions sticking: those frictions
+        slip instead, away from their sticking forces (the contact may hold while slipping where
+        sticking would pull on it). Returns whether one did."""
+        s = self.system
+        lam_f = out[2]
+        slid = False
+        for j in self._on([i]):
+            if self.slip[j] == 0:
+                self.slip[j] = -1 if lam_f[j] > 0 else 1
+                slid = True
+                if record:
+                    self._record(t, s.ni + j, SLIP)
+        for k in range(s.npf):
+            ref = s.planar_normal[k]
+            if ref is None or tuple(ref) != ("impact", i) or self.pmode[k] != 0:
+                continue
+            self.pmode[k], self.anchor[k] = 1, _unit(-out.planar_force[k], self.anchor[k])
+            slid = True
+            if k in stuck:
+                stuck.discard(k)
+            elif record and k not in activated:
+                self._record(t, s.ni + s.nf + k, SLIP)
+        return slid
 
     def pressed(self, imp, gdd):
         """The open contacts at rest at their surface (g ≤ gap_tol, ġ² ≤ 2·gap_tol·abs(g̈); not
@@ -882,7 +1020,8 @@ class Switching:
                     slipped.append(k)
             elif self.pmode[k] == 1 and moving:
                 self.anchor[k] = _unit(v, self.anchor[k])
-            elif self.pmode[k] == 1 and k not in tried and k not in activated:   # stopped
+            elif self.pmode[k] == 1 and k not in tried and k not in activated \
+                    and np.dot(self.anchor[k], out.planar_acceleration[k]) <= 0:    # stopped
                 tried.add(k)
                 self.pmode[k], changed = 0, True
                 stuck.add(k)

@@ -26,7 +26,11 @@
 #define FRICTION_FIELDS 5
 #define PLANAR_FIELDS 7
 #define REST_FACTOR 1e-6
-#define PGS_SWEEPS 200
+/* lagrgen.hybrid.PGS_SWEEPS, PGS_RELAXATION, DISK_NEWTON, DISK_FLAT. */
+#define PGS_SWEEPS 1000
+#define PGS_RELAXATION 0.5
+#define DISK_NEWTON 60
+#define DISK_FLAT 1e-12
 /* lagrgen.hybrid.REGULARIZATION, REFINEMENTS, PLANAR_BLEND, TOUCH_OFFSET. */
 #define REGULARIZATION 1e-7
 #define REFINEMENTS 3
@@ -57,6 +61,10 @@ typedef struct {
     int cached;                    /* the solution at hand is the segment's at (cached_t, _y) */
     double cached_t, *cached_y;
     int *activated;                /* planar frictions that began to act in hy_settle */
+    int *sticking;                 /* planar frictions sticking as the switch began */
+    int *rested;                   /* planar frictions hy_start_from_rest has set at rest */
+    int *slid;                     /* held contacts hy_slide has tried */
+    int *planars;                  /* a list of planar frictions (hy_zero_rates) */
     double *fastest, *fy, *fy2, *yp, *force_row;
     double *rest_speed;            /* per impact at the start: √(2·gap_tol·|g̈|) */
     const int *contact, *slip, *pmode;   /* the mode of the current evaluation */
@@ -620,17 +628,6 @@ static void hy_delassus_rows(hy_ctx *c, int k)
     }
 }
 
-/* hy_delassus_rows for the impacts rows[0..k), with before = ġ. */
-static void hy_delassus(hy_ctx *c, const int *rows, int k)
-{
-    for (int q = 0; q < k; ++q) {
-        memcpy(c->Wrow + (size_t)q * c->n, IMP(c, rows[q]) + IMPACT_FIELDS,
-               c->n * sizeof(double));
-        c->before[q] = IMP(c, rows[q])[1];
-    }
-    hy_delassus_rows(c, k);
-}
-
 /* q̇ += WP·Λ: the impulses c->impulse[0..k) along the rows of the last hy_delassus. */
 static void hy_apply_impulse(hy_ctx *c, double *y, int k)
 {
@@ -653,6 +650,79 @@ static double hy_pgs_move(hy_ctx *c, int k, int q, double value)
         c->after[l] += c->D[l * k + q] * delta;
     c->impulse[q] = value;
     return fabs(delta) * c->D[q * k + q];
+}
+
+/* ν > 0 with ‖(cc_i/(l_i + ν))‖ = radius (l_i >= 0; lagrgen.hybrid.rim_shift): Newton steps
+ * on 1/‖x(ν)‖ − 1/radius, bisection where a step leaves the bracket [0, ‖cc‖/radius]. */
+static double hy_rim_shift(const double *l, const double *cc, double radius)
+{
+    double lo = 0.0, hi = hypot(cc[0], cc[1]) / radius, nu = hi;
+    for (int it = 0; it < DISK_NEWTON; ++it) {
+        double e0 = l[0] + nu, e1 = l[1] + nu;
+        if ((e0 <= 0 && cc[0] != 0) || (e1 <= 0 && cc[1] != 0)) {
+            lo = nu;
+            nu = 0.5 * (nu + hi);
+            continue;
+        }
+        double x0 = cc[0] != 0 ? cc[0] / e0 : 0.0, x1 = cc[1] != 0 ? cc[1] / e1 : 0.0;
+        double size = hypot(x0, x1), phi = 1.0 / size - 1.0 / radius;
+        if (phi < 0)
+            lo = nu;
+        else
+            hi = nu;
+        double slope = ((cc[0] != 0 ? cc[0] * cc[0] / (e0 * e0 * e0) : 0.0)
+                        + (cc[1] != 0 ? cc[1] * cc[1] / (e1 * e1 * e1) : 0.0))
+                       / (size * size * size);
+        double step = slope > 0 ? nu - phi / slope : 0.5 * (lo + hi);
+        double next = lo < step && step < hi ? step : 0.5 * (lo + hi);
+        if (fabs(next - nu) <= 1e-15 * nu)
+            return next;
+        nu = next;
+    }
+    return nu;
+}
+
+/* x minimizing ½·xᵀ·B·x + gᵀ·x over the disk ‖x‖ <= radius, B = [[B0, B1], [B1, B2]] symmetric
+ * positive semi-definite (lagrgen.hybrid.disk_step): −B⁻¹·g inside, else on the rim
+ * x(ν) = −(B + ν·I)⁻¹·g (hy_rim_shift) in B's eigenbasis; a flat direction of B (eigenvalue
+ * <= DISK_FLAT times the largest) with no part of g takes none. */
+static void hy_disk_step(const double *B, const double *g, double radius, double *x)
+{
+    x[0] = x[1] = 0.0;
+    if (!(radius > 0))
+        return;
+    double mean = 0.5 * (B[0] + B[2]), half = 0.5 * (B[0] - B[2]);
+    double root = hypot(half, B[1]), l[2] = {fmax(mean - root, 0.0), fmax(mean + root, 0.0)};
+    double v0[2];                         /* the eigenvector of l[0]; l[1]'s is (−v0[1], v0[0]) */
+    if (root == 0) {
+        v0[0] = 1.0;
+        v0[1] = 0.0;
+    } else if (half <= 0) {
+        double s = hypot(root - half, B[1]);
+        v0[0] = (root - half) / s;
+        v0[1] = -B[1] / s;
+    } else {
+        double s = hypot(B[1], root + half);
+        v0[0] = B[1] / s;
+        v0[1] = -(root + half) / s;
+    }
+    double cc[2] = {v0[0] * g[0] + v0[1] * g[1], -v0[1] * g[0] + v0[0] * g[1]}, z[2];
+    double ccmax = fmax(fabs(cc[0]), fabs(cc[1]));
+    int unbounded = 0;
+    for (int d = 0; d < 2; ++d) {
+        int flat = l[d] <= DISK_FLAT * l[1];
+        if (flat && fabs(cc[d]) <= DISK_FLAT * ccmax)
+            cc[d] = 0.0;
+        unbounded |= flat && cc[d] != 0;
+        z[d] = flat ? 0.0 : -cc[d] / l[d];
+    }
+    if (unbounded || hypot(z[0], z[1]) > radius) {
+        double nu = hy_rim_shift(l, cc, radius);
+        for (int d = 0; d < 2; ++d)
+            z[d] = cc[d] != 0 ? -cc[d] / (l[d] + nu) : 0.0;
+    }
+    x[0] = v0[0] * z[0] - v0[1] * z[1];
+    x[1] = v0[1] * z[0] + v0[0] * z[1];
 }
 
 /* q̇⁺ by the generalized Newton law for the closing impacts (closing[0..nc), restitution e[]
@@ -706,6 +776,7 @@ static int hy_impact(hy_ctx *c, double t, double *y, const double *u, const int 
         c->impulse[q] = 0.0;
         scale = fmax(scale, fabs(c->before[q]));
     }
+    double relax = ncones ? PGS_RELAXATION : 1.0;
     for (int sweep = 0; sweep < PGS_SWEEPS; ++sweep) {
         double change = 0;
         for (int q = 0; q < ninvolved; ++q) {
@@ -713,23 +784,16 @@ static int hy_impact(hy_ctx *c, double t, double *y, const double *u, const int 
             if (d <= 0)
                 continue;
             change = fmax(change, hy_pgs_move(c, k, q, fmax(0.0, c->impulse[q]
-                                                       - (c->after[q] - c->target[q]) / d)));
+                                                       - relax * (c->after[q] - c->target[q]) / d)));
         }
         for (int cn = 0; cn < ncones; ++cn) {
             int a = ninvolved + 2 * cn, b = a + 1, normal = c->cone[2 * cn];
-            for (int q = a; q <= b; ++q) {
-                double d = c->D[q * k + q];
-                if (d > 0)
-                    change = fmax(change, hy_pgs_move(c, k, q, c->impulse[q]
-                                                      - (c->after[q] - c->target[q]) / d));
-            }
-            double radius = PF(c, c->cone[2 * cn + 1])[4] * c->impulse[normal];
-            double size = hypot(c->impulse[a], c->impulse[b]);
-            if (size > radius) {
-                double s = radius / size, ia = c->impulse[a] * s, ib = c->impulse[b] * s;
-                change = fmax(change, hy_pgs_move(c, k, a, ia));
-                change = fmax(change, hy_pgs_move(c, k, b, ib));
-            }
+            double B[3] = {c->D[a * k + a], c->D[a * k + b], c->D[b * k + b]}, g[2], x[2];
+            g[0] = c->after[a] - c->target[a] - B[0] * c->impulse[a] - B[1] * c->impulse[b];
+            g[1] = c->after[b] - c->target[b] - B[1] * c->impulse[a] - B[2] * c->impulse[b];
+            hy_disk_step(B, g, PF(c, c->cone[2 * cn + 1])[4] * c->impulse[normal], x);
+            change = fmax(change, hy_pgs_move(c, k, a, x[0]));
+            change = fmax(change, hy_pgs_move(c, k, b, x[1]));
         }
         if (change <= 1e-15 * scale)
             break;
@@ -754,6 +818,18 @@ static void hy_inputs(hy_ctx *c, double t)
 static int hy_solve_mode(hy_ctx *c, double t, const double *y)
 {
     return hy_solve(c, t, y, c->u, c->h->contact, c->h->slip, c->h->pmode, c->h->anchor);
+}
+
+/* The tangential acceleration a = (w1·q̈ − γ1, w2·q̈ − γ2) of planar friction k in the solution
+ * at hand. */
+static void hy_planar_acceleration(const hy_ctx *c, int k, double *a)
+{
+    const double *pf = PF(c, k);
+    for (int d = 0; d < 2; ++d) {
+        a[d] = -pf[2 + d];
+        for (int b = 0; b < c->n; ++b)
+            a[d] += pf[PLANAR_FIELDS + d * c->n + b] * c->qdd[b];
+    }
 }
 
 /* The gap offsets of the impact events (lagrgen.hybrid.Switching._touching): −g where an open
@@ -790,11 +866,7 @@ static void hy_touching(hy_ctx *c)
     for (int k = 0; k < c->npf; ++k) {
         const double *pf = PF(c, k);
         double a[2];
-        for (int d = 0; d < 2; ++d) {
-            a[d] = -pf[2 + d];
-            for (int b = 0; b < c->n; ++b)
-                a[d] += pf[PLANAR_FIELDS + d * c->n + b] * c->qdd[b];
-        }
+        hy_planar_acceleration(c, k, a);
         c->slip_offset[c->nf + k] = c->h->pmode[k] == 1
                                     && hypot(pf[0], pf[1]) <= 1e3 * c->h->gap_tol
                                     && hypot(a[0], a[1]) <= 1e3 * c->h->gap_tol
@@ -830,10 +902,20 @@ static int hy_try_stick_planar(hy_ctx *c, double t, const double *y, int k, int 
     return record && hy_record(c, t, c->ni + c->nf + k, kind) ? -1 : 0;
 }
 
+/* d·a: the tangential acceleration of planar friction k along its anchor d in the solution at
+ * hand (> 0: a friction slipping from rest moves off along its anchor). */
+static double hy_anchor_rate(const hy_ctx *c, int k)
+{
+    double a[2];
+    hy_planar_acceleration(c, k, a);
+    return c->h->anchor[2 * k] * a[0] + c->h->anchor[2 * k + 1] * a[1];
+}
+
 /* The planar frictions' part of hy_settle on the solution at hand (lagrgen.hybrid.Switching.
  * _settle_planar): those that have just begun to act are marked 1 in c->activated (all
  * together: sticking where abs(v) <= 1000·gap_tol, else slipping along v), slipping ones that
- * the others have stopped (abs(v) <= 1000·gap_tol) try sticking once (2; 3 when they slip on);
+ * the others have stopped (abs(v) <= 1000·gap_tol, and not moving off along their anchors) try
+ * sticking once (2; 3 when they slip on);
  * the others that begin to slip are recorded when `record`. 1 if a mode changed, 0, or -1 when
  * out of memory. */
 static int hy_settle_planar(hy_ctx *c, double t, int record)
@@ -869,7 +951,8 @@ static int hy_settle_planar(hy_ctx *c, double t, int record)
                 return -1;
         } else if (h->pmode[k] == 1 && moving) {
             hy_set_anchor(h->anchor + 2 * k, v0, v1);
-        } else if (h->pmode[k] == 1 && c->activated[k] == 0) {   /* stopped by the others */
+        } else if (h->pmode[k] == 1 && c->activated[k] == 0 && hy_anchor_rate(c, k) <= 0) {
+                                                                   /* stopped by the others */
             h->pmode[k] = 0;
             c->activated[k] = 2;
             changed = 1;
@@ -878,7 +961,110 @@ static int hy_settle_planar(hy_ctx *c, double t, int record)
     return changed;
 }
 
-static int hy_hold(hy_ctx *c, double t, double *y, const int *rows, int k, int record);
+/* The inelastic impulses that set ġ = 0 for the held contacts rows[0..k) and v = 0 for the
+ * planar frictions planars[0..kp) (D·Λ = −(ġ, v), the least-norm impulses of redundant rows,
+ * q̇ += P·Wᵀ·Λ; lagrgen.hybrid.HybridSystem.hold); y changes in place, c->before[0..k) keeps ġ.
+ * 1: model failure or D singular. */
+static int hy_zero_rates(hy_ctx *c, double t, double *y, const int *rows, int k,
+                         const int *planars, int kp)
+{
+    int moving = 0, n = c->n, all = k + 2 * kp;
+    if (hy_terms(c, t, y, c->u) || hy_inverse_mass(c))
+        return 1;
+    for (int q = 0; q < k; ++q) {
+        memcpy(c->Wrow + (size_t)q * n, IMP(c, rows[q]) + IMPACT_FIELDS, n * sizeof(double));
+        c->before[q] = IMP(c, rows[q])[1];
+    }
+    for (int a = 0; a < kp; ++a)
+        for (int d = 0; d < 2; ++d) {
+            int q = k + 2 * a + d;
+            memcpy(c->Wrow + (size_t)q * n, PF(c, planars[a]) + PLANAR_FIELDS + d * n,
+                   n * sizeof(double));
+            c->before[q] = PF(c, planars[a])[d];
+        }
+    hy_delassus_rows(c, all);
+    for (int q = 0; q < all; ++q) {
+        c->target[q] = -c->before[q];
+        c->reg[q] = 1;
+        moving |= c->before[q] != 0;
+    }
+    if (!moving)
+        return 0;
+    if (hy_regularized_solve(c, c->D, c->target, c->reg, all, c->impulse))
+        return 1;
+    hy_apply_impulse(c, y, all);
+    return 0;
+}
+
+/* hy_zero_rates for the held contacts rows[0..k), with a "contact" transition for each whose ġ
+ * was not 0 (when `record`); 1: model failure or D singular, -1: out of memory. */
+static int hy_hold(hy_ctx *c, double t, double *y, const int *rows, int k, int record)
+{
+    if (hy_zero_rates(c, t, y, rows, k, NULL, 0))
+        return 1;
+    for (int q = 0; q < k; ++q)
+        if (record && c->before[q] != 0 && hy_record(c, t, rows[q], LG_CONTACT))
+            return -1;
+    return 0;
+}
+
+/* Planar frictions that begin to slip at this switch from sticking (c->sticking) or from their
+ * contact's closing (c->activated 1), with 0 < ‖v‖ <= 1000·gap_tol (the drift of their
+ * sticking), start at v = 0 along their anchors: hy_zero_rates on every held row (held contacts,
+ * sticking planar frictions and these); each at most once per settle (c->rested). Then the
+ * solution of the mode at y is at hand (lagrgen.hybrid.Switching._start_from_rest). */
+static int hy_start_from_rest(hy_ctx *c, double t, double *y)
+{
+    lg_hybrid_t *h = c->h;
+    int kp = 0, nh = 0, starting = 0;
+    for (int k = 0; k < c->npf; ++k) {
+        double speed = hypot(PF(c, k)[0], PF(c, k)[1]);
+        int now = h->pmode[k] == 1 && !c->rested[k] && (c->sticking[k] || c->activated[k] == 1)
+                  && speed > 0 && speed <= 1e3 * h->gap_tol;
+        if (now)
+            c->rested[k] = starting = 1;
+        if (now || h->pmode[k] == 0)
+            c->planars[kp++] = k;
+    }
+    if (!starting)
+        return 0;
+    for (int i = 0; i < c->ni; ++i)
+        if (h->contact[i])
+            c->held[nh++] = i;
+    if (hy_zero_rates(c, t, y, c->held, nh, c->planars, kp))
+        return 1;
+    return hy_solve_mode(c, t, y);
+}
+
+/* A held contact i whose force is negative with its frictions sticking: those slip instead, away
+ * from their sticking forces (lagrgen.hybrid.Switching._slide), on the solution at hand; 1 if
+ * one did, 0, or -1 when out of memory. */
+static int hy_slide(hy_ctx *c, double t, int i, int record)
+{
+    lg_hybrid_t *h = c->h;
+    int slid = 0;
+    for (int j = 0; j < c->nf; ++j) {
+        if (h->slip[j] != 0 || h->normal_kind[j] != LG_NORMAL_IMPACT || h->normal_index[j] != i)
+            continue;
+        h->slip[j] = c->lam_f[j] > 0 ? -1 : 1;
+        slid = 1;
+        if (record && hy_record(c, t, c->ni + j, LG_SLIP))
+            return -1;
+    }
+    for (int k = 0; k < c->npf; ++k) {
+        if (h->pmode[k] != 0 || h->planar_kind[k] != LG_NORMAL_IMPACT
+            || h->planar_index[k] != i)
+            continue;
+        h->pmode[k] = 1;
+        hy_set_anchor(h->anchor + 2 * k, -c->lam_p[2 * k], -c->lam_p[2 * k + 1]);
+        slid = 1;
+        if (c->activated[k] == 2)
+            c->activated[k] = 3;
+        else if (record && !c->activated[k] && hy_record(c, t, c->ni + c->nf + k, LG_SLIP))
+            return -1;
+    }
+    return slid;
+}
 
 /* Make the mode consistent (lagrgen.hybrid.Switching.settle): no negative contact force, no
  * open contact at rest at its surface that the mode drives into it (held, its ġ set to 0), no
@@ -889,12 +1075,24 @@ static int hy_settle(hy_ctx *c, double t, double *y, int record)
     lg_hybrid_t *h = c->h;
     int settled = 0;
     memset(c->activated, 0, (c->npf + 1) * sizeof(int));
+    memset(c->rested, 0, (c->npf + 1) * sizeof(int));
+    memset(c->slid, 0, (c->ni + 1) * sizeof(int));
     for (int it = 0; it < 2 * (c->ni + c->nf + c->npf) + 2 && !settled; ++it) {
-        if (hy_solve_mode(c, t, y))
+        if (hy_solve_mode(c, t, y) || hy_start_from_rest(c, t, y))
             return 1;
         int changed = 0, npressed = 0, moving = 0;
         for (int i = 0; i < c->ni; ++i)
             if (h->contact[i] && c->lam_i[i] < 0) {
+                if (!c->slid[i]) {
+                    c->slid[i] = 1;
+                    int slid = hy_slide(c, t, i, record);
+                    if (slid < 0)
+                        return -1;
+                    if (slid) {
+                        changed = 1;
+                        continue;
+                    }
+                }
                 h->contact[i] = 0;
                 changed = 1;
                 if (record && hy_record(c, t, i, LG_RELEASE))
@@ -988,32 +1186,6 @@ static int hy_check_coefficients(hy_ctx *c)
 }
 
 static int hy_impacts(hy_ctx *c, double t, double *y, int nc);
-
-/* The inelastic impulses that set ġ = 0 for the held contacts rows[0..k) (D·Λ = −ġ, the
- * least-norm impulses of redundant contacts, q̇ += P·Wᵀ·Λ) with a "contact" transition for
- * each whose ġ was not 0; y changes in place. 1: model failure or D singular, -1: out of
- * memory. */
-static int hy_hold(hy_ctx *c, double t, double *y, const int *rows, int k, int record)
-{
-    int moving = 0;
-    if (hy_terms(c, t, y, c->u) || hy_inverse_mass(c))
-        return 1;
-    hy_delassus(c, rows, k);
-    for (int q = 0; q < k; ++q) {
-        c->target[q] = -c->before[q];
-        c->reg[q] = 1;
-        moving |= c->before[q] != 0;
-    }
-    if (!moving)
-        return 0;
-    if (hy_regularized_solve(c, c->D, c->target, c->reg, k, c->impulse))
-        return 1;
-    hy_apply_impulse(c, y, k);
-    for (int q = 0; q < k; ++q)
-        if (record && c->before[q] != 0 && hy_record(c, t, rows[q], LG_CONTACT))
-            return -1;
-    return 0;
-}
 
 /* The initial mode. A closed gap (g <= gap_tol) is at rest when |ġ| is at most the speed of a
  * fall through gap_tol, √(2·gap_tol·|g̈|) (g̈ with every contact open): it is held if its force
@@ -1196,6 +1368,8 @@ static int hy_switch(hy_ctx *c, double t, double *y, int *fired, int nfired)
 {
     lg_hybrid_t *h = c->h;
     int nc = 0, err;
+    for (int k = 0; k < c->npf; ++k)
+        c->sticking[k] = h->pmode[k] == 0;
     hy_inputs(c, t);
     if (hy_terms(c, t, y, c->u))
         return 1;
@@ -1390,6 +1564,10 @@ int lg_hybrid_solve(lg_hybrid_t *h, const lg_options_t *options, lg_hybrid_resul
     c.slip_offset = hy_alloc(blocks, &nb, (h->nf + npf + 1) * D);
     c.cached_y = hy_alloc(blocks, &nb, dim * D);
     c.activated = hy_alloc(blocks, &nb, (npf + 1) * sizeof(int));
+    c.sticking = hy_alloc(blocks, &nb, (npf + 1) * sizeof(int));
+    c.rested = hy_alloc(blocks, &nb, (npf + 1) * sizeof(int));
+    c.slid = hy_alloc(blocks, &nb, (ni + 1) * sizeof(int));
+    c.planars = hy_alloc(blocks, &nb, (npf + 1) * sizeof(int));
     int *unset = c.unset = hy_alloc(blocks, &nb, (npf + 1) * sizeof(int));
     c.K = hy_alloc(blocks, &nb, (size_t)kmax * kmax * D);
     c.x = hy_alloc(blocks, &nb, (sq + 1) * D);
