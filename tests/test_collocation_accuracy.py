@@ -565,6 +565,27 @@ def test_parameters_the_data_cannot_determine_get_infinite_standard_errors(oscil
     assert res.at_bounds == ("k",) and "(on a bound)" in res.summary()
 
 
+def test_a_re_plan_keeps_its_standard_errors_and_warns_of_a_coarse_grid(oscillator):
+    """`resolve` on its grid (mesh_tol None, its default) returned stderr NaN and cov None for
+    the unknown parameters, and never warned of a large dynamics error; now it gives the
+    estimates' errors as `solve` does, and reading the error of a coarse re-plan warns."""
+    _, mod = oscillator
+    t, data, push = record(mod, forced=True, noise=0.01)
+    prob = identification(mod, ["k"], t, data, push, k=3.0)
+    res = prob.solve(progress=False)
+    again = prob.resolve(res)
+    assert again.success and np.isfinite(again.stderr["k"]) and again.cov is not None
+    assert again.stderr["k"] == pytest.approx(res.stderr["k"], rel=1e-6)
+    coarse = lagrgen.Collocation(mod, nodes=11, duration=6.0, unknown_params=["k"],
+                                 params={"k": 3.0})
+    coarse.input("F", push).track(t, data, "x", weights=1 / 0.01 ** 2)
+    with pytest.warns(DiscretizationWarning):
+        first = coarse.solve(progress=False, mesh_tol=None)
+    replan = coarse.resolve(first)
+    with pytest.warns(DiscretizationWarning, match="dynamics error of this solution"):
+        assert replan.error > 1e-6
+
+
 def test_check_stops_after_its_time_limit(pendulum):
     """A re-simulation that cannot finish in time (a step limit here) gives an infinite
     deviation with the simulation's message, not hours of stepping."""

@@ -447,6 +447,31 @@ def test_pictures_show_shapes_masses_dampers_and_distinct_positions():
     assert len(damper.get_xdata()) > 4                       # a dashpot, not a bare line
 
 
+def test_frames_are_drawn_with_the_simulation_s_parameters_and_a_scene_at_rest_is_readable(
+        tmp_path):
+    """A pendulum run with L = 3: `frames_png` drew its bob at L = 1 (the model's default, not
+    sol.params); at rest, the scene's axes spanned ±6e-10 m around the bob."""
+    from lagrgen.outputs.plotting import drawable_tracks, frames_png, scene_limits, \
+        solution_parameters
+    model = Model("eng_pendulum")
+    th, = model.coordinates("th")
+    m, L, g = model.parameters(m=1.0, L=1.0, g=9.81)
+    model.particle(m, sp.Matrix([L * sp.sin(th), -L * sp.cos(th)]))
+    model.potential_energy(-m * g * L * sp.cos(th))
+    mod = lagrgen.build(model, backend="python")
+    sol = lagrgen.simulate(mod, (0, 1), [0.5, 0.0], params={"L": 3.0})
+    p = solution_parameters(model, sol, None)
+    assert p[list(model.parameter_names).index("L")] == 3.0
+    (kind, (bob, *_)), = drawable_tracks(model, p, np.array([0.0]), np.array([[0.5]]))
+    np.testing.assert_allclose(bob[0], [3 * np.sin(0.5), -3 * np.cos(0.5)])
+    assert len(frames_png(model, sol, str(tmp_path / "f"), count=2)) == 2
+    rest = lagrgen.simulate(mod, (0, 1), [0.0, 0.0], params={"L": 3.0})
+    tracks = drawable_tracks(model, solution_parameters(model, rest, None), rest.t[:3],
+                             rest.y[:1, :3])
+    x0, x1, y0, y1 = scene_limits(tracks)
+    assert x1 - x0 > 1.0 and y0 < -3.0 < y1
+
+
 def test_show_prints_units(tmp_path):
     (tmp_path / "m.py").write_text(FORCED)
     proc = run("show", "m.py", cwd=tmp_path)

@@ -143,3 +143,107 @@ def test_a_step_count_beyond_a_c_long_is_a_value_error(record):
     mod = record[0]
     with pytest.raises(ValueError, match="max_steps must be a positive integer"):
         lagrgen.simulate(mod, (0, 1), [1.0, 0.0], max_steps=2**70)
+
+
+def stiff_oscillator():
+    """m·ẍ + c·ẋ + k·x = 0 with k of 5.5e7 N/m (1.2 kHz), and an encoder that counts x/s, s a
+    scale of 2.5e-8 m per count."""
+    model = Model("fit_stiff")
+    x, = model.coordinates("x")
+    m, c, k, s = model.parameters(m=1.0, c=300.0, k=5.5e7, s=2.5e-8)
+    model.particle(m, sp.Matrix([x]))
+    model.spring(k, x)
+    model.damper(c, x)
+    model.output("counts", x / s)
+    return model
+
+
+@pytest.fixture(scope="module")
+def stiff(tmp_path_factory):
+    return lagrgen.build(stiff_oscillator(), out_dir=tmp_path_factory.mktemp("fit_stiff"))
+
+
+def test_fits_do_not_depend_on_the_units_of_the_data(stiff):
+    """A stiffness of 6e7 N/m from a 1 µm response in metres: the gradient Jᵀr was below
+    least_squares' absolute gtol at the start, and the fit returned its start (5.5e7, 17 of its
+    own standard errors off) with success; in micrometres it fitted. Now both find 6e7."""
+    t = np.linspace(0, 0.01, 201)
+    opts = dict(method="DOP853", rtol=1e-10)
+    data = lagrgen.simulate(stiff, (0, 0.01), [1e-6, 0], params={"k": 6e7}, t_eval=t,
+                            atol=1e-18, **opts).y[:1]
+    for scale in (1.0, 1e6):
+        fit = lagrgen.fit(stiff, t, data * scale, ["k"], [1e-6 * scale, 0], atol=1e-18 * scale,
+                          **opts)
+        assert fit.success and fit.params["k"] == pytest.approx(6e7, rel=1e-7)
+
+
+def test_a_small_parameter_seen_only_through_an_output_is_fitted(stiff):
+    """The encoder's scale s = 2e-8 m per count: the output's derivative stepped s by 1e-7
+    (∂counts/∂s came out +3e7 for −7.3e8) and the fit stayed at its start, 2.5e-8."""
+    t = np.linspace(0, 0.005, 101)
+    opts = dict(method="DOP853", rtol=1e-10, atol=1e-18)
+    sol = lagrgen.simulate(stiff, (0, 0.005), [1e-6, 0], t_eval=t, **opts)
+    counts = sol.y[0] / 2e-8
+    fit = lagrgen.fit(stiff, t, counts, ["s"], [1e-6, 0], measured=["counts"], **opts)
+    assert fit.success and fit.params["s"] == pytest.approx(2e-8, rel=1e-7)
+
+
+def test_fit_modes_updates_a_stiffness_of_any_size(stiff):
+    """From 4e8 N/m to a measured 4010.7 Hz (6.35e8 N/m): the fit stopped at its start with
+    success; 1.26 times the model's frequency at every size of k now lands on k = m·(2πf)²."""
+    for k0 in (4.0, 4e4, 4e8):
+        f = 1.26 * np.sqrt(k0) / (2 * np.pi)
+        upd = lagrgen.fit_modes(stiff, [0.0], [f], ["k"], initial={"k": k0})
+        assert upd.success and upd.params["k"] == pytest.approx((2 * np.pi * f) ** 2, rel=1e-7)
+
+
+def test_one_sided_bounds_are_open_on_their_none_side(record):
+    """bounds={"k": (0, None)} said the start was outside its bounds (None became NaN), and
+    (0,) raised an IndexError."""
+    mod, t, data = record
+    fit = lagrgen.fit(mod, t, data, ["k"], [1.0, 0.0], bounds={"k": (0, None)})
+    assert fit.params["k"] == pytest.approx(4.0, rel=1e-3)
+    fit = lagrgen.fit(mod, t, data, ["k"], [1.0, 0.0], bounds={"k": (None, 10.0)})
+    assert fit.params["k"] == pytest.approx(4.0, rel=1e-3)
+    with pytest.raises(ValueError, match=r"bounds\['k'\] must be a pair \(low, high\)"):
+        lagrgen.fit(mod, t, data, ["k"], [1.0, 0.0], bounds={"k": (0,)})
+    upd = lagrgen.fit_modes(mod, [0.0], [0.4], ["k"], bounds={"k": (0, None)})
+    assert upd.params["k"] == pytest.approx((2 * np.pi * 0.4) ** 2, rel=1e-6)
+
+
+def test_fit_modes_pairs_measured_frequencies_with_elastic_modes(tmp_path):
+    """A free-free pair of masses has a rigid-body mode at 0 Hz: its measured elastic frequency
+    was paired with it and the fit died in an SVD of NaNs; now k = m/2·(2πf)² exactly. Two
+    measured modes whose shapes pair with the same model mode are flagged, not matched."""
+    model = Model("fit_free_free")
+    x1, x2 = model.coordinates("x1 x2")
+    m1, m2, k = model.parameters(m1=1.0, m2=1.0, k=100.0)
+    model.particle(m1, sp.Matrix([x1]))
+    model.particle(m2, sp.Matrix([x2]))
+    model.spring(k, x2 - x1)
+    mod = lagrgen.build(model, out_dir=tmp_path)
+    upd = lagrgen.fit_modes(mod, [0.0, 0.0], [2.5], ["k"])
+    assert upd.success and upd.pairing == (1,)
+    assert upd.params["k"] == pytest.approx(0.5 * (2 * np.pi * 2.5) ** 2, rel=1e-8)
+    shapes = lagrgen.modes(mod, [0.0, 0.0]).shapes
+    alike = np.column_stack([shapes[:, 1], shapes[:, 1] + 0.05])
+    with pytest.warns(FitWarning, match="measured modes 0 and 1 are paired with the same"):
+        upd = lagrgen.fit_modes(mod, [0.0, 0.0], [2.5, 2.6], ["k"], shapes=alike)
+    assert not upd.success and upd.pairing == (1, 1)
+
+
+def test_a_linearization_refuses_point_arguments_in_frequency_response(record):
+    """frequency_response(lin, ..., p=...) returned the response at lin's own parameters."""
+    mod = record[0]
+    lin = lagrgen.linearize(mod, [0.0])
+    with pytest.raises(TypeError, match=r"frequency_response\(lin, p=\.\.\.\): a Linearization"):
+        lagrgen.frequency_response(lin, None, [1.0], input="F", p={"k": 8.0})
+
+
+def test_measured_coordinates_may_be_the_model_s_own_symbols(record):
+    """measured=[x] with the x(t) that model.coordinates returned was an UnknownNameError."""
+    mod, t, data = record
+    x, = oscillator().q
+    fit = lagrgen.fit(mod, t, data, ["k"], [1.0, 0.0], measured=[x])
+    assert fit.params["k"] == pytest.approx(4.0, rel=1e-3)
+    assert lagrgen.fit(mod, t, data, ["k"], [1.0, 0.0], measured=x).params == fit.params

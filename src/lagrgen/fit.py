@@ -24,7 +24,7 @@ from .runtime.arguments import key_name, key_names, parameters_from, state_vecto
     unknown_name
 from .sensitivity import sensitivity_columns
 from .simulate import simulate
-from .vibration import equilibrium, linearize, modes
+from .vibration import UnstableModeWarning, equilibrium, linearize, modes
 
 
 @dataclass
@@ -61,8 +61,7 @@ def measured_rows(mod, measured):
     """[(kind, index)] of the measured names: ("y", i) for a coordinate or `<coordinate>_dot`,
     ("output", k) for an output."""
     states = list(mod.coordinates) + [f"{c}_dot" for c in mod.coordinates]
-    names = list(mod.coordinates) if measured is None else (
-        [measured] if isinstance(measured, str) else list(measured))
+    names = list(mod.coordinates) if measured is None else key_names(measured)
     rows = []
     for name in names:
         if name in states:
@@ -138,7 +137,7 @@ def _output_derivatives(mod, t, y, p, u, k, columns, h=1e-7):
             dp.append(0.0)
             continue
         e = np.zeros(len(p))
-        e[j] = h * max(1.0, abs(p[j]))
+        e[j] = h * parameter_scale(p[j])
         dp.append((out(y, p + e) - out(y, p - e)) / (2 * e[j]))
     return dy, np.array(dp)
 
@@ -200,7 +199,8 @@ def fit(mod, t, data, params, y0, measured=None, initial=None, bounds=None, weig
     def jacobian(theta):
         return (w[:, :, None] * evaluate(theta)[1]).reshape(-1, len(names))
 
-    result = least_squares(residuals, theta0, jac=jacobian, bounds=(low, high), x_scale="jac")
+    result = scaled_least_squares(residuals, jacobian, theta0, low, high,
+                                  residual_scale(w * data))
     J = result.jac[w.ravel() != 0]
     accuracy = float(np.max(simulate_options.get("rtol", 1e-6)))
     rank = unseen_directions(J, names, accuracy)[0]
@@ -249,13 +249,27 @@ def _start_and_bounds(mod, names, columns, p, y0, initial, bounds):
             raise unknown_name(f"{what} (fitted)", unknown[0], tuple(names))
     theta0 = np.array([initial.get(name, p[j] if kind == "p" else y0[j])
                        for name, (kind, j) in zip(names, columns)], dtype=float)
-    low = np.array([bounds.get(name, (-np.inf, np.inf))[0] for name in names], dtype=float)
-    high = np.array([bounds.get(name, (-np.inf, np.inf))[1] for name in names], dtype=float)
+    pairs = [bound_pair(name, bounds.get(name)) for name in names]
+    low = np.array([pair[0] for pair in pairs], dtype=float)
+    high = np.array([pair[1] for pair in pairs], dtype=float)
     if np.any(~np.isfinite(theta0)):
         raise ValueError("every fitted name needs a finite start value (give initial={...})")
     if np.any(low >= high) or np.any(theta0 < low) or np.any(theta0 > high):
         raise ValueError("bounds must satisfy low < high and hold the start values")
     return theta0, low, high
+
+
+def bound_pair(name, given):
+    """(low, high) of a fitted name from its `bounds` entry: a pair whose None side is open
+    (±inf); no entry: (−inf, inf)."""
+    if given is None:
+        return -np.inf, np.inf
+    try:
+        low, high = given
+    except (TypeError, ValueError):
+        raise ValueError(f"bounds[{name!r}] must be a pair (low, high), None for an open side; "
+                         f"got {given!r}") from None
+    return (-np.inf if low is None else float(low)), (np.inf if high is None else float(high))
 
 
 def _apply(theta, columns, p, y0):
@@ -313,7 +327,7 @@ def fit_modes(mod, q0, measured_hz, params, initial=None, bounds=None, shapes=No
     `measured_hz` (relative residuals), with the analytic eigenvalue sensitivities
     ∂λ/∂p = φᵀ(∂K/∂p − λ·∂M/∂p)φ (∂K/∂p and ∂M/∂p by central differences of the linearization).
     Measured mode k is paired with the model mode of largest MAC with `shapes[:, k]` when given,
-    else with the k-th lowest.
+    else with the k-th lowest elastic mode (rigid-body modes, at 0 Hz, left out).
 
     Returns
     -------
@@ -359,14 +373,17 @@ def fit_modes(mod, q0, measured_hz, params, initial=None, bounds=None, shapes=No
         q = equilibrium(mod, q0, p=p_vector) if mod.n_constraints else q0
         return linearize(mod, q, p=p_vector, dependent=dependent)
 
-    def eigen(theta):
-        res = modes(linearized(with_theta(theta)))
+    def eigen(theta, trial=True):
+        with warnings.catch_warnings():
+            if trial:                       # a trial point may be unstable; the answer warns
+                warnings.simplefilter("ignore", UnstableModeWarning)
+            res = modes(linearized(with_theta(theta)))
         if res.kind != "classical":
             raise LagrgenError(
                 f"fit_modes needs the classical modes of a second-order form with symmetric C; "
                 f"the linearization of model {mod.name!r} here has none (velocity constraints "
                 "or gyroscopic terms): fit its eigenvalues with lagrgen.fit on responses instead")
-        order = _pairing(res.shapes, shapes, target.size)
+        order = _pairing(res.shapes, shapes, target.size, res.frequencies_hz)
         return res, order
 
     def residuals(theta):
@@ -378,7 +395,7 @@ def fit_modes(mod, q0, measured_hz, params, initial=None, bounds=None, shapes=No
         lam = res.omega ** 2
         J = np.empty((target.size, len(names)))
         for c, j in enumerate(index):
-            step = h * max(1.0, abs(theta[c]))
+            step = h * parameter_scale(theta[c])
             plus, minus = with_theta(theta), with_theta(theta)
             plus[j] += step
             minus[j] -= step
@@ -390,24 +407,81 @@ def fit_modes(mod, q0, measured_hz, params, initial=None, bounds=None, shapes=No
                 J[r, c] = dlam / (4 * np.pi * res.omega[mode]) / target[r]
         return J
 
-    result = least_squares(residuals, theta0, jac=jacobian, bounds=(low, high), x_scale="jac")
-    res, order = eigen(result.x)
+    result = scaled_least_squares(residuals, jacobian, theta0, low, high, 1.0)
+    res, order = eigen(result.x, trial=False)
     rank, directions = unseen_directions(result.jac, names, h)[:2]
     if directions:
         warn_unseen(directions, rank, len(names), "their estimates are one point of a family "
                      "that matches the frequencies as well")
     unidentified = tuple(n for n in names if any(n in d for d in directions))
+    shared = shared_pairs(order)
+    if shared:
+        warnings.warn(f"measured modes {shared} are paired with the same model mode (by their "
+                      "shapes' MAC): one model frequency cannot match both; give shapes that "
+                      "tell those modes apart", FitWarning, stacklevel=2)
     return ModalUpdate(params=dict(zip(names, map(float, result.x))),
                        frequencies_hz=res.frequencies_hz[list(order)], pairing=tuple(order),
-                       success=bool(result.success), cost=float(result.cost),
+                       success=bool(result.success) and not shared, cost=float(result.cost),
                        nfev=int(result.nfev), unidentified=unidentified, unseen=directions,
                        at_bounds=on_bounds(result.x, low, high, names))
 
 
-def _pairing(model_shapes, measured_shapes, k):
-    """The model mode paired with each measured mode: largest MAC, or the k lowest in order."""
+def parameter_scale(value):
+    """The size of a parameter for its difference steps and its scaling: abs(value), or 1 at 0
+    (a stiffness of 6e7 N/m and a compliance of 2e-8 m/N alike)."""
+    return abs(value) if value != 0 else 1.0
+
+
+def residual_scale(weighted_data):
+    """The root mean square of the weighted data (1 where it is 0 or missing): the unit of the
+    residuals the solver sees."""
+    finite = weighted_data[np.isfinite(weighted_data)]
+    rms = float(np.sqrt(np.mean(finite ** 2))) if finite.size else 0.0
+    return rms if rms > 0 else 1.0
+
+
+def scaled_least_squares(residuals, jacobian, theta0, low, high, unit):
+    """`scipy.optimize.least_squares` on θ = s·x (s = `parameter_scale` of each start value) and
+    residuals r/unit, so that its absolute tolerances (gtol on the gradient Jᵀr) mean the same for
+    a stiffness of 6e7 N/m fitted to micrometres as for one of 40 N/m fitted to centimetres (in SI
+    units the gradient was below gtol at the start: the fit returned its start, with success).
+    Returns the solver's result in θ and the model's units: x, fun, jac, cost, and its status."""
+    s = np.array([parameter_scale(v) for v in theta0])
+    result = least_squares(lambda x: residuals(s * x) / unit,
+                           theta0 / s, jac=lambda x: jacobian(s * x) * s / unit,
+                           bounds=(low / s, high / s), x_scale="jac")
+    result.x = s * result.x
+    result.fun = residuals(result.x)
+    result.jac = jacobian(result.x)
+    result.cost = 0.5 * float(result.fun @ result.fun)
+    return result
+
+
+def _pairing(model_shapes, measured_shapes, k, frequencies):
+    """The model mode paired with each measured mode: largest MAC, or the k lowest elastic
+    modes in order (a free-free structure's rigid-body modes, at 0 Hz, are not measured
+    natural frequencies)."""
     if measured_shapes is None:
-        return tuple(range(k))
+        frequencies = np.asarray(frequencies, dtype=float)
+        top = np.max(frequencies[np.isfinite(frequencies)], initial=0.0)
+        elastic = [i for i, f in enumerate(frequencies) if not (np.isfinite(f)
+                                                                and f <= RIGID * top)]
+        if len(elastic) < k:
+            raise LagrgenError(f"the model has {len(elastic)} elastic modes (above "
+                               f"{RIGID:g} of its highest frequency) for {k} measured "
+                               "frequencies: measure fewer, or give shapes to pair them")
+        return tuple(elastic[:k])
     num = (measured_shapes.T @ model_shapes) ** 2
     den = np.outer((measured_shapes ** 2).sum(0), (model_shapes ** 2).sum(0))
     return tuple(int(i) for i in np.argmax(num / den, axis=1))
+
+
+def shared_pairs(order):
+    """The measured modes (numbered from 0, as a text) paired with a model mode another one is
+    paired with too; '' when every pairing is its own."""
+    shared = [k for k, mode in enumerate(order) if list(order).count(mode) > 1]
+    return " and ".join(map(str, shared))
+
+
+#: A mode below this fraction of the highest frequency counts as a rigid-body mode (`_pairing`).
+RIGID = 1e-6

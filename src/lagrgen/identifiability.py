@@ -67,7 +67,8 @@ def covariance(J, s2, names, accuracy):
 
 
 def warn_unseen(directions, rank, k, consequence="their standard errors are reported as inf",
-                advice="Fit fewer names, fix some with params={...}, or measure more",
+                advice="Fit fewer names, fix the others at known values with p={...}, or "
+                "measure more",
                 stacklevel=3):
     """An IdentifiabilityWarning naming the names the data do not determine and the
     combinations along which the fit does not change (`directions`)."""

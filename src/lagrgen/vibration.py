@@ -442,13 +442,7 @@ def modes(mod_or_lin, q0=None, qd0=None, p=None, u=None, t=0.0, dependent=None):
                 "modes(lin, dependent=...): a Linearization has its independent states already "
                 f"({', '.join(mod_or_lin.states)}); pass dependent= to lagrgen.linearize, or "
                 "call lagrgen.modes(mod, q0, dependent=...) with the built model")
-        given = [name for name, value in (("q0", q0), ("qd0", qd0), ("p", p), ("u", u))
-                 if value is not None] + (["t"] if t != 0.0 else [])
-        if given:
-            raise TypeError(f"modes(lin, {', '.join(f'{g}=...' for g in given)}): a "
-                            "Linearization is taken at its own point and parameters; linearize "
-                            "again (lagrgen.linearize(mod, q0, p=..., u=...)) or call "
-                            "lagrgen.modes(mod, q0, p=..., u=...) with the built model")
+        refuse_point("modes", q0=q0, qd0=qd0, p=p, u=u, t=None if t == 0.0 else t)
     else:
         warn_frozen_time(mod_or_lin, t, "modal analysis")
     lin = as_linearization(mod_or_lin, q0, qd0, p, u, t, dependent)
@@ -536,16 +530,30 @@ def input_index(names, input, model_name=""):
     return names.index(input)
 
 
+def refuse_point(function, **given):
+    """TypeError for the point and parameter arguments (those not None) of `function` called on
+    a Linearization, which is taken at its own point and parameters."""
+    named = [name for name, value in given.items() if value is not None]
+    if named:
+        raise TypeError(f"{function}(lin, {', '.join(f'{g}=...' for g in named)}): a "
+                        "Linearization is taken at its own point and parameters; linearize "
+                        "again (lagrgen.linearize(mod, q0, p=..., u=...)) or call "
+                        f"lagrgen.{function}(mod, q0, p=..., u=...) with the built model")
+
+
 def frequency_response(mod, q0, freqs_hz, input="F", p=None, u=None, qd0=None):
     """δq/δu at the frequencies `freqs_hz`, shape (len(freqs_hz), n), complex: with a
     second-order form H(f) = T_q·(K − ω²M + iωC)⁻¹·B[:, input] for ω = 2πf, else the coordinate
     rows of basis·(iωI − A)⁻¹·B[:, input].
 
-    `mod` is a built model (linearized at (q0, qd0)) or a Linearization (q0 ignored). Where the
+    `mod` is a built model (linearized at (q0, qd0)) or a Linearization (then q0 None: it is
+    taken at its own point and parameters; a TypeError for any of q0, qd0, p, u). Where the
     dynamic stiffness is singular (ω = 0 with a rigid-body mode, an undamped resonance) H is
     infinite.
     """
     lin = mod if isinstance(mod, Linearization) else None
+    if lin is not None:
+        refuse_point("frequency_response", q0=q0, qd0=qd0, p=p, u=u)
     names = lin.inputs if lin is not None else mod.inputs
     name = lin.name if lin is not None else mod.name
     j = input_index(names, input, name)

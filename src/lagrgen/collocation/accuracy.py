@@ -14,9 +14,19 @@ j over every point of the motion. x̃ comes from the classical Runge–Kutta met
 once (the model's `rhs` called from C for a batch of states), each interval's steps halved until two
 integrations agree to a hundredth of max(tolerance, e_k) (Richardson's estimate for fourth order).
 """
+import warnings
+
 import numpy as np
 
 from ._points import state_rows
+
+#: The default tolerance of the relative dynamics error (`Collocation.solve(mesh_tol=...)`).
+DEFAULT_MESH_TOL = 1e-6
+
+
+class DiscretizationWarning(UserWarning):
+    """A solution's dynamics error is larger than the default tolerance."""
+
 
 #: The fractions of an interval where the polynomial and the integration are compared.
 SAMPLES = np.array([0.25, 0.5, 0.75, 1.0])
@@ -25,6 +35,16 @@ FIRST_STEPS, MOST_STEPS = 4, 4096
 #: An integration is accurate enough when its estimated error is below this share of what it
 #: measures (the larger of the tolerance and the interval's error).
 INTEGRATION_SHARE = 0.01
+
+
+def warn_if_coarse(error, intervals, stacklevel):
+    """A DiscretizationWarning for a solution on the grid as given (mesh_tol None) whose
+    dynamics error exceeds DEFAULT_MESH_TOL."""
+    if error > DEFAULT_MESH_TOL:
+        warnings.warn(f"the dynamics error of this solution is {error:.2g} (relative, largest "
+                      f"over its {intervals} intervals): solve with mesh_tol="
+                      f"{DEFAULT_MESH_TOL:g} (the default) to refine the grid until it is "
+                      "within that", DiscretizationWarning, stacklevel=stacklevel)
 
 
 def interval_errors(result, tol=1e-6):

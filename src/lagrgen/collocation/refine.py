@@ -37,12 +37,11 @@ from dataclasses import replace
 
 import numpy as np
 
-from .accuracy import interval_errors
+from .accuracy import DEFAULT_MESH_TOL, DiscretizationWarning, interval_errors, \
+    warn_if_coarse  # noqa: F401
 from .grid import ControlMesh
 from .result import MeshRecord
 
-#: The default tolerance of the relative dynamics error (`Collocation.solve(mesh_tol=...)`).
-DEFAULT_MESH_TOL = 1e-6
 #: The most pieces one interval is split into per mesh.
 MAX_PIECES = 8
 #: A mesh has at most MAX_GROWTH times the nodes of the last, and never more than MAX_NODES.
@@ -63,10 +62,6 @@ ON_BOUND = 1e-3
 SWITCH_SPAN = 3
 
 
-class DiscretizationWarning(UserWarning):
-    """A solution's dynamics error is larger than the default tolerance."""
-
-
 def solve_refined(problem, guess, settings, mesh_tol, max_meshes, start=None):
     """The CollocationResult of `problem` refined until its error is within `mesh_tol` (None:
     the problem's grid alone), with `errors`, `error` and `meshes`; from `start` = (the mesh, its
@@ -84,6 +79,8 @@ def solve_refined(problem, guess, settings, mesh_tol, max_meshes, start=None):
     result = solve_mesh(problem, layout, controls, guess, settings, shift=shift,
                         replan=start is not None)
     if start is not None and mesh_tol is None:
+        if result.success:
+            result.estimate_errors(stacklevel=3)
         return result
     while True:
         began = time.perf_counter()
@@ -150,15 +147,13 @@ def finished(result, errors, meshes, mesh_tol, seconds, limit=None):
                             f"{excess:.2g} (largest near t = {when:.4g} s): collocation bounds "
                             "the states at its points only; a finer mesh shrinks it")
     if mesh_tol is None:
-        if result.error > DEFAULT_MESH_TOL:
-            warnings.warn(f"the dynamics error of this solution is {result.error:.2g} (relative, "
-                          f"largest over its {errors.size} intervals): solve with mesh_tol="
-                          f"{DEFAULT_MESH_TOL:g} (the default) to refine the grid until it is "
-                          "within that", DiscretizationWarning, stacklevel=4)
+        warn_if_coarse(result.error, errors.size, stacklevel=5)
     elif result.success and result.error > mesh_tol:
         result.success = False
         stop = limit or f"after {len(meshes)} meshes ({meshes[-1].nodes} nodes)"
-        result.message = (f"IPOPT solved each mesh, but the dynamics error {result.error:.2e} "
+        solvers = " and ".join(sorted({m.solver.upper() if m.solver == "ipopt" else
+                                       "the structured SQP" for m in meshes}))
+        result.message = (f"{solvers} solved each mesh, but the dynamics error {result.error:.2e} "
                           f"still exceeds mesh_tol={mesh_tol:g} {stop}: raise max_meshes, give "
                           "more nodes or a larger mesh_tol (a motion that needs ever more nodes "
                           "may be stiff or undetermined: look at res.errors)")

@@ -94,11 +94,13 @@ class CollocationResult:
 
     def __getattr__(self, name):
         """`errors`, `error`, `meshes` and `mesh_tol` of a re-plan (`Collocation.resolve`
-        without mesh_tol), measured when first read."""
+        without mesh_tol), measured when first read (a re-plan in a loop need not pay for it),
+        with the DiscretizationWarning of a solve on its grid as given when the error is large."""
         if name in ("errors", "error", "meshes", "mesh_tol") and "x" in self.__dict__:
-            from .accuracy import interval_errors
+            from .accuracy import interval_errors, warn_if_coarse
             errors = interval_errors(self)
             self.errors, self.error, self.mesh_tol = errors, float(errors.max()), None
+            warn_if_coarse(self.error, errors.size, stacklevel=3)
             self.meshes = (MeshRecord(self._layout.nodes, self.iterations, self.error,
                                       self.objective, self.status, self.seconds,
                                       self.t.copy(), errors, self.solver),)

@@ -11,7 +11,7 @@ under it (`draw_ground`).
 import numpy as np
 
 from ..errors import LagrgenError
-from .figures import new_figure, numeric_function, write_frames
+from .figures import new_figure, numeric_function, span_of, write_frames
 
 AXIS_COLOURS = ("tab:red", "tab:green", "tab:blue")
 
@@ -147,7 +147,7 @@ def box(tracks):
     pts = np.concatenate([np.asarray(arr).reshape(-1, 3) for kind, data in tracks
                           for arr in (data[:1] if kind == "body3d" else data)])
     lo, hi = pts.min(axis=0), pts.max(axis=0)
-    size = max((hi - lo).max(), 1e-9)
+    size = span_of(lo, hi)
     return (lo + hi) / 2, 0.5 * size * 1.15 + 0.05 * size
 
 

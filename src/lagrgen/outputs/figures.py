@@ -64,3 +64,13 @@ def numeric_function(model, expr, p):
     plain = sp.sympify(expr).xreplace(values).xreplace({**dict(zip(model.q, Q)), model.t: T})
     f = sp.lambdify([T, Q], plain, "numpy")
     return lambda t, q: np.broadcast_to(np.asarray(f(t, tuple(q)), dtype=float), np.shape(t))
+
+
+def span_of(lo, hi):
+    """The size of a scene from its extent: the largest side, or where nothing moves (a
+    mechanism at rest) the distance of its centre from the origin, at least 1."""
+    size = float((hi - lo).max())
+    centre = 0.5 * (lo + hi)
+    if size <= 1e-9 * (1.0 + np.abs(centre).max()):
+        size = max(float(np.abs(centre).max()), 1.0)
+    return size

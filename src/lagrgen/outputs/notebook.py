@@ -76,12 +76,10 @@ class NotebookAnimation:
 def animation(sol, model=None, params=None, fps=20, max_frames=120, dpi=72, title=None):
     """A NotebookAnimation of `sol`: frames equally spaced in time, `fps` per simulated second, at
     most `max_frames`; `params` default to the values the simulation used."""
-    from .plotting import animation_frames, check_drawable, model_parameters
+    from .plotting import animation_frames, check_drawable, solution_parameters
     model = drawing_model(sol, model)
     check_drawable(model)
-    if params is None:
-        params = sol.get("params")
-    p = model_parameters(model, params)
+    p = solution_parameters(model, sol, params)
     times, y = animation_frames(sol, fps, max_frames)
     return NotebookAnimation(model, times, y[:len(model.q)], p, fps=fps, dpi=dpi, title=title)
 

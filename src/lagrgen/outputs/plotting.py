@@ -9,7 +9,7 @@ import numpy as np
 from ..errors import LagrgenError
 from ..runtime.arguments import defaults_array, parameter_vector
 from .animation3d import animate_3d, is_3d
-from .figures import finished, new_figure, numeric_function, write_frames  # noqa: F401
+from .figures import finished, new_figure, numeric_function, span_of, write_frames  # noqa: F401
 
 MAX_MODES_PLOTTED = 8
 
@@ -215,6 +215,14 @@ def model_parameters(model, params):
                             defaults_array(model.parameter_defaults))
 
 
+def solution_parameters(model, sol, params):
+    """`model_parameters` of `params`, by default the values the simulation `sol` used (its
+    `params`; the model's defaults where it has none)."""
+    if params is None:
+        params = sol.get("params") if hasattr(sol, "get") else getattr(sol, "params", None)
+    return model_parameters(model, params)
+
+
 def planar(model, position, p):
     """f(t, q) -> (frames, 2) array: a 1-D position lies on the x axis, a 3-D one is seen along z."""
     parts = [numeric_function(model, c, p) for c in list(position)[:2]]
@@ -335,7 +343,7 @@ def scene_limits(tracks):
             points.extend(np.asarray(arr).reshape(-1, 2) for arr in data)
     allpts = np.concatenate(points)
     lo, hi = allpts.min(axis=0), allpts.max(axis=0)
-    size = max((hi - lo).max(), 1e-9)
+    size = span_of(lo, hi)
     centre = (lo + hi) / 2
     half = 0.5 * size * 1.2 + 0.05 * size
     return centre[0] - half, centre[0] + half, centre[1] - half, centre[1] + half
@@ -395,7 +403,7 @@ class Scene:
 def frames_png(model, sol, prefix, count=4, params=None, dpi=80, title=None):
     """Save `count` equally spaced frames of the animation as `<prefix><k>.png`; return the paths
     (to look at a mechanism without a GIF viewer)."""
-    p = model_parameters(model, params)
+    p = solution_parameters(model, sol, params)
     times, y = frame_states(sol, count)
     tracks = drawable_tracks(model, p, times, y[:len(model.q)])
     xmin, xmax, ymin, ymax = scene_limits(tracks)
@@ -458,7 +466,7 @@ def animate(model, sol, path, params=None, fps=20, max_frames=120, dpi=80, title
     frames are equally spaced in time, at `fps` frames per simulated second up to `max_frames`.
     """
     check_drawable(model)
-    p = model_parameters(model, params)
+    p = solution_parameters(model, sol, params)
     times, y = animation_frames(sol, fps, max_frames)
     if is_3d(model):                      # 3-D bodies or 3-component points: matplotlib's 3-D axes
         return animate_3d(model, times, y[:len(model.q)], path, p, fps=fps, dpi=dpi, title=title)

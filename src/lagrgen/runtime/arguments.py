@@ -10,8 +10,10 @@ from ..names import key_name  # noqa: F401  (re-exported: the runtime reads keys
 
 
 def key_names(names):
-    """A name, a Symbol or a sequence of them as a list of names (`key_name` of each)."""
-    single = isinstance(names, str) or getattr(names, "is_Symbol", False)
+    """A name, a Symbol, an applied function x(t) or a sequence of them as a list of names
+    (`key_name` of each)."""
+    single = isinstance(names, str) or getattr(names, "is_Symbol", False) \
+        or getattr(names, "is_Function", False)
     return [key_name(name) for name in ([names] if single else names)]
 
 
