@@ -147,6 +147,21 @@ def test_sensitivities_match_the_closed_form_and_central_differences(built, meth
     assert_allclose(sol.sensitivities[2, 0], closed_form_x(t, 4.0, 0.4), atol=tol)  # ∂x/∂x0
 
 
+@pytest.mark.parametrize("engine", ["native", "scipy"])
+def test_dense_output_with_sensitivities_gives_the_states(built, engine):
+    """sol.sol(t) of a run with sensitivities returned the augmented state (states, then the
+    sensitivities: 8 rows for 2 states); it gives the states as sol.y holds them, and
+    sol.sol.sensitivities(t) the rest."""
+    mod = built["osc", "c"]
+    sol = lagrgen.simulate(mod, (0, 5), [1.0, 0.0], t_eval=[0.0, 2.5, 5.0], rtol=1e-10,
+                           atol=1e-12, sensitivities=["k", "c"], dense_output=True,
+                           engine=engine)
+    assert sol.sol(2.5).shape == (2,) and sol.sol([1.0, 2.5]).shape == (2, 2)
+    assert_allclose(sol.sol(2.5), sol.y[:, 1], atol=1e-9)
+    assert sol.sol.sensitivities(2.5).shape == (2, 2)
+    assert_allclose(sol.sol.sensitivities([2.5, 5.0]), sol.sensitivities[:, :, 1:], atol=1e-9)
+
+
 def test_sensitivities_of_a_constrained_model_match_central_differences(built):
     mod = built["crank", "c"]
     y0 = lagrgen.consistent_state(mod, np.r_[np.full(mod.n_coordinates, 0.2),

@@ -118,5 +118,23 @@ def solve_sensitivities(mod, t_span, y0, method, p, u_at, rtol, atol, names, inp
             drop_guard_event(sol, guard, t_span)
     sol.sensitivities = sol.y[dim:].reshape(len(columns), dim, -1)
     sol.y = sol.y[:dim]
+    if getattr(sol, "sol", None) is not None:
+        sol.sol = StatesOnly(sol.sol, dim)
     sol.sensitivity_names = tuple(names if not isinstance(names, str) else [names])
     return sol
+
+
+class StatesOnly:
+    """The dense output of a run with sensitivities, as `sol.sol(t)` of any run gives it: the
+    states y(t) (its first `dim` rows); `sensitivities(t)` the (k, dim) or (k, dim, len(t))
+    ∂y(t)/∂p_j."""
+
+    def __init__(self, dense, dim):
+        self.dense, self.dim = dense, dim
+
+    def __call__(self, t):
+        return self.dense(t)[:self.dim]
+
+    def sensitivities(self, t):
+        z = np.asarray(self.dense(t))
+        return z[self.dim:].reshape((-1, self.dim) + z.shape[1:])
