@@ -2,6 +2,7 @@
 records (weighted least squares, friction, physically consistent estimates) and exciting
 trajectories, on hand-written arms whose parameters are the links' inertial parameters."""
 import types
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -551,3 +552,15 @@ def test_a_urdf_arms_standard_errors_are_honest_over_20_noise_seeds(arm7):
     exact = identify_inertial(mod, t, q, tau, base=base)
     bias = (values_of(exact, base.names) - expected) / stderr_of(est, base.names)
     assert np.abs(bias).max() < 0.05
+
+
+def test_base_parameter_names_do_not_change_with_the_seed(tmp_path):
+    """A four-joint arm with tilted axes and rotated inertial frames: the coefficient 0.0035867804…
+    of m_link4 came out …804 with seed 0 and …805 with seed 1 (rounded to each seed's known
+    precision) and the names, the keys of the estimates, differed; they are the same now."""
+    path = Path(__file__).parent / "data" / "arm3_tilted.urdf"
+    mod = lagrgen.build(lagrgen.from_urdf(path, parameters="inertial", joint_dynamics=False),
+                        out_dir=tmp_path)
+    first, second = base_parameters(mod), base_parameters(mod, seed=1)
+    assert np.abs(first.matrix - second.matrix).max() < 1e-9
+    assert first.names == second.names

@@ -182,13 +182,19 @@ def _named_base(names, kept, dependent, beta, zero):
                           unidentifiable=tuple(names[j] for j in zero))
 
 
+#: The significant digits of a coefficient in a base parameter's name.
+NAME_DIGITS = 6
+
+
 def _combination_name(row, names, lead):
-    """"Izz_link1 + 0.2025*m_link2 - mx_link3": the lead parameter, then the others in order."""
+    """"Izz_link1 + 0.2025*m_link2 - mx_link3": the lead parameter, then the others in order,
+    coefficients to NAME_DIGITS significant digits (their last digits change with the random
+    states of `base_parameters`, and the names are the keys of the estimates)."""
     text = names[lead]
     for j in np.flatnonzero(row):
         if j == lead:
             continue
         c = row[j]
-        magnitude = "" if abs(c) == 1 else f"{abs(c):.12g}*"
+        magnitude = "" if abs(c) == 1 else f"{abs(c):.{NAME_DIGITS}g}*"
         text += f" {'-' if c < 0 else '+'} {magnitude}{names[j]}"
     return text
