@@ -586,6 +586,20 @@ def test_a_re_plan_keeps_its_standard_errors_and_warns_of_a_coarse_grid(oscillat
         assert replan.error > 1e-6
 
 
+def test_tying_an_input_late_in_the_refinement_does_not_cost_the_optimum(pendulum):
+    """A least-time swing-up with torque and speed limits, trapezoidal on 21 nodes refined to
+    1e-9: its fourth mesh (296 nodes) reached 1.004836 s; the fifth tied the torque (found to
+    switch) to one polynomial per interval of the user's 21 knots and returned 1.006341 s as a
+    success. A mesh whose new ties cost more than the error allows is solved again untied."""
+    _, mod = pendulum
+    prob = lagrgen.Collocation(mod, nodes=21, duration=(0.3, 5.0), scheme="trapezoidal")
+    prob.bound("T", -15, 15).bound("theta_dot", -4.5, 4.5)
+    prob.initial(q=[0.0], qd=[0.0]).final(q=[np.pi], qd=[0.0]).minimize(time=True)
+    res = prob.solve(progress=False, mesh_tol=1e-9)
+    assert res.success and res.duration == pytest.approx(1.004835, abs=2e-6)
+    assert min(m.objective for m in res.meshes) >= res.meshes[-1].objective - 1e-6
+
+
 def test_check_stops_after_its_time_limit(pendulum):
     """A re-simulation that cannot finish in time (a step limit here) gives an infinite
     deviation with the simulation's message, not hours of stepping."""
