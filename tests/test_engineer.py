@@ -472,6 +472,26 @@ def test_frames_are_drawn_with_the_simulation_s_parameters_and_a_scene_at_rest_i
     assert x1 - x0 > 1.0 and y0 < -3.0 < y1
 
 
+def test_frames_between_long_steps_follow_the_motion_not_straight_lines():
+    """An explicit solver stepped a bouncing ball from t = 0.794 to 1.174 and the frame at t = 1
+    drew it 0.18 m off its path (linear interpolation); q between saved points is now the cubic
+    Hermite interpolant of q and q̇, exact for a fall, and at an impact (two points at one time)
+    the frame at that time shows the state after it."""
+    from lagrgen.outputs.plotting import hermite_states
+    g = 9.81
+    t = np.array([0.0, 0.3, 0.8, 0.8, 1.1])
+    v = np.array([0.0, -g * 0.3, -g * 0.8, 0.5 * g * 0.8, 0.5 * g * 0.8 - g * 0.3])
+    q = np.array([1.0, 1 - g * 0.3 ** 2 / 2, 1 - g * 0.8 ** 2 / 2, 1 - g * 0.8 ** 2 / 2,
+                  1 - g * 0.8 ** 2 / 2 + 0.5 * g * 0.8 * 0.3 - g * 0.3 ** 2 / 2])
+    times = np.array([0.1, 0.55, 0.8, 0.95])
+    drawn = hermite_states(t, np.vstack([q, v]), times)
+    fall = 1 - g * times[:2] ** 2 / 2
+    np.testing.assert_allclose(drawn[0, :2], fall, atol=1e-12)
+    np.testing.assert_allclose(drawn[1, 2], v[3])
+    rise = q[3] + v[3] * 0.15 - g * 0.15 ** 2 / 2
+    np.testing.assert_allclose(drawn[0, 3], rise, atol=1e-12)
+
+
 def test_show_prints_units(tmp_path):
     (tmp_path / "m.py").write_text(FORCED)
     proc = run("show", "m.py", cwd=tmp_path)

@@ -303,13 +303,31 @@ def dashpot(a, b, width=0.05):
 
 
 def frame_states(sol, n_frames):
-    """(times, y at those times): n_frames equally spaced times, y interpolated from `sol`."""
+    """(times, y at those times): n_frames equally spaced times, y from `sol`'s dense output, else
+    interpolated between its saved points (`hermite_states`)."""
     t = np.asarray(sol.t, dtype=float)
     y = np.asarray(sol.y, dtype=float)
     times = np.linspace(t[0], t[-1], n_frames)
     if getattr(sol, "sol", None) is not None:
         return times, np.asarray(sol.sol(times))
-    return times, np.array([np.interp(times, t, row) for row in y])
+    return times, hermite_states(t, y, times)
+
+
+def hermite_states(t, y, times):
+    """y = [q, q̇] at `times` between the saved points (t, y): q by the cubic Hermite interpolant
+    of q and q̇ at the ends of each interval, q̇ linearly. An explicit solver's long steps drew a
+    bouncing ball 0.18 m off its path by straight lines; an interval of zero length (an impact's
+    states before and after) gives the later state."""
+    if y.shape[0] % 2 or t.size < 2:
+        return np.array([np.interp(times, t, row) for row in y])
+    n = y.shape[0] // 2
+    i = np.clip(np.searchsorted(t, times, side="right") - 1, 0, t.size - 2)
+    h = t[i + 1] - t[i]
+    s = np.where(h > 0, (times - t[i]) / np.where(h > 0, h, 1.0), 1.0)
+    q0, q1, v0, v1 = y[:n, i], y[:n, i + 1], y[n:, i], y[n:, i + 1]
+    q = ((2 * s ** 3 - 3 * s ** 2 + 1) * q0 + (s ** 3 - 2 * s ** 2 + s) * h * v0
+         + (3 * s ** 2 - 2 * s ** 3) * q1 + (s ** 3 - s ** 2) * h * v1)
+    return np.vstack([q, (1 - s) * v0 + s * v1])
 
 
 def zigzag(a, b, coils=6, width=0.05):
