@@ -6,6 +6,8 @@ A = [Φ_q; A_v]; its `constraint_residuals(t, y)` are Φ(q, t) (holonomic) follo
 c = A·q̇ + b (all constraints).
 Since c is affine in q̇, A is read off c exactly: column j is c(q, e_j) − c(q, 0).
 """
+import warnings
+
 import numpy as np
 
 from .errors import ConstraintError
@@ -123,7 +125,6 @@ def warn_off_constraints(mod, t, y, p, u=None, stacklevel=3):
         return
     r = np.abs(mod.constraint_residuals(float(t), np.asarray(y, dtype=float), p, u))
     if r.max(initial=0.0) > START_TOL * max(1.0, np.abs(y).max()):
-        import warnings
         names, n_h = tuple(mod.info.constraint_names), mod.info.n_holonomic
         worst = int(np.argmax(r))
         which = f"of {names[worst]!r}" if worst < n_h else \

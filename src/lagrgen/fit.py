@@ -445,15 +445,16 @@ def scaled_least_squares(residuals, jacobian, theta0, low, high, unit):
     residuals r/unit, so that its absolute tolerances (gtol on the gradient Jᵀr) mean the same for
     a stiffness of 6e7 N/m fitted to micrometres as for one of 40 N/m fitted to centimetres (in SI
     units the gradient was below gtol at the start: the fit returned its start, with success).
-    Returns the solver's result in θ and the model's units: x, fun, jac, cost, and its status."""
+    Returns the solver's result in θ and the model's units: x, fun, jac, cost, and its status
+    (fun, jac and cost scaled back, not evaluated again)."""
     s = np.array([parameter_scale(v) for v in theta0])
     result = least_squares(lambda x: residuals(s * x) / unit,
                            theta0 / s, jac=lambda x: jacobian(s * x) * s / unit,
                            bounds=(low / s, high / s), x_scale="jac")
     result.x = s * result.x
-    result.fun = residuals(result.x)
-    result.jac = jacobian(result.x)
-    result.cost = 0.5 * float(result.fun @ result.fun)
+    result.fun = result.fun * unit
+    result.jac = result.jac * unit / s
+    result.cost = result.cost * unit ** 2
     return result
 
 

@@ -58,6 +58,7 @@ C (`lagrgen.native._ode.solve_hybrid`, `native/lg_hybrid.c`, the same rules).
 import math
 import threading
 import time
+import warnings
 from contextlib import contextmanager
 
 import numpy as np
@@ -1415,7 +1416,6 @@ def check_hybrid_run(mod, t_span, stacklevel=4):
                          f"t_span=({t0:g}, {tf:g}) goes backward (impacts lose energy and "
                          f"sticking is not reversible); give t0 < t1")
     if mod.event_definitions:
-        import warnings
         names = ", ".join(e[0] for e in mod.event_definitions)
         warnings.warn(f"model {mod.name!r} has impacts or frictions: its hybrid solve does not "
                       f"locate the events declared with model.event ({names}), so the result "
